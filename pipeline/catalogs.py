@@ -1,0 +1,223 @@
+"""Catalog loading: YAML entries validated into typed, immutable specs.
+
+Catalog files live in ``catalogs/`` (or the folder named by ``FTSWEEP_CATALOGS``). Each
+file maps entry names to entries; unknown keys, missing keys and out-of-range values are
+refused with a :class:`CatalogError` naming the file, the entry, the key and what is
+allowed.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt, ValidationError
+
+from stages.surfaces import FAMILIES, Aperture, SurfaceFn
+
+
+class CatalogError(ValueError):
+    """A catalog file or entry is missing or invalid; the message says what to change."""
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# --------------------------------------------------------------------------- apertures
+class CircleAperture(Strict):
+    shape: Literal["circle"]
+    radius_um: PositiveFloat = Field(description="aperture radius [µm]")
+
+
+class RectangleAperture(Strict):
+    shape: Literal["rectangle"]
+    width_um: PositiveFloat = Field(description="aperture width along x [µm]")
+    height_um: PositiveFloat = Field(description="aperture height along y [µm]")
+
+
+ApertureSpec = Annotated[Union[CircleAperture, RectangleAperture], Field(discriminator="shape")]
+
+
+# --------------------------------------------------------------------------- surfaces
+class SinewaveParams(Strict):
+    amplitude_x_um: float
+    amplitude_y_um: float
+    wavelength_x_um: PositiveFloat
+    wavelength_y_um: PositiveFloat
+    phase_x_deg: float = 0.0
+    phase_y_deg: float = 0.0
+
+
+class LensArrayParams(Strict):
+    radius_um: PositiveFloat
+    sag_um: PositiveFloat
+    pitch_um: PositiveFloat
+    count_x: PositiveInt
+    count_y: PositiveInt
+
+
+class _SurfaceBase(Strict):
+    description: str = ""
+    aperture: ApertureSpec
+    layout: Literal["ring", "mesh"] = Field(description="layout method used by default")
+
+
+class SinewaveSurface(_SurfaceBase):
+    family: Literal["sinewave2d"]
+    params: SinewaveParams
+
+
+class LensArraySurface(_SurfaceBase):
+    family: Literal["lens_array"]
+    params: LensArrayParams
+
+
+SurfaceSpec = Annotated[Union[SinewaveSurface, LensArraySurface], Field(discriminator="family")]
+
+
+def surface_callable(spec: SinewaveSurface | LensArraySurface) -> SurfaceFn:
+    """The surface callable ``fn(x, y) -> (f, fx, fy)`` of a catalog entry (µm in, µm out)."""
+    return functools.partial(FAMILIES[spec.family].evaluate, **spec.params.model_dump())
+
+
+def gradient_bound(spec: SinewaveSurface | LensArraySurface) -> float:
+    """Analytic upper bound of |∇f| [-] for a catalog entry."""
+    return FAMILIES[spec.family].gradient_bound(**spec.params.model_dump())
+
+
+def aperture_of(spec: SinewaveSurface | LensArraySurface) -> Aperture:
+    """The stage-level :class:`~stages.surfaces.Aperture` of a catalog entry."""
+    return Aperture(**spec.aperture.model_dump())
+
+
+# --------------------------------------------------------------------------- machines
+class Machine(Strict):
+    """A fast tool servo and its controller (physics.md §1, §6 dynamics)."""
+
+    description: str = ""
+    capacity_points: PositiveInt = Field(description="control points the controller can hold")
+    command_rate_hz: PositiveFloat = Field(description="FTS command rate [Hz]")
+    travel_um: PositiveFloat = Field(description="W-axis travel [µm]")
+    peak_accel_m_s2: PositiveFloat = Field(description="peak W acceleration [m/s²]")
+    continuous_accel_m_s2: PositiveFloat = Field(description="continuous W acceleration [m/s²]")
+    bandwidth_hz: PositiveFloat = Field(description="closed-loop bandwidth [Hz]")
+    bandwidth_amplitude_um: PositiveFloat = Field(description="amplitude at which the bandwidth holds [µm]")
+
+
+class Cutting(Strict):
+    """Cutting conditions (physics.md §1, §7)."""
+
+    description: str = ""
+    feed_um: PositiveFloat = Field(description="feed per revolution F [µm/rev]")
+    nose_radius_um: PositiveFloat = Field(description="tool nose radius Rc [µm]")
+    spindle_rpm: PositiveFloat = Field(description="spindle speed [rev/min]")
+
+
+# --------------------------------------------------------------------------- loading
+def catalog_dir() -> Path:
+    """Folder holding the catalog YAML files: ``$FTSWEEP_CATALOGS`` or the repository's."""
+    env = os.environ.get("FTSWEEP_CATALOGS")
+    return Path(env) if env else Path(__file__).resolve().parent.parent / "catalogs"
+
+
+def _format_error(path: Path, name: str, err: ValidationError, model: Any) -> str:
+    lines = [f"{path}: entry '{name}' is invalid:"]
+    for e in err.errors():
+        loc = ".".join(str(p) for p in e["loc"])
+        where = f"{name}.{loc}" if loc else name
+        if e["type"] == "extra_forbidden":
+            allowed = _allowed_keys(model, e["loc"][:-1])
+            hint = f" (allowed: {', '.join(allowed)})" if allowed else ""
+            lines.append(f"  - {where}: unknown key{hint}")
+        elif e["type"] == "missing":
+            lines.append(f"  - {where}: required key is missing")
+        else:
+            lines.append(f"  - {where}: {e['msg']} (got {e.get('input')!r})")
+    return "\n".join(lines)
+
+
+def _allowed_keys(model: Any, loc: tuple[Any, ...]) -> list[str]:
+    """Field names of the (sub)model at ``loc``, following discriminated-union tags."""
+    candidates = _union_members(model)
+    for part in loc:
+        nxt = []
+        for m in candidates:
+            if isinstance(m, type) and issubclass(m, BaseModel):
+                if part in m.model_fields:
+                    nxt.extend(_union_members(m.model_fields[part].annotation))
+                elif isinstance(part, str):
+                    # a discriminated union puts the tag value in loc: keep the tagged member
+                    tag = [f for f in m.model_fields.values() if getattr(f.annotation, "__args__", None) == (part,)]
+                    if tag:
+                        nxt.append(m)
+        candidates = nxt
+    names: list[str] = []
+    for m in candidates:
+        if isinstance(m, type) and issubclass(m, BaseModel):
+            names.extend(k for k in m.model_fields if k not in names)
+    return names
+
+
+def _union_members(annotation: Any) -> list[Any]:
+    args = getattr(annotation, "__args__", None)
+    origin = getattr(annotation, "__origin__", None)
+    if origin is Annotated or (args and getattr(annotation, "__metadata__", None)):
+        return _union_members(args[0])
+    if origin is Union:
+        return [m for a in args for m in _union_members(a)]
+    return [annotation]
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    if not path.exists():
+        raise CatalogError(f"catalog file {path} does not exist")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise CatalogError(f"{path}: not valid YAML: {exc}") from exc
+    if not isinstance(data, dict) or not data:
+        raise CatalogError(f"{path}: expected a mapping of entry names to entries")
+    return data
+
+
+def load_catalog(path: Path, model: Any) -> dict[str, Any]:
+    """Load every entry of a catalog file into ``model`` (a pydantic model or union type)."""
+    from pydantic import TypeAdapter
+
+    adapter = TypeAdapter(model)
+    out: dict[str, Any] = {}
+    for name, entry in _read_yaml(path).items():
+        if not isinstance(entry, dict):
+            raise CatalogError(f"{path}: entry '{name}' must be a mapping, got {type(entry).__name__}")
+        try:
+            out[str(name)] = adapter.validate_python(entry)
+        except ValidationError as exc:
+            raise CatalogError(_format_error(path, str(name), exc, model)) from None
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def _cached(kind: str, folder: str) -> dict[str, Any]:
+    model = {"surfaces": SurfaceSpec, "machines": Machine, "cutting": Cutting}[kind]
+    return load_catalog(Path(folder) / f"{kind}.yaml", model)
+
+
+def entry(kind: str, name: str, folder: Path | None = None) -> Any:
+    """One validated entry of catalog ``kind`` (``surfaces``, ``machines`` or ``cutting``)."""
+    folder = folder or catalog_dir()
+    entries = _cached(kind, str(folder))
+    if name not in entries:
+        raise CatalogError(
+            f"unknown {kind[:-1] if kind.endswith('s') else kind} '{name}' in {folder / (kind + '.yaml')}; "
+            f"known: {', '.join(sorted(entries))}"
+        )
+    return entries[name]
+
+
+def entries(kind: str, folder: Path | None = None) -> dict[str, Any]:
+    """All validated entries of catalog ``kind``."""
+    return dict(_cached(kind, str(folder or catalog_dir())))

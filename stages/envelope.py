@@ -1,0 +1,127 @@
+"""Envelope prediction: the surface the tool leaves behind (physics.md §5).
+
+Along one feed-plane line the machined height is the lower envelope of the tool arcs:
+
+    z(r) = min over k with |r − ρ_k| < Rc of [ w_k + Rc − sqrt(Rc² − (r − ρ_k)²) ]
+
+All arcs are translates of one strictly convex function, so two of them cross at most once
+and, ordered by position, the winning arc is monotone in r. The lower envelope is therefore
+built like a convex-hull trick: arcs enter in position order, and an arc is dropped as soon
+as its neighbours cross before it would win. Two arcs of equal radius meet on the
+perpendicular bisector of their centres, which gives the crossing in closed form. Each pass
+is pushed and popped at most once, so a line costs O(passes + nodes): only the passes that
+can win at a point are ever compared there.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _crossing(pa, wa, pb, wb, rc):  # pragma: no cover - jit
+    """Position where arc b (pb > pa) starts to lie below arc a; ±inf when they never cross."""
+    dp = pb - pa
+    dw = wb - wa
+    d2 = dp * dp + dw * dw
+    if d2 >= 4.0 * rc * rc or dp <= 0.0:
+        # disjoint circles (or coincident positions): one arc is below the other throughout
+        return -math.inf if wb <= wa else math.inf
+    d = math.sqrt(d2)
+    return 0.5 * (pa + pb) + math.sqrt(rc * rc - 0.25 * d2) * dw / d
+
+
+@njit(nogil=True, cache=True)
+def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover - jit
+    """Lower envelope of arcs at ``pos`` [µm] (ascending) with lowest points ``w`` [µm],
+    evaluated at ``query`` [µm] (ascending) into ``out`` [µm] (physics.md §5).
+
+    ``stack`` (int64) and ``breaks`` (float64) are scratch arrays of at least ``pos.size``.
+    """
+    top = -1
+    for k in range(pos.size):
+        push = True
+        x = -math.inf
+        while top >= 0:
+            x = _crossing(pos[stack[top]], w[stack[top]], pos[k], w[k], rc)
+            if x == math.inf:
+                push = False  # arc k never wins against the current top
+                break
+            if x <= breaks[top]:
+                top -= 1  # the top arc is beaten before it would start to win
+                continue
+            break
+        if not push:
+            continue
+        top += 1
+        stack[top] = k
+        breaks[top] = -math.inf if top == 0 else x
+    m = 0
+    for q in range(query.size):
+        r = query[q]
+        while m < top and breaks[m + 1] <= r:
+            m += 1
+        k = stack[m]
+        d = r - pos[k]
+        out[q] = w[k] + rc - math.sqrt(max(rc * rc - d * d, 0.0))
+
+
+@njit(nogil=True, cache=True)
+def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z):  # pragma: no cover - jit
+    """Machined height z [µm] on the node grids of a batch of feed-plane lines (§5).
+
+    node_r : (R, G) node radii [µm]; rays 2l (θ) and 2l+1 (θ + π) form line l.
+    pass_w : (R, Kmax) commands w_k [µm] of the passes (pass k sits on node
+        ``node_offset + k·ppf``).
+    n_passes : (R,) passes per ray.
+    eval_start : first evaluation node; nodes from there inwards down to the axis are
+        evaluated (see :func:`stages.interpolation.first_machined_node`).
+    z : (R, G) output; filled on the evaluation nodes, NaN elsewhere.
+    """
+    n_rays, n_nodes = node_r.shape
+    z[:, :] = np.nan
+    kmax = pass_w.shape[1]
+    pos = np.empty(2 * kmax)
+    w = np.empty(2 * kmax)
+    stack = np.empty(2 * kmax, dtype=np.int64)
+    breaks = np.empty(2 * kmax)
+    query = np.empty(2 * n_nodes)
+    out = np.empty(2 * n_nodes)
+    for line in range(n_rays // 2):
+        own, opp = 2 * line, 2 * line + 1
+        # passes along the line in ascending position: opposite ray (−ρ'), then own (+ρ)
+        n = 0
+        for k in range(n_passes[opp]):
+            pos[n] = -node_r[opp, node_offset + k * ppf]
+            w[n] = pass_w[opp, k]
+            n += 1
+        for k in range(n_passes[own] - 1, -1, -1):
+            pos[n] = node_r[own, node_offset + k * ppf]
+            w[n] = pass_w[own, k]
+            n += 1
+        # evaluation nodes: from eval_start inwards while r ≥ 0, in ascending position
+        first = eval_start
+        last_opp = first
+        while last_opp < n_nodes and node_r[opp, last_opp] >= 0.0:
+            last_opp += 1
+        last_own = first
+        while last_own < n_nodes and node_r[own, last_own] >= 0.0:
+            last_own += 1
+        nq = 0
+        for j in range(first, last_opp):
+            query[nq] = -node_r[opp, j]
+            nq += 1
+        for j in range(last_own - 1, first - 1, -1):
+            query[nq] = node_r[own, j]
+            nq += 1
+        lower_envelope(pos[:n], w[:n], rc, query[:nq], out[:nq], stack, breaks)
+        q = 0
+        for j in range(first, last_opp):
+            z[opp, j] = out[q]
+            q += 1
+        for j in range(last_own - 1, first - 1, -1):
+            z[own, j] = out[q]
+            q += 1

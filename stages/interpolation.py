@@ -1,0 +1,172 @@
+"""The controller's bilinear interpolation (physics.md §3) along the spiral tool path (§1).
+
+The tool feeds from the outer edge ρ0 to the centre along ρ(φ) = ρ0 − F·φ/2π. Along one
+spindle angle θ ∈ [0, 2π) it therefore passes once per revolution, at
+ρ_k = ρ0 − F·(k + θ/2π), k = 0, 1, ... while ρ_k ≥ 0 (§5). The simulation samples the
+part on *feed-plane lines*: a line at θ holds the passes of the ray θ (positions +ρ_k) and
+of the opposite ray θ + π (positions −ρ'_k), since near the centre the arcs of both reach
+across the axis.
+
+Each ray also carries a uniform *node grid* r_n = ρ_0(θ) − n·F/ppf (ppf evaluation points
+per feed): the passes sit on nodes n = k·ppf, so feed cusps midway between passes are
+sampled exactly, and the same nodes serve the exact compensation along the path.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from stages.layouts import Layout
+
+
+@njit(nogil=True, cache=True)
+def _bilinear_kernel(table, u, v, periodic, out):  # pragma: no cover - jit
+    n0, n1 = table.shape
+    for p in range(u.size):
+        # first index: clamped to the table (the controller holds the edge value)
+        i = int(math.floor(u[p]))
+        if i < 0:
+            i, t = 0, 0.0
+        elif i > n0 - 2:
+            i, t = n0 - 2, 1.0
+        else:
+            t = u[p] - i
+        vj = v[p]
+        j = int(math.floor(vj))
+        s = vj - j
+        if periodic:
+            j = j % n1
+            j1 = (j + 1) % n1
+        else:
+            if j < 0:
+                j, s = 0, 0.0
+            elif j > n1 - 2:
+                j, s = n1 - 2, 1.0
+            j1 = j + 1
+        out[p] = (
+            (1.0 - t) * (1.0 - s) * table[i, j]
+            + t * (1.0 - s) * table[i + 1, j]
+            + t * s * table[i + 1, j1]
+            + (1.0 - t) * s * table[i, j1]
+        )
+
+
+def bilinear(table: np.ndarray, u: np.ndarray, v: np.ndarray, periodic: bool) -> np.ndarray:
+    """Bilinear interpolation in fractional table indices (physics.md §3).
+
+    w = (1−t)(1−u)·w[i,j] + t(1−u)·w[i+1,j] + t·u·w[i+1,j+1] + (1−t)·u·w[i,j+1]
+
+    ``u`` (first index) is clamped to the table; ``v`` wraps modulo the second dimension
+    when ``periodic`` (θ for rings: column Np−1 neighbours column 0), else it is clamped.
+    ``u`` and ``v`` broadcast against each other; returns values in the table's unit.
+    """
+    u, v = np.broadcast_arrays(u, v)
+    shape = np.shape(u)
+    uf = np.ascontiguousarray(u, dtype=np.float64).reshape(-1)
+    vf = np.ascontiguousarray(v, dtype=np.float64).reshape(-1)
+    out = np.empty_like(uf)
+    _bilinear_kernel(np.ascontiguousarray(table, dtype=np.float64), uf, vf, bool(periodic), out)
+    return out.reshape(shape)
+
+
+def table_indices(layout: Layout, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fractional table indices (u, v) of tool positions ρ [µm], θ [rad] (physics.md §2–3)."""
+    if layout.kind == "ring":
+        u = (rho - layout.origin[0]) / layout.pitch[0]
+        v = (np.degrees(theta) - layout.origin[1]) / layout.pitch[1]
+        return u, v
+    x, y = rho * np.cos(theta), rho * np.sin(theta)
+    return (x - layout.origin[0]) / layout.pitch[0], (y - layout.origin[1]) / layout.pitch[1]
+
+
+def interpolate(layout: Layout, table: np.ndarray, rho: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """FTS command w [µm] at tool positions ρ [µm], θ [rad]: the controller's lookup (§3)."""
+    u, v = table_indices(layout, rho, theta)
+    return bilinear(table, u, v, layout.periodic)
+
+
+class PathGrid(NamedTuple):
+    """Sampling of a batch of feed-plane lines (see module docstring). Lengths in µm.
+
+    ray_theta : (R,) angle [rad] of each ray; rays 2l and 2l+1 form line l (θ and θ + π).
+    first_pass : (R,) radius of pass k = 0 on each ray, ρ0 − F·θ/2π [µm].
+    n_passes : (R,) passes with ρ_k ≥ 0 on each ray.
+    node_offset : index of node n = 0 (the first pass) in the node arrays; nodes before it
+        lie outside the first pass, so exact compensation sees the section beyond the edge.
+    spacing_um : node spacing F/ppf [µm].
+    ppf : evaluation nodes per feed.
+    node_r : (R, G) radius of every node [µm] (negative past the axis).
+    """
+
+    ray_theta: np.ndarray
+    first_pass: np.ndarray
+    n_passes: np.ndarray
+    node_offset: int
+    spacing_um: float
+    ppf: int
+    node_r: np.ndarray
+
+    @property
+    def pass_nodes(self) -> np.ndarray:
+        """(R, Kmax) node index of each pass (valid for k < n_passes)."""
+        k = np.arange(int(self.n_passes.max()))
+        return self.node_offset + k[None, :] * self.ppf + np.zeros((self.ray_theta.size, 1), dtype=np.int64)
+
+    @property
+    def pass_rho(self) -> np.ndarray:
+        """(R, Kmax) radius ρ_k of each pass [µm] (meaningless for k ≥ n_passes)."""
+        k = np.arange(int(self.n_passes.max()))
+        return self.first_pass[:, None] - k[None, :] * (self.spacing_um * self.ppf)
+
+
+def first_machined_node(grid: PathGrid, contact_window_um: float) -> int:
+    """First node of the fully machined zone (physics.md §6) on every ray of ``grid``.
+
+    A point is fully machined once passes touch the design on both sides of it. The arc of
+    pass k touches at ρ_k + s* with |s*| ≤ the contact window, so the zone starts at the
+    second pass moved inwards by the contact window: r ≤ ρ_0 − F − window. Outside it the
+    point is shaped by the flank of the first arc, not by the layout.
+    """
+    return grid.node_offset + grid.ppf + int(math.ceil(contact_window_um / grid.spacing_um - 1e-9))
+
+
+def line_angles(n_theta: int) -> np.ndarray:
+    """Angles θ_l = (l + ½)·2π/n_theta [rad] of the n_theta/2 feed-plane lines.
+
+    Together with their opposite rays they sample n_theta spindle angles evenly, offset by
+    half a step so no sample sits on a table column."""
+    if n_theta < 2 or n_theta % 2:
+        raise ValueError(f"n_theta must be an even number ≥ 2, got {n_theta}")
+    return (np.arange(n_theta // 2) + 0.5) * (2.0 * math.pi / n_theta)
+
+
+def path_grid(
+    line_theta: np.ndarray, rho0_um: float, feed_um: float, ppf: int, margin_um: float
+) -> PathGrid:
+    """Pass positions and node grids for feed-plane lines at ``line_theta`` [rad] (§1, §5).
+
+    Parameters
+    ----------
+    line_theta : angles of the lines [rad] in [0, π).
+    rho0_um : radius where the spiral starts [µm].
+    feed_um : feed per revolution F [µm/rev].
+    ppf : evaluation nodes per feed (≥ 1).
+    margin_um : how far the node grid extends beyond the first pass and past the axis
+        [µm]; at least the contact window of the compensation.
+    """
+    if ppf < 1:
+        raise ValueError(f"points per feed must be ≥ 1, got {ppf}")
+    ray_theta = np.empty(2 * line_theta.size)
+    ray_theta[0::2] = line_theta
+    ray_theta[1::2] = line_theta + math.pi
+    first = rho0_um - feed_um * ray_theta / (2.0 * math.pi)
+    n_passes = np.floor(first / feed_um + 1e-9).astype(np.int64) + 1
+    spacing = feed_um / ppf
+    offset = int(math.ceil(margin_um / spacing))
+    n_nodes = offset + int(math.ceil((rho0_um + margin_um) / spacing)) + 1
+    node_r = first[:, None] - (np.arange(n_nodes)[None, :] - offset) * spacing
+    return PathGrid(ray_theta, first, n_passes, offset, spacing, ppf, node_r)

@@ -33,13 +33,15 @@ class Resolution(Strict):
     than 3 % when the angular samples are quadrupled and the points per feed doubled."""
 
     samples_per_cell: PositiveInt = Field(
-        4, description="spindle angles sampled per table cell at the outer radius"
+        3,
+        description="spindle angles sampled per table cell at the outer radius; an odd number puts "
+        "one sample on each ring cell's angular midpoint, where bilinear error peaks",
     )
     points_per_feed: PositiveInt = Field(2, description="evaluation points per feed along each angle")
     n_theta: Optional[PositiveInt] = Field(
         None, description="number of sampled spindle angles over 360°; overrides samples_per_cell"
     )
-    compensation_scan: int = Field(9, ge=3, description="coarse-scan samples of the exact compensation")
+    compensation_scan: int = Field(7, ge=3, description="coarse-scan samples of the exact compensation")
     zone_split: float = Field(
         0.5, gt=0.0, lt=1.0, description="inner/outer zone boundary as a fraction of the inscribed radius"
     )
@@ -199,8 +201,9 @@ def run_case(
         grid = interpolation.path_grid(lines[b * per_batch : (b + 1) * per_batch], rho0, feed,
                                        res.points_per_feed, margin)
         ray_theta = grid.ray_theta[:, None]
-        g, gp = radial_section(surface, grid.node_r, ray_theta)
-        inside = aperture.contains(grid.node_r * np.cos(ray_theta), grid.node_r * np.sin(ray_theta))
+        ct, st = np.cos(ray_theta), np.sin(ray_theta)
+        g, gp = radial_section(surface, grid.node_r, ct, st)
+        inside = aperture.contains(grid.node_r * ct, grid.node_r * st)
         t = timer.add("sampling", t)
 
         pass_nodes = grid.pass_nodes
@@ -214,12 +217,19 @@ def run_case(
         start = interpolation.first_machined_node(grid, window)
         z = np.empty(grid.node_r.shape)
         z_exact = np.empty(grid.node_r.shape)
-        envelope.envelope_lines(grid.node_r, w_interp, grid.n_passes, grid.node_offset, grid.ppf, start, rc, z)
+        cusp_shape = (grid.node_r.shape[0], int(grid.n_passes.max()) + 2)
+        cusp_r, cusp_z = np.empty(cusp_shape), np.empty(cusp_shape)
+        unused_r, unused_z = np.empty(cusp_shape), np.empty(cusp_shape)
+        envelope.envelope_lines(grid.node_r, w_interp, grid.n_passes, grid.node_offset, grid.ppf, start, rc,
+                                z, cusp_r, cusp_z)
         envelope.envelope_lines(grid.node_r, w_exact, grid.n_passes, grid.node_offset, grid.ppf, start, rc,
-                                z_exact)
+                                z_exact, unused_r, unused_z)
         t = timer.add("envelope", t)
 
         metrics.accumulate(z, z_exact, g, inside, np.abs(grid.node_r), zone_split, stats)
+        cusp_f = interpolation.sample_on_nodes(grid, g, gp, cusp_r)
+        cusp_inside = aperture.contains(cusp_r * ct, cusp_r * st)
+        metrics.accumulate_extrema(cusp_z, cusp_f, cusp_inside, cusp_r, zone_split, stats)
         timer.add("metrics", t)
         if progress is not None:
             progress(b + 1, n_batches)

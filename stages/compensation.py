@@ -58,8 +58,8 @@ def compensate(
     nose_radius_um: float,
     mode: str = "exact",
     gradient_bound: float = 0.0,
-    n_scan: int = 9,
-    tol_um: float = 1e-6,
+    n_scan: int = 7,
+    tol_um: float = 1e-4,
     max_iter: int = 60,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Control values w [µm] at radial positions ``rho`` [µm] on sections at ``theta`` [rad].
@@ -73,7 +73,8 @@ def compensate(
     gradient_bound : an upper bound G of |∇f| [-] over the part (``exact`` only); a scan
         that meets a larger slope raises, since the contact window would be too narrow.
     n_scan : samples of the coarse scan over the contact window (``exact`` only).
-    tol_um : convergence tolerance on the contact offset [µm].
+    tol_um : convergence tolerance on the contact offset [µm]; near the optimum h is
+        quadratic, so an offset error δ changes w by only ½·|h''|·δ² (~1e-10 µm at 1e-4).
 
     Returns
     -------
@@ -89,8 +90,9 @@ def compensate(
     shape = rho.shape
     rho = np.ascontiguousarray(rho).reshape(-1)
     theta = np.ascontiguousarray(theta).reshape(-1)
+    ct, st = np.cos(theta), np.sin(theta)
     if mode != "exact":
-        f, gp = radial_section(surface, rho, theta)
+        f, gp = radial_section(surface, rho, ct, st)
         w = f if mode == "none" else slope_compensation(f, gp, nose_radius_um)
         return w.reshape(shape), np.zeros(shape, dtype=bool)
 
@@ -102,7 +104,7 @@ def compensate(
     dh = np.empty((n_off, n))
     slopes = np.empty((n_off, n))
     for q, s in enumerate(offsets):
-        f, gp = radial_section(surface, rho + s, theta)
+        f, gp = radial_section(surface, rho + s, ct, st)
         h[q] = f - arc_lift(s, rc)
         dh[q] = gp - s / math.sqrt(rc * rc - s * s)
         slopes[q] = gp
@@ -131,14 +133,14 @@ def compensate(
     fa, fb = dh[lo_i, cols], dh[hi_i, cols]
     # Only a sign change of h' brackets an interior maximum; elsewhere the scan value stands.
     active = np.flatnonzero((fa > 0.0) & (fb < 0.0))
-    refined = _illinois_max(surface, rho[active], theta[active], rc, a[active], b[active],
+    refined = _illinois_max(surface, rho[active], ct[active], st[active], rc, a[active], b[active],
                             fa[active], fb[active], tol_um, max_iter)
     # The refined maximum can only raise w; max() guards the non-unimodal corner cases.
     w[active] = np.maximum(w[active], refined)
     return w.reshape(shape), gouge.reshape(shape)
 
 
-def _illinois_max(surface, rho, theta, rc, a, b, fa, fb, tol_um, max_iter):
+def _illinois_max(surface, rho, ct, st, rc, a, b, fa, fb, tol_um, max_iter):
     """Maximise h(s) = g(ρ+s) − arc(s) on [a, b] where h'(a) > 0 > h'(b) (vectorised Illinois)."""
     best_h = np.full(rho.size, -np.inf)
     s_prev = np.full(rho.size, np.nan)
@@ -148,7 +150,7 @@ def _illinois_max(surface, rho, theta, rc, a, b, fa, fb, tol_um, max_iter):
         if idx.size == 0:
             break
         s = (a * fb - b * fa) / (fb - fa)
-        f, gp = radial_section(surface, rho[idx] + s, theta[idx])
+        f, gp = radial_section(surface, rho[idx] + s, ct[idx], st[idx])
         hs = f - (rc - np.sqrt(rc * rc - s * s))
         fs = gp - s / np.sqrt(rc * rc - s * s)
         best_h[idx] = np.maximum(best_h[idx], hs)

@@ -39,7 +39,9 @@ def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover -
     """Lower envelope of arcs at ``pos`` [µm] (ascending) with lowest points ``w`` [µm],
     evaluated at ``query`` [µm] (ascending) into ``out`` [µm] (physics.md §5).
 
-    ``stack`` (int64) and ``breaks`` (float64) are scratch arrays of at least ``pos.size``.
+    ``stack`` (int64) and ``breaks`` (float64) are scratch arrays of at least ``pos.size``;
+    on return ``stack[:n]`` holds the winning arcs in order and ``breaks[1:n]`` where each
+    takes over (the cusp peaks). Returns n.
     """
     top = -1
     for k in range(pos.size):
@@ -67,10 +69,11 @@ def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover -
         k = stack[m]
         d = r - pos[k]
         out[q] = w[k] + rc - math.sqrt(max(rc * rc - d * d, 0.0))
+    return top + 1
 
 
 @njit(nogil=True, cache=True)
-def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z):  # pragma: no cover - jit
+def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z, cusp_r, cusp_z):  # noqa: E501  # pragma: no cover - jit
     """Machined height z [µm] on the node grids of a batch of feed-plane lines (§5).
 
     node_r : (R, G) node radii [µm]; rays 2l (θ) and 2l+1 (θ + π) form line l.
@@ -80,9 +83,15 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
     eval_start : first evaluation node; nodes from there inwards down to the axis are
         evaluated (see :func:`stages.interpolation.first_machined_node`).
     z : (R, G) output; filled on the evaluation nodes, NaN elsewhere.
+    cusp_r, cusp_z : (R, C) outputs: radius [µm] and height [µm] of the cusp peaks (where
+        one arc takes over from the next) inside the evaluated part of each ray, in order,
+        NaN-padded; C ≥ Kmax + 1 suffices. Nodes sample the cusps only where they happen to
+        fall; these are the exact peaks, which move off the nodes by about Rc·slope.
     """
     n_rays, n_nodes = node_r.shape
     z[:, :] = np.nan
+    cusp_r[:, :] = np.nan
+    cusp_z[:, :] = np.nan
     kmax = pass_w.shape[1]
     pos = np.empty(2 * kmax)
     w = np.empty(2 * kmax)
@@ -117,7 +126,24 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
         for j in range(last_own - 1, first - 1, -1):
             query[nq] = node_r[own, j]
             nq += 1
-        lower_envelope(pos[:n], w[:n], rc, query[:nq], out[:nq], stack, breaks)
+        n_arcs = lower_envelope(pos[:n], w[:n], rc, query[:nq], out[:nq], stack, breaks)
+        r_opp = node_r[opp, first] if first < n_nodes else -1.0
+        r_own = node_r[own, first] if first < n_nodes else -1.0
+        c_opp = 0
+        c_own = 0
+        for m in range(1, n_arcs):
+            x = breaks[m]
+            k = stack[m]
+            d = x - pos[k]
+            zc = w[k] + rc - math.sqrt(max(rc * rc - d * d, 0.0))
+            if x < 0.0 and -x <= r_opp and c_opp < cusp_r.shape[1]:
+                cusp_r[opp, c_opp] = -x
+                cusp_z[opp, c_opp] = zc
+                c_opp += 1
+            elif x >= 0.0 and x <= r_own and c_own < cusp_r.shape[1]:
+                cusp_r[own, c_own] = x
+                cusp_z[own, c_own] = zc
+                c_own += 1
         q = 0
         for j in range(first, last_opp):
             z[opp, j] = out[q]

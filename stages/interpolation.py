@@ -123,6 +123,39 @@ class PathGrid(NamedTuple):
         return self.first_pass[:, None] - k[None, :] * (self.spacing_um * self.ppf)
 
 
+@njit(nogil=True, cache=True)
+def _hermite_kernel(g, gp, first_pass, node_offset, spacing, r, out):  # pragma: no cover - jit
+    n_rays, n_nodes = g.shape
+    for a in range(n_rays):
+        for c in range(r.shape[1]):
+            rr = r[a, c]
+            if math.isnan(rr):
+                out[a, c] = math.nan
+                continue
+            # node index grows inwards: rr lies between nodes j (outer) and j + 1
+            xi = (first_pass[a] - rr) / spacing + node_offset
+            j = min(max(int(math.floor(xi)), 0), n_nodes - 2)
+            t = xi - j
+            # Hermite basis in the node coordinate ξ, where d/dξ = −spacing·d/dr
+            h00 = (1.0 + 2.0 * t) * (1.0 - t) * (1.0 - t)
+            h10 = t * (1.0 - t) * (1.0 - t)
+            h01 = t * t * (3.0 - 2.0 * t)
+            h11 = t * t * (t - 1.0)
+            out[a, c] = h00 * g[a, j] + h01 * g[a, j + 1] - spacing * (h10 * gp[a, j] + h11 * gp[a, j + 1])
+
+
+def sample_on_nodes(grid: PathGrid, g: np.ndarray, gp: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Section height [µm] at radii ``r`` (R, C) [µm] between the nodes of ``grid``, by cubic
+    Hermite interpolation of the node samples g [µm] and radial slopes g' [-].
+
+    NaN radii stay NaN. The error is O(spacing^4 · fourth derivative of g) on smooth sections (far below a
+    picometre at the default spacing) and O(spacing^2 · jump of curvature) at seams.
+    """
+    out = np.empty(r.shape)
+    _hermite_kernel(g, gp, grid.first_pass, grid.node_offset, grid.spacing_um, r, out)
+    return out
+
+
 def first_machined_node(grid: PathGrid, contact_window_um: float) -> int:
     """First node of the fully machined zone (physics.md §6) on every ray of ``grid``.
 

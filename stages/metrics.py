@@ -87,6 +87,29 @@ def accumulate(z, z_exact, g, inside, node_r, zone_split_um, stats):  # pragma: 
             stats[10] = max(stats[10], d)
 
 
+@njit(nogil=True, cache=True)
+def accumulate_extrema(z, f, inside, r, zone_split_um, stats):  # pragma: no cover - jit
+    """Add points that bound the error but are not area samples (the cusp peaks) to the
+    extrema of ``stats`` only: min/max and zone min/max, not count, mean or RMS.
+
+    z, f : machined and design heights [µm] (NaN entries are skipped); inside : bool;
+    r : radius [µm]; all 2-D of one shape.
+    """
+    for a in range(z.shape[0]):
+        for c in range(z.shape[1]):
+            if not inside[a, c] or math.isnan(z[a, c]) or math.isnan(f[a, c]):
+                continue
+            e = z[a, c] - f[a, c]
+            stats[3] = min(stats[3], e)
+            stats[4] = max(stats[4], e)
+            if r[a, c] <= zone_split_um:
+                stats[5] = min(stats[5], e)
+                stats[6] = max(stats[6], e)
+            else:
+                stats[7] = min(stats[7], e)
+                stats[8] = max(stats[8], e)
+
+
 def cusp_height_um(feed_um: float, nose_radius_um: float) -> float:
     """Feed cusp height of a flat surface, F²/(8·Rc) [µm] (physics.md §6)."""
     return feed_um**2 / (8.0 * nose_radius_um)

@@ -199,17 +199,17 @@ FAMILIES: dict[str, Family] = {
 
 
 def radial_section(
-    surface: SurfaceFn, r: np.ndarray, theta: np.ndarray
+    surface: SurfaceFn, r: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Height g and radial slope g' of the section through the spindle axis (physics.md §4).
 
     g(r) = f(r·cosθ, r·sinθ), g'(r) = ∂f/∂x·cosθ + ∂f/∂y·sinθ. ``r`` [µm] may be negative
-    (the section continues through the axis); ``theta`` [rad] broadcasts against ``r``.
-    Returns g [µm] and g' [-].
+    (the section continues through the axis); ``cos_t``, ``sin_t`` are cosθ and sinθ of the
+    section angle, passed in because callers evaluate many radii on the same sections.
+    Returns g [µm] and g' [-], broadcast to a common shape.
     """
-    c, s = np.cos(theta), np.sin(theta)
-    f, fx, fy = surface(r * c, r * s)
-    return f, fx * c + fy * s
+    f, fx, fy = surface(r * cos_t, r * sin_t)
+    return f, fx * cos_t + fy * sin_t
 
 
 # --------------------------------------------------------------------------- apertures

@@ -1,0 +1,268 @@
+"""The ``ftsweep`` command line."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from typing import Any, Optional
+
+import click
+from pydantic import ValidationError
+
+from pipeline import __version__, catalogs
+from pipeline.case import Case, CaseError, LayoutRequest, Resolution, run_case
+from pipeline.catalogs import CatalogError
+
+_RING_PITCH = ("drho_um", "dtheta_deg")
+_MESH_PITCH = ("dx_um", "dy_um")
+
+
+def _fail(message: str) -> None:
+    raise click.UsageError(message)
+
+
+def _pydantic_message(exc: ValidationError) -> str:
+    parts = []
+    for e in exc.errors():
+        loc = ".".join(str(p) for p in e["loc"])
+        parts.append(f"{loc}: {e['msg']}" if loc else e["msg"])
+    return "; ".join(parts)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(__version__, prog_name="ftsweep")
+def main() -> None:
+    """Control-point layouts for fast-tool-servo (FTS) diamond turning.
+
+    An FTS controller moves the tool by bilinear interpolation in a table of control
+    points (rings in polar coordinates or a Cartesian mesh). ftsweep predicts the form
+    error a layout leaves on the machined part, including tool-nose compensation and the
+    tool-arc envelope (see physics.md shipped with the project).
+
+    \b
+    Units: lengths µm, errors nm, angles degrees, feed µm/rev.
+    Catalogs (surfaces, machines, cutting conditions) are YAML files in catalogs/ or in
+    the folder named by $FTSWEEP_CATALOGS; `ftsweep catalogs` lists them.
+    """
+
+
+@main.command("catalogs")
+def list_catalogs() -> None:
+    """List the surfaces, machines and cutting conditions the catalogs define."""
+    try:
+        for kind in ("surfaces", "machines", "cutting"):
+            click.echo(f"{kind} ({catalogs.catalog_dir() / (kind + '.yaml')}):")
+            for name, spec in catalogs.entries(kind).items():
+                extra = f" [{spec.family}, {spec.layout} layout]" if kind == "surfaces" else ""
+                desc = " ".join(spec.description.split())
+                click.echo(f"  {name}{extra}: {desc[:90]}")
+    except CatalogError as exc:
+        raise click.ClickException(str(exc)) from None
+
+
+@main.command()
+@click.option("--surface", required=True, metavar="NAME", help="Surface from catalogs/surfaces.yaml.")
+@click.option(
+    "--layout",
+    type=click.Choice(["ring", "mesh"]),
+    default=None,
+    help="Layout method: ring (polar grid) or mesh (Cartesian grid). Default: the surface's.",
+)
+@click.option("--drho-um", type=float, help="Ring pitch Δρ [µm] (ring layout).")
+@click.option("--dtheta-deg", type=float, help="Angular pitch Δθ [deg]; 360/Δθ must be an integer (ring).")
+@click.option("--dx-um", type=float, help="Mesh pitch Δx [µm] (mesh layout).")
+@click.option("--dy-um", type=float, help="Mesh pitch Δy [µm] (mesh layout).")
+@click.option("--points", type=float, help="Target number of control points N (with --aspect).")
+@click.option(
+    "--aspect", type=float, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh)."
+)
+@click.option("--feed-um", type=float, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
+@click.option("--nose-radius-um", type=float, help="Tool nose radius Rc [µm]. Default: cutting entry.")
+@click.option(
+    "--compensation",
+    type=click.Choice(["exact", "slope", "none"]),
+    default="exact",
+    show_default=True,
+    help="Tool-nose compensation of the table: exact arc contact, the slope approximation, or none.",
+)
+@click.option("--machine", default="fts-1m", show_default=True, help="Machine from catalogs/machines.yaml.")
+@click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
+@click.option(
+    "--samples-per-cell",
+    type=int,
+    default=Resolution().samples_per_cell,
+    show_default=True,
+    help="Spindle angles simulated per table cell along the outer circumference.",
+)
+@click.option(
+    "--points-per-feed",
+    type=int,
+    default=Resolution().points_per_feed,
+    show_default=True,
+    help="Evaluation points per feed along each simulated angle (even).",
+)
+@click.option("--n-theta", type=int, help="Simulated spindle angles over 360° (overrides --samples-per-cell).")
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def predict(
+    surface: str,
+    layout: Optional[str],
+    drho_um: Optional[float],
+    dtheta_deg: Optional[float],
+    dx_um: Optional[float],
+    dy_um: Optional[float],
+    points: Optional[float],
+    aspect: Optional[float],
+    feed_um: Optional[float],
+    nose_radius_um: Optional[float],
+    compensation: str,
+    machine: str,
+    cutting: str,
+    samples_per_cell: int,
+    points_per_feed: int,
+    n_theta: Optional[int],
+    as_json: bool,
+) -> None:
+    """Predict the form error one control-point layout leaves on the machined surface.
+
+    Give the layout either by explicit pitches (--drho-um and --dtheta-deg for rings,
+    --dx-um and --dy-um for meshes) or by a target point count and aspect ratio
+    (--points and --aspect); the actual point count and pitches are reported.
+
+    \b
+    Examples:
+      ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5
+      ftsweep predict --surface lens_array --layout mesh --dx-um 4 --dy-um 4 --json
+      ftsweep predict --surface sinewave2d --points 500000 --aspect 8
+    """
+    case = _build_case(
+        surface, layout, drho_um, dtheta_deg, dx_um, dy_um, points, aspect, feed_um, nose_radius_um,
+        compensation, machine, cutting, samples_per_cell, points_per_feed, n_theta,
+    )
+    progress = None
+    if not as_json and sys.stderr.isatty():
+        progress = _stderr_progress("simulating")
+    try:
+        record = run_case(case, progress=progress)
+    except (CaseError, CatalogError) as exc:
+        raise click.UsageError(str(exc)) from None
+    if progress is not None:
+        click.echo("", err=True)
+    if as_json:
+        click.echo(json.dumps(record, allow_nan=False, default=_nan_safe))
+    else:
+        click.echo(_summary(record))
+
+
+def _nan_safe(value: Any) -> Any:  # pragma: no cover - only non-JSON types reach here
+    return str(value)
+
+
+def _stderr_progress(label: str):  # type: ignore[no-untyped-def]
+    def report(done: int, total: int) -> None:
+        width = 30
+        filled = int(width * done / max(total, 1))
+        click.echo(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total} batches", err=True, nl=False)
+
+    return report
+
+
+def _build_case(
+    surface, layout, drho_um, dtheta_deg, dx_um, dy_um, points, aspect, feed_um, nose_radius_um,
+    compensation, machine, cutting, samples_per_cell, points_per_feed, n_theta,
+) -> Case:  # type: ignore[no-untyped-def]
+    try:
+        spec = catalogs.entry("surfaces", surface)
+        catalogs.entry("machines", machine)
+        catalogs.entry("cutting", cutting)
+    except CatalogError as exc:
+        raise click.UsageError(str(exc)) from None
+    kind = layout or spec.layout
+    given = {"drho_um": drho_um, "dtheta_deg": dtheta_deg, "dx_um": dx_um, "dy_um": dy_um}
+    own, other = (_RING_PITCH, _MESH_PITCH) if kind == "ring" else (_MESH_PITCH, _RING_PITCH)
+    wrong = [k for k in other if given[k] is not None]
+    if wrong:
+        _fail(
+            f"--{wrong[0].replace('_', '-')} belongs to the {'mesh' if kind == 'ring' else 'ring'} layout; "
+            f"for a {kind} layout give --{own[0].replace('_', '-')} and --{own[1].replace('_', '-')}"
+        )
+    pitch_given = [k for k in own if given[k] is not None]
+    target_given = points is not None or aspect is not None
+    if pitch_given and target_given:
+        _fail("give either explicit pitches or --points with --aspect, not both")
+    if pitch_given and len(pitch_given) < 2:
+        missing = [k for k in own if given[k] is None][0]
+        _fail(f"--{missing.replace('_', '-')} is missing: a {kind} layout needs both pitches")
+    if not pitch_given and (points is None or aspect is None):
+        _fail(
+            f"give the layout: --{own[0].replace('_', '-')} and --{own[1].replace('_', '-')}, "
+            "or --points N with --aspect A"
+        )
+    for name, value in {**given, "points": points, "aspect": aspect, "feed-um": feed_um,
+                        "nose-radius-um": nose_radius_um}.items():
+        if value is not None and not (value > 0 and math.isfinite(value)):
+            _fail(f"--{name.replace('_', '-')} must be a positive number, got {value}")
+    for name, value in {"samples-per-cell": samples_per_cell, "points-per-feed": points_per_feed,
+                        "n-theta": n_theta}.items():
+        if value is not None and value < 1:
+            _fail(f"--{name} must be a positive integer, got {value}")
+    if points_per_feed % 2:
+        _fail(f"--points-per-feed must be even (the cusp midway between passes is sampled), got {points_per_feed}")
+    try:
+        request = LayoutRequest(
+            kind=kind,
+            pitch=(given[own[0]], given[own[1]]) if pitch_given else None,
+            points=points,
+            aspect=aspect,
+        )
+        return Case(
+            surface=surface,
+            layout=request,
+            machine=machine,
+            cutting=cutting,
+            feed_um=feed_um,
+            nose_radius_um=nose_radius_um,
+            compensation=compensation,
+            resolution=Resolution(
+                samples_per_cell=samples_per_cell, points_per_feed=points_per_feed, n_theta=n_theta
+            ),
+        )
+    except ValidationError as exc:
+        raise click.UsageError(_pydantic_message(exc)) from None
+
+
+def _summary(r: dict[str, Any]) -> str:
+    if r["layout"] == "ring":
+        pitches = (
+            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.4g}°  (α = {r['aspect_um_per_deg']:.4g} µm/deg)"
+        )
+    else:
+        pitches = f"Δx = {r['dx_um']:.4g} µm, Δy = {r['dy_um']:.4g} µm  (α = {r['aspect']:.4g})"
+    shape = " × ".join(str(n) for n in r["table_shape"])
+    lines = [
+        f"surface      {r['surface']}",
+        f"layout       {r['layout']}: {r['n_points']:,} control points ({shape})",
+        f"pitches      {pitches}",
+        f"cutting      feed {r['feed_um']:g} µm/rev, nose radius {r['nose_radius_um']:g} µm, "
+        f"compensation {r['compensation']}",
+        f"resolution   {r['n_theta']:,} angles × {r['points_per_feed']} points/feed "
+        f"({r['n_eval']:,} evaluation points)",
+        "",
+        f"P-V          {r['pv_nm']:.2f} nm   (inner zone {r['pv_inner_nm']:.2f} nm, outer zone {r['pv_outer_nm']:.2f} nm)",
+        f"RMS          {r['rms_nm']:.2f} nm",
+        f"error range  {r['error_min_nm']:.2f} … {r['error_max_nm']:.2f} nm",
+        f"interp. P-V  {r['pv_interp_nm']:.2f} nm   (interpolation alone)",
+        f"feed cusp    {r['cusp_nm']:.2f} nm   (F²/8Rc)",
+    ]
+    if r["gouge_points"]:
+        lines.append(f"gouge        {r['gouge_points']:,} control points where the concave radius is below Rc")
+    lines.append(
+        f"time         {r['seconds']:.2f} s  (compensation {r['seconds_compensation']:.2f}, sampling "
+        f"{r['seconds_sampling']:.2f}, interpolation {r['seconds_interpolation']:.2f}, envelope "
+        f"{r['seconds_envelope']:.2f}, metrics {r['seconds_metrics']:.2f})"
+    )
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -12,7 +12,8 @@ import hashlib
 import json
 import math
 import time
-from typing import Any, Callable, Literal, Optional
+from collections.abc import Callable
+from typing import Any, Literal, Optional
 
 import numpy as np
 from pydantic import Field, PositiveFloat, PositiveInt, model_validator
@@ -60,13 +61,21 @@ class LayoutRequest(Strict):
     aspect: Optional[PositiveFloat] = None
 
     @model_validator(mode="after")
-    def _one_way(self) -> "LayoutRequest":
+    def _one_way(self) -> LayoutRequest:
         target = self.points is not None or self.aspect is not None
         if self.pitch is not None and target:
-            raise ValueError("give either explicit pitches or a target point count and aspect ratio, not both")
+            raise ValueError(
+                "give either explicit pitches or a target point count and aspect ratio, not both"
+            )
         if self.pitch is None and (self.points is None or self.aspect is None):
             raise ValueError("give explicit pitches, or both a target point count and an aspect ratio")
         return self
+
+    def target(self) -> tuple[float, float]:
+        """(points, aspect) of a target-count request."""
+        if self.points is None or self.aspect is None:
+            raise ValueError("this layout request gives explicit pitches, not a target")
+        return self.points, self.aspect
 
 
 class Case(Strict):
@@ -97,14 +106,14 @@ def build_layout(surface: Any, request: LayoutRequest) -> Layout:
         radius = ap.outer_radius_um
         if request.pitch is not None:
             return layouts.ring_layout(radius, *request.pitch)
-        return layouts.ring_layout_for(radius, request.points, request.aspect)
+        return layouts.ring_layout_for(radius, *request.target())
     if ap.shape == "circle":
         width = height = 2.0 * ap.radius_um
     else:
         width, height = ap.width_um, ap.height_um
     if request.pitch is not None:
         return layouts.mesh_layout(width, height, *request.pitch)
-    return layouts.mesh_layout_for(width, height, request.points, request.aspect)
+    return layouts.mesh_layout_for(width, height, *request.target())
 
 
 def angular_samples(layout: Layout, rho0_um: float, resolution: Resolution) -> int:
@@ -159,7 +168,8 @@ def run_case(
     res = case.resolution
     if res.points_per_feed % 2:
         raise CaseError(
-            f"points_per_feed must be even so the cusp midway between passes is sampled, got {res.points_per_feed}"
+            "points_per_feed must be even so the cusp midway between passes is sampled, "
+            f"got {res.points_per_feed}"
         )
 
     try:
@@ -198,8 +208,9 @@ def run_case(
     n_batches = math.ceil(lines.size / per_batch)
     for b in range(n_batches):
         t = time.perf_counter()
-        grid = interpolation.path_grid(lines[b * per_batch : (b + 1) * per_batch], rho0, feed,
-                                       res.points_per_feed, margin)
+        grid = interpolation.path_grid(
+            lines[b * per_batch : (b + 1) * per_batch], rho0, feed, res.points_per_feed, margin
+        )
         ray_theta = grid.ray_theta[:, None]
         ct, st = np.cos(ray_theta), np.sin(ray_theta)
         g, gp = radial_section(surface, grid.node_r, ct, st)
@@ -220,10 +231,21 @@ def run_case(
         cusp_shape = (grid.node_r.shape[0], int(grid.n_passes.max()) + 2)
         cusp_r, cusp_z = np.empty(cusp_shape), np.empty(cusp_shape)
         unused_r, unused_z = np.empty(cusp_shape), np.empty(cusp_shape)
-        envelope.envelope_lines(grid.node_r, w_interp, grid.n_passes, grid.node_offset, grid.ppf, start, rc,
-                                z, cusp_r, cusp_z)
-        envelope.envelope_lines(grid.node_r, w_exact, grid.n_passes, grid.node_offset, grid.ppf, start, rc,
-                                z_exact, unused_r, unused_z)
+        envelope.envelope_lines(
+            grid.node_r, w_interp, grid.n_passes, grid.node_offset, grid.ppf, start, rc, z, cusp_r, cusp_z
+        )
+        envelope.envelope_lines(
+            grid.node_r,
+            w_exact,
+            grid.n_passes,
+            grid.node_offset,
+            grid.ppf,
+            start,
+            rc,
+            z_exact,
+            unused_r,
+            unused_z,
+        )
         t = timer.add("envelope", t)
 
         metrics.accumulate(z, z_exact, g, inside, np.abs(grid.node_r), zone_split, stats)

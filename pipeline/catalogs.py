@@ -117,6 +117,23 @@ class Cutting(Strict):
     spindle_rpm: PositiveFloat = Field(description="spindle speed [rev/min]")
 
 
+class Reference(Strict):
+    """A published prediction (physics.md §8) to check the model against."""
+
+    surface: str
+    layout: Literal["ring", "mesh"]
+    pitch: tuple[PositiveFloat, PositiveFloat] = Field(description="(Δρ µm, Δθ deg) or (Δx µm, Δy µm)")
+    points_paper: PositiveInt = Field(description="point count the paper states")
+    pv_nm: PositiveFloat = Field(description="published P-V [nm]")
+    rel_tol: float = Field(0.15, gt=0.0, description="relative tolerance on pv_nm")
+    abs_tol_nm: float = Field(5.0, ge=0.0, description="absolute tolerance on pv_nm [nm]")
+
+    @property
+    def tolerance_nm(self) -> float:
+        """Allowed deviation [nm]: max(rel_tol·pv, abs_tol_nm)."""
+        return max(self.rel_tol * self.pv_nm, self.abs_tol_nm)
+
+
 # --------------------------------------------------------------------------- loading
 def catalog_dir() -> Path:
     """Folder holding the catalog YAML files: ``$FTSWEEP_CATALOGS`` or the repository's."""
@@ -151,7 +168,11 @@ def _allowed_keys(model: Any, loc: tuple[Any, ...]) -> list[str]:
                     nxt.extend(_union_members(m.model_fields[part].annotation))
                 elif isinstance(part, str):
                     # a discriminated union puts the tag value in loc: keep the tagged member
-                    tag = [f for f in m.model_fields.values() if getattr(f.annotation, "__args__", None) == (part,)]
+                    tag = [
+                        f
+                        for f in m.model_fields.values()
+                        if getattr(f.annotation, "__args__", None) == (part,)
+                    ]
                     if tag:
                         nxt.append(m)
         candidates = nxt
@@ -163,7 +184,7 @@ def _allowed_keys(model: Any, loc: tuple[Any, ...]) -> list[str]:
 
 
 def _union_members(annotation: Any) -> list[Any]:
-    args = getattr(annotation, "__args__", None)
+    args: tuple[Any, ...] = tuple(getattr(annotation, "__args__", None) or ())
     origin = getattr(annotation, "__origin__", None)
     if origin is Annotated or (args and getattr(annotation, "__metadata__", None)):
         return _union_members(args[0])
@@ -200,14 +221,15 @@ def load_catalog(path: Path, model: Any) -> dict[str, Any]:
     return out
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _cached(kind: str, folder: str) -> dict[str, Any]:
-    model = {"surfaces": SurfaceSpec, "machines": Machine, "cutting": Cutting}[kind]
+    model = {"surfaces": SurfaceSpec, "machines": Machine, "cutting": Cutting, "references": Reference}[kind]
     return load_catalog(Path(folder) / f"{kind}.yaml", model)
 
 
 def entry(kind: str, name: str, folder: Path | None = None) -> Any:
-    """One validated entry of catalog ``kind`` (``surfaces``, ``machines`` or ``cutting``)."""
+    """One validated entry of catalog ``kind``: ``surfaces``, ``machines``, ``cutting`` or
+    ``references``."""
     folder = folder or catalog_dir()
     entries = _cached(kind, str(folder))
     if name not in entries:

@@ -74,9 +74,7 @@ def list_catalogs() -> None:
 @click.option("--dx-um", type=float, help="Mesh pitch Δx [µm] (mesh layout).")
 @click.option("--dy-um", type=float, help="Mesh pitch Δy [µm] (mesh layout).")
 @click.option("--points", type=float, help="Target number of control points N (with --aspect).")
-@click.option(
-    "--aspect", type=float, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh)."
-)
+@click.option("--aspect", type=float, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh).")
 @click.option("--feed-um", type=float, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
 @click.option("--nose-radius-um", type=float, help="Tool nose radius Rc [µm]. Default: cutting entry.")
 @click.option(
@@ -102,7 +100,9 @@ def list_catalogs() -> None:
     show_default=True,
     help="Evaluation points per feed along each simulated angle (even).",
 )
-@click.option("--n-theta", type=int, help="Simulated spindle angles over 360° (overrides --samples-per-cell).")
+@click.option(
+    "--n-theta", type=int, help="Simulated spindle angles over 360° (overrides --samples-per-cell)."
+)
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def predict(
     surface: str,
@@ -136,8 +136,22 @@ def predict(
       ftsweep predict --surface sinewave2d --points 500000 --aspect 8
     """
     case = _build_case(
-        surface, layout, drho_um, dtheta_deg, dx_um, dy_um, points, aspect, feed_um, nose_radius_um,
-        compensation, machine, cutting, samples_per_cell, points_per_feed, n_theta,
+        surface,
+        layout,
+        drho_um,
+        dtheta_deg,
+        dx_um,
+        dy_um,
+        points,
+        aspect,
+        feed_um,
+        nose_radius_um,
+        compensation,
+        machine,
+        cutting,
+        samples_per_cell,
+        points_per_feed,
+        n_theta,
     )
     progress = None
     if not as_json and sys.stderr.isatty():
@@ -162,14 +176,30 @@ def _stderr_progress(label: str):  # type: ignore[no-untyped-def]
     def report(done: int, total: int) -> None:
         width = 30
         filled = int(width * done / max(total, 1))
-        click.echo(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total} batches", err=True, nl=False)
+        click.echo(
+            f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total} batches", err=True, nl=False
+        )
 
     return report
 
 
 def _build_case(
-    surface, layout, drho_um, dtheta_deg, dx_um, dy_um, points, aspect, feed_um, nose_radius_um,
-    compensation, machine, cutting, samples_per_cell, points_per_feed, n_theta,
+    surface,
+    layout,
+    drho_um,
+    dtheta_deg,
+    dx_um,
+    dy_um,
+    points,
+    aspect,
+    feed_um,
+    nose_radius_um,
+    compensation,
+    machine,
+    cutting,
+    samples_per_cell,
+    points_per_feed,
+    n_theta,
 ) -> Case:  # type: ignore[no-untyped-def]
     try:
         spec = catalogs.entry("surfaces", surface)
@@ -198,16 +228,27 @@ def _build_case(
             f"give the layout: --{own[0].replace('_', '-')} and --{own[1].replace('_', '-')}, "
             "or --points N with --aspect A"
         )
-    for name, value in {**given, "points": points, "aspect": aspect, "feed-um": feed_um,
-                        "nose-radius-um": nose_radius_um}.items():
+    for name, value in {
+        **given,
+        "points": points,
+        "aspect": aspect,
+        "feed-um": feed_um,
+        "nose-radius-um": nose_radius_um,
+    }.items():
         if value is not None and not (value > 0 and math.isfinite(value)):
             _fail(f"--{name.replace('_', '-')} must be a positive number, got {value}")
-    for name, value in {"samples-per-cell": samples_per_cell, "points-per-feed": points_per_feed,
-                        "n-theta": n_theta}.items():
+    for name, value in {
+        "samples-per-cell": samples_per_cell,
+        "points-per-feed": points_per_feed,
+        "n-theta": n_theta,
+    }.items():
         if value is not None and value < 1:
             _fail(f"--{name} must be a positive integer, got {value}")
     if points_per_feed % 2:
-        _fail(f"--points-per-feed must be even (the cusp midway between passes is sampled), got {points_per_feed}")
+        _fail(
+            "--points-per-feed must be even (the cusp midway between passes is sampled), "
+            f"got {points_per_feed}"
+        )
     try:
         request = LayoutRequest(
             kind=kind,
@@ -234,7 +275,8 @@ def _build_case(
 def _summary(r: dict[str, Any]) -> str:
     if r["layout"] == "ring":
         pitches = (
-            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.4g}°  (α = {r['aspect_um_per_deg']:.4g} µm/deg)"
+            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.4g}°  "
+            f"(α = {r['aspect_um_per_deg']:.4g} µm/deg)"
         )
     else:
         pitches = f"Δx = {r['dx_um']:.4g} µm, Δy = {r['dy_um']:.4g} µm  (α = {r['aspect']:.4g})"
@@ -248,14 +290,17 @@ def _summary(r: dict[str, Any]) -> str:
         f"resolution   {r['n_theta']:,} angles × {r['points_per_feed']} points/feed "
         f"({r['n_eval']:,} evaluation points)",
         "",
-        f"P-V          {r['pv_nm']:.2f} nm   (inner zone {r['pv_inner_nm']:.2f} nm, outer zone {r['pv_outer_nm']:.2f} nm)",
+        f"P-V          {r['pv_nm']:.2f} nm   "
+        f"(inner zone {r['pv_inner_nm']:.2f} nm, outer zone {r['pv_outer_nm']:.2f} nm)",
         f"RMS          {r['rms_nm']:.2f} nm",
         f"error range  {r['error_min_nm']:.2f} … {r['error_max_nm']:.2f} nm",
         f"interp. P-V  {r['pv_interp_nm']:.2f} nm   (interpolation alone)",
         f"feed cusp    {r['cusp_nm']:.2f} nm   (F²/8Rc)",
     ]
     if r["gouge_points"]:
-        lines.append(f"gouge        {r['gouge_points']:,} control points where the concave radius is below Rc")
+        lines.append(
+            f"gouge        {r['gouge_points']:,} control points where the concave radius is below Rc"
+        )
     lines.append(
         f"time         {r['seconds']:.2f} s  (compensation {r['seconds_compensation']:.2f}, sampling "
         f"{r['seconds_sampling']:.2f}, interpolation {r['seconds_interpolation']:.2f}, envelope "

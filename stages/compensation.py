@@ -133,8 +133,19 @@ def compensate(
     fa, fb = dh[lo_i, cols], dh[hi_i, cols]
     # Only a sign change of h' brackets an interior maximum; elsewhere the scan value stands.
     active = np.flatnonzero((fa > 0.0) & (fb < 0.0))
-    refined = _illinois_max(surface, rho[active], ct[active], st[active], rc, a[active], b[active],
-                            fa[active], fb[active], tol_um, max_iter)
+    refined = _illinois_max(
+        surface,
+        rho[active],
+        ct[active],
+        st[active],
+        rc,
+        a[active],
+        b[active],
+        fa[active],
+        fb[active],
+        tol_um,
+        max_iter,
+    )
     # The refined maximum can only raise w; max() guards the non-unimodal corner cases.
     w[active] = np.maximum(w[active], refined)
     return w.reshape(shape), gouge.reshape(shape)

@@ -177,9 +177,7 @@ def line_angles(n_theta: int) -> np.ndarray:
     return (np.arange(n_theta // 2) + 0.5) * (2.0 * math.pi / n_theta)
 
 
-def path_grid(
-    line_theta: np.ndarray, rho0_um: float, feed_um: float, ppf: int, margin_um: float
-) -> PathGrid:
+def path_grid(line_theta: np.ndarray, rho0_um: float, feed_um: float, ppf: int, margin_um: float) -> PathGrid:
     """Pass positions and node grids for feed-plane lines at ``line_theta`` [rad] (§1, §5).
 
     Parameters

@@ -122,7 +122,7 @@ def finalize(stats: np.ndarray) -> dict[str, float]:
     error); pv_interp_nm is the P-V of z(interpolated commands) − z(exact commands); zone
     P-Vs use the inner (r ≤ split) and outer nodes. An empty set gives NaN.
     """
-    s = dict(zip(STAT_NAMES, stats.tolist()))
+    s = dict(zip(STAT_NAMES, stats.tolist(), strict=True))
     n = s["count"]
     nan = float("nan")
 

@@ -12,7 +12,8 @@ arrays of equal shape in µm; the pipeline builds one from a catalog entry with
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -134,12 +135,6 @@ def _lens_array_kernel(x, y, R, h, pitch, nx, ny, f, fx, fy):  # pragma: no cove
             fy[n] = 0.0
 
 
-def _lens_geometry(radius_um: float, sag_um: float) -> tuple[float, float, float]:
-    a = math.sqrt(2.0 * sag_um * radius_um - sag_um**2)
-    rt = 0.5 * radius_um
-    return a, rt, a * (1.0 + rt / radius_um)
-
-
 def lens_array(
     x: np.ndarray,
     y: np.ndarray,
@@ -180,7 +175,7 @@ def lens_array(
 
 def lens_array_gradient_bound(*, radius_um: float, sag_um: float, **_: float) -> float:
     """Upper bound of |∇f| for :func:`lens_array` [-]: the slope at the sphere/torus seam r = a."""
-    a, _, _ = _lens_geometry(radius_um, sag_um)
+    a = math.sqrt(2.0 * sag_um * radius_um - sag_um**2)
     return a / math.sqrt(radius_um**2 - a**2)
 
 

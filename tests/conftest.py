@@ -1,0 +1,48 @@
+"""Shared fixtures: a private copy of the catalogs with extra test surfaces."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+from hypothesis import settings
+
+# numba compiles on a kernel's first call (or loads it from cache); that one-off cost is not
+# what a property test measures, so examples get no deadline.
+settings.register_profile("ftsweep", deadline=None, max_examples=60)
+settings.load_profile("ftsweep")
+
+REPO = Path(__file__).resolve().parent.parent
+
+EXTRA_SURFACES = """
+flat:
+  description: A plane (sinewave2d of zero amplitude); machines to pure feed cusps.
+  family: sinewave2d
+  layout: ring
+  aperture: {shape: circle, radius_um: 300.0}
+  params: {amplitude_x_um: 0.0, amplitude_y_um: 0.0, wavelength_x_um: 100.0, wavelength_y_um: 100.0}
+small_sine:
+  description: A small sinewave part for fast end-to-end tests.
+  family: sinewave2d
+  layout: ring
+  aperture: {shape: circle, radius_um: 300.0}
+  params: {amplitude_x_um: 0.5, amplitude_y_um: 0.5, wavelength_x_um: 100.0, wavelength_y_um: 100.0,
+           phase_x_deg: 90.0, phase_y_deg: 90.0}
+small_lens:
+  description: A 3 x 3 lens array for fast end-to-end tests.
+  family: lens_array
+  layout: mesh
+  aperture: {shape: rectangle, width_um: 450.0, height_um: 450.0}
+  params: {radius_um: 252.5, sag_um: 5.0, pitch_um: 150.0, count_x: 3, count_y: 3}
+"""
+
+
+@pytest.fixture()
+def catalog_dir(tmp_path: Path) -> Path:
+    """A copy of catalogs/ with the extra test surfaces appended."""
+    folder = tmp_path / "catalogs"
+    shutil.copytree(REPO / "catalogs", folder)
+    with (folder / "surfaces.yaml").open("a") as fh:
+        fh.write(EXTRA_SURFACES)
+    return folder

@@ -1,0 +1,138 @@
+"""Tool-nose compensation (physics.md §4)."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from stages import compensation
+from stages.compensation import arc_lift, compensate
+from stages.surfaces import FAMILIES, lens_array, radial_section, sinewave2d
+
+LENS = dict(radius_um=252.5, sag_um=5.0, pitch_um=150.0, count_x=11, count_y=11)
+
+
+def sine_params(ax, ay, lx, ly, px, py):
+    return dict(
+        amplitude_x_um=ax,
+        amplitude_y_um=ay,
+        wavelength_x_um=lx,
+        wavelength_y_um=ly,
+        phase_x_deg=px,
+        phase_y_deg=py,
+    )
+
+
+def worst_undercut(surface, rho, theta, w, rc, n_s=2001):
+    """Largest depth [µm] by which any arc at (ρ, θ) with lowest point w cuts below the design."""
+    s = np.linspace(-0.999 * rc, 0.999 * rc, n_s)
+    c, sn = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    g, _ = radial_section(surface, rho[:, None] + s[None, :], c, sn)
+    arc = w[:, None] + arc_lift(s, rc)[None, :]
+    return float(np.max(g - arc))
+
+
+# smooth sinewaves whose concave radius stays above Rc (no gouge), random geometry
+@given(
+    st.floats(0.05, 1.0),
+    st.floats(0.05, 1.0),
+    st.floats(60.0, 400.0),
+    st.floats(60.0, 400.0),
+    st.floats(0.0, 360.0),
+    st.floats(0.0, 360.0),
+    st.floats(20.0, 200.0),
+    st.integers(0, 2**32 - 1),
+)
+def test_exact_compensation_never_cuts_below_the_design(ax, ay, lx, ly, px, py, rc, seed):
+    params = sine_params(ax, ay, lx, ly, px, py)
+    surface = functools.partial(sinewave2d, **params)
+    bound = FAMILIES["sinewave2d"].gradient_bound(**params)
+    rng = np.random.default_rng(seed)
+    rho = rng.uniform(0.0, 1000.0, 60)
+    theta = rng.uniform(0.0, 2 * math.pi, 60)
+    w, gouge = compensate(surface, rho, theta, rc, "exact", bound)
+    undercut = worst_undercut(surface, rho, theta, w, rc)
+    assert undercut <= 0.5e-3  # never more than 0.5 nm below the design
+    # and it is tight: the arc touches the section (no gap above 0.5 nm either)
+    assert undercut >= -0.5e-3 or gouge.any()
+
+
+@given(st.floats(20.0, 200.0), st.integers(0, 2**32 - 1))
+def test_exact_compensation_on_the_lens_array(rc, seed):
+    surface = functools.partial(lens_array, **LENS)
+    bound = FAMILIES["lens_array"].gradient_bound(**LENS)
+    rng = np.random.default_rng(seed)
+    rho = rng.uniform(0.0, 1100.0, 60)
+    theta = rng.uniform(0.0, 2 * math.pi, 60)
+    w, _ = compensate(surface, rho, theta, rc, "exact", bound)
+    undercut = worst_undercut(surface, rho, theta, w, rc, n_s=8001)
+    assert -0.5e-3 <= undercut <= 0.5e-3
+
+
+def test_uncompensated_and_slope_tables_cut_into_sloped_parts():
+    params = sine_params(0.5, 0.5, 100.0, 100.0, 90.0, 90.0)
+    surface = functools.partial(sinewave2d, **params)
+    rho = np.linspace(100.0, 900.0, 200)
+    theta = np.full(rho.size, 0.3)
+    none, _ = compensate(surface, rho, theta, 83.0, "none")
+    slope, _ = compensate(surface, rho, theta, 83.0, "slope")
+    exact, _ = compensate(surface, rho, theta, 83.0, "exact", FAMILIES["sinewave2d"].gradient_bound(**params))
+    assert worst_undercut(surface, rho, theta, none, 83.0) > 0.02  # tens of nm, §4
+    # the slope approximation is close to exact (it ignores the contact's sideways shift)
+    assert np.max(np.abs(slope - exact)) < 5e-3
+    assert np.all(exact >= none - 1e-12)
+
+
+def test_exact_matches_closed_form_on_a_plane():
+    # on a plane of slope m the exact value is f + Rc·(sqrt(1 + m²) − 1): the slope formula
+    m = 0.12
+    surface = lambda x, y: (m * x, np.full_like(x, m), np.zeros_like(x))  # noqa: E731
+    rho = np.linspace(0.0, 500.0, 51)
+    w, gouge = compensate(surface, rho, np.zeros(rho.size), 83.0, "exact", m)
+    np.testing.assert_allclose(w, m * rho + 83.0 * (math.sqrt(1 + m * m) - 1), atol=1e-9)
+    assert not gouge.any()
+
+
+def test_on_ray_solver_agrees_with_point_solver():
+    params = sine_params(0.5, 0.5, 100.0, 100.0, 90.0, 90.0)
+    surface = functools.partial(sinewave2d, **params)
+    bound = FAMILIES["sinewave2d"].gradient_bound(**params)
+    theta, spacing, rc = 0.7, 0.5, 83.0
+    r = 600.0 - np.arange(0, 1000) * spacing  # nodes from 600 µm inwards
+    g, gp = radial_section(surface, r, math.cos(theta), math.sin(theta))
+    nodes = np.arange(20, 980, 2, dtype=np.int64)
+    out = np.empty(nodes.size)
+    compensation.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out)
+    ref, _ = compensate(surface, r[nodes], np.full(nodes.size, theta), rc, "exact", bound)
+    np.testing.assert_allclose(out, ref, atol=0.05e-3)  # 0.05 nm
+    for code, mode in ((1, "slope"), (2, "none")):
+        compensation.compensate_on_ray(g, gp, spacing, rc, nodes, code, out)
+        want, _ = compensate(surface, r[nodes], np.full(nodes.size, theta), rc, mode)
+        np.testing.assert_allclose(out, want, atol=1e-12)
+
+
+def test_gouge_is_flagged_where_concave_radius_is_below_rc():
+    # curvature A·k² = 0.5·(2π/40)² ≈ 0.0123/µm > 1/83: troughs narrower than the tool
+    tight = sine_params(0.5, 0.0, 40.0, 100.0, 0.0, 0.0)
+    smooth = sine_params(0.5, 0.0, 200.0, 100.0, 0.0, 0.0)
+    rho = np.linspace(0.0, 400.0, 400)
+    theta = np.zeros(rho.size)
+    for params, expect in ((tight, True), (smooth, False)):
+        surface = functools.partial(sinewave2d, **params)
+        bound = FAMILIES["sinewave2d"].gradient_bound(**params)
+        w, gouge = compensate(surface, rho, theta, 83.0, "exact", bound)
+        assert gouge.any() == expect
+        assert worst_undercut(surface, rho, theta, w, 83.0) <= 0.5e-3
+
+
+def test_rejects_bad_arguments():
+    surface = functools.partial(sinewave2d, **sine_params(0.5, 0.5, 100.0, 100.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="unknown compensation mode"):
+        compensate(surface, np.ones(3), np.zeros(3), 83.0, "magic")
+    with pytest.raises(ValueError, match="exceeds the gradient bound"):
+        compensate(surface, np.linspace(0, 100, 30), np.zeros(30), 83.0, "exact", 0.001)

@@ -1,0 +1,110 @@
+"""Surface families (physics.md §7): gradients, continuity, reference geometry."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from pipeline import catalogs
+from stages.surfaces import FAMILIES, Aperture, lens_array, radial_section, sinewave2d
+
+LENS = dict(radius_um=252.5, sag_um=5.0, pitch_um=150.0, count_x=11, count_y=11)
+SINE = dict(
+    amplitude_x_um=0.5,
+    amplitude_y_um=0.5,
+    wavelength_x_um=100.0,
+    wavelength_y_um=100.0,
+    phase_x_deg=90.0,
+    phase_y_deg=90.0,
+)
+
+
+def finite_difference(fn, x, y, h=1e-4):
+    fxp, _, _ = fn(x + h, y)
+    fxm, _, _ = fn(x - h, y)
+    fyp, _, _ = fn(x, y + h)
+    fym, _, _ = fn(x, y - h)
+    return (fxp - fxm) / (2 * h), (fyp - fym) / (2 * h)
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_sinewave_gradient_matches_finite_difference(seed):
+    rng = np.random.default_rng(seed)
+    x, y = rng.uniform(-1000, 1000, (2, 200))
+    fn = lambda a, b: sinewave2d(a, b, **SINE)  # noqa: E731
+    _, fx, fy = fn(x, y)
+    dx, dy = finite_difference(fn, x, y)
+    np.testing.assert_allclose(fx, dx, atol=1e-7)
+    np.testing.assert_allclose(fy, dy, atol=1e-7)
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_lens_array_gradient_matches_finite_difference_away_from_seams(seed):
+    rng = np.random.default_rng(seed)
+    x, y = rng.uniform(-825, 825, (2, 400))
+    fn = lambda a, b: lens_array(a, b, **LENS)  # noqa: E731
+    _, fx, fy = fn(x, y)
+    dx, dy = finite_difference(fn, x, y)
+    # the blend is C1, so the gradient is continuous even across seams; only the
+    # cell boundaries between lenslets (where r > Rt is plane on both sides) are exact
+    np.testing.assert_allclose(fx, dx, atol=2e-5)
+    np.testing.assert_allclose(fy, dy, atol=2e-5)
+
+
+def test_lens_array_geometry():
+    a = math.sqrt(2 * 5.0 * 252.5 - 25.0)
+    assert a == pytest.approx(50.0)
+    f, fx, fy = lens_array(
+        np.array([0.0, 150.0, 50.0, 75.0, 75.0 + 1e-9, 70.0]),
+        np.array([0.0, -300.0, 0.0, 0.0, 0.0, 70.0]),
+        **LENS,
+    )
+    assert f[0] == pytest.approx(-5.0)  # the lenslet bottom, sag h below the seam
+    assert f[1] == pytest.approx(-5.0)  # every lenslet is the same
+    assert f[2] == pytest.approx(0.0, abs=1e-12)  # the sphere meets the torus at f = 0
+    assert f[3] == pytest.approx(2.5)  # the torus top meets the plane rt·h/R
+    assert f[4] == pytest.approx(2.5)
+    assert f[5] == pytest.approx(2.5) and fx[5] == 0.0 and fy[5] == 0.0  # a cell corner: plane
+
+
+def test_gradient_bounds_hold():
+    for fam, params in (("sinewave2d", SINE), ("lens_array", LENS)):
+        family = FAMILIES[fam]
+        bound = family.gradient_bound(**params)
+        x, y = np.meshgrid(np.linspace(-825, 825, 801), np.linspace(-825, 825, 801))
+        _, fx, fy = family.evaluate(x, y, **params)
+        steepest = np.hypot(fx, fy).max()
+        assert steepest <= bound * (1 + 1e-12)
+        assert steepest >= 0.95 * bound  # and the bound is tight, so contact windows stay small
+
+
+def test_radial_section_through_the_axis():
+    f, gp = radial_section(
+        lambda x, y: (x + 2 * y, np.ones_like(x), 2 * np.ones_like(x)),
+        np.array([-3.0, 0.0, 3.0]),
+        math.cos(0.3),
+        math.sin(0.3),
+    )
+    np.testing.assert_allclose(f, np.array([-3.0, 0.0, 3.0]) * (math.cos(0.3) + 2 * math.sin(0.3)))
+    np.testing.assert_allclose(gp, math.cos(0.3) + 2 * math.sin(0.3))
+
+
+def test_apertures():
+    circle = Aperture("circle", radius_um=10.0)
+    rect = Aperture("rectangle", width_um=20.0, height_um=10.0)
+    x = np.array([0.0, 9.0, 8.0, 10.0])
+    y = np.array([0.0, 4.0, 8.0, 5.0])
+    np.testing.assert_array_equal(circle.contains(x, y), [True, True, False, False])
+    np.testing.assert_array_equal(rect.contains(x, y), [True, True, False, True])
+    assert rect.outer_radius_um == pytest.approx(math.hypot(10, 5))
+    assert rect.inner_radius_um == 5.0 and circle.outer_radius_um == 10.0
+
+
+def test_catalog_surfaces_build_callables():
+    spec = catalogs.entry("surfaces", "sinewave2d")
+    f, _, _ = catalogs.surface_callable(spec)(np.array([0.0]), np.array([0.0]))
+    assert f[0] == pytest.approx(1.0)  # both cosines at their crest

@@ -42,7 +42,7 @@ class Resolution(Strict):
     n_theta: Optional[PositiveInt] = Field(
         None, description="number of sampled spindle angles over 360°; overrides samples_per_cell"
     )
-    compensation_scan: int = Field(7, ge=3, description="coarse-scan samples of the exact compensation")
+    compensation_scan: int = Field(5, ge=3, description="coarse-scan samples of the exact compensation")
     zone_split: float = Field(
         0.5, gt=0.0, lt=1.0, description="inner/outer zone boundary as a fraction of the inscribed radius"
     )
@@ -214,7 +214,7 @@ def run_case(
         ray_theta = grid.ray_theta[:, None]
         ct, st = np.cos(ray_theta), np.sin(ray_theta)
         g, gp = radial_section(surface, grid.node_r, ct, st)
-        inside = aperture.contains(grid.node_r * ct, grid.node_r * st)
+        inside = aperture.contains_polar(grid.node_r, ct, st)
         t = timer.add("sampling", t)
 
         pass_nodes = grid.pass_nodes
@@ -250,7 +250,7 @@ def run_case(
 
         metrics.accumulate(z, z_exact, g, inside, np.abs(grid.node_r), zone_split, stats)
         cusp_f = interpolation.sample_on_nodes(grid, g, gp, cusp_r)
-        cusp_inside = aperture.contains(cusp_r * ct, cusp_r * st)
+        cusp_inside = aperture.contains_polar(cusp_r, ct, st)
         metrics.accumulate_extrema(cusp_z, cusp_f, cusp_inside, cusp_r, zone_split, stats)
         timer.add("metrics", t)
         if progress is not None:

@@ -168,6 +168,36 @@ def predict(
         click.echo(_summary(record))
 
 
+@main.command()
+@click.option("--case", "names", multiple=True, metavar="NAME", help="Only this case (repeatable).")
+@click.option("--repeat", type=int, default=1, show_default=True, help="Runs per case; the fastest counts.")
+@click.option(
+    "--json",
+    "json_path",
+    type=click.Path(dir_okay=False, writable=True),
+    default="outputs/bench.json",
+    show_default=True,
+    help="Also write the figures to this JSON file.",
+)
+def bench(names: tuple[str, ...], repeat: int, json_path: str) -> None:
+    """Time the case runner on the published reference cases and two 10⁶-point layouts.
+
+    Prints the seconds per case split into compensation, surface sampling, interpolation,
+    envelope and metrics, after a warm-up that pays numba's compile cost. Kernels are
+    single-threaded, so the figures are for one core. Nothing is asserted about time.
+    """
+    from pipeline.bench import format_table, run_benchmark
+    from pipeline.io import write_json_atomic
+
+    try:
+        result = run_benchmark(list(names) or None, repeat=repeat)
+    except ValueError as exc:
+        raise click.UsageError(str(exc)) from None
+    click.echo(format_table(result))
+    write_json_atomic(json_path, result)
+    click.echo(f"wrote {json_path}")
+
+
 def _nan_safe(value: Any) -> Any:  # pragma: no cover - only non-JSON types reach here
     return str(value)
 

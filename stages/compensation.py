@@ -58,7 +58,7 @@ def compensate(
     nose_radius_um: float,
     mode: str = "exact",
     gradient_bound: float = 0.0,
-    n_scan: int = 7,
+    n_scan: int = 5,
     tol_um: float = 1e-4,
     max_iter: int = 60,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -117,10 +117,11 @@ def compensate(
 
     gouge = np.zeros(n, dtype=bool)
     if n_off > 1:
+        # concave curvature g''/(1 + g'^2)^1.5 above 1/Rc between neighbouring scan samples
         step = offsets[1] - offsets[0]
-        mid = 0.5 * (slopes[1:] + slopes[:-1])
-        curvature = (slopes[1:] - slopes[:-1]) / step / (1.0 + mid * mid) ** 1.5
-        gouge = np.any(curvature > 1.0 / rc, axis=0)
+        for q in range(n_off - 1):
+            mid2 = 1.0 + 0.25 * np.square(slopes[q + 1] + slopes[q])
+            gouge |= (slopes[q + 1] - slopes[q]) * rc > step * mid2 * np.sqrt(mid2)
 
     best = np.argmax(h, axis=0)
     cols = np.arange(n)

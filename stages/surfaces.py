@@ -223,6 +223,12 @@ class Aperture(NamedTuple):
             return x * x + y * y <= self.radius_um * self.radius_um
         return (np.abs(x) <= 0.5 * self.width_um) & (np.abs(y) <= 0.5 * self.height_um)
 
+    def contains_polar(self, r: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray) -> np.ndarray:
+        """:meth:`contains` for points at radius ``r`` [µm] on sections of angle θ (cos, sin)."""
+        if self.shape == "circle":
+            return np.abs(r) <= self.radius_um
+        return (np.abs(r * cos_t) <= 0.5 * self.width_um) & (np.abs(r * sin_t) <= 0.5 * self.height_um)
+
     @property
     def outer_radius_um(self) -> float:
         """Radius [µm] of the smallest centred circle holding the aperture: where the spiral starts."""

@@ -1,0 +1,85 @@
+"""Benchmark of the case runner: seconds per case and per stage, on one core.
+
+Runs the published reference cases (catalogs/references.yaml) and two layouts of about one
+million points at the default resolution, after a warm-up case that pays numba's compile
+or cache-load cost, and prints a table. It measures; it asserts nothing about time.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from typing import Any
+
+from pipeline import __version__, catalogs
+from pipeline.case import STAGE_TIMERS, Case, LayoutRequest, run_case
+
+MILLION_CASES = {
+    "ring-1M-a8": ("sinewave2d", LayoutRequest(kind="ring", points=1_000_000, aspect=8.0)),
+    "mesh-1M-a1": ("lens_array", LayoutRequest(kind="mesh", points=1_000_000, aspect=1.0)),
+}
+
+
+def bench_cases() -> dict[str, Case]:
+    """The benchmarked cases: the six references plus two ~10⁶-point layouts."""
+    cases = {
+        name: Case(surface=ref.surface, layout=LayoutRequest(kind=ref.layout, pitch=ref.pitch))
+        for name, ref in catalogs.entries("references").items()
+    }
+    for name, (surface, request) in MILLION_CASES.items():
+        cases[name] = Case(surface=surface, layout=request)
+    return cases
+
+
+def run_benchmark(names: list[str] | None = None, repeat: int = 1) -> dict[str, Any]:
+    """Run the benchmark; returns machine info and one row per case (best of ``repeat``)."""
+    cases = bench_cases()
+    chosen = names or list(cases)
+    unknown = [n for n in chosen if n not in cases]
+    if unknown:
+        raise ValueError(f"unknown benchmark case(s) {unknown}; known: {', '.join(cases)}")
+    # warm-up: compile or load every kernel once, for both layout kinds
+    for surface, kind, pitch in (("sinewave2d", "ring", (20.0, 10.0)), ("lens_array", "mesh", (50.0, 50.0))):
+        run_case(Case(surface=surface, layout=LayoutRequest(kind=kind, pitch=pitch)))
+    rows = []
+    for name in chosen:
+        best: dict[str, Any] | None = None
+        for _ in range(repeat):
+            record = run_case(cases[name])
+            if best is None or record["seconds"] < best["seconds"]:
+                best = record
+        assert best is not None
+        row = {"case": name, "n_points": best["n_points"], "pv_nm": best["pv_nm"], "seconds": best["seconds"]}
+        row.update({f"seconds_{s}": best[f"seconds_{s}"] for s in STAGE_TIMERS})
+        row["n_eval"] = best["n_eval"]
+        rows.append(row)
+    return {
+        "version": __version__,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "machine": platform.machine(),
+        "processor": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "threads": os.environ.get("NUMBA_NUM_THREADS", "kernels are single-threaded"),
+        "rows": rows,
+    }
+
+
+def format_table(result: dict[str, Any]) -> str:
+    """A fixed-width table of a :func:`run_benchmark` result."""
+    head = (
+        f"{'case':24s} {'points':>9s} {'P-V nm':>8s} {'total s':>8s} {'comp.':>7s} {'sampl.':>7s} "
+        f"{'interp.':>7s} {'envel.':>7s} {'metric':>7s} {'eval pts/s':>11s}"
+    )
+    lines = [head, "-" * len(head)]
+    for r in result["rows"]:
+        lines.append(
+            f"{r['case']:24s} {r['n_points']:9,d} {r['pv_nm']:8.2f} {r['seconds']:8.2f} "
+            f"{r['seconds_compensation']:7.2f} {r['seconds_sampling']:7.2f} {r['seconds_interpolation']:7.2f} "
+            f"{r['seconds_envelope']:7.2f} {r['seconds_metrics']:7.2f} {r['n_eval'] / r['seconds']:11.3g}"
+        )
+    lines.append(
+        "compensation: control table + exact commands along the path; sampling: design surface on the "
+        "evaluation grid; compile time excluded (warm-up case first)."
+    )
+    return "\n".join(lines)

@@ -1,0 +1,46 @@
+"""Benchmarks (pytest-benchmark): they print timings and assert nothing about time.
+
+Run with: pytest -m bench --benchmark-only   (or `ftsweep bench` for the per-stage table)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.bench import bench_cases
+from pipeline.case import run_case
+from stages import envelope, interpolation, layouts
+
+
+@pytest.mark.bench
+@pytest.mark.parametrize("name", ["sinewave-ring-0.25deg", "lens-mesh-2um", "ring-1M-a8"])
+def test_bench_case(benchmark, name):
+    case = bench_cases()[name]
+    run_case(case)  # compile / cache-load outside the timing
+    record = benchmark.pedantic(run_case, args=(case,), rounds=2, iterations=1)
+    benchmark.extra_info.update({k: v for k, v in record.items() if k.startswith("seconds") or k == "pv_nm"})
+    assert record["pv_nm"] > 0
+
+
+@pytest.mark.bench
+def test_bench_bilinear_10M(benchmark):
+    lay = layouts.ring_layout(1000.0, 1.0, 0.2)
+    table = np.random.default_rng(0).normal(size=lay.shape)
+    rng = np.random.default_rng(1)
+    rho = rng.uniform(0, 1000, 10_000_000)
+    theta = rng.uniform(0, 2 * np.pi, rho.size)
+    out = benchmark(interpolation.interpolate, lay, table, rho, theta)
+    assert out.shape == rho.shape
+
+
+@pytest.mark.bench
+def test_bench_envelope_line(benchmark):
+    pos = np.arange(2000, dtype=float)
+    w = 1e-3 * np.sin(pos / 50.0)
+    query = np.linspace(5, 1995, 4000)
+    out = np.empty(query.size)
+    stack = np.empty(pos.size, dtype=np.int64)
+    breaks = np.empty(pos.size)
+    benchmark(envelope.lower_envelope, pos, w, 83.0, query, out, stack, breaks)
+    assert np.isfinite(out).all()

@@ -68,7 +68,8 @@ def run_benchmark(names: list[str] | None = None, repeat: int = 1) -> dict[str, 
 def format_table(result: dict[str, Any]) -> str:
     """A fixed-width table of a :func:`run_benchmark` result."""
     head = (
-        f"{'case':24s} {'points':>9s} {'P-V nm':>8s} {'total s':>8s} {'comp.':>7s} {'sampl.':>7s} "
+        f"{'case':24s} {'points':>9s} {'P-V nm':>8s} {'total s':>8s} {'comp.':>7s} "
+        f"{'sampl.':>7s} "
         f"{'interp.':>7s} {'envel.':>7s} {'metric':>7s} {'eval pts/s':>11s}"
     )
     lines = [head, "-" * len(head)]

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import math
 import sys
+import time
+from pathlib import Path
 from typing import Any, Optional
 
 import click
@@ -50,6 +52,8 @@ def main() -> None:
 @main.command("catalogs")
 def list_catalogs() -> None:
     """List the surfaces, machines and cutting conditions the catalogs define."""
+    from pipeline.sweep import sweep_dir
+
     try:
         for kind in ("surfaces", "machines", "cutting"):
             click.echo(f"{kind} ({catalogs.catalog_dir() / (kind + '.yaml')}):")
@@ -57,6 +61,9 @@ def list_catalogs() -> None:
                 extra = f" [{spec.family}, {spec.layout} layout]" if kind == "surfaces" else ""
                 desc = " ".join(spec.description.split())
                 click.echo(f"  {name}{extra}: {desc[:90]}")
+        click.echo(f"sweeps ({sweep_dir()}):")
+        for path in sorted(sweep_dir().glob("*.yaml")):
+            click.echo(f"  {path.stem}")
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
 
@@ -166,6 +173,104 @@ def predict(
         click.echo(json.dumps(record, allow_nan=False, default=_nan_safe))
     else:
         click.echo(_summary(record))
+
+
+@main.command()
+@click.argument("sweep_name", metavar="NAME|PATH")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Cube to write (a Zarr folder). Default: outputs/<sweep>.zarr.",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDRESS",
+    help="Address of a running dask scheduler (tcp://host:port); also read from "
+    "$DASK_SCHEDULER_ADDRESS. 'synchronous' runs in this process. Default: a local cluster.",
+)
+@click.option("--workers", type=int, help="Worker processes of the local cluster. Default: one per core.")
+@click.option("--restart", is_flag=True, help="Discard an existing cube made from a different spec.")
+@click.option("--retry-failed", is_flag=True, help="Also recompute cases recorded as failed.")
+def sweep(
+    sweep_name: str,
+    out: Optional[Path],
+    scheduler: Optional[str],
+    workers: Optional[int],
+    restart: bool,
+    retry_failed: bool,
+) -> None:
+    """Run a sweep of point counts and aspect ratios into a Zarr result cube.
+
+    NAME is a spec in catalogs/sweeps/ (e.g. sinewave-ring, lens-array-mesh), or give a
+    path to a YAML file. Every case is written into its own region of the cube as soon as
+    it finishes. Re-running the same command computes only what is missing, so an
+    interrupted or killed run loses nothing already written. A cube made from a different
+    spec is refused unless --restart.
+
+    \b
+    Examples:
+      ftsweep sweep sinewave-ring
+      ftsweep sweep my-sweep.yaml --out outputs/my.zarr --workers 2
+      ftsweep sweep lens-array-mesh --scheduler tcp://127.0.0.1:8786
+    """
+    from pipeline.cube import CubeError
+    from pipeline.run import axis_summary, best_per_point_count, cube_counts, run_sweep
+    from pipeline.sweep import load_sweep
+
+    if workers is not None and workers < 1:
+        _fail(f"--workers must be at least 1, got {workers}")
+    try:
+        name, spec = load_sweep(sweep_name)
+    except CatalogError as exc:
+        raise click.UsageError(str(exc)) from None
+    click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
+    started = time.perf_counter()
+
+    def progress(report, rows):  # type: ignore[no-untyped-def]
+        total_now = report.total - report.skipped
+        done = len(report.rows)
+        elapsed = time.perf_counter() - started
+        eta = elapsed / done * (total_now - done) if done else float("nan")
+        last = rows[-1]
+        what = f"N≈{last['points']:,.0f} α={last['aspect']:.3g}: " + (
+            f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else last["status"]
+        )
+        click.echo(
+            f"[{done:>{len(str(total_now))}}/{total_now}] {report.failed} failed | {elapsed:6.1f} s, "
+            f"ETA {eta:6.0f} s | {what}",
+            err=True,
+        )
+
+    try:
+        report = run_sweep(sweep_name, out, scheduler, workers, restart, retry_failed, progress=progress)
+    except (CatalogError, CubeError, CaseError) as exc:
+        raise click.UsageError(str(exc)) from None
+    counts = cube_counts(report.cube)
+    click.echo(f"cube         {report.cube}")
+    click.echo(
+        f"cases        {report.total} in all: {counts['done']} done, {counts['failed']} failed, "
+        f"{counts['pending']} pending ({report.skipped} were done already, {len(report.rows)} run now)"
+    )
+    busy = sum(r.get("seconds", 0.0) for r in report.rows)
+    rate = len(report.rows) / report.wall_s if report.wall_s > 0 else float("nan")
+    click.echo(
+        f"wall time    {report.wall_s:.1f} s with {report.workers} worker(s): {rate:.3g} cases/s; "
+        f"summed case time {busy:.1f} s"
+    )
+    failures = [r for r in report.rows if r["status"] != "done"]
+    for r in failures[:5]:
+        click.echo(f"failed       N≈{r.get('points', 0):,.0f} α={r.get('aspect', 0):.3g}: {r['message']}")
+    click.echo("best P-V per point count:")
+    click.echo(f"  {'target N':>10s} {'actual N':>10s} {'best α':>8s} {'P-V nm':>9s}")
+    for row in best_per_point_count(report.cube):
+        if row["pv_nm"] is None:
+            click.echo(f"  {row['points']:10,.0f} {'–':>10s} {'–':>8s} {'–':>9s}")
+        else:
+            click.echo(
+                f"  {row['points']:10,.0f} {row['n_points']:10,d} {row['aspect']:8.3g} {row['pv_nm']:9.2f}"
+            )
+    if counts["pending"] or counts["failed"]:
+        sys.exit(1)
 
 
 @main.command()

@@ -20,7 +20,9 @@ def test_default_resolution_is_converged(name):
     ref = REFERENCES[name]
     layout = LayoutRequest(kind=ref.layout, pitch=ref.pitch)
     default = Resolution()
-    fine = Resolution(samples_per_cell=4 * default.samples_per_cell, points_per_feed=2 * default.points_per_feed)
+    fine = Resolution(
+        samples_per_cell=4 * default.samples_per_cell, points_per_feed=2 * default.points_per_feed
+    )
     coarse_pv = run_case(Case(surface=ref.surface, layout=layout, resolution=default))["pv_nm"]
     fine_pv = run_case(Case(surface=ref.surface, layout=layout, resolution=fine))["pv_nm"]
     assert abs(fine_pv - coarse_pv) < 0.03 * fine_pv, (coarse_pv, fine_pv)

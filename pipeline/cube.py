@@ -1,0 +1,224 @@
+"""Zarr result cubes: one dimension per sweep axis, one chunk per case.
+
+Write protocol (crash safety):
+
+1. The template (every variable at its fill value, status ``pending``, coordinates, units
+   and provenance) is written to a hidden temporary folder beside the target and renamed
+   into place, so a cube either exists with a complete template or not at all.
+2. Each case is written by the task that computed it, right after it finishes, into its
+   own chunk of every variable; ``status`` is written last. A case whose status is not
+   ``done`` is recomputed on the next run, so a kill mid-write loses at most the cases in
+   flight, and an unreadable (torn) status chunk reads as ``pending``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+import zarr
+
+from pipeline import __version__
+from pipeline.sweep import AXIS_ATTRS, SweepSpec, coordinates
+
+PENDING, DONE, FAILED = 0, 1, 2
+STATUS_MEANINGS = "pending done failed"
+
+# name: (dtype, units, long_name, fill); record keys of pipeline.case.run_case
+METRICS: dict[str, tuple[str, str, str, Any]] = {
+    "n_points": ("int64", "1", "number of control points of the table", -1),
+    "table_rows": ("int32", "1", "table rows (rings M or mesh nx)", -1),
+    "table_cols": ("int32", "1", "table columns (points per ring Np or mesh ny)", -1),
+    "pitch_0": ("float64", "µm", "first pitch: ring pitch Δρ or mesh pitch Δx", np.nan),
+    "pitch_1": (
+        "float64",
+        "deg (ring) or µm (mesh)",
+        "second pitch: angular pitch Δθ or mesh pitch Δy",
+        np.nan,
+    ),
+    "aspect_actual": ("float64", "µm/deg (ring) or 1 (mesh)", "aspect ratio of the realised pitches", np.nan),
+    "pv_nm": ("float64", "nm", "peak-to-valley form error", np.nan),
+    "rms_nm": ("float64", "nm", "RMS form error about its mean", np.nan),
+    "mean_nm": ("float64", "nm", "mean form error", np.nan),
+    "error_min_nm": ("float64", "nm", "lowest form error", np.nan),
+    "error_max_nm": ("float64", "nm", "highest form error", np.nan),
+    "pv_inner_nm": ("float64", "nm", "P-V in the inner zone", np.nan),
+    "pv_outer_nm": ("float64", "nm", "P-V in the outer zone", np.nan),
+    "pv_interp_nm": ("float64", "nm", "P-V of the interpolation-only error", np.nan),
+    "cusp_nm": ("float64", "nm", "feed cusp height of a flat surface F^2/(8 Rc)", np.nan),
+    "gouge_points": ("int64", "1", "control points whose section is concave with radius below Rc", -1),
+    "n_theta": ("int64", "1", "simulated spindle angles", -1),
+    "n_eval": ("int64", "1", "evaluation points", -1),
+    "runtime_s": ("float64", "s", "wall time of the case", np.nan),
+    "seconds_compensation": ("float64", "s", "wall time of compensation", np.nan),
+    "seconds_sampling": ("float64", "s", "wall time of surface sampling", np.nan),
+    "seconds_interpolation": ("float64", "s", "wall time of interpolation", np.nan),
+    "seconds_envelope": ("float64", "s", "wall time of the envelope", np.nan),
+    "seconds_metrics": ("float64", "s", "wall time of the metrics", np.nan),
+}
+TEXT = {
+    "message": "failure message of the case (empty when done)",
+    "run_id": "identifier of the run that computed the case",
+}
+# wall-time variables differ between otherwise identical runs
+TIMING_VARS = (
+    "runtime_s",
+    "seconds_compensation",
+    "seconds_sampling",
+    "seconds_interpolation",
+    "seconds_envelope",
+    "seconds_metrics",
+    "run_id",
+)
+
+
+class CubeError(ValueError):
+    """A cube cannot be used as asked; the message says what to do."""
+
+
+def git_revision() -> str:
+    """The repository's git revision, or ``unknown``."""
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=Path(__file__).resolve().parent,
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
+        )
+        return out.stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.Dataset:
+    """The empty cube of a sweep: variables at fill values, status pending, provenance attrs."""
+    coords = coordinates(spec)
+    dims = tuple(coords)
+    shape = tuple(v.size for v in coords.values())
+    data: dict[str, Any] = {}
+    for var, (dtype, units, long_name, fill) in METRICS.items():
+        data[var] = (dims, np.full(shape, fill, dtype=dtype), {"units": units, "long_name": long_name})
+    data["status"] = (
+        dims,
+        np.zeros(shape, dtype="int8"),
+        {
+            "units": "1",
+            "long_name": "case status",
+            "flag_values": [PENDING, DONE, FAILED],
+            "flag_meanings": STATUS_MEANINGS,
+        },
+    )
+    for var, long_name in TEXT.items():
+        data[var] = (dims, np.full(shape, "", dtype=object), {"units": "1", "long_name": long_name})
+    ds = xr.Dataset(data, coords={k: (k, v, AXIS_ATTRS[k]) for k, v in coords.items()})
+    ds.attrs.update(
+        ftsweep_version=__version__,
+        git_revision=git_revision(),
+        sweep_name=name,
+        sweep_spec=json.dumps(spec.model_dump(mode="json"), sort_keys=True),
+        sweep_spec_hash=spec.spec_hash(),
+        catalog_entries=json.dumps(catalog_entries, sort_keys=True),
+        layout_method=str(spec.layout),
+        surface=spec.surface,
+        created=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        status_meanings=STATUS_MEANINGS,
+    )
+    return ds
+
+
+def create(path: Path, ds: xr.Dataset) -> None:
+    """Write the template to ``path`` atomically (temporary folder + rename)."""
+    path = Path(path)
+    if path.exists():
+        raise CubeError(f"{path} exists already; refusing to overwrite it")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    encoding = {v: {"chunks": (1,) * ds[v].ndim} for v in ds.data_vars}
+    with warnings.catch_warnings():
+        # consolidated metadata is a zarr-python extension in format 3; readers here use it
+        warnings.filterwarnings("ignore", message="Consolidated metadata", category=UserWarning)
+        ds.to_zarr(tmp, zarr_format=3, encoding=encoding, consolidated=True, mode="w-")
+    os.replace(tmp, path)
+
+
+def read_attrs(path: Path) -> dict[str, Any]:
+    """The cube's attributes, or a :class:`CubeError` if ``path`` is not a cube."""
+    try:
+        group = zarr.open_group(str(path), mode="r")
+    except Exception as exc:  # zarr raises several types for "not a group"
+        raise CubeError(f"{path} exists but is not a Zarr cube ({exc}); choose another --out") from None
+    attrs = dict(group.attrs)
+    if "sweep_spec_hash" not in attrs:
+        raise CubeError(f"{path} is a Zarr store but not an ftsweep cube; choose another --out")
+    return attrs
+
+
+def read_status(path: Path) -> np.ndarray:
+    """Status of every case; a chunk that cannot be read (torn by a kill) counts as pending."""
+    array = zarr.open_array(str(path), path="status", mode="r")
+    try:
+        return np.asarray(array[...], dtype=np.int8)
+    except Exception:
+        status = np.zeros(array.shape, dtype=np.int8)
+        for idx in np.ndindex(array.shape):
+            try:
+                status[idx] = array[idx]
+            except Exception:
+                status[idx] = PENDING
+        return status
+
+
+class CubeWriter:
+    """Writes finished cases into their own chunks of an existing cube (worker side)."""
+
+    def __init__(self, path: Path) -> None:
+        self.group = zarr.open_group(str(path), mode="r+")
+        self.shape = self._array("status").shape
+
+    def _array(self, name: str) -> zarr.Array:
+        array = self.group[name]
+        if not isinstance(array, zarr.Array):
+            raise CubeError(f"{name} in the cube is not an array")
+        return array
+
+    def _set(self, name: str, idx: tuple[int, ...], value: Any) -> None:
+        self._array(name)[idx] = value
+
+    def _index(self, flat: int) -> tuple[int, ...]:
+        return tuple(int(i) for i in np.unravel_index(flat, self.shape))
+
+    def write_done(self, flat: int, record: dict[str, Any], run_id: str) -> None:
+        """Write a finished case's record, then mark it done."""
+        idx = self._index(flat)
+        values = dict(record)
+        values["table_rows"], values["table_cols"] = record["table_shape"]
+        if record["layout"] == "ring":
+            values["pitch_0"], values["pitch_1"] = record["drho_um"], record["dtheta_deg"]
+            values["aspect_actual"] = record["aspect_um_per_deg"]
+        else:
+            values["pitch_0"], values["pitch_1"] = record["dx_um"], record["dy_um"]
+            values["aspect_actual"] = record["aspect"]
+        values["runtime_s"] = record["seconds"]
+        for var in METRICS:
+            self._set(var, idx, values[var])
+        self._set("message", idx, "")
+        self._set("run_id", idx, run_id)
+        self._set("status", idx, DONE)  # last: the case counts only once all else is written
+
+    def write_failed(self, flat: int, message: str, run_id: str) -> None:
+        """Record a case that raised, with its message."""
+        idx = self._index(flat)
+        self._set("message", idx, message[:2000])
+        self._set("run_id", idx, run_id)
+        self._set("status", idx, FAILED)

@@ -1,0 +1,163 @@
+"""Dask execution of sweep tasks: the synchronous scheduler, a LocalCluster, or an
+existing ``dask.distributed`` scheduler, running the same task function.
+
+A task computes a list of cases and writes each into the cube as soon as it finishes
+(:class:`pipeline.cube.CubeWriter`); it returns one small summary dict per case, which the
+driver streams into progress and the final summary.
+"""
+
+from __future__ import annotations
+
+import logging
+import traceback
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any, Optional
+
+import dask
+
+from pipeline.case import Case, LayoutRequest, run_case
+from pipeline.cube import CubeWriter
+from pipeline.sweep import SweepSpec, case_at
+
+SYNCHRONOUS = "synchronous"
+
+
+def run_task(
+    cube: str, spec_json: str, catalog_folder: Optional[str], indices: list[int], run_id: str
+) -> list[dict]:
+    """Compute the cases ``indices`` of a sweep and write each into ``cube`` (worker side)."""
+    spec = SweepSpec.model_validate_json(spec_json)
+    folder = Path(catalog_folder) if catalog_folder else None
+    writer = CubeWriter(Path(cube))
+    out = []
+    for index in indices:
+        case = case_at(spec, index)
+        try:
+            record = run_case(case, folder)
+        except Exception as exc:  # a failing case is recorded and the rest run on
+            message = f"{type(exc).__name__}: {exc}"
+            writer.write_failed(index, message, run_id)
+            out.append(
+                {
+                    "index": index,
+                    "status": "failed",
+                    "message": message,
+                    "points": case.layout.points,
+                    "aspect": case.layout.aspect,
+                }
+            )
+            continue
+        writer.write_done(index, record, run_id)
+        out.append(
+            {
+                "index": index,
+                "status": "done",
+                "pv_nm": record["pv_nm"],
+                "n_points": record["n_points"],
+                "points": case.layout.points,
+                "aspect": case.layout.aspect,
+                "seconds": record["seconds"],
+            }
+        )
+    return out
+
+
+def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> float:
+    """Compile (or load from numba's cache) every kernel once in this process; returns seconds."""
+    import time
+
+    t = time.perf_counter()
+    pitch = (50.0, 10.0) if kind == "ring" else (50.0, 50.0)
+    try:
+        run_case(
+            Case(surface=surface, layout=LayoutRequest(kind=kind, pitch=pitch)),
+            Path(catalog_folder) if catalog_folder else None,
+        )
+    except ValueError:
+        pass  # a coarse pitch may not fit every surface; the kernels compiled anyway
+    return time.perf_counter() - t
+
+
+def execute(
+    tasks: list[list[int]],
+    task_args: tuple[str, str, Optional[str], str],
+    scheduler: Optional[str],
+    workers: int,
+    on_result: Callable[[list[dict]], None],
+    warm: tuple[str, str],
+) -> None:
+    """Run ``tasks`` (lists of case indices) and call ``on_result`` with each task's summaries.
+
+    scheduler : ``"synchronous"`` for dask's synchronous scheduler in this process, an
+        address (``tcp://host:port``) of a running ``dask scheduler``, or None for a
+        ``LocalCluster`` with ``workers`` single-threaded worker processes.
+    task_args : (cube path, sweep spec JSON, catalog folder, run id) passed to every task.
+    warm : (surface, layout kind) for the per-worker warm-up before any task starts.
+    """
+    if not tasks:
+        return
+    cube, spec_json, folder, run_id = task_args
+    if scheduler == SYNCHRONOUS:
+        warm_up(*warm, folder)
+        _run_synchronous(tasks, task_args, on_result)
+        return
+
+    from distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler:
+        client = Client(scheduler, timeout="30s")
+    else:
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
+            silence_logs=logging.ERROR,
+        )
+        client = Client(cluster)
+    try:
+        # numba's compile (or cache load) is paid once per worker, before any case is timed
+        client.run(warm_up, *warm, folder)
+        futures = [
+            client.submit(
+                run_task, cube, spec_json, folder, group, run_id, pure=False, key=f"ftsweep-task-{i}-{run_id}"
+            )
+            for i, group in enumerate(tasks)
+        ]
+        lookup = {f.key: group for f, group in zip(futures, tasks, strict=True)}
+        for future in as_completed(futures):
+            try:
+                on_result(future.result())
+            except Exception as exc:  # the task itself broke (not a case): its cases stay pending
+                on_result(_task_failure(lookup[future.key], exc))
+            future.release()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _task_failure(indices: Iterable[int], exc: BaseException) -> list[dict]:
+    text = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    return [
+        {"index": i, "status": "error", "message": f"task error (case left pending): {text}"} for i in indices
+    ]
+
+
+def _run_synchronous(
+    tasks: list[list[int]], task_args: tuple, on_result: Callable[[list[dict]], None]
+) -> None:
+    from dask.callbacks import Callback
+
+    delayed = [dask.delayed(run_task, pure=False)(*task_args[:3], group, task_args[3]) for group in tasks]
+    keys = {d.key for d in delayed}
+
+    class _Stream(Callback):
+        def _posttask(self, key: Any, result: Any, dsk: Any, state: Any, worker_id: Any) -> None:
+            if key in keys:
+                on_result(result)
+
+    with _Stream():
+        dask.compute(*delayed, scheduler=SYNCHRONOUS)

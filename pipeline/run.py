@@ -1,0 +1,186 @@
+"""Running a sweep into its cube: resume, refuse a changed spec, progress and summary."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+
+from pipeline import catalogs, cube
+from pipeline.cube import CubeError
+from pipeline.executor import execute
+from pipeline.sweep import SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
+
+
+def default_cube_path(name: str) -> Path:
+    """``outputs/<sweep>.zarr`` in the current folder."""
+    return Path("outputs") / f"{name}.zarr"
+
+
+def default_workers() -> int:
+    """One worker process per core."""
+    return max(1, os.cpu_count() or 1)
+
+
+@dataclass
+class SweepReport:
+    """What a sweep run did; ``rows`` are the per-case summaries of this run."""
+
+    cube: Path
+    total: int
+    skipped: int
+    rows: list[dict] = field(default_factory=list)
+    wall_s: float = 0.0
+    workers: int = 1
+
+    @property
+    def done(self) -> int:
+        return sum(r["status"] == "done" for r in self.rows)
+
+    @property
+    def failed(self) -> int:
+        return sum(r["status"] != "done" for r in self.rows)
+
+
+def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
+    old = json.loads(old_json)
+    now = new.model_dump(mode="json")
+    return sorted(k for k in set(old) | set(now) if old.get(k) != now.get(k))
+
+
+def prepare_cube(name: str, spec: SweepSpec, out: Path, restart: bool, catalog_folder: Optional[Path]) -> int:
+    """Create the cube, or check an existing one belongs to ``spec``; returns cases already done.
+
+    An existing cube from another spec is refused unless ``restart``, which discards it.
+    """
+    if out.exists():
+        attrs = cube.read_attrs(out)
+        if attrs["sweep_spec_hash"] != spec.spec_hash():
+            if not restart:
+                changed = ", ".join(_changed_keys(attrs["sweep_spec"], spec)) or "the spec"
+                raise CubeError(
+                    f"{out} was created from a different spec of sweep '{attrs.get('sweep_name')}' "
+                    f"(changed: {changed}). Re-run with --restart to discard it and start over, or "
+                    "give another --out."
+                )
+            shutil.rmtree(out)
+        else:
+            return int(np.count_nonzero(cube.read_status(out) == cube.DONE))
+    entries = {
+        "surface": {
+            spec.surface: catalogs.entry("surfaces", spec.surface, catalog_folder).model_dump(mode="json")
+        },
+        "machine": {
+            spec.machine: catalogs.entry("machines", spec.machine, catalog_folder).model_dump(mode="json")
+        },
+        "cutting": {
+            spec.cutting: catalogs.entry("cutting", spec.cutting, catalog_folder).model_dump(mode="json")
+        },
+    }
+    cube.create(out, cube.template(spec, name, entries))
+    return 0
+
+
+def run_sweep(
+    name_or_path: str,
+    out: Optional[Path] = None,
+    scheduler: Optional[str] = None,
+    workers: Optional[int] = None,
+    restart: bool = False,
+    retry_failed: bool = False,
+    catalog_folder: Optional[Path] = None,
+    progress: Optional[Callable[[SweepReport, list[dict]], None]] = None,
+) -> SweepReport:
+    """Run (or resume) a sweep; cases already done in the cube are skipped.
+
+    scheduler : None (a LocalCluster of ``workers`` processes), ``"synchronous"``, or the
+        address of a running dask scheduler (also read from ``DASK_SCHEDULER_ADDRESS``).
+    retry_failed : also recompute cases recorded as failed.
+    """
+    name, spec = load_sweep(name_or_path, catalog_folder)
+    out = Path(out) if out is not None else default_cube_path(name)
+    scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    workers = 1 if scheduler == "synchronous" else (workers or default_workers())
+    already = prepare_cube(name, spec, out, restart, catalog_folder)
+    status = cube.read_status(out).ravel()
+    wanted = (status == cube.PENDING) | (retry_failed & (status == cube.FAILED))
+    pending = [int(i) for i in np.flatnonzero(wanted)]
+    report = SweepReport(cube=out, total=n_cases(spec), skipped=already, workers=workers)
+    tasks = plan_tasks(spec, pending, workers, catalog_folder)
+    run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
+    folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
+
+    def on_result(rows: list[dict]) -> None:
+        report.rows.extend(rows)
+        if progress is not None:
+            progress(report, rows)
+
+    start = time.perf_counter()
+    assert spec.layout is not None
+    execute(
+        tasks,
+        (str(out), spec.model_dump_json(), folder, run_id),
+        scheduler,
+        workers,
+        on_result,
+        warm=(spec.surface, spec.layout),
+    )
+    report.wall_s = time.perf_counter() - start
+    return report
+
+
+def best_per_point_count(path: Path) -> list[dict[str, Any]]:
+    """For each target point count: the aspect ratio with the lowest P-V among done cases."""
+    import xarray as xr
+
+    ds = xr.open_zarr(path)
+    pv = ds["pv_nm"].where(ds["status"] == cube.DONE)
+    other = [d for d in pv.dims if d not in ("points", "aspect")]
+    rows = []
+    for i, target in enumerate(ds["points"].values):
+        sel = pv.isel(points=i)
+        if other:
+            sel = sel.min(other)
+        values = sel.values
+        if np.all(np.isnan(values)):
+            rows.append({"points": float(target), "aspect": None, "pv_nm": None, "n_points": None})
+            continue
+        j = int(np.nanargmin(values))
+        n_points = ds["n_points"].isel(points=i, aspect=j)
+        if other:
+            n_points = n_points.max(other)
+        rows.append(
+            {
+                "points": float(target),
+                "aspect": float(ds["aspect"].values[j]),
+                "pv_nm": float(values[j]),
+                "n_points": int(n_points.values),
+            }
+        )
+    return rows
+
+
+def cube_counts(path: Path) -> dict[str, int]:
+    """Cases pending, done and failed in a cube."""
+    status = cube.read_status(path)
+    return {
+        "pending": int(np.sum(status == cube.PENDING)),
+        "done": int(np.sum(status == cube.DONE)),
+        "failed": int(np.sum(status == cube.FAILED)),
+    }
+
+
+def axis_summary(spec: SweepSpec) -> str:
+    """One line per axis: its length and range, for the start of a run."""
+    parts = []
+    for axis, values in coordinates(spec).items():
+        parts.append(f"{axis} ×{values.size} [{values.min():.4g} … {values.max():.4g}]")
+    return ", ".join(parts)

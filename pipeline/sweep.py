@@ -1,0 +1,221 @@
+"""Sweep specs: which cases a sweep runs, validated from ``catalogs/sweeps/*.yaml``.
+
+A sweep is a surface, a layout method, a machine, cutting conditions, a resolution and the
+sweep axes: target point counts and aspect ratios (lists or ranges), optionally feed and
+nose radius. Expansion is pure: the cube's dimensions are the axes in a fixed order and the
+flat case index is the C-order index into them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal, Optional, Union
+
+import numpy as np
+from pydantic import Field, PositiveFloat, PositiveInt, ValidationError, model_validator
+
+from pipeline import catalogs
+from pipeline.case import Case, LayoutRequest, Resolution, build_layout
+from pipeline.catalogs import CatalogError, Strict
+
+
+class AxisRange(Strict):
+    """``num`` values from ``start`` to ``stop`` inclusive, evenly spaced on a log or linear scale."""
+
+    start: PositiveFloat
+    stop: PositiveFloat
+    num: PositiveInt
+    scale: Literal["log", "linear"] = "log"
+
+
+AxisSpec = Union[Annotated[list[PositiveFloat], Field(min_length=1)], AxisRange]
+
+
+class SweepAxes(Strict):
+    """The sweep axes; ``points`` and ``aspect`` are required, the others optional."""
+
+    points: AxisSpec = Field(description="target numbers of control points N")
+    aspect: AxisSpec = Field(description="target aspect ratios α (Δρ/Δθ µm/deg for rings, Δx/Δy for meshes)")
+    feed_um: Optional[AxisSpec] = Field(None, description="feeds per revolution [µm/rev]")
+    nose_radius_um: Optional[AxisSpec] = Field(None, description="tool nose radii [µm]")
+
+
+class SweepSpec(Strict):
+    """A validated sweep."""
+
+    description: str = ""
+    surface: str
+    layout: Optional[Literal["ring", "mesh"]] = Field(None, description="default: the surface's")
+    machine: str = "fts-1m"
+    cutting: str = "reference"
+    compensation: Literal["exact", "slope", "none"] = "exact"
+    resolution: Resolution = Resolution()
+    axes: SweepAxes
+    cases_per_task: Optional[PositiveInt] = Field(
+        None, description="cases a Dask task runs; default automatic"
+    )
+
+    @model_validator(mode="after")
+    def _no_duplicate_values(self) -> SweepSpec:
+        for name in AXIS_ORDER:
+            spec = getattr(self.axes, name)
+            if spec is not None:
+                values = axis_values(spec)
+                if np.unique(values).size != values.size:
+                    raise ValueError(f"axes.{name} repeats a value: {values.tolist()}")
+        return self
+
+    def spec_hash(self) -> str:
+        """Stable hash of the resolved spec: a cube belongs to exactly one spec."""
+        text = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+AXIS_ORDER = ("points", "aspect", "feed_um", "nose_radius_um")
+AXIS_ATTRS = {
+    "points": {"units": "1", "long_name": "target number of control points"},
+    "aspect": {"units": "µm/deg (ring) or 1 (mesh)", "long_name": "target aspect ratio of the pitches"},
+    "feed_um": {"units": "µm/rev", "long_name": "feed per revolution"},
+    "nose_radius_um": {"units": "µm", "long_name": "tool nose radius"},
+}
+
+
+def axis_values(spec: Any) -> np.ndarray:
+    """The values of one axis spec (a list or an :class:`AxisRange`)."""
+    if isinstance(spec, AxisRange):
+        if spec.scale == "log":
+            return np.geomspace(spec.start, spec.stop, spec.num)
+        return np.linspace(spec.start, spec.stop, spec.num)
+    return np.asarray(spec, dtype=np.float64)
+
+
+def sweep_dir() -> Path:
+    """Folder of the named sweep specs (``catalogs/sweeps``)."""
+    return catalogs.catalog_dir() / "sweeps"
+
+
+def resolve_sweep_path(name_or_path: str) -> Path:
+    """A sweep name (``catalogs/sweeps/NAME.yaml``) or a path to a YAML file."""
+    candidate = Path(name_or_path)
+    if candidate.suffix in (".yaml", ".yml") or candidate.exists():
+        if not candidate.is_file():
+            raise CatalogError(f"sweep file {candidate} does not exist")
+        return candidate
+    path = sweep_dir() / f"{name_or_path}.yaml"
+    if not path.is_file():
+        known = sorted(p.stem for p in sweep_dir().glob("*.yaml"))
+        raise CatalogError(f"unknown sweep '{name_or_path}' (no {path}); known: {', '.join(known) or 'none'}")
+    return path
+
+
+def load_sweep(name_or_path: str, catalog_folder: Path | None = None) -> tuple[str, SweepSpec]:
+    """Load and validate a sweep; returns its name (the file stem) and spec.
+
+    Every error names the file and the key: unknown keys, empty axes, non-positive values,
+    and surfaces, machines or cutting conditions the catalogs do not define.
+    """
+    import yaml
+
+    path = resolve_sweep_path(name_or_path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise CatalogError(f"{path}: not valid YAML: {exc}") from exc
+    if not isinstance(data, dict):
+        raise CatalogError(f"{path}: a sweep file is a mapping of keys (surface, axes, ...)")
+    try:
+        spec = SweepSpec.model_validate(data)
+    except ValidationError as exc:
+        raise CatalogError(_sweep_error(path, exc)) from None
+    for kind, key in (("surfaces", "surface"), ("machines", "machine"), ("cutting", "cutting")):
+        try:
+            catalogs.entry(kind, getattr(spec, key), catalog_folder)
+        except CatalogError as exc:
+            raise CatalogError(f"{path}: key '{key}': {exc}") from None
+    if spec.layout is None:
+        surface = catalogs.entry("surfaces", spec.surface, catalog_folder)
+        spec = spec.model_copy(update={"layout": surface.layout})
+    return path.stem, spec
+
+
+def _sweep_error(path: Path, exc: ValidationError) -> str:
+    lines = [f"{path}: invalid sweep:"]
+    for e in exc.errors():
+        loc = ".".join(str(p) for p in e["loc"] if not str(p).startswith(("list[", "AxisRange")))
+        if e["type"] == "extra_forbidden":
+            lines.append(f"  - {loc}: unknown key")
+        elif e["type"] == "missing":
+            lines.append(f"  - {loc}: required key is missing")
+        elif e["type"] == "too_short":
+            lines.append(f"  - {loc}: the axis is empty; give at least one value")
+        else:
+            lines.append(f"  - {loc}: {e['msg']} (got {e.get('input')!r})")
+    return "\n".join(dict.fromkeys(lines))  # union members can repeat the same complaint
+
+
+def coordinates(spec: SweepSpec) -> dict[str, np.ndarray]:
+    """The cube's dimension coordinates, in :data:`AXIS_ORDER` (optional axes if given)."""
+    return {
+        name: axis_values(getattr(spec.axes, name))
+        for name in AXIS_ORDER
+        if getattr(spec.axes, name) is not None
+    }
+
+
+def case_at(spec: SweepSpec, index: int) -> Case:
+    """The case at flat C-order ``index`` of the sweep's cube."""
+    coords = coordinates(spec)
+    shape = tuple(v.size for v in coords.values())
+    pos = dict(zip(coords, np.unravel_index(index, shape), strict=True))
+    value = {name: float(coords[name][pos[name]]) for name in coords}
+    assert spec.layout is not None
+    return Case(
+        surface=spec.surface,
+        layout=LayoutRequest(kind=spec.layout, points=value["points"], aspect=value["aspect"]),
+        machine=spec.machine,
+        cutting=spec.cutting,
+        feed_um=value.get("feed_um"),
+        nose_radius_um=value.get("nose_radius_um"),
+        compensation=spec.compensation,
+        resolution=spec.resolution,
+    )
+
+
+def n_cases(spec: SweepSpec) -> int:
+    """Number of cases of the sweep."""
+    return int(math.prod(v.size for v in coordinates(spec).values()))
+
+
+def estimated_cost(spec: SweepSpec, index: int, catalog_folder: Path | None = None) -> float:
+    """Relative cost of a case (control points plus simulated nodes), for load balancing."""
+    case = case_at(spec, index)
+    surface = catalogs.entry("surfaces", case.surface, catalog_folder)
+    try:
+        layout = build_layout(surface, case.layout)
+    except ValueError:
+        return 0.0
+    from pipeline.case import angular_samples
+
+    rho0 = catalogs.aperture_of(surface).outer_radius_um
+    feed = case.feed_um or catalogs.entry("cutting", case.cutting, catalog_folder).feed_um
+    nodes = angular_samples(layout, rho0, case.resolution) * rho0 / feed * case.resolution.points_per_feed
+    return 8.0 * layout.n_points + nodes
+
+
+def plan_tasks(
+    spec: SweepSpec, indices: list[int], workers: int, catalog_folder: Path | None = None
+) -> list[list[int]]:
+    """Group case indices into tasks, the costliest first (longest-processing-time order).
+
+    Tasks hold ``cases_per_task`` cases, by default as many as keeps at least four tasks per
+    worker, at most four. Each case is written as soon as it finishes, so a task's size
+    only affects scheduling, never what a crash can lose.
+    """
+    if not indices:
+        return []
+    per_task = spec.cases_per_task or max(1, min(4, len(indices) // (4 * max(workers, 1))))
+    order = sorted(indices, key=lambda i: -estimated_cost(spec, i, catalog_folder))
+    return [order[i : i + per_task] for i in range(0, len(order), per_task)]

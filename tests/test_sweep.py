@@ -1,0 +1,333 @@
+"""Sweeps on Dask into Zarr cubes (issue 3): specs, schedulers, crash safety."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from pipeline import cube
+from pipeline.catalogs import CatalogError
+from pipeline.cube import CubeError
+from pipeline.run import best_per_point_count, run_sweep
+from pipeline.sweep import case_at, load_sweep, n_cases
+
+SMALL = """
+description: a small sweep for tests
+surface: small_sine
+layout: ring
+axes:
+  points: [8000, 20000]
+  aspect: {start: 1.0, stop: 16.0, num: 3}
+"""
+
+BIN = Path(sys.executable).parent
+
+
+def write_spec(folder: Path, text: str = SMALL, name: str = "small.yaml") -> Path:
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
+def data_of(path: Path) -> xr.Dataset:
+    """The cube's values without the wall-time variables (which differ run to run)."""
+    return xr.open_zarr(path).drop_vars(list(cube.TIMING_VARS)).load()
+
+
+# ----------------------------------------------------------------------------- specs
+def test_reference_sweeps_validate_and_cover_the_ranges():
+    for name, lo, hi, alo, ahi in (
+        ("sinewave-ring", 9e4, 1e6, 0.3, 400),
+        ("lens-array-mesh", 4e4, 1e6, 0.08, 16),
+    ):
+        _, spec = load_sweep(name)
+        from pipeline.sweep import coordinates
+
+        c = coordinates(spec)
+        assert c["points"].size >= 6 and c["aspect"].size >= 12
+        assert c["points"].min() == pytest.approx(lo, rel=0.15) and c["points"].max() == pytest.approx(
+            hi, rel=0.02
+        )
+        assert c["aspect"].min() == pytest.approx(alo) and c["aspect"].max() == pytest.approx(ahi)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (SMALL.replace("layout: ring", "layout: ring\ncolour: red"), "colour: unknown key"),
+        (SMALL.replace("points: [8000, 20000]", "points: []"), "axes.points: the axis is empty"),
+        (SMALL.replace("points: [8000, 20000]", "points: [8000, -5]"), "axes.points"),
+        (SMALL.replace("start: 1.0", "start: 0"), "axes.aspect"),
+        (SMALL.replace("surface: small_sine", "surface: teapot"), "key 'surface': unknown surface 'teapot'"),
+        (SMALL + "machine: fts-9\n", "key 'machine': unknown machine 'fts-9'"),
+        (
+            SMALL.replace("  aspect: {start: 1.0, stop: 16.0, num: 3}\n", ""),
+            "axes.aspect: required key is missing",
+        ),
+        (SMALL.replace("num: 3", "num: 3, spacing: 2"), "spacing: unknown key"),
+    ],
+)
+def test_spec_errors_name_the_file_and_key(tmp_path, catalog_dir, text, message):
+    path = write_spec(tmp_path, text)
+    with pytest.raises(CatalogError) as err:
+        load_sweep(str(path), catalog_dir)
+    assert str(path) in str(err.value)
+    assert message in str(err.value)
+
+
+def test_unknown_sweep_name_lists_the_known_ones():
+    with pytest.raises(CatalogError, match="sinewave-ring"):
+        load_sweep("no-such-sweep")
+
+
+def test_expansion_order_and_cases(tmp_path, catalog_dir):
+    _, spec = load_sweep(str(write_spec(tmp_path)), catalog_dir)
+    assert n_cases(spec) == 6
+    case = case_at(spec, 4)  # C order: points index 1, aspect index 1
+    assert case.layout.points == 20000 and case.layout.aspect == pytest.approx(4.0)
+
+
+# ----------------------------------------------------------------------------- schedulers
+@pytest.fixture()
+def reference_cube(tmp_path, catalog_dir):
+    """The small sweep computed with dask's synchronous scheduler."""
+    out = tmp_path / "sync.zarr"
+    report = run_sweep(str(write_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert report.done == 6 and report.failed == 0
+    return out
+
+
+def test_local_cluster_equals_synchronous_value_for_value(tmp_path, catalog_dir, reference_cube):
+    out = tmp_path / "cluster.zarr"
+    report = run_sweep(str(write_spec(tmp_path)), out, workers=2, catalog_folder=catalog_dir)
+    assert report.done == 6
+    xr.testing.assert_equal(data_of(out), data_of(reference_cube))
+
+
+def test_external_dask_scheduler_and_workers_give_the_same_cube(tmp_path, catalog_dir, reference_cube):
+    env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))
+    sched_file = tmp_path / "scheduler.json"
+    procs = [
+        subprocess.Popen(
+            [
+                str(BIN / "dask"),
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--no-dashboard",
+                "--scheduler-file",
+                str(sched_file),
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+            start_new_session=True,
+        )
+    ]
+    try:
+        deadline = time.time() + 60
+        while not sched_file.exists() and time.time() < deadline:
+            time.sleep(0.2)
+        address = json.loads(sched_file.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        for _ in range(2):
+            procs.append(
+                subprocess.Popen(
+                    [
+                        str(BIN / "dask"),
+                        "worker",
+                        address,
+                        "--nthreads",
+                        "1",
+                        "--no-dashboard",
+                        "--host",
+                        "127.0.0.1",
+                    ],
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                    env=env,
+                    start_new_session=True,
+                )
+            )
+        from distributed import Client
+
+        with Client(address, timeout="30s") as client:
+            client.wait_for_workers(2, timeout=60)
+        out = tmp_path / "remote.zarr"
+        result = subprocess.run(
+            [
+                str(BIN / "ftsweep"),
+                "sweep",
+                str(write_spec(tmp_path)),
+                "--out",
+                str(out),
+                "--scheduler",
+                address,
+            ],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=300,
+        )
+        assert result.returncode == 0, result.stderr
+        xr.testing.assert_equal(data_of(out), data_of(reference_cube))
+    finally:
+        for p in reversed(procs):
+            os.killpg(p.pid, signal.SIGTERM)
+        for p in procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+
+
+# ----------------------------------------------------------------------------- crash safety
+KILL_SPEC = """
+surface: small_sine
+layout: ring
+axes:
+  points: [6000, 9000, 12000, 16000, 20000, 25000]
+  aspect: [2.0, 8.0]
+cases_per_task: 1
+"""
+
+
+def test_killed_sweep_loses_nothing_and_resumes(tmp_path, catalog_dir):
+    spec = write_spec(tmp_path, KILL_SPEC, "kill.yaml")
+    env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))
+    out = tmp_path / "killed.zarr"
+    cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", str(out), "--workers", "1"]
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, start_new_session=True
+    )
+    try:
+        deadline = time.time() + 240
+        done_before = 0
+        while time.time() < deadline:
+            if out.exists():
+                done_before = int(np.sum(cube.read_status(out) == cube.DONE))
+                if done_before >= 3:
+                    break
+            time.sleep(0.05)
+        assert done_before >= 3, "the sweep did not get going"
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the driver and its worker processes
+        proc.wait()
+    first = xr.open_zarr(out).load()
+    done_mask = first["status"].values == cube.DONE
+    assert 3 <= done_mask.sum() < done_mask.size, "kill came too late to test a resume"
+    first_ids = first["run_id"].values[done_mask]
+
+    rerun = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert rerun.returncode == 0, rerun.stderr
+    assert f"{int(done_mask.sum())} were done already" in rerun.stdout
+    final = xr.open_zarr(out).load()
+    assert np.all(final["status"].values == cube.DONE)
+    # finished cases were not recomputed: they keep the first run's id
+    np.testing.assert_array_equal(final["run_id"].values[done_mask], first_ids)
+    assert len(set(final["run_id"].values[~done_mask])) == 1
+    assert set(final["run_id"].values[~done_mask]).isdisjoint(first_ids)
+
+    clean = tmp_path / "clean.zarr"
+    run_sweep(str(spec), clean, scheduler="synchronous", catalog_folder=catalog_dir)
+    xr.testing.assert_equal(data_of(out), data_of(clean))
+
+
+def test_torn_status_chunk_reads_as_pending(reference_cube, tmp_path, catalog_dir):
+    chunk = reference_cube / "status" / "c" / "1" / "2"
+    assert chunk.exists()
+    chunk.write_bytes(chunk.read_bytes()[:1])  # as if the write was cut short
+    status = cube.read_status(reference_cube)
+    assert status[1, 2] == cube.PENDING and np.sum(status == cube.DONE) == 5
+    report = run_sweep(
+        str(write_spec(tmp_path)), reference_cube, scheduler="synchronous", catalog_folder=catalog_dir
+    )
+    assert report.skipped == 5 and report.done == 1
+    assert np.all(cube.read_status(reference_cube) == cube.DONE)
+
+
+def test_failed_case_is_recorded_and_the_rest_run_on(tmp_path, catalog_dir):
+    text = SMALL.replace("points: [8000, 20000]", "points: [8000, 3000000]")  # over capacity
+    out = tmp_path / "fail.zarr"
+    report = run_sweep(
+        str(write_spec(tmp_path, text)), out, scheduler="synchronous", catalog_folder=catalog_dir
+    )
+    assert report.done == 3 and report.failed == 3
+    ds = xr.open_zarr(out)
+    assert np.all(ds["status"].values[0] == cube.DONE)
+    assert np.all(ds["status"].values[1] == cube.FAILED)
+    assert all("over the capacity" in m for m in ds["message"].values[1])
+    assert np.all(np.isnan(ds["pv_nm"].values[1]))
+    # failed cases are not retried by a plain re-run, but are with retry_failed
+    again = run_sweep(
+        str(write_spec(tmp_path, text)), out, scheduler="synchronous", catalog_folder=catalog_dir
+    )
+    assert again.rows == []
+    retry = run_sweep(
+        str(write_spec(tmp_path, text)),
+        out,
+        scheduler="synchronous",
+        catalog_folder=catalog_dir,
+        retry_failed=True,
+    )
+    assert len(retry.rows) == 3
+    best = best_per_point_count(out)
+    assert best[0]["pv_nm"] is not None and best[1]["pv_nm"] is None
+
+
+def test_existing_cube_is_never_silently_overwritten(tmp_path, catalog_dir, reference_cube):
+    changed = SMALL.replace("num: 3", "num: 2")
+    with pytest.raises(CubeError, match="different spec.*--restart"):
+        run_sweep(
+            str(write_spec(tmp_path, changed)),
+            reference_cube,
+            scheduler="synchronous",
+            catalog_folder=catalog_dir,
+        )
+    report = run_sweep(
+        str(write_spec(tmp_path, changed)),
+        reference_cube,
+        scheduler="synchronous",
+        catalog_folder=catalog_dir,
+        restart=True,
+    )
+    assert report.total == 4 and report.done == 4
+    not_a_cube = tmp_path / "plain"
+    not_a_cube.mkdir()
+    (not_a_cube / "notes.txt").write_text("keep me")
+    with pytest.raises(CubeError, match="not a Zarr cube|not an ftsweep cube"):
+        run_sweep(str(write_spec(tmp_path)), not_a_cube, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert (not_a_cube / "notes.txt").read_text() == "keep me"
+
+
+# ----------------------------------------------------------------------------- cube contents
+def test_cube_opens_in_a_plain_python_session_with_coordinates_and_units(reference_cube):
+    code = (
+        "import xarray as xr, sys; ds = xr.open_zarr(sys.argv[1]); print(ds);"
+        "print({v: ds[v].attrs.get('units') for v in ds.variables})"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(reference_cube)], capture_output=True, text=True, check=True
+    )
+    assert "* points" in out.stdout and "* aspect" in out.stdout
+    assert "'pv_nm': 'nm'" in out.stdout and "'runtime_s': 's'" in out.stdout
+    ds = xr.open_zarr(reference_cube)
+    for name, var in ds.variables.items():
+        assert "units" in var.attrs and "long_name" in var.attrs, name
+    for key in ("ftsweep_version", "git_revision", "sweep_spec", "catalog_entries", "created"):
+        assert ds.attrs[key]
+    entries = json.loads(ds.attrs["catalog_entries"])
+    assert "small_sine" in entries["surface"] and "fts-1m" in entries["machine"]
+    assert set(ds["status"].values.ravel()) == {cube.DONE}
+    assert np.all(ds["pv_nm"].values > 0)

@@ -77,7 +77,8 @@ def format_table(result: dict[str, Any]) -> str:
         lines.append(
             f"{r['case']:24s} {r['n_points']:9,d} {r['pv_nm']:8.2f} {r['seconds']:8.2f} "
             f"{r['seconds_compensation']:7.2f} {r['seconds_sampling']:7.2f} "
-            f"{r['seconds_interpolation']:7.2f} {r['seconds_envelope']:7.2f} {r['seconds_metrics']:7.2f} {r['n_eval'] / r['seconds']:11.3g}"
+            f"{r['seconds_interpolation']:7.2f} {r['seconds_envelope']:7.2f} {r['seconds_metrics']:7.2f} "
+            f"{r['n_eval'] / r['seconds']:11.3g}"
         )
     lines.append(
         "compensation: control table + exact commands along the path; sampling: design surface on the "

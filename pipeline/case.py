@@ -20,7 +20,7 @@ from pydantic import Field, PositiveFloat, PositiveInt, model_validator
 
 from pipeline import catalogs
 from pipeline.catalogs import Strict
-from stages import compensation, envelope, interpolation, layouts, metrics
+from stages import compensation, dynamics, envelope, interpolation, layouts, metrics
 from stages.layouts import Layout
 from stages.surfaces import radial_section
 
@@ -142,7 +142,7 @@ class Timer:
         return now
 
 
-STAGE_TIMERS = ("sampling", "compensation", "interpolation", "envelope", "metrics")
+STAGE_TIMERS = ("sampling", "compensation", "interpolation", "envelope", "metrics", "dynamics")
 
 
 def run_case(
@@ -150,6 +150,8 @@ def run_case(
     catalog_folder: Any = None,
     progress: Optional[Callable[[int, int], None]] = None,
     batch_nodes: int = 400_000,
+    table: Optional[np.ndarray] = None,
+    specs: Optional[tuple[Any, Any, Any]] = None,
 ) -> dict[str, Any]:
     """Predict the form error of one case (physics.md §1–§6).
 
@@ -157,12 +159,13 @@ def run_case(
     conditions, resolution), the metrics of :func:`stages.metrics.finalize` in nm, the
     control points flagged as gouging, the feed cusp height, and wall seconds per stage
     (``seconds_<stage>``) and in total (``seconds``). ``progress(done, total)`` is called
-    after each batch of lines.
+    after each batch of lines. A given ``table`` [µm] (of the case's layout shape) replaces
+    the compensated one: the controller's table as stored, e.g. after quantisation.
+    ``specs`` = (surface, machine, cutting) entries replace the catalog look-up, e.g. the
+    entries a cube or header recorded.
     """
     t_start = time.perf_counter()
-    surface_spec = catalogs.entry("surfaces", case.surface, catalog_folder)
-    machine = catalogs.entry("machines", case.machine, catalog_folder)
-    cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
+    surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
     feed = case.feed_um or cutting.feed_um
     rc = case.nose_radius_um or cutting.nose_radius_um
     res = case.resolution
@@ -190,10 +193,13 @@ def run_case(
 
     # compensation of the control table (surface sampling happens inside, per scan offset)
     t = time.perf_counter()
-    node_rho, node_theta = layouts.layout_nodes(layout)
-    table, gouge = compensation.compensate(
-        surface, node_rho, node_theta, rc, case.compensation, bound, n_scan=res.compensation_scan
-    )
+    if table is None:
+        table, gouge = control_table(case, layout, surface_spec, rc)
+    else:
+        table = np.asarray(table, dtype=np.float64)
+        if table.shape != layout.shape:
+            raise CaseError(f"the given table has shape {table.shape}, the layout {layout.shape}")
+        gouge = np.zeros(layout.shape, dtype=bool)
     t = timer.add("compensation", t)
 
     n_theta = angular_samples(layout, rho0, res)
@@ -256,6 +262,15 @@ def run_case(
         if progress is not None:
             progress(b + 1, n_batches)
 
+    t = time.perf_counter()
+    dyn = dynamics.analyse(
+        layout, table, rho0, feed, cutting.spindle_rpm, machine.command_rate_hz, machine.spectrum_threshold
+    )
+    feasible, reason = dynamics.feasibility(
+        dyn, machine.travel_um, machine.peak_accel_m_s2, machine.continuous_accel_m_s2, machine.bandwidth_hz
+    )
+    timer.add("dynamics", t)
+
     result = metrics.finalize(stats)
     record: dict[str, Any] = {
         "surface": case.surface,
@@ -280,10 +295,44 @@ def run_case(
     record.update(result)
     record["cusp_nm"] = metrics.cusp_height_um(feed, rc) * 1e3
     record["gouge_points"] = int(np.count_nonzero(gouge))
+    record.update(
+        stroke_um=dyn.stroke_um,
+        w_velocity_peak_mm_s=dyn.velocity_peak_mm_s,
+        w_accel_peak_m_s2=dyn.accel_peak_m_s2,
+        w_accel_rms_m_s2=dyn.accel_rms_m_s2,
+        w_freq_max_hz=dyn.freq_max_hz,
+        feasible=feasible,
+        infeasible_reason=reason,
+    )
     for name in STAGE_TIMERS:
         record[f"seconds_{name}"] = timer.seconds.get(name, 0.0)
     record["seconds"] = time.perf_counter() - t_start
     return record
+
+
+def resolve_specs(case: Case, catalog_folder: Any = None) -> tuple[Any, Any, Any]:
+    """The (surface, machine, cutting) catalog entries a case names."""
+    return (
+        catalogs.entry("surfaces", case.surface, catalog_folder),
+        catalogs.entry("machines", case.machine, catalog_folder),
+        catalogs.entry("cutting", case.cutting, catalog_folder),
+    )
+
+
+def control_table(
+    case: Case, layout: Layout, surface_spec: Any, nose_radius_um: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The compensated control table [µm] of ``layout`` and its gouge flags (physics.md §4)."""
+    node_rho, node_theta = layouts.layout_nodes(layout)
+    return compensation.compensate(
+        catalogs.surface_callable(surface_spec),
+        node_rho,
+        node_theta,
+        nose_radius_um,
+        case.compensation,
+        catalogs.gradient_bound(surface_spec),
+        n_scan=case.resolution.compensation_scan,
+    )
 
 
 def _commands_on_rays(g, gp, spacing, rc, pass_nodes, n_passes, mode, out) -> None:

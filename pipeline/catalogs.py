@@ -106,6 +106,16 @@ class Machine(Strict):
     continuous_accel_m_s2: PositiveFloat = Field(description="continuous W acceleration [m/s²]")
     bandwidth_hz: PositiveFloat = Field(description="closed-loop bandwidth [Hz]")
     bandwidth_amplitude_um: PositiveFloat = Field(description="amplitude at which the bandwidth holds [µm]")
+    spectrum_threshold: float = Field(
+        0.01,
+        gt=0.0,
+        lt=1.0,
+        description="a W spectral component is significant above this fraction of the dominant one",
+    )
+    table_unit_nm: PositiveFloat = Field(
+        1.0, description="value of one integer step in the header table [nm]"
+    )
+    table_int_type: Literal["int16", "int32"] = Field("int32", description="integer type of the header table")
 
 
 class Cutting(Strict):

@@ -57,15 +57,23 @@ METRICS: dict[str, tuple[str, str, str, Any]] = {
     "gouge_points": ("int64", "1", "control points whose section is concave with radius below Rc", -1),
     "n_theta": ("int64", "1", "simulated spindle angles", -1),
     "n_eval": ("int64", "1", "evaluation points", -1),
+    "stroke_um": ("float64", "µm", "W stroke used (range of the table)", np.nan),
+    "w_velocity_peak_mm_s": ("float64", "mm/s", "peak W velocity at the spindle speed", np.nan),
+    "w_accel_peak_m_s2": ("float64", "m/s^2", "peak W acceleration at the spindle speed", np.nan),
+    "w_accel_rms_m_s2": ("float64", "m/s^2", "RMS W acceleration at the spindle speed", np.nan),
+    "w_freq_max_hz": ("float64", "Hz", "highest significant frequency of the W command", np.nan),
+    "feasible": ("int8", "1", "1 if the W motion fits the machine's travel, acceleration and bandwidth", -1),
     "runtime_s": ("float64", "s", "wall time of the case", np.nan),
     "seconds_compensation": ("float64", "s", "wall time of compensation", np.nan),
     "seconds_sampling": ("float64", "s", "wall time of surface sampling", np.nan),
     "seconds_interpolation": ("float64", "s", "wall time of interpolation", np.nan),
     "seconds_envelope": ("float64", "s", "wall time of the envelope", np.nan),
     "seconds_metrics": ("float64", "s", "wall time of the metrics", np.nan),
+    "seconds_dynamics": ("float64", "s", "wall time of the dynamics", np.nan),
 }
 TEXT = {
     "message": "failure message of the case (empty when done)",
+    "infeasible_reason": "machine limits the W motion exceeds (empty when feasible)",
     "run_id": "identifier of the run that computed the case",
 }
 # wall-time variables differ between otherwise identical runs
@@ -210,8 +218,10 @@ class CubeWriter:
             values["pitch_0"], values["pitch_1"] = record["dx_um"], record["dy_um"]
             values["aspect_actual"] = record["aspect"]
         values["runtime_s"] = record["seconds"]
+        values["feasible"] = int(bool(record["feasible"]))
         for var in METRICS:
             self._set(var, idx, values[var])
+        self._set("infeasible_reason", idx, record["infeasible_reason"])
         self._set("message", idx, "")
         self._set("run_id", idx, run_id)
         self._set("status", idx, DONE)  # last: the case counts only once all else is written

@@ -105,14 +105,15 @@ def ring_layout_for(radius_um: float, n_points: float, aspect: float) -> Layout:
     """Ring layout with about ``n_points`` points at aspect ratio α = Δρ[µm]/Δθ[deg].
 
     With M ≈ R/Δρ and Np = 360/Δθ = 360·α/Δρ, N ≈ 360·α·R/Δρ², so the continuous
-    Δρ = sqrt(360·α·R/N). Np is rounded first, then M = round(N/Np) rings and
-    Δρ = R/(M − 1) so the last ring lies on the aperture edge; the actual N is within
-    half a ring of the target and is reported by the returned layout.
+    Δρ = sqrt(360·α·R/N). Np is rounded first, then M = floor(N/Np) rings and
+    Δρ = R/(M − 1) so the last ring lies on the aperture edge. The target acts as a budget:
+    the actual N is at most the target and within one ring of it (unless the minimum of
+    two rings applies), and is reported by the returned layout.
     """
     _check_positive(radius_um=radius_um, n_points=n_points, aspect=aspect)
     drho0 = math.sqrt(360.0 * aspect * radius_um / n_points)
     np_int = max(4, int(round(360.0 * aspect / drho0)))
-    m = max(2, int(round(n_points / np_int)))
+    m = max(2, int(math.floor(n_points / np_int + 1e-9)))
     return ring_layout(radius_um, radius_um / (m - 1), 360.0 / np_int)
 
 
@@ -120,13 +121,13 @@ def mesh_layout_for(width_um: float, height_um: float, n_points: float, aspect: 
     """Mesh layout with about ``n_points`` points at aspect ratio α = Δx/Δy.
 
     N ≈ (W/Δx)·(H/Δy) = W·H·α/Δx², so Δx = sqrt(W·H·α/N); nx is rounded first, then
-    ny = round(N/nx) and the pitches are W/(nx−1), H/(ny−1) so the mesh spans the
-    aperture exactly. The actual N is within half a row of the target.
+    ny = floor(N/nx) and the pitches are W/(nx−1), H/(ny−1) so the mesh spans the
+    aperture exactly. The actual N is at most the target and within one row of it.
     """
     _check_positive(width_um=width_um, height_um=height_um, n_points=n_points, aspect=aspect)
     dx0 = math.sqrt(width_um * height_um * aspect / n_points)
     nx = max(2, int(round(width_um / dx0)) + 1)
-    ny = max(2, int(round(n_points / nx)))
+    ny = max(2, int(math.floor(n_points / nx + 1e-9)))
     return mesh_layout(width_um, height_um, width_um / (nx - 1), height_um / (ny - 1))
 
 

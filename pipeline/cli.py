@@ -273,6 +273,140 @@ def sweep(
         sys.exit(1)
 
 
+def _selection_text(chosen: dict[str, Any]) -> str:
+    pitch = (
+        f"Δρ = {chosen['drho_um']:.4g} µm, Δθ = {chosen['dtheta_deg']:.4g}°"
+        if chosen["layout"] == "ring"
+        else f"Δx = {chosen['dx_um']:.4g} µm, Δy = {chosen['dy_um']:.4g} µm"
+    )
+    return "\n".join(
+        [
+            f"rule         {chosen['rule']}",
+            f"case         {chosen['index']} (target N {chosen['points_target']:,.0f}, α {chosen['aspect_target']:.4g})",
+            f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch} (α = {chosen['aspect']:.4g})",
+            f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, interpolation alone "
+            f"{chosen['pv_interp_nm']:.2f} nm)",
+        ]
+    )
+
+
+@main.command()
+@click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--budget-points", type=int, help="Best aspect ratio at or under this many points.")
+@click.option("--tolerance-nm", type=float, help="Fewest points whose P-V meets this tolerance [nm].")
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def select(
+    cube_path: Path, budget_points: Optional[int], tolerance_nm: Optional[float], as_json: bool
+) -> None:
+    """Choose the layout for production from a sweep's cube.
+
+    Only computed, feasible cases within the controller's capacity are ever chosen. With
+    --budget-points: the lowest P-V at or under that many points. With --tolerance-nm: the
+    smallest layout that meets the tolerance; when none does, say so and show the best.
+    """
+    from pipeline.cube import CubeError
+    from pipeline.select import SelectError, choose, open_cube
+
+    if budget_points is not None and budget_points < 1:
+        _fail(f"--budget-points must be positive, got {budget_points}")
+    if tolerance_nm is not None and not tolerance_nm > 0:
+        _fail(f"--tolerance-nm must be positive, got {tolerance_nm}")
+    try:
+        chosen = choose(open_cube(cube_path), budget_points, tolerance_nm)
+    except (SelectError, CubeError) as exc:
+        raise click.UsageError(str(exc)) from None
+    if as_json:
+        click.echo(json.dumps(chosen, allow_nan=False))
+    else:
+        click.echo(_selection_text(chosen))
+    if chosen.get("met") is False:
+        click.echo(f"tolerance    not met: no case reaches {tolerance_nm:g} nm", err=True)
+        sys.exit(1)
+
+
+@main.command()
+@click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--budget-points", type=int, help="Export the best layout at or under this many points.")
+@click.option("--tolerance-nm", type=float, help="Export the smallest layout meeting this P-V [nm].")
+@click.option("--case", "index", type=int, help="Export the case at this flat index of the cube.")
+@click.option(
+    "-o",
+    "--output",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Header file to write (FILE.h); the sidecar FILE.json is written beside it.",
+)
+@click.option("--name", help="Prefix of the C identifiers. Default: the file name.")
+@click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
+def export(
+    cube_path: Path,
+    budget_points: Optional[int],
+    tolerance_nm: Optional[float],
+    index: Optional[int],
+    out: Path,
+    name: Optional[str],
+    force: bool,
+) -> None:
+    """Export the chosen layout as a C header for the FTS controller.
+
+    The table is stored as fixed-point integers (unit and type from the machine catalog) in
+    the order the controller indexes it, with macros for the layout, pitches, origin, units,
+    surface, cutting conditions, predicted P-V, generator and a CRC-32 of the table. A JSON
+    sidecar holds the same metadata and the full case spec. Both are written atomically.
+    Failed, pending, infeasible and over-capacity cases are refused.
+    """
+    from pipeline import export as exp
+    from pipeline.cube import CubeError
+    from pipeline.select import SelectError
+
+    try:
+        meta = exp.export(cube_path, out, budget_points, tolerance_nm, index, force, name)
+    except (exp.ExportError, SelectError, CubeError) as exc:
+        raise click.UsageError(str(exc)) from None
+    click.echo(_selection_text(meta["selection"]))
+    click.echo(
+        f"header       {out} ({meta['shape'][0]} × {meta['shape'][1]} {meta['int_type']}, "
+        f"unit {meta['unit_nm']} nm, CRC-32 0x{meta['crc32']:08x})"
+    )
+    click.echo(f"sidecar      {exp.sidecar_path(out)}")
+
+
+@main.command()
+@click.argument("header", metavar="FILE.h", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def verify(header: Path, as_json: bool) -> None:
+    """Check an exported header and re-simulate the part from its stored integers.
+
+    Verifies the CRC-32 of the table (a changed value fails), then predicts the machined
+    surface from the table exactly as stored (quantisation included) and prints its P-V
+    beside the P-V predicted at export.
+    """
+    from pipeline import export as exp
+
+    progress = _stderr_progress("re-simulating") if (not as_json and sys.stderr.isatty()) else None
+    try:
+        record = exp.verify(header) if progress is None else _verify_with_progress(exp, header, progress)
+    except (exp.ExportError, CaseError, CatalogError) as exc:
+        click.echo(f"Error: {exc}", err=True)
+        sys.exit(1)
+    if as_json:
+        click.echo(json.dumps(record, allow_nan=False))
+        return
+    click.echo(f"checksum     {record['checksum']} ok")
+    click.echo(f"table        {record['layout']}: {record['n_points']:,} points")
+    click.echo(
+        f"P-V          {record['pv_nm']:.2f} nm re-simulated from the stored integers "
+        f"(predicted at export: {record['predicted_pv_nm']:.2f} nm)"
+    )
+
+
+def _verify_with_progress(exp: Any, header: Path, progress: Any) -> dict[str, Any]:
+    record = exp.verify(header)
+    click.echo("", err=True)
+    return record
+
+
 @main.command()
 @click.option("--case", "names", multiple=True, metavar="NAME", help="Only this case (repeatable).")
 @click.option("--repeat", type=int, default=1, show_default=True, help="Runs per case; the fastest counts.")

@@ -38,11 +38,26 @@ small_lens:
 """
 
 
+EXTRA_MACHINES = """
+sluggish-fts:
+  description: An FTS with a 1 Hz bandwidth, so every layout is infeasible (for tests).
+  capacity_points: 1000000
+  command_rate_hz: 20000.0
+  travel_um: 5000.0
+  peak_accel_m_s2: 400.0
+  continuous_accel_m_s2: 250.0
+  bandwidth_hz: 1.0
+  bandwidth_amplitude_um: 100.0
+"""
+
+
 @pytest.fixture()
 def catalog_dir(tmp_path: Path) -> Path:
-    """A copy of catalogs/ with the extra test surfaces appended."""
+    """A copy of catalogs/ with the extra test surfaces and machines appended."""
     folder = tmp_path / "catalogs"
     shutil.copytree(REPO / "catalogs", folder)
     with (folder / "surfaces.yaml").open("a") as fh:
         fh.write(EXTRA_SURFACES)
+    with (folder / "machines.yaml").open("a") as fh:
+        fh.write(EXTRA_MACHINES)
     return folder

@@ -1,0 +1,142 @@
+"""Choosing the layout that goes to production from a result cube.
+
+Only eligible cases are ever chosen: computed (status done), feasible for the machine's
+dynamics, and within the controller's capacity.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+import xarray as xr
+
+from pipeline import cube
+
+
+class SelectError(ValueError):
+    """Nothing can be selected as asked; the message says why."""
+
+
+def open_cube(path: Path) -> xr.Dataset:
+    """Open a cube for reading (checks it is an ftsweep cube first)."""
+    cube.read_attrs(Path(path))
+    return xr.open_zarr(path)
+
+
+def capacity_of(ds: xr.Dataset) -> int:
+    """The controller capacity of the machine the cube's sweep used."""
+    machines = json.loads(ds.attrs["catalog_entries"])["machine"]
+    return int(next(iter(machines.values()))["capacity_points"])
+
+
+def eligible(ds: xr.Dataset) -> xr.DataArray:
+    """Cases that may be chosen: done, feasible, and within the controller's capacity."""
+    ok = (ds["status"] == cube.DONE) & (ds["n_points"] <= capacity_of(ds))
+    if "feasible" in ds:
+        ok = ok & (ds["feasible"] == 1)
+    return ok
+
+
+def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
+    """The coordinates and key results of the case at flat index ``flat``."""
+    shape = ds["status"].shape
+    pos = dict(zip(ds["status"].dims, np.unravel_index(flat, shape), strict=True))
+    point = ds.isel(pos)
+    out: dict[str, Any] = {"index": int(flat)}
+    out.update({f"{d}_target": float(ds[d].values[i]) for d, i in pos.items()})
+    layout = ds.attrs.get("layout_method", "")
+    names = ("drho_um", "dtheta_deg") if layout == "ring" else ("dx_um", "dy_um")
+    out["layout"] = layout
+    out["n_points"] = int(point["n_points"])
+    out[names[0]] = float(point["pitch_0"])
+    out[names[1]] = float(point["pitch_1"])
+    out["aspect"] = float(point["aspect_actual"])
+    for var in ("pv_nm", "rms_nm", "pv_interp_nm", "pv_inner_nm", "pv_outer_nm"):
+        out[var] = float(point[var])
+    out["status"] = ("pending", "done", "failed")[int(point["status"])]
+    if "feasible" in ds:
+        out["feasible"] = bool(int(point["feasible"]) == 1)
+    return out
+
+
+def select_budget(ds: xr.Dataset, budget_points: int) -> dict[str, Any]:
+    """The eligible case with the lowest P-V among layouts of at most ``budget_points``."""
+    ok = (eligible(ds) & (ds["n_points"] <= budget_points)).values.ravel()
+    pv = ds["pv_nm"].values.ravel()
+    if not np.any(ok & np.isfinite(pv)):
+        raise SelectError(f"no computed, feasible case has at most {budget_points:,} points in this cube")
+    flat = int(np.nanargmin(np.where(ok, pv, np.nan)))
+    chosen = describe(ds, flat)
+    chosen["rule"] = f"lowest P-V at or under {budget_points:,} points"
+    return chosen
+
+
+def select_tolerance(ds: xr.Dataset, tolerance_nm: float) -> dict[str, Any]:
+    """The smallest eligible layout whose P-V meets ``tolerance_nm`` (lowest P-V on ties).
+
+    When none meets it, the result has ``met: False`` and describes the best case found.
+    """
+    ok = eligible(ds).values.ravel()
+    pv = ds["pv_nm"].values.ravel()
+    n = ds["n_points"].values.ravel().astype(float)
+    meets = ok & (pv <= tolerance_nm)
+    if np.any(meets):
+        # smallest N first, then lowest P-V
+        order = np.lexsort((np.where(meets, pv, np.inf), np.where(meets, n, np.inf)))
+        chosen = describe(ds, int(order[0]))
+        chosen.update(met=True, rule=f"fewest points with P-V ≤ {tolerance_nm:g} nm")
+        return chosen
+    if not np.any(ok & np.isfinite(pv)):
+        raise SelectError("no computed, feasible case within the machine's capacity in this cube")
+    best = describe(ds, int(np.nanargmin(np.where(ok, pv, np.nan))))
+    best.update(met=False, rule=f"no case meets P-V ≤ {tolerance_nm:g} nm; this is the best found")
+    return best
+
+
+def choose(
+    ds: xr.Dataset,
+    budget_points: Optional[int] = None,
+    tolerance_nm: Optional[float] = None,
+    index: Optional[int] = None,
+) -> dict[str, Any]:
+    """One of: a budget, a tolerance, or an explicit flat case index."""
+    given = [v is not None for v in (budget_points, tolerance_nm, index)]
+    if sum(given) != 1:
+        raise SelectError("give exactly one of --budget-points, --tolerance-nm or --case")
+    if budget_points is not None:
+        return select_budget(ds, budget_points)
+    if tolerance_nm is not None:
+        return select_tolerance(ds, tolerance_nm)
+    assert index is not None
+    size = int(ds["status"].size)
+    if not 0 <= index < size:
+        raise SelectError(f"--case {index} is outside the cube's {size} cases (0..{size - 1})")
+    chosen = describe(ds, index)
+    chosen["rule"] = f"case {index} as asked"
+    return chosen
+
+
+def check_exportable(ds: xr.Dataset, flat: int) -> None:
+    """Refuse failed, pending, infeasible or over-capacity cases, saying which and why."""
+    shape = ds["status"].shape
+    pos = dict(zip(ds["status"].dims, np.unravel_index(flat, shape), strict=True))
+    point = ds.isel(pos)
+    status = int(point["status"])
+    if status == cube.FAILED:
+        raise SelectError(
+            f"case {flat} failed in the sweep ({point['message'].values}); it cannot be exported"
+        )
+    if status != cube.DONE:
+        raise SelectError(f"case {flat} has not been computed yet; run the sweep to the end first")
+    cap = capacity_of(ds)
+    if int(point["n_points"]) > cap:
+        raise SelectError(
+            f"case {flat} has {int(point['n_points']):,} points, over the controller capacity {cap:,}"
+        )
+    if "feasible" in ds and int(point["feasible"]) != 1:
+        raise SelectError(
+            f"case {flat} is infeasible for the machine: {point['infeasible_reason'].values}; it cannot be exported"
+        )

@@ -282,8 +282,10 @@ def _selection_text(chosen: dict[str, Any]) -> str:
     return "\n".join(
         [
             f"rule         {chosen['rule']}",
-            f"case         {chosen['index']} (target N {chosen['points_target']:,.0f}, α {chosen['aspect_target']:.4g})",
-            f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch} (α = {chosen['aspect']:.4g})",
+            f"case         {chosen['index']} "
+            f"(target N {chosen['points_target']:,.0f}, α {chosen['aspect_target']:.4g})",
+            f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch} "
+            f"(α = {chosen['aspect']:.4g})",
             f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, interpolation alone "
             f"{chosen['pv_interp_nm']:.2f} nm)",
         ]

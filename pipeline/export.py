@@ -110,7 +110,7 @@ def render_header(name: str, meta: dict[str, Any], ints: np.ndarray, int_type: s
         f"#define {macro}_COLS {cols}",
         f"#define {macro}_N_POINTS {rows * cols}L",
         f"#define {macro}_PITCH0 {meta['pitch'][0]!r} /* {'drho [um]' if kind == 'ring' else 'dx [um]'} */",
-        f"#define {macro}_PITCH1 {meta['pitch'][1]!r} /* {'dtheta [deg]' if kind == 'ring' else 'dy [um]'} */",
+        f"#define {macro}_PITCH1 {meta['pitch'][1]!r} /* {'dtheta [deg]' if kind == 'ring' else 'dy [um]'} */",  # noqa: E501
         f"#define {macro}_ORIGIN0 {meta['origin'][0]!r}",
         f"#define {macro}_ORIGIN1 {meta['origin'][1]!r}",
         f"#define {macro}_UNIT_NM {meta['unit_nm']!r}",

@@ -138,5 +138,6 @@ def check_exportable(ds: xr.Dataset, flat: int) -> None:
         )
     if "feasible" in ds and int(point["feasible"]) != 1:
         raise SelectError(
-            f"case {flat} is infeasible for the machine: {point['infeasible_reason'].values}; it cannot be exported"
+            f"case {flat} is infeasible for the machine: {point['infeasible_reason'].values}; "
+            "it cannot be exported"
         )

@@ -410,6 +410,110 @@ def _verify_with_progress(exp: Any, header: Path, progress: Any) -> dict[str, An
 
 
 @main.command()
+@click.argument("surface", required=False)
+@click.option(
+    "--sweep",
+    "sweep_name",
+    metavar="NAME|PATH",
+    help="Take surface, layout, machine, cutting and resolution from a sweep spec.",
+)
+@click.option("--layout", type=click.Choice(["ring", "mesh"]), help="Layout method. Default: the surface's.")
+@click.option("--tolerance-nm", type=float, required=True, help="P-V the part must meet [nm].")
+@click.option(
+    "--start-points",
+    type=float,
+    default=50_000,
+    show_default=True,
+    help="Point count of the first, coarse round.",
+)
+@click.option("--machine", default="fts-1m", show_default=True, help="Machine from catalogs/machines.yaml.")
+@click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Cube recording every evaluation. Default: outputs/optimize-<surface>-<layout>.zarr.",
+)
+@click.option("--restart", is_flag=True, help="Replace an existing evaluation cube.")
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def optimize(
+    surface: Optional[str],
+    sweep_name: Optional[str],
+    layout: Optional[str],
+    tolerance_nm: float,
+    start_points: float,
+    machine: str,
+    cutting: str,
+    out: Optional[Path],
+    restart: bool,
+    as_json: bool,
+) -> None:
+    """Find the smallest layout that meets a P-V tolerance (the shop's tolerance loop).
+
+    Starts coarse (a scan of aspect ratios at --start-points), refines around the best
+    aspect ratio, then raises (or lowers) the point count using P-V ∝ 1/N until the
+    tolerance is met with as few points as possible or the controller's capacity is
+    reached. Every evaluation is recorded in a cube.
+
+    \b
+    Examples:
+      ftsweep optimize sinewave2d --layout ring --tolerance-nm 20
+      ftsweep optimize --sweep lens-array-mesh --tolerance-nm 30
+    """
+    from pipeline.cube import CubeError
+    from pipeline.optimize import optimize as run_optimize
+    from pipeline.sweep import load_sweep
+
+    resolution = None
+    compensation = "exact"
+    try:
+        if sweep_name:
+            _, spec = load_sweep(sweep_name)
+            surface, layout, machine, cutting = spec.surface, spec.layout, spec.machine, spec.cutting
+            resolution, compensation = spec.resolution, spec.compensation
+        if not surface:
+            _fail("give a SURFACE or --sweep")
+        assert surface is not None
+
+        def report(rec: dict[str, Any]) -> None:
+            pv = f"P-V {rec['pv_nm']:.2f} nm" if rec["status"] == "done" else rec["message"]
+            mark = "meets" if rec["status"] == "done" and rec["pv_nm"] <= tolerance_nm else ""
+            click.echo(
+                f"[{rec['stage']:>6s}] N≈{rec['points_target']:>9,.0f} α={rec['aspect_target']:<8.4g} "
+                f"{pv} {mark}",
+                err=True,
+            )
+
+        result = run_optimize(
+            surface,
+            layout,
+            tolerance_nm,
+            out,
+            start_points,
+            machine,
+            cutting,
+            compensation,
+            resolution,
+            restart,
+            on_eval=report,
+        )
+    except (CatalogError, CubeError, ValueError) as exc:
+        raise click.UsageError(str(exc)) from None
+    if as_json:
+        click.echo(json.dumps(result, allow_nan=False, default=_nan_safe))
+    else:
+        ans = result["answer"]
+        verdict = "met" if result["met"] else "NOT met (best found below)"
+        click.echo(
+            f"tolerance    {tolerance_nm:g} nm: {verdict}; {result['evaluations']} evaluations in "
+            f"{result['cube']}"
+        )
+        if ans is not None:
+            click.echo(_summary(ans))
+    if not result["met"]:
+        sys.exit(1)
+
+
+@main.command()
 @click.option("--case", "names", multiple=True, metavar="NAME", help="Only this case (repeatable).")
 @click.option("--repeat", type=int, default=1, show_default=True, help="Runs per case; the fastest counts.")
 @click.option(
@@ -568,6 +672,14 @@ def _summary(r: dict[str, Any]) -> str:
         f"interp. P-V  {r['pv_interp_nm']:.2f} nm   (interpolation alone)",
         f"feed cusp    {r['cusp_nm']:.2f} nm   (F²/8Rc)",
     ]
+    if "stroke_um" in r:
+        verdict = "feasible" if r["feasible"] else f"INFEASIBLE: {r['infeasible_reason']}"
+        lines.append(
+            f"W motion     stroke {r['stroke_um']:.3g} µm, "
+            f"peak velocity {r['w_velocity_peak_mm_s']:.3g} mm/s, "
+            f"peak acceleration {r['w_accel_peak_m_s2']:.3g} m/s² (RMS {r['w_accel_rms_m_s2']:.3g}), "
+            f"content up to {r['w_freq_max_hz']:.0f} Hz: {verdict}"
+        )
     if r["gouge_points"]:
         lines.append(
             f"gouge        {r['gouge_points']:,} control points where the concave radius is below Rc"

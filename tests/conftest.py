@@ -48,6 +48,15 @@ sluggish-fts:
   continuous_accel_m_s2: 250.0
   bandwidth_hz: 1.0
   bandwidth_amplitude_um: 100.0
+tiny-fts:
+  description: A controller holding only 30,000 points (for tests).
+  capacity_points: 30000
+  command_rate_hz: 20000.0
+  travel_um: 5000.0
+  peak_accel_m_s2: 400.0
+  continuous_accel_m_s2: 250.0
+  bandwidth_hz: 440.0
+  bandwidth_amplitude_um: 100.0
 """
 
 

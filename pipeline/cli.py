@@ -111,25 +111,7 @@ def list_catalogs() -> None:
     "--n-theta", type=int, help="Simulated spindle angles over 360° (overrides --samples-per-cell)."
 )
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
-def predict(
-    surface: str,
-    layout: Optional[str],
-    drho_um: Optional[float],
-    dtheta_deg: Optional[float],
-    dx_um: Optional[float],
-    dy_um: Optional[float],
-    points: Optional[float],
-    aspect: Optional[float],
-    feed_um: Optional[float],
-    nose_radius_um: Optional[float],
-    compensation: str,
-    machine: str,
-    cutting: str,
-    samples_per_cell: int,
-    points_per_feed: int,
-    n_theta: Optional[int],
-    as_json: bool,
-) -> None:
+def predict(**opts: Any) -> None:
     """Predict the form error one control-point layout leaves on the machined surface.
 
     Give the layout either by explicit pitches (--drho-um and --dtheta-deg for rings,
@@ -142,24 +124,8 @@ def predict(
       ftsweep predict --surface lens_array --layout mesh --dx-um 4 --dy-um 4 --json
       ftsweep predict --surface sinewave2d --points 500000 --aspect 8
     """
-    case = _build_case(
-        surface,
-        layout,
-        drho_um,
-        dtheta_deg,
-        dx_um,
-        dy_um,
-        points,
-        aspect,
-        feed_um,
-        nose_radius_um,
-        compensation,
-        machine,
-        cutting,
-        samples_per_cell,
-        points_per_feed,
-        n_theta,
-    )
+    case = _build_case(opts)
+    as_json = opts["as_json"]
     progress = None
     if not as_json and sys.stderr.isatty():
         progress = _stderr_progress("simulating")
@@ -558,24 +524,16 @@ def _stderr_progress(label: str):  # type: ignore[no-untyped-def]
     return report
 
 
-def _build_case(
-    surface,
-    layout,
-    drho_um,
-    dtheta_deg,
-    dx_um,
-    dy_um,
-    points,
-    aspect,
-    feed_um,
-    nose_radius_um,
-    compensation,
-    machine,
-    cutting,
-    samples_per_cell,
-    points_per_feed,
-    n_theta,
-) -> Case:  # type: ignore[no-untyped-def]
+def _build_case(opts: dict[str, Any]) -> Case:
+    """The case of ``predict``'s options, refusing mixed, missing or non-positive ones."""
+    surface, layout, machine, cutting = opts["surface"], opts["layout"], opts["machine"], opts["cutting"]
+    points, aspect = opts["points"], opts["aspect"]
+    feed_um, nose_radius_um = opts["feed_um"], opts["nose_radius_um"]
+    samples_per_cell, points_per_feed, n_theta = (
+        opts["samples_per_cell"],
+        opts["points_per_feed"],
+        opts["n_theta"],
+    )
     try:
         spec = catalogs.entry("surfaces", surface)
         catalogs.entry("machines", machine)
@@ -583,7 +541,7 @@ def _build_case(
     except CatalogError as exc:
         raise click.UsageError(str(exc)) from None
     kind = layout or spec.layout
-    given = {"drho_um": drho_um, "dtheta_deg": dtheta_deg, "dx_um": dx_um, "dy_um": dy_um}
+    given = {k: opts[k] for k in (*_RING_PITCH, *_MESH_PITCH)}
     own, other = (_RING_PITCH, _MESH_PITCH) if kind == "ring" else (_MESH_PITCH, _RING_PITCH)
     wrong = [k for k in other if given[k] is not None]
     if wrong:
@@ -638,7 +596,7 @@ def _build_case(
             cutting=cutting,
             feed_um=feed_um,
             nose_radius_um=nose_radius_um,
-            compensation=compensation,
+            compensation=opts["compensation"],
             resolution=Resolution(
                 samples_per_cell=samples_per_cell, points_per_feed=points_per_feed, n_theta=n_theta
             ),

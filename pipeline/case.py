@@ -46,6 +46,12 @@ class Resolution(Strict):
     zone_split: float = Field(
         0.5, gt=0.0, lt=1.0, description="inner/outer zone boundary as a fraction of the inscribed radius"
     )
+    error_map_bins: Optional[int] = Field(
+        None,
+        ge=4,
+        le=1024,
+        description="bins per side of a coarse error map over the aperture (None: no map)",
+    )
 
 
 class LayoutRequest(Strict):
@@ -118,16 +124,47 @@ def build_layout(surface: Any, request: LayoutRequest) -> Layout:
 
 def angular_samples(layout: Layout, rho0_um: float, resolution: Resolution) -> int:
     """Spindle angles sampled over 360° (even): ``n_theta`` if set, else ``samples_per_cell``
-    per table cell along the outer circumference (Np cells for rings, 2πρ0/min(Δx, Δy) for
-    meshes)."""
+    per table cell along the outer circumference (Np cells for rings, 2πρ0/max(Δx, Δy) for
+    meshes: bilinear error grows as the pitch squared, so the coarse direction's cells carry
+    the error that must be resolved)."""
     if resolution.n_theta is not None:
         n = resolution.n_theta
     elif layout.kind == "ring":
         n = resolution.samples_per_cell * layout.shape[1]
     else:
-        cells = math.ceil(2.0 * math.pi * rho0_um / min(layout.pitch))
+        cells = math.ceil(2.0 * math.pi * rho0_um / max(layout.pitch))
         n = resolution.samples_per_cell * cells
     return n + (n % 2)
+
+
+class ErrorMap:
+    """A coarse square map of the form error over the aperture's bounding box (µm in, nm out)."""
+
+    def __init__(self, x0: float, y0: float, bin_um: float, bins: int) -> None:
+        self.x0, self.y0, self.bin_um, self.bins = x0, y0, bin_um, bins
+        self.total = np.zeros((bins, bins))
+        self.count = np.zeros((bins, bins))
+        self.peak = np.zeros((bins, bins))
+
+    @classmethod
+    def over(cls, aperture: Any, bins: int) -> ErrorMap:
+        half = (
+            aperture.outer_radius_um
+            if aperture.shape == "circle"
+            else 0.5 * max(aperture.width_um, aperture.height_um)
+        )
+        return cls(-half, -half, 2.0 * half / bins, bins)
+
+    def centres_um(self) -> np.ndarray:
+        """Bin centres [µm] along x (and y)."""
+        return self.x0 + (np.arange(self.bins) + 0.5) * self.bin_um
+
+    def as_record(self) -> dict[str, Any]:
+        """Mean and peak error maps [nm] (NaN where no point fell) and bin centres [µm]."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = np.where(self.count > 0, self.total / self.count, np.nan) * 1e3
+        peak = np.where(self.count > 0, self.peak, np.nan) * 1e3
+        return {"error_map_mean_nm": mean, "error_map_peak_nm": peak, "error_map_x_um": self.centres_um()}
 
 
 class Timer:
@@ -211,6 +248,7 @@ def run_case(
     mode = compensation.MODE_CODES[case.compensation]
     zone_split = res.zone_split * aperture.inner_radius_um
     stats = metrics.empty_stats()
+    emap = ErrorMap.over(aperture, res.error_map_bins) if res.error_map_bins else None
     n_batches = math.ceil(lines.size / per_batch)
     for b in range(n_batches):
         t = time.perf_counter()
@@ -258,6 +296,21 @@ def run_case(
         cusp_f = interpolation.sample_on_nodes(grid, g, gp, cusp_r)
         cusp_inside = aperture.contains_polar(cusp_r, ct, st)
         metrics.accumulate_extrema(cusp_z, cusp_f, cusp_inside, cusp_r, zone_split, stats)
+        if emap is not None:
+            metrics.accumulate_map(
+                z,
+                g,
+                inside,
+                grid.node_r,
+                ct,
+                st,
+                emap.x0,
+                emap.y0,
+                emap.bin_um,
+                emap.total,
+                emap.count,
+                emap.peak,
+            )
         timer.add("metrics", t)
         if progress is not None:
             progress(b + 1, n_batches)
@@ -304,6 +357,8 @@ def run_case(
         feasible=feasible,
         infeasible_reason=reason,
     )
+    if emap is not None:
+        record.update(emap.as_record())
     for name in STAGE_TIMERS:
         record[f"seconds_{name}"] = timer.seconds.get(name, 0.0)
     record["seconds"] = time.perf_counter() - t_start

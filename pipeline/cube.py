@@ -71,6 +71,10 @@ METRICS: dict[str, tuple[str, str, str, Any]] = {
     "seconds_metrics": ("float64", "s", "wall time of the metrics", np.nan),
     "seconds_dynamics": ("float64", "s", "wall time of the dynamics", np.nan),
 }
+MAP_VARS = {
+    "error_map_mean_nm": "mean form error in each bin of the coarse error map",
+    "error_map_peak_nm": "form error of largest magnitude in each bin of the coarse error map",
+}
 TEXT = {
     "message": "failure message of the case (empty when done)",
     "infeasible_reason": "machine limits the W motion exceeds (empty when feasible)",
@@ -128,7 +132,29 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
     )
     for var, long_name in TEXT.items():
         data[var] = (dims, np.full(shape, "", dtype=object), {"units": "1", "long_name": long_name})
-    ds = xr.Dataset(data, coords={k: (k, v, AXIS_ATTRS[k]) for k, v in coords.items()})
+    coord_vars = {k: (k, v, AXIS_ATTRS[k]) for k, v in coords.items()}
+    bins = spec.resolution.error_map_bins
+    if bins:
+        from pydantic import TypeAdapter
+
+        from pipeline.case import ErrorMap
+        from pipeline.catalogs import SurfaceSpec, aperture_of
+
+        surface = TypeAdapter(SurfaceSpec).validate_python(catalog_entries["surface"][spec.surface])
+        centres = ErrorMap.over(aperture_of(surface), bins).centres_um()
+        for axis in ("map_x", "map_y"):
+            coord_vars[axis] = (
+                axis,
+                centres,
+                {"units": "µm", "long_name": f"{axis[-1]} of the error-map bin centre"},
+            )
+        for var, what in MAP_VARS.items():
+            data[var] = (
+                (*dims, "map_y", "map_x"),
+                np.full((*shape, bins, bins), np.nan),
+                {"units": "nm", "long_name": what},
+            )
+    ds = xr.Dataset(data, coords=coord_vars)
     ds.attrs.update(
         ftsweep_version=__version__,
         git_revision=git_revision(),
@@ -152,7 +178,11 @@ def create(path: Path, ds: xr.Dataset) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
-    encoding = {v: {"chunks": (1,) * ds[v].ndim} for v in ds.data_vars}
+    # one chunk per case; map variables keep each case's whole map in its chunk
+    encoding = {
+        v: {"chunks": tuple(1 if d not in ("map_x", "map_y") else ds.sizes[d] for d in ds[v].dims)}
+        for v in ds.data_vars
+    }
     with warnings.catch_warnings():
         # consolidated metadata is a zarr-python extension in format 3; readers here use it
         warnings.filterwarnings("ignore", message="Consolidated metadata", category=UserWarning)
@@ -200,7 +230,7 @@ class CubeWriter:
             raise CubeError(f"{name} in the cube is not an array")
         return array
 
-    def _set(self, name: str, idx: tuple[int, ...], value: Any) -> None:
+    def _set(self, name: str, idx: tuple[Any, ...], value: Any) -> None:
         self._array(name)[idx] = value
 
     def _index(self, flat: int) -> tuple[int, ...]:
@@ -222,6 +252,9 @@ class CubeWriter:
         for var in METRICS:
             self._set(var, idx, values[var])
         self._set("infeasible_reason", idx, record["infeasible_reason"])
+        for var in MAP_VARS:
+            if var in record and var in self.group:
+                self._set(var, (*idx, slice(None), slice(None)), record[var])
         self._set("message", idx, "")
         self._set("run_id", idx, run_id)
         self._set("status", idx, DONE)  # last: the case counts only once all else is written

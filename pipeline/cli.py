@@ -480,6 +480,46 @@ def optimize(
 
 
 @main.command()
+@click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Folder for the figures and index.html. Default: <cube>-report beside the cube.",
+)
+@click.option(
+    "--case",
+    "index",
+    type=int,
+    help="Case (flat index) for the error map and spectrum. Default: the best at the largest budget.",
+)
+@click.option("--map-bins", type=int, default=160, show_default=True, help="Bins per side of the error map.")
+def report(cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_bins: int) -> None:
+    """Figures of a sweep's cube and one HTML page that shows them with its metadata.
+
+    P-V against point count and against aspect ratio (optimum marked), a heat map of P-V,
+    the error map of the chosen case over the part and its W command spectrum with the servo
+    bandwidth. The error map needs a re-simulation of that case, which shows progress.
+    """
+    from pipeline.cube import CubeError
+    from pipeline.report import make_report
+    from pipeline.select import SelectError
+
+    if map_bins < 8:
+        _fail(f"--map-bins must be at least 8, got {map_bins}")
+    progress = _stderr_progress("error map") if sys.stderr.isatty() else None
+    click.echo("plotting the cube; re-simulating the chosen case for its error map ...", err=True)
+    try:
+        paths = make_report(cube_path, out_dir, index, map_bins, progress)
+    except (CubeError, SelectError, CaseError) as exc:
+        raise click.UsageError(str(exc)) from None
+    if progress is not None:
+        click.echo("", err=True)
+    for name, path in paths.items():
+        click.echo(f"{name:14s} {path}")
+
+
+@main.command()
 @click.option("--case", "names", multiple=True, metavar="NAME", help="Only this case (repeatable).")
 @click.option("--repeat", type=int, default=1, show_default=True, help="Runs per case; the fastest counts.")
 @click.option(

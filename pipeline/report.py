@@ -1,0 +1,196 @@
+"""``ftsweep report``: the figures engineers judge layouts by, and one HTML page with them.
+
+1. P-V against point count, one line per aspect ratio (log axes);
+2. P-V against aspect ratio, one line per point count, the optimum marked;
+3. a heat map of P-V over (point count, aspect ratio);
+4. the error map of a chosen case (default: the best at the largest budget), re-simulated
+   with a fine map, colour bar in nm, P-V and pitches in the title;
+5. the W command spectrum of that case with the servo bandwidth marked.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+from pydantic import TypeAdapter
+
+import pipeline.accessor  # noqa: F401  (registers ds.ftsweep)
+from pipeline.accessor import _axes, plot_map
+from pipeline.case import build_layout, control_table, run_case
+from pipeline.catalogs import Cutting, Machine, SurfaceSpec, aperture_of
+from pipeline.io import write_text_atomic
+from pipeline.select import choose, describe, open_cube
+from pipeline.sweep import SweepSpec, case_at
+from stages import dynamics
+
+FIGURES = {
+    "pv_vs_points": "P-V against point count, one line per aspect ratio",
+    "pv_vs_aspect": "P-V against aspect ratio, one line per point count, optimum marked",
+    "pv_heatmap": "P-V over point count and aspect ratio",
+    "error_map": "Form error of the chosen case over the part",
+    "w_spectrum": "Spectrum of the W command of the chosen case",
+}
+
+
+def _save(ax: Any, path: Path) -> Path:
+    """Save a figure through a temporary file and a rename (no half-written PNG)."""
+    import matplotlib.pyplot as plt
+
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        ax.figure.savefig(tmp, dpi=110)
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+        plt.close(ax.figure)
+    return path
+
+
+def resimulate(
+    cube_path: Path, index: int, map_bins: int, progress: Optional[Callable[[int, int], None]] = None
+) -> tuple[dict[str, Any], Any]:
+    """Re-run case ``index`` of a cube with an error map of ``map_bins`` bins, from the cube's
+    recorded spec and catalog entries. Returns the record and (case, layout, table, specs)."""
+    ds = open_cube(cube_path)
+    spec = SweepSpec.model_validate_json(ds.attrs["sweep_spec"])
+    base = case_at(spec, index)
+    case = base.model_copy(
+        update={"resolution": base.resolution.model_copy(update={"error_map_bins": map_bins})}
+    )
+    entries = json.loads(ds.attrs["catalog_entries"])
+    specs = (
+        TypeAdapter(SurfaceSpec).validate_python(entries["surface"][case.surface]),
+        Machine.model_validate(entries["machine"][case.machine]),
+        Cutting.model_validate(entries["cutting"][case.cutting]),
+    )
+    record = run_case(case, progress=progress, specs=specs)
+    layout = build_layout(specs[0], case.layout)
+    table, _ = control_table(case, layout, specs[0], record["nose_radius_um"])
+    return record, (case, layout, table, specs)
+
+
+def plot_spectrum(record: dict[str, Any], layout: Any, table: np.ndarray, specs: Any) -> Any:
+    """Amplitude spectrum [nm] of one revolution of W inside the part, bandwidth marked."""
+    surface, machine, cutting = specs
+    k = dynamics.commands_per_revolution(machine.command_rate_hz, cutting.spindle_rpm)
+    radius = 0.95 * aperture_of(surface).inner_radius_um
+    w = dynamics.revolution_commands(layout, table, radius, record["feed_um"], k)
+    freq, amp = dynamics.spectrum(w, k, cutting.spindle_rpm)
+    ax = _axes(None, (7.0, 4.4))
+    ax.loglog(
+        freq,
+        np.maximum(amp * 1e3, 1e-6),
+        lw=0.8,
+        color="tab:blue",
+        label=f"one revolution at r = {radius:.0f} µm",
+    )
+    ax.axvline(
+        machine.bandwidth_hz, color="tab:red", ls="--", label=f"servo bandwidth {machine.bandwidth_hz:g} Hz"
+    )
+    ax.axvline(
+        max(record["w_freq_max_hz"], freq[0]),
+        color="tab:green",
+        ls=":",
+        label=f"highest significant content {record['w_freq_max_hz']:.0f} Hz (all radii)",
+    )
+    ax.set_xlabel(f"frequency [Hz] at {cutting.spindle_rpm:g} rpm")
+    ax.set_ylabel("amplitude of W [nm]")
+    ax.set_ylim(bottom=1e-3)
+    verdict = "feasible" if record["feasible"] else "INFEASIBLE"
+    ax.set_title(
+        f"W command spectrum ({k:,} commands/rev at {machine.command_rate_hz / 1e3:g} kHz): {verdict}",
+        fontsize=9,
+    )
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    return ax
+
+
+def make_report(
+    cube_path: Path,
+    out_dir: Optional[Path] = None,
+    index: Optional[int] = None,
+    map_bins: int = 160,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> dict[str, Path]:
+    """Write the figures and ``index.html`` into ``out_dir``; returns their paths."""
+    cube_path = Path(cube_path)
+    ds = open_cube(cube_path)
+    out = Path(out_dir) if out_dir else cube_path.with_name(cube_path.stem + "-report")
+    out.mkdir(parents=True, exist_ok=True)
+    paths: dict[str, Path] = {}
+    paths["pv_vs_points"] = _save(ds.ftsweep.plot_pv(), out / "pv_vs_points.png")
+    paths["pv_vs_aspect"] = _save(ds.ftsweep.plot_aspect(), out / "pv_vs_aspect.png")
+    paths["pv_heatmap"] = _save(ds.ftsweep.plot_heatmap(), out / "pv_heatmap.png")
+
+    if index is None:
+        budget = int(np.nanmax(ds["points"].values))
+        chosen = choose(ds, budget_points=budget)
+    else:
+        chosen = choose(ds, index=index)
+    record, (case, layout, table, specs) = resimulate(cube_path, int(chosen["index"]), map_bins, progress)
+    shown = dict(describe(ds, int(chosen["index"])), pv_nm=record["pv_nm"])
+    paths["error_map"] = _save(
+        plot_map(record["error_map_x_um"], record["error_map_peak_nm"], shown, "peak"), out / "error_map.png"
+    )
+    paths["w_spectrum"] = _save(plot_spectrum(record, layout, table, specs), out / "w_spectrum.png")
+    paths["index"] = write_text_atomic(out / "index.html", _html(ds, chosen, record, paths))
+    return paths
+
+
+def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[str, Path]) -> str:
+    attrs = ds.attrs
+    rows = "".join(
+        f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
+        for k, v in (
+            ("sweep", attrs.get("sweep_name")),
+            ("surface", attrs.get("surface")),
+            ("layout method", attrs.get("layout_method")),
+            ("ftsweep version", attrs.get("ftsweep_version")),
+            ("git revision", attrs.get("git_revision")),
+            ("cube created", attrs.get("created")),
+            ("cases", f"{int(ds['status'].size)} ({int((ds['status'] == 1).sum())} done)"),
+        )
+    )
+    case_rows = "".join(
+        f"<tr><th>{html.escape(k)}</th><td>{v:.4g}</td></tr>"
+        if isinstance(v, float) and math.isfinite(v)
+        else f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
+        for k, v in chosen.items()
+    )
+    dyn = (
+        f"stroke {record['stroke_um']:.3g} µm, peak velocity {record['w_velocity_peak_mm_s']:.3g} mm/s, "
+        f"peak acceleration {record['w_accel_peak_m_s2']:.3g} m/s², content up to "
+        f"{record['w_freq_max_hz']:.0f} Hz"
+    )
+    figs = "".join(
+        f'<figure><img src="{html.escape(paths[k].name)}" alt="{html.escape(t)}"><figcaption>{html.escape(t)}'
+        f"</figcaption></figure>"
+        for k, t in FIGURES.items()
+    )
+    spec = html.escape(json.dumps(json.loads(attrs.get("sweep_spec", "{}")), indent=2))
+    title = html.escape(str(attrs.get("sweep_name")))
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>ftsweep report: {title}</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}}
+table{{border-collapse:collapse;margin:1em 0}}th,td{{border:1px solid #ccc;padding:3px 8px;text-align:left}}
+figure{{display:inline-block;margin:1em;vertical-align:top}}img{{max-width:520px}}pre{{background:#f5f5f5;padding:1em}}
+</style></head><body>
+<h1>ftsweep report: {html.escape(str(attrs.get("sweep_name")))}</h1>
+<table>{rows}</table>
+<h2>Chosen case ({html.escape(chosen.get("rule", ""))})</h2>
+<table>{case_rows}</table>
+<p>Re-simulated P-V {record["pv_nm"]:.2f} nm; W motion: {html.escape(dyn)}.</p>
+<h2>Figures</h2>{figs}
+<h2>Sweep spec</h2><pre>{spec}</pre>
+</body></html>
+"""

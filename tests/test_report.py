@@ -1,0 +1,90 @@
+"""Figures, the HTML report and the xarray accessor (issue 5)."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+import xarray as xr
+from click.testing import CliRunner
+
+import pipeline  # noqa: F401  (registers ds.ftsweep)
+from pipeline.cli import main
+from pipeline.report import FIGURES
+from pipeline.run import run_sweep
+
+SPEC = """
+surface: small_sine
+layout: ring
+resolution: {error_map_bins: 24}
+axes: {points: [8000, 16000], aspect: [1.0, 4.0, 16.0]}
+"""
+
+
+@pytest.fixture()
+def small_cube(tmp_path, catalog_dir, monkeypatch):
+    monkeypatch.setenv("FTSWEEP_CATALOGS", str(catalog_dir))
+    spec = tmp_path / "rep.yaml"
+    spec.write_text(SPEC)
+    out = tmp_path / "rep.zarr"
+    run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    return out
+
+
+def png_size(path):
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", f"{path} is not a PNG"
+    assert data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])
+
+
+def test_report_writes_every_figure_and_an_html_page(small_cube, tmp_path):
+    out = tmp_path / "report"
+    r = CliRunner().invoke(main, ["report", str(small_cube), "--out", str(out), "--map-bins", "40"])
+    assert r.exit_code == 0, r.output
+    page = (out / "index.html").read_text()
+    for name in FIGURES:
+        png = out / f"{name}.png"
+        width, height = png_size(png)
+        assert 400 <= width <= 2000 and 300 <= height <= 2000, (name, width, height)
+        assert png.stat().st_size > 10_000  # a real picture, not an empty canvas
+        assert f'src="{name}.png"' in page
+    assert "small_sine" in page and "Chosen case" in page
+    assert not list(out.glob(".*"))  # no temporary files left
+
+
+def test_accessor_best_optimum_and_plots(small_cube):
+    ds = xr.open_zarr(small_cube)
+    best = ds.ftsweep.best(budget_points=16000)
+    assert best["pv_nm"] == pytest.approx(float(ds["pv_nm"].where(ds["n_points"] <= 16000).min()))
+    optimum = ds.ftsweep.optimum()
+    assert set(optimum.values) <= set(ds["aspect"].values)
+    for plot in (
+        ds.ftsweep.plot_pv,
+        ds.ftsweep.plot_aspect,
+        ds.ftsweep.plot_heatmap,
+        ds.ftsweep.plot_error_map,
+    ):
+        ax = plot()
+        assert ax.get_xlabel() and ax.get_ylabel()  # units on every axis
+        assert "[" in ax.get_xlabel() and "[" in ax.get_ylabel()
+
+
+def test_stored_error_maps_match_the_case_pv(small_cube):
+    ds = xr.open_zarr(small_cube)
+    peak = ds["error_map_peak_nm"].values
+    assert peak.shape == (2, 3, 24, 24)
+    # the map's signed peaks are node errors, so they stay within each case's error range
+    assert np.all(np.nanmax(peak, axis=(2, 3)) <= ds["error_max_nm"].values + 1e-9)
+    assert np.all(np.nanmin(peak, axis=(2, 3)) >= ds["error_min_nm"].values - 1e-9)
+    assert ds["map_x"].attrs["units"] == "µm"
+
+
+def test_error_map_without_stored_maps_says_what_to_do(tmp_path, catalog_dir):
+    spec = tmp_path / "nomap.yaml"
+    spec.write_text(SPEC.replace("resolution: {error_map_bins: 24}\n", ""))
+    out = tmp_path / "nomap.zarr"
+    run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    with pytest.raises(ValueError, match="error_map_bins"):
+        xr.open_zarr(out).ftsweep.plot_error_map()

@@ -222,8 +222,8 @@ def run_case(
             f"'{case.machine}' ({machine.capacity_points:,}); use larger pitches or fewer points"
         )
 
-    surface = catalogs.surface_callable(surface_spec)
-    bound = catalogs.gradient_bound(surface_spec)
+    surface = catalogs.surface_callable(surface_spec, catalog_folder)
+    bound = catalogs.gradient_bound(surface_spec, catalog_folder)
     aperture = catalogs.aperture_of(surface_spec)
     rho0 = aperture.outer_radius_um
     timer = Timer()
@@ -231,7 +231,7 @@ def run_case(
     # compensation of the control table (surface sampling happens inside, per scan offset)
     t = time.perf_counter()
     if table is None:
-        table, gouge = control_table(case, layout, surface_spec, rc)
+        table, gouge = control_table(case, layout, surface_spec, rc, catalog_folder)
     else:
         table = np.asarray(table, dtype=np.float64)
         if table.shape != layout.shape:
@@ -375,17 +375,17 @@ def resolve_specs(case: Case, catalog_folder: Any = None) -> tuple[Any, Any, Any
 
 
 def control_table(
-    case: Case, layout: Layout, surface_spec: Any, nose_radius_um: float
+    case: Case, layout: Layout, surface_spec: Any, nose_radius_um: float, catalog_folder: Any = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """The compensated control table [µm] of ``layout`` and its gouge flags (physics.md §4)."""
     node_rho, node_theta = layouts.layout_nodes(layout)
     return compensation.compensate(
-        catalogs.surface_callable(surface_spec),
+        catalogs.surface_callable(surface_spec, catalog_folder),
         node_rho,
         node_theta,
         nose_radius_um,
         case.compensation,
-        catalogs.gradient_bound(surface_spec),
+        catalogs.gradient_bound(surface_spec, catalog_folder),
         n_scan=case.resolution.compensation_scan,
     )
 

@@ -11,10 +11,18 @@ from __future__ import annotations
 import functools
 import os
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Optional, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, PositiveInt, ValidationError
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PositiveFloat,
+    PositiveInt,
+    ValidationError,
+    model_validator,
+)
 
 from stages.surfaces import FAMILIES, Aperture, SurfaceFn
 
@@ -60,10 +68,64 @@ class LensArrayParams(Strict):
     count_y: PositiveInt
 
 
+class ChebyshevParams(Strict):
+    base_radius_um: float = Field(0.0, description="radius of the base sphere [µm]; 0 for none")
+    coefficients_um: list[list[float]] = Field(
+        min_length=1, description="C_ij [µm], rows i (x) of columns j (y)"
+    )
+    norm_x_um: PositiveFloat
+    norm_y_um: PositiveFloat
+    offset_x_um: float = 0.0
+    offset_y_um: float = 0.0
+
+    @model_validator(mode="after")
+    def _rectangular(self) -> ChebyshevParams:
+        if len({len(row) for row in self.coefficients_um}) != 1 or not self.coefficients_um[0]:
+            raise ValueError("coefficients_um must be a rectangular, non-empty list of rows")
+        return self
+
+
+class SinusoidalMeshParams(Strict):
+    h1_um: float
+    h2_um: float
+    periods_circumferential: PositiveFloat
+    periods_radial: PositiveFloat
+    workpiece_radius_um: PositiveFloat
+
+
+class ZernikeParams(Strict):
+    norm_radius_um: PositiveFloat
+    terms_um: dict[PositiveInt, float] = Field(min_length=1, description="{Noll index: coefficient [µm]}")
+    base_radius_um: float = 0.0
+    conic: float = 0.0
+
+
+class HeightMapParams(Strict):
+    path: str = Field(description="NetCDF (.nc), Zarr (.zarr) or .npy file; relative to the catalog folder")
+    variable: Optional[str] = Field(None, description="height variable of a NetCDF/Zarr file")
+    x_name: str = "x"
+    y_name: str = "y"
+    spacing_um: Optional[tuple[PositiveFloat, PositiveFloat]] = Field(
+        None, description="(dx, dy) of a .npy grid"
+    )
+    origin_um: Optional[tuple[float, float]] = Field(
+        None, description="(x, y) of element [0, 0] of a .npy grid"
+    )
+    scale_to_um: PositiveFloat = Field(1.0, description="factor turning the file's heights into µm")
+
+
+class PluginParams(Strict):
+    function: str = Field(description="module:function taking x, y [µm] and returning heights (and slopes)")
+    params: dict[str, Any] = Field(default_factory=dict, description="keyword arguments for the function")
+
+
 class _SurfaceBase(Strict):
     description: str = ""
     aperture: ApertureSpec
     layout: Literal["ring", "mesh"] = Field(description="layout method used by default")
+    gradient_bound: Optional[PositiveFloat] = Field(
+        None, description="upper bound of |∇f| [-]; default analytic, or sampled over the aperture"
+    )
 
 
 class SinewaveSurface(_SurfaceBase):
@@ -76,20 +138,78 @@ class LensArraySurface(_SurfaceBase):
     params: LensArrayParams
 
 
-SurfaceSpec = Annotated[Union[SinewaveSurface, LensArraySurface], Field(discriminator="family")]
+class ChebyshevSurface(_SurfaceBase):
+    family: Literal["chebyshev_freeform"]
+    params: ChebyshevParams
 
 
-def surface_callable(spec: SinewaveSurface | LensArraySurface) -> SurfaceFn:
+class SinusoidalMeshSurface(_SurfaceBase):
+    family: Literal["sinusoidal_mesh"]
+    params: SinusoidalMeshParams
+
+
+class ZernikeSurface(_SurfaceBase):
+    family: Literal["zernike"]
+    params: ZernikeParams
+
+
+class HeightMapSurface(_SurfaceBase):
+    family: Literal["height_map"]
+    params: HeightMapParams
+
+
+class PluginSurface(_SurfaceBase):
+    family: Literal["plugin"]
+    params: PluginParams
+
+
+SurfaceSpec = Annotated[
+    Union[
+        SinewaveSurface,
+        LensArraySurface,
+        ChebyshevSurface,
+        SinusoidalMeshSurface,
+        ZernikeSurface,
+        HeightMapSurface,
+        PluginSurface,
+    ],
+    Field(discriminator="family"),
+]
+USER_FAMILIES = ("height_map", "plugin")
+
+
+def surface_callable(spec: Any, folder: Path | None = None) -> SurfaceFn:
     """The surface callable ``fn(x, y) -> (f, fx, fy)`` of a catalog entry (µm in, µm out)."""
+    if spec.family in USER_FAMILIES:
+        from pipeline import usersurfaces
+
+        return usersurfaces.build(
+            spec.family, spec.params.model_dump(mode="json"), aperture_of(spec), folder or catalog_dir()
+        )
     return functools.partial(FAMILIES[spec.family].evaluate, **spec.params.model_dump())
 
 
-def gradient_bound(spec: SinewaveSurface | LensArraySurface) -> float:
-    """Analytic upper bound of |∇f| [-] for a catalog entry."""
-    return FAMILIES[spec.family].gradient_bound(**spec.params.model_dump())
+def gradient_bound(spec: Any, folder: Path | None = None) -> float:
+    """Upper bound of |∇f| [-]: the entry's own, the family's analytic one, or a sampled estimate."""
+    if spec.gradient_bound is not None:
+        return float(spec.gradient_bound)
+    family = FAMILIES.get(spec.family)
+    if family is not None and family.gradient_bound is not None:
+        return family.gradient_bound(**spec.params.model_dump())
+    return _sampled_bound(spec.model_dump_json(), str(folder or catalog_dir()))
 
 
-def aperture_of(spec: SinewaveSurface | LensArraySurface) -> Aperture:
+@functools.lru_cache(maxsize=32)
+def _sampled_bound(spec_json: str, folder: str) -> float:
+    from pydantic import TypeAdapter
+
+    from stages.surfaces import sampled_gradient_bound
+
+    spec = TypeAdapter(SurfaceSpec).validate_json(spec_json)
+    return sampled_gradient_bound(surface_callable(spec, Path(folder)), aperture_of(spec).outer_radius_um)
+
+
+def aperture_of(spec: Any) -> Aperture:
     """The stage-level :class:`~stages.surfaces.Aperture` of a catalog entry."""
     return Aperture(**spec.aperture.model_dump())
 
@@ -231,8 +351,8 @@ def load_catalog(path: Path, model: Any) -> dict[str, Any]:
     return out
 
 
-@functools.cache
-def _cached(kind: str, folder: str) -> dict[str, Any]:
+@functools.lru_cache(maxsize=64)
+def _cached(kind: str, folder: str, mtime_ns: int) -> dict[str, Any]:
     model = {"surfaces": SurfaceSpec, "machines": Machine, "cutting": Cutting, "references": Reference}[kind]
     return load_catalog(Path(folder) / f"{kind}.yaml", model)
 
@@ -241,7 +361,7 @@ def entry(kind: str, name: str, folder: Path | None = None) -> Any:
     """One validated entry of catalog ``kind``: ``surfaces``, ``machines``, ``cutting`` or
     ``references``."""
     folder = folder or catalog_dir()
-    entries = _cached(kind, str(folder))
+    entries = _load(kind, folder)
     if name not in entries:
         raise CatalogError(
             f"unknown {kind[:-1] if kind.endswith('s') else kind} '{name}' in {folder / (kind + '.yaml')}; "
@@ -252,4 +372,11 @@ def entry(kind: str, name: str, folder: Path | None = None) -> Any:
 
 def entries(kind: str, folder: Path | None = None) -> dict[str, Any]:
     """All validated entries of catalog ``kind``."""
-    return dict(_cached(kind, str(folder or catalog_dir())))
+    return dict(_load(kind, folder or catalog_dir()))
+
+
+def _load(kind: str, folder: Path) -> dict[str, Any]:
+    # the file's modification time is part of the key, so an edited catalog is re-read
+    path = Path(folder) / f"{kind}.yaml"
+    mtime = path.stat().st_mtime_ns if path.exists() else -1
+    return _cached(kind, str(folder), mtime)

@@ -36,11 +36,19 @@ def commands_per_revolution(command_rate_hz: float, spindle_rpm: float) -> int:
 
 
 def revolution_commands(
-    layout: Layout, table: np.ndarray, rho_start_um: float, feed_um: float, k: int, n_rev: int = 1
+    layout: Layout,
+    table: np.ndarray,
+    rho_start_um: float,
+    feed_um: float,
+    k: int,
+    n_commands: int | None = None,
+    first: int = 0,
 ) -> np.ndarray:
-    """Commands W [µm] of ``n_rev`` revolutions of the spiral from radius ``rho_start_um``,
-    ``k`` per revolution: ρ(φ) = ρ_start − F·φ/2π, θ = φ mod 2π (physics.md §1, §3)."""
-    phi = np.arange(k * n_rev) * (2.0 * math.pi / k)
+    """Consecutive commands W [µm] of the spiral, ``k`` per revolution, command n at
+    φ_n = 2π·n/k for n = first … first + n_commands − 1 (default one revolution from φ = 0):
+    ρ(φ) = ρ_start − F·φ/2π, θ = φ mod 2π (physics.md §1, §3)."""
+    count = k if n_commands is None else n_commands
+    phi = (first + np.arange(count)) * (2.0 * math.pi / k)
     rho = np.maximum(rho_start_um - feed_um * phi / (2.0 * math.pi), 0.0)
     return interpolate(layout, table, rho, np.mod(phi, 2.0 * math.pi))
 
@@ -95,9 +103,8 @@ def analyse(
     n_acc = 0
     spectra = []
     for frac in radii_fraction:
-        # one extra command on each side so the differences cover the whole revolution
-        w = revolution_commands(layout, table, frac * rho0_um + feed_um / k, feed_um, k)
-        w = np.concatenate([w, revolution_commands(layout, table, frac * rho0_um - feed_um, feed_um, 2)])
+        # one revolution plus its neighbouring commands, so the differences cover all of it
+        w = revolution_commands(layout, table, frac * rho0_um, feed_um, k, k + 2, first=-1)
         v = np.diff(w) / dt * 1e-3  # µm/s → mm/s
         a = np.diff(w, 2) / (dt * dt) * 1e-6  # µm/s² → m/s²
         v_peak = max(v_peak, float(np.max(np.abs(v))))

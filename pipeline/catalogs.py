@@ -264,6 +264,21 @@ class Reference(Strict):
         return max(self.rel_tol * self.pv_nm, self.abs_tol_nm)
 
 
+def specs_from_entries(
+    surface: dict[str, Any], machine: dict[str, Any], cutting: dict[str, Any]
+) -> tuple[Any, Machine, Cutting]:
+    """(surface, machine, cutting) specs validated from recorded entries (a cube's or a
+    header sidecar's provenance), so results are re-derived from what was used, not from the
+    catalogs as they are now."""
+    from pydantic import TypeAdapter
+
+    return (
+        TypeAdapter(SurfaceSpec).validate_python(surface),
+        Machine.model_validate(machine),
+        Cutting.model_validate(cutting),
+    )
+
+
 # --------------------------------------------------------------------------- loading
 def catalog_dir() -> Path:
     """Folder holding the catalog YAML files: ``$FTSWEEP_CATALOGS`` or the repository's."""

@@ -20,14 +20,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import TypeAdapter
 
 from pipeline import __version__
 from pipeline.case import Case, build_layout, control_table, run_case
-from pipeline.catalogs import Cutting, Machine, SurfaceSpec
+from pipeline.catalogs import specs_from_entries
 from pipeline.io import write_text_atomic
-from pipeline.select import check_exportable, choose, open_cube
-from pipeline.sweep import SweepSpec, case_at
+from pipeline.select import check_exportable, choose, open_cube, recorded_case
 
 INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}
 LE_DTYPE = {"int16": "<i2", "int32": "<i4"}
@@ -164,12 +162,7 @@ def export(
     flat = int(chosen["index"])
     check_exportable(ds, flat)
 
-    spec = SweepSpec.model_validate_json(ds.attrs["sweep_spec"])
-    case = case_at(spec, flat)
-    entries = json.loads(ds.attrs["catalog_entries"])
-    surface = TypeAdapter(SurfaceSpec).validate_python(entries["surface"][case.surface])
-    machine = Machine.model_validate(entries["machine"][case.machine])
-    cutting = Cutting.model_validate(entries["cutting"][case.cutting])
+    case, (surface, machine, cutting) = recorded_case(ds, flat)
     layout = build_layout(surface, case.layout)
     if layout.n_points != chosen["n_points"]:
         raise ExportError(f"the cube says {chosen['n_points']} points but the spec gives {layout.n_points}")
@@ -264,11 +257,7 @@ def verify(path: Path) -> dict[str, Any]:
         raise ExportError(f"{side} belongs to another table (checksum 0x{int(meta['crc32']):08x})")
     case = Case.model_validate(meta["case"])
     entries = meta["catalog_entries"]
-    specs = (
-        TypeAdapter(SurfaceSpec).validate_python(entries["surface"]),
-        Machine.model_validate(entries["machine"]),
-        Cutting.model_validate(entries["cutting"]),
-    )
+    specs = specs_from_entries(entries["surface"], entries["machine"], entries["cutting"])
     unit_nm = float(macros["UNIT_NM"])
     record = run_case(case, table=ints * unit_nm * 1e-3, specs=specs)
     record["predicted_pv_nm"] = float(macros["PREDICTED_PV_NM"])

@@ -20,15 +20,13 @@ from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
-from pydantic import TypeAdapter
 
 import pipeline.accessor  # noqa: F401  (registers ds.ftsweep)
 from pipeline.accessor import _axes, plot_map
 from pipeline.case import build_layout, control_table, run_case
-from pipeline.catalogs import Cutting, Machine, SurfaceSpec, aperture_of
+from pipeline.catalogs import aperture_of
 from pipeline.io import write_text_atomic
-from pipeline.select import choose, describe, open_cube
-from pipeline.sweep import SweepSpec, case_at
+from pipeline.select import choose, describe, open_cube, recorded_case
 from stages import dynamics
 
 FIGURES = {
@@ -60,17 +58,9 @@ def resimulate(
 ) -> tuple[dict[str, Any], Any]:
     """Re-run case ``index`` of a cube with an error map of ``map_bins`` bins, from the cube's
     recorded spec and catalog entries. Returns the record and (case, layout, table, specs)."""
-    ds = open_cube(cube_path)
-    spec = SweepSpec.model_validate_json(ds.attrs["sweep_spec"])
-    base = case_at(spec, index)
+    base, specs = recorded_case(open_cube(cube_path), index)
     case = base.model_copy(
         update={"resolution": base.resolution.model_copy(update={"error_map_bins": map_bins})}
-    )
-    entries = json.loads(ds.attrs["catalog_entries"])
-    specs = (
-        TypeAdapter(SurfaceSpec).validate_python(entries["surface"][case.surface]),
-        Machine.model_validate(entries["machine"][case.machine]),
-        Cutting.model_validate(entries["cutting"][case.cutting]),
     )
     record = run_case(case, progress=progress, specs=specs)
     layout = build_layout(specs[0], case.layout)

@@ -119,6 +119,19 @@ def choose(
     return chosen
 
 
+def recorded_case(ds: xr.Dataset, flat: int) -> tuple[Any, tuple[Any, Any, Any]]:
+    """The case at flat index ``flat`` of a cube and the (surface, machine, cutting) entries
+    the cube recorded for it."""
+    from pipeline.catalogs import specs_from_entries
+    from pipeline.sweep import SweepSpec, case_at
+
+    case = case_at(SweepSpec.model_validate_json(ds.attrs["sweep_spec"]), flat)
+    entries = json.loads(ds.attrs["catalog_entries"])
+    return case, specs_from_entries(
+        entries["surface"][case.surface], entries["machine"][case.machine], entries["cutting"][case.cutting]
+    )
+
+
 def check_exportable(ds: xr.Dataset, flat: int) -> None:
     """Refuse failed, pending, infeasible or over-capacity cases, saying which and why."""
     shape = ds["status"].shape

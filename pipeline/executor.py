@@ -134,9 +134,28 @@ def execute(
                 on_result(_task_failure(lookup[future.key], exc))
             future.release()
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        # workers still heartbeating while the scheduler stops log tracebacks that mean
+        # nothing here: quieten distributed for the shutdown only
+        quiet = [
+            logging.getLogger(n)
+            for n in (
+                "distributed",
+                "distributed.worker",
+                "distributed.nanny",
+                "distributed.core",
+                "distributed.comm",
+            )
+        ]
+        levels = [lg.level for lg in quiet]
+        for lg in quiet:
+            lg.setLevel(logging.CRITICAL)
+        try:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        finally:
+            for lg, level in zip(quiet, levels, strict=True):
+                lg.setLevel(level)
 
 
 def _task_failure(indices: Iterable[int], exc: BaseException) -> list[dict]:

@@ -114,7 +114,7 @@ def execute(
             threads_per_worker=1,
             processes=True,
             dashboard_address=":0",
-            silence_logs=logging.ERROR,
+            silence_logs=logging.CRITICAL,  # task errors reach us through the futures
         )
         client = Client(cluster)
     try:

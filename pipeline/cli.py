@@ -155,7 +155,11 @@ def predict(**opts: Any) -> None:
     "$DASK_SCHEDULER_ADDRESS. 'synchronous' runs in this process. Default: a local cluster.",
 )
 @click.option("--workers", type=int, help="Worker processes of the local cluster. Default: one per core.")
-@click.option("--restart", is_flag=True, help="Discard an existing cube made from a different spec.")
+@click.option(
+    "--restart",
+    is_flag=True,
+    help="Discard an existing cube and start over (required when the spec changed).",
+)
 @click.option("--retry-failed", is_flag=True, help="Also recompute cases recorded as failed.")
 def sweep(
     sweep_name: str,
@@ -171,7 +175,7 @@ def sweep(
     path to a YAML file. Every case is written into its own region of the cube as soon as
     it finishes. Re-running the same command computes only what is missing, so an
     interrupted or killed run loses nothing already written. A cube made from a different
-    spec is refused unless --restart.
+    spec is refused unless --restart, which discards the cube and starts over.
 
     \b
     Examples:

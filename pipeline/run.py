@@ -7,6 +7,7 @@ import os
 import shutil
 import time
 import uuid
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -59,20 +60,28 @@ def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
 def prepare_cube(name: str, spec: SweepSpec, out: Path, restart: bool, catalog_folder: Optional[Path]) -> int:
     """Create the cube, or check an existing one belongs to ``spec``; returns cases already done.
 
-    An existing cube from another spec is refused unless ``restart``, which discards it.
+    An existing cube from another spec is refused unless ``restart``, which discards any
+    existing cube and starts over.
     """
     if out.exists():
         attrs = cube.read_attrs(out)
-        if attrs["sweep_spec_hash"] != spec.spec_hash():
-            if not restart:
-                changed = ", ".join(_changed_keys(attrs["sweep_spec"], spec)) or "the spec"
-                raise CubeError(
-                    f"{out} was created from a different spec of sweep '{attrs.get('sweep_name')}' "
-                    f"(changed: {changed}). Re-run with --restart to discard it and start over, or "
-                    "give another --out."
-                )
+        if restart:
             shutil.rmtree(out)
+        elif attrs["sweep_spec_hash"] != spec.spec_hash():
+            changed = ", ".join(_changed_keys(attrs["sweep_spec"], spec)) or "the spec"
+            raise CubeError(
+                f"{out} was created from a different spec of sweep '{attrs.get('sweep_name')}' "
+                f"(changed: {changed}). Re-run with --restart to discard it and start over, or "
+                "give another --out."
+            )
         else:
+            now = cube.git_revision()
+            if attrs.get("git_revision") not in (now, "unknown") and now != "unknown":
+                warnings.warn(
+                    f"{out} was started by code revision {str(attrs.get('git_revision'))[:10]}, this is "
+                    f"{now[:10]}; resuming mixes their results (use --restart to recompute all)",
+                    stacklevel=2,
+                )
             return int(np.count_nonzero(cube.read_status(out) == cube.DONE))
     entries = {
         "surface": {

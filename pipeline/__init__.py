@@ -2,9 +2,4 @@
 
 __version__ = "0.1.0"
 
-
-def __getattr__(name: str):  # pragma: no cover - convenience for notebooks
-    raise AttributeError(name)
-
-
 from pipeline import accessor as _accessor  # noqa: E402,F401  (registers the ds.ftsweep accessor)

@@ -358,10 +358,12 @@ def verify(header: Path, as_json: bool) -> None:
 
     progress = _stderr_progress("re-simulating") if (not as_json and sys.stderr.isatty()) else None
     try:
-        record = exp.verify(header) if progress is None else _verify_with_progress(exp, header, progress)
+        record = exp.verify(header, progress)
     except (exp.ExportError, CaseError, CatalogError) as exc:
         click.echo(f"Error: {exc}", err=True)
         sys.exit(1)
+    if progress is not None:
+        click.echo("", err=True)
     if as_json:
         click.echo(json.dumps(record, allow_nan=False))
         return
@@ -371,12 +373,6 @@ def verify(header: Path, as_json: bool) -> None:
         f"P-V          {record['pv_nm']:.2f} nm re-simulated from the stored integers "
         f"(predicted at export: {record['predicted_pv_nm']:.2f} nm)"
     )
-
-
-def _verify_with_progress(exp: Any, header: Path, progress: Any) -> dict[str, Any]:
-    record = exp.verify(header)
-    click.echo("", err=True)
-    return record
 
 
 @main.command()

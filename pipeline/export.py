@@ -16,6 +16,7 @@ import json
 import re
 import time
 import zlib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -233,7 +234,7 @@ def read_header(path: Path) -> tuple[dict[str, str], np.ndarray]:
     return macros, ints.reshape(rows, cols)
 
 
-def verify(path: Path) -> dict[str, Any]:
+def verify(path: Path, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     """Check a header's checksum and re-simulate the machined surface from its integers.
 
     Raises :class:`ExportError` on a checksum mismatch. Returns the re-simulated record
@@ -259,7 +260,7 @@ def verify(path: Path) -> dict[str, Any]:
     entries = meta["catalog_entries"]
     specs = specs_from_entries(entries["surface"], entries["machine"], entries["cutting"])
     unit_nm = float(macros["UNIT_NM"])
-    record = run_case(case, table=ints * unit_nm * 1e-3, specs=specs)
+    record = run_case(case, table=ints * unit_nm * 1e-3, specs=specs, progress=progress)
     record["predicted_pv_nm"] = float(macros["PREDICTED_PV_NM"])
     record["checksum"] = f"0x{stored:08x}"
     record["header"] = str(path)

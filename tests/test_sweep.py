@@ -304,8 +304,13 @@ def test_existing_cube_is_never_silently_overwritten(tmp_path, catalog_dir, refe
     )
     assert report.total == 4 and report.done == 4
     before = set(xr.open_zarr(reference_cube)["run_id"].values.ravel())
-    again = run_sweep(str(write_spec(tmp_path, changed)), reference_cube, scheduler="synchronous",
-                      catalog_folder=catalog_dir, restart=True)  # same spec: --restart still starts over
+    again = run_sweep(
+        str(write_spec(tmp_path, changed)),
+        reference_cube,
+        scheduler="synchronous",
+        catalog_folder=catalog_dir,
+        restart=True,
+    )  # same spec: --restart still starts over
     assert again.skipped == 0 and again.done == 4
     assert set(xr.open_zarr(reference_cube)["run_id"].values.ravel()).isdisjoint(before)
     not_a_cube = tmp_path / "plain"

@@ -210,6 +210,22 @@ def read_status(path: Path) -> np.ndarray:
         return status
 
 
+def metric_values(record: dict[str, Any]) -> dict[str, Any]:
+    """The :data:`METRICS` variables of a finished case's record (``run_case`` output), named
+    and laid out as cubes store them."""
+    values = dict(record)
+    values["table_rows"], values["table_cols"] = record["table_shape"]
+    if record["layout"] == "ring":
+        values["pitch_0"], values["pitch_1"] = record["drho_um"], record["dtheta_deg"]
+        values["aspect_actual"] = record["aspect_um_per_deg"]
+    else:
+        values["pitch_0"], values["pitch_1"] = record["dx_um"], record["dy_um"]
+        values["aspect_actual"] = record["aspect"]
+    values["runtime_s"] = record["seconds"]
+    values["feasible"] = int(bool(record["feasible"]))
+    return {var: values[var] for var in METRICS}
+
+
 class CubeWriter:
     """Writes finished cases into their own chunks of an existing cube (worker side)."""
 
@@ -232,18 +248,8 @@ class CubeWriter:
     def write_done(self, flat: int, record: dict[str, Any], run_id: str) -> None:
         """Write a finished case's record, then mark it done."""
         idx = self._index(flat)
-        values = dict(record)
-        values["table_rows"], values["table_cols"] = record["table_shape"]
-        if record["layout"] == "ring":
-            values["pitch_0"], values["pitch_1"] = record["drho_um"], record["dtheta_deg"]
-            values["aspect_actual"] = record["aspect_um_per_deg"]
-        else:
-            values["pitch_0"], values["pitch_1"] = record["dx_um"], record["dy_um"]
-            values["aspect_actual"] = record["aspect"]
-        values["runtime_s"] = record["seconds"]
-        values["feasible"] = int(bool(record["feasible"]))
-        for var in METRICS:
-            self._set(var, idx, values[var])
+        for var, value in metric_values(record).items():
+            self._set(var, idx, value)
         self._set("infeasible_reason", idx, record["infeasible_reason"])
         for var in MAP_VARS:
             if var in record and var in self.group:

@@ -24,7 +24,7 @@ import xarray as xr
 
 from pipeline import __version__, catalogs
 from pipeline.case import Case, CaseError, LayoutRequest, Resolution, run_case
-from pipeline.cube import METRICS, CubeError, git_revision
+from pipeline.cube import METRICS, CubeError, git_revision, metric_values
 
 ASPECT_RANGE = {"ring": (0.3, 400.0), "mesh": (0.08, 16.0)}
 
@@ -116,13 +116,11 @@ class Optimizer:
 
     def _append(self, rec: dict[str, Any]) -> None:
         data = {}
+        values = metric_values(rec) if rec["status"] == "done" else {}
         for var, (dtype, units, long_name, fill) in METRICS.items():
-            value = rec.get(var if var != "runtime_s" else "seconds", fill)
-            if var == "feasible":
-                value = int(bool(rec.get("feasible", False))) if rec["status"] == "done" else -1
             data[var] = (
                 ("evaluation",),
-                np.array([value], dtype=dtype),
+                np.array([values.get(var, fill)], dtype=dtype),
                 {"units": units, "long_name": long_name},
             )
         for var, units, long_name in (

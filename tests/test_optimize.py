@@ -19,6 +19,12 @@ def test_finds_the_smallest_layout_meeting_the_tolerance(tmp_path, catalog_dir):
     ds = xr.open_zarr(out)
     assert ds.sizes["evaluation"] == result["evaluations"] >= 10  # every evaluation recorded
     assert ds["pv_nm"].attrs["units"] == "nm" and ds.attrs["tolerance_nm"] == 40.0
+    done = ds["status"].values == "done"
+    # each evaluation records its realised table and pitches, as sweep cubes do
+    np.testing.assert_array_equal(
+        (ds["table_rows"] * ds["table_cols"]).values[done], ds["n_points"].values[done]
+    )
+    assert np.all(np.isfinite(ds["pitch_0"].values[done])) and np.all(ds["aspect_actual"].values[done] > 0)
     meets = (ds["pv_nm"].values <= 40.0) & (ds["status"].values == "done")
     # the answer is the smallest evaluated layout that meets it
     assert ans["n_points"] == ds["n_points"].values[meets].min()

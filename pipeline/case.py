@@ -113,10 +113,8 @@ def build_layout(surface: Any, request: LayoutRequest) -> Layout:
         if request.pitch is not None:
             return layouts.ring_layout(radius, *request.pitch)
         return layouts.ring_layout_for(radius, *request.target())
-    if ap.shape == "circle":
-        width = height = 2.0 * ap.radius_um
-    else:
-        width, height = ap.width_um, ap.height_um
+    half_w, half_h = ap.half_extent_um
+    width, height = 2.0 * half_w, 2.0 * half_h
     if request.pitch is not None:
         return layouts.mesh_layout(width, height, *request.pitch)
     return layouts.mesh_layout_for(width, height, *request.target())
@@ -148,11 +146,7 @@ class ErrorMap:
 
     @classmethod
     def over(cls, aperture: Any, bins: int) -> ErrorMap:
-        half = (
-            aperture.outer_radius_um
-            if aperture.shape == "circle"
-            else 0.5 * max(aperture.width_um, aperture.height_um)
-        )
+        half = max(aperture.half_extent_um)
         return cls(-half, -half, 2.0 * half / bins, bins)
 
     def centres_um(self) -> np.ndarray:

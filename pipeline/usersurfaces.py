@@ -87,8 +87,7 @@ def height_map_surface(
     for name, axis in (("x", x), ("y", y)):
         if axis.size < 4 or np.any(np.diff(axis) <= 0):
             raise SurfaceLoadError(f"{source}: the {name} coordinates must increase, with at least 4 points")
-    half_w = aperture.radius_um if aperture.shape == "circle" else 0.5 * aperture.width_um
-    half_h = aperture.radius_um if aperture.shape == "circle" else 0.5 * aperture.height_um
+    half_w, half_h = aperture.half_extent_um
     if -half_w < x[0] or half_w > x[-1] or -half_h < y[0] or half_h > y[-1]:
         raise SurfaceLoadError(
             f"{source}: the aperture (x ±{half_w:g} µm, y ±{half_h:g} µm) is larger than the data "

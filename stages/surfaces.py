@@ -608,6 +608,13 @@ class Aperture(NamedTuple):
         return (np.abs(r * cos_t) <= 0.5 * self.width_um) & (np.abs(r * sin_t) <= 0.5 * self.height_um)
 
     @property
+    def half_extent_um(self) -> tuple[float, float]:
+        """Half width and half height [µm] of the aperture's bounding box."""
+        if self.shape == "circle":
+            return float(self.radius_um), float(self.radius_um)
+        return 0.5 * self.width_um, 0.5 * self.height_um
+
+    @property
     def outer_radius_um(self) -> float:
         """Radius [µm] of the smallest centred circle holding the aperture: where the spiral starts."""
         if self.shape == "circle":

@@ -102,6 +102,7 @@ def test_apertures():
     np.testing.assert_array_equal(rect.contains(x, y), [True, True, False, True])
     assert rect.outer_radius_um == pytest.approx(math.hypot(10, 5))
     assert rect.inner_radius_um == 5.0 and circle.outer_radius_um == 10.0
+    assert rect.half_extent_um == (10.0, 5.0) and circle.half_extent_um == (10.0, 10.0)
 
 
 def test_catalog_surfaces_build_callables():

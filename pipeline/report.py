@@ -62,9 +62,11 @@ def resimulate(
     case = base.model_copy(
         update={"resolution": base.resolution.model_copy(update={"error_map_bins": map_bins})}
     )
-    record = run_case(case, progress=progress, specs=specs)
     layout = build_layout(specs[0], case.layout)
-    table, _ = control_table(case, layout, specs[0], record["nose_radius_um"])
+    # the table is compensated once, here, and handed to the run (which would redo it)
+    table, gouge = control_table(case, layout, specs[0], case.nose_radius_um or specs[2].nose_radius_um)
+    record = run_case(case, progress=progress, specs=specs, table=table)
+    record["gouge_points"] = int(np.count_nonzero(gouge))
     return record, (case, layout, table, specs)
 
 

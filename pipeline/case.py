@@ -173,6 +173,77 @@ class Timer:
         return now
 
 
+# cost model of a case (ftsweep bench on this 2-core machine): throughput of the line
+# simulation, and bytes held per evaluation node of one line by the batch arrays
+NODES_PER_SECOND = 3.0e6
+BYTES_PER_NODE = 160
+MAX_NODES = 2.0e10  # about two hours of one core
+MAX_LINE_BYTES = 4 * 2**30
+
+
+def check_cost(nodes_per_ray: float, n_theta: int, max_nodes: float = MAX_NODES) -> None:
+    """Refuse a case that would exhaust memory (one feed-plane line, two rays, must fit) or
+    run for hours (more than ``max_nodes`` evaluation nodes), with its estimated cost."""
+    line_bytes = 2.0 * nodes_per_ray * BYTES_PER_NODE
+    if line_bytes > MAX_LINE_BYTES:
+        raise CaseError(
+            f"one feed-plane line would hold {2 * nodes_per_ray:,.3g} evaluation nodes "
+            f"({line_bytes / 2**30:,.3g} GiB, limit {MAX_LINE_BYTES / 2**30:g} GiB): lower the points "
+            "per feed or the nose radius (its contact window sets the simulated margin), or raise the feed"
+        )
+    total = 2.0 * nodes_per_ray * n_theta / 2.0  # n_theta angles are n_theta/2 lines of two rays
+    if total > max_nodes:
+        raise CaseError(
+            f"the case needs {total:,.3g} evaluation nodes, about {total / NODES_PER_SECOND / 3600:,.2g} "
+            f"hours on one core, over the limit of {max_nodes:,.3g}; lower the resolution, or raise "
+            "the limit with --max-nodes"
+        )
+
+
+def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -> None:
+    """Raise :class:`CaseError` if ``values`` hold NaN or inf, naming how many and the first
+    place (``where(flat index)``)."""
+    finite = np.isfinite(values)
+    if not finite.all():
+        first = int(np.flatnonzero(~finite.ravel())[0])
+        raise CaseError(
+            f"{what} is not finite (NaN or inf) at {int(finite.size - finite.sum()):,} points, first at "
+            f"{where(first)}"
+        )
+
+
+def _layout_point(layout: Layout, flat: int) -> str:
+    i, j = np.unravel_index(flat, layout.shape)
+    if layout.kind == "ring":
+        rho = layout.origin[0] + i * layout.pitch[0]
+        theta = layout.origin[1] + j * layout.pitch[1]
+        return f"control point [{i}, {j}] (ρ = {rho:.6g} µm, θ = {theta:.6g}°)"
+    x, y = layout.origin[0] + i * layout.pitch[0], layout.origin[1] + j * layout.pitch[1]
+    return f"control point [{i}, {j}] (x = {x:.6g} µm, y = {y:.6g} µm)"
+
+
+def _xy(r: float, theta: float) -> str:
+    return f"x = {r * math.cos(theta):.6g} µm, y = {r * math.sin(theta):.6g} µm"
+
+
+def _node_point(node_r: np.ndarray, ray_theta: np.ndarray) -> Callable[[int], str]:
+    def where(flat: int) -> str:
+        a, n = np.unravel_index(flat, node_r.shape)
+        return _xy(float(node_r[a, n]), float(ray_theta[a, 0]))
+
+    return where
+
+
+def _pass_point(grid: Any, ray_theta: np.ndarray) -> Callable[[int], str]:
+    """Location of pass ``flat`` of a path grid's (ray, pass) arrays, for messages."""
+
+    def where(flat: int) -> str:
+        a, k = np.unravel_index(flat, grid.pass_rho.shape)
+        return "the pass at " + _xy(float(grid.pass_rho[a, k]), float(ray_theta[a, 0]))
+
+    return where
+
+
 STAGE_TIMERS = ("sampling", "compensation", "interpolation", "envelope", "metrics", "dynamics")
 
 
@@ -183,6 +254,7 @@ def run_case(
     batch_nodes: int = 400_000,
     table: Optional[np.ndarray] = None,
     specs: Optional[tuple[Any, Any, Any]] = None,
+    max_nodes: float = MAX_NODES,
 ) -> dict[str, Any]:
     """Predict the form error of one case (physics.md §1–§6).
 
@@ -193,7 +265,9 @@ def run_case(
     after each batch of lines. A given ``table`` [µm] (of the case's layout shape) replaces
     the compensated one: the controller's table as stored, e.g. after quantisation.
     ``specs`` = (surface, machine, cutting) entries replace the catalog look-up, e.g. the
-    entries a cube or header recorded.
+    entries a cube or header recorded. A case of more than ``max_nodes`` evaluation nodes, or
+    whose single line would not fit in memory, is refused before any work (:func:`check_cost`);
+    a non-finite height, slope, command or metric fails the case naming where it occurred.
     """
     t_start = time.perf_counter()
     surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
@@ -204,6 +278,11 @@ def run_case(
         raise CaseError(
             "points_per_feed must be even so the cusp midway between passes is sampled, "
             f"got {res.points_per_feed}"
+        )
+    if not feed < 2.0 * rc:
+        raise CaseError(
+            f"feed {feed:g} µm/rev is not below twice the nose radius ({2.0 * rc:g} µm): consecutive "
+            "passes of the nose arc would not overlap and nothing between them is machined (physics.md §5)"
         )
 
     try:
@@ -231,6 +310,7 @@ def run_case(
         if table.shape != layout.shape:
             raise CaseError(f"the given table has shape {table.shape}, the layout {layout.shape}")
         gouge = np.zeros(layout.shape, dtype=bool)
+    require_finite(table, "the control table", lambda i: _layout_point(layout, i))
     t = timer.add("compensation", t)
 
     n_theta = angular_samples(layout, rho0, res)
@@ -238,6 +318,7 @@ def run_case(
     window = compensation.contact_window_um(bound, rc)
     margin = window + 2.0 * feed
     nodes_per_ray = (rho0 + 2.0 * margin) * res.points_per_feed / feed
+    check_cost(nodes_per_ray, n_theta, max_nodes)
     per_batch = max(1, int(batch_nodes // (2.0 * nodes_per_ray)))
     mode = compensation.MODE_CODES[case.compensation]
     zone_split = res.zone_split * aperture.inner_radius_um
@@ -252,6 +333,9 @@ def run_case(
         ray_theta = grid.ray_theta[:, None]
         ct, st = np.cos(ray_theta), np.sin(ray_theta)
         g, gp = radial_section(surface, grid.node_r, ct, st)
+        where = _node_point(grid.node_r, ray_theta)
+        require_finite(g, f"the surface '{case.surface}' height", where)
+        require_finite(gp, f"the surface '{case.surface}' slope", where)
         inside = aperture.contains_polar(grid.node_r, ct, st)
         t = timer.add("sampling", t)
 
@@ -260,6 +344,8 @@ def run_case(
         _commands_on_rays(g, gp, grid.spacing_um, rc, pass_nodes, grid.n_passes, mode, w_exact)
         t = timer.add("compensation", t)
 
+        passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
+        require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))
         w_interp = interpolation.interpolate(layout, table, np.maximum(grid.pass_rho, 0.0), ray_theta)
         t = timer.add("interpolation", t)
 
@@ -319,6 +405,13 @@ def run_case(
     timer.add("dynamics", t)
 
     result = metrics.finalize(stats)
+    bad = [k for k, v in result.items() if not math.isfinite(v)]
+    if bad or not math.isfinite(dyn.stroke_um):
+        raise CaseError(
+            f"the metrics came out non-finite ({', '.join(bad) or 'stroke_um'}): no evaluation point "
+            "inside the fully machined zone, or non-finite commands; check the aperture against "
+            "the feed and the nose radius"
+        )
     record: dict[str, Any] = {
         "surface": case.surface,
         "layout": layout.kind,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import os
+import reprlib
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
@@ -29,6 +30,33 @@ from stages.surfaces import FAMILIES, Aperture, SurfaceFn
 
 class CatalogError(ValueError):
     """A catalog file or entry is missing or invalid; the message says what to change."""
+
+
+_SHORT = reprlib.Repr()
+_SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxdict, _SHORT.maxstring, _SHORT.maxother = 2, 4, 4, 60, 60
+
+
+def short_repr(value: Any) -> str:
+    """A bounded repr of user input for error messages (nested or huge input, e.g. a YAML
+    alias bomb, is elided, never printed whole)."""
+    return _SHORT.repr(value)
+
+
+def read_yaml_file(path: Path) -> Any:
+    """Parse a YAML file, turning every way it can be unreadable into a :class:`CatalogError`
+    that names the file."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise CatalogError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
+    except OSError as exc:
+        raise CatalogError(f"{path}: cannot be read ({exc.strerror})") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise CatalogError(f"{path}: not valid YAML: {' '.join(str(exc).split())[:300]}") from None
+    except RecursionError:
+        raise CatalogError(f"{path}: nested too deeply to be a catalog or sweep file") from None
 
 
 class Strict(BaseModel):
@@ -298,7 +326,7 @@ def _format_error(path: Path, name: str, err: ValidationError, model: Any) -> st
         elif e["type"] == "missing":
             lines.append(f"  - {where}: required key is missing")
         else:
-            lines.append(f"  - {where}: {e['msg']} (got {e.get('input')!r})")
+            lines.append(f"  - {where}: {e['msg']} (got {short_repr(e.get('input'))})")
     return "\n".join(lines)
 
 
@@ -341,10 +369,7 @@ def _union_members(annotation: Any) -> list[Any]:
 def _read_yaml(path: Path) -> dict[str, Any]:
     if not path.exists():
         raise CatalogError(f"catalog file {path} does not exist")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise CatalogError(f"{path}: not valid YAML: {exc}") from exc
+    data = read_yaml_file(path)
     if not isinstance(data, dict) or not data:
         raise CatalogError(f"{path}: expected a mapping of entry names to entries")
     return data
@@ -362,7 +387,9 @@ def load_catalog(path: Path, model: Any) -> dict[str, Any]:
         try:
             out[str(name)] = adapter.validate_python(entry)
         except ValidationError as exc:
-            raise CatalogError(_format_error(path, str(name), exc, model)) from None
+            raise CatalogError(_format_error(path, str(name)[:80], exc, model)) from None
+        except RecursionError:
+            raise CatalogError(f"{path}: entry '{str(name)[:80]}' is nested too deeply") from None
     return out
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -13,8 +14,10 @@ import click
 from pydantic import ValidationError
 
 from pipeline import __version__, catalogs
-from pipeline.case import Case, CaseError, LayoutRequest, Resolution, run_case
+from pipeline.case import MAX_NODES, Case, CaseError, LayoutRequest, Resolution, run_case
 from pipeline.catalogs import CatalogError
+from pipeline.sweep import MAX_CASES
+from pipeline.usersurfaces import SurfaceLoadError
 
 _RING_PITCH = ("drho_um", "dtheta_deg")
 _MESH_PITCH = ("dx_um", "dy_um")
@@ -22,6 +25,48 @@ _MESH_PITCH = ("dx_um", "dy_um")
 
 def _fail(message: str) -> None:
     raise click.UsageError(message)
+
+
+MESSAGE_LIMIT = 1500
+
+
+def one_line(text: str, limit: int = MESSAGE_LIMIT) -> str:
+    """A message on one line: its lines joined with "; ", whitespace collapsed and the whole
+    cut at ``limit`` characters, so no input, however large, is echoed in full."""
+    parts = [" ".join(line.split()) for line in str(text).splitlines()]
+    joined = "; ".join(p for p in parts if p).replace(":; ", ": ")
+    return joined if len(joined) <= limit else joined[: limit - 1] + "…"
+
+
+# errors a user can cause: shown as one line, exit 1, no traceback
+USER_ERRORS: tuple[type[BaseException], ...] = (
+    ValueError,
+    OSError,
+    RuntimeError,
+    MemoryError,
+    RecursionError,
+)
+
+
+class _Group(click.Group):
+    """Turns every error into a one-line message and a non-zero exit (no traceback); set
+    FTSWEEP_DEBUG=1 to see the traceback of an unexpected one."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except click.ClickException as exc:
+            exc.message = one_line(exc.message)
+            raise
+        except (click.exceptions.Exit, click.Abort, KeyboardInterrupt, SystemExit):
+            raise
+        except Exception as exc:
+            if os.environ.get("FTSWEEP_DEBUG"):
+                raise
+            known = isinstance(exc, USER_ERRORS)
+            hint = "" if known else " (an unexpected error: set FTSWEEP_DEBUG=1 for the traceback)"
+            text = str(exc) if known and str(exc) else f"{type(exc).__name__}: {exc}"
+            raise click.ClickException(one_line(text, MESSAGE_LIMIT - len(hint)) + hint) from None
 
 
 def _pydantic_message(exc: ValidationError) -> str:
@@ -32,7 +77,7 @@ def _pydantic_message(exc: ValidationError) -> str:
     return "; ".join(parts)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="ftsweep")
 def main() -> None:
     """Control-point layouts for fast-tool-servo (FTS) diamond turning.
@@ -110,6 +155,13 @@ def list_catalogs() -> None:
 @click.option(
     "--n-theta", type=int, help="Simulated spindle angles over 360° (overrides --samples-per-cell)."
 )
+@click.option(
+    "--max-nodes",
+    type=float,
+    default=MAX_NODES,
+    show_default=True,
+    help="Refuse cases of more evaluation nodes than this (about 3·10⁶ nodes a second on one core).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def predict(**opts: Any) -> None:
     """Predict the form error one control-point layout leaves on the machined surface.
@@ -130,9 +182,9 @@ def predict(**opts: Any) -> None:
     if not as_json and sys.stderr.isatty():
         progress = _stderr_progress("simulating")
     try:
-        record = run_case(case, progress=progress)
-    except (CaseError, CatalogError) as exc:
-        raise click.UsageError(str(exc)) from None
+        record = run_case(case, progress=progress, max_nodes=opts["max_nodes"])
+    except (CaseError, CatalogError, SurfaceLoadError) as exc:
+        raise click.ClickException(str(exc)) from None
     if progress is not None:
         click.echo("", err=True)
     if as_json:
@@ -161,6 +213,13 @@ def predict(**opts: Any) -> None:
     help="Discard an existing cube and start over (required when the spec changed).",
 )
 @click.option("--retry-failed", is_flag=True, help="Also recompute cases recorded as failed.")
+@click.option(
+    "--max-cases",
+    type=int,
+    default=MAX_CASES,
+    show_default=True,
+    help="Refuse sweeps of more cases than this (each takes seconds of a core).",
+)
 def sweep(
     sweep_name: str,
     out: Optional[Path],
@@ -168,14 +227,17 @@ def sweep(
     workers: Optional[int],
     restart: bool,
     retry_failed: bool,
+    max_cases: int,
 ) -> None:
     """Run a sweep of point counts and aspect ratios into a Zarr result cube.
 
     NAME is a spec in catalogs/sweeps/ (e.g. sinewave-ring, lens-array-mesh), or give a
     path to a YAML file. Every case is written into its own region of the cube as soon as
     it finishes. Re-running the same command computes only what is missing, so an
-    interrupted or killed run loses nothing already written. A cube made from a different
-    spec is refused unless --restart, which discards the cube and starts over.
+    interrupted or killed run loses nothing already written; done cases whose data files are
+    missing or unreadable are recomputed. A cube made from a different spec is refused unless
+    --restart, which discards the cube and starts over. One process writes a cube at a time:
+    a second sweep on the same cube (also with --restart) is refused while the first runs.
 
     \b
     Examples:
@@ -184,6 +246,8 @@ def sweep(
       ftsweep sweep lens-array-mesh --scheduler tcp://127.0.0.1:8786
     """
     from pipeline.cube import CubeError
+    from pipeline.executor import ExecutorError
+    from pipeline.lock import LockError
     from pipeline.run import axis_summary, best_per_point_count, cube_counts, run_sweep
     from pipeline.sweep import load_sweep
 
@@ -192,7 +256,7 @@ def sweep(
     try:
         name, spec = load_sweep(sweep_name)
     except CatalogError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise click.ClickException(str(exc)) from None
     click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
     started = time.perf_counter()
 
@@ -202,8 +266,8 @@ def sweep(
         elapsed = time.perf_counter() - started
         eta = elapsed / done * (total_now - done) if done else float("nan")
         last = rows[-1]
-        what = f"N≈{last['points']:,.0f} α={last['aspect']:.3g}: " + (
-            f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else last["status"]
+        what = f"case {last['index']} (N≈{last.get('points', 0):,.0f} α={last.get('aspect', 0):.3g}): " + (
+            f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else one_line(last["message"], 300)
         )
         click.echo(
             f"[{done:>{len(str(total_now))}}/{total_now}] {report.failed} failed | {elapsed:6.1f} s, "
@@ -212,9 +276,20 @@ def sweep(
         )
 
     try:
-        report = run_sweep(sweep_name, out, scheduler, workers, restart, retry_failed, progress=progress)
-    except (CatalogError, CubeError, CaseError) as exc:
-        raise click.UsageError(str(exc)) from None
+        report = run_sweep(
+            sweep_name, out, scheduler, workers, restart, retry_failed, progress=progress, max_cases=max_cases
+        )
+    except (CatalogError, CubeError, CaseError, LockError, ExecutorError) as exc:
+        raise click.ClickException(str(exc)) from None
+    for index, reason in sorted(report.damaged.items())[:5]:
+        click.echo(f"recomputed   case {index}: it was done but {reason}", err=True)
+    errors = [r for r in report.rows if r["status"] == "error"]
+    if errors:
+        first = errors[0]
+        raise click.ClickException(
+            f"{len(errors)} case(s) could not be run and stay pending; first: case {first['index']} "
+            f"(N≈{first.get('points', 0):,.0f} α={first.get('aspect', 0):.3g}): {first['message']}"
+        )
     counts = cube_counts(report.cube)
     click.echo(f"cube         {report.cube}")
     click.echo(
@@ -229,7 +304,10 @@ def sweep(
     )
     failures = [r for r in report.rows if r["status"] != "done"]
     for r in failures[:5]:
-        click.echo(f"failed       N≈{r.get('points', 0):,.0f} α={r.get('aspect', 0):.3g}: {r['message']}")
+        click.echo(
+            f"failed       case {r['index']} (N≈{r.get('points', 0):,.0f} α={r.get('aspect', 0):.3g}): "
+            f"{one_line(r['message'], 300)}"
+        )
     click.echo("best P-V per point count:")
     click.echo(f"  {'target N':>10s} {'actual N':>10s} {'best α':>8s} {'P-V nm':>9s}")
     for row in best_per_point_count(report.cube):
@@ -286,7 +364,7 @@ def select(
     try:
         chosen = choose(open_cube(cube_path), budget_points, tolerance_nm)
     except (SelectError, CubeError) as exc:
-        raise click.UsageError(str(exc)) from None
+        raise click.ClickException(str(exc)) from None
     if as_json:
         click.echo(json.dumps(chosen, allow_nan=False))
     else:
@@ -335,7 +413,7 @@ def export(
     try:
         meta = exp.export(cube_path, out, budget_points, tolerance_nm, index, force, name)
     except (exp.ExportError, SelectError, CubeError) as exc:
-        raise click.UsageError(str(exc)) from None
+        raise click.ClickException(str(exc)) from None
     click.echo(_selection_text(meta["selection"]))
     click.echo(
         f"header       {out} ({meta['shape'][0]} × {meta['shape'][1]} {meta['int_type']}, "
@@ -346,32 +424,42 @@ def export(
 
 @main.command()
 @click.argument("header", metavar="FILE.h", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option(
+    "--pv-tolerance-nm",
+    type=float,
+    help="Largest allowed |re-simulated − predicted| P-V [nm]. Default: one table unit (the "
+    "quantisation bound) + 0.1 % of the P-V.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
-def verify(header: Path, as_json: bool) -> None:
-    """Check an exported header and re-simulate the part from its stored integers.
+def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> None:
+    """Check an exported header and its sidecar, and re-simulate the part from its integers.
 
-    Verifies the CRC-32 of the table (a changed value fails), then predicts the machined
-    surface from the table exactly as stored (quantisation included) and prints its P-V
-    beside the P-V predicted at export.
+    Exit 0 only if everything the controller will use checks out: the CRC-32 over every
+    macro and the table, the sidecar's SHA-256 of the header and the header's SHA-256 of the
+    sidecar, and the P-V re-simulated from the table exactly as stored (quantisation
+    included) within the tolerance of the P-V predicted at export. Otherwise exit 1 naming
+    the difference: do not load that header.
     """
     from pipeline import export as exp
 
+    if pv_tolerance_nm is not None and not (pv_tolerance_nm >= 0 and math.isfinite(pv_tolerance_nm)):
+        _fail(f"--pv-tolerance-nm must be a non-negative number, got {pv_tolerance_nm}")
     progress = _stderr_progress("re-simulating") if (not as_json and sys.stderr.isatty()) else None
     try:
-        record = exp.verify(header, progress)
+        record = exp.verify(header, progress, pv_tolerance_nm)
     except (exp.ExportError, CaseError, CatalogError) as exc:
-        click.echo(f"Error: {exc}", err=True)
-        sys.exit(1)
+        raise click.ClickException(str(exc)) from None
     if progress is not None:
         click.echo("", err=True)
     if as_json:
         click.echo(json.dumps(record, allow_nan=False))
         return
-    click.echo(f"checksum     {record['checksum']} ok")
+    click.echo(f"checksum     {record['checksum']} (macros and table) ok; sidecar and header hashes ok")
     click.echo(f"table        {record['layout']}: {record['n_points']:,} points")
     click.echo(
         f"P-V          {record['pv_nm']:.2f} nm re-simulated from the stored integers "
-        f"(predicted at export: {record['predicted_pv_nm']:.2f} nm)"
+        f"(predicted at export: {record['predicted_pv_nm']:.2f} nm, "
+        f"tolerance {record['pv_tolerance_nm']:.2f} nm) ok"
     )
 
 
@@ -463,7 +551,7 @@ def optimize(
             on_eval=report,
         )
     except (CatalogError, CubeError, ValueError) as exc:
-        raise click.UsageError(str(exc)) from None
+        raise click.ClickException(str(exc)) from None
     if as_json:
         click.echo(json.dumps(result, allow_nan=False, default=_nan_safe))
     else:
@@ -512,7 +600,7 @@ def report(cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_b
     try:
         paths = make_report(cube_path, out_dir, index, map_bins, progress)
     except (CubeError, SelectError, CaseError) as exc:
-        raise click.UsageError(str(exc)) from None
+        raise click.ClickException(str(exc)) from None
     if progress is not None:
         click.echo("", err=True)
     for name, path in paths.items():
@@ -543,7 +631,7 @@ def bench(names: tuple[str, ...], repeat: int, json_path: str) -> None:
     try:
         result = run_benchmark(list(names) or None, repeat=repeat)
     except ValueError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise click.ClickException(str(exc)) from None
     click.echo(format_table(result))
     write_json_atomic(json_path, result)
     click.echo(f"wrote {json_path}")
@@ -579,7 +667,7 @@ def _build_case(opts: dict[str, Any]) -> Case:
         catalogs.entry("machines", machine)
         catalogs.entry("cutting", cutting)
     except CatalogError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise click.ClickException(str(exc)) from None
     kind = layout or spec.layout
     given = {k: opts[k] for k in (*_RING_PITCH, *_MESH_PITCH)}
     own, other = (_RING_PITCH, _MESH_PITCH) if kind == "ring" else (_MESH_PITCH, _RING_PITCH)

@@ -264,3 +264,92 @@ class CubeWriter:
         self._set("message", idx, message[:2000])
         self._set("run_id", idx, run_id)
         self._set("status", idx, FAILED)
+
+
+# ----------------------------------------------------------------------------- integrity
+def chunk_path(path: Path, var: str, idx: tuple[int, ...]) -> Path:
+    """File of the chunk ``idx`` of variable ``var`` (zarr v3's default ``c/i/j`` keys)."""
+    return Path(path) / var / "c" / Path(*(str(i) for i in idx))
+
+
+def _read_array(path: Path, var: str) -> tuple[np.ndarray | None, dict[tuple[int, ...], str]]:
+    """The whole array of ``var``, or None and the unreadable chunks (index → error)."""
+    array = zarr.open_array(str(path), path=var, mode="r")
+    try:
+        return np.asarray(array[...]), {}
+    except Exception:  # a torn or corrupt chunk; codecs raise many types
+        pass
+    bad: dict[tuple[int, ...], str] = {}
+    grid = tuple(-(-s // c) for s, c in zip(array.shape, array.chunks, strict=True))
+    for cidx in np.ndindex(grid):
+        sel = tuple(slice(i * c, (i + 1) * c) for i, c in zip(cidx, array.chunks, strict=True))
+        try:
+            array[sel]
+        except Exception as exc:
+            bad[cidx] = f"{type(exc).__name__}: {str(exc)[:200]}"
+    return None, bad
+
+
+def damaged_cases(path: Path, status: np.ndarray) -> dict[int, str]:
+    """Done cases whose data cannot be trusted: a metric chunk that is missing (it reads as
+    the fill value, which a finished case never writes) or any chunk that is unreadable.
+    Returns flat index → reason naming the variable's chunk file."""
+    path = Path(path)
+    group = zarr.open_group(str(path), mode="r")
+    shape = read_status_shape(path)
+    done = [int(f) for f in np.flatnonzero(np.asarray(status).ravel() == DONE)]
+    damaged: dict[int, str] = {}
+    for var in (*METRICS, *MAP_VARS, *TEXT):
+        if var not in group or not done:
+            continue
+        values, bad = _read_array(path, var)
+        fill = METRICS[var][3] if var in METRICS else None
+        for flat in done:
+            if flat in damaged:
+                continue
+            idx = tuple(int(i) for i in np.unravel_index(flat, shape))
+            chunk = idx + (0,) * (len(next(iter(bad), idx)) - len(idx))  # map chunks hold (case, 0, 0)
+            if values is None:
+                if chunk in bad:
+                    damaged[flat] = f"{chunk_path(path, var, chunk)} is unreadable ({bad[chunk]})"
+            elif fill is not None:
+                v = values[idx]
+                missing = bool(np.isnan(v)) if isinstance(fill, float) else v == fill
+                if missing:
+                    damaged[flat] = f"{chunk_path(path, var, idx)} is missing"
+    return damaged
+
+
+def read_status_shape(path: Path) -> tuple[int, ...]:
+    """Shape of the cube's case grid."""
+    return tuple(zarr.open_array(str(path), path="status", mode="r").shape)
+
+
+def reset_cases(path: Path, flats: list[int]) -> None:
+    """Mark cases pending again so the next run recomputes them."""
+    array = zarr.open_array(str(path), path="status", mode="r+")
+    for flat in flats:
+        array[tuple(int(i) for i in np.unravel_index(flat, array.shape))] = PENDING
+
+
+def check_readable(path: Path) -> None:
+    """Raise :class:`CubeError` naming every unreadable chunk file of the cube (at most five)."""
+    group = zarr.open_group(str(path), mode="r")
+    found: list[str] = []
+    for name, _ in group.arrays():
+        _, bad = _read_array(Path(path), name)
+        found.extend(f"{chunk_path(path, name, idx)} ({err})" for idx, err in bad.items())
+    if found:
+        more = f" and {len(found) - 5} more" if len(found) > 5 else ""
+        raise CubeError(
+            f"{path} has unreadable chunks: {'; '.join(found[:5])}{more}. Re-run the sweep on it to "
+            "recompute those cases, or delete the damaged files first"
+        )
+
+
+def remove_stale_temporaries(path: Path) -> None:
+    """Delete template folders (``.NAME.zarr.tmp-PID``) left by writers that were killed
+    mid-create; call only while holding the cube's lock."""
+    path = Path(path)
+    for tmp in path.parent.glob(f".{path.name}.tmp-*"):
+        shutil.rmtree(tmp, ignore_errors=True)

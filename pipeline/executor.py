@@ -12,7 +12,7 @@ import logging
 import traceback
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any, Optional
+from typing import Optional
 
 import dask
 
@@ -21,6 +21,12 @@ from pipeline.cube import CubeWriter
 from pipeline.sweep import SweepSpec, case_at
 
 SYNCHRONOUS = "synchronous"
+# a scheduler that does not answer within this many seconds is reported, not waited for
+CONNECT_TIMEOUT_S = 5
+
+
+class ExecutorError(RuntimeError):
+    """The sweep could not be run on the asked scheduler; the message says why."""
 
 
 def run_task(
@@ -107,7 +113,13 @@ def execute(
 
     cluster = None
     if scheduler:
-        client = Client(scheduler, timeout="30s")
+        try:
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ExecutorError(
+                f"no dask scheduler answered at {scheduler[:200]} within {CONNECT_TIMEOUT_S} s "
+                f"({type(exc).__name__}); start one (dask scheduler) or omit --scheduler for a local cluster"
+            ) from None
     else:
         cluster = LocalCluster(
             n_workers=workers,
@@ -129,9 +141,10 @@ def execute(
         lookup = {f.key: group for f, group in zip(futures, tasks, strict=True)}
         for future in as_completed(futures):
             try:
-                on_result(future.result())
+                rows = future.result()
             except Exception as exc:  # the task itself broke (not a case): its cases stay pending
-                on_result(_task_failure(lookup[future.key], exc))
+                rows = task_failure(spec_json, lookup[future.key], exc)
+            on_result(rows)
             future.release()
     finally:
         # workers still heartbeating while the scheduler stops log tracebacks that mean
@@ -158,25 +171,34 @@ def execute(
                 lg.setLevel(level)
 
 
-def _task_failure(indices: Iterable[int], exc: BaseException) -> list[dict]:
-    text = "".join(traceback.format_exception_only(type(exc), exc)).strip()
-    return [
-        {"index": i, "status": "error", "message": f"task error (case left pending): {text}"} for i in indices
-    ]
+def task_failure(spec_json: str, indices: Iterable[int], exc: BaseException) -> list[dict]:
+    """Summaries of the cases of a task that broke outside any case (the cube could not be
+    written, the worker died, ...): each names the case and the cause; the cases stay pending."""
+    spec = SweepSpec.model_validate_json(spec_json)
+    text = " ".join("".join(traceback.format_exception_only(type(exc), exc)).split())[:300]
+    rows = []
+    for i in indices:
+        case = case_at(spec, i)
+        rows.append(
+            {
+                "index": i,
+                "status": "error",
+                "points": case.layout.points,
+                "aspect": case.layout.aspect,
+                "message": f"task error, case left pending: {text}",
+            }
+        )
+    return rows
 
 
 def _run_synchronous(
     tasks: list[list[int]], task_args: tuple, on_result: Callable[[list[dict]], None]
 ) -> None:
-    from dask.callbacks import Callback
-
-    delayed = [dask.delayed(run_task, pure=False)(*task_args[:3], group, task_args[3]) for group in tasks]
-    keys = {d.key for d in delayed}
-
-    class _Stream(Callback):
-        def _posttask(self, key: Any, result: Any, dsk: Any, state: Any, worker_id: Any) -> None:
-            if key in keys:
-                on_result(result)
-
-    with _Stream():
-        dask.compute(*delayed, scheduler=SYNCHRONOUS)
+    # one compute per task, so a task that breaks is reported like on a cluster and the rest run on
+    for group in tasks:
+        task = dask.delayed(run_task, pure=False)(*task_args[:3], group, task_args[3])
+        try:
+            (rows,) = dask.compute(task, scheduler=SYNCHRONOUS)
+        except Exception as exc:
+            rows = task_failure(task_args[1], group, exc)
+        on_result(rows)

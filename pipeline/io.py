@@ -9,22 +9,55 @@ from pathlib import Path
 from typing import Any
 
 
-def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and a rename,
-    so readers see either the old file or the complete new one."""
-    target = Path(path)
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def write_temporary(target: Path, text: str) -> Path:
+    """A complete, synced temporary file beside ``target`` holding ``text``, with the
+    permissions a plain ``open`` would give (mkstemp's own are 0600 whatever the umask)."""
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
-        with os.fdopen(fd, "w") as fh:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
             fh.flush()
+            os.fchmod(fh.fileno(), 0o666 & ~_umask())
             os.fsync(fh.fileno())
-        os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return target
+    return Path(tmp)
+
+
+def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
+    """Write ``text`` to ``path`` through a temporary file in the same folder and a rename,
+    so readers see either the old file or the complete new one."""
+    return write_texts_atomic({Path(path): text})[0]
+
+
+def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
+    """Write several files as one unit: every temporary is complete before the first rename,
+    and if a rename fails the files already renamed are removed again, so a reader never finds
+    part of the set new (a kill between two renames can still leave a mixed pair; readers
+    that must know check each other's hashes, as ``verify`` does)."""
+    temps: dict[Path, Path] = {}
+    done: list[Path] = []
+    try:
+        for target, text in files.items():
+            temps[target] = write_temporary(Path(target), text)
+        for target, tmp in temps.items():
+            os.replace(tmp, target)
+            done.append(Path(target))
+    except BaseException:
+        for tmp in temps.values():
+            tmp.unlink(missing_ok=True)
+        for target in done:
+            Path(target).unlink(missing_ok=True)
+        raise
+    return [Path(t) for t in files]
 
 
 def write_json_atomic(path: str | os.PathLike[str], data: Any) -> Path:

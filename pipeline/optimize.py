@@ -25,6 +25,7 @@ import xarray as xr
 from pipeline import __version__, catalogs
 from pipeline.case import Case, CaseError, LayoutRequest, Resolution, run_case
 from pipeline.cube import METRICS, CubeError, git_revision, metric_values
+from pipeline.lock import cube_lock
 
 ASPECT_RANGE = {"ring": (0.3, 400.0), "mesh": (0.08, 16.0)}
 
@@ -176,58 +177,60 @@ def optimize(
     if not tolerance_nm > 0:
         raise ValueError(f"the tolerance must be positive, got {tolerance_nm}")
     out = Path(out) if out else Path("outputs") / f"optimize-{surface}-{layout}.zarr"
-    if out.exists():
-        if not restart:
-            raise CubeError(f"{out} exists; give --restart to replace it or choose another --out")
-        shutil.rmtree(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    opt = Optimizer(
-        surface,
-        layout,
-        tolerance_nm,
-        out,
-        machine,
-        cutting,
-        compensation,
-        resolution or Resolution(),
-        catalog_folder,
-        on_eval,
-    )
-    lo, hi = ASPECT_RANGE[layout]
-    cap = opt.capacity
-    n = min(float(start_points), float(cap))
-    aspect, rec = opt.best_aspect(n, np.geomspace(lo, hi, 9), "scan")
-    ratio = (hi / lo) ** (1 / 8)
-    aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 3)
+    out = out.absolute()
+    with cube_lock(out, f"ftsweep optimize {surface}"):
+        if out.exists():
+            if not restart:
+                raise CubeError(f"{out} exists; give --restart to replace it or choose another --out")
+            shutil.rmtree(out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        opt = Optimizer(
+            surface,
+            layout,
+            tolerance_nm,
+            out,
+            machine,
+            cutting,
+            compensation,
+            resolution or Resolution(),
+            catalog_folder,
+            on_eval,
+        )
+        lo, hi = ASPECT_RANGE[layout]
+        cap = opt.capacity
+        n = min(float(start_points), float(cap))
+        aspect, rec = opt.best_aspect(n, np.geomspace(lo, hi, 9), "scan")
+        ratio = (hi / lo) ** (1 / 8)
+        aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 3)
 
-    fail_n, pass_n = 0.0, math.inf
-    for _ in range(max_rounds):
-        if opt.ok(rec) and rec["pv_nm"] <= tolerance_nm:
-            pass_n = min(pass_n, n)
-        else:
-            fail_n = max(fail_n, n)
-        if pass_n < math.inf and (fail_n > 0 and pass_n / fail_n < 1.05):
-            break
-        if pass_n == math.inf and n >= cap:
-            break  # the capacity is reached without meeting the tolerance
-        if pass_n < math.inf and fail_n > 0:
-            nxt = math.sqrt(pass_n * fail_n)  # bisection in log N between a fail and a pass
-        elif opt.ok(rec):
-            nxt = n * rec["pv_nm"] / tolerance_nm * (1.05 if rec["pv_nm"] > tolerance_nm else 0.95)
-        else:
-            nxt = n * 2.0
-        nxt = min(max(nxt, 1000.0), float(cap))
-        if abs(nxt - n) < 0.01 * n and n >= cap:
-            break
-        n = nxt
-        aspect, rec = opt.refine_aspect(n, aspect, ratio**0.25, 1)
+        fail_n, pass_n = 0.0, math.inf
+        for _ in range(max_rounds):
+            if opt.ok(rec) and rec["pv_nm"] <= tolerance_nm:
+                pass_n = min(pass_n, n)
+            else:
+                fail_n = max(fail_n, n)
+            if pass_n < math.inf and (fail_n > 0 and pass_n / fail_n < 1.05):
+                break
+            if pass_n == math.inf and n >= cap:
+                break  # the capacity is reached without meeting the tolerance
+            if pass_n < math.inf and fail_n > 0:
+                nxt = math.sqrt(pass_n * fail_n)  # bisection in log N between a fail and a pass
+            elif opt.ok(rec):
+                nxt = n * rec["pv_nm"] / tolerance_nm * (1.05 if rec["pv_nm"] > tolerance_nm else 0.95)
+            else:
+                nxt = n * 2.0
+            nxt = min(max(nxt, 1000.0), float(cap))
+            if abs(nxt - n) < 0.01 * n and n >= cap:
+                break
+            n = nxt
+            aspect, rec = opt.refine_aspect(n, aspect, ratio**0.25, 1)
 
-    answer = opt.best_meeting()
-    return {
-        "met": answer is not None,
-        "answer": answer if answer is not None else opt.best(),
-        "evaluations": len(opt.records),
-        "cube": str(out),
-        "tolerance_nm": tolerance_nm,
-        "capacity_points": cap,
-    }
+        answer = opt.best_meeting()
+        return {
+            "met": answer is not None,
+            "answer": answer if answer is not None else opt.best(),
+            "evaluations": len(opt.records),
+            "cube": str(out),
+            "tolerance_nm": tolerance_nm,
+            "capacity_points": cap,
+        }

@@ -26,7 +26,7 @@ from pipeline.accessor import _axes, plot_map
 from pipeline.case import build_layout, control_table, run_case
 from pipeline.catalogs import aperture_of
 from pipeline.io import write_text_atomic
-from pipeline.select import choose, describe, open_cube, recorded_case
+from pipeline.select import SelectError, choose, describe, eligible, open_cube, recorded_case
 from stages import dynamics
 
 FIGURES = {
@@ -117,6 +117,11 @@ def make_report(
     """Write the figures and ``index.html`` into ``out_dir``; returns their paths."""
     cube_path = Path(cube_path)
     ds = open_cube(cube_path)
+    if not bool(eligible(ds).any()):
+        raise SelectError(
+            f"{cube_path} has no computed, feasible case to report on yet; run the sweep first "
+            f"(ftsweep sweep ... --out {cube_path})"
+        )
     out = Path(out_dir) if out_dir else cube_path.with_name(cube_path.stem + "-report")
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}

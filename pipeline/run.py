@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import time
@@ -18,12 +19,42 @@ import numpy as np
 from pipeline import catalogs, cube
 from pipeline.cube import CubeError
 from pipeline.executor import execute
-from pipeline.sweep import SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
+from pipeline.lock import cube_lock
+from pipeline.sweep import MAX_CASES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
 
 
 def default_cube_path(name: str) -> Path:
     """``outputs/<sweep>.zarr`` in the current folder."""
     return Path("outputs") / f"{name}.zarr"
+
+
+# a cube's template is built in memory: beyond this it would not fit
+TEMPLATE_BYTES_LIMIT = 4 * 2**30
+# typical wall seconds of one converged case on one core (ftsweep bench), for cost estimates
+SECONDS_PER_CASE = 2.5
+
+
+def check_sweep_size(spec: SweepSpec, max_cases: int = MAX_CASES) -> None:
+    """Refuse a sweep whose cube would not fit in memory or that would run for days, naming
+    its size and the option that overrides the limit."""
+    sizes = [v.size for v in coordinates(spec).values()]
+    count = math.prod(sizes)
+    bins = spec.resolution.error_map_bins or 0
+    per_case = 8 * (len(cube.METRICS) + 4) + 16 * bins * bins
+    nbytes = count * per_case
+    hours = count * SECONDS_PER_CASE / 3600.0
+    if nbytes > TEMPLATE_BYTES_LIMIT:
+        raise CubeError(
+            f"the sweep has {count:,} cases ({' × '.join(map(str, sizes))}): its cube would take about "
+            f"{nbytes / 2**30:,.3g} GiB of memory to create, over the {TEMPLATE_BYTES_LIMIT / 2**30:g} GiB "
+            "limit; narrow the axes or lower resolution.error_map_bins"
+        )
+    if count > max_cases:
+        raise CubeError(
+            f"the sweep has {count:,} cases ({' × '.join(map(str, sizes))}): about {hours:,.0f} core-hours "
+            f"at {SECONDS_PER_CASE:g} s a case, over the limit of {max_cases:,} cases; narrow the axes, "
+            "or raise the limit with --max-cases"
+        )
 
 
 def default_workers() -> int:
@@ -41,6 +72,7 @@ class SweepReport:
     rows: list[dict] = field(default_factory=list)
     wall_s: float = 0.0
     workers: int = 1
+    damaged: dict[int, str] = field(default_factory=dict)
 
     @property
     def done(self) -> int:
@@ -107,22 +139,52 @@ def run_sweep(
     retry_failed: bool = False,
     catalog_folder: Optional[Path] = None,
     progress: Optional[Callable[[SweepReport, list[dict]], None]] = None,
+    max_cases: int = MAX_CASES,
 ) -> SweepReport:
     """Run (or resume) a sweep; cases already done in the cube are skipped.
+
+    The cube is locked for the whole run (:mod:`pipeline.lock`): a second writer, or a
+    ``restart`` while another run writes, is refused. Done cases whose data chunks are
+    missing or unreadable are recomputed (``report.damaged`` names them).
 
     scheduler : None (a LocalCluster of ``workers`` processes), ``"synchronous"``, or the
         address of a running dask scheduler (also read from ``DASK_SCHEDULER_ADDRESS``).
     retry_failed : also recompute cases recorded as failed.
     """
     name, spec = load_sweep(name_or_path, catalog_folder)
-    out = Path(out) if out is not None else default_cube_path(name)
+    check_sweep_size(spec, max_cases)
+    # workers may run in another folder (an external scheduler's): they get absolute paths
+    out = (Path(out) if out is not None else default_cube_path(name)).absolute()
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
     workers = 1 if scheduler == "synchronous" else (workers or default_workers())
+    with cube_lock(out, command=f"ftsweep sweep {name_or_path}"):
+        return _run_locked(
+            name, spec, out, scheduler, workers, restart, retry_failed, catalog_folder, progress
+        )
+
+
+def _run_locked(
+    name: str,
+    spec: SweepSpec,
+    out: Path,
+    scheduler: Optional[str],
+    workers: int,
+    restart: bool,
+    retry_failed: bool,
+    catalog_folder: Optional[Path],
+    progress: Optional[Callable[[SweepReport, list[dict]], None]],
+) -> SweepReport:
+    cube.remove_stale_temporaries(out)
     already = prepare_cube(name, spec, out, restart, catalog_folder)
     status = cube.read_status(out).ravel()
+    damaged = cube.damaged_cases(out, status) if already else {}
+    if damaged:
+        cube.reset_cases(out, list(damaged))
+        status = cube.read_status(out).ravel()
+        already -= len(damaged)
     wanted = (status == cube.PENDING) | (retry_failed & (status == cube.FAILED))
     pending = [int(i) for i in np.flatnonzero(wanted)]
-    report = SweepReport(cube=out, total=n_cases(spec), skipped=already, workers=workers)
+    report = SweepReport(cube=out, total=n_cases(spec), skipped=already, workers=workers, damaged=damaged)
     tasks = plan_tasks(spec, pending, workers, catalog_folder)
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")

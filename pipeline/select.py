@@ -21,9 +21,14 @@ class SelectError(ValueError):
 
 
 def open_cube(path: Path) -> xr.Dataset:
-    """Open a cube for reading (checks it is an ftsweep cube first)."""
+    """Open a cube for reading and load it: checks it is an ftsweep cube and that every chunk
+    can be read, naming the chunk files that cannot (a cube is small: a few MB)."""
     cube.read_attrs(Path(path))
-    return xr.open_zarr(path)
+    try:
+        return xr.open_zarr(path).load()
+    except Exception:  # codecs raise many types for a damaged chunk: name the files instead
+        cube.check_readable(Path(path))
+        raise
 
 
 def capacity_of(ds: xr.Dataset) -> int:
@@ -33,8 +38,9 @@ def capacity_of(ds: xr.Dataset) -> int:
 
 
 def eligible(ds: xr.Dataset) -> xr.DataArray:
-    """Cases that may be chosen: done, feasible, and within the controller's capacity."""
-    ok = (ds["status"] == cube.DONE) & (ds["n_points"] <= capacity_of(ds))
+    """Cases that may be chosen: done, with a finite P-V, feasible, and within the
+    controller's capacity."""
+    ok = (ds["status"] == cube.DONE) & (ds["n_points"] <= capacity_of(ds)) & np.isfinite(ds["pv_nm"])
     if "feasible" in ds:
         ok = ok & (ds["feasible"] == 1)
     return ok
@@ -149,6 +155,8 @@ def check_exportable(ds: xr.Dataset, flat: int) -> None:
         raise SelectError(
             f"case {flat} has {int(point['n_points']):,} points, over the controller capacity {cap:,}"
         )
+    if not np.isfinite(float(point["pv_nm"])):
+        raise SelectError(f"case {flat} has no finite P-V in the cube; it cannot be exported")
     if "feasible" in ds and int(point["feasible"]) != 1:
         raise SelectError(
             f"case {flat} is infeasible for the machine: {point['infeasible_reason'].values}; "

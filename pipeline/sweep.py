@@ -21,13 +21,19 @@ from pipeline import catalogs
 from pipeline.case import Case, LayoutRequest, Resolution, build_layout
 from pipeline.catalogs import CatalogError, Strict
 
+MAX_AXIS_VALUES = 100_000
+# every case costs seconds of a core: beyond this many cases a sweep is refused unless the
+# caller raises the limit (CLI: --max-cases)
+MAX_CASES = 100_000
+
 
 class AxisRange(Strict):
     """``num`` values from ``start`` to ``stop`` inclusive, evenly spaced on a log or linear scale."""
 
     start: PositiveFloat
     stop: PositiveFloat
-    num: PositiveInt
+    # bounded so that a typo cannot allocate gigabytes before the size check can refuse it
+    num: PositiveInt = Field(le=MAX_AXIS_VALUES)
     scale: Literal["log", "linear"] = "log"
 
 
@@ -117,19 +123,16 @@ def load_sweep(name_or_path: str, catalog_folder: Path | None = None) -> tuple[s
     Every error names the file and the key: unknown keys, empty axes, non-positive values,
     and surfaces, machines or cutting conditions the catalogs do not define.
     """
-    import yaml
-
     path = resolve_sweep_path(name_or_path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise CatalogError(f"{path}: not valid YAML: {exc}") from exc
+    data = catalogs.read_yaml_file(path)
     if not isinstance(data, dict):
         raise CatalogError(f"{path}: a sweep file is a mapping of keys (surface, axes, ...)")
     try:
         spec = SweepSpec.model_validate(data)
     except ValidationError as exc:
         raise CatalogError(_sweep_error(path, exc)) from None
+    except RecursionError:
+        raise CatalogError(f"{path}: nested too deeply to be a sweep") from None
     for kind, key in (("surfaces", "surface"), ("machines", "machine"), ("cutting", "cutting")):
         try:
             catalogs.entry(kind, getattr(spec, key), catalog_folder)
@@ -152,7 +155,7 @@ def _sweep_error(path: Path, exc: ValidationError) -> str:
         elif e["type"] == "too_short":
             lines.append(f"  - {loc}: the axis is empty; give at least one value")
         else:
-            lines.append(f"  - {loc}: {e['msg']} (got {e.get('input')!r})")
+            lines.append(f"  - {loc}: {e['msg']} (got {catalogs.short_repr(e.get('input'))})")
     return "\n".join(dict.fromkeys(lines))  # union members can repeat the same complaint
 
 

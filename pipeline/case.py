@@ -297,6 +297,11 @@ def run_case(
 
     surface = catalogs.surface_callable(surface_spec, catalog_folder)
     bound = catalogs.gradient_bound(surface_spec, catalog_folder)
+    if not math.isfinite(bound):
+        raise CaseError(
+            f"the slope bound of surface '{case.surface}' is not finite: the surface gives no finite "
+            "slope on its aperture"
+        )
     aperture = catalogs.aperture_of(surface_spec)
     rho0 = aperture.outer_radius_um
     timer = Timer()

@@ -292,7 +292,9 @@ def read_header(path: Path) -> tuple[list[tuple[str, str]], np.ndarray]:
         raise ExportError(f"{path}: ROWS and COLS must be integers") from None
     ints = np.array([int(v) for v in _NUMBER.findall(body.group(1))], dtype=np.int64)
     if ints.size != rows * cols:
-        raise ExportError(f"{path}: the table holds {ints.size} values, the macros say {rows} × {cols}")
+        raise ExportError(
+            f"{path}: the table holds {ints.size} values, the macros say {rows} × {cols}; do not load it"
+        )
     return macros, ints.reshape(rows, cols)
 
 

@@ -43,17 +43,17 @@ def check_sweep_size(spec: SweepSpec, max_cases: int = MAX_CASES) -> None:
     per_case = 8 * (len(cube.METRICS) + 4) + 16 * bins * bins
     nbytes = count * per_case
     hours = count * SECONDS_PER_CASE / 3600.0
-    if nbytes > TEMPLATE_BYTES_LIMIT:
-        raise CubeError(
-            f"the sweep has {count:,} cases ({' × '.join(map(str, sizes))}): its cube would take about "
-            f"{nbytes / 2**30:,.3g} GiB of memory to create, over the {TEMPLATE_BYTES_LIMIT / 2**30:g} GiB "
-            "limit; narrow the axes or lower resolution.error_map_bins"
-        )
     if count > max_cases:
         raise CubeError(
             f"the sweep has {count:,} cases ({' × '.join(map(str, sizes))}): about {hours:,.0f} core-hours "
             f"at {SECONDS_PER_CASE:g} s a case, over the limit of {max_cases:,} cases; narrow the axes, "
             "or raise the limit with --max-cases"
+        )
+    if nbytes > TEMPLATE_BYTES_LIMIT:
+        raise CubeError(
+            f"the sweep has {count:,} cases ({' × '.join(map(str, sizes))}): its cube would take about "
+            f"{nbytes / 2**30:,.3g} GiB of memory to create, over the {TEMPLATE_BYTES_LIMIT / 2**30:g} GiB "
+            "limit; narrow the axes or lower resolution.error_map_bins"
         )
 
 

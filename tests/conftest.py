@@ -60,13 +60,23 @@ tiny-fts:
 """
 
 
-@pytest.fixture()
-def catalog_dir(tmp_path: Path) -> Path:
-    """A copy of catalogs/ with the extra test surfaces and machines appended."""
-    folder = tmp_path / "catalogs"
+def make_catalog_dir(folder: Path) -> Path:
+    """Copy catalogs/ to ``folder`` with the extra test surfaces and machines appended."""
     shutil.copytree(REPO / "catalogs", folder)
     with (folder / "surfaces.yaml").open("a") as fh:
         fh.write(EXTRA_SURFACES)
     with (folder / "machines.yaml").open("a") as fh:
         fh.write(EXTRA_MACHINES)
     return folder
+
+
+@pytest.fixture()
+def catalog_dir(tmp_path: Path) -> Path:
+    """A copy of catalogs/ with the extra test surfaces and machines appended."""
+    return make_catalog_dir(tmp_path / "catalogs")
+
+
+@pytest.fixture(scope="module")
+def module_catalog_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """:func:`catalog_dir` shared by the tests of one module (they must not edit it)."""
+    return make_catalog_dir(tmp_path_factory.mktemp("catalogs") / "catalogs")

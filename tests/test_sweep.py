@@ -114,7 +114,12 @@ def test_local_cluster_equals_synchronous_value_for_value(tmp_path, catalog_dir,
 
 
 def test_external_dask_scheduler_and_workers_give_the_same_cube(tmp_path, catalog_dir, reference_cube):
+    """The README's --scheduler example with a relative --out: the workers run in another
+    folder than the client, so the cube path must reach them absolute."""
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))
+    worker_dir, client_dir = tmp_path / "workers", tmp_path / "client"
+    worker_dir.mkdir()
+    client_dir.mkdir()
     sched_file = tmp_path / "scheduler.json"
     procs = [
         subprocess.Popen(
@@ -157,6 +162,7 @@ def test_external_dask_scheduler_and_workers_give_the_same_cube(tmp_path, catalo
                     stdout=subprocess.DEVNULL,
                     stderr=subprocess.DEVNULL,
                     env=env,
+                    cwd=worker_dir,
                     start_new_session=True,
                 )
             )
@@ -164,24 +170,25 @@ def test_external_dask_scheduler_and_workers_give_the_same_cube(tmp_path, catalo
 
         with Client(address, timeout="30s") as client:
             client.wait_for_workers(2, timeout=60)
-        out = tmp_path / "remote.zarr"
         result = subprocess.run(
             [
                 str(BIN / "ftsweep"),
                 "sweep",
                 str(write_spec(tmp_path)),
                 "--out",
-                str(out),
+                "outputs/remote.zarr",
                 "--scheduler",
                 address,
             ],
             capture_output=True,
             text=True,
             env=env,
+            cwd=client_dir,
             timeout=300,
         )
         assert result.returncode == 0, result.stderr
-        xr.testing.assert_equal(data_of(out), data_of(reference_cube))
+        assert not (worker_dir / "outputs").exists()
+        xr.testing.assert_equal(data_of(client_dir / "outputs" / "remote.zarr"), data_of(reference_cube))
     finally:
         for p in reversed(procs):
             os.killpg(p.pid, signal.SIGTERM)

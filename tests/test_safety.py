@@ -505,75 +505,30 @@ def probe_files(tmp_path):
     return tmp_path
 
 
+# fmt: off
+PREDICT = ["predict", "--surface", "small_sine", "--drho-um", "5", "--dtheta-deg", "2"]
+SWEEP = ["sweep", "--scheduler", "synchronous"]
 PROBES = [
     # (args, fragment of the one-line message); {d} is the probe folder
-    (
-        ["predict", "--surface", "small_sine", "--drho-um", "5", "--dtheta-deg", "2", "--feed-um", "200"],
-        "not below",
-    ),
-    (
-        ["predict", "--surface", "small_sine", "--drho-um", "5", "--dtheta-deg", "2", "--feed-um", "1e6"],
-        "not below",
-    ),
-    (
-        [
-            "predict",
-            "--surface",
-            "small_sine",
-            "--drho-um",
-            "5",
-            "--dtheta-deg",
-            "2",
-            "--feed-um",
-            "1e6",
-            "--json",
-        ],
-        "not below",
-    ),
-    (
-        [
-            "predict",
-            "--surface",
-            "small_sine",
-            "--drho-um",
-            "5",
-            "--dtheta-deg",
-            "2",
-            "--nose-radius-um",
-            "1e9",
-        ],
-        "GiB",
-    ),
-    (
-        [
-            "predict",
-            "--surface",
-            "sinewave2d",
-            "--drho-um",
-            "2",
-            "--dtheta-deg",
-            "1",
-            "--points-per-feed",
-            "100000",
-        ],
-        "GiB",
-    ),
-    (
-        ["predict", "--surface", "small_sine", "--points", "9e5", "--aspect", "1", "--max-nodes", "1000"],
-        "--max-nodes",
-    ),
+    ([*PREDICT, "--feed-um", "200"], "not below"),
+    ([*PREDICT, "--feed-um", "1e6"], "not below"),
+    ([*PREDICT, "--feed-um", "1e6", "--json"], "not below"),
+    ([*PREDICT, "--nose-radius-um", "1e9"], "GiB"),
+    ([*PREDICT[:2], "sinewave2d", *PREDICT[3:], "--points-per-feed", "100000"], "GiB"),
+    ([*PREDICT[:3], "--points", "9e5", "--aspect", "1", "--max-nodes", "1e3"], "max-nodes"),
     (["predict", "--surface", "bad_plugin", "--drho-um", "5", "--dtheta-deg", "2"], "cannot import"),
     (["predict", "--surface", "missing_map", "--drho-um", "5", "--dtheta-deg", "2"], "does not exist"),
-    (["sweep", "{d}/bomb.yaml", "--scheduler", "synchronous"], "unknown key"),
-    (["sweep", "{d}/bomb-description.yaml", "--scheduler", "synchronous"], "description"),
-    (["sweep", "{d}/deep.yaml", "--scheduler", "synchronous"], "nested too deeply"),
-    (["sweep", "{d}/latin1.yaml", "--scheduler", "synchronous"], "not UTF-8"),
-    (["sweep", "{d}/huge.yaml", "--scheduler", "synchronous"], "--max-cases"),
-    (["sweep", "{d}/toolong.yaml", "--scheduler", "synchronous"], "less than or equal to 100000"),
+    ([*SWEEP, "{d}/bomb.yaml"], "unknown key"),
+    ([*SWEEP, "{d}/bomb-description.yaml"], "description"),
+    ([*SWEEP, "{d}/deep.yaml"], "nested too deeply"),
+    ([*SWEEP, "{d}/latin1.yaml"], "not UTF-8"),
+    ([*SWEEP, "{d}/huge.yaml"], "--max-cases"),
+    ([*SWEEP, "{d}/toolong.yaml"], "less than or equal to 100000"),
     (["verify", "{d}/latin1.yaml"], "not an ftsweep header"),
     (["select", "{d}", "--budget-points", "10"], "not a Zarr cube"),
     (["report", "{d}/nothing.zarr"], "no computed, feasible case"),
 ]
+# fmt: on
 BAD_SURFACES = """
 bad_plugin:
   description: A plug-in whose module does not exist (for tests).

@@ -2,4 +2,4 @@
 
 __version__ = "0.1.0"
 
-from pipeline import accessor as _accessor  # noqa: E402,F401  (registers the ds.ftsweep accessor)
+from ftsweep import accessor as _accessor  # noqa: E402,F401  (registers the ds.ftsweep accessor)

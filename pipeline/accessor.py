@@ -1,8 +1,8 @@
 """``ds.ftsweep``: an xarray accessor for result cubes, so notebooks need no glue code.
 
-Registered when ``pipeline`` is imported::
+Registered when ``ftsweep`` is imported::
 
-    import xarray as xr, pipeline
+    import xarray as xr, ftsweep
     ds = xr.open_zarr("outputs/sinewave-ring.zarr")
     ds.ftsweep.best(budget_points=950_000)
     ds.ftsweep.plot_pv()            # P-V against point count, one line per aspect ratio
@@ -18,7 +18,7 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-from pipeline import cube
+from ftsweep import cube
 
 
 def _axes(ax: Any = None, size: tuple[float, float] = (7.0, 4.6)) -> Any:
@@ -62,8 +62,8 @@ class FtsweepAccessor:
         self, budget_points: Optional[int] = None, tolerance_nm: Optional[float] = None
     ) -> dict[str, Any]:
         """The selection of ``ftsweep select``: best under a budget, or fewest points meeting a
-        tolerance (see :mod:`pipeline.select`)."""
-        from pipeline.select import choose
+        tolerance (see :mod:`ftsweep.select`)."""
+        from ftsweep.select import choose
 
         return choose(self._ds, budget_points=budget_points, tolerance_nm=tolerance_nm)
 
@@ -161,7 +161,7 @@ class FtsweepAccessor:
         shape = self._ds["status"].shape
         pos = dict(zip(self._ds["status"].dims, np.unravel_index(index, shape), strict=True))
         emap = self._ds[var].isel(pos)
-        from pipeline.select import describe
+        from ftsweep.select import describe
 
         return plot_map(emap["map_x"].values, emap.values, describe(self._ds, index), kind, ax)
 

@@ -12,8 +12,8 @@ import platform
 import time
 from typing import Any
 
-from pipeline import __version__, catalogs
-from pipeline.case import STAGE_TIMERS, Case, LayoutRequest, run_case
+from ftsweep import __version__, catalogs
+from ftsweep.case import STAGE_TIMERS, Case, LayoutRequest, run_case
 
 MILLION_CASES = {
     "ring-1M-a8": ("sinewave2d", LayoutRequest(kind="ring", points=1_000_000, aspect=8.0)),

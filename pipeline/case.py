@@ -18,11 +18,11 @@ from typing import Any, Literal, Optional
 import numpy as np
 from pydantic import Field, PositiveFloat, PositiveInt, model_validator
 
-from pipeline import catalogs
-from pipeline.catalogs import Strict
-from stages import compensation, dynamics, envelope, interpolation, layouts, metrics
-from stages.layouts import Layout
-from stages.surfaces import radial_section
+from ftsweep import catalogs
+from ftsweep.catalogs import Strict
+from ftsweep.stages import compensation, dynamics, envelope, interpolation, layouts, metrics
+from ftsweep.stages.layouts import Layout
+from ftsweep.stages.surfaces import radial_section
 
 
 class CaseError(ValueError):
@@ -259,7 +259,7 @@ def run_case(
     """Predict the form error of one case (physics.md §1–§6).
 
     Returns a flat record: the resolved inputs (surface, layout, n_points, pitches, cutting
-    conditions, resolution), the metrics of :func:`stages.metrics.finalize` in nm, the
+    conditions, resolution), the metrics of :func:`ftsweep.stages.metrics.finalize` in nm, the
     control points flagged as gouging, the feed cusp height, and wall seconds per stage
     (``seconds_<stage>``) and in total (``seconds``). ``progress(done, total)`` is called
     after each batch of lines. A given ``table`` [µm] (of the case's layout shape) replaces

@@ -25,7 +25,7 @@ from pydantic import (
     model_validator,
 )
 
-from stages.surfaces import FAMILIES, Aperture, SurfaceFn
+from ftsweep.stages.surfaces import FAMILIES, Aperture, SurfaceFn
 
 
 class CatalogError(ValueError):
@@ -209,7 +209,7 @@ USER_FAMILIES = ("height_map", "plugin")
 def surface_callable(spec: Any, folder: Path | None = None) -> SurfaceFn:
     """The surface callable ``fn(x, y) -> (f, fx, fy)`` of a catalog entry (µm in, µm out)."""
     if spec.family in USER_FAMILIES:
-        from pipeline import usersurfaces
+        from ftsweep import usersurfaces
 
         return usersurfaces.build(
             spec.family, spec.params.model_dump(mode="json"), aperture_of(spec), folder or catalog_dir()
@@ -231,14 +231,14 @@ def gradient_bound(spec: Any, folder: Path | None = None) -> float:
 def _sampled_bound(spec_json: str, folder: str) -> float:
     from pydantic import TypeAdapter
 
-    from stages.surfaces import sampled_gradient_bound
+    from ftsweep.stages.surfaces import sampled_gradient_bound
 
     spec = TypeAdapter(SurfaceSpec).validate_json(spec_json)
     return sampled_gradient_bound(surface_callable(spec, Path(folder)), aperture_of(spec).outer_radius_um)
 
 
 def aperture_of(spec: Any) -> Aperture:
-    """The stage-level :class:`~stages.surfaces.Aperture` of a catalog entry."""
+    """The stage-level :class:`~ftsweep.stages.surfaces.Aperture` of a catalog entry."""
     return Aperture(**spec.aperture.model_dump())
 
 
@@ -309,9 +309,15 @@ def specs_from_entries(
 
 # --------------------------------------------------------------------------- loading
 def catalog_dir() -> Path:
-    """Folder holding the catalog YAML files: ``$FTSWEEP_CATALOGS`` or the repository's."""
+    """Folder holding the catalog YAML files: ``$FTSWEEP_CATALOGS``, else the repository's
+    ``catalogs/`` (a source checkout or editable install), else the copy a regular install
+    ships inside the package (``ftsweep/catalogs_data``)."""
     env = os.environ.get("FTSWEEP_CATALOGS")
-    return Path(env) if env else Path(__file__).resolve().parent.parent / "catalogs"
+    if env:
+        return Path(env)
+    here = Path(__file__).resolve().parent
+    repo = here.parent / "catalogs"
+    return repo if (repo / "surfaces.yaml").is_file() else here / "catalogs_data"
 
 
 def _format_error(path: Path, name: str, err: ValidationError, model: Any) -> str:

@@ -13,11 +13,11 @@ from typing import Any, Optional
 import click
 from pydantic import ValidationError
 
-from pipeline import __version__, catalogs
-from pipeline.case import MAX_NODES, Case, CaseError, LayoutRequest, Resolution, run_case
-from pipeline.catalogs import CatalogError
-from pipeline.sweep import MAX_CASES
-from pipeline.usersurfaces import SurfaceLoadError
+from ftsweep import __version__, catalogs
+from ftsweep.case import MAX_NODES, Case, CaseError, LayoutRequest, Resolution, run_case
+from ftsweep.catalogs import CatalogError
+from ftsweep.sweep import MAX_CASES
+from ftsweep.usersurfaces import SurfaceLoadError
 
 _RING_PITCH = ("drho_um", "dtheta_deg")
 _MESH_PITCH = ("dx_um", "dy_um")
@@ -60,6 +60,10 @@ class _Group(click.Group):
             raise
         except (click.exceptions.Exit, click.Abort, KeyboardInterrupt, SystemExit):
             raise
+        except BrokenPipeError:
+            # the reader went away (e.g. `| head`): stop quietly, as other command-line tools do
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            sys.exit(1)
         except Exception as exc:
             if os.environ.get("FTSWEEP_DEBUG"):
                 raise
@@ -95,22 +99,48 @@ def main() -> None:
 
 
 @main.command("catalogs")
-def list_catalogs() -> None:
-    """List the surfaces, machines and cutting conditions the catalogs define."""
-    from pipeline.sweep import sweep_dir
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def list_catalogs(as_json: bool) -> None:
+    """List the surfaces, machines, cutting conditions and sweeps the catalogs define.
 
-    try:
-        for kind in ("surfaces", "machines", "cutting"):
-            click.echo(f"{kind} ({catalogs.catalog_dir() / (kind + '.yaml')}):")
-            for name, spec in catalogs.entries(kind).items():
-                extra = f" [{spec.family}, {spec.layout} layout]" if kind == "surfaces" else ""
-                desc = " ".join(spec.description.split())
-                click.echo(f"  {name}{extra}: {desc[:90]}")
-        click.echo(f"sweeps ({sweep_dir()}):")
-        for path in sorted(sweep_dir().glob("*.yaml")):
-            click.echo(f"  {path.stem}")
-    except CatalogError as exc:
-        raise click.ClickException(str(exc)) from None
+    Descriptions are printed whole, wrapped to the terminal. With --json, one object maps
+    each kind to its entries (every field, units in the field names) and the sweep names.
+    """
+    import shutil
+    import textwrap
+
+    from ftsweep.sweep import sweep_dir
+
+    kinds = ("surfaces", "machines", "cutting")
+    found = {kind: catalogs.entries(kind) for kind in kinds}
+    sweeps = sorted(p.stem for p in sweep_dir().glob("*.yaml"))
+    if as_json:
+        data: dict[str, Any] = {
+            kind: {name: spec.model_dump(mode="json") for name, spec in entries.items()}
+            for kind, entries in found.items()
+        }
+        data["sweeps"] = sweeps
+        data["catalog_dir"] = str(catalogs.catalog_dir())
+        click.echo(json.dumps(data, allow_nan=False))
+        return
+    width = max(40, min(shutil.get_terminal_size((100, 24)).columns, 120))
+    for kind in kinds:
+        click.echo(f"{kind} ({catalogs.catalog_dir() / (kind + '.yaml')}):")
+        for name, spec in found[kind].items():
+            extra = f" [{spec.family}, {spec.layout} layout]" if kind == "surfaces" else ""
+            desc = " ".join(spec.description.split())
+            click.echo(
+                textwrap.fill(
+                    f"{name}{extra}: {desc}",
+                    width=width,
+                    initial_indent="  ",
+                    subsequent_indent="      ",
+                    break_on_hyphens=False,  # keep "Noll-indexed", "off-axis" whole
+                )
+            )
+    click.echo(f"sweeps ({sweep_dir()}):")
+    for name in sweeps:
+        click.echo(f"  {name}")
 
 
 @main.command()
@@ -122,7 +152,11 @@ def list_catalogs() -> None:
     help="Layout method: ring (polar grid) or mesh (Cartesian grid). Default: the surface's.",
 )
 @click.option("--drho-um", type=float, help="Ring pitch Δρ [µm] (ring layout).")
-@click.option("--dtheta-deg", type=float, help="Angular pitch Δθ [deg]; 360/Δθ must be an integer (ring).")
+@click.option(
+    "--dtheta-deg",
+    type=float,
+    help="Angular pitch Δθ [deg] (ring); rounded to the nearest 360/Np with a notice unless --strict.",
+)
 @click.option("--dx-um", type=float, help="Mesh pitch Δx [µm] (mesh layout).")
 @click.option("--dy-um", type=float, help="Mesh pitch Δy [µm] (mesh layout).")
 @click.option("--points", type=float, help="Target number of control points N (with --aspect).")
@@ -154,6 +188,11 @@ def list_catalogs() -> None:
 )
 @click.option(
     "--n-theta", type=int, help="Simulated spindle angles over 360° (overrides --samples-per-cell)."
+)
+@click.option(
+    "--strict",
+    is_flag=True,
+    help="Refuse an explicit Δθ that does not divide 360° instead of rounding it to the nearest that does.",
 )
 @click.option(
     "--max-nodes",
@@ -245,11 +284,11 @@ def sweep(
       ftsweep sweep my-sweep.yaml --out outputs/my.zarr --workers 2
       ftsweep sweep lens-array-mesh --scheduler tcp://127.0.0.1:8786
     """
-    from pipeline.cube import CubeError
-    from pipeline.executor import ExecutorError
-    from pipeline.lock import LockError
-    from pipeline.run import axis_summary, best_per_point_count, cube_counts, run_sweep
-    from pipeline.sweep import load_sweep
+    from ftsweep.cube import CubeError
+    from ftsweep.executor import ExecutorError
+    from ftsweep.lock import LockError
+    from ftsweep.run import axis_summary, best_per_point_count, cube_counts, run_sweep
+    from ftsweep.sweep import load_sweep
 
     if workers is not None and workers < 1:
         _fail(f"--workers must be at least 1, got {workers}")
@@ -354,8 +393,8 @@ def select(
     --budget-points: the lowest P-V at or under that many points. With --tolerance-nm: the
     smallest layout that meets the tolerance; when none does, say so and show the best.
     """
-    from pipeline.cube import CubeError
-    from pipeline.select import SelectError, choose, open_cube
+    from ftsweep.cube import CubeError
+    from ftsweep.select import SelectError, choose, open_cube
 
     if budget_points is not None and budget_points < 1:
         _fail(f"--budget-points must be positive, got {budget_points}")
@@ -406,9 +445,9 @@ def export(
     sidecar holds the same metadata and the full case spec. Both are written atomically.
     Failed, pending, infeasible and over-capacity cases are refused.
     """
-    from pipeline import export as exp
-    from pipeline.cube import CubeError
-    from pipeline.select import SelectError
+    from ftsweep import export as exp
+    from ftsweep.cube import CubeError
+    from ftsweep.select import SelectError
 
     try:
         meta = exp.export(cube_path, out, budget_points, tolerance_nm, index, force, name)
@@ -440,7 +479,7 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> Non
     included) within the tolerance of the P-V predicted at export. Otherwise exit 1 naming
     the difference: do not load that header.
     """
-    from pipeline import export as exp
+    from ftsweep import export as exp
 
     if pv_tolerance_nm is not None and not (pv_tolerance_nm >= 0 and math.isfinite(pv_tolerance_nm)):
         _fail(f"--pv-tolerance-nm must be a non-negative number, got {pv_tolerance_nm}")
@@ -513,9 +552,9 @@ def optimize(
       ftsweep optimize sinewave2d --layout ring --tolerance-nm 20
       ftsweep optimize --sweep lens-array-mesh --tolerance-nm 30
     """
-    from pipeline.cube import CubeError
-    from pipeline.optimize import optimize as run_optimize
-    from pipeline.sweep import load_sweep
+    from ftsweep.cube import CubeError
+    from ftsweep.optimize import optimize as run_optimize
+    from ftsweep.sweep import load_sweep
 
     resolution = None
     compensation = "exact"
@@ -589,9 +628,9 @@ def report(cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_b
     the error map of the chosen case over the part and its W command spectrum with the servo
     bandwidth. The error map needs a re-simulation of that case, which shows progress.
     """
-    from pipeline.cube import CubeError
-    from pipeline.report import make_report
-    from pipeline.select import SelectError
+    from ftsweep.cube import CubeError
+    from ftsweep.report import make_report
+    from ftsweep.select import SelectError
 
     if map_bins < 8:
         _fail(f"--map-bins must be at least 8, got {map_bins}")
@@ -625,8 +664,8 @@ def bench(names: tuple[str, ...], repeat: int, json_path: str) -> None:
     envelope and metrics, after a warm-up that pays numba's compile cost. Kernels are
     single-threaded, so the figures are for one core. Nothing is asserted about time.
     """
-    from pipeline.bench import format_table, run_benchmark
-    from pipeline.io import write_json_atomic
+    from ftsweep.bench import format_table, run_benchmark
+    from ftsweep.io import write_json_atomic
 
     try:
         result = run_benchmark(list(names) or None, repeat=repeat)
@@ -710,6 +749,8 @@ def _build_case(opts: dict[str, Any]) -> Case:
             "--points-per-feed must be even (the cusp midway between passes is sampled), "
             f"got {points_per_feed}"
         )
+    if kind == "ring" and pitch_given and not opts["strict"]:
+        given["dtheta_deg"] = _realisable_dtheta(given["dtheta_deg"])
     try:
         request = LayoutRequest(
             kind=kind,
@@ -733,10 +774,25 @@ def _build_case(opts: dict[str, Any]) -> Case:
         raise click.UsageError(_pydantic_message(exc)) from None
 
 
+def _realisable_dtheta(dtheta_deg: float) -> float:
+    """The nearest Δθ that divides 360° (a ring holds a whole number of points), with a notice
+    on stderr when it differs from the one asked for."""
+    from ftsweep.stages.layouts import nearest_ring_dtheta
+
+    realised, n_per_ring = nearest_ring_dtheta(dtheta_deg)
+    if not math.isclose(realised, dtheta_deg, rel_tol=1e-9):
+        click.echo(
+            f"notice: Δθ = {dtheta_deg:g}° does not divide 360°; using the nearest realisable "
+            f"Δθ = {realised:.7g}° ({n_per_ring} points per ring; --strict refuses instead)",
+            err=True,
+        )
+    return realised
+
+
 def _summary(r: dict[str, Any]) -> str:
     if r["layout"] == "ring":
         pitches = (
-            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.4g}°  "
+            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.7g}°  "
             f"(α = {r['aspect_um_per_deg']:.4g} µm/deg)"
         )
     else:

@@ -26,25 +26,17 @@ import numpy as np
 import xarray as xr
 import zarr
 
-from pipeline import __version__
-from pipeline.sweep import AXIS_ATTRS, SweepSpec, coordinates
+from ftsweep import __version__
+from ftsweep.sweep import SweepSpec, axis_attrs, coordinates
 
 PENDING, DONE, FAILED = 0, 1, 2
 STATUS_MEANINGS = "pending done failed"
 
-# name: (dtype, units, long_name, fill); record keys of pipeline.case.run_case
+# name: (dtype, units, long_name, fill); record keys of ftsweep.case.run_case
 METRICS: dict[str, tuple[str, str, str, Any]] = {
     "n_points": ("int64", "1", "number of control points of the table", -1),
     "table_rows": ("int32", "1", "table rows (rings M or mesh nx)", -1),
     "table_cols": ("int32", "1", "table columns (points per ring Np or mesh ny)", -1),
-    "pitch_0": ("float64", "µm", "first pitch: ring pitch Δρ or mesh pitch Δx", np.nan),
-    "pitch_1": (
-        "float64",
-        "deg (ring) or µm (mesh)",
-        "second pitch: angular pitch Δθ or mesh pitch Δy",
-        np.nan,
-    ),
-    "aspect_actual": ("float64", "µm/deg (ring) or 1 (mesh)", "aspect ratio of the realised pitches", np.nan),
     "pv_nm": ("float64", "nm", "peak-to-valley form error", np.nan),
     "rms_nm": ("float64", "nm", "RMS form error about its mean", np.nan),
     "mean_nm": ("float64", "nm", "mean form error", np.nan),
@@ -57,7 +49,7 @@ METRICS: dict[str, tuple[str, str, str, Any]] = {
     "gouge_points": ("int64", "1", "control points whose section is concave with radius below Rc", -1),
     "n_theta": ("int64", "1", "simulated spindle angles", -1),
     "n_eval": ("int64", "1", "evaluation points", -1),
-    "stroke_um": ("float64", "µm", "W stroke used (range of the table)", np.nan),
+    "stroke_um": ("float64", "um", "W stroke used (range of the table)", np.nan),
     "w_velocity_peak_mm_s": ("float64", "mm/s", "peak W velocity at the spindle speed", np.nan),
     "w_accel_peak_m_s2": ("float64", "m/s^2", "peak W acceleration at the spindle speed", np.nan),
     "w_accel_rms_m_s2": ("float64", "m/s^2", "RMS W acceleration at the spindle speed", np.nan),
@@ -71,6 +63,29 @@ METRICS: dict[str, tuple[str, str, str, Any]] = {
     "seconds_metrics": ("float64", "s", "wall time of the metrics", np.nan),
     "seconds_dynamics": ("float64", "s", "wall time of the dynamics", np.nan),
 }
+# the realised pitches, named and united per layout kind (a cube holds one kind); the target
+# aspect ratio is the coordinate ``aspect``, the realised one ``aspect_actual``
+LAYOUT_METRICS: dict[str, dict[str, tuple[str, str, str, Any]]] = {
+    "ring": {
+        "drho_um": ("float64", "um", "ring pitch Δρ", np.nan),
+        "dtheta_deg": ("float64", "deg", "angular pitch Δθ", np.nan),
+        "aspect_actual": ("float64", "um/deg", "aspect ratio Δρ/Δθ of the realised pitches", np.nan),
+    },
+    "mesh": {
+        "dx_um": ("float64", "um", "mesh pitch Δx", np.nan),
+        "dy_um": ("float64", "um", "mesh pitch Δy", np.nan),
+        "aspect_actual": ("float64", "1", "aspect ratio Δx/Δy of the realised pitches", np.nan),
+    },
+}
+# cubes written before the variables were named per layout kind and carried parseable units
+SCHEMA_VERSION = 2
+
+
+def metrics_for(kind: str) -> dict[str, tuple[str, str, str, Any]]:
+    """The metric variables of a cube of layout ``kind``: (dtype, units, long_name, fill)."""
+    return {**LAYOUT_METRICS[kind], **METRICS}
+
+
 MAP_VARS = {
     "error_map_mean_nm": "mean form error in each bin of the coarse error map",
     "error_map_peak_nm": "form error of largest magnitude in each bin of the coarse error map",
@@ -111,27 +126,28 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
     dims = tuple(coords)
     shape = tuple(v.size for v in coords.values())
     data: dict[str, Any] = {}
-    for var, (dtype, units, long_name, fill) in METRICS.items():
+    assert spec.layout is not None
+    for var, (dtype, units, long_name, fill) in metrics_for(spec.layout).items():
         data[var] = (dims, np.full(shape, fill, dtype=dtype), {"units": units, "long_name": long_name})
+    # flags and text carry no units (CF), so unit-aware readers leave them alone
     data["status"] = (
         dims,
         np.zeros(shape, dtype="int8"),
         {
-            "units": "1",
             "long_name": "case status",
             "flag_values": [PENDING, DONE, FAILED],
             "flag_meanings": STATUS_MEANINGS,
         },
     )
     for var, long_name in TEXT.items():
-        data[var] = (dims, np.full(shape, "", dtype=object), {"units": "1", "long_name": long_name})
-    coord_vars = {k: (k, v, AXIS_ATTRS[k]) for k, v in coords.items()}
+        data[var] = (dims, np.full(shape, "", dtype=object), {"long_name": long_name})
+    coord_vars = {k: (k, v, axis_attrs(k, spec.layout)) for k, v in coords.items()}
     bins = spec.resolution.error_map_bins
     if bins:
         from pydantic import TypeAdapter
 
-        from pipeline.case import ErrorMap
-        from pipeline.catalogs import SurfaceSpec, aperture_of
+        from ftsweep.case import ErrorMap
+        from ftsweep.catalogs import SurfaceSpec, aperture_of
 
         surface = TypeAdapter(SurfaceSpec).validate_python(catalog_entries["surface"][spec.surface])
         centres = ErrorMap.over(aperture_of(surface), bins).centres_um()
@@ -139,7 +155,7 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
             coord_vars[axis] = (
                 axis,
                 centres,
-                {"units": "µm", "long_name": f"{axis[-1]} of the error-map bin centre"},
+                {"units": "um", "long_name": f"{axis[-1]} of the error-map bin centre"},
             )
         for var, what in MAP_VARS.items():
             data[var] = (
@@ -156,6 +172,7 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
         sweep_spec_hash=spec.spec_hash(),
         catalog_entries=json.dumps(catalog_entries, sort_keys=True),
         layout_method=str(spec.layout),
+        ftsweep_cube_schema=SCHEMA_VERSION,
         surface=spec.surface,
         created=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         status_meanings=STATUS_MEANINGS,
@@ -183,15 +200,24 @@ def create(path: Path, ds: xr.Dataset) -> None:
     os.replace(tmp, path)
 
 
-def read_attrs(path: Path) -> dict[str, Any]:
-    """The cube's attributes, or a :class:`CubeError` if ``path`` is not a cube."""
+def read_attrs(path: Path, check_schema: bool = True) -> dict[str, Any]:
+    """The cube's attributes, or a :class:`CubeError` if ``path`` is not a cube, or (with
+    ``check_schema``) is one of an older layout that this version does not read."""
     try:
         group = zarr.open_group(str(path), mode="r")
     except Exception as exc:  # zarr raises several types for "not a group"
-        raise CubeError(f"{path} exists but is not a Zarr cube ({exc}); choose another --out") from None
+        raise CubeError(
+            f"{path} exists but is not a Zarr cube ({str(exc)[:200]}); choose another --out"
+        ) from None
     attrs = dict(group.attrs)
     if "sweep_spec_hash" not in attrs:
         raise CubeError(f"{path} is a Zarr store but not an ftsweep cube; choose another --out")
+    if check_schema and attrs.get("ftsweep_cube_schema", 1) != SCHEMA_VERSION:
+        raise CubeError(
+            f"{path} was written by an older ftsweep (pitch_0/pitch_1 variables, units that no units "
+            f"library parses); recompute it with: ftsweep sweep {attrs.get('sweep_name', 'NAME')} "
+            f"--out {path} --restart"
+        )
     return attrs
 
 
@@ -211,19 +237,14 @@ def read_status(path: Path) -> np.ndarray:
 
 
 def metric_values(record: dict[str, Any]) -> dict[str, Any]:
-    """The :data:`METRICS` variables of a finished case's record (``run_case`` output), named
-    and laid out as cubes store them."""
+    """The metric variables (:func:`metrics_for` the record's layout kind) of a finished case's
+    record (``run_case`` output), named and laid out as cubes store them."""
     values = dict(record)
     values["table_rows"], values["table_cols"] = record["table_shape"]
-    if record["layout"] == "ring":
-        values["pitch_0"], values["pitch_1"] = record["drho_um"], record["dtheta_deg"]
-        values["aspect_actual"] = record["aspect_um_per_deg"]
-    else:
-        values["pitch_0"], values["pitch_1"] = record["dx_um"], record["dy_um"]
-        values["aspect_actual"] = record["aspect"]
+    values["aspect_actual"] = record["aspect_um_per_deg" if record["layout"] == "ring" else "aspect"]
     values["runtime_s"] = record["seconds"]
     values["feasible"] = int(bool(record["feasible"]))
-    return {var: values[var] for var in METRICS}
+    return {var: values[var] for var in metrics_for(record["layout"])}
 
 
 class CubeWriter:
@@ -299,11 +320,12 @@ def damaged_cases(path: Path, status: np.ndarray) -> dict[int, str]:
     shape = read_status_shape(path)
     done = [int(f) for f in np.flatnonzero(np.asarray(status).ravel() == DONE)]
     damaged: dict[int, str] = {}
-    for var in (*METRICS, *MAP_VARS, *TEXT):
+    metrics = metrics_for(str(group.attrs.get("layout_method")))
+    for var in (*metrics, *MAP_VARS, *TEXT):
         if var not in group or not done:
             continue
         values, bad = _read_array(path, var)
-        fill = METRICS[var][3] if var in METRICS else None
+        fill = metrics[var][3] if var in metrics else None
         for flat in done:
             if flat in damaged:
                 continue

@@ -2,7 +2,7 @@
 existing ``dask.distributed`` scheduler, running the same task function.
 
 A task computes a list of cases and writes each into the cube as soon as it finishes
-(:class:`pipeline.cube.CubeWriter`); it returns one small summary dict per case, which the
+(:class:`ftsweep.cube.CubeWriter`); it returns one small summary dict per case, which the
 driver streams into progress and the final summary.
 """
 
@@ -16,9 +16,9 @@ from typing import Optional
 
 import dask
 
-from pipeline.case import Case, LayoutRequest, run_case
-from pipeline.cube import CubeWriter
-from pipeline.sweep import SweepSpec, case_at
+from ftsweep.case import Case, LayoutRequest, run_case
+from ftsweep.cube import CubeWriter
+from ftsweep.sweep import SweepSpec, case_at
 
 SYNCHRONOUS = "synchronous"
 # a scheduler that does not answer within this many seconds is reported, not waited for

@@ -22,11 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from pipeline import __version__
-from pipeline.case import Case, build_layout, control_table, run_case
-from pipeline.catalogs import specs_from_entries
-from pipeline.io import write_texts_atomic
-from pipeline.select import check_exportable, choose, open_cube, recorded_case
+from ftsweep import __version__
+from ftsweep.case import Case, build_layout, control_table, run_case
+from ftsweep.catalogs import specs_from_entries
+from ftsweep.io import write_texts_atomic
+from ftsweep.select import check_exportable, choose, open_cube, recorded_case
 
 INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}
 LE_DTYPE = {"int16": "<i2", "int32": "<i4"}

@@ -22,10 +22,11 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-from pipeline import __version__, catalogs
-from pipeline.case import Case, CaseError, LayoutRequest, Resolution, run_case
-from pipeline.cube import METRICS, CubeError, git_revision, metric_values
-from pipeline.lock import cube_lock
+from ftsweep import __version__, catalogs
+from ftsweep.case import Case, CaseError, LayoutRequest, Resolution, run_case
+from ftsweep.cube import SCHEMA_VERSION, CubeError, git_revision, metric_values, metrics_for
+from ftsweep.lock import cube_lock
+from ftsweep.sweep import axis_attrs
 
 ASPECT_RANGE = {"ring": (0.3, 400.0), "mesh": (0.08, 16.0)}
 
@@ -60,6 +61,7 @@ class Optimizer:
             kind="optimize",
             surface=surface,
             layout_method=layout,
+            ftsweep_cube_schema=SCHEMA_VERSION,
             tolerance_nm=tolerance_nm,
             machine=machine,
             cutting=cutting,
@@ -118,7 +120,7 @@ class Optimizer:
     def _append(self, rec: dict[str, Any]) -> None:
         data = {}
         values = metric_values(rec) if rec["status"] == "done" else {}
-        for var, (dtype, units, long_name, fill) in METRICS.items():
+        for var, (dtype, units, long_name, fill) in metrics_for(self.layout).items():
             data[var] = (
                 ("evaluation",),
                 np.array([values.get(var, fill)], dtype=dtype),
@@ -126,7 +128,7 @@ class Optimizer:
             )
         for var, units, long_name in (
             ("points_target", "1", "target number of control points"),
-            ("aspect_target", "µm/deg (ring) or 1 (mesh)", "target aspect ratio"),
+            ("aspect_target", axis_attrs("aspect", self.layout)["units"], "target aspect ratio"),
         ):
             data[var] = (("evaluation",), np.array([rec[var]]), {"units": units, "long_name": long_name})
         for var, long_name in (
@@ -137,7 +139,7 @@ class Optimizer:
             data[var] = (
                 ("evaluation",),
                 np.array([str(rec[var])], dtype=object),
-                {"units": "1", "long_name": long_name},
+                {"long_name": long_name},
             )
         ds = xr.Dataset(data, attrs=self.attrs)
         with warnings.catch_warnings():

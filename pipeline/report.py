@@ -21,13 +21,13 @@ from typing import Any, Optional
 
 import numpy as np
 
-import pipeline.accessor  # noqa: F401  (registers ds.ftsweep)
-from pipeline.accessor import _axes, plot_map
-from pipeline.case import build_layout, control_table, run_case
-from pipeline.catalogs import aperture_of
-from pipeline.io import write_text_atomic
-from pipeline.select import SelectError, choose, describe, eligible, open_cube, recorded_case
-from stages import dynamics
+import ftsweep.accessor  # noqa: F401  (registers ds.ftsweep)
+from ftsweep.accessor import _axes, plot_map
+from ftsweep.case import build_layout, control_table, run_case
+from ftsweep.catalogs import aperture_of
+from ftsweep.io import write_text_atomic
+from ftsweep.select import SelectError, choose, describe, eligible, open_cube, recorded_case
+from ftsweep.stages import dynamics
 
 FIGURES = {
     "pv_vs_points": "P-V against point count, one line per aspect ratio",

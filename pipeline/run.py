@@ -16,11 +16,11 @@ from typing import Any, Optional
 
 import numpy as np
 
-from pipeline import catalogs, cube
-from pipeline.cube import CubeError
-from pipeline.executor import execute
-from pipeline.lock import cube_lock
-from pipeline.sweep import MAX_CASES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
+from ftsweep import catalogs, cube
+from ftsweep.cube import CubeError
+from ftsweep.executor import execute
+from ftsweep.lock import cube_lock
+from ftsweep.sweep import MAX_CASES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
 
 
 def default_cube_path(name: str) -> Path:
@@ -40,7 +40,7 @@ def check_sweep_size(spec: SweepSpec, max_cases: int = MAX_CASES) -> None:
     sizes = [v.size for v in coordinates(spec).values()]
     count = math.prod(sizes)
     bins = spec.resolution.error_map_bins or 0
-    per_case = 8 * (len(cube.METRICS) + 4) + 16 * bins * bins
+    per_case = 8 * (len(cube.metrics_for(str(spec.layout))) + 4) + 16 * bins * bins
     nbytes = count * per_case
     hours = count * SECONDS_PER_CASE / 3600.0
     if count > max_cases:
@@ -96,7 +96,7 @@ def prepare_cube(name: str, spec: SweepSpec, out: Path, restart: bool, catalog_f
     existing cube and starts over.
     """
     if out.exists():
-        attrs = cube.read_attrs(out)
+        attrs = cube.read_attrs(out, check_schema=not restart)
         if restart:
             shutil.rmtree(out)
         elif attrs["sweep_spec_hash"] != spec.spec_hash():
@@ -143,7 +143,7 @@ def run_sweep(
 ) -> SweepReport:
     """Run (or resume) a sweep; cases already done in the cube are skipped.
 
-    The cube is locked for the whole run (:mod:`pipeline.lock`): a second writer, or a
+    The cube is locked for the whole run (:mod:`ftsweep.lock`): a second writer, or a
     ``restart`` while another run writes, is refused. Done cases whose data chunks are
     missing or unreadable are recomputed (``report.damaged`` names them).
 

@@ -13,7 +13,7 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-from pipeline import cube
+from ftsweep import cube
 
 
 class SelectError(ValueError):
@@ -57,8 +57,8 @@ def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
     names = ("drho_um", "dtheta_deg") if layout == "ring" else ("dx_um", "dy_um")
     out["layout"] = layout
     out["n_points"] = int(point["n_points"])
-    out[names[0]] = float(point["pitch_0"])
-    out[names[1]] = float(point["pitch_1"])
+    out[names[0]] = float(point[names[0]])
+    out[names[1]] = float(point[names[1]])
     out["aspect"] = float(point["aspect_actual"])
     for var in ("pv_nm", "rms_nm", "pv_interp_nm", "pv_inner_nm", "pv_outer_nm"):
         out[var] = float(point[var])
@@ -128,8 +128,8 @@ def choose(
 def recorded_case(ds: xr.Dataset, flat: int) -> tuple[Any, tuple[Any, Any, Any]]:
     """The case at flat index ``flat`` of a cube and the (surface, machine, cutting) entries
     the cube recorded for it."""
-    from pipeline.catalogs import specs_from_entries
-    from pipeline.sweep import SweepSpec, case_at
+    from ftsweep.catalogs import specs_from_entries
+    from ftsweep.sweep import SweepSpec, case_at
 
     case = case_at(SweepSpec.model_validate_json(ds.attrs["sweep_spec"]), flat)
     entries = json.loads(ds.attrs["catalog_entries"])

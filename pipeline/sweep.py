@@ -17,9 +17,9 @@ from typing import Annotated, Any, Literal, Optional, Union
 import numpy as np
 from pydantic import Field, PositiveFloat, PositiveInt, ValidationError, model_validator
 
-from pipeline import catalogs
-from pipeline.case import Case, LayoutRequest, Resolution, build_layout
-from pipeline.catalogs import CatalogError, Strict
+from ftsweep import catalogs
+from ftsweep.case import Case, LayoutRequest, Resolution, build_layout
+from ftsweep.catalogs import CatalogError, Strict
 
 MAX_AXIS_VALUES = 100_000
 # every case costs seconds of a core: beyond this many cases a sweep is refused unless the
@@ -83,10 +83,18 @@ class SweepSpec(Strict):
 AXIS_ORDER = ("points", "aspect", "feed_um", "nose_radius_um")
 AXIS_ATTRS = {
     "points": {"units": "1", "long_name": "target number of control points"},
-    "aspect": {"units": "µm/deg (ring) or 1 (mesh)", "long_name": "target aspect ratio of the pitches"},
-    "feed_um": {"units": "µm/rev", "long_name": "feed per revolution"},
-    "nose_radius_um": {"units": "µm", "long_name": "tool nose radius"},
+    "feed_um": {"units": "um", "long_name": "feed per spindle revolution"},
+    "nose_radius_um": {"units": "um", "long_name": "tool nose radius"},
 }
+ASPECT_ATTRS = {
+    "ring": {"units": "um/deg", "long_name": "target aspect ratio Δρ/Δθ of the pitches"},
+    "mesh": {"units": "1", "long_name": "target aspect ratio Δx/Δy of the pitches"},
+}
+
+
+def axis_attrs(axis: str, kind: str) -> dict[str, str]:
+    """Units (parseable by pint/UDUNITS) and long name of a sweep axis for layout ``kind``."""
+    return dict(ASPECT_ATTRS[kind] if axis == "aspect" else AXIS_ATTRS[axis])
 
 
 def axis_values(spec: Any) -> np.ndarray:
@@ -200,7 +208,7 @@ def estimated_cost(spec: SweepSpec, index: int, catalog_folder: Path | None = No
         layout = build_layout(surface, case.layout)
     except ValueError:
         return 0.0
-    from pipeline.case import angular_samples
+    from ftsweep.case import angular_samples
 
     rho0 = catalogs.aperture_of(surface).outer_radius_um
     feed = case.feed_um or catalogs.entry("cutting", case.cutting, catalog_folder).feed_um

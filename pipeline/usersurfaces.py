@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from stages.surfaces import Aperture, SurfaceFn, bspline2d
+from ftsweep.stages.surfaces import Aperture, SurfaceFn, bspline2d
 
 
 class SurfaceLoadError(ValueError):

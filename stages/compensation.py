@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from stages.surfaces import SurfaceFn, radial_section
+from .surfaces import SurfaceFn, radial_section
 
 MODES = ("exact", "slope", "none")
 MODE_CODES = {"exact": 0, "slope": 1, "none": 2}
@@ -66,7 +66,7 @@ def compensate(
 
     Parameters
     ----------
-    surface : surface callable (see :mod:`stages.surfaces`).
+    surface : surface callable (see :mod:`ftsweep.stages.surfaces`).
     rho, theta : arrays of equal shape: radial position and section angle of each point.
     nose_radius_um : tool nose radius Rc [µm].
     mode : ``exact``, ``slope`` or ``none`` (physics.md §4).

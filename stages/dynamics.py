@@ -15,8 +15,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stages.interpolation import interpolate
-from stages.layouts import Layout
+from .interpolation import interpolate
+from .layouts import Layout
 
 
 class Dynamics(NamedTuple):

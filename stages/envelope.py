@@ -81,7 +81,7 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
         ``node_offset + k·ppf``).
     n_passes : (R,) passes per ray.
     eval_start : first evaluation node; nodes from there inwards down to the axis are
-        evaluated (see :func:`stages.interpolation.first_machined_node`).
+        evaluated (see :func:`ftsweep.stages.interpolation.first_machined_node`).
     z : (R, G) output; filled on the evaluation nodes, NaN elsewhere.
     cusp_r, cusp_z : (R, C) outputs: radius [µm] and height [µm] of the cusp peaks (where
         one arc takes over from the next) inside the evaluated part of each ray, in order,

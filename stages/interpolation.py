@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from stages.layouts import Layout
+from .layouts import Layout
 
 
 @njit(nogil=True, cache=True)

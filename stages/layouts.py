@@ -59,6 +59,14 @@ def _check_positive(**values: float) -> None:
             raise ValueError(f"{name} must be a positive finite number, got {value!r}")
 
 
+def nearest_ring_dtheta(dtheta_deg: float) -> tuple[float, int]:
+    """The realisable angular pitch nearest ``dtheta_deg`` [deg]: 360/Np [deg] for the integer
+    Np = round(360/Δθ) (at least 4), and Np (physics.md §2: Np = 360/Δθ points per ring)."""
+    _check_positive(dtheta_deg=dtheta_deg)
+    np_int = max(4, int(round(360.0 / dtheta_deg)))
+    return 360.0 / np_int, np_int
+
+
 def ring_layout(radius_um: float, drho_um: float, dtheta_deg: float) -> Layout:
     """Ring (polar) layout from explicit pitches, physics.md §2.
 
@@ -76,7 +84,7 @@ def ring_layout(radius_um: float, drho_um: float, dtheta_deg: float) -> Layout:
     if abs(n_per_ring - np_int) > 1e-6 * n_per_ring:
         raise ValueError(
             f"dtheta_deg={dtheta_deg} does not divide 360°: choose 360/Np for an integer Np, "
-            f"e.g. {360.0 / max(np_int, 1):.6g}"
+            f"e.g. {360.0 / max(np_int, 1)!r} (Np = {np_int})"
         )
     if np_int < 4:
         raise ValueError(f"dtheta_deg={dtheta_deg} gives {np_int} points per ring; at least 4 are needed")

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.bench import bench_cases
-from pipeline.case import run_case
-from stages import envelope, interpolation, layouts
+from ftsweep.bench import bench_cases
+from ftsweep.case import run_case
+from ftsweep.stages import envelope, interpolation, layouts
 
 
 @pytest.mark.bench

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline import catalogs
-from pipeline.catalogs import CatalogError, Cutting, Machine, SurfaceSpec, load_catalog
+from ftsweep import catalogs
+from ftsweep.catalogs import CatalogError, Cutting, Machine, SurfaceSpec, load_catalog
 
 
 def write(tmp_path, text):

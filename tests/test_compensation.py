@@ -10,9 +10,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from stages import compensation
-from stages.compensation import arc_lift, compensate
-from stages.surfaces import FAMILIES, lens_array, radial_section, sinewave2d
+from ftsweep.stages import compensation
+from ftsweep.stages.compensation import arc_lift, compensate
+from ftsweep.stages.surfaces import FAMILIES, lens_array, radial_section, sinewave2d
 
 LENS = dict(radius_um=252.5, sag_um=5.0, pitch_um=150.0, count_x=11, count_y=11)
 

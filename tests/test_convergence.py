@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline import catalogs
-from pipeline.case import Case, LayoutRequest, Resolution, run_case
+from ftsweep import catalogs
+from ftsweep.case import Case, LayoutRequest, Resolution, run_case
 
 REFERENCES = catalogs.entries("references")
 

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from stages import envelope
+from ftsweep.stages import envelope
 
 
 def brute_force(pos, w, rc, query):

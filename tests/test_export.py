@@ -12,14 +12,14 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
-from pipeline import cube
-from pipeline.case import build_layout, control_table
-from pipeline.catalogs import entry
-from pipeline.cli import main
-from pipeline.export import ExportError, c_identifier, c_string, export, read_header, verify
-from pipeline.run import run_sweep
-from pipeline.select import SelectError, choose, open_cube
-from pipeline.sweep import case_at, load_sweep
+from ftsweep import cube
+from ftsweep.case import build_layout, control_table
+from ftsweep.catalogs import entry
+from ftsweep.cli import main
+from ftsweep.export import ExportError, c_identifier, c_string, export, read_header, verify
+from ftsweep.run import run_sweep
+from ftsweep.select import SelectError, choose, open_cube
+from ftsweep.sweep import case_at, load_sweep
 
 RING = """
 surface: small_sine
@@ -188,7 +188,7 @@ def test_failed_and_infeasible_cases_are_refused(tmp_path, catalog_dir, monkeypa
 
 
 def test_identifiers_are_valid_c_whatever_the_names(ring_cube, tmp_path):
-    from pipeline.export import C_KEYWORDS
+    from ftsweep.export import C_KEYWORDS
 
     for raw in ("3d lens/array", "ü-mlaut x", "__", "if", "int"):
         ident = c_identifier(raw)

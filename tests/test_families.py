@@ -11,12 +11,12 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline import catalogs
-from pipeline.case import Case, LayoutRequest, run_case
-from pipeline.catalogs import CatalogError, SurfaceSpec, load_catalog
-from pipeline.cli import main
-from pipeline.usersurfaces import SurfaceLoadError, height_map_surface
-from stages.surfaces import Aperture, noll_to_nm, radial_section, sinewave2d
+from ftsweep import catalogs
+from ftsweep.case import Case, LayoutRequest, run_case
+from ftsweep.catalogs import CatalogError, SurfaceSpec, load_catalog
+from ftsweep.cli import main
+from ftsweep.stages.surfaces import Aperture, noll_to_nm, radial_section, sinewave2d
+from ftsweep.usersurfaces import SurfaceLoadError, height_map_surface
 
 ALL = [
     "sinewave2d",
@@ -194,9 +194,9 @@ def test_plugin_returning_the_wrong_shape_is_refused(tmp_path, monkeypatch, cata
 
 def test_plugin_without_slopes_is_differentiated():
     spec = catalogs.entry("surfaces", "dimples_plugin").model_copy(deep=True)
-    from pipeline.catalogs import PluginParams
+    from ftsweep.catalogs import PluginParams
 
-    saddle = spec.model_copy(update={"params": PluginParams(function="pipeline.examples:saddle")})
+    saddle = spec.model_copy(update={"params": PluginParams(function="ftsweep.examples:saddle")})
     f, fx, fy = catalogs.surface_callable(saddle)(np.array([300.0]), np.array([-200.0]))
     assert f[0] == pytest.approx(2.0 * (300.0**2 - 200.0**2) / 1e6)
     assert fx[0] == pytest.approx(2.0 * 2 * 300.0 / 1e6, rel=1e-6)
@@ -226,7 +226,7 @@ c:
 
 
 def test_off_axis_offset_moves_the_freeform():
-    from stages.surfaces import chebyshev_freeform
+    from ftsweep.stages.surfaces import chebyshev_freeform
 
     kw = dict(
         base_radius_um=5000.0, coefficients_um=[[0.0, 0.0], [0.0, 1.0]], norm_x_um=100.0, norm_y_um=100.0

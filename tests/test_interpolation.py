@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from stages import interpolation, layouts
+from ftsweep.stages import interpolation, layouts
 
 coef = st.floats(-10.0, 10.0)
 

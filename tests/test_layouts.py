@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pipeline import catalogs
-from stages import layouts
+from ftsweep import catalogs
+from ftsweep.stages import layouts
 
 radius = st.floats(50.0, 3000.0)
 pitch_um = st.floats(0.5, 50.0)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from pipeline.cube import CubeError
-from pipeline.optimize import optimize
+from ftsweep.cube import CubeError
+from ftsweep.optimize import optimize
 
 
 def test_finds_the_smallest_layout_meeting_the_tolerance(tmp_path, catalog_dir):
@@ -24,7 +24,8 @@ def test_finds_the_smallest_layout_meeting_the_tolerance(tmp_path, catalog_dir):
     np.testing.assert_array_equal(
         (ds["table_rows"] * ds["table_cols"]).values[done], ds["n_points"].values[done]
     )
-    assert np.all(np.isfinite(ds["pitch_0"].values[done])) and np.all(ds["aspect_actual"].values[done] > 0)
+    assert np.all(np.isfinite(ds["drho_um"].values[done])) and np.all(ds["aspect_actual"].values[done] > 0)
+    assert ds["dtheta_deg"].attrs["units"] == "deg" and ds["aspect_target"].attrs["units"] == "um/deg"
     meets = (ds["pv_nm"].values <= 40.0) & (ds["status"].values == "done")
     # the answer is the smallest evaluated layout that meets it
     assert ans["n_points"] == ds["n_points"].values[meets].min()

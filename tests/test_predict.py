@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from pipeline.case import Case, CaseError, LayoutRequest, Resolution, run_case
-from pipeline.cli import main
+from ftsweep.case import Case, CaseError, LayoutRequest, Resolution, run_case
+from ftsweep.cli import main
 
 REQUIRED = {"surface", "layout", "n_points", "pv_nm", "rms_nm", "pv_interp_nm", "seconds"}
 
@@ -119,7 +119,7 @@ def test_readable_summary_names_units():
         (["--surface", "sinewave2d", "--points", "1000"], "--aspect"),
         (["--surface", "sinewave2d", "--dx-um", "2", "--dy-um", "1"], "belongs to the mesh layout"),
         (["--surface", "sinewave2d", "--drho-um", "2"], "--dtheta-deg is missing"),
-        (["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "0.7"], "does not divide 360"),
+        (["--strict", "--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "0.7"], "not divide 360"),
         (["--surface", "lens_array", "--points", "5000000", "--aspect", "1"], "over the capacity"),
         (
             ["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "1", "--points-per-feed", "3"],

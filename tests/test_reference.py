@@ -13,8 +13,8 @@ import json
 import pytest
 from click.testing import CliRunner
 
-from pipeline import catalogs
-from pipeline.cli import main
+from ftsweep import catalogs
+from ftsweep.cli import main
 
 REFERENCES = catalogs.entries("references")
 

@@ -9,10 +9,10 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
-import pipeline  # noqa: F401  (registers ds.ftsweep)
-from pipeline.cli import main
-from pipeline.report import FIGURES
-from pipeline.run import run_sweep
+import ftsweep  # noqa: F401  (registers ds.ftsweep)
+from ftsweep.cli import main
+from ftsweep.report import FIGURES
+from ftsweep.run import run_sweep
 
 SPEC = """
 surface: small_sine
@@ -78,7 +78,7 @@ def test_stored_error_maps_match_the_case_pv(small_cube):
     # the map's signed peaks are node errors, so they stay within each case's error range
     assert np.all(np.nanmax(peak, axis=(2, 3)) <= ds["error_max_nm"].values + 1e-9)
     assert np.all(np.nanmin(peak, axis=(2, 3)) >= ds["error_min_nm"].values - 1e-9)
-    assert ds["map_x"].attrs["units"] == "µm"
+    assert ds["map_x"].attrs["units"] == "um"
 
 
 def test_error_map_without_stored_maps_says_what_to_do(tmp_path, catalog_dir):

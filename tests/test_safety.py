@@ -20,12 +20,12 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
-from pipeline import cube
-from pipeline.cli import main
-from pipeline.export import CHECKSUM_MACRO, ExportError, checksum, export, read_header, verify
-from pipeline.lock import LockError, acquire, lock_path, release
-from pipeline.run import run_sweep
-from pipeline.select import SelectError, choose, open_cube
+from ftsweep import cube
+from ftsweep.cli import main
+from ftsweep.export import CHECKSUM_MACRO, ExportError, checksum, export, read_header, verify
+from ftsweep.lock import LockError, acquire, lock_path, release
+from ftsweep.run import run_sweep
+from ftsweep.select import SelectError, choose, open_cube
 
 BIN = Path(sys.executable).parent
 
@@ -285,7 +285,7 @@ def test_nan_off_the_test_grid_fails_the_case_and_nothing_is_exported(tmp_path, 
 
 
 def test_quantisation_refuses_non_finite_values():
-    from pipeline.export import quantise
+    from ftsweep.export import quantise
 
     with pytest.raises(ExportError, match="non-finite"):
         quantise(np.array([[1.0, np.nan]]), 1.0, "int32")

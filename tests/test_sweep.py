@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from pipeline import cube
-from pipeline.catalogs import CatalogError
-from pipeline.cube import CubeError
-from pipeline.run import best_per_point_count, run_sweep
-from pipeline.sweep import case_at, load_sweep, n_cases
+from ftsweep import cube
+from ftsweep.catalogs import CatalogError
+from ftsweep.cube import CubeError
+from ftsweep.run import best_per_point_count, run_sweep
+from ftsweep.sweep import case_at, load_sweep, n_cases
 
 SMALL = """
 description: a small sweep for tests
@@ -50,7 +50,7 @@ def test_reference_sweeps_validate_and_cover_the_ranges():
         ("lens-array-mesh", 4e4, 1e6, 0.08, 16),
     ):
         _, spec = load_sweep(name)
-        from pipeline.sweep import coordinates
+        from ftsweep.sweep import coordinates
 
         c = coordinates(spec)
         assert c["points"].size >= 6 and c["aspect"].size >= 12
@@ -341,7 +341,13 @@ def test_cube_opens_in_a_plain_python_session_with_coordinates_and_units(referen
     assert "'pv_nm': 'nm'" in out.stdout and "'runtime_s': 's'" in out.stdout
     ds = xr.open_zarr(reference_cube)
     for name, var in ds.variables.items():
-        assert "units" in var.attrs and "long_name" in var.attrs, name
+        assert "long_name" in var.attrs, name
+        # numbers carry units; flags (status) and text follow CF and carry none
+        numeric = var.dtype.kind in "fiu" and "flag_values" not in var.attrs
+        assert ("units" in var.attrs) == numeric, name
+    # a ring cube names its pitches by their physics, with parseable units
+    assert ds["drho_um"].attrs["units"] == "um" and ds["dtheta_deg"].attrs["units"] == "deg"
+    assert ds["aspect"].attrs["units"] == "um/deg" and "pitch_0" not in ds
     for key in ("ftsweep_version", "git_revision", "sweep_spec", "catalog_entries", "created"):
         assert ds.attrs[key]
     entries = json.loads(ds.attrs["catalog_entries"])

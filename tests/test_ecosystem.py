@@ -1,0 +1,182 @@
+"""Fit the ecosystem (issue 9): one installed package ``ftsweep``, cubes with physics names
+and parseable units, realisable pitches by rounding, catalogs printed whole."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+import zarr
+from click.testing import CliRunner
+
+from ftsweep import catalogs, cube
+from ftsweep.cli import main
+from ftsweep.cube import CubeError
+from ftsweep.run import run_sweep
+from ftsweep.select import open_cube
+
+REPO = Path(__file__).resolve().parent.parent
+SPEC = """
+surface: {surface}
+axes: {{points: [8000, 15000], aspect: [{aspects}]}}
+"""
+
+
+@pytest.fixture(scope="module")
+def cubes(tmp_path_factory, module_catalog_dir):
+    """A small ring cube and a small mesh cube."""
+    folder = tmp_path_factory.mktemp("cubes")
+    out = {}
+    for kind, surface, aspects in (("ring", "small_sine", "2.0, 8.0"), ("mesh", "small_lens", "0.5, 1.0")):
+        spec = folder / f"{kind}.yaml"
+        spec.write_text(SPEC.format(surface=surface, aspects=aspects))
+        out[kind] = folder / f"{kind}.zarr"
+        run_sweep(str(spec), out[kind], scheduler="synchronous", catalog_folder=module_catalog_dir)
+    return out
+
+
+# ----------------------------------------------------------------------------- units
+@pytest.mark.parametrize("kind", ["ring", "mesh"])
+def test_cube_quantifies_with_pint_and_converts(cubes, kind):
+    pint_xarray = pytest.importorskip("pint_xarray")
+    assert pint_xarray
+    ds = xr.open_zarr(cubes[kind])
+    q = ds.pint.quantify()
+    pv_um = q["pv_nm"].pint.to("um")
+    np.testing.assert_allclose(pv_um.pint.magnitude, ds["pv_nm"].values / 1000.0)
+    assert str(q["w_accel_peak_m_s2"].pint.units) == "meter / second ** 2"
+    assert str(q["w_freq_max_hz"].pint.units) == "hertz"
+    names = ("drho_um", "dtheta_deg") if kind == "ring" else ("dx_um", "dy_um")
+    for name in names:
+        assert name in ds and np.all(np.isfinite(ds[name].values))
+    assert "pitch_0" not in ds and "pitch_1" not in ds
+    assert str(q["aspect"].pint.units) == ("micrometer / degree" if kind == "ring" else "dimensionless")
+    assert str(q[names[1]].pint.units) == ("degree" if kind == "ring" else "micrometer")
+    # the realised aspect ratio is the ratio of the realised pitches
+    np.testing.assert_allclose(ds["aspect_actual"], ds[names[0]] / ds[names[1]], rtol=1e-12)
+
+
+def test_import_ftsweep_registers_the_accessor(cubes):
+    code = (
+        "import sys, xarray as xr, ftsweep; ds = xr.open_zarr(sys.argv[1]); "
+        "print(ds.ftsweep.best(budget_points=20000)['dtheta_deg'])"
+    )
+    out = subprocess.run([sys.executable, "-c", code, str(cubes["ring"])], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert float(out.stdout) > 0
+
+
+def test_cube_of_the_old_layout_is_refused_with_how_to_recompute(tmp_path, module_catalog_dir):
+    spec = tmp_path / "old.yaml"
+    spec.write_text(SPEC.format(surface="small_sine", aspects="2.0"))
+    out = tmp_path / "old.zarr"
+    run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=module_catalog_dir)
+    group = zarr.open_group(str(out), mode="r+")
+    group.attrs["ftsweep_cube_schema"] = 1  # as written before the variables were renamed
+    zarr.consolidate_metadata(str(out))
+    with pytest.raises(CubeError, match="older ftsweep.*--restart"):
+        open_cube(out)
+    with pytest.raises(CubeError, match="older ftsweep"):
+        run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=module_catalog_dir)
+    report = run_sweep(
+        str(spec), out, scheduler="synchronous", catalog_folder=module_catalog_dir, restart=True
+    )
+    assert report.done == 2 and open_cube(out).attrs["ftsweep_cube_schema"] == cube.SCHEMA_VERSION
+
+
+# ----------------------------------------------------------------------------- pitches
+def test_unrealisable_dtheta_is_rounded_with_a_notice(catalog_dir):
+    env = {"FTSWEEP_CATALOGS": str(catalog_dir)}
+    args = ["predict", "--surface", "small_sine", "--drho-um", "10", "--dtheta-deg", "0.7", "--json"]
+    r = CliRunner().invoke(main, args, env=env)
+    assert r.exit_code == 0, r.output
+    record = json.loads(r.stdout)
+    assert record["dtheta_deg"] == pytest.approx(360.0 / 514) and record["table_shape"][1] == 514
+    notice = r.stderr.strip().splitlines()
+    assert len(notice) == 1 and "0.7" in notice[0] and "0.7003891" in notice[0] and "514" in notice[0]
+    strict = CliRunner().invoke(main, [*args, "--strict"], env=env)
+    assert strict.exit_code != 0 and "does not divide 360" in strict.output
+    # the value the refusal suggests is accepted as it is printed
+    suggested = strict.output.split("e.g. ")[1].split(" ")[0]
+    again = CliRunner().invoke(main, [*args[:-2], suggested, "--strict", "--json"], env=env)
+    assert again.exit_code == 0, again.output
+    assert json.loads(again.stdout)["n_points"] == record["n_points"]
+    exact = CliRunner().invoke(main, [*args[:-2], "0.5", "--json"], env=env)
+    assert exact.exit_code == 0 and "notice" not in exact.stderr  # 0.5 divides 360: no notice
+
+
+# ----------------------------------------------------------------------------- catalogs
+def test_catalogs_prints_whole_descriptions_and_json():
+    r = CliRunner().invoke(main, ["catalogs"])
+    assert r.exit_code == 0, r.output
+    flat = " ".join(r.output.split())
+    for kind in ("surfaces", "machines", "cutting"):
+        for name, spec in catalogs.entries(kind).items():
+            assert f"{name}" in flat
+            assert " ".join(spec.description.split()) in flat, name
+    assert max(len(line) for line in r.output.splitlines()) <= 120
+    data = json.loads(CliRunner().invoke(main, ["catalogs", "--json"]).stdout)
+    assert set(data["surfaces"]) == set(catalogs.entries("surfaces"))
+    assert data["machines"]["fts-1m"]["capacity_points"] > 0
+    assert "sinewave-ring" in data["sweeps"]
+
+
+# ----------------------------------------------------------------------------- packaging
+def test_wheel_installs_one_package_named_ftsweep(tmp_path):
+    """A regular (non-editable) install: build the wheel, install it without dependencies into
+    a fresh virtual environment that borrows this environment's dependencies through a .pth
+    line (whose own .pth files, the editable install among them, are not processed), and use
+    it from a folder outside the repository."""
+    dist = tmp_path / "dist"
+    build = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist), str(REPO)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert build.returncode == 0, build.stderr
+    wheel = next(dist.glob("ftsweep-*.whl"))
+    import zipfile
+
+    tops = {name.split("/")[0] for name in zipfile.ZipFile(wheel).namelist()}
+    assert {t for t in tops if not t.endswith(".dist-info")} == {"ftsweep"}
+    venv = tmp_path / "fresh"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    py = venv / "bin" / "python"
+    subprocess.run(
+        [str(py), "-m", "pip", "install", "-q", "--no-deps", "--no-index", str(wheel)],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
+    site = subprocess.run(
+        [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    (Path(site) / "borrowed_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("FTSWEEP_CATALOGS", "PYTHONPATH")}
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(list(args), capture_output=True, text=True, env=env, cwd=work, timeout=600)
+
+    ok = run(str(py), "-c", "import ftsweep, ftsweep.stages, xarray; print(ftsweep.__file__)")
+    assert ok.returncode == 0, ok.stderr
+    assert ok.stdout.strip().startswith(site)  # the wheel's copy, not the repository's
+    for generic in ("pipeline", "stages"):
+        refused = run(str(py), "-c", f"import {generic}")
+        assert refused.returncode != 0 and "ModuleNotFoundError" in refused.stderr
+    args = ["predict", "--surface", "sinewave2d", "--drho-um", "50", "--dtheta-deg", "10", "--json"]
+    pred = run(str(venv / "bin" / "ftsweep"), *args)
+    assert pred.returncode == 0, pred.stderr
+    assert json.loads(pred.stdout)["n_points"] == 21 * 36  # catalogs shipped in the wheel

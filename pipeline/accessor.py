@@ -18,7 +18,7 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-from ftsweep import cube
+from ftsweep import cube, query
 
 
 def _axes(ax: Any = None, size: tuple[float, float] = (7.0, 4.6)) -> Any:
@@ -53,10 +53,9 @@ class FtsweepAccessor:
         return self._ds[numeric].where(self._ds["status"] == cube.DONE)
 
     def pv(self) -> xr.DataArray:
-        """P-V [nm] of done cases over (points, aspect), other axes reduced by their minimum."""
-        pv = self.done()["pv_nm"]
-        other = [d for d in pv.dims if d not in ("points", "aspect")]
-        return pv.min(other) if other else pv
+        """P-V [nm] of the eligible cases (done, feasible, within capacity: those ``select``
+        may choose) over (points, aspect), other axes reduced by their minimum."""
+        return query.best_pv_over_aspect(self._ds)
 
     def best(
         self, budget_points: Optional[int] = None, tolerance_nm: Optional[float] = None
@@ -68,8 +67,11 @@ class FtsweepAccessor:
         return choose(self._ds, budget_points=budget_points, tolerance_nm=tolerance_nm)
 
     def optimum(self) -> xr.DataArray:
-        """Best aspect ratio per target point count (from done cases)."""
-        return self.pv().idxmin("aspect")
+        """Best aspect ratio per target point count among the eligible cases (the sweep
+        summary's and ``select``'s best; NaN where none is eligible)."""
+        pv = self.pv()
+        found = pv.notnull().any("aspect")
+        return pv.fillna(np.inf).idxmin("aspect").where(found)
 
     # ------------------------------------------------------------------ plots
     def plot_pv(self, ax: Any = None) -> Any:
@@ -158,12 +160,8 @@ class FtsweepAccessor:
             )
         if index is None:
             index = self.best(budget_points=int(self._ds["n_points"].max()))["index"]
-        shape = self._ds["status"].shape
-        pos = dict(zip(self._ds["status"].dims, np.unravel_index(index, shape), strict=True))
-        emap = self._ds[var].isel(pos)
-        from ftsweep.select import describe
-
-        return plot_map(emap["map_x"].values, emap.values, describe(self._ds, index), kind, ax)
+        emap = self._ds[var].isel(query.position(self._ds, index))
+        return plot_map(emap["map_x"].values, emap.values, query.describe(self._ds, index), kind, ax)
 
 
 def _cmap(n: int) -> Any:

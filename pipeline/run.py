@@ -209,31 +209,26 @@ def _run_locked(
 
 
 def best_per_point_count(path: Path) -> list[dict[str, Any]]:
-    """For each target point count: the aspect ratio with the lowest P-V among done cases."""
+    """For each target point count: its best eligible case (:mod:`ftsweep.query`), the one
+    ``select`` and ``ds.ftsweep.optimum()`` name too (None where no case is eligible)."""
     import xarray as xr
 
-    ds = xr.open_zarr(path)
-    pv = ds["pv_nm"].where(ds["status"] == cube.DONE)
-    other = [d for d in pv.dims if d not in ("points", "aspect")]
+    from ftsweep import query
+
+    ds = xr.open_zarr(path).load()
     rows = []
-    for i, target in enumerate(ds["points"].values):
-        sel = pv.isel(points=i)
-        if other:
-            sel = sel.min(other)
-        values = sel.values
-        if np.all(np.isnan(values)):
-            rows.append({"points": float(target), "aspect": None, "pv_nm": None, "n_points": None})
+    for target, flat in query.best_per_points(ds):
+        if flat is None:
+            rows.append({"points": target, "aspect": None, "pv_nm": None, "n_points": None, "index": None})
             continue
-        j = int(np.nanargmin(values))
-        n_points = ds["n_points"].isel(points=i, aspect=j)
-        if other:
-            n_points = n_points.max(other)
+        case = query.describe(ds, flat)
         rows.append(
             {
-                "points": float(target),
-                "aspect": float(ds["aspect"].values[j]),
-                "pv_nm": float(values[j]),
-                "n_points": int(n_points.values),
+                "points": target,
+                "aspect": case["aspect_target"],
+                "pv_nm": case["pv_nm"],
+                "n_points": case["n_points"],
+                "index": flat,
             }
         )
     return rows

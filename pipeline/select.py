@@ -14,6 +14,7 @@ import numpy as np
 import xarray as xr
 
 from ftsweep import cube
+from ftsweep.query import best_flat, capacity_of, describe, eligible, position
 
 
 class SelectError(ValueError):
@@ -31,50 +32,11 @@ def open_cube(path: Path) -> xr.Dataset:
         raise
 
 
-def capacity_of(ds: xr.Dataset) -> int:
-    """The controller capacity of the machine the cube's sweep used."""
-    machines = json.loads(ds.attrs["catalog_entries"])["machine"]
-    return int(next(iter(machines.values()))["capacity_points"])
-
-
-def eligible(ds: xr.Dataset) -> xr.DataArray:
-    """Cases that may be chosen: done, with a finite P-V, feasible, and within the
-    controller's capacity."""
-    ok = (ds["status"] == cube.DONE) & (ds["n_points"] <= capacity_of(ds)) & np.isfinite(ds["pv_nm"])
-    if "feasible" in ds:
-        ok = ok & (ds["feasible"] == 1)
-    return ok
-
-
-def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
-    """The coordinates and key results of the case at flat index ``flat``."""
-    shape = ds["status"].shape
-    pos = dict(zip(ds["status"].dims, np.unravel_index(flat, shape), strict=True))
-    point = ds.isel(pos)
-    out: dict[str, Any] = {"index": int(flat)}
-    out.update({f"{d}_target": float(ds[d].values[i]) for d, i in pos.items()})
-    layout = ds.attrs.get("layout_method", "")
-    names = ("drho_um", "dtheta_deg") if layout == "ring" else ("dx_um", "dy_um")
-    out["layout"] = layout
-    out["n_points"] = int(point["n_points"])
-    out[names[0]] = float(point[names[0]])
-    out[names[1]] = float(point[names[1]])
-    out["aspect"] = float(point["aspect_actual"])
-    for var in ("pv_nm", "rms_nm", "pv_interp_nm", "pv_inner_nm", "pv_outer_nm"):
-        out[var] = float(point[var])
-    out["status"] = ("pending", "done", "failed")[int(point["status"])]
-    if "feasible" in ds:
-        out["feasible"] = bool(int(point["feasible"]) == 1)
-    return out
-
-
 def select_budget(ds: xr.Dataset, budget_points: int) -> dict[str, Any]:
     """The eligible case with the lowest P-V among layouts of at most ``budget_points``."""
-    ok = (eligible(ds) & (ds["n_points"] <= budget_points)).values.ravel()
-    pv = ds["pv_nm"].values.ravel()
-    if not np.any(ok & np.isfinite(pv)):
+    flat = best_flat(ds, ds["n_points"] <= budget_points)
+    if flat is None:
         raise SelectError(f"no computed, feasible case has at most {budget_points:,} points in this cube")
-    flat = int(np.nanargmin(np.where(ok, pv, np.nan)))
     chosen = describe(ds, flat)
     chosen["rule"] = f"lowest P-V at or under {budget_points:,} points"
     return chosen
@@ -95,9 +57,10 @@ def select_tolerance(ds: xr.Dataset, tolerance_nm: float) -> dict[str, Any]:
         chosen = describe(ds, int(order[0]))
         chosen.update(met=True, rule=f"fewest points with P-V ≤ {tolerance_nm:g} nm")
         return chosen
-    if not np.any(ok & np.isfinite(pv)):
+    flat = best_flat(ds)
+    if flat is None:
         raise SelectError("no computed, feasible case within the machine's capacity in this cube")
-    best = describe(ds, int(np.nanargmin(np.where(ok, pv, np.nan))))
+    best = describe(ds, flat)
     best.update(met=False, rule=f"no case meets P-V ≤ {tolerance_nm:g} nm; this is the best found")
     return best
 
@@ -140,9 +103,7 @@ def recorded_case(ds: xr.Dataset, flat: int) -> tuple[Any, tuple[Any, Any, Any]]
 
 def check_exportable(ds: xr.Dataset, flat: int) -> None:
     """Refuse failed, pending, infeasible or over-capacity cases, saying which and why."""
-    shape = ds["status"].shape
-    pos = dict(zip(ds["status"].dims, np.unravel_index(flat, shape), strict=True))
-    point = ds.isel(pos)
+    point = ds.isel(position(ds, flat))
     status = int(point["status"])
     if status == cube.FAILED:
         raise SelectError(

@@ -1,0 +1,106 @@
+"""One query core (issue 15, item 4): the sweep summary, ``ds.ftsweep.optimum()``, ``select``
+and ``export`` agree on every cube, also one with infeasible and over-capacity cases."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import ftsweep  # noqa: F401  (registers ds.ftsweep)
+from ftsweep import cube, query
+from ftsweep.run import best_per_point_count, run_sweep
+from ftsweep.select import check_exportable, choose, open_cube
+
+SPEC = """
+surface: small_sine
+layout: ring
+machine: {machine}
+axes: {{points: [8000, 20000, 60000], aspect: [1.0, 4.0, 16.0]}}
+"""
+
+
+@pytest.fixture(scope="module")
+def mixed_cube(tmp_path_factory, module_catalog_dir):
+    """A cube whose 60,000-point row is over the controller's capacity (30,000) and in which
+    the lowest-P-V case of the 20,000-point row is infeasible for the machine's acceleration
+    limit, while other cases of that row stay feasible."""
+    folder = tmp_path_factory.mktemp("query")
+    catalogs = folder / "catalogs"
+    shutil.copytree(module_catalog_dir, catalogs)
+    probe_spec = folder / "probe.yaml"
+    probe_spec.write_text(SPEC.format(machine="tiny-fts"))
+    probe = folder / "probe.zarr"
+    run_sweep(str(probe_spec), probe, scheduler="synchronous", catalog_folder=catalogs)
+    ds = open_cube(probe)
+    row = ds.isel(points=1)
+    best = int(np.nanargmin(row["pv_nm"].values))
+    accel = row["w_accel_peak_m_s2"].values
+    limit = float(0.999 * accel[best])
+    assert np.any(accel < limit), "no case of the row would stay feasible: choose another row"
+    with (catalogs / "machines.yaml").open("a") as fh:
+        fh.write(
+            f"""
+picky-fts:
+  description: tiny-fts with a peak acceleration limit between the cases (for tests).
+  capacity_points: 30000
+  command_rate_hz: 20000.0
+  travel_um: 5000.0
+  peak_accel_m_s2: {limit!r}
+  continuous_accel_m_s2: 1000.0
+  bandwidth_hz: 440.0
+  bandwidth_amplitude_um: 100.0
+"""
+        )
+    spec = folder / "mixed.yaml"
+    spec.write_text(SPEC.format(machine="picky-fts"))
+    out = folder / "mixed.zarr"
+    run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalogs)
+    return out
+
+
+def test_the_cube_holds_infeasible_and_over_capacity_cases(mixed_cube):
+    ds = open_cube(mixed_cube)
+    assert np.all(ds["status"].values[2] == cube.FAILED)  # over the capacity
+    row = ds.isel(points=1)
+    raw_best = int(np.nanargmin(row["pv_nm"].values))
+    assert int(row["feasible"].values[raw_best]) == 0  # the lowest P-V is infeasible
+    assert np.any(row["feasible"].values == 1)
+
+
+def test_summary_optimum_and_select_agree(mixed_cube):
+    ds = open_cube(mixed_cube)
+    summary = best_per_point_count(mixed_cube)
+    optimum = ds.ftsweep.optimum()
+    for i, row in enumerate(summary):
+        sub = ds.isel(points=[i])
+        if row["index"] is None:
+            assert np.isnan(optimum.values[i])
+            with pytest.raises(ValueError, match="no computed, feasible case"):
+                choose(sub, tolerance_nm=1e9)
+            continue
+        # the summary's case is exportable, and it is the accessor's and select's best
+        check_exportable(ds, row["index"])
+        assert optimum.values[i] == row["aspect"]
+        chosen = choose(sub, tolerance_nm=1e-9)  # nothing meets it: the best of the row
+        assert chosen["pv_nm"] == row["pv_nm"] and chosen["aspect_target"] == row["aspect"]
+        assert ds.ftsweep.pv().isel(points=i).min().item() == row["pv_nm"]
+    # the overall best under the largest budget is the best of the summary's rows
+    found = [r for r in summary if r["index"] is not None]
+    best = choose(ds, budget_points=int(np.nanmax(ds["n_points"].values)))
+    assert best["pv_nm"] == min(r["pv_nm"] for r in found)
+    assert ds.ftsweep.best(budget_points=10**6)["index"] == best["index"]
+
+
+def test_summary_never_names_a_case_select_refuses(mixed_cube):
+    ds = open_cube(mixed_cube)
+    ok = query.eligible(ds).values.ravel()
+    for row in best_per_point_count(mixed_cube):
+        if row["index"] is not None:
+            assert ok[row["index"]]
+    raw = xr.open_zarr(mixed_cube)["pv_nm"].isel(points=1)
+    assert best_per_point_count(mixed_cube)[1]["pv_nm"] > float(
+        raw.min()
+    )  # the infeasible one is passed over

@@ -13,10 +13,11 @@ import json
 import math
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, Literal, Optional
 
 import numpy as np
-from pydantic import Field, PositiveFloat, PositiveInt, model_validator
+from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_validator
 
 from ftsweep import catalogs
 from ftsweep.catalogs import Strict
@@ -38,7 +39,11 @@ class Resolution(Strict):
         description="spindle angles sampled per table cell at the outer radius; an odd number puts "
         "one sample on each ring cell's angular midpoint, where bilinear error peaks",
     )
-    points_per_feed: PositiveInt = Field(2, description="evaluation points per feed along each angle")
+    points_per_feed: PositiveInt = Field(
+        2,
+        description="evaluation points per feed along each angle; even, so the cusp midway "
+        "between passes is a node",
+    )
     n_theta: Optional[PositiveInt] = Field(
         None, description="number of sampled spindle angles over 360°; overrides samples_per_cell"
     )
@@ -52,6 +57,13 @@ class Resolution(Strict):
         le=1024,
         description="bins per side of a coarse error map over the aperture (None: no map)",
     )
+
+    @field_validator("points_per_feed")
+    @classmethod
+    def _even(cls, value: int) -> int:
+        if value % 2:
+            raise ValueError("must be even so the cusp midway between passes is sampled")
+        return value
 
 
 class LayoutRequest(Strict):
@@ -148,6 +160,21 @@ class ErrorMap:
     def over(cls, aperture: Any, bins: int) -> ErrorMap:
         half = max(aperture.half_extent_um)
         return cls(-half, -half, 2.0 * half / bins, bins)
+
+    def add(
+        self,
+        z: np.ndarray,
+        g: np.ndarray,
+        inside: np.ndarray,
+        node_r: np.ndarray,
+        ct: np.ndarray,
+        st: np.ndarray,
+    ) -> None:
+        """Accumulate the errors z − g [µm] of a batch of node grids (rays at cos/sin ``ct``,
+        ``st``) into the bins (:func:`ftsweep.stages.metrics.accumulate_map`)."""
+        metrics.accumulate_map(
+            z, g, inside, node_r, ct, st, self.x0, self.y0, self.bin_um, self.total, self.count, self.peak
+        )
 
     def centres_um(self) -> np.ndarray:
         """Bin centres [µm] along x (and y)."""
@@ -247,6 +274,111 @@ def _pass_point(grid: Any, ray_theta: np.ndarray) -> Callable[[int], str]:
 STAGE_TIMERS = ("sampling", "compensation", "interpolation", "envelope", "metrics", "dynamics")
 
 
+@dataclass(frozen=True)
+class ResolvedCase:
+    """A case with its catalog entries looked up and every rule checked: all the stages need
+    (lengths µm). Built by :func:`resolve_case`."""
+
+    case: Case
+    surface_spec: Any
+    machine: Any
+    cutting: Any
+    layout: Layout
+    surface: Any  # the surface callable fn(x, y) -> (f, ∂f/∂x, ∂f/∂y)
+    aperture: Any
+    feed_um: float
+    nose_radius_um: float
+    gradient_bound: float
+
+    @property
+    def rho0_um(self) -> float:
+        """Start radius of the spiral: the aperture's circumscribed radius [µm] (physics.md §1)."""
+        return float(self.aperture.outer_radius_um)
+
+
+def resolve_case(
+    case: Case, catalog_folder: Any = None, specs: Optional[tuple[Any, Any, Any]] = None
+) -> ResolvedCase:
+    """Look up a case's entries (or take ``specs``) and refuse what cannot be simulated: a
+    feed not below 2·Rc (physics.md §5), a layout the aperture or the
+    controller's capacity rules out, a surface without a finite slope bound."""
+    surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
+    feed = case.feed_um or cutting.feed_um
+    rc = case.nose_radius_um or cutting.nose_radius_um
+    if not feed < 2.0 * rc:
+        raise CaseError(
+            f"feed {feed:g} µm/rev is not below twice the nose radius ({2.0 * rc:g} µm): consecutive "
+            "passes of the nose arc would not overlap and nothing between them is machined (physics.md §5)"
+        )
+    try:
+        layout = build_layout(surface_spec, case.layout)
+    except ValueError as exc:
+        raise CaseError(f"layout: {exc}") from None
+    if layout.n_points > machine.capacity_points:
+        raise CaseError(
+            f"the {layout.kind} layout has {layout.n_points:,} points, over the capacity of machine "
+            f"'{case.machine}' ({machine.capacity_points:,}); use larger pitches or fewer points"
+        )
+    bound = catalogs.gradient_bound(surface_spec, catalog_folder)
+    if not math.isfinite(bound):
+        raise CaseError(
+            f"the slope bound of surface '{case.surface}' is not finite: the surface gives no finite "
+            "slope on its aperture"
+        )
+    return ResolvedCase(
+        case=case,
+        surface_spec=surface_spec,
+        machine=machine,
+        cutting=cutting,
+        layout=layout,
+        surface=catalogs.surface_callable(surface_spec, catalog_folder),
+        aperture=catalogs.aperture_of(surface_spec),
+        feed_um=feed,
+        nose_radius_um=rc,
+        gradient_bound=bound,
+    )
+
+
+@dataclass(frozen=True)
+class LinePlan:
+    """How the part is sampled (physics.md §5): ``n_theta`` spindle angles as feed-plane lines,
+    the simulated margin beyond the aperture [µm] (the arc's contact window plus two feeds),
+    and the lines simulated per batch so a batch holds about ``batch_nodes`` nodes."""
+
+    n_theta: int
+    lines: np.ndarray
+    window_um: float
+    margin_um: float
+    per_batch: int
+    zone_split_um: float
+
+    @classmethod
+    def of(cls, rcase: ResolvedCase, batch_nodes: int, max_nodes: float) -> LinePlan:
+        """The plan of a resolved case; refuses one too costly to run (:func:`check_cost`)."""
+        res = rcase.case.resolution
+        n_theta = angular_samples(rcase.layout, rcase.rho0_um, res)
+        window = compensation.contact_window_um(rcase.gradient_bound, rcase.nose_radius_um)
+        margin = window + 2.0 * rcase.feed_um
+        nodes_per_ray = (rcase.rho0_um + 2.0 * margin) * res.points_per_feed / rcase.feed_um
+        check_cost(nodes_per_ray, n_theta, max_nodes)
+        return cls(
+            n_theta=n_theta,
+            lines=interpolation.line_angles(n_theta),
+            window_um=window,
+            margin_um=margin,
+            per_batch=max(1, int(batch_nodes // (2.0 * nodes_per_ray))),
+            zone_split_um=res.zone_split * rcase.aperture.inner_radius_um,
+        )
+
+    @property
+    def n_batches(self) -> int:
+        return math.ceil(self.lines.size / self.per_batch)
+
+    def batch(self, b: int) -> np.ndarray:
+        """Line angles [rad] of batch ``b``."""
+        return self.lines[b * self.per_batch : (b + 1) * self.per_batch]
+
+
 def run_case(
     case: Case,
     catalog_folder: Any = None,
@@ -270,146 +402,111 @@ def run_case(
     a non-finite height, slope, command or metric fails the case naming where it occurred.
     """
     t_start = time.perf_counter()
-    surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
-    feed = case.feed_um or cutting.feed_um
-    rc = case.nose_radius_um or cutting.nose_radius_um
-    res = case.resolution
-    if res.points_per_feed % 2:
-        raise CaseError(
-            "points_per_feed must be even so the cusp midway between passes is sampled, "
-            f"got {res.points_per_feed}"
-        )
-    if not feed < 2.0 * rc:
-        raise CaseError(
-            f"feed {feed:g} µm/rev is not below twice the nose radius ({2.0 * rc:g} µm): consecutive "
-            "passes of the nose arc would not overlap and nothing between them is machined (physics.md §5)"
-        )
-
-    try:
-        layout = build_layout(surface_spec, case.layout)
-    except ValueError as exc:
-        raise CaseError(f"layout: {exc}") from None
-    if layout.n_points > machine.capacity_points:
-        raise CaseError(
-            f"the {layout.kind} layout has {layout.n_points:,} points, over the capacity of machine "
-            f"'{case.machine}' ({machine.capacity_points:,}); use larger pitches or fewer points"
-        )
-
-    surface = catalogs.surface_callable(surface_spec, catalog_folder)
-    bound = catalogs.gradient_bound(surface_spec, catalog_folder)
-    if not math.isfinite(bound):
-        raise CaseError(
-            f"the slope bound of surface '{case.surface}' is not finite: the surface gives no finite "
-            "slope on its aperture"
-        )
-    aperture = catalogs.aperture_of(surface_spec)
-    rho0 = aperture.outer_radius_um
+    rcase = resolve_case(case, catalog_folder, specs)
     timer = Timer()
-
-    # compensation of the control table (surface sampling happens inside, per scan offset)
     t = time.perf_counter()
+    table, gouge = _table_of(rcase, table, catalog_folder)
+    timer.add("compensation", t)
+    plan = LinePlan.of(rcase, batch_nodes, max_nodes)
+    stats = metrics.empty_stats()
+    bins = case.resolution.error_map_bins
+    emap = ErrorMap.over(rcase.aperture, bins) if bins else None
+    for b in range(plan.n_batches):
+        _simulate_lines(rcase, plan, plan.batch(b), table, stats, emap, timer)
+        if progress is not None:
+            progress(b + 1, plan.n_batches)
+    t = time.perf_counter()
+    machine, cutting = rcase.machine, rcase.cutting
+    dyn = dynamics.analyse(
+        rcase.layout,
+        table,
+        rcase.rho0_um,
+        rcase.feed_um,
+        cutting.spindle_rpm,
+        machine.command_rate_hz,
+        machine.spectrum_threshold,
+    )
+    timer.add("dynamics", t)
+    record = _record(rcase, plan, metrics.finalize(stats), dyn, gouge)
+    if emap is not None:
+        record.update(emap.as_record())
+    for name in STAGE_TIMERS:
+        record[f"seconds_{name}"] = timer.seconds.get(name, 0.0)
+    record["seconds"] = time.perf_counter() - t_start
+    return record
+
+
+def _table_of(
+    rcase: ResolvedCase, table: Optional[np.ndarray], catalog_folder: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """The compensated control table [µm] and its gouge flags, or a given table checked
+    against the layout (no gouge flags: it is used as stored)."""
+    layout = rcase.layout
     if table is None:
-        table, gouge = control_table(case, layout, surface_spec, rc, catalog_folder)
+        table, gouge = control_table(
+            rcase.case, layout, rcase.surface_spec, rcase.nose_radius_um, catalog_folder
+        )
     else:
         table = np.asarray(table, dtype=np.float64)
         if table.shape != layout.shape:
             raise CaseError(f"the given table has shape {table.shape}, the layout {layout.shape}")
         gouge = np.zeros(layout.shape, dtype=bool)
     require_finite(table, "the control table", lambda i: _layout_point(layout, i))
+    return table, gouge
+
+
+def _simulate_lines(
+    rcase: ResolvedCase,
+    plan: LinePlan,
+    lines: np.ndarray,
+    table: np.ndarray,
+    stats: np.ndarray,
+    emap: Optional[ErrorMap],
+    timer: Timer,
+) -> None:
+    """One batch of feed-plane lines through the stages (physics.md §3–§6): surface samples,
+    exact commands along the path, the controller's interpolation, the two arc envelopes,
+    and the metrics accumulated into ``stats`` (and ``emap``)."""
+    res, rc, aperture = rcase.case.resolution, rcase.nose_radius_um, rcase.aperture
+    t = time.perf_counter()
+    grid = interpolation.path_grid(lines, rcase.rho0_um, rcase.feed_um, res.points_per_feed, plan.margin_um)
+    ray_theta = grid.ray_theta[:, None]
+    ct, st = np.cos(ray_theta), np.sin(ray_theta)
+    g, gp = radial_section(rcase.surface, grid.node_r, ct, st)
+    where = _node_point(grid.node_r, ray_theta)
+    require_finite(g, f"the surface '{rcase.case.surface}' height", where)
+    require_finite(gp, f"the surface '{rcase.case.surface}' slope", where)
+    inside = aperture.contains_polar(grid.node_r, ct, st)
+    t = timer.add("sampling", t)
+
+    mode = compensation.MODE_CODES[rcase.case.compensation]
+    w_exact = compensation.commands_on_rays(g, gp, grid.spacing_um, rc, grid.pass_nodes, grid.n_passes, mode)
     t = timer.add("compensation", t)
 
-    n_theta = angular_samples(layout, rho0, res)
-    lines = interpolation.line_angles(n_theta)
-    window = compensation.contact_window_um(bound, rc)
-    margin = window + 2.0 * feed
-    nodes_per_ray = (rho0 + 2.0 * margin) * res.points_per_feed / feed
-    check_cost(nodes_per_ray, n_theta, max_nodes)
-    per_batch = max(1, int(batch_nodes // (2.0 * nodes_per_ray)))
-    mode = compensation.MODE_CODES[case.compensation]
-    zone_split = res.zone_split * aperture.inner_radius_um
-    stats = metrics.empty_stats()
-    emap = ErrorMap.over(aperture, res.error_map_bins) if res.error_map_bins else None
-    n_batches = math.ceil(lines.size / per_batch)
-    for b in range(n_batches):
-        t = time.perf_counter()
-        grid = interpolation.path_grid(
-            lines[b * per_batch : (b + 1) * per_batch], rho0, feed, res.points_per_feed, margin
-        )
-        ray_theta = grid.ray_theta[:, None]
-        ct, st = np.cos(ray_theta), np.sin(ray_theta)
-        g, gp = radial_section(surface, grid.node_r, ct, st)
-        where = _node_point(grid.node_r, ray_theta)
-        require_finite(g, f"the surface '{case.surface}' height", where)
-        require_finite(gp, f"the surface '{case.surface}' slope", where)
-        inside = aperture.contains_polar(grid.node_r, ct, st)
-        t = timer.add("sampling", t)
+    passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
+    require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))
+    w_interp = interpolation.interpolate(rcase.layout, table, np.maximum(grid.pass_rho, 0.0), ray_theta)
+    t = timer.add("interpolation", t)
 
-        pass_nodes = grid.pass_nodes
-        w_exact = np.empty(pass_nodes.shape)
-        _commands_on_rays(g, gp, grid.spacing_um, rc, pass_nodes, grid.n_passes, mode, w_exact)
-        t = timer.add("compensation", t)
+    start = interpolation.first_machined_node(grid, plan.window_um)
+    passes_of = (grid.n_passes, grid.node_offset, grid.ppf, start, rc)
+    z, cusp_r, cusp_z = envelope.machined_lines(grid.node_r, w_interp, *passes_of)
+    z_exact, _, _ = envelope.machined_lines(grid.node_r, w_exact, *passes_of)
+    t = timer.add("envelope", t)
 
-        passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
-        require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))
-        w_interp = interpolation.interpolate(layout, table, np.maximum(grid.pass_rho, 0.0), ray_theta)
-        t = timer.add("interpolation", t)
+    metrics.accumulate(z, z_exact, g, inside, np.abs(grid.node_r), plan.zone_split_um, stats)
+    cusp_f = interpolation.sample_on_nodes(grid, g, gp, cusp_r)
+    cusp_inside = aperture.contains_polar(cusp_r, ct, st)
+    metrics.accumulate_extrema(cusp_z, cusp_f, cusp_inside, cusp_r, plan.zone_split_um, stats)
+    if emap is not None:
+        emap.add(z, g, inside, grid.node_r, ct, st)
+    timer.add("metrics", t)
 
-        start = interpolation.first_machined_node(grid, window)
-        z = np.empty(grid.node_r.shape)
-        z_exact = np.empty(grid.node_r.shape)
-        cusp_shape = (grid.node_r.shape[0], int(grid.n_passes.max()) + 2)
-        cusp_r, cusp_z = np.empty(cusp_shape), np.empty(cusp_shape)
-        unused_r, unused_z = np.empty(cusp_shape), np.empty(cusp_shape)
-        envelope.envelope_lines(
-            grid.node_r, w_interp, grid.n_passes, grid.node_offset, grid.ppf, start, rc, z, cusp_r, cusp_z
-        )
-        envelope.envelope_lines(
-            grid.node_r,
-            w_exact,
-            grid.n_passes,
-            grid.node_offset,
-            grid.ppf,
-            start,
-            rc,
-            z_exact,
-            unused_r,
-            unused_z,
-        )
-        t = timer.add("envelope", t)
 
-        metrics.accumulate(z, z_exact, g, inside, np.abs(grid.node_r), zone_split, stats)
-        cusp_f = interpolation.sample_on_nodes(grid, g, gp, cusp_r)
-        cusp_inside = aperture.contains_polar(cusp_r, ct, st)
-        metrics.accumulate_extrema(cusp_z, cusp_f, cusp_inside, cusp_r, zone_split, stats)
-        if emap is not None:
-            metrics.accumulate_map(
-                z,
-                g,
-                inside,
-                grid.node_r,
-                ct,
-                st,
-                emap.x0,
-                emap.y0,
-                emap.bin_um,
-                emap.total,
-                emap.count,
-                emap.peak,
-            )
-        timer.add("metrics", t)
-        if progress is not None:
-            progress(b + 1, n_batches)
-
-    t = time.perf_counter()
-    dyn = dynamics.analyse(
-        layout, table, rho0, feed, cutting.spindle_rpm, machine.command_rate_hz, machine.spectrum_threshold
-    )
-    feasible, reason = dynamics.feasibility(
-        dyn, machine.travel_um, machine.peak_accel_m_s2, machine.continuous_accel_m_s2, machine.bandwidth_hz
-    )
-    timer.add("dynamics", t)
-
-    result = metrics.finalize(stats)
+def _record(
+    rcase: ResolvedCase, plan: LinePlan, result: dict[str, float], dyn: Any, gouge: np.ndarray
+) -> dict[str, Any]:
+    """The flat record of a finished case (see :func:`run_case`); refuses non-finite metrics."""
     bad = [k for k, v in result.items() if not math.isfinite(v)]
     if bad or not math.isfinite(dyn.stroke_um):
         raise CaseError(
@@ -417,6 +514,10 @@ def run_case(
             "inside the fully machined zone, or non-finite commands; check the aperture against "
             "the feed and the nose radius"
         )
+    case, layout, machine = rcase.case, rcase.layout, rcase.machine
+    feasible, reason = dynamics.feasibility(
+        dyn, machine.travel_um, machine.peak_accel_m_s2, machine.continuous_accel_m_s2, machine.bandwidth_hz
+    )
     record: dict[str, Any] = {
         "surface": case.surface,
         "layout": layout.kind,
@@ -430,15 +531,15 @@ def run_case(
     record.update(
         compensation=case.compensation,
         machine=case.machine,
-        feed_um=feed,
-        nose_radius_um=rc,
-        spindle_rpm=cutting.spindle_rpm,
-        n_theta=n_theta,
-        points_per_feed=res.points_per_feed,
-        edge_band_um=feed + window,
+        feed_um=rcase.feed_um,
+        nose_radius_um=rcase.nose_radius_um,
+        spindle_rpm=rcase.cutting.spindle_rpm,
+        n_theta=plan.n_theta,
+        points_per_feed=case.resolution.points_per_feed,
+        edge_band_um=rcase.feed_um + plan.window_um,
     )
     record.update(result)
-    record["cusp_nm"] = metrics.cusp_height_um(feed, rc) * 1e3
+    record["cusp_nm"] = metrics.cusp_height_um(rcase.feed_um, rcase.nose_radius_um) * 1e3
     record["gouge_points"] = int(np.count_nonzero(gouge))
     record.update(
         stroke_um=dyn.stroke_um,
@@ -449,11 +550,6 @@ def run_case(
         feasible=feasible,
         infeasible_reason=reason,
     )
-    if emap is not None:
-        record.update(emap.as_record())
-    for name in STAGE_TIMERS:
-        record[f"seconds_{name}"] = timer.seconds.get(name, 0.0)
-    record["seconds"] = time.perf_counter() - t_start
     return record
 
 
@@ -480,11 +576,3 @@ def control_table(
         catalogs.gradient_bound(surface_spec, catalog_folder),
         n_scan=case.resolution.compensation_scan,
     )
-
-
-def _commands_on_rays(g, gp, spacing, rc, pass_nodes, n_passes, mode, out) -> None:
-    """Exact (or slope/none) commands at every pass of every ray, from the node samples."""
-    for a in range(g.shape[0]):
-        k = int(n_passes[a])
-        compensation.compensate_on_ray(g[a], gp[a], spacing, rc, pass_nodes[a, :k], mode, out[a, :k])
-        out[a, k:] = np.nan

@@ -42,6 +42,11 @@ def short_repr(value: Any) -> str:
     return _SHORT.repr(value)
 
 
+def error_text(error: Any) -> str:
+    """The message of one pydantic error without pydantic's "Value error, " prefix."""
+    return str(error["msg"]).removeprefix("Value error, ")
+
+
 def read_yaml_file(path: Path) -> Any:
     """Parse a YAML file, turning every way it can be unreadable into a :class:`CatalogError`
     that names the file."""
@@ -332,7 +337,7 @@ def _format_error(path: Path, name: str, err: ValidationError, model: Any) -> st
         elif e["type"] == "missing":
             lines.append(f"  - {where}: required key is missing")
         else:
-            lines.append(f"  - {where}: {e['msg']} (got {short_repr(e.get('input'))})")
+            lines.append(f"  - {where}: {error_text(e)} (got {short_repr(e.get('input'))})")
     return "\n".join(lines)
 
 

@@ -7,6 +7,7 @@ import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Optional
 
@@ -55,9 +56,10 @@ class _Group(click.Group):
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
+        except click.UsageError as exc:
+            raise click.UsageError(one_line(exc.format_message()), exc.ctx) from None
         except click.ClickException as exc:
-            exc.message = one_line(exc.message)
-            raise
+            raise click.ClickException(one_line(exc.format_message())) from None
         except (click.exceptions.Exit, click.Abort, KeyboardInterrupt, SystemExit):
             raise
         except BrokenPipeError:
@@ -77,7 +79,7 @@ def _pydantic_message(exc: ValidationError) -> str:
     parts = []
     for e in exc.errors():
         loc = ".".join(str(p) for p in e["loc"])
-        parts.append(f"{loc}: {e['msg']}" if loc else e["msg"])
+        parts.append(f"{loc}: {catalogs.error_text(e)}" if loc else catalogs.error_text(e))
     return "; ".join(parts)
 
 
@@ -287,7 +289,7 @@ def sweep(
     from ftsweep.cube import CubeError
     from ftsweep.executor import ExecutorError
     from ftsweep.lock import LockError
-    from ftsweep.run import axis_summary, best_per_point_count, cube_counts, run_sweep
+    from ftsweep.run import axis_summary, run_sweep
     from ftsweep.sweep import load_sweep
 
     if workers is not None and workers < 1:
@@ -297,22 +299,7 @@ def sweep(
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
-    started = time.perf_counter()
-
-    def progress(report, rows):  # type: ignore[no-untyped-def]
-        total_now = report.total - report.skipped
-        done = len(report.rows)
-        elapsed = time.perf_counter() - started
-        eta = elapsed / done * (total_now - done) if done else float("nan")
-        last = rows[-1]
-        what = f"case {last['index']} (N≈{last.get('points', 0):,.0f} α={last.get('aspect', 0):.3g}): " + (
-            f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else one_line(last["message"], 300)
-        )
-        click.echo(
-            f"[{done:>{len(str(total_now))}}/{total_now}] {report.failed} failed | {elapsed:6.1f} s, "
-            f"ETA {eta:6.0f} s | {what}",
-            err=True,
-        )
+    progress = _sweep_progress(time.perf_counter())
 
     try:
         report = run_sweep(
@@ -326,9 +313,43 @@ def sweep(
     if errors:
         first = errors[0]
         raise click.ClickException(
-            f"{len(errors)} case(s) could not be run and stay pending; first: case {first['index']} "
-            f"(N≈{first.get('points', 0):,.0f} α={first.get('aspect', 0):.3g}): {first['message']}"
+            f"{len(errors)} case(s) could not be run and stay pending; first: {_case_label(first)}: "
+            f"{first['message']}"
         )
+    counts = _print_sweep_summary(report)
+    if counts["pending"] or counts["failed"]:
+        sys.exit(1)
+
+
+def _case_label(row: dict[str, Any]) -> str:
+    return f"case {row['index']} (N≈{row.get('points', 0):,.0f} α={row.get('aspect', 0):.3g})"
+
+
+def _sweep_progress(started: float) -> Callable[[Any, list[dict]], None]:
+    """A progress line on stderr per finished task: cases done, failures, time, ETA, last case."""
+
+    def progress(report: Any, rows: list[dict]) -> None:
+        total_now = report.total - report.skipped
+        done = len(report.rows)
+        elapsed = time.perf_counter() - started
+        eta = elapsed / done * (total_now - done) if done else float("nan")
+        last = rows[-1]
+        what = f"{_case_label(last)}: " + (
+            f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else one_line(last["message"], 300)
+        )
+        click.echo(
+            f"[{done:>{len(str(total_now))}}/{total_now}] {report.failed} failed | {elapsed:6.1f} s, "
+            f"ETA {eta:6.0f} s | {what}",
+            err=True,
+        )
+
+    return progress
+
+
+def _print_sweep_summary(report: Any) -> dict[str, int]:
+    """The end-of-run summary on stdout: counts, throughput, failures, best per point count."""
+    from ftsweep.run import best_per_point_count, cube_counts
+
     counts = cube_counts(report.cube)
     click.echo(f"cube         {report.cube}")
     click.echo(
@@ -341,13 +362,9 @@ def sweep(
         f"wall time    {report.wall_s:.1f} s with {report.workers} worker(s): {rate:.3g} cases/s; "
         f"summed case time {busy:.1f} s"
     )
-    failures = [r for r in report.rows if r["status"] != "done"]
-    for r in failures[:5]:
-        click.echo(
-            f"failed       case {r['index']} (N≈{r.get('points', 0):,.0f} α={r.get('aspect', 0):.3g}): "
-            f"{one_line(r['message'], 300)}"
-        )
-    click.echo("best P-V per point count:")
+    for r in [r for r in report.rows if r["status"] != "done"][:5]:
+        click.echo(f"failed       {_case_label(r)}: {one_line(r['message'], 300)}")
+    click.echo("best P-V per point count (among the cases select may choose):")
     click.echo(f"  {'target N':>10s} {'actual N':>10s} {'best α':>8s} {'P-V nm':>9s}")
     for row in best_per_point_count(report.cube):
         if row["pv_nm"] is None:
@@ -356,8 +373,7 @@ def sweep(
             click.echo(
                 f"  {row['points']:10,.0f} {row['n_points']:10,d} {row['aspect']:8.3g} {row['pv_nm']:9.2f}"
             )
-    if counts["pending"] or counts["failed"]:
-        sys.exit(1)
+    return counts
 
 
 def _selection_text(chosen: dict[str, Any]) -> str:
@@ -709,46 +725,12 @@ def _build_case(opts: dict[str, Any]) -> Case:
         raise click.ClickException(str(exc)) from None
     kind = layout or spec.layout
     given = {k: opts[k] for k in (*_RING_PITCH, *_MESH_PITCH)}
-    own, other = (_RING_PITCH, _MESH_PITCH) if kind == "ring" else (_MESH_PITCH, _RING_PITCH)
-    wrong = [k for k in other if given[k] is not None]
-    if wrong:
-        _fail(
-            f"--{wrong[0].replace('_', '-')} belongs to the {'mesh' if kind == 'ring' else 'ring'} layout; "
-            f"for a {kind} layout give --{own[0].replace('_', '-')} and --{own[1].replace('_', '-')}"
-        )
-    pitch_given = [k for k in own if given[k] is not None]
-    target_given = points is not None or aspect is not None
-    if pitch_given and target_given:
-        _fail("give either explicit pitches or --points with --aspect, not both")
-    if pitch_given and len(pitch_given) < 2:
-        missing = [k for k in own if given[k] is None][0]
-        _fail(f"--{missing.replace('_', '-')} is missing: a {kind} layout needs both pitches")
-    if not pitch_given and (points is None or aspect is None):
-        _fail(
-            f"give the layout: --{own[0].replace('_', '-')} and --{own[1].replace('_', '-')}, "
-            "or --points N with --aspect A"
-        )
-    for name, value in {
-        **given,
-        "points": points,
-        "aspect": aspect,
-        "feed-um": feed_um,
-        "nose-radius-um": nose_radius_um,
-    }.items():
-        if value is not None and not (value > 0 and math.isfinite(value)):
-            _fail(f"--{name.replace('_', '-')} must be a positive number, got {value}")
-    for name, value in {
-        "samples-per-cell": samples_per_cell,
-        "points-per-feed": points_per_feed,
-        "n-theta": n_theta,
-    }.items():
-        if value is not None and value < 1:
-            _fail(f"--{name} must be a positive integer, got {value}")
-    if points_per_feed % 2:
-        _fail(
-            "--points-per-feed must be even (the cusp midway between passes is sampled), "
-            f"got {points_per_feed}"
-        )
+    own = _RING_PITCH if kind == "ring" else _MESH_PITCH
+    pitch_given = _check_layout_options(kind, given, points, aspect)
+    _check_numbers(
+        {**given, "points": points, "aspect": aspect, "feed-um": feed_um, "nose-radius-um": nose_radius_um},
+        {"samples-per-cell": samples_per_cell, "points-per-feed": points_per_feed, "n-theta": n_theta},
+    )
     if kind == "ring" and pitch_given and not opts["strict"]:
         given["dtheta_deg"] = _realisable_dtheta(given["dtheta_deg"])
     try:
@@ -787,6 +769,42 @@ def _realisable_dtheta(dtheta_deg: float) -> float:
             err=True,
         )
     return realised
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def _check_layout_options(kind: str, given: dict[str, Any], points: Any, aspect: Any) -> bool:
+    """Refuse pitches of the other layout kind, pitches mixed with a target, one pitch alone,
+    or no layout at all; returns whether explicit pitches were given."""
+    own, other = (_RING_PITCH, _MESH_PITCH) if kind == "ring" else (_MESH_PITCH, _RING_PITCH)
+    wrong = [k for k in other if given[k] is not None]
+    if wrong:
+        _fail(
+            f"{_flag(wrong[0])} belongs to the {'mesh' if kind == 'ring' else 'ring'} layout; "
+            f"for a {kind} layout give {_flag(own[0])} and {_flag(own[1])}"
+        )
+    pitch_given = [k for k in own if given[k] is not None]
+    if pitch_given and (points is not None or aspect is not None):
+        _fail("give either explicit pitches or --points with --aspect, not both")
+    if len(pitch_given) == 1:
+        missing = [k for k in own if given[k] is None][0]
+        _fail(f"{_flag(missing)} is missing: a {kind} layout needs both pitches")
+    if not pitch_given and (points is None or aspect is None):
+        _fail(f"give the layout: {_flag(own[0])} and {_flag(own[1])}, or --points N with --aspect A")
+    return bool(pitch_given)
+
+
+def _check_numbers(positive: dict[str, Any], counts: dict[str, Any]) -> None:
+    """Refuse non-positive or non-finite numbers and counts below 1 (before the specs, so the
+    message names the option)."""
+    for name, value in positive.items():
+        if value is not None and not (value > 0 and math.isfinite(value)):
+            _fail(f"{_flag(name)} must be a positive number, got {value}")
+    for name, value in counts.items():
+        if value is not None and value < 1:
+            _fail(f"{_flag(name)} must be a positive integer, got {value}")
 
 
 def _summary(r: dict[str, Any]) -> str:

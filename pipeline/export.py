@@ -313,36 +313,13 @@ def default_pv_tolerance_nm(unit_nm: float, pv_nm: float) -> float:
     return unit_nm + 1e-3 * pv_nm
 
 
-def verify(
-    path: Path,
-    progress: Callable[[int, int], None] | None = None,
-    pv_tolerance_nm: float | None = None,
-) -> dict[str, Any]:
-    """Check a header and its sidecar, then re-simulate the part from the stored integers.
-
-    Raises :class:`ExportError` when the CRC-32 (over every macro and the table) does not
-    match, when the sidecar's SHA-256 of the header or the header's SHA-256 of the sidecar
-    does not match, when header and sidecar disagree, or when the re-simulated P-V differs
-    from the predicted one by more than ``pv_tolerance_nm`` (default
-    :func:`default_pv_tolerance_nm`). Returns the re-simulated record with ``pv_nm``, the
-    predicted P-V and the tolerance applied.
-    """
-    path = Path(path)
+def check_integrity(path: Path) -> tuple[dict[str, str], np.ndarray, dict[str, Any]]:
+    """The macros, table and sidecar of a header whose CRC-32 (over every macro and the table),
+    sidecar CRC, header SHA-256 (in the sidecar) and sidecar SHA-256 (in the header) all
+    match; :class:`ExportError` naming the first that does not."""
     macro_list, ints = read_header(path)
     macros = dict(macro_list)
-    try:
-        int_type = json.loads(macros["INT_TYPE"])
-        stored = int(macros[CHECKSUM_MACRO].rstrip("UuLl"), 16)
-    except ValueError:
-        raise ExportError(f"{path}: macro INT_TYPE or {CHECKSUM_MACRO} is malformed") from None
-    if int_type not in LE_DTYPE:
-        raise ExportError(f"{path}: INT_TYPE {int_type!r} is not one of {', '.join(LE_DTYPE)}")
-    actual = checksum(macro_list, ints, int_type)
-    if stored != actual:
-        raise ExportError(
-            f"{path}: checksum mismatch (header says 0x{stored:08x}, macros and table give 0x{actual:08x}): "
-            "a macro or the table was changed or damaged; do not load it"
-        )
+    stored = _stored_checksum(macros, macro_list, ints, path)
     side = sidecar_path(path)
     if not side.exists():
         raise ExportError(f"{side} is missing: verify needs the sidecar written with the header")
@@ -367,19 +344,60 @@ def verify(
             f"{side} was changed after export (its SHA-256 does not match the header's SIDECAR_SHA256); "
             "re-export instead of editing it"
         )
+    return macros, ints, meta
+
+
+def _stored_checksum(
+    macros: dict[str, str], macro_list: list[tuple[str, str]], ints: np.ndarray, path: Path
+) -> int:
+    """The header's CRC-32, checked against its macros and table."""
+    try:
+        int_type = json.loads(macros["INT_TYPE"])
+        stored = int(macros[CHECKSUM_MACRO].rstrip("UuLl"), 16)
+    except ValueError:
+        raise ExportError(f"{path}: macro INT_TYPE or {CHECKSUM_MACRO} is malformed") from None
+    if int_type not in LE_DTYPE:
+        raise ExportError(f"{path}: INT_TYPE {int_type!r} is not one of {', '.join(LE_DTYPE)}")
+    actual = checksum(macro_list, ints, int_type)
+    if stored != actual:
+        raise ExportError(
+            f"{path}: checksum mismatch (header says 0x{stored:08x}, macros and table give 0x{actual:08x}): "
+            "a macro or the table was changed or damaged; do not load it"
+        )
+    return stored
+
+
+def verify(
+    path: Path,
+    progress: Callable[[int, int], None] | None = None,
+    pv_tolerance_nm: float | None = None,
+) -> dict[str, Any]:
+    """Check a header and its sidecar, then re-simulate the part from the stored integers.
+
+    Raises :class:`ExportError` when the CRC-32 (over every macro and the table) does not
+    match, when the sidecar's SHA-256 of the header or the header's SHA-256 of the sidecar
+    does not match, when header and sidecar disagree, or when the re-simulated P-V differs
+    from the predicted one by more than ``pv_tolerance_nm`` (default
+    :func:`default_pv_tolerance_nm`). Returns the re-simulated record with ``pv_nm``, the
+    predicted P-V and the tolerance applied.
+    """
+    path = Path(path)
+    macros, ints, meta = check_integrity(path)
     try:
         case = Case.model_validate(meta["case"])
         entries = meta["catalog_entries"]
         specs = specs_from_entries(entries["surface"], entries["machine"], entries["cutting"])
     except (KeyError, TypeError, ValueError) as exc:
-        raise ExportError(f"{side}: the recorded case cannot be read ({str(exc)[:200]})") from None
+        raise ExportError(
+            f"{sidecar_path(path)}: the recorded case cannot be read ({str(exc)[:200]})"
+        ) from None
     unit_nm = _macro_value(macros, "UNIT_NM", float, path)
     predicted = _macro_value(macros, "PREDICTED_PV_NM", float, path)
     record = run_case(case, table=ints * unit_nm * 1e-3, specs=specs, progress=progress)
     tol = default_pv_tolerance_nm(unit_nm, predicted) if pv_tolerance_nm is None else pv_tolerance_nm
     record["predicted_pv_nm"] = predicted
     record["pv_tolerance_nm"] = tol
-    record["checksum"] = f"0x{stored:08x}"
+    record["checksum"] = f"0x{int(meta['crc32']):08x}"
     record["header"] = str(path)
     if not abs(record["pv_nm"] - predicted) <= tol:
         raise ExportError(

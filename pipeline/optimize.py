@@ -149,6 +149,41 @@ class Optimizer:
             else:
                 ds.to_zarr(self.out, zarr_format=3, append_dim="evaluation", consolidated=True)
 
+    def next_points(self, n: float, rec: dict[str, Any], fail_n: float, pass_n: float) -> Optional[float]:
+        """The next point count to try after evaluating ``rec`` at ``n``, or None to stop:
+        bisection in log N between the largest failing and the smallest passing count, else a
+        step by P-V ∝ 1/N, doubling past a failed case, never beyond the capacity."""
+        cap = float(self.capacity)
+        if pass_n < math.inf and (fail_n > 0 and pass_n / fail_n < 1.05):
+            return None
+        if pass_n == math.inf and n >= cap:
+            return None  # the capacity is reached without meeting the tolerance
+        if pass_n < math.inf and fail_n > 0:
+            nxt = math.sqrt(pass_n * fail_n)
+        elif self.ok(rec):
+            nxt = n * rec["pv_nm"] / self.tol * (1.05 if rec["pv_nm"] > self.tol else 0.95)
+        else:
+            nxt = n * 2.0
+        nxt = min(max(nxt, 1000.0), cap)
+        return None if abs(nxt - n) < 0.01 * n and n >= cap else nxt
+
+    def search_points(
+        self, n: float, aspect: float, rec: dict[str, Any], factor: float, max_rounds: int
+    ) -> None:
+        """Raise or lower the point count until the tolerance is met with as few points as
+        the rounds allow, refining the aspect ratio by ``factor`` at each new count."""
+        fail_n, pass_n = 0.0, math.inf
+        for _ in range(max_rounds):
+            if self.ok(rec) and rec["pv_nm"] <= self.tol:
+                pass_n = min(pass_n, n)
+            else:
+                fail_n = max(fail_n, n)
+            nxt = self.next_points(n, rec, fail_n, pass_n)
+            if nxt is None:
+                return
+            n = nxt
+            aspect, rec = self.refine_aspect(n, aspect, factor, 1)
+
     def best_meeting(self) -> Optional[dict[str, Any]]:
         meeting = [r for r in self.records if self.ok(r) and r["pv_nm"] <= self.tol]
         return min(meeting, key=lambda r: (r["n_points"], r["pv_nm"])) if meeting else None
@@ -204,28 +239,7 @@ def optimize(
         aspect, rec = opt.best_aspect(n, np.geomspace(lo, hi, 9), "scan")
         ratio = (hi / lo) ** (1 / 8)
         aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 3)
-
-        fail_n, pass_n = 0.0, math.inf
-        for _ in range(max_rounds):
-            if opt.ok(rec) and rec["pv_nm"] <= tolerance_nm:
-                pass_n = min(pass_n, n)
-            else:
-                fail_n = max(fail_n, n)
-            if pass_n < math.inf and (fail_n > 0 and pass_n / fail_n < 1.05):
-                break
-            if pass_n == math.inf and n >= cap:
-                break  # the capacity is reached without meeting the tolerance
-            if pass_n < math.inf and fail_n > 0:
-                nxt = math.sqrt(pass_n * fail_n)  # bisection in log N between a fail and a pass
-            elif opt.ok(rec):
-                nxt = n * rec["pv_nm"] / tolerance_nm * (1.05 if rec["pv_nm"] > tolerance_nm else 0.95)
-            else:
-                nxt = n * 2.0
-            nxt = min(max(nxt, 1000.0), float(cap))
-            if abs(nxt - n) < 0.01 * n and n >= cap:
-                break
-            n = nxt
-            aspect, rec = opt.refine_aspect(n, aspect, ratio**0.25, 1)
+        opt.search_points(n, aspect, rec, ratio**0.25, max_rounds)
 
         answer = opt.best_meeting()
         return {

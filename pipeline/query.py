@@ -39,7 +39,7 @@ def eligible_pv(ds: xr.Dataset) -> xr.DataArray:
 def position(ds: xr.Dataset, flat: int) -> dict[str, int]:
     """Index along each dimension of the case at C-order flat index ``flat``."""
     shape = ds["status"].shape
-    return {d: int(i) for d, i in zip(ds["status"].dims, np.unravel_index(flat, shape), strict=True)}
+    return {str(d): int(i) for d, i in zip(ds["status"].dims, np.unravel_index(flat, shape), strict=True)}
 
 
 def best_flat(ds: xr.Dataset, where: Optional[xr.DataArray] = None) -> Optional[int]:

@@ -163,7 +163,7 @@ def _sweep_error(path: Path, exc: ValidationError) -> str:
         elif e["type"] == "too_short":
             lines.append(f"  - {loc}: the axis is empty; give at least one value")
         else:
-            lines.append(f"  - {loc}: {e['msg']} (got {catalogs.short_repr(e.get('input'))})")
+            lines.append(f"  - {loc}: {catalogs.error_text(e)} (got {catalogs.short_repr(e.get('input'))})")
     return "\n".join(dict.fromkeys(lines))  # union members can repeat the same complaint
 
 

@@ -113,10 +113,8 @@ def height_map_surface(
 
 
 # ----------------------------------------------------------------------------- plug-ins
-def load_plugin(
-    target: str, params: dict[str, Any], aperture: Aperture, source: str, fd_step_um: float = 1e-3
-) -> SurfaceFn:
-    """The surface callable of ``module:function``, validated on a small grid."""
+def _import_function(target: str, source: str) -> Any:
+    """The callable named ``module:function``."""
     module_name, sep, func_name = target.partition(":")
     if not sep or not module_name or not func_name:
         raise SurfaceLoadError(f"{source}: function must read 'module:function', got {target!r}")
@@ -126,6 +124,36 @@ def load_plugin(
         raise SurfaceLoadError(f"{source}: cannot import {target!r}: {exc}") from None
     if not callable(fn):
         raise SurfaceLoadError(f"{source}: {target!r} is not callable")
+    return fn
+
+
+def _check_test_output(
+    parts: list[Any], expected: int, shape: tuple[int, ...], target: str, source: str
+) -> None:
+    """A plug-in's output on the load-time test grid: heights, or (heights, ∂f/∂x, ∂f/∂y) as a
+    tuple (``expected`` arrays), each finite and of the grid's shape."""
+    if len(parts) != expected:
+        raise SurfaceLoadError(
+            f"{source}: {target} returned {len(parts)} arrays; return heights, or (heights, df/dx, df/dy)"
+        )
+    for i, part in enumerate(parts):
+        arr = np.asarray(part)
+        if arr.shape != shape:
+            raise SurfaceLoadError(
+                f"{source}: {target} returned shape {arr.shape} for inputs of shape {shape}; it must "
+                "return arrays of the shape of x and y"
+            )
+        if not np.all(np.isfinite(arr)):
+            raise SurfaceLoadError(
+                f"{source}: {target} returned non-finite values (output {i}) on the test grid"
+            )
+
+
+def load_plugin(
+    target: str, params: dict[str, Any], aperture: Aperture, source: str, fd_step_um: float = 1e-3
+) -> SurfaceFn:
+    """The surface callable of ``module:function``, validated on a small grid."""
+    fn = _import_function(target, source)
 
     def call(px: np.ndarray, py: np.ndarray) -> Any:
         return fn(px, py, **params)
@@ -140,22 +168,7 @@ def load_plugin(
             f"{source}: {target} raised {type(exc).__name__}: {exc} on a test grid"
         ) from None
     with_slopes = isinstance(out, tuple)
-    parts = list(out) if with_slopes else [out]
-    if with_slopes and len(parts) != 3:
-        raise SurfaceLoadError(
-            f"{source}: {target} returned {len(parts)} arrays; return heights, or (heights, df/dx, df/dy)"
-        )
-    for i, part in enumerate(parts):
-        arr = np.asarray(part)
-        if arr.shape != gx.shape:
-            raise SurfaceLoadError(
-                f"{source}: {target} returned shape {arr.shape} for inputs of shape {gx.shape}; it must "
-                "return arrays of the shape of x and y"
-            )
-        if not np.all(np.isfinite(arr)):
-            raise SurfaceLoadError(
-                f"{source}: {target} returned non-finite values (output {i}) on the test grid"
-            )
+    _check_test_output(list(out) if with_slopes else [out], 3 if with_slopes else 1, gx.shape, target, source)
 
     if with_slopes:
 

@@ -243,3 +243,22 @@ def compensate_on_ray(g, gp, spacing_um, nose_radius_um, nodes, mode, out):  # p
             if curv < 0.0:
                 best = hj - (hp - hm) * (hp - hm) / (8.0 * curv)
         out[p] = best
+
+
+def commands_on_rays(
+    g: np.ndarray,
+    gp: np.ndarray,
+    spacing_um: float,
+    nose_radius_um: float,
+    pass_nodes: np.ndarray,
+    n_passes: np.ndarray,
+    mode: int,
+) -> np.ndarray:
+    """Commands w [µm] at every pass of every ray of a path grid (physics.md §4): the section
+    samples ``g``, ``gp`` (R, G) along each ray, the passes at node indices ``pass_nodes``
+    (R, Kmax), ``n_passes`` (R,) of them on each ray. Returns (R, Kmax), NaN past the passes."""
+    out = np.full(pass_nodes.shape, np.nan)
+    for a in range(g.shape[0]):
+        k = int(n_passes[a])
+        compensate_on_ray(g[a], gp[a], spacing_um, nose_radius_um, pass_nodes[a, :k], mode, out[a, :k])
+    return out

@@ -151,3 +151,21 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
         for j in range(last_own - 1, first - 1, -1):
             z[own, j] = out[q]
             q += 1
+
+
+def machined_lines(
+    node_r: np.ndarray,
+    pass_w: np.ndarray,
+    n_passes: np.ndarray,
+    node_offset: np.ndarray,
+    ppf: int,
+    eval_start: int,
+    nose_radius_um: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`envelope_lines` with its outputs allocated: machined height z (R, G) [µm] and the
+    exact cusp peaks' radius and height (R, Kmax + 2) [µm] (physics.md §5)."""
+    z = np.empty(node_r.shape)
+    cusp_shape = (node_r.shape[0], int(n_passes.max()) + 2)
+    cusp_r, cusp_z = np.empty(cusp_shape), np.empty(cusp_shape)
+    envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, nose_radius_um, z, cusp_r, cusp_z)
+    return z, cusp_r, cusp_z

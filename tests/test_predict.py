@@ -12,9 +12,12 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from pydantic import ValidationError
 
 from ftsweep.case import Case, CaseError, LayoutRequest, Resolution, run_case
+from ftsweep.catalogs import CatalogError
 from ftsweep.cli import main
+from ftsweep.sweep import load_sweep
 
 REQUIRED = {"surface", "layout", "n_points", "pv_nm", "rms_nm", "pv_interp_nm", "seconds"}
 
@@ -71,14 +74,16 @@ def test_capacity_is_enforced(catalog_dir):
         run_case(case, catalog_dir)
 
 
-def test_odd_points_per_feed_is_refused(catalog_dir):
-    case = Case(
-        surface="flat",
-        layout=LayoutRequest(kind="ring", pitch=(5.0, 2.0)),
-        resolution=Resolution(points_per_feed=3),
+def test_odd_points_per_feed_is_refused(tmp_path, catalog_dir):
+    with pytest.raises(ValidationError, match="even"):
+        Resolution(points_per_feed=3)
+    # a sweep spec with it is refused when it is loaded, naming the file and the key
+    spec = tmp_path / "odd.yaml"
+    spec.write_text(
+        "surface: flat\naxes: {points: [8000], aspect: [1.0]}\nresolution: {points_per_feed: 3}\n"
     )
-    with pytest.raises(CaseError, match="even"):
-        run_case(case, catalog_dir)
+    with pytest.raises(CatalogError, match=r"(?s)odd\.yaml.*resolution\.points_per_feed.*even"):
+        load_sweep(str(spec), catalog_dir)
 
 
 def test_case_key_is_stable_and_sensitive():

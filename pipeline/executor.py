@@ -1,24 +1,48 @@
 """Dask execution of sweep tasks: the synchronous scheduler, a LocalCluster, or an
 existing ``dask.distributed`` scheduler, running the same task function.
 
-A task computes a list of cases and writes each into the cube as soon as it finishes
-(:class:`ftsweep.cube.CubeWriter`); it returns one small summary dict per case, which the
-driver streams into progress and the final summary.
+:func:`execute` knows nothing of numerics: it is given a :class:`TaskSpec` (what every task of
+a run shares), the groups of case indices, the task function (:func:`run_task` for sweeps:
+compute the cases and write each into the cube as soon as it finishes), an optional warm-up
+run once per worker, and what to report when a task breaks outside any case. Each task
+returns one small summary dict per case, which the driver streams into ``on_result``.
 """
 
 from __future__ import annotations
 
 import logging
+import time
 import traceback
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import dask
 
 from ftsweep.case import Case, LayoutRequest, run_case
 from ftsweep.cube import CubeWriter
 from ftsweep.sweep import SweepSpec, case_at
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """What every task of one run shares; plain strings, so it travels to any worker.
+
+    cube : absolute path of the cube the tasks write.
+    spec_json : the resolved sweep spec (:class:`ftsweep.sweep.SweepSpec` as JSON).
+    catalog_folder : catalogs to read, or None for the default.
+    run_id : identifier recorded with every case this run computes.
+    """
+
+    cube: str
+    spec_json: str
+    catalog_folder: Optional[str]
+    run_id: str
+
+
+TaskFn = Callable[[TaskSpec, list[int]], list[dict]]
+ErrorFn = Callable[[TaskSpec, list[int], BaseException], list[dict]]
 
 SYNCHRONOUS = "synchronous"
 # a scheduler that does not answer within this many seconds is reported, not waited for
@@ -29,13 +53,12 @@ class ExecutorError(RuntimeError):
     """The sweep could not be run on the asked scheduler; the message says why."""
 
 
-def run_task(
-    cube: str, spec_json: str, catalog_folder: Optional[str], indices: list[int], run_id: str
-) -> list[dict]:
-    """Compute the cases ``indices`` of a sweep and write each into ``cube`` (worker side)."""
-    spec = SweepSpec.model_validate_json(spec_json)
-    folder = Path(catalog_folder) if catalog_folder else None
-    writer = CubeWriter(Path(cube))
+def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
+    """Compute the cases ``indices`` of a sweep and write each into the cube (worker side)."""
+    spec = SweepSpec.model_validate_json(task.spec_json)
+    folder = Path(task.catalog_folder) if task.catalog_folder else None
+    writer = CubeWriter(Path(task.cube))
+    run_id = task.run_id
     out = []
     for index in indices:
         case = case_at(spec, index)
@@ -71,8 +94,6 @@ def run_task(
 
 def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> float:
     """Compile (or load from numba's cache) every kernel once in this process; returns seconds."""
-    import time
-
     t = time.perf_counter()
     pitch = (50.0, 10.0) if kind == "ring" else (50.0, 50.0)
     try:
@@ -86,95 +107,111 @@ def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> fl
 
 
 def execute(
-    tasks: list[list[int]],
-    task_args: tuple[str, str, Optional[str], str],
+    groups: list[list[int]],
+    spec: TaskSpec,
     scheduler: Optional[str],
     workers: int,
     on_result: Callable[[list[dict]], None],
-    warm: tuple[str, str],
+    task: TaskFn = run_task,
+    warm: Optional[Callable[[], Any]] = None,
+    on_error: Optional[ErrorFn] = None,
 ) -> None:
-    """Run ``tasks`` (lists of case indices) and call ``on_result`` with each task's summaries.
+    """Run ``task(spec, group)`` for every group of case indices and call ``on_result`` with
+    each task's summaries as it finishes.
 
     scheduler : ``"synchronous"`` for dask's synchronous scheduler in this process, an
         address (``tcp://host:port``) of a running ``dask scheduler``, or None for a
         ``LocalCluster`` with ``workers`` single-threaded worker processes.
-    task_args : (cube path, sweep spec JSON, catalog folder, run id) passed to every task.
-    warm : (surface, layout kind) for the per-worker warm-up before any task starts.
+    warm : run once in every worker (and here, for the synchronous scheduler) before any
+        task, e.g. to pay numba's compile cost outside the timed cases.
+    on_error : the summaries of a task that raised (default :func:`task_failure`); the
+        other tasks run on.
     """
-    if not tasks:
+    if not groups:
         return
-    cube, spec_json, folder, run_id = task_args
+    on_error = on_error or task_failure
     if scheduler == SYNCHRONOUS:
-        warm_up(*warm, folder)
-        _run_synchronous(tasks, task_args, on_result)
+        if warm is not None:
+            warm()
+        _run_synchronous(groups, spec, task, on_error, on_result)
         return
+    client, cluster = _connect(scheduler, workers)
+    try:
+        if warm is not None:
+            client.run(warm)
+        _run_distributed(client, groups, spec, task, on_error, on_result)
+    finally:
+        _close_quietly(client, cluster)
 
-    from distributed import Client, LocalCluster, as_completed
 
-    cluster = None
+def _connect(scheduler: Optional[str], workers: int) -> tuple[Any, Any]:
+    """A client of the scheduler at ``scheduler`` (checked within :data:`CONNECT_TIMEOUT_S`),
+    or of a new LocalCluster of ``workers`` single-threaded processes."""
+    from distributed import Client, LocalCluster
+
     if scheduler:
         try:
-            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s"), None
         except (OSError, TimeoutError, ValueError) as exc:
             raise ExecutorError(
                 f"no dask scheduler answered at {scheduler[:200]} within {CONNECT_TIMEOUT_S} s "
                 f"({type(exc).__name__}); start one (dask scheduler) or omit --scheduler for a local cluster"
             ) from None
-    else:
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=":0",
-            silence_logs=logging.CRITICAL,  # task errors reach us through the futures
-        )
-        client = Client(cluster)
-    try:
-        # numba's compile (or cache load) is paid once per worker, before any case is timed
-        client.run(warm_up, *warm, folder)
-        futures = [
-            client.submit(
-                run_task, cube, spec_json, folder, group, run_id, pure=False, key=f"ftsweep-task-{i}-{run_id}"
-            )
-            for i, group in enumerate(tasks)
-        ]
-        lookup = {f.key: group for f, group in zip(futures, tasks, strict=True)}
-        for future in as_completed(futures):
-            try:
-                rows = future.result()
-            except Exception as exc:  # the task itself broke (not a case): its cases stay pending
-                rows = task_failure(spec_json, lookup[future.key], exc)
-            on_result(rows)
-            future.release()
-    finally:
-        # workers still heartbeating while the scheduler stops log tracebacks that mean
-        # nothing here: quieten distributed for the shutdown only
-        quiet = [
-            logging.getLogger(n)
-            for n in (
-                "distributed",
-                "distributed.worker",
-                "distributed.nanny",
-                "distributed.core",
-                "distributed.comm",
-            )
-        ]
-        levels = [lg.level for lg in quiet]
-        for lg in quiet:
-            lg.setLevel(logging.CRITICAL)
+    cluster = LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=":0",
+        silence_logs=logging.CRITICAL,  # task errors reach us through the futures
+    )
+    return Client(cluster), cluster
+
+
+def _run_distributed(
+    client: Any,
+    groups: list[list[int]],
+    spec: TaskSpec,
+    task: TaskFn,
+    on_error: ErrorFn,
+    on_result: Callable[[list[dict]], None],
+) -> None:
+    from distributed import as_completed
+
+    futures = [
+        client.submit(task, spec, group, pure=False, key=f"ftsweep-task-{i}-{spec.run_id}")
+        for i, group in enumerate(groups)
+    ]
+    lookup = {f.key: group for f, group in zip(futures, groups, strict=True)}
+    for future in as_completed(futures):
         try:
-            client.close()
-            if cluster is not None:
-                cluster.close()
-        finally:
-            for lg, level in zip(quiet, levels, strict=True):
-                lg.setLevel(level)
+            rows = future.result()
+        except Exception as exc:  # the task itself broke (not a case): its cases stay pending
+            rows = on_error(spec, lookup[future.key], exc)
+        on_result(rows)
+        future.release()
 
 
-def task_failure(spec_json: str, indices: Iterable[int], exc: BaseException) -> list[dict]:
+def _close_quietly(client: Any, cluster: Any) -> None:
+    # workers still heartbeating while the scheduler stops log tracebacks that mean nothing
+    # here: quieten distributed for the shutdown only
+    names = ("distributed", "distributed.worker", "distributed.nanny", "distributed.core", "distributed.comm")
+    quiet = [logging.getLogger(n) for n in names]
+    levels = [lg.level for lg in quiet]
+    for lg in quiet:
+        lg.setLevel(logging.CRITICAL)
+    try:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    finally:
+        for lg, level in zip(quiet, levels, strict=True):
+            lg.setLevel(level)
+
+
+def task_failure(task: TaskSpec, indices: Iterable[int], exc: BaseException) -> list[dict]:
     """Summaries of the cases of a task that broke outside any case (the cube could not be
     written, the worker died, ...): each names the case and the cause; the cases stay pending."""
-    spec = SweepSpec.model_validate_json(spec_json)
+    spec = SweepSpec.model_validate_json(task.spec_json)
     text = " ".join("".join(traceback.format_exception_only(type(exc), exc)).split())[:300]
     rows = []
     for i in indices:
@@ -192,13 +229,17 @@ def task_failure(spec_json: str, indices: Iterable[int], exc: BaseException) -> 
 
 
 def _run_synchronous(
-    tasks: list[list[int]], task_args: tuple, on_result: Callable[[list[dict]], None]
+    groups: list[list[int]],
+    spec: TaskSpec,
+    task: TaskFn,
+    on_error: ErrorFn,
+    on_result: Callable[[list[dict]], None],
 ) -> None:
     # one compute per task, so a task that breaks is reported like on a cluster and the rest run on
-    for group in tasks:
-        task = dask.delayed(run_task, pure=False)(*task_args[:3], group, task_args[3])
+    for group in groups:
+        delayed = dask.delayed(task, pure=False)(spec, group)
         try:
-            (rows,) = dask.compute(task, scheduler=SYNCHRONOUS)
+            (rows,) = dask.compute(delayed, scheduler=SYNCHRONOUS)
         except Exception as exc:
-            rows = task_failure(task_args[1], group, exc)
+            rows = on_error(spec, group, exc)
         on_result(rows)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -18,7 +19,7 @@ import numpy as np
 
 from ftsweep import catalogs, cube
 from ftsweep.cube import CubeError
-from ftsweep.executor import execute
+from ftsweep.executor import TaskSpec, execute, run_task, warm_up
 from ftsweep.lock import cube_lock
 from ftsweep.sweep import MAX_CASES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
 
@@ -198,11 +199,12 @@ def _run_locked(
     assert spec.layout is not None
     execute(
         tasks,
-        (str(out), spec.model_dump_json(), folder, run_id),
+        TaskSpec(cube=str(out), spec_json=spec.model_dump_json(), catalog_folder=folder, run_id=run_id),
         scheduler,
         workers,
         on_result,
-        warm=(spec.surface, spec.layout),
+        task=run_task,
+        warm=functools.partial(warm_up, spec.surface, spec.layout, folder),
     )
     report.wall_s = time.perf_counter() - start
     return report

@@ -1,0 +1,68 @@
+"""Executors on trivial task functions (issue 15, item 6): no numerics, no cube. The same
+groups give the same summaries on every scheduler; a task that raises is reported through
+``on_error`` and the others run on; the warm-up runs before any task."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from ftsweep.executor import SYNCHRONOUS, TaskSpec, execute
+
+SPEC = TaskSpec(cube="/nowhere.zarr", spec_json="{}", catalog_folder=None, run_id="test-run")
+GROUPS = [[0, 1], [2], [3, 4, 5]]
+
+
+def square(task: TaskSpec, group: list[int]) -> list[dict]:
+    """A task that only echoes its inputs (importable, so worker processes can run it)."""
+    return [{"index": i, "status": "done", "value": i * i, "run_id": task.run_id} for i in group]
+
+
+def fail_on_two(task: TaskSpec, group: list[int]) -> list[dict]:
+    if 2 in group:
+        raise OSError(28, "No space left on device")
+    return square(task, group)
+
+
+def as_error(task: TaskSpec, group: list[int], exc: BaseException) -> list[dict]:
+    return [{"index": i, "status": "error", "message": f"{type(exc).__name__}: {exc}"} for i in group]
+
+
+WARMED: list[int] = []
+
+
+def warm() -> int:
+    WARMED.append(os.getpid())
+    return os.getpid()
+
+
+def _collect(scheduler: str | None, task, **kw) -> list[dict]:  # type: ignore[no-untyped-def]
+    rows: list[dict] = []
+    execute(GROUPS, SPEC, scheduler, 2, rows.extend, task=task, **kw)
+    return sorted(rows, key=lambda r: r["index"])
+
+
+def test_synchronous_runs_every_group_after_the_warm_up():
+    WARMED.clear()
+    rows = _collect(SYNCHRONOUS, square, warm=warm)
+    assert WARMED == [os.getpid()]
+    assert [r["value"] for r in rows] == [0, 1, 4, 9, 16, 25]
+    assert {r["run_id"] for r in rows} == {"test-run"}
+
+
+def test_a_broken_task_is_reported_and_the_others_run_on():
+    rows = _collect(SYNCHRONOUS, fail_on_two, on_error=as_error)
+    assert [r["status"] for r in rows] == ["done", "done", "error", "done", "done", "done"]
+    assert "No space left on device" in rows[2]["message"]
+
+
+def test_nothing_to_run_starts_nothing():
+    execute([], SPEC, "tcp://127.0.0.1:1", 1, lambda rows: pytest.fail("called"), task=square)
+
+
+def test_local_cluster_gives_the_synchronous_summaries():
+    assert _collect(None, square) == _collect(SYNCHRONOUS, square)
+    assert _collect(None, fail_on_two, on_error=as_error) == _collect(
+        SYNCHRONOUS, fail_on_two, on_error=as_error
+    )

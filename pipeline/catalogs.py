@@ -297,6 +297,18 @@ class Reference(Strict):
         return max(self.rel_tol * self.pv_nm, self.abs_tol_nm)
 
 
+def recorded_entries(
+    surface: str, machine: str, cutting: str, folder: Path | None = None
+) -> dict[str, dict[str, Any]]:
+    """The catalog entries a run uses, as cubes record them for provenance:
+    ``{"surface": {name: entry}, "machine": {...}, "cutting": {...}}``."""
+    return {
+        "surface": {surface: entry("surfaces", surface, folder).model_dump(mode="json")},
+        "machine": {machine: entry("machines", machine, folder).model_dump(mode="json")},
+        "cutting": {cutting: entry("cutting", cutting, folder).model_dump(mode="json")},
+    }
+
+
 def specs_from_entries(
     surface: dict[str, Any], machine: dict[str, Any], cutting: dict[str, Any]
 ) -> tuple[Any, Machine, Cutting]:

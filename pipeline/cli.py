@@ -542,7 +542,12 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> Non
     type=click.Path(file_okay=False, path_type=Path),
     help="Cube recording every evaluation. Default: outputs/optimize-<surface>-<layout>.zarr.",
 )
-@click.option("--restart", is_flag=True, help="Replace an existing evaluation cube.")
+@click.option(
+    "--restart",
+    is_flag=True,
+    help="Discard the evaluation cube and start over (required when the search changed); without "
+    "it, re-running the same search resumes, reusing every finished evaluation.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def optimize(
     surface: Optional[str],
@@ -561,7 +566,8 @@ def optimize(
     Starts coarse (a scan of aspect ratios at --start-points), refines around the best
     aspect ratio, then raises (or lowers) the point count using P-V ∝ 1/N until the
     tolerance is met with as few points as possible or the controller's capacity is
-    reached. Every evaluation is recorded in a cube.
+    reached. Every evaluation is recorded in a cube as soon as it finishes (the store
+    protocol of sweeps), so an interrupted search resumes where it stopped.
 
     \b
     Examples:
@@ -613,8 +619,8 @@ def optimize(
         ans = result["answer"]
         verdict = "met" if result["met"] else "NOT met (best found below)"
         click.echo(
-            f"tolerance    {tolerance_nm:g} nm: {verdict}; {result['evaluations']} evaluations in "
-            f"{result['cube']}"
+            f"tolerance    {tolerance_nm:g} nm: {verdict}; {result['evaluations']} evaluations "
+            f"({result['reused']} reused) in {result['cube']}"
         )
         if ans is not None:
             click.echo(_summary(ans))

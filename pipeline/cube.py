@@ -120,14 +120,12 @@ def git_revision() -> str:
         return "unknown"
 
 
-def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.Dataset:
-    """The empty cube of a sweep: variables at fill values, status pending, provenance attrs."""
-    coords = coordinates(spec)
-    dims = tuple(coords)
-    shape = tuple(v.size for v in coords.values())
+def case_variables(dims: tuple[str, ...], shape: tuple[int, ...], kind: str) -> dict[str, Any]:
+    """Every per-case variable of a cube over ``dims`` at its fill value: the metrics of layout
+    ``kind``, ``status`` pending, and the text variables (the store protocol sweeps and
+    ``optimize`` share)."""
     data: dict[str, Any] = {}
-    assert spec.layout is not None
-    for var, (dtype, units, long_name, fill) in metrics_for(spec.layout).items():
+    for var, (dtype, units, long_name, fill) in metrics_for(kind).items():
         data[var] = (dims, np.full(shape, fill, dtype=dtype), {"units": units, "long_name": long_name})
     # flags and text carry no units (CF), so unit-aware readers leave them alone
     data["status"] = (
@@ -141,6 +139,16 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
     )
     for var, long_name in TEXT.items():
         data[var] = (dims, np.full(shape, "", dtype=object), {"long_name": long_name})
+    return data
+
+
+def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.Dataset:
+    """The empty cube of a sweep: variables at fill values, status pending, provenance attrs."""
+    coords = coordinates(spec)
+    dims = tuple(coords)
+    shape = tuple(v.size for v in coords.values())
+    assert spec.layout is not None
+    data = case_variables(dims, shape, spec.layout)
     coord_vars = {k: (k, v, axis_attrs(k, spec.layout)) for k, v in coords.items()}
     bins = spec.resolution.error_map_bins
     if bins:
@@ -278,6 +286,12 @@ class CubeWriter:
         self._set("message", idx, "")
         self._set("run_id", idx, run_id)
         self._set("status", idx, DONE)  # last: the case counts only once all else is written
+
+    def write_values(self, flat: int, values: dict[str, Any]) -> None:
+        """Write further per-case variables (before :meth:`write_done`, which marks it done)."""
+        idx = self._index(flat)
+        for var, value in values.items():
+            self._set(var, idx, value)
 
     def write_failed(self, flat: int, message: str, run_id: str) -> None:
         """Record a case that raised, with its message."""

@@ -5,30 +5,64 @@ aspect ratio by log-bisection, then change the point count. Bilinear error falls
 square of the pitch, so P-V ∝ 1/N and the next count is N·P-V/T (with a small margin),
 capped at the controller's capacity. Once one count meets the tolerance and a smaller one
 does not, a bisection between them finds the smallest that does. Every evaluation is
-appended to a one-dimensional cube (dimension ``evaluation``) as soon as it finishes.
+written to a one-dimensional cube (dimension ``evaluation``) as soon as it finishes, through
+the store protocol of sweeps (:mod:`ftsweep.cube`): an atomically created template with one
+chunk per evaluation (as many slots as the search can take, unused ones stay pending), status
+flags written last, the catalog entries used, and resume: re-running the same search on its
+cube reuses every finished evaluation and computes only the rest.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import shutil
 import time
-import warnings
+import uuid
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
 import xarray as xr
+import zarr
 
-from ftsweep import __version__, catalogs
+from ftsweep import __version__, catalogs, cube
 from ftsweep.case import Case, CaseError, LayoutRequest, Resolution, run_case
-from ftsweep.cube import SCHEMA_VERSION, CubeError, git_revision, metric_values, metrics_for
+from ftsweep.cube import SCHEMA_VERSION, CubeError, CubeWriter, git_revision
 from ftsweep.lock import cube_lock
 from ftsweep.sweep import axis_attrs
 
 ASPECT_RANGE = {"ring": (0.3, 400.0), "mesh": (0.08, 16.0)}
+
+
+def _key(points: float, aspect: float) -> tuple[int, float]:
+    return int(points), round(float(aspect), 9)
+
+
+def _optimize_attrs(path: Path, any_version: bool = False) -> dict[str, Any]:
+    """Attributes of an existing evaluation cube; anything else at ``path`` is never replaced."""
+    try:
+        attrs = dict(zarr.open_group(str(path), mode="r").attrs)
+    except Exception:  # zarr raises several types for "not a group"
+        attrs = {}
+    if attrs.get("kind") != "optimize":
+        raise CubeError(f"{path} exists and is not an ftsweep evaluation cube; choose another --out")
+    if not any_version and attrs.get("ftsweep_cube_schema") != SCHEMA_VERSION:
+        raise CubeError(f"{path} was written by an older ftsweep; give --restart to recompute it")
+    return attrs
+
+
+def _changed(old_json: Any, new: dict[str, Any]) -> str:
+    old = json.loads(old_json) if isinstance(old_json, str) else {}
+    return ", ".join(sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))) or "the search"
+
+
+def max_evaluations(max_rounds: int) -> int:
+    """Evaluations a search can take: the 9-point scan, 3 refinement steps of 2, and per round
+    of point counts one new count refined by one step (3)."""
+    return 9 + 2 * 3 + 3 * max_rounds
 
 
 class Optimizer:
@@ -54,24 +88,77 @@ class Optimizer:
         self.records: list[dict[str, Any]] = []
         self.cache: dict[tuple[int, float], dict[str, Any]] = {}
         self.on_eval = on_eval
-        # written with every append: appending a dataset replaces the group's attributes
-        self.attrs = dict(
+        self.run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
+        self.writer: Optional[CubeWriter] = None
+
+    def open_store(self, spec: dict[str, Any], slots: int, restart: bool) -> int:
+        """Create the evaluation cube, or resume the one of the same search (``spec``): its
+        finished evaluations fill the cache and the record. Returns how many were reused."""
+        spec_json = json.dumps(spec, sort_keys=True)
+        spec_hash = hashlib.sha256(spec_json.encode()).hexdigest()[:16]
+        if self.out.exists():
+            attrs = _optimize_attrs(self.out, any_version=restart)
+            if restart:
+                shutil.rmtree(self.out)
+            elif attrs.get("optimize_spec_hash") != spec_hash:
+                changed = _changed(attrs.get("optimize_spec"), spec)
+                raise CubeError(
+                    f"{self.out} holds another search (changed: {changed}); give --restart to replace "
+                    "it or choose another --out"
+                )
+        if not self.out.exists():
+            entries = catalogs.recorded_entries(self.surface, self.machine, self.cutting, self.folder)
+            cube.create(self.out, self._template(slots, spec_json, spec_hash, entries))
+        self.writer = CubeWriter(self.out)
+        return self._load_finished()
+
+    def _template(self, slots: int, spec_json: str, spec_hash: str, entries: dict[str, Any]) -> xr.Dataset:
+        dims, shape = ("evaluation",), (slots,)
+        data = cube.case_variables(dims, shape, self.layout)
+        aspect_units = axis_attrs("aspect", self.layout)["units"]
+        for var, units, long_name in (
+            ("points_target", "1", "target number of control points"),
+            ("aspect_target", aspect_units, "target aspect ratio"),
+        ):
+            data[var] = (dims, np.full(shape, np.nan), {"units": units, "long_name": long_name})
+        for var, long_name in (
+            ("stage", "loop stage of the evaluation"),
+            ("record_json", "the evaluation's full record (JSON)"),
+        ):
+            data[var] = (dims, np.full(shape, "", dtype=object), {"long_name": long_name})
+        order = ("evaluation", np.arange(slots), {"units": "1", "long_name": "evaluation order"})
+        ds = xr.Dataset(data, coords={"evaluation": order})
+        ds.attrs.update(
             ftsweep_version=__version__,
             git_revision=git_revision(),
             kind="optimize",
-            surface=surface,
-            layout_method=layout,
+            surface=self.surface,
+            layout_method=self.layout,
             ftsweep_cube_schema=SCHEMA_VERSION,
-            tolerance_nm=tolerance_nm,
-            machine=machine,
-            cutting=cutting,
-            compensation=compensation,
-            resolution=json.dumps(resolution.model_dump(mode="json")),
+            tolerance_nm=self.tol,
+            machine=self.machine,
+            cutting=self.cutting,
+            compensation=self.compensation,
+            resolution=json.dumps(self.resolution.model_dump(mode="json")),
+            optimize_spec=spec_json,
+            optimize_spec_hash=spec_hash,
+            catalog_entries=json.dumps(entries, sort_keys=True),
+            status_meanings=cube.STATUS_MEANINGS,
             created=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         )
+        return ds
+
+    def _load_finished(self) -> int:
+        status = cube.read_status(self.out)
+        texts = np.asarray(zarr.open_array(str(self.out), path="record_json", mode="r")[...])
+        for i in np.flatnonzero(status != cube.PENDING):
+            rec = json.loads(str(texts[i]))
+            self.cache[_key(rec["points_target"], rec["aspect_target"])] = rec
+            self.records.append(rec)
+        return len(self.records)
 
     def evaluate(self, points: float, aspect: float, stage: str) -> dict[str, Any]:
-        key = (int(points), round(aspect, 9))
+        key = _key(points, aspect)
         if key in self.cache:
             return self.cache[key]
         case = Case(
@@ -90,7 +177,7 @@ class Optimizer:
         rec.update(points_target=float(points), aspect_target=float(aspect), stage=stage)
         self.cache[key] = rec
         self.records.append(rec)
-        self._append(rec)
+        self._store(len(self.records) - 1, rec)
         if self.on_eval:
             self.on_eval(rec)
         return rec
@@ -117,37 +204,27 @@ class Optimizer:
             factor = math.sqrt(factor)
         return best_a, best
 
-    def _append(self, rec: dict[str, Any]) -> None:
-        data = {}
-        values = metric_values(rec) if rec["status"] == "done" else {}
-        for var, (dtype, units, long_name, fill) in metrics_for(self.layout).items():
-            data[var] = (
-                ("evaluation",),
-                np.array([values.get(var, fill)], dtype=dtype),
-                {"units": units, "long_name": long_name},
+    def _store(self, slot: int, rec: dict[str, Any]) -> None:
+        """Write evaluation ``slot`` into its chunk of the cube, status last."""
+        assert self.writer is not None, "open_store() first"
+        if slot >= self.writer.shape[0]:
+            raise CubeError(
+                f"the search took more than the {self.writer.shape[0]} evaluations its cube holds"
             )
-        for var, units, long_name in (
-            ("points_target", "1", "target number of control points"),
-            ("aspect_target", axis_attrs("aspect", self.layout)["units"], "target aspect ratio"),
-        ):
-            data[var] = (("evaluation",), np.array([rec[var]]), {"units": units, "long_name": long_name})
-        for var, long_name in (
-            ("stage", "loop stage of the evaluation"),
-            ("status", "done or failed"),
-            ("message", "failure message"),
-        ):
-            data[var] = (
-                ("evaluation",),
-                np.array([str(rec[var])], dtype=object),
-                {"long_name": long_name},
-            )
-        ds = xr.Dataset(data, attrs=self.attrs)
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="Consolidated metadata", category=UserWarning)
-            if len(self.records) == 1:
-                ds.to_zarr(self.out, zarr_format=3, mode="w-", consolidated=True)
-            else:
-                ds.to_zarr(self.out, zarr_format=3, append_dim="evaluation", consolidated=True)
+        plain = {k: v for k, v in rec.items() if not isinstance(v, np.ndarray)}
+        self.writer.write_values(
+            slot,
+            {
+                "points_target": rec["points_target"],
+                "aspect_target": rec["aspect_target"],
+                "stage": rec["stage"],
+                "record_json": json.dumps(plain, default=float),
+            },
+        )
+        if rec["status"] == "done":
+            self.writer.write_done(slot, rec, self.run_id)
+        else:
+            self.writer.write_failed(slot, rec["message"], self.run_id)
 
     def next_points(self, n: float, rec: dict[str, Any], fail_n: float, pass_n: float) -> Optional[float]:
         """The next point count to try after evaluating ``rec`` at ``n``, or None to stop:
@@ -216,11 +293,6 @@ def optimize(
     out = Path(out) if out else Path("outputs") / f"optimize-{surface}-{layout}.zarr"
     out = out.absolute()
     with cube_lock(out, f"ftsweep optimize {surface}"):
-        if out.exists():
-            if not restart:
-                raise CubeError(f"{out} exists; give --restart to replace it or choose another --out")
-            shutil.rmtree(out)
-        out.parent.mkdir(parents=True, exist_ok=True)
         opt = Optimizer(
             surface,
             layout,
@@ -233,6 +305,18 @@ def optimize(
             catalog_folder,
             on_eval,
         )
+        search = {
+            "surface": surface,
+            "layout": layout,
+            "tolerance_nm": tolerance_nm,
+            "start_points": float(start_points),
+            "machine": machine,
+            "cutting": cutting,
+            "compensation": compensation,
+            "resolution": opt.resolution.model_dump(mode="json"),
+            "max_rounds": max_rounds,
+        }
+        reused = opt.open_store(search, max_evaluations(max_rounds), restart)
         lo, hi = ASPECT_RANGE[layout]
         cap = opt.capacity
         n = min(float(start_points), float(cap))
@@ -246,6 +330,7 @@ def optimize(
             "met": answer is not None,
             "answer": answer if answer is not None else opt.best(),
             "evaluations": len(opt.records),
+            "reused": reused,
             "cube": str(out),
             "tolerance_nm": tolerance_nm,
             "capacity_points": cap,

@@ -116,17 +116,7 @@ def prepare_cube(name: str, spec: SweepSpec, out: Path, restart: bool, catalog_f
                     stacklevel=2,
                 )
             return int(np.count_nonzero(cube.read_status(out) == cube.DONE))
-    entries = {
-        "surface": {
-            spec.surface: catalogs.entry("surfaces", spec.surface, catalog_folder).model_dump(mode="json")
-        },
-        "machine": {
-            spec.machine: catalogs.entry("machines", spec.machine, catalog_folder).model_dump(mode="json")
-        },
-        "cutting": {
-            spec.cutting: catalogs.entry("cutting", spec.cutting, catalog_folder).model_dump(mode="json")
-        },
-    }
+    entries = catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, catalog_folder)
     cube.create(out, cube.template(spec, name, entries))
     return 0
 

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import xarray as xr
 
+from ftsweep import cube
 from ftsweep.cube import CubeError
 from ftsweep.optimize import optimize
 
@@ -17,16 +20,18 @@ def test_finds_the_smallest_layout_meeting_the_tolerance(tmp_path, catalog_dir):
     ans = result["answer"]
     assert ans["pv_nm"] <= 40.0 and ans["feasible"]
     ds = xr.open_zarr(out)
-    assert ds.sizes["evaluation"] == result["evaluations"] >= 10  # every evaluation recorded
+    # every evaluation recorded, through the sweeps' store protocol: flags, provenance
+    assert int((ds["status"] != cube.PENDING).sum()) == result["evaluations"] >= 10
     assert ds["pv_nm"].attrs["units"] == "nm" and ds.attrs["tolerance_nm"] == 40.0
-    done = ds["status"].values == "done"
+    assert "small_sine" in json.loads(ds.attrs["catalog_entries"])["surface"]
+    done = ds["status"].values == cube.DONE
     # each evaluation records its realised table and pitches, as sweep cubes do
     np.testing.assert_array_equal(
         (ds["table_rows"] * ds["table_cols"]).values[done], ds["n_points"].values[done]
     )
     assert np.all(np.isfinite(ds["drho_um"].values[done])) and np.all(ds["aspect_actual"].values[done] > 0)
     assert ds["dtheta_deg"].attrs["units"] == "deg" and ds["aspect_target"].attrs["units"] == "um/deg"
-    meets = (ds["pv_nm"].values <= 40.0) & (ds["status"].values == "done")
+    meets = (ds["pv_nm"].values <= 40.0) & done
     # the answer is the smallest evaluated layout that meets it
     assert ans["n_points"] == ds["n_points"].values[meets].min()
     # and the loop bracketed it: a layout at most 5 % smaller was tried and failed
@@ -49,10 +54,35 @@ def test_capacity_reached_without_meeting_reports_the_best(tmp_path, catalog_dir
     assert result["answer"]["n_points"] <= 30000
 
 
-def test_existing_cube_needs_restart(tmp_path, catalog_dir):
+def test_same_search_resumes_and_another_needs_restart(tmp_path, catalog_dir):
     out = tmp_path / "o.zarr"
-    optimize("small_sine", "ring", 200.0, out, start_points=3000, catalog_folder=catalog_dir, max_rounds=1)
-    with pytest.raises(CubeError, match="--restart"):
-        optimize("small_sine", "ring", 200.0, out, start_points=3000, catalog_folder=catalog_dir)
+    args = ("small_sine", "ring", 200.0, out)
+    first = optimize(*args, start_points=3000, catalog_folder=catalog_dir, max_rounds=1)
+    ids = xr.open_zarr(out)["run_id"].values.copy()
+    again = optimize(*args, start_points=3000, catalog_folder=catalog_dir, max_rounds=1)
+    # nothing recomputed: every evaluation came from the cube, with the first run's ids
+    assert again["reused"] == first["evaluations"] == again["evaluations"]
+    assert again["answer"]["n_points"] == first["answer"]["n_points"]
+    np.testing.assert_array_equal(xr.open_zarr(out)["run_id"].values, ids)
+    with pytest.raises(CubeError, match="changed: tolerance_nm.*--restart"):
+        optimize(
+            "small_sine", "ring", 150.0, out, start_points=3000, catalog_folder=catalog_dir, max_rounds=1
+        )
+    redone = optimize(
+        "small_sine",
+        "ring",
+        150.0,
+        out,
+        start_points=3000,
+        catalog_folder=catalog_dir,
+        max_rounds=1,
+        restart=True,
+    )
+    assert redone["reused"] == 0 and redone["evaluations"] > 0
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    with pytest.raises(CubeError, match="not an ftsweep evaluation cube"):
+        optimize("small_sine", "ring", 150.0, plain, catalog_folder=catalog_dir, restart=True)
+    assert plain.exists()  # --restart never deletes what is not an evaluation cube
     with pytest.raises(ValueError, match="positive"):
         optimize("small_sine", "ring", -1.0, tmp_path / "p.zarr", catalog_folder=catalog_dir)

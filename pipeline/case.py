@@ -19,8 +19,9 @@ from typing import Any, Literal, Optional
 import numpy as np
 from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_validator
 
-from ftsweep import catalogs
+from ftsweep import catalogs, result
 from ftsweep.catalogs import Strict
+from ftsweep.result import STAGES
 from ftsweep.stages import compensation, dynamics, envelope, interpolation, layouts, metrics
 from ftsweep.stages.layouts import Layout
 from ftsweep.stages.surfaces import radial_section
@@ -271,7 +272,7 @@ def _pass_point(grid: Any, ray_theta: np.ndarray) -> Callable[[int], str]:
     return where
 
 
-STAGE_TIMERS = ("sampling", "compensation", "interpolation", "envelope", "metrics", "dynamics")
+STAGE_TIMERS = STAGES
 
 
 @dataclass(frozen=True)
@@ -390,10 +391,11 @@ def run_case(
 ) -> dict[str, Any]:
     """Predict the form error of one case (physics.md §1–§6).
 
-    Returns a flat record: the resolved inputs (surface, layout, n_points, pitches, cutting
-    conditions, resolution), the metrics of :func:`ftsweep.stages.metrics.finalize` in nm, the
-    control points flagged as gouging, the feed cusp height, and wall seconds per stage
-    (``seconds_<stage>``) and in total (``seconds``). ``progress(done, total)`` is called
+    Returns a flat record whose fields :mod:`ftsweep.result` declares (names, units, order):
+    the resolved inputs (surface, layout, n_points, pitches, cutting conditions), the metrics
+    of :func:`ftsweep.stages.metrics.finalize` in nm, the control points flagged as gouging,
+    the feed cusp height, and wall seconds per stage (``seconds_<stage>``) and in total
+    (``seconds``); with ``resolution.error_map_bins``, the error maps. ``progress(done, total)`` is called
     after each batch of lines. A given ``table`` [µm] (of the case's layout shape) replaces
     the compensated one: the controller's table as stored, e.g. after quantisation.
     ``specs`` = (surface, machine, cutting) entries replace the catalog look-up, e.g. the
@@ -433,7 +435,7 @@ def run_case(
     for name in STAGE_TIMERS:
         record[f"seconds_{name}"] = timer.seconds.get(name, 0.0)
     record["seconds"] = time.perf_counter() - t_start
-    return record
+    return result.in_declared_order(record)
 
 
 def _table_of(
@@ -518,16 +520,17 @@ def _record(
     feasible, reason = dynamics.feasibility(
         dyn, machine.travel_um, machine.peak_accel_m_s2, machine.continuous_accel_m_s2, machine.bandwidth_hz
     )
+    pitch_names = ("drho_um", "dtheta_deg") if layout.kind == "ring" else ("dx_um", "dy_um")
     record: dict[str, Any] = {
         "surface": case.surface,
         "layout": layout.kind,
         "n_points": layout.n_points,
-        "table_shape": list(layout.shape),
+        "table_rows": layout.shape[0],
+        "table_cols": layout.shape[1],
+        pitch_names[0]: layout.pitch[0],
+        pitch_names[1]: layout.pitch[1],
+        "aspect_actual": layout.aspect,
     }
-    if layout.kind == "ring":
-        record.update(drho_um=layout.pitch[0], dtheta_deg=layout.pitch[1], aspect_um_per_deg=layout.aspect)
-    else:
-        record.update(dx_um=layout.pitch[0], dy_um=layout.pitch[1], aspect=layout.aspect)
     record.update(
         compensation=case.compensation,
         machine=case.machine,

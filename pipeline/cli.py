@@ -388,7 +388,7 @@ def _selection_text(chosen: dict[str, Any]) -> str:
             f"case         {chosen['index']} "
             f"(target N {chosen['points_target']:,.0f}, α {chosen['aspect_target']:.4g})",
             f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch} "
-            f"(α = {chosen['aspect']:.4g})",
+            f"(α = {chosen['aspect_actual']:.4g})",
             f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, interpolation alone "
             f"{chosen['pv_interp_nm']:.2f} nm)",
         ]
@@ -816,12 +816,11 @@ def _check_numbers(positive: dict[str, Any], counts: dict[str, Any]) -> None:
 def _summary(r: dict[str, Any]) -> str:
     if r["layout"] == "ring":
         pitches = (
-            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.7g}°  "
-            f"(α = {r['aspect_um_per_deg']:.4g} µm/deg)"
+            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.7g}°  (α = {r['aspect_actual']:.4g} µm/deg)"
         )
     else:
-        pitches = f"Δx = {r['dx_um']:.4g} µm, Δy = {r['dy_um']:.4g} µm  (α = {r['aspect']:.4g})"
-    shape = " × ".join(str(n) for n in r["table_shape"])
+        pitches = f"Δx = {r['dx_um']:.4g} µm, Δy = {r['dy_um']:.4g} µm  (α = {r['aspect_actual']:.4g})"
+    shape = f"{r['table_rows']} × {r['table_cols']}"
     lines = [
         f"surface      {r['surface']}",
         f"layout       {r['layout']}: {r['n_points']:,} control points ({shape})",

@@ -26,64 +26,20 @@ import numpy as np
 import xarray as xr
 import zarr
 
-from ftsweep import __version__
+from ftsweep import __version__, result
 from ftsweep.sweep import SweepSpec, axis_attrs, coordinates
 
 PENDING, DONE, FAILED = 0, 1, 2
 STATUS_MEANINGS = "pending done failed"
 
-# name: (dtype, units, long_name, fill); record keys of ftsweep.case.run_case
-METRICS: dict[str, tuple[str, str, str, Any]] = {
-    "n_points": ("int64", "1", "number of control points of the table", -1),
-    "table_rows": ("int32", "1", "table rows (rings M or mesh nx)", -1),
-    "table_cols": ("int32", "1", "table columns (points per ring Np or mesh ny)", -1),
-    "pv_nm": ("float64", "nm", "peak-to-valley form error", np.nan),
-    "rms_nm": ("float64", "nm", "RMS form error about its mean", np.nan),
-    "mean_nm": ("float64", "nm", "mean form error", np.nan),
-    "error_min_nm": ("float64", "nm", "lowest form error", np.nan),
-    "error_max_nm": ("float64", "nm", "highest form error", np.nan),
-    "pv_inner_nm": ("float64", "nm", "P-V in the inner zone", np.nan),
-    "pv_outer_nm": ("float64", "nm", "P-V in the outer zone", np.nan),
-    "pv_interp_nm": ("float64", "nm", "P-V of the interpolation-only error", np.nan),
-    "cusp_nm": ("float64", "nm", "feed cusp height of a flat surface F^2/(8 Rc)", np.nan),
-    "gouge_points": ("int64", "1", "control points whose section is concave with radius below Rc", -1),
-    "n_theta": ("int64", "1", "simulated spindle angles", -1),
-    "n_eval": ("int64", "1", "evaluation points", -1),
-    "stroke_um": ("float64", "um", "W stroke used (range of the table)", np.nan),
-    "w_velocity_peak_mm_s": ("float64", "mm/s", "peak W velocity at the spindle speed", np.nan),
-    "w_accel_peak_m_s2": ("float64", "m/s^2", "peak W acceleration at the spindle speed", np.nan),
-    "w_accel_rms_m_s2": ("float64", "m/s^2", "RMS W acceleration at the spindle speed", np.nan),
-    "w_freq_max_hz": ("float64", "Hz", "highest significant frequency of the W command", np.nan),
-    "feasible": ("int8", "1", "1 if the W motion fits the machine's travel, acceleration and bandwidth", -1),
-    "runtime_s": ("float64", "s", "wall time of the case", np.nan),
-    "seconds_compensation": ("float64", "s", "wall time of compensation", np.nan),
-    "seconds_sampling": ("float64", "s", "wall time of surface sampling", np.nan),
-    "seconds_interpolation": ("float64", "s", "wall time of interpolation", np.nan),
-    "seconds_envelope": ("float64", "s", "wall time of the envelope", np.nan),
-    "seconds_metrics": ("float64", "s", "wall time of the metrics", np.nan),
-    "seconds_dynamics": ("float64", "s", "wall time of the dynamics", np.nan),
-}
-# the realised pitches, named and united per layout kind (a cube holds one kind); the target
-# aspect ratio is the coordinate ``aspect``, the realised one ``aspect_actual``
-LAYOUT_METRICS: dict[str, dict[str, tuple[str, str, str, Any]]] = {
-    "ring": {
-        "drho_um": ("float64", "um", "ring pitch Δρ", np.nan),
-        "dtheta_deg": ("float64", "deg", "angular pitch Δθ", np.nan),
-        "aspect_actual": ("float64", "um/deg", "aspect ratio Δρ/Δθ of the realised pitches", np.nan),
-    },
-    "mesh": {
-        "dx_um": ("float64", "um", "mesh pitch Δx", np.nan),
-        "dy_um": ("float64", "um", "mesh pitch Δy", np.nan),
-        "aspect_actual": ("float64", "1", "aspect ratio Δx/Δy of the realised pitches", np.nan),
-    },
-}
 # cubes written before the variables were named per layout kind and carried parseable units
 SCHEMA_VERSION = 2
 
 
-def metrics_for(kind: str) -> dict[str, tuple[str, str, str, Any]]:
-    """The metric variables of a cube of layout ``kind``: (dtype, units, long_name, fill)."""
-    return {**LAYOUT_METRICS[kind], **METRICS}
+def metrics_for(kind: str) -> dict[str, tuple[str, Any, str, Any]]:
+    """The per-case numeric variables of a cube of layout ``kind``: name → (dtype, units,
+    long_name, fill), as :mod:`ftsweep.result` declares them."""
+    return result.stored(kind)
 
 
 MAP_VARS = {
@@ -96,8 +52,8 @@ TEXT = {
     "run_id": "identifier of the run that computed the case",
 }
 # variables that differ between otherwise identical runs: every wall time (units "s") and the
-# run id; derived from METRICS so a new timer cannot be forgotten
-TIMING_VARS = (*(v for v, (_, units, _, _) in METRICS.items() if units == "s"), "run_id")
+# run id; derived from the declared result so a new timer cannot be forgotten
+TIMING_VARS = (*(q.name for q in result.RESULT if q.dtype and q.units == "s"), "run_id")
 
 
 class CubeError(ValueError):
@@ -245,14 +201,11 @@ def read_status(path: Path) -> np.ndarray:
 
 
 def metric_values(record: dict[str, Any]) -> dict[str, Any]:
-    """The metric variables (:func:`metrics_for` the record's layout kind) of a finished case's
-    record (``run_case`` output), named and laid out as cubes store them."""
-    values = dict(record)
-    values["table_rows"], values["table_cols"] = record["table_shape"]
-    values["aspect_actual"] = record["aspect_um_per_deg" if record["layout"] == "ring" else "aspect"]
-    values["runtime_s"] = record["seconds"]
+    """The stored variables (:func:`metrics_for` the record's layout kind) of a finished case's
+    record (``run_case`` output): the same names, ``feasible`` as a 0/1 flag."""
+    values = {var: record[var] for var in metrics_for(record["layout"])}
     values["feasible"] = int(bool(record["feasible"]))
-    return {var: values[var] for var in metrics_for(record["layout"])}
+    return values
 
 
 class CubeWriter:

@@ -80,7 +80,7 @@ def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
     out["n_points"] = int(point["n_points"])
     out[names[0]] = float(point[names[0]])
     out[names[1]] = float(point[names[1]])
-    out["aspect"] = float(point["aspect_actual"])
+    out["aspect_actual"] = float(point["aspect_actual"])
     for var in ("pv_nm", "rms_nm", "pv_interp_nm", "pv_inner_nm", "pv_outer_nm"):
         out[var] = float(point[var])
     out["status"] = ("pending", "done", "failed")[int(point["status"])]

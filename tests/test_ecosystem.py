@@ -98,7 +98,7 @@ def test_unrealisable_dtheta_is_rounded_with_a_notice(catalog_dir):
     r = CliRunner().invoke(main, args, env=env)
     assert r.exit_code == 0, r.output
     record = json.loads(r.stdout)
-    assert record["dtheta_deg"] == pytest.approx(360.0 / 514) and record["table_shape"][1] == 514
+    assert record["dtheta_deg"] == pytest.approx(360.0 / 514) and record["table_cols"] == 514
     notice = r.stderr.strip().splitlines()
     assert len(notice) == 1 and "0.7" in notice[0] and "0.7003891" in notice[0] and "514" in notice[0]
     strict = CliRunner().invoke(main, [*args, "--strict"], env=env)

@@ -83,7 +83,7 @@ def test_select_cli_json(ring_cube):
     r = CliRunner().invoke(main, ["select", str(ring_cube), "--budget-points", "30000", "--json"])
     assert r.exit_code == 0, r.output
     data = json.loads(r.stdout)
-    assert {"n_points", "drho_um", "dtheta_deg", "pv_nm", "aspect"} <= set(data)
+    assert {"n_points", "drho_um", "dtheta_deg", "pv_nm", "aspect_actual", "aspect_target"} <= set(data)
 
 
 # ----------------------------------------------------------------------------- export

@@ -44,12 +44,12 @@ def test_ring_and_mesh_on_small_parts(catalog_dir):
     ring = run_case(
         Case(surface="small_sine", layout=LayoutRequest(kind="ring", points=20000, aspect=4.0)), catalog_dir
     )
-    assert ring["n_points"] == pytest.approx(20000, abs=ring["table_shape"][1])
-    assert ring["aspect_um_per_deg"] == pytest.approx(4.0, rel=0.1)
+    assert ring["n_points"] == pytest.approx(20000, abs=ring["table_cols"])
+    assert ring["aspect_actual"] == pytest.approx(4.0, rel=0.1)
     mesh = run_case(
         Case(surface="small_lens", layout=LayoutRequest(kind="mesh", pitch=(5.0, 5.0))), catalog_dir
     )
-    assert mesh["table_shape"] == [91, 91]
+    assert [mesh["table_rows"], mesh["table_cols"]] == [91, 91]
     for r in (ring, mesh):
         assert math.isfinite(r["pv_nm"]) and r["pv_nm"] > r["cusp_nm"]
         assert r["pv_inner_nm"] <= r["pv_nm"] + 1e-9 and r["pv_outer_nm"] <= r["pv_nm"] + 1e-9

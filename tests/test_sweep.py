@@ -338,7 +338,7 @@ def test_cube_opens_in_a_plain_python_session_with_coordinates_and_units(referen
         [sys.executable, "-c", code, str(reference_cube)], capture_output=True, text=True, check=True
     )
     assert "* points" in out.stdout and "* aspect" in out.stdout
-    assert "'pv_nm': 'nm'" in out.stdout and "'runtime_s': 's'" in out.stdout
+    assert "'pv_nm': 'nm'" in out.stdout and "'seconds': 's'" in out.stdout
     ds = xr.open_zarr(reference_cube)
     for name, var in ds.variables.items():
         assert "long_name" in var.attrs, name

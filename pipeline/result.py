@@ -1,0 +1,125 @@
+"""The declared result of a case: every field a prediction reports, with its units, long name
+and how cubes store it. One vocabulary everywhere: ``run_case`` returns these names (and
+``predict --json`` prints them), cubes hold the stored ones under the same names with these
+units, and ``select``/``describe`` read them back unchanged. Units are ones unit libraries
+parse (pint, UDUNITS); ``None`` marks text and flags, which carry none (CF).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import numpy as np
+
+KINDS = ("ring", "mesh")
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """One declared field of a case result.
+
+    units : parseable units, or a mapping layout kind → units where they differ by kind.
+    dtype, fill : how a cube stores it (``dtype`` None: not stored per case in a cube).
+    kinds : the program kinds whose results hold it.
+    """
+
+    name: str
+    long_name: str
+    units: Any = None
+    dtype: Optional[str] = None
+    fill: Any = None
+    kinds: tuple[str, ...] = KINDS
+
+    def units_for(self, kind: str) -> Optional[str]:
+        return self.units.get(kind) if isinstance(self.units, dict) else self.units
+
+
+def _f(name: str, units: Any, long_name: str, kinds: tuple[str, ...] = KINDS) -> Quantity:
+    return Quantity(name, long_name, units, "float64", np.nan, kinds)
+
+
+def _i(name: str, long_name: str, dtype: str = "int64") -> Quantity:
+    return Quantity(name, long_name, "1", dtype, -1)
+
+
+def _text(name: str, long_name: str) -> Quantity:
+    return Quantity(name, long_name)
+
+
+def _input(name: str, units: Any, long_name: str) -> Quantity:
+    return Quantity(name, long_name, units)
+
+
+STAGES = ("sampling", "compensation", "interpolation", "envelope", "metrics", "dynamics")
+
+RESULT: tuple[Quantity, ...] = (
+    # what was simulated
+    _text("surface", "surface catalog entry"),
+    _text("layout", "program kind: ring or mesh table"),
+    _text("compensation", "tool-nose compensation of the table: exact, slope or none"),
+    _text("machine", "machine catalog entry"),
+    _input("feed_um", "um", "feed per spindle revolution"),
+    _input("nose_radius_um", "um", "tool nose radius"),
+    _input("spindle_rpm", "1/min", "spindle speed"),
+    _input("points_per_feed", "1", "evaluation points per feed along each angle"),
+    _input("edge_band_um", "um", "band at the aperture's edge outside the fully machined zone"),
+    # the table
+    _i("n_points", "number of control points of the table"),
+    _i("table_rows", "table rows (rings M or mesh nx)", "int32"),
+    _i("table_cols", "table columns (points per ring Np or mesh ny)", "int32"),
+    _f("drho_um", "um", "ring pitch Δρ", ("ring",)),
+    _f("dtheta_deg", "deg", "angular pitch Δθ", ("ring",)),
+    _f("dx_um", "um", "mesh pitch Δx", ("mesh",)),
+    _f("dy_um", "um", "mesh pitch Δy", ("mesh",)),
+    _f("aspect_actual", {"ring": "um/deg", "mesh": "1"}, "aspect ratio of the realised pitches"),
+    # the form error (physics.md §6)
+    _f("pv_nm", "nm", "peak-to-valley form error"),
+    _f("rms_nm", "nm", "RMS form error about its mean"),
+    _f("mean_nm", "nm", "mean form error"),
+    _f("error_min_nm", "nm", "lowest form error"),
+    _f("error_max_nm", "nm", "highest form error"),
+    _f("pv_inner_nm", "nm", "P-V in the inner zone"),
+    _f("pv_outer_nm", "nm", "P-V in the outer zone"),
+    _f("pv_interp_nm", "nm", "P-V of the interpolation-only error"),
+    _f("cusp_nm", "nm", "feed cusp height of a flat surface F^2/(8 Rc)"),
+    _i("gouge_points", "control points whose section is concave with radius below Rc"),
+    _i("n_theta", "simulated spindle angles"),
+    _i("n_eval", "evaluation points"),
+    # the W motion (seed 001 dynamics, physics.md §6)
+    _f("stroke_um", "um", "W stroke used (range of the table)"),
+    _f("w_velocity_peak_mm_s", "mm/s", "peak W velocity at the spindle speed"),
+    _f("w_accel_peak_m_s2", "m/s^2", "peak W acceleration at the spindle speed"),
+    _f("w_accel_rms_m_s2", "m/s^2", "RMS W acceleration at the spindle speed"),
+    _f("w_freq_max_hz", "Hz", "highest significant frequency of the W command"),
+    Quantity(
+        "feasible", "1 if the W motion fits the machine's travel, acceleration and bandwidth", "1", "int8", -1
+    ),  # noqa: E501
+    _text("infeasible_reason", "machine limits the W motion exceeds (empty when feasible)"),
+    # wall times
+    *(_f(f"seconds_{stage}", "s", f"wall time of {stage}") for stage in STAGES),
+    _f("seconds", "s", "wall time of the case"),
+)
+BY_NAME = {q.name: q for q in RESULT}
+
+
+def result_names(kind: str) -> list[str]:
+    """Every field a result of layout ``kind`` holds (without the optional error maps)."""
+    return [q.name for q in RESULT if kind in q.kinds]
+
+
+def stored(kind: str) -> dict[str, tuple[str, Optional[str], str, Any]]:
+    """The per-case numeric variables a cube of layout ``kind`` stores:
+    name → (dtype, units, long_name, fill)."""
+    return {
+        q.name: (q.dtype, q.units_for(kind), q.long_name, q.fill)
+        for q in RESULT
+        if q.dtype is not None and kind in q.kinds
+    }
+
+
+def in_declared_order(record: dict[str, Any]) -> dict[str, Any]:
+    """``record`` with its declared fields in declared order, then any others (error maps)."""
+    ordered = {q.name: record[q.name] for q in RESULT if q.name in record}
+    ordered.update((k, v) for k, v in record.items() if k not in ordered)
+    return ordered

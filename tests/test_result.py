@@ -1,0 +1,59 @@
+"""The declared result (issue 15, item 1): run_case, predict --json, cubes and describe use
+the names, units and long names ftsweep.result declares, for every program kind."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import xarray as xr
+from click.testing import CliRunner
+
+from ftsweep import cube, result
+from ftsweep.case import Case, LayoutRequest, run_case
+from ftsweep.cli import main
+from ftsweep.query import describe
+from ftsweep.run import run_sweep
+
+KIND_CASES = {
+    "ring": Case(surface="small_sine", layout=LayoutRequest(kind="ring", pitch=(10.0, 4.0))),
+    "mesh": Case(surface="small_lens", layout=LayoutRequest(kind="mesh", pitch=(10.0, 10.0))),
+}
+
+
+@pytest.mark.parametrize("kind", result.KINDS)
+def test_run_case_returns_exactly_the_declared_fields(kind, catalog_dir):
+    record = run_case(KIND_CASES[kind], catalog_dir)
+    assert list(record) == [n for n in result.result_names(kind) if n in record]  # declared order
+    assert set(record) == set(result.result_names(kind))
+    other = "mesh" if kind == "ring" else "ring"
+    assert not set(record) & (set(result.result_names(other)) - set(result.result_names(kind)))
+
+
+def test_every_declared_field_has_a_long_name_and_numbers_have_units():
+    for q in result.RESULT:
+        assert q.long_name, q.name
+        for kind in q.kinds:
+            if q.dtype is not None:
+                assert q.units_for(kind), q.name
+
+
+def test_predict_json_and_the_cube_use_the_declared_names_and_units(tmp_path, catalog_dir):
+    args = ["predict", "--surface", "small_sine", "--drho-um", "10", "--dtheta-deg", "4", "--json"]
+    r = CliRunner().invoke(main, args, env={"FTSWEEP_CATALOGS": str(catalog_dir)})
+    assert r.exit_code == 0, r.output
+    assert set(json.loads(r.stdout)) == set(result.result_names("ring"))
+    spec = tmp_path / "s.yaml"
+    spec.write_text("surface: small_sine\naxes: {points: [8000], aspect: [2.0]}\n")
+    out = tmp_path / "s.zarr"
+    run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    ds = xr.open_zarr(out)
+    stored = result.stored("ring")
+    assert set(stored) <= set(ds.data_vars)
+    assert set(ds.data_vars) - set(stored) == {"status", *cube.TEXT}
+    for name, (_, units, long_name, _) in stored.items():
+        assert ds[name].attrs == {"units": units, "long_name": long_name}, name
+    # describe reads the same names back, target and realised aspect named apart
+    case = describe(ds.load(), 0)
+    assert {"drho_um", "dtheta_deg", "aspect_actual", "aspect_target", "points_target"} <= set(case)
+    assert case["aspect_actual"] == float(ds["aspect_actual"].values.ravel()[0])

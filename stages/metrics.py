@@ -28,10 +28,26 @@ STAT_NAMES = (
     "inner_count",
     "outer_count",
 )
+# named slots of the statistics vector (module constants, which numba compiles in)
+(
+    COUNT,
+    SUM,
+    SUM_SQ,
+    MIN,
+    MAX,
+    INNER_MIN,
+    INNER_MAX,
+    OUTER_MIN,
+    OUTER_MAX,
+    INTERP_MIN,
+    INTERP_MAX,
+    INNER_COUNT,
+    OUTER_COUNT,
+) = range(len(STAT_NAMES))
 _N = len(STAT_NAMES)
-_MIN_SLOTS = np.array([3, 5, 7, 9])
-_MAX_SLOTS = np.array([4, 6, 8, 10])
-_SUM_SLOTS = np.array([0, 1, 2, 11, 12])
+_MIN_SLOTS = np.array([MIN, INNER_MIN, OUTER_MIN, INTERP_MIN])
+_MAX_SLOTS = np.array([MAX, INNER_MAX, OUTER_MAX, INTERP_MAX])
+_SUM_SLOTS = np.array([COUNT, SUM, SUM_SQ, INNER_COUNT, OUTER_COUNT])
 
 
 def empty_stats() -> np.ndarray:
@@ -70,21 +86,21 @@ def accumulate(z, z_exact, g, inside, node_r, zone_split_um, stats):  # pragma: 
                 continue
             e = zz - g[a, j]
             d = zz - z_exact[a, j]
-            stats[0] += 1.0
-            stats[1] += e
-            stats[2] += e * e
-            stats[3] = min(stats[3], e)
-            stats[4] = max(stats[4], e)
+            stats[COUNT] += 1.0
+            stats[SUM] += e
+            stats[SUM_SQ] += e * e
+            stats[MIN] = min(stats[MIN], e)
+            stats[MAX] = max(stats[MAX], e)
             if node_r[a, j] <= zone_split_um:
-                stats[5] = min(stats[5], e)
-                stats[6] = max(stats[6], e)
-                stats[11] += 1.0
+                stats[INNER_MIN] = min(stats[INNER_MIN], e)
+                stats[INNER_MAX] = max(stats[INNER_MAX], e)
+                stats[INNER_COUNT] += 1.0
             else:
-                stats[7] = min(stats[7], e)
-                stats[8] = max(stats[8], e)
-                stats[12] += 1.0
-            stats[9] = min(stats[9], d)
-            stats[10] = max(stats[10], d)
+                stats[OUTER_MIN] = min(stats[OUTER_MIN], e)
+                stats[OUTER_MAX] = max(stats[OUTER_MAX], e)
+                stats[OUTER_COUNT] += 1.0
+            stats[INTERP_MIN] = min(stats[INTERP_MIN], d)
+            stats[INTERP_MAX] = max(stats[INTERP_MAX], d)
 
 
 @njit(nogil=True, cache=True)
@@ -100,14 +116,14 @@ def accumulate_extrema(z, f, inside, r, zone_split_um, stats):  # pragma: no cov
             if not inside[a, c] or math.isnan(z[a, c]) or math.isnan(f[a, c]):
                 continue
             e = z[a, c] - f[a, c]
-            stats[3] = min(stats[3], e)
-            stats[4] = max(stats[4], e)
+            stats[MIN] = min(stats[MIN], e)
+            stats[MAX] = max(stats[MAX], e)
             if r[a, c] <= zone_split_um:
-                stats[5] = min(stats[5], e)
-                stats[6] = max(stats[6], e)
+                stats[INNER_MIN] = min(stats[INNER_MIN], e)
+                stats[INNER_MAX] = max(stats[INNER_MAX], e)
             else:
-                stats[7] = min(stats[7], e)
-                stats[8] = max(stats[8], e)
+                stats[OUTER_MIN] = min(stats[OUTER_MIN], e)
+                stats[OUTER_MAX] = max(stats[OUTER_MAX], e)
 
 
 @njit(nogil=True, cache=True)

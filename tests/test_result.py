@@ -57,3 +57,10 @@ def test_predict_json_and_the_cube_use_the_declared_names_and_units(tmp_path, ca
     case = describe(ds.load(), 0)
     assert {"drho_um", "dtheta_deg", "aspect_actual", "aspect_target", "points_target"} <= set(case)
     assert case["aspect_actual"] == float(ds["aspect_actual"].values.ravel()[0])
+
+
+def test_metric_slots_are_named_after_the_statistics():
+    from ftsweep.stages import metrics
+
+    for i, name in enumerate(metrics.STAT_NAMES):
+        assert getattr(metrics, name.upper()) == i

@@ -22,10 +22,11 @@ from pydantic import (
     PositiveFloat,
     PositiveInt,
     ValidationError,
+    create_model,
     model_validator,
 )
 
-from ftsweep.stages.surfaces import FAMILIES, Aperture, SurfaceFn
+from ftsweep.stages.surfaces import FAMILIES, Aperture, Family, SurfaceFn
 
 
 class CatalogError(ValueError):
@@ -84,55 +85,6 @@ ApertureSpec = Annotated[Union[CircleAperture, RectangleAperture], Field(discrim
 
 
 # --------------------------------------------------------------------------- surfaces
-class SinewaveParams(Strict):
-    amplitude_x_um: float
-    amplitude_y_um: float
-    wavelength_x_um: PositiveFloat
-    wavelength_y_um: PositiveFloat
-    phase_x_deg: float = 0.0
-    phase_y_deg: float = 0.0
-
-
-class LensArrayParams(Strict):
-    radius_um: PositiveFloat
-    sag_um: PositiveFloat
-    pitch_um: PositiveFloat
-    count_x: PositiveInt
-    count_y: PositiveInt
-
-
-class ChebyshevParams(Strict):
-    base_radius_um: float = Field(0.0, description="radius of the base sphere [µm]; 0 for none")
-    coefficients_um: list[list[float]] = Field(
-        min_length=1, description="C_ij [µm], rows i (x) of columns j (y)"
-    )
-    norm_x_um: PositiveFloat
-    norm_y_um: PositiveFloat
-    offset_x_um: float = 0.0
-    offset_y_um: float = 0.0
-
-    @model_validator(mode="after")
-    def _rectangular(self) -> ChebyshevParams:
-        if len({len(row) for row in self.coefficients_um}) != 1 or not self.coefficients_um[0]:
-            raise ValueError("coefficients_um must be a rectangular, non-empty list of rows")
-        return self
-
-
-class SinusoidalMeshParams(Strict):
-    h1_um: float
-    h2_um: float
-    periods_circumferential: PositiveFloat
-    periods_radial: PositiveFloat
-    workpiece_radius_um: PositiveFloat
-
-
-class ZernikeParams(Strict):
-    norm_radius_um: PositiveFloat
-    terms_um: dict[PositiveInt, float] = Field(min_length=1, description="{Noll index: coefficient [µm]}")
-    base_radius_um: float = 0.0
-    conic: float = 0.0
-
-
 class HeightMapParams(Strict):
     path: str = Field(description="NetCDF (.nc), Zarr (.zarr) or .npy file; relative to the catalog folder")
     variable: Optional[str] = Field(None, description="height variable of a NetCDF/Zarr file")
@@ -161,31 +113,6 @@ class _SurfaceBase(Strict):
     )
 
 
-class SinewaveSurface(_SurfaceBase):
-    family: Literal["sinewave2d"]
-    params: SinewaveParams
-
-
-class LensArraySurface(_SurfaceBase):
-    family: Literal["lens_array"]
-    params: LensArrayParams
-
-
-class ChebyshevSurface(_SurfaceBase):
-    family: Literal["chebyshev_freeform"]
-    params: ChebyshevParams
-
-
-class SinusoidalMeshSurface(_SurfaceBase):
-    family: Literal["sinusoidal_mesh"]
-    params: SinusoidalMeshParams
-
-
-class ZernikeSurface(_SurfaceBase):
-    family: Literal["zernike"]
-    params: ZernikeParams
-
-
 class HeightMapSurface(_SurfaceBase):
     family: Literal["height_map"]
     params: HeightMapParams
@@ -196,18 +123,75 @@ class PluginSurface(_SurfaceBase):
     params: PluginParams
 
 
-SurfaceSpec = Annotated[
-    Union[
-        SinewaveSurface,
-        LensArraySurface,
-        ChebyshevSurface,
-        SinusoidalMeshSurface,
-        ZernikeSurface,
-        HeightMapSurface,
-        PluginSurface,
-    ],
-    Field(discriminator="family"),
-]
+def _params_model(name: str, family: Family) -> type[BaseModel]:
+    """The validated model of a registered family's parameters (from its ``Param`` list)."""
+    fields: dict[str, Any] = {}
+    for key, p in family.params.items():
+        constraints: dict[str, Any] = {"description": p.description}
+        if p.positive:
+            constraints["gt"] = 0
+        if p.min_length is not None:
+            constraints["min_length"] = p.min_length
+        fields[key] = (p.annotation, Field(p.default, **constraints))
+    validators: dict[str, Any] = {}
+    if family.check is not None:
+        check = family.check
+
+        def _check(self: BaseModel) -> BaseModel:
+            check(self.model_dump())
+            return self
+
+        validators["check_combination"] = model_validator(mode="after")(_check)
+    title = "".join(part.capitalize() for part in name.split("_"))
+    model: type[BaseModel] = create_model(  # type: ignore[call-overload]
+        f"{title}Params", __base__=Strict, __validators__=validators, **fields
+    )
+    return model
+
+
+def _surface_model(name: str, family: Family) -> type[BaseModel]:
+    """The catalog entry model of a registered family: ``family: name`` and its parameters."""
+    title = "".join(part.capitalize() for part in name.split("_"))
+    tag: Any = Literal[name]
+    model: type[BaseModel] = create_model(  # type: ignore[call-overload]
+        f"{title}Surface",
+        __base__=_SurfaceBase,
+        family=(tag, ...),
+        params=(_params_model(name, family), ...),
+    )
+    return model
+
+
+@functools.lru_cache(maxsize=8)
+def _generated(names: tuple[str, ...]) -> tuple[dict[str, type[BaseModel]], Any]:
+    models = {name: _surface_model(name, FAMILIES[name]) for name in names}
+    union: Any = Annotated[
+        Union[(*models.values(), HeightMapSurface, PluginSurface)],  # noqa: UP007
+        Field(discriminator="family"),
+    ]
+    return models, union
+
+
+def surface_spec() -> Any:
+    """The catalog entry type of a surface: one generated model per family registered with
+    ``stages.surfaces.surface_family`` (also one registered after this module was imported),
+    plus the families users bring (height maps, plug-ins), which load files or code and so
+    are declared here. ``SurfaceSpec`` names it too."""
+    return _generated(tuple(FAMILIES))[1]
+
+
+def registered_surfaces() -> dict[str, type[BaseModel]]:
+    """The generated entry model of every registered family."""
+    return _generated(tuple(FAMILIES))[0]
+
+
+def __getattr__(name: str) -> Any:
+    # SurfaceSpec follows the registry, so it is computed on access
+    if name == "SurfaceSpec":
+        return surface_spec()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 USER_FAMILIES = ("height_map", "plugin")
 
 
@@ -238,7 +222,7 @@ def _sampled_bound(spec_json: str, folder: str) -> float:
 
     from ftsweep.stages.surfaces import sampled_gradient_bound
 
-    spec = TypeAdapter(SurfaceSpec).validate_json(spec_json)
+    spec = TypeAdapter(surface_spec()).validate_json(spec_json)
     return sampled_gradient_bound(surface_callable(spec, Path(folder)), aperture_of(spec).outer_radius_um)
 
 
@@ -318,7 +302,7 @@ def specs_from_entries(
     from pydantic import TypeAdapter
 
     return (
-        TypeAdapter(SurfaceSpec).validate_python(surface),
+        TypeAdapter(surface_spec()).validate_python(surface),
         Machine.model_validate(machine),
         Cutting.model_validate(cutting),
     )
@@ -418,7 +402,8 @@ def load_catalog(path: Path, model: Any) -> dict[str, Any]:
 
 @functools.lru_cache(maxsize=64)
 def _cached(kind: str, folder: str, mtime_ns: int) -> dict[str, Any]:
-    model = {"surfaces": SurfaceSpec, "machines": Machine, "cutting": Cutting, "references": Reference}[kind]
+    models = {"machines": Machine, "cutting": Cutting, "references": Reference}
+    model = surface_spec() if kind == "surfaces" else models[kind]
     return load_catalog(Path(folder) / f"{kind}.yaml", model)
 
 

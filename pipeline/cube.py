@@ -111,9 +111,9 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
         from pydantic import TypeAdapter
 
         from ftsweep.case import ErrorMap
-        from ftsweep.catalogs import SurfaceSpec, aperture_of
+        from ftsweep.catalogs import aperture_of, surface_spec
 
-        surface = TypeAdapter(SurfaceSpec).validate_python(catalog_entries["surface"][spec.surface])
+        surface = TypeAdapter(surface_spec()).validate_python(catalog_entries["surface"][spec.surface])
         centres = ErrorMap.over(aperture_of(surface), bins).centres_um()
         for axis in ("map_x", "map_y"):
             coord_vars[axis] = (

@@ -13,22 +13,79 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 from numba import njit
 
-SurfaceFn = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+from .bspline import bspline2d
+from .geometry import Aperture, SurfaceFn, flat_pair, radial_section, sampled_gradient_bound
+
+__all__ = [
+    "FAMILIES",
+    "Aperture",
+    "Family",
+    "Param",
+    "SurfaceFn",
+    "bspline2d",
+    "radial_section",
+    "sampled_gradient_bound",
+    "surface_family",
+]
 
 
-def _flat_pair(x: np.ndarray, y: np.ndarray) -> tuple[tuple[int, ...], np.ndarray, np.ndarray]:
-    """Broadcast x, y and flatten them to contiguous float64 (one cached numba specialisation;
-    a kernel reading mismatched lengths would read past the end)."""
-    xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
-    return xb.shape, np.ascontiguousarray(xb).reshape(-1), np.ascontiguousarray(yb).reshape(-1)
+# --------------------------------------------------------------------------- registry
+@dataclass(frozen=True)
+class Param:
+    """One catalog parameter of a surface family: its type (a plain annotation: float, int,
+    list[list[float]], dict[int, float]), its description with units, its default (``...``:
+    required) and constraints (``positive``: > 0; ``min_length`` of a list or mapping). The
+    catalog's validated models are generated from these (ftsweep.catalogs)."""
+
+    annotation: Any
+    description: str
+    default: Any = ...
+    positive: bool = False
+    min_length: Optional[int] = None
 
 
-# --------------------------------------------------------------------------- sinewave2d
+class Family(NamedTuple):
+    """A surface family: its evaluator, an analytic bound of its gradient magnitude (None: the
+    bound is estimated by sampling the aperture, see :func:`sampled_gradient_bound`), its
+    catalog parameters, and a check of parameter combinations (raises ValueError)."""
+
+    evaluate: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
+    gradient_bound: Callable[..., float] | None
+    params: dict[str, Param]
+    check: Callable[[dict[str, Any]], None] | None = None
+
+
+FAMILIES: dict[str, Family] = {}
+
+
+def surface_family(
+    name: str,
+    params: dict[str, Param],
+    gradient_bound: Callable[..., float] | None = None,
+    check: Callable[[dict[str, Any]], None] | None = None,
+) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Register the decorated evaluator as surface family ``name`` (usable in the catalogs as
+    ``family: name`` with ``params``): the one place a new family is declared."""
+
+    def register(evaluate: Callable[..., Any]) -> Callable[..., Any]:
+        if name in FAMILIES:
+            raise ValueError(f"surface family {name!r} is registered twice")
+        FAMILIES[name] = Family(evaluate, gradient_bound, dict(params), check)
+        return evaluate
+
+    return register
+
+
+def _um(text: str) -> str:
+    return text + " [µm]"
+
+
 @njit(nogil=True, cache=True)
 def _sinewave2d_kernel(x, y, ax, ay, kx, ky, px, py, f, fx, fy):  # pragma: no cover - jit
     for i in range(x.size):
@@ -39,6 +96,33 @@ def _sinewave2d_kernel(x, y, ax, ay, kx, ky, px, py, f, fx, fy):  # pragma: no c
         fy[i] = ay * ky * math.cos(argy)
 
 
+def sinewave2d_gradient_bound(
+    *,
+    amplitude_x_um: float,
+    amplitude_y_um: float,
+    wavelength_x_um: float,
+    wavelength_y_um: float,
+    **_: float,
+) -> float:
+    """Upper bound of |∇f| for :func:`sinewave2d` [-]: sqrt((2πAx/λx)² + (2πAy/λy)²)."""
+    gx = 2.0 * math.pi * abs(amplitude_x_um) / wavelength_x_um
+    gy = 2.0 * math.pi * abs(amplitude_y_um) / wavelength_y_um
+    return math.hypot(gx, gy)
+
+
+# --------------------------------------------------------------------------- lens_array
+@surface_family(
+    "sinewave2d",
+    {
+        "amplitude_x_um": Param(float, _um("amplitude Ax along x")),
+        "amplitude_y_um": Param(float, _um("amplitude Ay along y")),
+        "wavelength_x_um": Param(float, _um("wavelength λx"), positive=True),
+        "wavelength_y_um": Param(float, _um("wavelength λy"), positive=True),
+        "phase_x_deg": Param(float, "phase φx [deg]", 0.0),
+        "phase_y_deg": Param(float, "phase φy [deg]", 0.0),
+    },
+    gradient_bound=sinewave2d_gradient_bound,
+)
 def sinewave2d(
     x: np.ndarray,
     y: np.ndarray,
@@ -65,7 +149,7 @@ def sinewave2d(
     -------
     f [µm], ∂f/∂x [-], ∂f/∂y [-], each of the shape of ``x``.
     """
-    shape, xf, yf = _flat_pair(x, y)
+    shape, xf, yf = flat_pair(x, y)
     f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
     _sinewave2d_kernel(
         xf,
@@ -83,21 +167,6 @@ def sinewave2d(
     return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
 
 
-def sinewave2d_gradient_bound(
-    *,
-    amplitude_x_um: float,
-    amplitude_y_um: float,
-    wavelength_x_um: float,
-    wavelength_y_um: float,
-    **_: float,
-) -> float:
-    """Upper bound of |∇f| for :func:`sinewave2d` [-]: sqrt((2πAx/λx)² + (2πAy/λy)²)."""
-    gx = 2.0 * math.pi * abs(amplitude_x_um) / wavelength_x_um
-    gy = 2.0 * math.pi * abs(amplitude_y_um) / wavelength_y_um
-    return math.hypot(gx, gy)
-
-
-# --------------------------------------------------------------------------- lens_array
 @njit(nogil=True, cache=True)
 def _lens_array_kernel(x, y, R, h, pitch, nx, ny, f, fx, fy):  # pragma: no cover - jit
     a = math.sqrt(2.0 * h * R - h * h)
@@ -135,6 +204,24 @@ def _lens_array_kernel(x, y, R, h, pitch, nx, ny, f, fx, fy):  # pragma: no cove
             fy[n] = 0.0
 
 
+def lens_array_gradient_bound(*, radius_um: float, sag_um: float, **_: float) -> float:
+    """Upper bound of |∇f| for :func:`lens_array` [-]: the slope at the sphere/torus seam r = a."""
+    a = math.sqrt(2.0 * sag_um * radius_um - sag_um**2)
+    return a / math.sqrt(radius_um**2 - a**2)
+
+
+# --------------------------------------------------------------------------- chebyshev_freeform
+@surface_family(
+    "lens_array",
+    {
+        "radius_um": Param(float, _um("radius R of the spherical lenslets"), positive=True),
+        "sag_um": Param(float, _um("sag of a lenslet"), positive=True),
+        "pitch_um": Param(float, _um("lenslet pitch of the square grid"), positive=True),
+        "count_x": Param(int, "lenslets along x", positive=True),
+        "count_y": Param(int, "lenslets along y", positive=True),
+    },
+    gradient_bound=lens_array_gradient_bound,
+)
 def lens_array(
     x: np.ndarray,
     y: np.ndarray,
@@ -165,7 +252,7 @@ def lens_array(
     """
     if not 0.0 < sag_um < radius_um:
         raise ValueError(f"lens_array needs 0 < sag_um < radius_um, got {sag_um}, {radius_um}")
-    shape, xf, yf = _flat_pair(x, y)
+    shape, xf, yf = flat_pair(x, y)
     f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
     _lens_array_kernel(
         xf, yf, float(radius_um), float(sag_um), float(pitch_um), int(count_x), int(count_y), f, fx, fy
@@ -173,13 +260,6 @@ def lens_array(
     return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
 
 
-def lens_array_gradient_bound(*, radius_um: float, sag_um: float, **_: float) -> float:
-    """Upper bound of |∇f| for :func:`lens_array` [-]: the slope at the sphere/torus seam r = a."""
-    a = math.sqrt(2.0 * sag_um * radius_um - sag_um**2)
-    return a / math.sqrt(radius_um**2 - a**2)
-
-
-# --------------------------------------------------------------------------- chebyshev_freeform
 @njit(nogil=True, cache=True)
 def _chebyshev_kernel(x, y, curv, coef, lx, ly, xb, yb, f, fx, fy):  # pragma: no cover - jit
     ni, nj = coef.shape
@@ -227,6 +307,24 @@ def _chebyshev_kernel(x, y, curv, coef, lx, ly, xb, yb, f, fx, fy):  # pragma: n
                     fy[p] += c * tx[i] * dty[j] / ly
 
 
+def _rectangular(params: dict[str, Any]) -> None:
+    rows = params["coefficients_um"]
+    if len({len(row) for row in rows}) != 1 or not rows[0]:
+        raise ValueError("coefficients_um must be a rectangular, non-empty list of rows")
+
+
+@surface_family(
+    "chebyshev_freeform",
+    {
+        "base_radius_um": Param(float, _um("radius of the base sphere; 0 for none"), 0.0),
+        "coefficients_um": Param(list[list[float]], _um("C_ij, rows i (x) of columns j (y)"), min_length=1),
+        "norm_x_um": Param(float, _um("normalisation length Lx"), positive=True),
+        "norm_y_um": Param(float, _um("normalisation length Ly"), positive=True),
+        "offset_x_um": Param(float, _um("off-axis offset Xb"), 0.0),
+        "offset_y_um": Param(float, _um("off-axis offset Yb"), 0.0),
+    },
+    check=_rectangular,
+)
 def chebyshev_freeform(
     x: np.ndarray,
     y: np.ndarray,
@@ -250,7 +348,7 @@ def chebyshev_freeform(
     norm_x_um, norm_y_um : Lx, Ly [µm].
     offset_x_um, offset_y_um : the off-axis offset (Xb, Yb) [µm].
     """
-    shape, xf, yf = _flat_pair(x, y)
+    shape, xf, yf = flat_pair(x, y)
     coef = np.atleast_2d(np.asarray(coefficients_um, dtype=np.float64))
     curv = 0.0 if base_radius_um == 0 else 1.0 / base_radius_um
     f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
@@ -292,6 +390,16 @@ def _sinusoidal_mesh_kernel(x, y, a1, a2, l_circ, k_rad, f, fx, fy):  # pragma: 
         fy[p] = dfdr * s + dfdphi_r * c
 
 
+@surface_family(
+    "sinusoidal_mesh",
+    {
+        "h1_um": Param(float, _um("umbrella height h1")),
+        "h2_um": Param(float, _um("sinusoid amplitude h2")),
+        "periods_circumferential": Param(float, "periods l around the axis", positive=True),
+        "periods_radial": Param(float, "periods ω along the radius", positive=True),
+        "workpiece_radius_um": Param(float, _um("workpiece radius"), positive=True),
+    },
+)
 def sinusoidal_mesh(
     x: np.ndarray,
     y: np.ndarray,
@@ -313,7 +421,7 @@ def sinusoidal_mesh(
     point reached is about 164 µm, near r = 0.82·Rw). Lengths in µm; f ≤ 0 everywhere.
     The gradient is discontinuous at r = 0 (an umbrella's apex), as the published surface.
     """
-    shape, xf, yf = _flat_pair(x, y)
+    shape, xf, yf = flat_pair(x, y)
     f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
     _sinusoidal_mesh_kernel(
         xf,
@@ -403,6 +511,22 @@ def _zernike_kernel(
             fy[p] += a / rn * (drad * ang * s + rad_over_u * dang * c)
 
 
+def _noll_indices(params: dict[str, Any]) -> None:
+    bad = [j for j in params["terms_um"] if int(j) < 1]
+    if bad:
+        raise ValueError(f"terms_um: Noll indices start at 1, got {bad}")
+
+
+@surface_family(
+    "zernike",
+    {
+        "norm_radius_um": Param(float, _um("normalisation radius"), positive=True),
+        "terms_um": Param(dict[int, float], _um("{Noll index: coefficient}"), min_length=1),
+        "base_radius_um": Param(float, _um("radius of the conic base; 0 for none"), 0.0),
+        "conic": Param(float, "conic constant k of the base [-]", 0.0),
+    },
+    check=_noll_indices,
+)
 def zernike(
     x: np.ndarray,
     y: np.ndarray,
@@ -424,7 +548,7 @@ def zernike(
     terms_um : {Noll index j: coefficient a_j [µm]}.
     base_radius_um : 1/c of the conic base [µm] (0: none); conic : k.
     """
-    shape, xf, yf = _flat_pair(x, y)
+    shape, xf, yf = flat_pair(x, y)
     js = sorted(int(j) for j in terms_um)
     amp = np.array([float(terms_um[j]) for j in js])
     nms = [noll_to_nm(j) for j in js]
@@ -440,190 +564,3 @@ def zernike(
         xf, yf, curv, float(conic), float(norm_radius_um), amp, ms, norms, rc, rp, offsets, f, fx, fy
     )
     return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
-
-
-@njit(nogil=True, cache=True, inline="always")
-def _span(t, k, u):  # pragma: no cover - jit
-    """Knot span l with t[l] ≤ u < t[l+1], clamped to the spline's domain."""
-    lo, hi = k, t.size - k - 2
-    if u >= t[hi + 1]:
-        return hi
-    if u <= t[lo]:
-        return lo
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if u < t[mid]:
-            hi = mid
-        else:
-            lo = mid
-    return lo if u < t[lo + 1] else hi
-
-
-@njit(nogil=True, cache=True, inline="always")
-def _cubic_basis(t, span, u, n, dn, left, right, b):  # pragma: no cover - jit
-    """Values n[0..3] and derivatives dn[0..3] of the cubic B-splines span−3..span at u (de Boor);
-    ``left``, ``right``, ``b`` are scratch arrays of 4 (allocated once by the caller)."""
-    for r in range(4):
-        b[r] = 0.0
-    b[0] = 1.0
-    for j in range(1, 4):
-        left[j] = u - t[span + 1 - j]
-        right[j] = t[span + j] - u
-        saved = 0.0
-        if j == 3:
-            # the quadratic basis gives the cubic's derivative: N'_{i,3} = 3(N_{i,2}/Δ − N_{i+1,2}/Δ')
-            for r in range(4):
-                dn[r] = 0.0
-            for r in range(3):
-                den = right[r + 1] + left[3 - r]
-                temp = b[r] / den if den != 0.0 else 0.0
-                dn[r] -= 3.0 * temp
-                dn[r + 1] += 3.0 * temp
-        for r in range(j):
-            den = right[r + 1] + left[j - r]
-            temp = b[r] / den if den != 0.0 else 0.0
-            b[r] = saved + right[r + 1] * temp
-            saved = left[j - r] * temp
-        b[j] = saved
-    for r in range(4):
-        n[r] = b[r]
-
-
-@njit(nogil=True, cache=True)
-def _bspline2d_kernel(x, y, tx, ty, coef, f, fx, fy):  # pragma: no cover - jit
-    nx_ = np.empty(4)
-    dnx = np.empty(4)
-    ny_ = np.empty(4)
-    dny = np.empty(4)
-    left = np.empty(4)
-    right = np.empty(4)
-    scratch = np.empty(4)
-    for p in range(x.size):
-        lx = _span(tx, 3, x[p])
-        ly = _span(ty, 3, y[p])
-        _cubic_basis(tx, lx, x[p], nx_, dnx, left, right, scratch)
-        _cubic_basis(ty, ly, y[p], ny_, dny, left, right, scratch)
-        v = 0.0
-        vx = 0.0
-        vy = 0.0
-        for a in range(4):
-            for b in range(4):
-                c = coef[lx - 3 + a, ly - 3 + b]
-                v += c * nx_[a] * ny_[b]
-                vx += c * dnx[a] * ny_[b]
-                vy += c * nx_[a] * dny[b]
-        f[p] = v
-        fx[p] = vx
-        fy[p] = vy
-
-
-def bspline2d(
-    x: np.ndarray, y: np.ndarray, *, knots_x: np.ndarray, knots_y: np.ndarray, coefficients: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A bicubic tensor-product B-spline and its gradient: f = Σ_ab c_ab·N_a(x)·N_b(y).
-
-    ``knots_x``, ``knots_y`` [µm] and ``coefficients`` [µm], shape (len(knots_x) − 4,
-    len(knots_y) − 4), describe the spline (e.g. as fitted through a height map); outside
-    the knots the end pieces continue. Returns f [µm], ∂f/∂x [-], ∂f/∂y [-].
-    """
-    shape, xf, yf = _flat_pair(x, y)
-    f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
-    _bspline2d_kernel(
-        xf,
-        yf,
-        np.ascontiguousarray(knots_x, dtype=np.float64),
-        np.ascontiguousarray(knots_y, dtype=np.float64),
-        np.ascontiguousarray(coefficients, dtype=np.float64),
-        f,
-        fx,
-        fy,
-    )
-    return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
-
-
-def sampled_gradient_bound(
-    surface: SurfaceFn, half_width_um: float, n: int = 401, margin: float = 1.25
-) -> float:
-    """An estimate of max |∇f| [-] over the square |x|, |y| ≤ half_width: the largest sampled
-    gradient times ``margin`` (for families without an analytic bound). Compensation raises if
-    a section is ever steeper, so an estimate that is too low fails loudly, never silently."""
-    g = np.linspace(-half_width_um, half_width_um, n)
-    x, y = np.meshgrid(g, g)
-    _, fx, fy = surface(x, y)
-    return float(np.nanmax(np.hypot(fx, fy))) * margin
-
-
-# --------------------------------------------------------------------------- registry
-class Family(NamedTuple):
-    """A surface family: its evaluator and an analytic bound of its gradient magnitude (None:
-    the bound is estimated by sampling the aperture, see :func:`sampled_gradient_bound`)."""
-
-    evaluate: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
-    gradient_bound: Callable[..., float] | None
-
-
-FAMILIES: dict[str, Family] = {
-    "sinewave2d": Family(sinewave2d, sinewave2d_gradient_bound),
-    "lens_array": Family(lens_array, lens_array_gradient_bound),
-    "chebyshev_freeform": Family(chebyshev_freeform, None),
-    "sinusoidal_mesh": Family(sinusoidal_mesh, None),
-    "zernike": Family(zernike, None),
-}
-
-
-def radial_section(
-    surface: SurfaceFn, r: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Height g and radial slope g' of the section through the spindle axis (physics.md §4).
-
-    g(r) = f(r·cosθ, r·sinθ), g'(r) = ∂f/∂x·cosθ + ∂f/∂y·sinθ. ``r`` [µm] may be negative
-    (the section continues through the axis); ``cos_t``, ``sin_t`` are cosθ and sinθ of the
-    section angle, passed in because callers evaluate many radii on the same sections.
-    Returns g [µm] and g' [-], broadcast to a common shape.
-    """
-    f, fx, fy = surface(r * cos_t, r * sin_t)
-    return f, fx * cos_t + fy * sin_t
-
-
-# --------------------------------------------------------------------------- apertures
-class Aperture(NamedTuple):
-    """A centred aperture: ``circle`` of ``radius_um`` or ``rectangle`` ``width_um`` × ``height_um``
-    (physics.md §2 and §7). All lengths in µm."""
-
-    shape: str
-    radius_um: float = 0.0
-    width_um: float = 0.0
-    height_um: float = 0.0
-
-    def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """True where (x, y) [µm] lies inside the aperture (the evaluation region of §6)."""
-        if self.shape == "circle":
-            return x * x + y * y <= self.radius_um * self.radius_um
-        return (np.abs(x) <= 0.5 * self.width_um) & (np.abs(y) <= 0.5 * self.height_um)
-
-    def contains_polar(self, r: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray) -> np.ndarray:
-        """:meth:`contains` for points at radius ``r`` [µm] on sections of angle θ (cos, sin)."""
-        if self.shape == "circle":
-            return np.abs(r) <= self.radius_um
-        return (np.abs(r * cos_t) <= 0.5 * self.width_um) & (np.abs(r * sin_t) <= 0.5 * self.height_um)
-
-    @property
-    def half_extent_um(self) -> tuple[float, float]:
-        """Half width and half height [µm] of the aperture's bounding box."""
-        if self.shape == "circle":
-            return float(self.radius_um), float(self.radius_um)
-        return 0.5 * self.width_um, 0.5 * self.height_um
-
-    @property
-    def outer_radius_um(self) -> float:
-        """Radius [µm] of the smallest centred circle holding the aperture: where the spiral starts."""
-        if self.shape == "circle":
-            return float(self.radius_um)
-        return 0.5 * math.hypot(self.width_um, self.height_um)
-
-    @property
-    def inner_radius_um(self) -> float:
-        """Radius [µm] of the largest centred circle inside the aperture (sets the zone split)."""
-        if self.shape == "circle":
-            return float(self.radius_um)
-        return 0.5 * min(self.width_um, self.height_um)

@@ -1,0 +1,90 @@
+"""Geometry every surface shares (physics.md §2, §4, §7): the centred aperture, the radial
+section through the spindle axis, and a sampled bound of the slope. Lengths in µm."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+SurfaceFn = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+def flat_pair(x: np.ndarray, y: np.ndarray) -> tuple[tuple[int, ...], np.ndarray, np.ndarray]:
+    """Broadcast x, y and flatten them to contiguous float64 (one cached numba specialisation;
+    a kernel reading mismatched lengths would read past the end)."""
+    xb, yb = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+    return xb.shape, np.ascontiguousarray(xb).reshape(-1), np.ascontiguousarray(yb).reshape(-1)
+
+
+# --------------------------------------------------------------------------- sinewave2d
+def sampled_gradient_bound(
+    surface: SurfaceFn, half_width_um: float, n: int = 401, margin: float = 1.25
+) -> float:
+    """An estimate of max |∇f| [-] over the square |x|, |y| ≤ half_width: the largest sampled
+    gradient times ``margin`` (for families without an analytic bound). Compensation raises if
+    a section is ever steeper, so an estimate that is too low fails loudly, never silently."""
+    g = np.linspace(-half_width_um, half_width_um, n)
+    x, y = np.meshgrid(g, g)
+    _, fx, fy = surface(x, y)
+    return float(np.nanmax(np.hypot(fx, fy))) * margin
+
+
+def radial_section(
+    surface: SurfaceFn, r: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Height g and radial slope g' of the section through the spindle axis (physics.md §4).
+
+    g(r) = f(r·cosθ, r·sinθ), g'(r) = ∂f/∂x·cosθ + ∂f/∂y·sinθ. ``r`` [µm] may be negative
+    (the section continues through the axis); ``cos_t``, ``sin_t`` are cosθ and sinθ of the
+    section angle, passed in because callers evaluate many radii on the same sections.
+    Returns g [µm] and g' [-], broadcast to a common shape.
+    """
+    f, fx, fy = surface(r * cos_t, r * sin_t)
+    return f, fx * cos_t + fy * sin_t
+
+
+# --------------------------------------------------------------------------- apertures
+class Aperture(NamedTuple):
+    """A centred aperture: ``circle`` of ``radius_um`` or ``rectangle`` ``width_um`` × ``height_um``
+    (physics.md §2 and §7). All lengths in µm."""
+
+    shape: str
+    radius_um: float = 0.0
+    width_um: float = 0.0
+    height_um: float = 0.0
+
+    def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """True where (x, y) [µm] lies inside the aperture (the evaluation region of §6)."""
+        if self.shape == "circle":
+            return x * x + y * y <= self.radius_um * self.radius_um
+        return (np.abs(x) <= 0.5 * self.width_um) & (np.abs(y) <= 0.5 * self.height_um)
+
+    def contains_polar(self, r: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray) -> np.ndarray:
+        """:meth:`contains` for points at radius ``r`` [µm] on sections of angle θ (cos, sin)."""
+        if self.shape == "circle":
+            return np.abs(r) <= self.radius_um
+        return (np.abs(r * cos_t) <= 0.5 * self.width_um) & (np.abs(r * sin_t) <= 0.5 * self.height_um)
+
+    @property
+    def half_extent_um(self) -> tuple[float, float]:
+        """Half width and half height [µm] of the aperture's bounding box."""
+        if self.shape == "circle":
+            return float(self.radius_um), float(self.radius_um)
+        return 0.5 * self.width_um, 0.5 * self.height_um
+
+    @property
+    def outer_radius_um(self) -> float:
+        """Radius [µm] of the smallest centred circle holding the aperture: where the spiral starts."""
+        if self.shape == "circle":
+            return float(self.radius_um)
+        return 0.5 * math.hypot(self.width_um, self.height_um)
+
+    @property
+    def inner_radius_um(self) -> float:
+        """Radius [µm] of the largest centred circle inside the aperture (sets the zone split)."""
+        if self.shape == "circle":
+            return float(self.radius_um)
+        return 0.5 * min(self.width_um, self.height_um)

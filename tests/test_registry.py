@@ -1,0 +1,65 @@
+"""Surface families are declared once (issue 15, item 3): the registering decorator of
+ftsweep.stages.surfaces is the only place a family is written; the catalog's validated model
+is generated from it. A new family, registered in a fresh process, is validated, refused
+with named keys when wrong, and predicted, without touching any other module."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+from ftsweep import catalogs
+from ftsweep.stages.surfaces import FAMILIES
+
+NEW_FAMILY = textwrap.dedent(
+    """
+    import numpy as np
+    from ftsweep.stages.surfaces import Param, surface_family
+
+    @surface_family("tilted_plane", {
+        "slope_x": Param(float, "slope along x [-]"),
+        "offset_um": Param(float, "height at the centre [µm]", 0.0),
+    }, gradient_bound=lambda slope_x, **_: abs(slope_x))
+    def tilted_plane(x, y, *, slope_x, offset_um=0.0):
+        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        return offset_um + slope_x * x, np.full(x.shape, slope_x), np.zeros(y.shape)
+
+    from pydantic import TypeAdapter
+    from ftsweep import catalogs
+    from ftsweep.case import Case, LayoutRequest, run_case
+
+    entry = {"family": "tilted_plane", "layout": "mesh", "aperture": {"shape": "circle", "radius_um": 300.0},
+             "params": {"slope_x": 0.0, "offset_um": 2.0}}
+    spec = TypeAdapter(catalogs.SurfaceSpec).validate_python(entry)
+    try:
+        TypeAdapter(catalogs.SurfaceSpec).validate_python({**entry, "params": {"slope": 0.01}})
+    except Exception as exc:
+        print("refused:", "slope_x" in str(exc), "slope" in str(exc))
+    machine, cutting = catalogs.entry("machines", "fts-1m"), catalogs.entry("cutting", "reference")
+    case = Case(surface="plane", layout=LayoutRequest(kind="mesh", pitch=(20.0, 20.0)))
+    record = run_case(case, specs=(spec, machine, cutting))
+    print("pv", record["pv_outer_nm"], record["pv_interp_nm"], record["cusp_nm"])
+    """
+)
+
+
+def test_a_new_family_needs_only_its_registration():
+    out = subprocess.run([sys.executable, "-c", NEW_FAMILY], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    lines = dict(line.split(" ", 1) for line in out.stdout.strip().splitlines())
+    assert lines["refused:"] == "True True"
+    pv_outer, pv_interp, cusp = (float(v) for v in lines["pv"].split())
+    # a level plane is machined to feed cusps (away from the axis, where the last passes of
+    # both sides meet, physics.md §5), and the table reproduces it exactly
+    assert abs(pv_interp) <= 1e-3
+    assert abs(pv_outer - cusp) <= 0.05 * cusp
+
+
+def test_every_registered_family_has_a_generated_catalog_model():
+    assert set(catalogs.registered_surfaces()) == set(FAMILIES)
+    for name, model in catalogs.registered_surfaces().items():
+        params = model.model_fields["params"].annotation
+        assert set(params.model_fields) == set(FAMILIES[name].params), name
+        for key, p in FAMILIES[name].params.items():
+            assert params.model_fields[key].description == p.description

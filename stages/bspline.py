@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .geometry import flat_pair
+from .geometry import evaluate_flat
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -93,16 +93,11 @@ def bspline2d(
     len(knots_y) − 4), describe the spline (e.g. as fitted through a height map); outside
     the knots the end pieces continue. Returns f [µm], ∂f/∂x [-], ∂f/∂y [-].
     """
-    shape, xf, yf = flat_pair(x, y)
-    f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
-    _bspline2d_kernel(
-        xf,
-        yf,
+    return evaluate_flat(
+        _bspline2d_kernel,
+        x,
+        y,
         np.ascontiguousarray(knots_x, dtype=np.float64),
         np.ascontiguousarray(knots_y, dtype=np.float64),
         np.ascontiguousarray(coefficients, dtype=np.float64),
-        f,
-        fx,
-        fy,
     )
-    return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)

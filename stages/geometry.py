@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -19,7 +19,18 @@ def flat_pair(x: np.ndarray, y: np.ndarray) -> tuple[tuple[int, ...], np.ndarray
     return xb.shape, np.ascontiguousarray(xb).reshape(-1), np.ascontiguousarray(yb).reshape(-1)
 
 
-# --------------------------------------------------------------------------- sinewave2d
+def evaluate_flat(
+    kernel: Callable[..., None], x: np.ndarray, y: np.ndarray, *args: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Run a surface kernel ``kernel(xf, yf, *args, f, fx, fy)`` over x, y [µm] broadcast and
+    flattened (:func:`flat_pair`), its outputs allocated here, and return f [µm], ∂f/∂x [-],
+    ∂f/∂y [-] in the broadcast shape of x and y: the wrapper every surface family shares."""
+    shape, xf, yf = flat_pair(x, y)
+    f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
+    kernel(xf, yf, *args, f, fx, fy)
+    return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
+
+
 def sampled_gradient_bound(
     surface: SurfaceFn, half_width_um: float, n: int = 401, margin: float = 1.25
 ) -> float:

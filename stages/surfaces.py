@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from .bspline import bspline2d
-from .geometry import Aperture, SurfaceFn, flat_pair, radial_section, sampled_gradient_bound
+from .geometry import Aperture, SurfaceFn, evaluate_flat, radial_section, sampled_gradient_bound
 
 __all__ = [
     "FAMILIES",
@@ -86,6 +86,7 @@ def _um(text: str) -> str:
     return text + " [µm]"
 
 
+# --------------------------------------------------------------------------- sinewave2d
 @njit(nogil=True, cache=True)
 def _sinewave2d_kernel(x, y, ax, ay, kx, ky, px, py, f, fx, fy):  # pragma: no cover - jit
     for i in range(x.size):
@@ -110,7 +111,6 @@ def sinewave2d_gradient_bound(
     return math.hypot(gx, gy)
 
 
-# --------------------------------------------------------------------------- lens_array
 @surface_family(
     "sinewave2d",
     {
@@ -149,24 +149,20 @@ def sinewave2d(
     -------
     f [µm], ∂f/∂x [-], ∂f/∂y [-], each of the shape of ``x``.
     """
-    shape, xf, yf = flat_pair(x, y)
-    f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
-    _sinewave2d_kernel(
-        xf,
-        yf,
+    return evaluate_flat(
+        _sinewave2d_kernel,
+        x,
+        y,
         float(amplitude_x_um),
         float(amplitude_y_um),
         2.0 * math.pi / wavelength_x_um,
         2.0 * math.pi / wavelength_y_um,
         math.radians(phase_x_deg),
         math.radians(phase_y_deg),
-        f,
-        fx,
-        fy,
     )
-    return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
 
 
+# --------------------------------------------------------------------------- lens_array
 @njit(nogil=True, cache=True)
 def _lens_array_kernel(x, y, R, h, pitch, nx, ny, f, fx, fy):  # pragma: no cover - jit
     a = math.sqrt(2.0 * h * R - h * h)
@@ -210,7 +206,6 @@ def lens_array_gradient_bound(*, radius_um: float, sag_um: float, **_: float) ->
     return a / math.sqrt(radius_um**2 - a**2)
 
 
-# --------------------------------------------------------------------------- chebyshev_freeform
 @surface_family(
     "lens_array",
     {
@@ -252,14 +247,12 @@ def lens_array(
     """
     if not 0.0 < sag_um < radius_um:
         raise ValueError(f"lens_array needs 0 < sag_um < radius_um, got {sag_um}, {radius_um}")
-    shape, xf, yf = flat_pair(x, y)
-    f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
-    _lens_array_kernel(
-        xf, yf, float(radius_um), float(sag_um), float(pitch_um), int(count_x), int(count_y), f, fx, fy
+    return evaluate_flat(
+        _lens_array_kernel, x, y, float(radius_um), float(sag_um), float(pitch_um), int(count_x), int(count_y)
     )
-    return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
 
 
+# --------------------------------------------------------------------------- chebyshev_freeform
 @njit(nogil=True, cache=True)
 def _chebyshev_kernel(x, y, curv, coef, lx, ly, xb, yb, f, fx, fy):  # pragma: no cover - jit
     ni, nj = coef.shape
@@ -348,24 +341,19 @@ def chebyshev_freeform(
     norm_x_um, norm_y_um : Lx, Ly [µm].
     offset_x_um, offset_y_um : the off-axis offset (Xb, Yb) [µm].
     """
-    shape, xf, yf = flat_pair(x, y)
     coef = np.atleast_2d(np.asarray(coefficients_um, dtype=np.float64))
     curv = 0.0 if base_radius_um == 0 else 1.0 / base_radius_um
-    f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
-    _chebyshev_kernel(
-        xf,
-        yf,
+    return evaluate_flat(
+        _chebyshev_kernel,
+        x,
+        y,
         curv,
         coef,
         float(norm_x_um),
         float(norm_y_um),
         float(offset_x_um),
         float(offset_y_um),
-        f,
-        fx,
-        fy,
     )
-    return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
 
 
 # --------------------------------------------------------------------------- sinusoidal_mesh
@@ -421,20 +409,15 @@ def sinusoidal_mesh(
     point reached is about 164 µm, near r = 0.82·Rw). Lengths in µm; f ≤ 0 everywhere.
     The gradient is discontinuous at r = 0 (an umbrella's apex), as the published surface.
     """
-    shape, xf, yf = flat_pair(x, y)
-    f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
-    _sinusoidal_mesh_kernel(
-        xf,
-        yf,
+    return evaluate_flat(
+        _sinusoidal_mesh_kernel,
+        x,
+        y,
         h1_um / workpiece_radius_um,
         h2_um / workpiece_radius_um,
         float(periods_circumferential),
         2.0 * math.pi * periods_radial / workpiece_radius_um,
-        f,
-        fx,
-        fy,
     )
-    return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
 
 
 # --------------------------------------------------------------------------- zernike
@@ -548,7 +531,6 @@ def zernike(
     terms_um : {Noll index j: coefficient a_j [µm]}.
     base_radius_um : 1/c of the conic base [µm] (0: none); conic : k.
     """
-    shape, xf, yf = flat_pair(x, y)
     js = sorted(int(j) for j in terms_um)
     amp = np.array([float(terms_um[j]) for j in js])
     nms = [noll_to_nm(j) for j in js]
@@ -559,8 +541,6 @@ def zernike(
     rc = np.concatenate([c for c, _ in polys]) if polys else np.zeros(0)
     rp = np.concatenate([pw for _, pw in polys]) if polys else np.zeros(0, dtype=np.int64)
     curv = 0.0 if base_radius_um == 0 else 1.0 / base_radius_um
-    f, fx, fy = np.empty_like(xf), np.empty_like(xf), np.empty_like(xf)
-    _zernike_kernel(
-        xf, yf, curv, float(conic), float(norm_radius_um), amp, ms, norms, rc, rp, offsets, f, fx, fy
+    return evaluate_flat(
+        _zernike_kernel, x, y, curv, float(conic), float(norm_radius_um), amp, ms, norms, rc, rp, offsets
     )
-    return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)

@@ -187,17 +187,8 @@ def read_attrs(path: Path, check_schema: bool = True) -> dict[str, Any]:
 
 def read_status(path: Path) -> np.ndarray:
     """Status of every case; a chunk that cannot be read (torn by a kill) counts as pending."""
-    array = zarr.open_array(str(path), path="status", mode="r")
-    try:
-        return np.asarray(array[...], dtype=np.int8)
-    except Exception:
-        status = np.zeros(array.shape, dtype=np.int8)
-        for idx in np.ndindex(array.shape):
-            try:
-                status[idx] = array[idx]
-            except Exception:
-                status[idx] = PENDING
-        return status
+    values, _ = _read_array(Path(path), "status", PENDING)
+    return values.astype(np.int8)
 
 
 def metric_values(record: dict[str, Any]) -> dict[str, Any]:
@@ -260,22 +251,30 @@ def chunk_path(path: Path, var: str, idx: tuple[int, ...]) -> Path:
     return Path(path) / var / "c" / Path(*(str(i) for i in idx))
 
 
-def _read_array(path: Path, var: str) -> tuple[np.ndarray | None, dict[tuple[int, ...], str]]:
-    """The whole array of ``var``, or None and the unreadable chunks (index → error)."""
+def _read_array(path: Path, var: str, fill: Any = None) -> tuple[np.ndarray, dict[tuple[int, ...], str]]:
+    """The whole array of ``var`` and its unreadable chunks (chunk index → error); the
+    elements of an unreadable chunk read as ``fill`` (default: the array's fill value)."""
     array = zarr.open_array(str(path), path=var, mode="r")
     try:
         return np.asarray(array[...]), {}
     except Exception:  # a torn or corrupt chunk; codecs raise many types
         pass
+    try:
+        numeric = np.dtype(array.dtype).kind in "biuf"
+    except TypeError:  # zarr's variable-length strings
+        numeric = False
+    values = np.full(
+        array.shape, array.fill_value if fill is None else fill, dtype=array.dtype if numeric else object
+    )
     bad: dict[tuple[int, ...], str] = {}
     grid = tuple(-(-s // c) for s, c in zip(array.shape, array.chunks, strict=True))
     for cidx in np.ndindex(grid):
         sel = tuple(slice(i * c, (i + 1) * c) for i, c in zip(cidx, array.chunks, strict=True))
         try:
-            array[sel]
+            values[sel] = array[sel]
         except Exception as exc:
             bad[cidx] = f"{type(exc).__name__}: {str(exc)[:200]}"
-    return None, bad
+    return values, bad
 
 
 def damaged_cases(path: Path, status: np.ndarray) -> dict[int, str]:
@@ -297,10 +296,9 @@ def damaged_cases(path: Path, status: np.ndarray) -> dict[int, str]:
             if flat in damaged:
                 continue
             idx = tuple(int(i) for i in np.unravel_index(flat, shape))
-            chunk = idx + (0,) * (len(next(iter(bad), idx)) - len(idx))  # map chunks hold (case, 0, 0)
-            if values is None:
-                if chunk in bad:
-                    damaged[flat] = f"{chunk_path(path, var, chunk)} is unreadable ({bad[chunk]})"
+            chunk = idx + (0,) * (values.ndim - len(idx))  # a case's map is one chunk (case, 0, 0)
+            if chunk in bad:
+                damaged[flat] = f"{chunk_path(path, var, chunk)} is unreadable ({bad[chunk]})"
             elif fill is not None:
                 v = values[idx]
                 missing = bool(np.isnan(v)) if isinstance(fill, float) else v == fill

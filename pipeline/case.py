@@ -506,10 +506,11 @@ def _simulate_lines(
 
 
 def _record(
-    rcase: ResolvedCase, plan: LinePlan, result: dict[str, float], dyn: Any, gouge: np.ndarray
+    rcase: ResolvedCase, plan: LinePlan, errors: dict[str, float], dyn: Any, gouge: np.ndarray
 ) -> dict[str, Any]:
-    """The flat record of a finished case (see :func:`run_case`); refuses non-finite metrics."""
-    bad = [k for k, v in result.items() if not math.isfinite(v)]
+    """The flat record of a finished case (see :func:`run_case`); ``errors`` are the metrics
+    of :func:`ftsweep.stages.metrics.finalize`. Refuses non-finite metrics."""
+    bad = [k for k, v in errors.items() if not math.isfinite(v)]
     if bad or not math.isfinite(dyn.stroke_um):
         raise CaseError(
             f"the metrics came out non-finite ({', '.join(bad) or 'stroke_um'}): no evaluation point "
@@ -520,7 +521,7 @@ def _record(
     feasible, reason = dynamics.feasibility(
         dyn, machine.travel_um, machine.peak_accel_m_s2, machine.continuous_accel_m_s2, machine.bandwidth_hz
     )
-    pitch_names = ("drho_um", "dtheta_deg") if layout.kind == "ring" else ("dx_um", "dy_um")
+    pitch_names = result.pitch_names(layout.kind)
     record: dict[str, Any] = {
         "surface": case.surface,
         "layout": layout.kind,
@@ -541,7 +542,7 @@ def _record(
         points_per_feed=case.resolution.points_per_feed,
         edge_band_um=rcase.feed_um + plan.window_um,
     )
-    record.update(result)
+    record.update(errors)
     record["cusp_nm"] = metrics.cusp_height_um(rcase.feed_um, rcase.nose_radius_um) * 1e3
     record["gouge_points"] = int(np.count_nonzero(gouge))
     record.update(

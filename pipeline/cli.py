@@ -14,14 +14,14 @@ from typing import Any, Optional
 import click
 from pydantic import ValidationError
 
-from ftsweep import __version__, catalogs
+from ftsweep import __version__, catalogs, result
 from ftsweep.case import MAX_NODES, Case, CaseError, LayoutRequest, Resolution, run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.sweep import MAX_CASES
 from ftsweep.usersurfaces import SurfaceLoadError
 
-_RING_PITCH = ("drho_um", "dtheta_deg")
-_MESH_PITCH = ("dx_um", "dy_um")
+_RING_PITCH = result.pitch_names("ring")
+_MESH_PITCH = result.pitch_names("mesh")
 
 
 def _fail(message: str) -> None:

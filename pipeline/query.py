@@ -13,7 +13,7 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-from ftsweep import cube
+from ftsweep import cube, result
 
 
 def capacity_of(ds: xr.Dataset) -> int:
@@ -75,7 +75,7 @@ def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
     out: dict[str, Any] = {"index": int(flat)}
     out.update({f"{d}_target": float(ds[d].values[i]) for d, i in pos.items()})
     layout = ds.attrs.get("layout_method", "")
-    names = ("drho_um", "dtheta_deg") if layout == "ring" else ("dx_um", "dy_um")
+    names = result.pitch_names(layout)
     out["layout"] = layout
     out["n_points"] = int(point["n_points"])
     out[names[0]] = float(point[names[0]])

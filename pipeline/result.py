@@ -108,6 +108,14 @@ def result_names(kind: str) -> list[str]:
     return [q.name for q in RESULT if kind in q.kinds]
 
 
+def pitch_names(kind: str) -> tuple[str, str]:
+    """The two pitch fields of layout ``kind``: the declared fields that only it holds, other
+    than none (Δρ, Δθ for rings; Δx, Δy for meshes)."""
+    names = tuple(q.name for q in RESULT if q.kinds == (kind,))
+    assert len(names) == 2, names
+    return names[0], names[1]
+
+
 def stored(kind: str) -> dict[str, tuple[str, Optional[str], str, Any]]:
     """The per-case numeric variables a cube of layout ``kind`` stores:
     name → (dtype, units, long_name, fill)."""

@@ -306,11 +306,10 @@ def resolve_case(
     surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
     feed = case.feed_um or cutting.feed_um
     rc = case.nose_radius_um or cutting.nose_radius_um
-    if not feed < 2.0 * rc:
-        raise CaseError(
-            f"feed {feed:g} µm/rev is not below twice the nose radius ({2.0 * rc:g} µm): consecutive "
-            "passes of the nose arc would not overlap and nothing between them is machined (physics.md §5)"
-        )
+    try:
+        catalogs.check_feed(feed, rc)
+    except ValueError as exc:
+        raise CaseError(str(exc)) from None
     try:
         layout = build_layout(surface_spec, case.layout)
     except ValueError as exc:

@@ -66,7 +66,9 @@ def read_yaml_file(path: Path) -> Any:
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    """Base of every spec: unknown keys, mutation and non-finite numbers are refused."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 # --------------------------------------------------------------------------- apertures
@@ -262,6 +264,21 @@ class Cutting(Strict):
     feed_um: PositiveFloat = Field(description="feed per revolution F [µm/rev]")
     nose_radius_um: PositiveFloat = Field(description="tool nose radius Rc [µm]")
     spindle_rpm: PositiveFloat = Field(description="spindle speed [rev/min]")
+
+    @model_validator(mode="after")
+    def _feed_below_twice_the_radius(self) -> Cutting:
+        check_feed(self.feed_um, self.nose_radius_um)
+        return self
+
+
+def check_feed(feed_um: float, nose_radius_um: float) -> None:
+    """Refuse a feed of at least 2·Rc: consecutive arcs would not intersect and the cusp
+    F²/(8·Rc) of physics.md §5 would no longer describe the surface."""
+    if not feed_um < 2.0 * nose_radius_um:
+        raise ValueError(
+            f"feed {feed_um:g} µm/rev is not below twice the nose radius ({2.0 * nose_radius_um:g} µm): "
+            "consecutive tool arcs would not overlap"
+        )
 
 
 class Reference(Strict):

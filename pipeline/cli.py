@@ -15,13 +15,28 @@ import click
 from pydantic import ValidationError
 
 from ftsweep import __version__, catalogs, result
-from ftsweep.case import MAX_NODES, Case, CaseError, LayoutRequest, Resolution, run_case
+from ftsweep.case import MAX_NODES, Case, CaseError, Resolution, run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.sweep import MAX_CASES
 from ftsweep.usersurfaces import SurfaceLoadError
 
 _RING_PITCH = result.pitch_names("ring")
 _MESH_PITCH = result.pitch_names("mesh")
+
+
+class FiniteRange(click.FloatRange):
+    """A finite float within a range; click refuses anything else naming the option."""
+
+    def convert(self, value: Any, param: Optional[click.Parameter], ctx: Optional[click.Context]) -> Any:
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{number} is not a finite number", param, ctx)
+        return number
+
+
+POSITIVE = FiniteRange(min=0.0, min_open=True)
+NON_NEGATIVE = FiniteRange(min=0.0)
+COUNT = click.IntRange(min=1)
 
 
 def _fail(message: str) -> None:
@@ -73,14 +88,6 @@ class _Group(click.Group):
             hint = "" if known else " (an unexpected error: set FTSWEEP_DEBUG=1 for the traceback)"
             text = str(exc) if known and str(exc) else f"{type(exc).__name__}: {exc}"
             raise click.ClickException(one_line(text, MESSAGE_LIMIT - len(hint)) + hint) from None
-
-
-def _pydantic_message(exc: ValidationError) -> str:
-    parts = []
-    for e in exc.errors():
-        loc = ".".join(str(p) for p in e["loc"])
-        parts.append(f"{loc}: {catalogs.error_text(e)}" if loc else catalogs.error_text(e))
-    return "; ".join(parts)
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -198,7 +205,7 @@ def list_catalogs(as_json: bool) -> None:
 )
 @click.option(
     "--max-nodes",
-    type=float,
+    type=POSITIVE,
     default=MAX_NODES,
     show_default=True,
     help="Refuse cases of more evaluation nodes than this (about 3·10⁶ nodes a second on one core).",
@@ -247,7 +254,7 @@ def predict(**opts: Any) -> None:
     help="Address of a running dask scheduler (tcp://host:port); also read from "
     "$DASK_SCHEDULER_ADDRESS. 'synchronous' runs in this process. Default: a local cluster.",
 )
-@click.option("--workers", type=int, help="Worker processes of the local cluster. Default: one per core.")
+@click.option("--workers", type=COUNT, help="Worker processes of the local cluster. Default: one per core.")
 @click.option(
     "--restart",
     is_flag=True,
@@ -256,7 +263,7 @@ def predict(**opts: Any) -> None:
 @click.option("--retry-failed", is_flag=True, help="Also recompute cases recorded as failed.")
 @click.option(
     "--max-cases",
-    type=int,
+    type=COUNT,
     default=MAX_CASES,
     show_default=True,
     help="Refuse sweeps of more cases than this (each takes seconds of a core).",
@@ -292,8 +299,6 @@ def sweep(
     from ftsweep.run import axis_summary, run_sweep
     from ftsweep.sweep import load_sweep
 
-    if workers is not None and workers < 1:
-        _fail(f"--workers must be at least 1, got {workers}")
     try:
         name, spec = load_sweep(sweep_name)
     except CatalogError as exc:
@@ -397,8 +402,8 @@ def _selection_text(chosen: dict[str, Any]) -> str:
 
 @main.command()
 @click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
-@click.option("--budget-points", type=int, help="Best aspect ratio at or under this many points.")
-@click.option("--tolerance-nm", type=float, help="Fewest points whose P-V meets this tolerance [nm].")
+@click.option("--budget-points", type=COUNT, help="Best aspect ratio at or under this many points.")
+@click.option("--tolerance-nm", type=POSITIVE, help="Fewest points whose P-V meets this tolerance [nm].")
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def select(
     cube_path: Path, budget_points: Optional[int], tolerance_nm: Optional[float], as_json: bool
@@ -412,10 +417,6 @@ def select(
     from ftsweep.cube import CubeError
     from ftsweep.select import SelectError, choose, open_cube
 
-    if budget_points is not None and budget_points < 1:
-        _fail(f"--budget-points must be positive, got {budget_points}")
-    if tolerance_nm is not None and not tolerance_nm > 0:
-        _fail(f"--tolerance-nm must be positive, got {tolerance_nm}")
     try:
         chosen = choose(open_cube(cube_path), budget_points, tolerance_nm)
     except (SelectError, CubeError) as exc:
@@ -431,8 +432,8 @@ def select(
 
 @main.command()
 @click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
-@click.option("--budget-points", type=int, help="Export the best layout at or under this many points.")
-@click.option("--tolerance-nm", type=float, help="Export the smallest layout meeting this P-V [nm].")
+@click.option("--budget-points", type=COUNT, help="Export the best layout at or under this many points.")
+@click.option("--tolerance-nm", type=POSITIVE, help="Export the smallest layout meeting this P-V [nm].")
 @click.option("--case", "index", type=int, help="Export the case at this flat index of the cube.")
 @click.option(
     "-o",
@@ -481,7 +482,7 @@ def export(
 @click.argument("header", metavar="FILE.h", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option(
     "--pv-tolerance-nm",
-    type=float,
+    type=NON_NEGATIVE,
     help="Largest allowed |re-simulated − predicted| P-V [nm]. Default: one table unit (the "
     "quantisation bound) + 0.1 % of the P-V.",
 )
@@ -497,8 +498,6 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> Non
     """
     from ftsweep import export as exp
 
-    if pv_tolerance_nm is not None and not (pv_tolerance_nm >= 0 and math.isfinite(pv_tolerance_nm)):
-        _fail(f"--pv-tolerance-nm must be a non-negative number, got {pv_tolerance_nm}")
     progress = _stderr_progress("re-simulating") if (not as_json and sys.stderr.isatty()) else None
     try:
         record = exp.verify(header, progress, pv_tolerance_nm)
@@ -527,7 +526,7 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> Non
     help="Take surface, layout, machine, cutting and resolution from a sweep spec.",
 )
 @click.option("--layout", type=click.Choice(["ring", "mesh"]), help="Layout method. Default: the surface's.")
-@click.option("--tolerance-nm", type=float, required=True, help="P-V the part must meet [nm].")
+@click.option("--tolerance-nm", type=POSITIVE, required=True, help="P-V the part must meet [nm].")
 @click.option(
     "--start-points",
     type=float,
@@ -642,7 +641,13 @@ def optimize(
     type=int,
     help="Case (flat index) for the error map and spectrum. Default: the best at the largest budget.",
 )
-@click.option("--map-bins", type=int, default=160, show_default=True, help="Bins per side of the error map.")
+@click.option(
+    "--map-bins",
+    type=click.IntRange(min=8),
+    default=160,
+    show_default=True,
+    help="Bins per side of the error map.",
+)
 def report(cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_bins: int) -> None:
     """Figures of a sweep's cube and one HTML page that shows them with its metadata.
 
@@ -654,8 +659,6 @@ def report(cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_b
     from ftsweep.report import make_report
     from ftsweep.select import SelectError
 
-    if map_bins < 8:
-        _fail(f"--map-bins must be at least 8, got {map_bins}")
     progress = _stderr_progress("error map") if sys.stderr.isatty() else None
     click.echo("plotting the cube; re-simulating the chosen case for its error map ...", err=True)
     try:
@@ -714,15 +717,9 @@ def _stderr_progress(label: str):  # type: ignore[no-untyped-def]
 
 
 def _build_case(opts: dict[str, Any]) -> Case:
-    """The case of ``predict``'s options, refusing mixed, missing or non-positive ones."""
+    """The case of ``predict``'s options. The option combinations are checked here; every
+    value is validated by the spec models, whose errors are reported by option name."""
     surface, layout, machine, cutting = opts["surface"], opts["layout"], opts["machine"], opts["cutting"]
-    points, aspect = opts["points"], opts["aspect"]
-    feed_um, nose_radius_um = opts["feed_um"], opts["nose_radius_um"]
-    samples_per_cell, points_per_feed, n_theta = (
-        opts["samples_per_cell"],
-        opts["points_per_feed"],
-        opts["n_theta"],
-    )
     try:
         spec = catalogs.entry("surfaces", surface)
         catalogs.entry("machines", machine)
@@ -730,36 +727,54 @@ def _build_case(opts: dict[str, Any]) -> Case:
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
     kind = layout or spec.layout
-    given = {k: opts[k] for k in (*_RING_PITCH, *_MESH_PITCH)}
     own = _RING_PITCH if kind == "ring" else _MESH_PITCH
-    pitch_given = _check_layout_options(kind, given, points, aspect)
-    _check_numbers(
-        {**given, "points": points, "aspect": aspect, "feed-um": feed_um, "nose-radius-um": nose_radius_um},
-        {"samples-per-cell": samples_per_cell, "points-per-feed": points_per_feed, "n-theta": n_theta},
-    )
-    if kind == "ring" and pitch_given and not opts["strict"]:
-        given["dtheta_deg"] = _realisable_dtheta(given["dtheta_deg"])
+    given = {k: opts[k] for k in (*_RING_PITCH, *_MESH_PITCH)}
+    pitch_given = _check_layout_options(kind, given, opts["points"], opts["aspect"])
     try:
-        request = LayoutRequest(
-            kind=kind,
-            pitch=(given[own[0]], given[own[1]]) if pitch_given else None,
-            points=points,
-            aspect=aspect,
-        )
-        return Case(
+        # validated as part of the case, so that an error's location names the option
+        request = {
+            "kind": kind,
+            "pitch": (given[own[0]], given[own[1]]) if pitch_given else None,
+            "points": opts["points"],
+            "aspect": opts["aspect"],
+        }
+        case = Case(
             surface=surface,
-            layout=request,
+            layout=request,  # type: ignore[arg-type]
             machine=machine,
             cutting=cutting,
-            feed_um=feed_um,
-            nose_radius_um=nose_radius_um,
+            feed_um=opts["feed_um"],
+            nose_radius_um=opts["nose_radius_um"],
             compensation=opts["compensation"],
             resolution=Resolution(
-                samples_per_cell=samples_per_cell, points_per_feed=points_per_feed, n_theta=n_theta
+                samples_per_cell=opts["samples_per_cell"],
+                points_per_feed=opts["points_per_feed"],
+                n_theta=opts["n_theta"],
             ),
         )
     except ValidationError as exc:
-        raise click.UsageError(_pydantic_message(exc)) from None
+        raise click.UsageError(_option_errors(exc, own)) from None
+    if kind == "ring" and pitch_given and not opts["strict"]:
+        drho, dtheta = given[own[0]], _realisable_dtheta(given[own[1]])
+        case = case.model_copy(update={"layout": case.layout.model_copy(update={"pitch": (drho, dtheta)})})
+    return case
+
+
+def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
+    """A spec model's validation errors, each named by the option that gave the value
+    (``layout.pitch.0`` is the first pitch option, ``resolution.n_theta`` is --n-theta)."""
+    parts = []
+    for e in exc.errors():
+        loc = [str(p) for p in e["loc"]]
+        if loc[:2] == ["layout", "pitch"] and len(loc) > 2:
+            name = pitch_names[int(loc[2])]
+        elif loc and loc[0] in ("layout", "resolution") and len(loc) > 1:
+            name = loc[1]
+        else:
+            name = loc[-1] if loc else ""
+        text = f"{catalogs.error_text(e)} (got {catalogs.short_repr(e.get('input'))})"
+        parts.append(f"{_flag(name)}: {text}" if name else text)
+    return "; ".join(dict.fromkeys(parts))
 
 
 def _realisable_dtheta(dtheta_deg: float) -> float:
@@ -800,17 +815,6 @@ def _check_layout_options(kind: str, given: dict[str, Any], points: Any, aspect:
     if not pitch_given and (points is None or aspect is None):
         _fail(f"give the layout: {_flag(own[0])} and {_flag(own[1])}, or --points N with --aspect A")
     return bool(pitch_given)
-
-
-def _check_numbers(positive: dict[str, Any], counts: dict[str, Any]) -> None:
-    """Refuse non-positive or non-finite numbers and counts below 1 (before the specs, so the
-    message names the option)."""
-    for name, value in positive.items():
-        if value is not None and not (value > 0 and math.isfinite(value)):
-            _fail(f"{_flag(name)} must be a positive number, got {value}")
-    for name, value in counts.items():
-        if value is not None and value < 1:
-            _fail(f"{_flag(name)} must be a positive integer, got {value}")
 
 
 def _summary(r: dict[str, Any]) -> str:

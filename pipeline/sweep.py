@@ -15,7 +15,15 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
 import numpy as np
-from pydantic import Field, PositiveFloat, PositiveInt, ValidationError, model_validator
+from pydantic import (
+    Field,
+    PositiveFloat,
+    PositiveInt,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from ftsweep import catalogs
 from ftsweep.case import Case, LayoutRequest, Resolution, build_layout
@@ -49,8 +57,26 @@ class SweepAxes(Strict):
     nose_radius_um: Optional[AxisSpec] = Field(None, description="tool nose radii [µm]")
 
 
+CATALOG_KIND = {"surface": "surfaces", "machine": "machines", "cutting": "cutting"}
+
+
+def _catalog_folder(info: ValidationInfo) -> tuple[bool, Path | None]:
+    """(whether the catalog rules apply, the catalog folder): they apply when the spec is
+    validated with a ``{"catalog_folder": ...}`` context, as :func:`load_sweep` does; a spec
+    re-read from a cube or a task is already resolved and needs no catalog."""
+    context = info.context
+    if isinstance(context, dict) and "catalog_folder" in context:
+        return True, context["catalog_folder"]
+    return False, None
+
+
 class SweepSpec(Strict):
-    """A validated sweep."""
+    """A validated sweep.
+
+    Validated with a ``catalog_folder`` context, every rule is checked here, at load time:
+    the named surface, machine and cutting entries exist, ``layout`` defaults to the
+    surface's, and no combination of feed and nose radius on the axes has F ≥ 2·Rc.
+    """
 
     description: str = ""
     surface: str
@@ -63,6 +89,47 @@ class SweepSpec(Strict):
     cases_per_task: Optional[PositiveInt] = Field(
         None, description="cases a Dask task runs; default automatic"
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _layout_of_the_surface(cls, data: Any, info: ValidationInfo) -> Any:
+        applies, folder = _catalog_folder(info)
+        if applies and isinstance(data, dict) and data.get("layout") is None:
+            try:
+                surface = catalogs.entry("surfaces", data.get("surface"), folder)
+            except (CatalogError, TypeError):
+                return data  # the field validator names the surface key
+            return {**data, "layout": surface.layout}
+        return data
+
+    @field_validator("surface", "machine", "cutting")
+    @classmethod
+    def _in_the_catalog(cls, name: str, info: ValidationInfo) -> str:
+        applies, folder = _catalog_folder(info)
+        if applies:
+            assert info.field_name is not None
+            catalogs.entry(CATALOG_KIND[info.field_name], name, folder)
+        return name
+
+    @model_validator(mode="after")
+    def _feeds_below_twice_the_radii(self, info: ValidationInfo) -> SweepSpec:
+        applies, folder = _catalog_folder(info)
+        if not applies:
+            return self
+        cutting = catalogs.entry("cutting", self.cutting, folder)
+        feeds = axis_values(self.axes.feed_um) if self.axes.feed_um is not None else [cutting.feed_um]
+        radii = (
+            axis_values(self.axes.nose_radius_um)
+            if self.axes.nose_radius_um is not None
+            else [cutting.nose_radius_um]
+        )
+        try:
+            catalogs.check_feed(float(np.max(feeds)), float(np.min(radii)))
+        except ValueError as exc:
+            keys = [k for k in ("feed_um", "nose_radius_um") if getattr(self.axes, k) is not None]
+            where = " and ".join(f"axes.{k}" for k in keys) or f"cutting '{self.cutting}'"
+            raise ValueError(f"{where}: {exc}") from None
+        return self
 
     @model_validator(mode="after")
     def _no_duplicate_values(self) -> SweepSpec:
@@ -136,19 +203,11 @@ def load_sweep(name_or_path: str, catalog_folder: Path | None = None) -> tuple[s
     if not isinstance(data, dict):
         raise CatalogError(f"{path}: a sweep file is a mapping of keys (surface, axes, ...)")
     try:
-        spec = SweepSpec.model_validate(data)
+        spec = SweepSpec.model_validate(data, context={"catalog_folder": catalog_folder})
     except ValidationError as exc:
         raise CatalogError(_sweep_error(path, exc)) from None
     except RecursionError:
         raise CatalogError(f"{path}: nested too deeply to be a sweep") from None
-    for kind, key in (("surfaces", "surface"), ("machines", "machine"), ("cutting", "cutting")):
-        try:
-            catalogs.entry(kind, getattr(spec, key), catalog_folder)
-        except CatalogError as exc:
-            raise CatalogError(f"{path}: key '{key}': {exc}") from None
-    if spec.layout is None:
-        surface = catalogs.entry("surfaces", spec.surface, catalog_folder)
-        spec = spec.model_copy(update={"layout": surface.layout})
     return path.stem, spec
 
 
@@ -162,6 +221,10 @@ def _sweep_error(path: Path, exc: ValidationError) -> str:
             lines.append(f"  - {loc}: required key is missing")
         elif e["type"] == "too_short":
             lines.append(f"  - {loc}: the axis is empty; give at least one value")
+        elif e["loc"] and e["loc"][0] in CATALOG_KIND:
+            lines.append(f"  - key '{loc}': {catalogs.error_text(e)}")
+        elif not loc:
+            lines.append(f"  - {catalogs.error_text(e)}")
         else:
             lines.append(f"  - {loc}: {catalogs.error_text(e)} (got {catalogs.short_repr(e.get('input'))})")
     return "\n".join(dict.fromkeys(lines))  # union members can repeat the same complaint

@@ -63,6 +63,16 @@ def test_missing_and_non_positive_values(tmp_path):
     assert "c.spindle_rpm: required key is missing" in msg
 
 
+def test_cutting_entry_rules_are_checked_at_load_time(tmp_path):
+    p = write(tmp_path, "c:\n  feed_um: 200\n  nose_radius_um: 83\n  spindle_rpm: 50\n")
+    with pytest.raises(CatalogError, match=r"(?s)c\b.*not below twice the nose radius \(166 µm\)"):
+        load_catalog(p, Cutting)
+    p = write(tmp_path, "c:\n  feed_um: .nan\n  nose_radius_um: 83\n  spindle_rpm: .inf\n")
+    with pytest.raises(CatalogError) as err:
+        load_catalog(p, Cutting)
+    assert "c.feed_um" in str(err.value) and "c.spindle_rpm" in str(err.value)
+
+
 def test_unknown_aperture_key(tmp_path):
     p = write(
         tmp_path,

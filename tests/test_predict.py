@@ -117,8 +117,34 @@ def test_readable_summary_names_units():
     "args, message",
     [
         (["--surface", "nope", "--drho-um", "2", "--dtheta-deg", "1"], "unknown surface 'nope'"),
-        (["--surface", "sinewave2d", "--drho-um", "-2", "--dtheta-deg", "1"], "must be a positive number"),
-        (["--surface", "sinewave2d", "--drho-um", "0", "--dtheta-deg", "1"], "must be a positive number"),
+        (
+            ["--surface", "sinewave2d", "--drho-um", "-2", "--dtheta-deg", "1"],
+            "--drho-um: Input should be greater than 0",
+        ),
+        (
+            ["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "0"],
+            "--dtheta-deg: Input should be greater than 0",
+        ),
+        (
+            ["--surface", "lens_array", "--dx-um", "2", "--dy-um", "nan"],
+            "--dy-um: Input should be a finite number",
+        ),
+        (
+            ["--surface", "sinewave2d", "--points", "1e5", "--aspect", "-1"],
+            "--aspect: Input should be greater than 0",
+        ),
+        (
+            ["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "1", "--feed-um", "inf"],
+            "--feed-um: Input",
+        ),
+        (
+            ["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "1", "--n-theta", "0"],
+            "--n-theta: Input",
+        ),
+        (
+            ["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "1", "--max-nodes", "0"],
+            "'--max-nodes'",
+        ),
         (["--surface", "sinewave2d", "--drho-um", "0.5", "--dtheta-deg", "0.1"], "over the capacity"),
         (["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "1", "--points", "1000"], "not both"),
         (["--surface", "sinewave2d", "--points", "1000"], "--aspect"),
@@ -154,3 +180,21 @@ def test_console_script_is_installed():
         env=os.environ.copy(),
     )
     assert json.loads(out.stdout)["n_points"] == 101 * 72
+
+
+@pytest.mark.parametrize(
+    "args, option",
+    [
+        (["sweep", "sinewave-ring", "--workers", "0"], "--workers"),
+        (["sweep", "sinewave-ring", "--max-cases", "-3"], "--max-cases"),
+        (["select", "outputs/none.zarr", "--tolerance-nm", "nan"], "--tolerance-nm"),
+        (["select", "outputs/none.zarr", "--budget-points", "0"], "--budget-points"),
+        (["verify", "none.h", "--pv-tolerance-nm", "-1"], "--pv-tolerance-nm"),
+        (["report", "outputs/none.zarr", "--map-bins", "4"], "--map-bins"),
+    ],
+)
+def test_option_ranges_are_refused_before_anything_runs(args, option):
+    # click's typed ranges check these options when they are parsed, naming the option
+    r = invoke(*args)
+    assert r.exit_code == 2, r.output
+    assert f"Invalid value for '{option}'" in r.output

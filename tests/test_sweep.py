@@ -74,6 +74,14 @@ def test_reference_sweeps_validate_and_cover_the_ranges():
             "axes.aspect: required key is missing",
         ),
         (SMALL.replace("num: 3", "num: 3, spacing: 2"), "spacing: unknown key"),
+        # every rule is the model's, checked when the file is loaded (issue 15, item 2)
+        (SMALL.replace("surface: small_sine", "surface: [a, b]"), "surface"),
+        (SMALL + "  feed_um: [1.0, 170.0]\n", "axes.feed_um: feed 170 µm/rev is not below twice the nose"),
+        (
+            SMALL + "  nose_radius_um: [0.4, 50.0]\n",
+            "axes.nose_radius_um: feed 1 µm/rev is not below twice the nose radius (0.8 µm)",
+        ),
+        (SMALL.replace("points: [8000, 20000]", "points: [8000, .inf]"), "axes.points"),
     ],
 )
 def test_spec_errors_name_the_file_and_key(tmp_path, catalog_dir, text, message):

@@ -1,4 +1,8 @@
-"""ftsweep orchestration: catalogs, case specs, the case runner and the CLI."""
+"""ftsweep orchestration: catalogs, case specs, the case runner and the CLI.
+
+Citations in docstrings, messages and exported headers: "model §N, eq. (k)" is section N and
+equation k of "The model" in the project's README.md; "[n]" is reference n listed there.
+"""
 
 __version__ = "0.1.0"
 

@@ -32,7 +32,7 @@ class CaseError(ValueError):
 
 
 class Resolution(Strict):
-    """Simulation resolution (physics.md §5). The defaults are converged: P-V moves by less
+    """Simulation resolution (model §5). The defaults are converged: P-V moves by less
     than 3 % when the angular samples are quadrupled and the points per feed doubled."""
 
     samples_per_cell: PositiveInt = Field(
@@ -116,7 +116,7 @@ class Case(Strict):
 
 
 def build_layout(surface: Any, request: LayoutRequest) -> Layout:
-    """The control-point table of ``request`` covering the surface's aperture (physics.md §2).
+    """The control-point table of ``request`` covering the surface's aperture (model §2).
 
     Rings cover the aperture's circumscribed radius; meshes its bounding box.
     """
@@ -293,7 +293,7 @@ class ResolvedCase:
 
     @property
     def rho0_um(self) -> float:
-        """Start radius of the spiral: the aperture's circumscribed radius [µm] (physics.md §1)."""
+        """Start radius of the spiral: the aperture's circumscribed radius [µm] (model §1)."""
         return float(self.aperture.outer_radius_um)
 
 
@@ -301,7 +301,7 @@ def resolve_case(
     case: Case, catalog_folder: Any = None, specs: Optional[tuple[Any, Any, Any]] = None
 ) -> ResolvedCase:
     """Look up a case's entries (or take ``specs``) and refuse what cannot be simulated: a
-    feed not below 2·Rc (physics.md §5), a layout the aperture or the
+    feed not below 2·Rc (model §5), a layout the aperture or the
     controller's capacity rules out, a surface without a finite slope bound."""
     surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
     feed = case.feed_um or cutting.feed_um
@@ -341,7 +341,7 @@ def resolve_case(
 
 @dataclass(frozen=True)
 class LinePlan:
-    """How the part is sampled (physics.md §5): ``n_theta`` spindle angles as feed-plane lines,
+    """How the part is sampled (model §5): ``n_theta`` spindle angles as feed-plane lines,
     the simulated margin beyond the aperture [µm] (the arc's contact window plus two feeds),
     and the lines simulated per batch so a batch holds about ``batch_nodes`` nodes."""
 
@@ -388,7 +388,7 @@ def run_case(
     specs: Optional[tuple[Any, Any, Any]] = None,
     max_nodes: float = MAX_NODES,
 ) -> dict[str, Any]:
-    """Predict the form error of one case (physics.md §1–§6).
+    """Predict the form error of one case (model §1–§6).
 
     Returns a flat record whose fields :mod:`ftsweep.result` declares (names, units, order):
     the resolved inputs (surface, layout, n_points, pitches, cutting conditions), the metrics
@@ -465,7 +465,7 @@ def _simulate_lines(
     emap: Optional[ErrorMap],
     timer: Timer,
 ) -> None:
-    """One batch of feed-plane lines through the stages (physics.md §3–§6): surface samples,
+    """One batch of feed-plane lines through the stages (model §3–§6): surface samples,
     exact commands along the path, the controller's interpolation, the two arc envelopes,
     and the metrics accumulated into ``stats`` (and ``emap``)."""
     res, rc, aperture = rcase.case.resolution, rcase.nose_radius_um, rcase.aperture
@@ -568,7 +568,7 @@ def resolve_specs(case: Case, catalog_folder: Any = None) -> tuple[Any, Any, Any
 def control_table(
     case: Case, layout: Layout, surface_spec: Any, nose_radius_um: float, catalog_folder: Any = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The compensated control table [µm] of ``layout`` and its gouge flags (physics.md §4)."""
+    """The compensated control table [µm] of ``layout`` and its gouge flags (model §4)."""
     node_rho, node_theta = layouts.layout_nodes(layout)
     return compensation.compensate(
         catalogs.surface_callable(surface_spec, catalog_folder),

@@ -235,7 +235,7 @@ def aperture_of(spec: Any) -> Aperture:
 
 # --------------------------------------------------------------------------- machines
 class Machine(Strict):
-    """A fast tool servo and its controller (physics.md §1, §6 dynamics)."""
+    """A fast tool servo and its controller (model §1, §6 dynamics)."""
 
     description: str = ""
     capacity_points: PositiveInt = Field(description="control points the controller can hold")
@@ -258,7 +258,7 @@ class Machine(Strict):
 
 
 class Cutting(Strict):
-    """Cutting conditions (physics.md §1, §7)."""
+    """Cutting conditions (model §1, §7)."""
 
     description: str = ""
     feed_um: PositiveFloat = Field(description="feed per revolution F [µm/rev]")
@@ -273,7 +273,7 @@ class Cutting(Strict):
 
 def check_feed(feed_um: float, nose_radius_um: float) -> None:
     """Refuse a feed of at least 2·Rc: consecutive arcs would not intersect and the cusp
-    F²/(8·Rc) of physics.md §5 would no longer describe the surface."""
+    F²/(8·Rc) of model §5 would no longer describe the surface."""
     if not feed_um < 2.0 * nose_radius_um:
         raise ValueError(
             f"feed {feed_um:g} µm/rev is not below twice the nose radius ({2.0 * nose_radius_um:g} µm): "
@@ -282,7 +282,7 @@ def check_feed(feed_um: float, nose_radius_um: float) -> None:
 
 
 class Reference(Strict):
-    """A published prediction (physics.md §8) to check the model against."""
+    """A published prediction (model §8) to check the model against."""
 
     surface: str
     layout: Literal["ring", "mesh"]

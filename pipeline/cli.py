@@ -98,7 +98,7 @@ def main() -> None:
     An FTS controller moves the tool by bilinear interpolation in a table of control
     points (rings in polar coordinates or a Cartesian mesh). ftsweep predicts the form
     error a layout leaves on the machined part, including tool-nose compensation and the
-    tool-arc envelope (see physics.md shipped with the project).
+    tool-arc envelope (the model is in the README, section "The model").
 
     \b
     Units: lengths µm, errors nm, angles degrees, feed µm/rev.

@@ -134,6 +134,14 @@ def header_macros(meta: dict[str, Any], shape: tuple[int, int], int_type: str) -
     ]
 
 
+# what the table's values are, citing the README's model (ASCII: the header is C source)
+COMPENSATION_CITED = {
+    "exact": "tool-nose compensated commands, section 4 eq. 3",
+    "slope": "slope-approximated compensated commands, section 4 eq. 4",
+    "none": "surface heights without nose compensation, section 4",
+}
+
+
 def render_header(name: str, meta: dict[str, Any], ints: np.ndarray, int_type: str) -> tuple[str, int]:
     """The C header text (C99) and its CRC-32 (:func:`checksum`)."""
     ident = c_identifier(name)
@@ -150,7 +158,9 @@ def render_header(name: str, meta: dict[str, Any], ints: np.ndarray, int_type: s
         " * and the table.",
         f" * {table}[i][j] holds the W command at {axes[0]} = {macro}_ORIGIN0 + i*{macro}_PITCH0,",
         f" * {axes[1]} = {macro}_ORIGIN1 + j*{macro}_PITCH1, in units of {macro}_UNIT_NM nm.",
-        " * The FTS controller interpolates it bilinearly (physics.md section 3). */",
+        f" * Values are {COMPENSATION_CITED[meta['compensation']]} (ftsweep README, 'The model'),",
+        " * interpolated bilinearly by the FTS controller (section 3, eq. 2; the method of",
+        " * reference [1] there). */",
         f"#ifndef {macro}_H",
         f"#define {macro}_H",
         "",

@@ -73,7 +73,7 @@ RESULT: tuple[Quantity, ...] = (
     _f("dx_um", "um", "mesh pitch Δx", ("mesh",)),
     _f("dy_um", "um", "mesh pitch Δy", ("mesh",)),
     _f("aspect_actual", {"ring": "um/deg", "mesh": "1"}, "aspect ratio of the realised pitches"),
-    # the form error (physics.md §6)
+    # the form error (model §6)
     _f("pv_nm", "nm", "peak-to-valley form error"),
     _f("rms_nm", "nm", "RMS form error about its mean"),
     _f("mean_nm", "nm", "mean form error"),
@@ -86,7 +86,7 @@ RESULT: tuple[Quantity, ...] = (
     _i("gouge_points", "control points whose section is concave with radius below Rc"),
     _i("n_theta", "simulated spindle angles"),
     _i("n_eval", "evaluation points"),
-    # the W motion (seed 001 dynamics, physics.md §6)
+    # the W motion ([2] dynamics, model §6)
     _f("stroke_um", "um", "W stroke used (range of the table)"),
     _f("w_velocity_peak_mm_s", "mm/s", "peak W velocity at the spindle speed"),
     _f("w_accel_peak_m_s2", "m/s^2", "peak W acceleration at the spindle speed"),

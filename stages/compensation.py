@@ -1,4 +1,4 @@
-"""Tool-nose radius compensation: what the table must store (physics.md §4).
+"""Tool-nose radius compensation: what the table must store (model §4).
 
 The cutting edge is a circular arc of nose radius Rc in the feed plane. The exact control
 value is the height of the arc's lowest point such that the arc touches the radial section
@@ -35,7 +35,7 @@ MODE_CODES = {"exact": 0, "slope": 1, "none": 2}
 
 def arc_lift(s: np.ndarray | float, nose_radius_um: float) -> np.ndarray | float:
     """Height [µm] of the tool arc above its lowest point at lateral offset ``s`` [µm]:
-    Rc − sqrt(Rc² − s²) (physics.md §4, §5)."""
+    Rc − sqrt(Rc² − s²) (model §4, §5)."""
     return nose_radius_um - np.sqrt(nose_radius_um**2 - np.square(s))
 
 
@@ -47,7 +47,7 @@ def contact_window_um(gradient_bound: float, nose_radius_um: float) -> float:
 
 
 def slope_compensation(f: np.ndarray, slope: np.ndarray, nose_radius_um: float) -> np.ndarray:
-    """Approximate compensation w = f + Rc·(1/cosβ − 1), β = atan|g'| (physics.md §4) [µm]."""
+    """Approximate compensation w = f + Rc·(1/cosβ − 1), β = atan|g'| (model §4) [µm]."""
     return f + nose_radius_um * (np.sqrt(1.0 + np.square(slope)) - 1.0)
 
 
@@ -69,7 +69,7 @@ def compensate(
     surface : surface callable (see :mod:`ftsweep.stages.surfaces`).
     rho, theta : arrays of equal shape: radial position and section angle of each point.
     nose_radius_um : tool nose radius Rc [µm].
-    mode : ``exact``, ``slope`` or ``none`` (physics.md §4).
+    mode : ``exact``, ``slope`` or ``none`` (model §4).
     gradient_bound : an upper bound G of |∇f| [-] over the part (``exact`` only); a scan
         that meets a larger slope raises, since the contact window would be too narrow.
     n_scan : samples of the coarse scan over the contact window (``exact`` only).
@@ -184,7 +184,7 @@ def _illinois_max(surface, rho, ct, st, rc, a, b, fa, fb, tol_um, max_iter):
 
 @njit(nogil=True, cache=True)
 def compensate_on_ray(g, gp, spacing_um, nose_radius_um, nodes, mode, out):  # pragma: no cover - jit
-    """Control values along one sampled radial section (physics.md §4), in place.
+    """Control values along one sampled radial section (model §4), in place.
 
     g, gp : section height [µm] and radial slope [-] at nodes r_n = r_0 − n·spacing.
     spacing_um : node spacing [µm] (positive; node index grows inwards).
@@ -254,7 +254,7 @@ def commands_on_rays(
     n_passes: np.ndarray,
     mode: int,
 ) -> np.ndarray:
-    """Commands w [µm] at every pass of every ray of a path grid (physics.md §4): the section
+    """Commands w [µm] at every pass of every ray of a path grid (model §4): the section
     samples ``g``, ``gp`` (R, G) along each ray, the passes at node indices ``pass_nodes``
     (R, Kmax), ``n_passes`` (R,) of them on each ray. Returns (R, Kmax), NaN past the passes."""
     out = np.full(pass_nodes.shape, np.nan)

@@ -1,10 +1,10 @@
-"""Dynamics of the W command (physics.md §1, §6 "Dynamics").
+"""Dynamics of the W command (model §1, §6 "Dynamics").
 
 The controller outputs one command per period 1/f_cmd while the spindle turns at n rpm,
 K = f_cmd·60/n commands per revolution. The command stream is evaluated over whole
 revolutions at a few radii (the outer edge, where surface speed is highest, and inner
 radii that may hold other features). Velocity and acceleration are its first and second
-differences at the command period (the second-order difference of seed 001, with a uniform
+differences at the command period (the second-order difference of [2], with a uniform
 timestep); the spectrum is the FFT of each revolution with its linear trend removed.
 """
 
@@ -31,7 +31,7 @@ class Dynamics(NamedTuple):
 
 
 def commands_per_revolution(command_rate_hz: float, spindle_rpm: float) -> int:
-    """K = f_cmd·60/n (physics.md §1): 20 kHz at 50 rpm gives 24,000."""
+    """K = f_cmd·60/n (model §1): 20 kHz at 50 rpm gives 24,000."""
     return int(round(command_rate_hz * 60.0 / spindle_rpm))
 
 
@@ -46,7 +46,7 @@ def revolution_commands(
 ) -> np.ndarray:
     """Consecutive commands W [µm] of the spiral, ``k`` per revolution, command n at
     φ_n = 2π·n/k for n = first … first + n_commands − 1 (default one revolution from φ = 0):
-    ρ(φ) = ρ_start − F·φ/2π, θ = φ mod 2π (physics.md §1, §3)."""
+    ρ(φ) = ρ_start − F·φ/2π, θ = φ mod 2π (model §1, §3)."""
     count = k if n_commands is None else n_commands
     phi = (first + np.arange(count)) * (2.0 * math.pi / k)
     rho = np.maximum(rho_start_um - feed_um * phi / (2.0 * math.pi), 0.0)
@@ -84,7 +84,7 @@ def analyse(
     radii_fraction: tuple[float, ...] = (1.0, 0.75, 0.5, 0.25),
 ) -> Dynamics:
     """Stroke, peak velocity, peak and RMS acceleration and highest significant frequency of
-    the W command at the spindle speed (physics.md §6).
+    the W command at the spindle speed (model §6).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Envelope prediction: the surface the tool leaves behind (physics.md §5).
+"""Envelope prediction: the surface the tool leaves behind (model §5).
 
 Along one feed-plane line the machined height is the lower envelope of the tool arcs:
 
@@ -37,7 +37,7 @@ def _crossing(pa, wa, pb, wb, rc):  # pragma: no cover - jit
 @njit(nogil=True, cache=True)
 def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover - jit
     """Lower envelope of arcs at ``pos`` [µm] (ascending) with lowest points ``w`` [µm],
-    evaluated at ``query`` [µm] (ascending) into ``out`` [µm] (physics.md §5).
+    evaluated at ``query`` [µm] (ascending) into ``out`` [µm] (model §5).
 
     ``stack`` (int64) and ``breaks`` (float64) are scratch arrays of at least ``pos.size``;
     on return ``stack[:n]`` holds the winning arcs in order and ``breaks[1:n]`` where each
@@ -163,7 +163,7 @@ def machined_lines(
     nose_radius_um: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`envelope_lines` with its outputs allocated: machined height z (R, G) [µm] and the
-    exact cusp peaks' radius and height (R, Kmax + 2) [µm] (physics.md §5)."""
+    exact cusp peaks' radius and height (R, Kmax + 2) [µm] (model §5)."""
     z = np.empty(node_r.shape)
     cusp_shape = (node_r.shape[0], int(n_passes.max()) + 2)
     cusp_r, cusp_z = np.empty(cusp_shape), np.empty(cusp_shape)

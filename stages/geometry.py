@@ -1,4 +1,4 @@
-"""Geometry every surface shares (physics.md §2, §4, §7): the centred aperture, the radial
+"""Geometry every surface shares (model §2, §4, §7): the centred aperture, the radial
 section through the spindle axis, and a sampled bound of the slope. Lengths in µm."""
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def sampled_gradient_bound(
 def radial_section(
     surface: SurfaceFn, r: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Height g and radial slope g' of the section through the spindle axis (physics.md §4).
+    """Height g and radial slope g' of the section through the spindle axis (model §4).
 
     g(r) = f(r·cosθ, r·sinθ), g'(r) = ∂f/∂x·cosθ + ∂f/∂y·sinθ. ``r`` [µm] may be negative
     (the section continues through the axis); ``cos_t``, ``sin_t`` are cosθ and sinθ of the
@@ -60,7 +60,7 @@ def radial_section(
 # --------------------------------------------------------------------------- apertures
 class Aperture(NamedTuple):
     """A centred aperture: ``circle`` of ``radius_um`` or ``rectangle`` ``width_um`` × ``height_um``
-    (physics.md §2 and §7). All lengths in µm."""
+    (model §2 and §7). All lengths in µm."""
 
     shape: str
     radius_um: float = 0.0

@@ -1,4 +1,4 @@
-"""The controller's bilinear interpolation (physics.md §3) along the spiral tool path (§1).
+"""The controller's bilinear interpolation (model §3) along the spiral tool path (§1).
 
 The tool feeds from the outer edge ρ0 to the centre along ρ(φ) = ρ0 − F·φ/2π. Along one
 spindle angle θ ∈ [0, 2π) it therefore passes once per revolution, at
@@ -56,7 +56,7 @@ def _bilinear_kernel(table, u, v, periodic, out):  # pragma: no cover - jit
 
 
 def bilinear(table: np.ndarray, u: np.ndarray, v: np.ndarray, periodic: bool) -> np.ndarray:
-    """Bilinear interpolation in fractional table indices (physics.md §3).
+    """Bilinear interpolation in fractional table indices (model §3).
 
     w = (1−t)(1−u)·w[i,j] + t(1−u)·w[i+1,j] + t·u·w[i+1,j+1] + (1−t)·u·w[i,j+1]
 
@@ -74,7 +74,7 @@ def bilinear(table: np.ndarray, u: np.ndarray, v: np.ndarray, periodic: bool) ->
 
 
 def table_indices(layout: Layout, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Fractional table indices (u, v) of tool positions ρ [µm], θ [rad] (physics.md §2–3)."""
+    """Fractional table indices (u, v) of tool positions ρ [µm], θ [rad] (model §2–3)."""
     if layout.kind == "ring":
         u = (rho - layout.origin[0]) / layout.pitch[0]
         v = (np.degrees(theta) - layout.origin[1]) / layout.pitch[1]
@@ -157,7 +157,7 @@ def sample_on_nodes(grid: PathGrid, g: np.ndarray, gp: np.ndarray, r: np.ndarray
 
 
 def first_machined_node(grid: PathGrid, contact_window_um: float) -> int:
-    """First node of the fully machined zone (physics.md §6) on every ray of ``grid``.
+    """First node of the fully machined zone (model §6) on every ray of ``grid``.
 
     A point is fully machined once passes touch the design on both sides of it. The arc of
     pass k touches at ρ_k + s* with |s*| ≤ the contact window, so the zone starts at the

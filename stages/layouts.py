@@ -1,4 +1,4 @@
-"""Control-point layouts: the table the FTS controller holds (physics.md §2).
+"""Control-point layouts: the table the FTS controller holds (model §2).
 
 A layout is a small immutable value describing a regular grid in *index space*: the
 controller maps a query to fractional indices (u, v) = ((q0 − origin0)/pitch0,
@@ -61,14 +61,14 @@ def _check_positive(**values: float) -> None:
 
 def nearest_ring_dtheta(dtheta_deg: float) -> tuple[float, int]:
     """The realisable angular pitch nearest ``dtheta_deg`` [deg]: 360/Np [deg] for the integer
-    Np = round(360/Δθ) (at least 4), and Np (physics.md §2: Np = 360/Δθ points per ring)."""
+    Np = round(360/Δθ) (at least 4), and Np (model §2: Np = 360/Δθ points per ring)."""
     _check_positive(dtheta_deg=dtheta_deg)
     np_int = max(4, int(round(360.0 / dtheta_deg)))
     return 360.0 / np_int, np_int
 
 
 def ring_layout(radius_um: float, drho_um: float, dtheta_deg: float) -> Layout:
-    """Ring (polar) layout from explicit pitches, physics.md §2.
+    """Ring (polar) layout from explicit pitches, model §2.
 
     Rings at ρ_i = i·Δρ, i = 0..M−1 with M = ceil(R/Δρ) + 1; Np = 360/Δθ points per ring.
 
@@ -93,7 +93,7 @@ def ring_layout(radius_um: float, drho_um: float, dtheta_deg: float) -> Layout:
 
 
 def mesh_layout(width_um: float, height_um: float, dx_um: float, dy_um: float) -> Layout:
-    """Mesh (Cartesian) layout from explicit pitches, physics.md §2.
+    """Mesh (Cartesian) layout from explicit pitches, model §2.
 
     nx = ceil(W/Δx) + 1, ny = ceil(H/Δy) + 1 nodes, centred on the aperture.
 
@@ -144,7 +144,7 @@ def layout_nodes(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
 
     Arrays of ``layout.shape``. For the ring method the section angle is the ring angle
     (also at ρ = 0, where each column keeps its own direction); for the mesh method it is
-    atan2(y, x) (physics.md §4: the same radial-section rule applies to mesh points).
+    atan2(y, x) (model §4: the same radial-section rule applies to mesh points).
     """
     i = np.arange(layout.shape[0], dtype=np.float64)[:, None]
     j = np.arange(layout.shape[1], dtype=np.float64)[None, :]

@@ -1,4 +1,4 @@
-"""Error and metrics (physics.md §6).
+"""Error and metrics (model §6).
 
 The form error e = z − f is reduced batch by batch into a small vector of running
 statistics (:data:`STAT_NAMES`), so a case never holds the whole evaluation grid; batches
@@ -69,7 +69,7 @@ def merge_stats(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @njit(nogil=True, cache=True)
 def accumulate(z, z_exact, g, inside, node_r, zone_split_um, stats):  # pragma: no cover - jit
-    """Add the errors of one batch of node grids to ``stats`` in place (physics.md §6).
+    """Add the errors of one batch of node grids to ``stats`` in place (model §6).
 
     z, z_exact : (R, G) machined height from interpolated / exact commands [µm], NaN off
         the evaluation nodes.
@@ -155,12 +155,12 @@ def accumulate_map(
 
 
 def cusp_height_um(feed_um: float, nose_radius_um: float) -> float:
-    """Feed cusp height of a flat surface, F²/(8·Rc) [µm] (physics.md §6)."""
+    """Feed cusp height of a flat surface, F²/(8·Rc) [µm] (model §6)."""
     return feed_um**2 / (8.0 * nose_radius_um)
 
 
 def finalize(stats: np.ndarray) -> dict[str, float]:
-    """Reported metrics from accumulated statistics; errors in nm (physics.md §6).
+    """Reported metrics from accumulated statistics; errors in nm (model §6).
 
     pv_nm = max e − min e; rms_nm is the RMS of e about its mean (piston is not a form
     error); pv_interp_nm is the P-V of z(interpolated commands) − z(exact commands); zone

@@ -1,4 +1,4 @@
-"""Surface sampling: design heights, their gradients and apertures (physics.md §7).
+"""Surface sampling: design heights, their gradients and apertures (model §7).
 
 Every family is a numba kernel over flat float64 arrays plus a thin numpy wrapper with
 keyword parameters in catalog units. All lengths are micrometres [µm], heights are
@@ -134,7 +134,7 @@ def sinewave2d(
     phase_x_deg: float,
     phase_y_deg: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Two crossed sine waves, physics.md §7 ``sinewave2d``.
+    """Two crossed sine waves, model §7 ``sinewave2d``.
 
     f = Ax·sin(2πx/λx + φx) + Ay·sin(2πy/λy + φy)
 
@@ -227,7 +227,7 @@ def lens_array(
     count_x: int,
     count_y: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Square array of spherical lenslets blended by tori, physics.md §7 ``lens_array``.
+    """Square array of spherical lenslets blended by tori, model §7 ``lens_array``.
 
     With r the distance to the nearest lenslet centre, a = sqrt(2hR − h²), rt = R/2 and
     Rt = a·(1 + rt/R):  r ≤ a: f = R − h − sqrt(R² − r²);  a < r ≤ Rt:
@@ -329,7 +329,7 @@ def chebyshev_freeform(
     offset_x_um: float = 0.0,
     offset_y_um: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Base sphere plus Chebyshev terms (seed 001, eq. 1):
+    """Base sphere plus Chebyshev terms ([2], eq. 1):
 
     f = c·(Xs² + Ys²)/(1 + sqrt(1 − c²(Xs² + Ys²))) + Σ_ij C_ij·T_i(Xs/Lx)·T_j(Ys/Ly),
     with (Xs, Ys) = (x − Xb, y − Yb), c = 1/R and T_i(u) = cos(i·arccos u).
@@ -398,7 +398,7 @@ def sinusoidal_mesh(
     periods_radial: float,
     workpiece_radius_um: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Umbrella plus radial sinusoid "complex sinusoidal mesh" surface (seed 003, eq. 6):
+    """Umbrella plus radial sinusoid "complex sinusoidal mesh" surface ([4], eq. 6):
 
     f = (h1/Rw)·r·(sin(l·φ − π/2) − 1) + (h2/Rw)·r·(sin(2π·ω·r/Rw) − 1)
 

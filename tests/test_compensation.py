@@ -1,4 +1,4 @@
-"""Tool-nose compensation (physics.md §4)."""
+"""Tool-nose compensation (model §4)."""
 
 from __future__ import annotations
 

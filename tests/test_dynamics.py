@@ -1,4 +1,4 @@
-"""Dynamics of the W command (physics.md §6): closed forms on a tilted plane."""
+"""Dynamics of the W command (model §6): closed forms on a tilted plane."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Envelope of the tool arcs (physics.md §5): exact lower envelope, feed cusps."""
+"""Envelope of the tool arcs (model §5): exact lower envelope, feed cusps."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The controller's bilinear interpolation (physics.md §3) and the spiral path (§1)."""
+"""The controller's bilinear interpolation (model §3) and the spiral path (§1)."""
 
 from __future__ import annotations
 

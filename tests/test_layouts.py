@@ -1,4 +1,4 @@
-"""Layouts (physics.md §2): point counts follow the formulas; (N, α) round-trips."""
+"""Layouts (model §2): point counts follow the formulas; (N, α) round-trips."""
 
 from __future__ import annotations
 

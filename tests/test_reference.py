@@ -1,4 +1,4 @@
-"""The published predictions of physics.md §8, reproduced by ``ftsweep predict``.
+"""The published predictions of model §8, reproduced by ``ftsweep predict``.
 
 Each case runs the real command (in-process through click, the same code path as the
 console script) at the default resolution with exact compensation, and must land within
@@ -48,7 +48,7 @@ SINE = [n for n, r in REFERENCES.items() if r.surface == "sinewave2d"]
 
 @pytest.mark.parametrize("name", SINE)
 def test_without_compensation_the_tool_overcuts(name):
-    """Without compensation the arc cuts Rc·β²/2 below sloped regions (physics.md §4).
+    """Without compensation the arc cuts Rc·β²/2 below sloped regions (model §4).
 
     The P-V at least doubles where the layout error is smaller than that overcut (Δθ = 0.5°
     and 0.25°). At Δθ = 1° it cannot: the ±70 nm interpolation error peaks on crests and

@@ -51,7 +51,7 @@ def test_a_new_family_needs_only_its_registration():
     assert lines["refused:"] == "True True"
     pv_outer, pv_interp, cusp = (float(v) for v in lines["pv"].split())
     # a level plane is machined to feed cusps (away from the axis, where the last passes of
-    # both sides meet, physics.md §5), and the table reproduces it exactly
+    # both sides meet, model §5), and the table reproduces it exactly
     assert abs(pv_interp) <= 1e-3
     assert abs(pv_outer - cusp) <= 0.05 * cusp
 

@@ -1,4 +1,4 @@
-"""Surface families (physics.md §7): gradients, continuity, reference geometry."""
+"""Surface families (model §7): gradients, continuity, reference geometry."""
 
 from __future__ import annotations
 

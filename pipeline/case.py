@@ -578,4 +578,5 @@ def control_table(
         case.compensation,
         catalogs.gradient_bound(surface_spec, catalog_folder),
         n_scan=case.resolution.compensation_scan,
+        curvature_bound=catalogs.curvature_bound(surface_spec),
     )

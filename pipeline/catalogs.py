@@ -9,6 +9,7 @@ allowed.
 from __future__ import annotations
 
 import functools
+import math
 import os
 import reprlib
 from pathlib import Path
@@ -113,6 +114,12 @@ class _SurfaceBase(Strict):
     gradient_bound: Optional[PositiveFloat] = Field(
         None, description="upper bound of |∇f| [-]; default analytic, or sampled over the aperture"
     )
+    curvature_bound: Optional[PositiveFloat] = Field(
+        None,
+        description="upper bound of the Hessian norm ‖∇²f‖ [1/µm]; default the family's analytic one, "
+        "if any. With it exact compensation solves each point in a few evaluations where K·Rc < 1, "
+        "and scans densely enough for 0.01 nm elsewhere; a surface found more curved is refused",
+    )
 
 
 class HeightMapSurface(_SurfaceBase):
@@ -216,6 +223,16 @@ def gradient_bound(spec: Any, folder: Path | None = None) -> float:
     if family is not None and family.gradient_bound is not None:
         return family.gradient_bound(**spec.params.model_dump())
     return _sampled_bound(spec.model_dump_json(), str(folder or catalog_dir()))
+
+
+def curvature_bound(spec: Any) -> float:
+    """Upper bound of ‖∇²f‖ [1/µm]: the entry's own, the family's analytic one, or inf (unknown)."""
+    if spec.curvature_bound is not None:
+        return float(spec.curvature_bound)
+    family = FAMILIES.get(spec.family)
+    if family is not None and family.curvature_bound is not None:
+        return float(family.curvature_bound(**spec.params.model_dump()))
+    return math.inf
 
 
 @functools.lru_cache(maxsize=32)

@@ -10,9 +10,11 @@ Two solvers implement it:
 
 * :func:`compensate` works on arbitrary points with a surface callable (control tables).
   With G ≥ |g'| on the section, every stationary point of the bracket lies in
-  |s| ≤ Rc·G/sqrt(1 + G²), so a coarse scan of that window followed by a bracketed
-  (Illinois) root search of h'(s) = 0 finds the global maximum wherever h is unimodal,
-  which holds wherever the section has no concave radius below Rc.
+  |s| ≤ Rc·G/sqrt(1 + G²). Where the surface's curvature bound K satisfies K·Rc < 1,
+  h(s) is strictly concave there and a safeguarded secant (Newton) iteration from the
+  slope-predicted contact finds its maximum in a few evaluations; elsewhere a scan of the
+  window, dense enough for 0.01 nm when K is known, is refined by a bracketed (Illinois)
+  root search.
 * :func:`compensate_on_ray` works on a section already sampled on a uniform grid (the
   tool path's evaluation grid) by hill-climbing the sampled h and a parabolic refinement.
 
@@ -51,6 +53,13 @@ def slope_compensation(f: np.ndarray, slope: np.ndarray, nose_radius_um: float) 
     return f + nose_radius_um * (np.sqrt(1.0 + np.square(slope)) - 1.0)
 
 
+# Largest amount [µm] by which the scan solver's result may fall below the true maximum of
+# eq. (3) when the surface's curvature is bounded: 1e-5 µm = 0.01 nm, far below any metric.
+SCAN_TOL_UM = 1e-5
+MAX_SCAN = 4097
+SOLVERS = ("auto", "newton", "scan")
+
+
 def compensate(
     surface: SurfaceFn,
     rho: np.ndarray,
@@ -61,6 +70,8 @@ def compensate(
     n_scan: int = 5,
     tol_um: float = 1e-4,
     max_iter: int = 60,
+    curvature_bound: float = math.inf,
+    solver: str = "auto",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Control values w [µm] at radial positions ``rho`` [µm] on sections at ``theta`` [rad].
 
@@ -69,21 +80,31 @@ def compensate(
     surface : surface callable (see :mod:`ftsweep.stages.surfaces`).
     rho, theta : arrays of equal shape: radial position and section angle of each point.
     nose_radius_um : tool nose radius Rc [µm].
-    mode : ``exact``, ``slope`` or ``none`` (model §4).
-    gradient_bound : an upper bound G of |∇f| [-] over the part (``exact`` only); a scan
-        that meets a larger slope raises, since the contact window would be too narrow.
-    n_scan : samples of the coarse scan over the contact window (``exact`` only).
+    mode : ``exact``, ``slope`` or ``none`` (model §4, eq. 3 and 4).
+    gradient_bound : an upper bound G of |∇f| [-] over the part (``exact`` only); a section
+        found steeper raises, since the contact window would be too narrow.
+    n_scan : samples of the coarse scan when the curvature is not bounded (``exact`` only).
     tol_um : convergence tolerance on the contact offset [µm]; near the optimum h is
         quadratic, so an offset error δ changes w by only ½·|h''|·δ² (~1e-10 µm at 1e-4).
+    curvature_bound : an upper bound K [1/µm] of the Hessian's spectral norm ‖∇²f‖ over the
+        part (inf: unknown). It bounds every section's g'' in both directions.
+    solver : ``newton``: safeguarded secant (Newton) iteration on h'(s) = 0 from the
+        slope-predicted contact, a few surface evaluations per point, exact where h is
+        strictly concave (K·Rc < 1); ``scan``: a scan of the contact window refined by a
+        bracketed root search, dense enough for a 0.01 nm guarantee when K is known (see
+        :func:`scan_samples`); ``auto``: ``newton`` when K·Rc < 1, else ``scan``.
 
     Returns
     -------
     w : control values [µm], shape of ``rho``.
     gouge : bool array, True where the section within the contact window is concave with
-        a radius of curvature below Rc, so no single contact exists (§4).
+        a radius of curvature below Rc, so no single contact exists (§4). With K·Rc < 1 no
+        section can be, and none is flagged.
     """
     if mode not in MODES:
         raise ValueError(f"unknown compensation mode {mode!r}; expected one of {MODES}")
+    if solver not in SOLVERS:
+        raise ValueError(f"unknown compensation solver {solver!r}; expected one of {SOLVERS}")
     if not nose_radius_um > 0.0:
         raise ValueError(f"nose_radius_um must be positive, got {nose_radius_um!r}")
     rho, theta = np.broadcast_arrays(np.asarray(rho, dtype=np.float64), np.asarray(theta, dtype=np.float64))
@@ -98,42 +119,142 @@ def compensate(
 
     rc = float(nose_radius_um)
     half = contact_window_um(gradient_bound, rc)
-    offsets = np.linspace(-half, half, max(3, n_scan)) if half > 0.0 else np.zeros(1)
-    n_off, n = offsets.size, rho.size
-    h = np.empty((n_off, n))
-    dh = np.empty((n_off, n))
-    slopes = np.empty((n_off, n))
-    for q, s in enumerate(offsets):
-        f, gp = radial_section(surface, rho + s, ct, st)
-        h[q] = f - arc_lift(s, rc)
-        dh[q] = gp - s / math.sqrt(rc * rc - s * s)
-        slopes[q] = gp
-    steepest = float(np.max(np.abs(slopes))) if n else 0.0
+    if solver == "auto":
+        solver = "newton" if curvature_bound * rc < 1.0 else "scan"
+    if solver == "newton" and half > 0.0:
+        w = _secant_max(surface, rho, ct, st, rc, half, (gradient_bound, curvature_bound), tol_um, max_iter)
+        return w.reshape(shape), np.zeros(shape, dtype=bool)
+    count = scan_samples(half, rc, curvature_bound, n_scan)
+    w, gouge = _scan_max(surface, rho, ct, st, rc, half, count, gradient_bound, tol_um, max_iter)
+    return w.reshape(shape), gouge.reshape(shape)
+
+
+def scan_samples(half_um: float, nose_radius_um: float, curvature_bound: float, n_scan: int) -> int:
+    """Samples of the scan over the contact window |s| ≤ half [µm].
+
+    Between samples δ apart, h(s) = g(ρ+s) − arc(s) exceeds the larger sample by at most
+    L·δ²/8 with L ≥ −h'' = arc''(s) − g''(ρ+s) ≤ Rc²/(Rc² − half²)^1.5 + K. With K known the
+    scan is made dense enough for L·δ²/8 ≤ :data:`SCAN_TOL_UM` (at most :data:`MAX_SCAN`
+    samples), so the refined best sample is within 0.01 nm of eq. (3) even where the section
+    has several local maxima (gouging, K·Rc ≥ 1). Where K·Rc < 1, h is strictly concave and
+    the bracket around the best of ``n_scan`` samples holds its one maximum; with K unknown,
+    ``n_scan`` samples too (the pre-bound behaviour).
+    """
+    if half_um <= 0.0:
+        return 1
+    if not math.isfinite(curvature_bound) or curvature_bound * nose_radius_um < 1.0:
+        # unknown K, or h strictly concave: the coarse scan brackets its one maximum
+        return max(3, n_scan)
+    rc = nose_radius_um
+    lipschitz = rc * rc / (rc * rc - half_um * half_um) ** 1.5 + curvature_bound
+    step = math.sqrt(8.0 * SCAN_TOL_UM / lipschitz)
+    return int(min(MAX_SCAN, max(n_scan, 3, math.ceil(2.0 * half_um / step) + 1)))
+
+
+def _check_slope(gp: np.ndarray, gradient_bound: float) -> None:
+    steepest = float(np.max(np.abs(gp))) if gp.size else 0.0
     if steepest > gradient_bound * (1.0 + 1e-9) + 1e-12:
         raise ValueError(
             f"surface slope {steepest:.4g} exceeds the gradient bound {gradient_bound:.4g} given to "
             "exact compensation; raise the bound (the contact window would miss contacts)"
         )
 
-    gouge = np.zeros(n, dtype=bool)
-    if n_off > 1:
-        # concave curvature g''/(1 + g'^2)^1.5 above 1/Rc between neighbouring scan samples
-        step = offsets[1] - offsets[0]
-        for q in range(n_off - 1):
-            mid2 = 1.0 + 0.25 * np.square(slopes[q + 1] + slopes[q])
-            gouge |= (slopes[q + 1] - slopes[q]) * rc > step * mid2 * np.sqrt(mid2)
 
-    best = np.argmax(h, axis=0)
-    cols = np.arange(n)
-    w = h[best, cols]
-    if n_off == 1:
-        return w.reshape(shape), gouge.reshape(shape)
-    lo_i = np.maximum(best - 1, 0)
-    hi_i = np.minimum(best + 1, n_off - 1)
-    a, b = offsets[lo_i], offsets[hi_i]
-    fa, fb = dh[lo_i, cols], dh[hi_i, cols]
-    # Only a sign change of h' brackets an interior maximum; elsewhere the scan value stands.
-    active = np.flatnonzero((fa > 0.0) & (fb < 0.0))
+def _check_curvature(gp: np.ndarray, gp_prev: np.ndarray, ds: np.ndarray, curvature_bound: float) -> None:
+    """By the mean value theorem |Δg'/Δs| ≤ sup|g''| ≤ K: a larger difference quotient proves
+    the declared curvature bound wrong (and the concavity the secant solver relies on)."""
+    # rounding of g' (~1e-16) divided by a small step must not read as curvature
+    with np.errstate(divide="ignore", invalid="ignore"):
+        excess = np.abs(gp - gp_prev) - 1e-12 - curvature_bound * (1.0 + 1e-6) * np.abs(ds)
+        quotient = np.abs(gp - gp_prev) / np.abs(ds)
+    bad = excess > 0.0
+    worst = float(np.max(quotient[bad], initial=0.0))
+    if bad.any():
+        raise ValueError(
+            f"surface curvature {worst:.4g} /µm exceeds the curvature bound {curvature_bound:.4g} /µm "
+            "given to exact compensation; raise or remove the bound"
+        )
+
+
+def _secant_max(surface, rho, ct, st, rc, half, bounds, tol_um, max_iter):
+    """Maximise h(s) = g(ρ+s) − arc(s) over |s| ≤ half where h is strictly concave: the root
+    of the decreasing h'(s) = g'(ρ+s) − s/sqrt(Rc² − s²) by secant steps, bracketed by
+    [−half, half] (where h' ≥ 0 ≥ h' because |g'| ≤ G) and bisected when a step leaves the
+    bracket. Starts at s = 0 and the slope-predicted contact Rc·g'/sqrt(1 + g'²)."""
+    gradient_bound, curvature_bound = bounds
+    f0, g0 = radial_section(surface, rho, ct, st)
+    _check_slope(g0, gradient_bound)
+    best = f0.copy()
+    n = rho.size
+    a = np.where(g0 > 0.0, 0.0, -half)
+    b = np.where(g0 > 0.0, half, 0.0)
+    s_prev, d_prev = np.zeros(n), g0.copy()  # h'(0) = g'(ρ): the arc is level at its bottom
+    gp_prev = g0.copy()
+    s = np.clip(rc * g0 / np.sqrt(1.0 + g0 * g0), a, b)
+    idx = np.flatnonzero(g0 != 0.0)
+    a, b, s, s_prev, d_prev, gp_prev = a[idx], b[idx], s[idx], s_prev[idx], d_prev[idx], gp_prev[idx]
+    for _ in range(max_iter):
+        if idx.size == 0:
+            break
+        f, gp = radial_section(surface, rho[idx] + s, ct[idx], st[idx])
+        _check_slope(gp, gradient_bound)
+        _check_curvature(gp, gp_prev, s - s_prev, curvature_bound)
+        root = np.sqrt(rc * rc - s * s)
+        best[idx] = np.maximum(best[idx], f - (rc - root))
+        d = gp - s / root
+        a = np.where(d > 0.0, s, a)
+        b = np.where(d < 0.0, s, b)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(d != d_prev, d * (s - s_prev) / (d - d_prev), np.nan)
+        s_new = s - step
+        inside = np.isfinite(s_new) & (s_new > a) & (s_new < b)
+        # a secant step below tol means s is within ~tol of the contact: w is then off by at
+        # most ½·|h''|·tol² (~1e-10 µm), so that step is not evaluated
+        done = (inside & (np.abs(step) < tol_um)) | (d == 0.0) | (b - a < tol_um)
+        s_prev, d_prev, gp_prev = s, d, gp
+        s = np.where(inside, s_new, 0.5 * (a + b))
+        keep = ~done
+        idx, a, b, s = idx[keep], a[keep], b[keep], s[keep]
+        s_prev, d_prev, gp_prev = s_prev[keep], d_prev[keep], gp_prev[keep]
+    return best
+
+
+def _scan_max(surface, rho, ct, st, rc, half, count, gradient_bound, tol_um, max_iter):
+    """Scan-and-refine: ``count`` samples of h over |s| ≤ half, streamed so that memory stays
+    O(points) however dense the scan; the bracket around the best sample is refined by
+    :func:`_illinois_max` where h' changes sign in it. Also flags gouging (§4): concave
+    curvature g''/(1 + g'²)^1.5 above 1/Rc between neighbouring samples."""
+    offsets = np.linspace(-half, half, count) if count > 1 else np.zeros(1)
+    n = rho.size
+    best_h = np.full(n, -np.inf)
+    best_q = np.full(n, -1, dtype=np.int64)
+    dh_lo, dh_hi = np.zeros(n), np.zeros(n)
+    prev_dh, prev_gp = np.zeros(n), np.zeros(n)
+    gouge = np.zeros(n, dtype=bool)
+    step = offsets[1] - offsets[0] if count > 1 else 0.0
+    for q, s in enumerate(offsets):
+        f, gp = radial_section(surface, rho + s, ct, st)
+        _check_slope(gp, gradient_bound)
+        h = f - arc_lift(s, rc)
+        dh = gp - s / math.sqrt(rc * rc - s * s)
+        if q > 0:
+            mid2 = 1.0 + 0.25 * np.square(gp + prev_gp)
+            gouge |= (gp - prev_gp) * rc > step * mid2 * np.sqrt(mid2)
+        after_best = best_q == q - 1  # this sample is the right neighbour of the best so far
+        dh_hi[after_best] = dh[after_best]
+        better = h > best_h  # strict: the first of equal samples stays, as argmax would
+        best_h[better] = h[better]
+        best_q[better] = q
+        dh_lo[better] = (prev_dh if q > 0 else dh)[better]
+        dh_hi[better] = dh[better]  # stands if the best is the last sample
+        prev_dh, prev_gp = dh, gp
+    w = best_h
+    if count == 1:
+        return w, gouge
+    a = offsets[np.maximum(best_q - 1, 0)]
+    b = offsets[np.minimum(best_q + 1, count - 1)]
+    # only a sign change of h' brackets an interior maximum; elsewhere the scan value stands
+    active = np.flatnonzero((dh_lo > 0.0) & (dh_hi < 0.0))
     refined = _illinois_max(
         surface,
         rho[active],
@@ -142,14 +263,13 @@ def compensate(
         rc,
         a[active],
         b[active],
-        fa[active],
-        fb[active],
+        dh_lo[active],
+        dh_hi[active],
         tol_um,
         max_iter,
     )
-    # The refined maximum can only raise w; max() guards the non-unimodal corner cases.
     w[active] = np.maximum(w[active], refined)
-    return w.reshape(shape), gouge.reshape(shape)
+    return w, gouge
 
 
 def _illinois_max(surface, rho, ct, st, rc, a, b, fa, fb, tol_um, max_iter):

@@ -53,12 +53,15 @@ class Param:
 class Family(NamedTuple):
     """A surface family: its evaluator, an analytic bound of its gradient magnitude (None: the
     bound is estimated by sampling the aperture, see :func:`sampled_gradient_bound`), its
-    catalog parameters, and a check of parameter combinations (raises ValueError)."""
+    catalog parameters, a check of parameter combinations (raises ValueError), and an
+    analytic bound of the Hessian's spectral norm ‖∇²f‖ [1/µm] (None: unknown), with which
+    exact compensation takes its fast solver where K·Rc < 1 (model §4)."""
 
     evaluate: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
     gradient_bound: Callable[..., float] | None
     params: dict[str, Param]
     check: Callable[[dict[str, Any]], None] | None = None
+    curvature_bound: Callable[..., float] | None = None
 
 
 FAMILIES: dict[str, Family] = {}
@@ -69,6 +72,7 @@ def surface_family(
     params: dict[str, Param],
     gradient_bound: Callable[..., float] | None = None,
     check: Callable[[dict[str, Any]], None] | None = None,
+    curvature_bound: Callable[..., float] | None = None,
 ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Register the decorated evaluator as surface family ``name`` (usable in the catalogs as
     ``family: name`` with ``params``): the one place a new family is declared."""
@@ -76,7 +80,7 @@ def surface_family(
     def register(evaluate: Callable[..., Any]) -> Callable[..., Any]:
         if name in FAMILIES:
             raise ValueError(f"surface family {name!r} is registered twice")
-        FAMILIES[name] = Family(evaluate, gradient_bound, dict(params), check)
+        FAMILIES[name] = Family(evaluate, gradient_bound, dict(params), check, curvature_bound)
         return evaluate
 
     return register
@@ -111,6 +115,21 @@ def sinewave2d_gradient_bound(
     return math.hypot(gx, gy)
 
 
+def sinewave2d_curvature_bound(
+    *,
+    amplitude_x_um: float,
+    amplitude_y_um: float,
+    wavelength_x_um: float,
+    wavelength_y_um: float,
+    **_: float,
+) -> float:
+    """Bound of ‖∇²f‖ for :func:`sinewave2d` [1/µm]: the Hessian is diagonal,
+    diag(−Ax·kx²·sin, −Ay·ky²·sin), so its norm is at most max(|Ax|·kx², |Ay|·ky²), k = 2π/λ."""
+    kx = 2.0 * math.pi / wavelength_x_um
+    ky = 2.0 * math.pi / wavelength_y_um
+    return max(abs(amplitude_x_um) * kx * kx, abs(amplitude_y_um) * ky * ky)
+
+
 @surface_family(
     "sinewave2d",
     {
@@ -122,6 +141,7 @@ def sinewave2d_gradient_bound(
         "phase_y_deg": Param(float, "phase φy [deg]", 0.0),
     },
     gradient_bound=sinewave2d_gradient_bound,
+    curvature_bound=sinewave2d_curvature_bound,
 )
 def sinewave2d(
     x: np.ndarray,
@@ -206,6 +226,19 @@ def lens_array_gradient_bound(*, radius_um: float, sag_um: float, **_: float) ->
     return a / math.sqrt(radius_um**2 - a**2)
 
 
+def lens_array_curvature_bound(*, radius_um: float, sag_um: float, **_: float) -> float:
+    """Bound of ‖∇²f‖ for :func:`lens_array` [1/µm] (model §7). Around each lenslet the surface
+    is one of revolution in r, with principal second derivatives f'' (radial) and f'/r
+    (circumferential). Sphere (r ≤ a): f'' = R²/(R² − r²)^1.5 ≥ f'/r, largest at r = a. Torus
+    (a < r ≤ Rt, tube rt = R/2, Rt − a = a·rt/R): |f''| = rt²/(rt² − (r − Rt)²)^1.5, largest
+    at r = a, and f'/r below the sphere's. Plane: 0. The bound is the larger of the two."""
+    r, h = radius_um, sag_um
+    a = math.sqrt(2.0 * h * r - h * h)
+    rt = 0.5 * r
+    u = a * rt / r
+    return max(r * r / (r * r - a * a) ** 1.5, rt * rt / (rt * rt - u * u) ** 1.5)
+
+
 @surface_family(
     "lens_array",
     {
@@ -216,6 +249,7 @@ def lens_array_gradient_bound(*, radius_um: float, sag_um: float, **_: float) ->
         "count_y": Param(int, "lenslets along y", positive=True),
     },
     gradient_bound=lens_array_gradient_bound,
+    curvature_bound=lens_array_curvature_bound,
 )
 def lens_array(
     x: np.ndarray,

@@ -1,0 +1,80 @@
+"""The first-order estimate (issue 10, item 3): exact where its premise is exact, and its
+agreement with the simulation measured (tests/test_reference_sweep.py)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+from click.testing import CliRunner
+from hypothesis import given
+from hypothesis import strategies as st
+
+from ftsweep.cli import main
+from ftsweep.stages import estimate as est
+from ftsweep.stages.geometry import Aperture
+from ftsweep.stages.interpolation import bilinear
+
+SQUARE = Aperture("rectangle", width_um=200.0, height_um=100.0)
+
+
+def quadratic(a, b):
+    """f = ½(a·x² + b·y²): constant second derivatives a, b [1/µm]."""
+
+    def surface(x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        return 0.5 * (a * x * x + b * y * y), a * x, b * y
+
+    return surface
+
+
+@given(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05), st.floats(0.5, 20.0), st.floats(0.5, 20.0))
+def test_span_is_exact_for_a_quadratic(a, b, dx, dy):
+    # on a quadratic the bilinear error is exactly ½[t(1−t)Δx²a + u(1−u)Δy²b] in every cell
+    d11, d22 = est.mesh_second_derivatives(quadratic(a, b), SQUARE, n=21)
+    span = est.interp_span_nm(d11, d22, np.array([dx]), np.array([dy]))[0]
+    top = (dx * dx * max(a, 0.0) + dy * dy * max(b, 0.0)) / 8.0
+    bottom = (dx * dx * min(a, 0.0) + dy * dy * min(b, 0.0)) / 8.0
+    assert math.isclose(span, (top - bottom) * 1e3, rel_tol=1e-6, abs_tol=1e-9)
+
+
+def test_span_matches_a_brute_force_bilinear_table():
+    # the estimate against interpolating an actual table of the quadratic
+    a, b, dx, dy = 0.02, -0.01, 4.0, 2.0
+    f = quadratic(a, b)
+    xs, ys = np.arange(-20.0, 20.0 + dx, dx), np.arange(-10.0, 10.0 + dy, dy)
+    table = f(xs[:, None], ys[None, :])[0]
+    x, y = np.meshgrid(np.linspace(-19.9, 19.9, 401), np.linspace(-9.9, 9.9, 201), indexing="ij")
+    err = bilinear(table, (x - xs[0]) / dx, (y - ys[0]) / dy, periodic=False) - f(x, y)[0]
+    d11, d22 = est.mesh_second_derivatives(f, SQUARE, n=11)
+    span = est.interp_span_nm(d11, d22, np.array([dx]), np.array([dy]))[0]
+    assert math.isclose(span, (err.max() - err.min()) * 1e3, rel_tol=0.01)
+
+
+def test_bilinear_functions_estimate_no_interpolation_error():
+    def bilinear(x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        return 0.3 * x * y + 0.1 * x, 0.3 * y + 0.1, 0.3 * x
+
+    d11, d22 = est.mesh_second_derivatives(bilinear, SQUARE, n=31)
+    assert np.all(est.interp_span_nm(d11, d22, np.array([5.0, 50.0]), np.array([5.0, 1.0])) < 1e-6)
+
+
+def test_ring_second_derivatives_of_a_paraboloid():
+    # f = c·r²/2: ∂²f/∂ρ² = c and ∂²f/∂θ² = 0 (a surface of revolution)
+    c = 0.004
+    d_rr, d_tt = est.ring_second_derivatives(quadratic(c, c), Aperture("circle", radius_um=500.0), 50, 90)
+    np.testing.assert_allclose(d_rr, c, rtol=1e-6)
+    assert np.max(np.abs(d_tt)) < 1e-6
+
+
+def test_cli_estimate_prints_the_optimum_per_point_count():
+    r = CliRunner().invoke(main, ["estimate", "sinewave-ring", "--json"])
+    assert r.exit_code == 0, r.output
+    out = json.loads(r.stdout)
+    assert out["layouts"] == 84 and len(out["best"]) == 7
+    pvs = [row["pv_estimate_nm"] for row in out["best"]]
+    assert pvs == sorted(pvs, reverse=True)  # more points, less error
+    cusp = est.cusp_nm(1.0, 83.0)
+    assert all(pv > cusp for pv in pvs)

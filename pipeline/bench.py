@@ -85,3 +85,27 @@ def format_table(result: dict[str, Any]) -> str:
         "evaluation grid; compile time excluded (warm-up case first)."
     )
     return "\n".join(lines)
+
+
+def sweep_throughput(name: str, workers: int) -> dict[str, Any]:
+    """Run sweep ``name`` on a LocalCluster of ``workers`` processes into a temporary cube and
+    return its wall time, summed case time and cases per second (the cube is discarded)."""
+    import tempfile
+    from pathlib import Path
+
+    from ftsweep.run import run_sweep
+
+    with tempfile.TemporaryDirectory(prefix="ftsweep-bench-") as folder:
+        started = time.perf_counter()
+        report = run_sweep(name, Path(folder) / f"{name}.zarr", workers=workers)
+        wall = time.perf_counter() - started
+    summed = float(sum(row.get("seconds", 0.0) for row in report.rows))
+    return {
+        "sweep": name,
+        "workers": workers,
+        "cases": len(report.rows),
+        "failed": report.failed,
+        "wall_s": wall,
+        "summed_case_s": summed,
+        "cases_per_s": len(report.rows) / wall if wall > 0 else float("nan"),
+    }

@@ -20,6 +20,7 @@ from typing import Any, Optional
 
 import dask
 
+from ftsweep import allocator
 from ftsweep.case import Case, LayoutRequest, run_case
 from ftsweep.cube import CubeWriter
 from ftsweep.sweep import SweepSpec, case_at
@@ -93,8 +94,11 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
 
 
 def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> float:
-    """Compile (or load from numba's cache) every kernel once in this process; returns seconds."""
+    """Compile (or load from numba's cache) every kernel once in this process, after tuning its
+    allocator (:mod:`ftsweep.allocator`: Dask's nanny starts workers with settings that make
+    every batch page-fault its arrays afresh); returns seconds."""
     t = time.perf_counter()
+    allocator.tune()
     pitch = (50.0, 10.0) if kind == "ring" else (50.0, 50.0)
     try:
         run_case(

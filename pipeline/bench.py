@@ -13,7 +13,7 @@ import time
 from typing import Any
 
 from ftsweep import __version__, catalogs
-from ftsweep.case import STAGE_TIMERS, Case, LayoutRequest, run_case
+from ftsweep.case import STAGE_TIMERS, Case, LayoutRequest, Resolution, run_case
 
 MILLION_CASES = {
     "ring-1M-a8": ("sinewave2d", LayoutRequest(kind="ring", points=1_000_000, aspect=8.0)),
@@ -29,6 +29,10 @@ def bench_cases() -> dict[str, Case]:
     }
     for name, (surface, request) in MILLION_CASES.items():
         cases[name] = Case(surface=surface, layout=request)
+        # the same without the exact-command envelope (pv_interp_nm), as sweeps may run
+        cases[f"{name}-nointerp"] = Case(
+            surface=surface, layout=request, resolution=Resolution(interp_error=False)
+        )
     return cases
 
 

@@ -558,6 +558,14 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> Non
     help="Discard the evaluation cube and start over (required when the search changed); without "
     "it, re-running the same search resumes, reusing every finished evaluation.",
 )
+@click.option(
+    "--seed",
+    type=click.Choice(["scan", "estimate"]),
+    default="scan",
+    show_default=True,
+    help="Where the search starts: a scan of nine aspect ratios at --start-points, or the point "
+    "count and aspect ratio `ftsweep estimate` predicts for the tolerance (fewer evaluations).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def optimize(
     surface: Optional[str],
@@ -569,6 +577,7 @@ def optimize(
     cutting: str,
     out: Optional[Path],
     restart: bool,
+    seed: str,
     as_json: bool,
 ) -> None:
     """Find the smallest layout that meets a P-V tolerance (the shop's tolerance loop).
@@ -620,6 +629,7 @@ def optimize(
             resolution,
             restart,
             on_eval=report,
+            seed=seed,
         )
     except (CatalogError, CubeError, ValueError) as exc:
         raise click.ClickException(str(exc)) from None

@@ -44,22 +44,54 @@ def pitches(surface_spec: Any, kind: str, points: float, aspect: float) -> tuple
         return math.nan, math.nan, 0
 
 
+def interp_plane(
+    surface_spec: Any, kind: str, points: np.ndarray, aspects: np.ndarray, folder: Path | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(first-order interpolation span [nm], realised N) of every (N, α) of the plane
+    ``points`` × ``aspects``; NaN and 0 where the layout cannot be built."""
+    d11, d22 = second_derivatives(surface_spec, kind, folder)
+    p1 = np.empty((points.size, aspects.size))
+    p2 = np.empty_like(p1)
+    n_points = np.zeros(p1.shape, dtype=np.int64)
+    for i, n in enumerate(points):
+        for j, a in enumerate(aspects):
+            p1[i, j], p2[i, j], n_points[i, j] = pitches(surface_spec, kind, float(n), float(a))
+    span = est.interp_span_nm(d11, d22, np.nan_to_num(p1), np.nan_to_num(p2))
+    span[~np.isfinite(p1)] = np.nan
+    return span, n_points
+
+
+def seed_layout(
+    surface_spec: Any,
+    kind: str,
+    tolerance_nm: float,
+    capacity: int,
+    cusp_nm: float,
+    aspect_range: tuple[float, float],
+    folder: Path | None = None,
+) -> tuple[float, float, float]:
+    """Where a tolerance search should start: (target N, α, estimated P-V [nm]) of the fewest
+    points whose estimated P-V meets ``tolerance_nm``, at the estimated best aspect ratio of
+    that count (or the best layout at the capacity when none does)."""
+    points = np.geomspace(1e3, float(capacity), 80)
+    aspects = np.geomspace(aspect_range[0], aspect_range[1], 161)
+    span, n_points = interp_plane(surface_spec, kind, points, aspects, folder)
+    pv = np.where(n_points <= capacity, span + cusp_nm, np.nan)
+    best = np.nanmin(np.where(np.isfinite(pv), pv, np.inf), axis=1)
+    meets = np.flatnonzero(best <= tolerance_nm)
+    i = int(meets[0]) if meets.size else int(np.argmin(best))
+    j = int(np.argmin(np.where(np.isfinite(pv[i]), pv[i], np.inf)))
+    return float(points[i]), float(aspects[j]), float(pv[i, j])
+
+
 def estimate_sweep(spec: SweepSpec, folder: Path | None = None) -> xr.Dataset:
     """The estimated P-V [nm] over the sweep's (points, aspect[, feed_um, nose_radius_um]) axes."""
     assert spec.layout is not None
     surface_spec = catalogs.entry("surfaces", spec.surface, folder)
     cutting = catalogs.entry("cutting", spec.cutting, folder)
     coords = coordinates(spec)
-    d11, d22 = second_derivatives(surface_spec, spec.layout, folder)
     pts, asp = coords["points"], coords["aspect"]
-    p1 = np.empty((pts.size, asp.size))
-    p2 = np.empty_like(p1)
-    n_points = np.zeros(p1.shape, dtype=np.int64)
-    for i, n in enumerate(pts):
-        for j, a in enumerate(asp):
-            p1[i, j], p2[i, j], n_points[i, j] = pitches(surface_spec, spec.layout, float(n), float(a))
-    interp = est.interp_span_nm(d11, d22, np.nan_to_num(p1), np.nan_to_num(p2))
-    interp[~np.isfinite(p1)] = np.nan
+    interp, n_points = interp_plane(surface_spec, spec.layout, pts, asp, folder)
     feeds = coords.get("feed_um", np.array([cutting.feed_um]))
     radii = coords.get("nose_radius_um", np.array([cutting.nose_radius_um]))
     cusp = np.array([[est.cusp_nm(f, r) for r in radii] for f in feeds])

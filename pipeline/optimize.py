@@ -284,8 +284,16 @@ def optimize(
     catalog_folder: Optional[Path] = None,
     on_eval: Optional[Callable[[dict[str, Any]], None]] = None,
     max_rounds: int = 8,
+    seed: str = "scan",
 ) -> dict[str, Any]:
-    """Find the smallest layout meeting ``tolerance_nm``; returns the answer and the log."""
+    """Find the smallest layout meeting ``tolerance_nm``; returns the answer and the log.
+
+    ``seed``: ``scan`` starts with a log scan of nine aspect ratios at ``start_points``;
+    ``estimate`` starts at the point count and aspect ratio :func:`ftsweep.estimate.seed_layout`
+    predicts for the tolerance (no simulation), refined from there.
+    """
+    if seed not in ("scan", "estimate"):
+        raise ValueError(f"unknown seed {seed!r}; expected 'scan' or 'estimate'")
     spec = catalogs.entry("surfaces", surface, catalog_folder)
     layout = layout or spec.layout
     if not tolerance_nm > 0:
@@ -316,13 +324,32 @@ def optimize(
             "resolution": opt.resolution.model_dump(mode="json"),
             "max_rounds": max_rounds,
         }
+        if seed != "scan":  # the default stays out, so earlier evaluation cubes still resume
+            search["seed"] = seed
         reused = opt.open_store(search, max_evaluations(max_rounds), restart)
         lo, hi = ASPECT_RANGE[layout]
         cap = opt.capacity
-        n = min(float(start_points), float(cap))
-        aspect, rec = opt.best_aspect(n, np.geomspace(lo, hi, 9), "scan")
         ratio = (hi / lo) ** (1 / 8)
-        aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 3)
+        if seed == "estimate":
+            from ftsweep.estimate import seed_layout
+            from ftsweep.stages.estimate import cusp_nm
+
+            cut = catalogs.entry("cutting", cutting, catalog_folder)
+            n, aspect, _ = seed_layout(
+                spec,
+                layout,
+                tolerance_nm,
+                cap,
+                cusp_nm(cut.feed_um, cut.nose_radius_um),
+                (lo, hi),
+                catalog_folder,
+            )
+            n = min(n, float(cap))
+            aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 2)
+        else:
+            n = min(float(start_points), float(cap))
+            aspect, rec = opt.best_aspect(n, np.geomspace(lo, hi, 9), "scan")
+            aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 3)
         opt.search_points(n, aspect, rec, ratio**0.25, max_rounds)
 
         answer = opt.best_meeting()

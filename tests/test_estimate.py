@@ -7,6 +7,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 from hypothesis import given
 from hypothesis import strategies as st
@@ -78,3 +79,23 @@ def test_cli_estimate_prints_the_optimum_per_point_count():
     assert pvs == sorted(pvs, reverse=True)  # more points, less error
     cusp = est.cusp_nm(1.0, 83.0)
     assert all(pv > cusp for pv in pvs)
+
+
+@pytest.mark.slow
+def test_estimate_agrees_with_the_simulated_lens_array_sweep(tmp_path):
+    """Issue 10, item 3, on the mesh reference sweep (about three minutes on two cores; the
+    ring reference sweep is checked in the default suite, tests/test_reference_sweep.py)."""
+    from ftsweep.estimate import agreement, estimate_sweep
+    from ftsweep.run import run_sweep
+    from ftsweep.select import open_cube
+    from ftsweep.sweep import load_sweep
+
+    out = tmp_path / "lens-array-mesh.zarr"
+    report = run_sweep("lens-array-mesh", out, workers=2)
+    assert report.done == report.total == 84
+    _, spec = load_sweep("lens-array-mesh")
+    found = agreement(estimate_sweep(spec), open_cube(out))
+    print("estimate vs simulation, lens-array-mesh:", found)
+    assert found["cases"] == 84
+    assert found["optimum_aspect_factor_max"] <= 1.5
+    assert 0.5 <= found["pv_ratio_min"] and found["pv_ratio_max"] <= 2.0

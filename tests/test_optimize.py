@@ -86,3 +86,18 @@ def test_same_search_resumes_and_another_needs_restart(tmp_path, catalog_dir):
     assert plain.exists()  # --restart never deletes what is not an evaluation cube
     with pytest.raises(ValueError, match="positive"):
         optimize("small_sine", "ring", -1.0, tmp_path / "p.zarr", catalog_folder=catalog_dir)
+
+
+def test_a_search_seeded_by_the_estimate_needs_fewer_evaluations(tmp_path, catalog_dir):
+    # issue 10, item 3: the estimate seeds the aspect optimum and the point count
+    args = ("small_sine", "ring", 40.0)
+    scan = optimize(*args, tmp_path / "scan.zarr", start_points=5000, catalog_folder=catalog_dir)
+    seeded = optimize(*args, tmp_path / "seeded.zarr", catalog_folder=catalog_dir, seed="estimate")
+    assert scan["met"] and seeded["met"]
+    assert seeded["answer"]["pv_nm"] <= 40.0
+    print("evaluations: scan", scan["evaluations"], "estimate-seeded", seeded["evaluations"])
+    assert seeded["evaluations"] < scan["evaluations"]
+    # both end at about the same smallest layout (each brackets it within ~5 %)
+    assert seeded["answer"]["n_points"] == pytest.approx(scan["answer"]["n_points"], rel=0.15)
+    with pytest.raises(ValueError, match="unknown seed"):
+        optimize(*args, tmp_path / "x.zarr", catalog_folder=catalog_dir, seed="guess")

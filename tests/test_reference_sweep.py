@@ -58,3 +58,18 @@ def test_cube_has_units_and_provenance(ring_cube):
         numeric = ds[v].dtype.kind in "fiu" and "flag_values" not in ds[v].attrs
         assert ("units" in ds[v].attrs) == numeric, v
     assert ds.attrs["sweep_name"] == "sinewave-ring"
+
+
+def test_estimate_agrees_with_the_simulated_reference_sweep(ring_cube):
+    """Issue 10, item 3: the first-order estimate against the 84 simulated cases."""
+    from ftsweep.estimate import agreement, estimate_sweep
+    from ftsweep.sweep import load_sweep
+
+    _, spec = load_sweep("sinewave-ring")
+    found = agreement(estimate_sweep(spec), open_cube(ring_cube))
+    print("estimate vs simulation, sinewave-ring:", found)  # the measured agreement (pytest -s)
+    assert found["cases"] == 84
+    # the estimated aspect optimum of each point count within a factor 1.5 of the simulated one
+    assert found["optimum_aspect_factor_max"] <= 1.5
+    # and its P-V within a factor 2 over the swept plane
+    assert 0.5 <= found["pv_ratio_min"] and found["pv_ratio_max"] <= 2.0

@@ -48,7 +48,12 @@ class Resolution(Strict):
     n_theta: Optional[PositiveInt] = Field(
         None, description="number of sampled spindle angles over 360°; overrides samples_per_cell"
     )
-    compensation_scan: int = Field(5, ge=3, description="coarse-scan samples of the exact compensation")
+    compensation_scan: int = Field(
+        5,
+        ge=3,
+        description="coarse-scan samples of the exact compensation where the surface declares no "
+        "curvature bound (with one, the solver and its scan density follow from the bound)",
+    )
     zone_split: float = Field(
         0.5, gt=0.0, lt=1.0, description="inner/outer zone boundary as a fraction of the inscribed radius"
     )

@@ -29,8 +29,8 @@ import zarr
 from ftsweep import __version__, result
 from ftsweep.sweep import SweepSpec, axis_attrs, coordinates
 
-PENDING, DONE, FAILED = 0, 1, 2
-STATUS_MEANINGS = "pending done failed"
+PENDING, DONE, FAILED, PRUNED = 0, 1, 2, 3
+STATUS_MEANINGS = "pending done failed pruned"
 
 # cubes written before the variables were named per layout kind and carried parseable units
 SCHEMA_VERSION = 2
@@ -89,7 +89,7 @@ def case_variables(dims: tuple[str, ...], shape: tuple[int, ...], kind: str) -> 
         np.zeros(shape, dtype="int8"),
         {
             "long_name": "case status",
-            "flag_values": [PENDING, DONE, FAILED],
+            "flag_values": [PENDING, DONE, FAILED, PRUNED],
             "flag_meanings": STATUS_MEANINGS,
         },
     )
@@ -236,6 +236,13 @@ class CubeWriter:
         idx = self._index(flat)
         for var, value in values.items():
             self._set(var, idx, value)
+
+    def write_pruned(self, flat: int, message: str, run_id: str) -> None:
+        """Record a case left out by ``--prune`` (not computed), saying why."""
+        idx = self._index(flat)
+        self._set("message", idx, message[:2000])
+        self._set("run_id", idx, run_id)
+        self._set("status", idx, PRUNED)
 
     def write_failed(self, flat: int, message: str, run_id: str) -> None:
         """Record a case that raised, with its message."""

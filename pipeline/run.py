@@ -74,6 +74,8 @@ class SweepReport:
     wall_s: float = 0.0
     workers: int = 1
     damaged: dict[int, str] = field(default_factory=dict)
+    pruned: int = 0  # cases left out by --prune (this run's and earlier ones kept)
+    queued: int = 0  # cases this run computes
 
     @property
     def done(self) -> int:
@@ -131,6 +133,7 @@ def run_sweep(
     catalog_folder: Optional[Path] = None,
     progress: Optional[Callable[[SweepReport, list[dict]], None]] = None,
     max_cases: int = MAX_CASES,
+    prune: Optional[float] = None,
 ) -> SweepReport:
     """Run (or resume) a sweep; cases already done in the cube are skipped.
 
@@ -141,6 +144,9 @@ def run_sweep(
     scheduler : None (a LocalCluster of ``workers`` processes), ``"synchronous"``, or the
         address of a running dask scheduler (also read from ``DASK_SCHEDULER_ADDRESS``).
     retry_failed : also recompute cases recorded as failed.
+    prune : leave out (status ``pruned``, not computed) every pending case whose estimated
+        P-V (:mod:`ftsweep.estimate`) exceeds ``prune`` times the best estimate among the
+        aspect ratios of its point count. A run without ``prune`` computes earlier pruned cases.
     """
     name, spec = load_sweep(name_or_path, catalog_folder)
     check_sweep_size(spec, max_cases)
@@ -150,7 +156,7 @@ def run_sweep(
     workers = 1 if scheduler == "synchronous" else (workers or default_workers())
     with cube_lock(out, command=f"ftsweep sweep {name_or_path}"):
         return _run_locked(
-            name, spec, out, scheduler, workers, restart, retry_failed, catalog_folder, progress
+            name, spec, out, scheduler, workers, restart, (retry_failed, prune), catalog_folder, progress
         )
 
 
@@ -161,7 +167,7 @@ def _run_locked(
     scheduler: Optional[str],
     workers: int,
     restart: bool,
-    retry_failed: bool,
+    rerun: tuple[bool, Optional[float]],
     catalog_folder: Optional[Path],
     progress: Optional[Callable[[SweepReport, list[dict]], None]],
 ) -> SweepReport:
@@ -173,11 +179,21 @@ def _run_locked(
         cube.reset_cases(out, list(damaged))
         status = cube.read_status(out).ravel()
         already -= len(damaged)
-    wanted = (status == cube.PENDING) | (retry_failed & (status == cube.FAILED))
+    retry_failed, prune = rerun
+    run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
+    if prune is not None:
+        prune_cases(spec, out, status, prune, run_id, catalog_folder)
+        status = cube.read_status(out).ravel()
+    wanted = (
+        (status == cube.PENDING)
+        | (retry_failed & (status == cube.FAILED))
+        | ((prune is None) & (status == cube.PRUNED))
+    )
     pending = [int(i) for i in np.flatnonzero(wanted)]
     report = SweepReport(cube=out, total=n_cases(spec), skipped=already, workers=workers, damaged=damaged)
+    report.pruned = int(np.sum(status == cube.PRUNED)) if prune is not None else 0
+    report.queued = len(pending)
     tasks = plan_tasks(spec, pending, workers, catalog_folder)
-    run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
 
     def on_result(rows: list[dict]) -> None:
@@ -198,6 +214,33 @@ def _run_locked(
     )
     report.wall_s = time.perf_counter() - start
     return report
+
+
+def prune_cases(
+    spec: SweepSpec, out: Path, status: np.ndarray, factor: float, run_id: str, catalog_folder: Optional[Path]
+) -> int:
+    """Mark pending cases hopeless by the estimate as pruned (see :func:`run_sweep`); returns
+    how many this call pruned."""
+    from ftsweep.estimate import estimate_sweep
+
+    if not factor > 1.0:
+        raise CubeError(f"the prune factor must be above 1, got {factor:g}")
+    est = estimate_sweep(spec, catalog_folder)["pv_estimate_nm"]
+    values = est.transpose(*coordinates(spec)).values
+    finite = np.where(np.isfinite(values), values, np.inf)
+    best = finite.min(axis=1, keepdims=True)  # over the aspect ratios of each row
+    hopeless = (np.isfinite(values) & (values > factor * best)).ravel()
+    targets = np.flatnonzero(hopeless & (status == cube.PENDING))
+    writer = cube.CubeWriter(out)
+    best_flat = np.broadcast_to(best, values.shape).ravel()
+    for flat in targets:
+        writer.write_pruned(
+            int(flat),
+            f"pruned: estimated P-V {values.ravel()[flat]:.4g} nm > {factor:g} × {best_flat[flat]:.4g} nm, "
+            "the best estimate of its point count",
+            run_id,
+        )
+    return int(targets.size)
 
 
 def best_per_point_count(path: Path) -> list[dict[str, Any]]:
@@ -227,12 +270,13 @@ def best_per_point_count(path: Path) -> list[dict[str, Any]]:
 
 
 def cube_counts(path: Path) -> dict[str, int]:
-    """Cases pending, done and failed in a cube."""
+    """Cases pending, done, failed and pruned in a cube."""
     status = cube.read_status(path)
     return {
         "pending": int(np.sum(status == cube.PENDING)),
         "done": int(np.sum(status == cube.DONE)),
         "failed": int(np.sum(status == cube.FAILED)),
+        "pruned": int(np.sum(status == cube.PRUNED)),
     }
 
 

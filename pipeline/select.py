@@ -109,6 +109,11 @@ def check_exportable(ds: xr.Dataset, flat: int) -> None:
         raise SelectError(
             f"case {flat} failed in the sweep ({point['message'].values}); it cannot be exported"
         )
+    if status == cube.PRUNED:
+        raise SelectError(
+            f"case {flat} was pruned by the estimate ({point['message'].values}); run the sweep "
+            "without --prune to compute it"
+        )
     if status != cube.DONE:
         raise SelectError(f"case {flat} has not been computed yet; run the sweep to the end first")
     cap = capacity_of(ds)

@@ -99,3 +99,48 @@ def test_estimate_agrees_with_the_simulated_lens_array_sweep(tmp_path):
     assert found["cases"] == 84
     assert found["optimum_aspect_factor_max"] <= 1.5
     assert 0.5 <= found["pv_ratio_min"] and found["pv_ratio_max"] <= 2.0
+
+
+PRUNE_SPEC = """
+surface: small_sine
+layout: ring
+axes: {points: [8000, 20000], aspect: [0.3, 2.0, 16.0, 128.0]}
+"""
+
+
+def test_prune_leaves_out_hopeless_cases_and_keeps_the_optimum(tmp_path, catalog_dir):
+    """Issue 10, item 3: ``sweep --prune FACTOR`` computes only cases the estimate does not
+    rule out; a later run without it computes the rest, giving the full cube."""
+    import xarray as xr
+
+    from ftsweep import cube
+    from ftsweep.run import best_per_point_count, run_sweep
+    from ftsweep.select import SelectError, check_exportable
+
+    spec = tmp_path / "p.yaml"
+    spec.write_text(PRUNE_SPEC)
+    kw = {"scheduler": "synchronous", "catalog_folder": catalog_dir}
+    full = tmp_path / "full.zarr"
+    run_sweep(str(spec), full, **kw)
+    out = tmp_path / "pruned.zarr"
+    report = run_sweep(str(spec), out, prune=2.0, **kw)
+    status = cube.read_status(out)
+    pruned = status == cube.PRUNED
+    assert 0 < pruned.sum() < status.size and report.pruned == pruned.sum()
+    assert report.done == int((status == cube.DONE).sum()) == status.size - pruned.sum()
+    # the simulation agrees that every pruned case is worse than the best of its point count
+    pv = xr.open_zarr(full)["pv_nm"].values
+    row_best = pv.min(axis=1, keepdims=True)
+    assert np.all(np.broadcast_to(row_best, pv.shape)[pruned] < pv[pruned])
+    assert best_per_point_count(out) == best_per_point_count(full)
+    ds = xr.open_zarr(out).load()
+    flat = int(np.flatnonzero(pruned.ravel())[0])
+    with pytest.raises(SelectError, match="pruned by the estimate"):
+        check_exportable(ds, flat)
+    # without --prune, the pruned cases are computed and the cube equals the full one
+    again = run_sweep(str(spec), out, **kw)
+    assert again.done == pruned.sum()
+    drop = [*cube.TIMING_VARS, "run_id"]
+    xr.testing.assert_equal(
+        xr.open_zarr(out).drop_vars(drop).load(), xr.open_zarr(full).drop_vars(drop).load()
+    )

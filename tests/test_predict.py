@@ -187,6 +187,7 @@ def test_console_script_is_installed():
     [
         (["sweep", "sinewave-ring", "--workers", "0"], "--workers"),
         (["sweep", "sinewave-ring", "--max-cases", "-3"], "--max-cases"),
+        (["sweep", "sinewave-ring", "--prune", "1"], "--prune"),
         (["select", "outputs/none.zarr", "--tolerance-nm", "nan"], "--tolerance-nm"),
         (["select", "outputs/none.zarr", "--budget-points", "0"], "--budget-points"),
         (["verify", "none.h", "--pv-tolerance-nm", "-1"], "--pv-tolerance-nm"),

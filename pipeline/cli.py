@@ -247,7 +247,7 @@ def predict(**opts: Any) -> None:
     if progress is not None:
         click.echo("", err=True)
     if as_json:
-        click.echo(json.dumps(record, allow_nan=False, default=_nan_safe))
+        _echo_json(record)
     else:
         click.echo(_summary(record))
 
@@ -451,7 +451,7 @@ def select(
     except (SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     if as_json:
-        click.echo(json.dumps(chosen, allow_nan=False))
+        _echo_json(chosen)
     else:
         click.echo(_selection_text(chosen))
     if chosen.get("met") is False:
@@ -535,7 +535,7 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> Non
     if progress is not None:
         click.echo("", err=True)
     if as_json:
-        click.echo(json.dumps(record, allow_nan=False))
+        _echo_json(record)
         return
     click.echo(f"checksum     {record['checksum']} (macros and table) ok; sidecar and header hashes ok")
     click.echo(f"table        {record['layout']}: {record['n_points']:,} points")
@@ -652,7 +652,7 @@ def optimize(
     except (CatalogError, CubeError, ValueError) as exc:
         raise click.ClickException(str(exc)) from None
     if as_json:
-        click.echo(json.dumps(result, allow_nan=False, default=_nan_safe))
+        _echo_json(result)
     else:
         ans = result["answer"]
         verdict = "met" if result["met"] else "NOT met (best found below)"
@@ -767,7 +767,7 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
         except (CubeError, OSError, KeyError, ValueError) as exc:
             raise click.ClickException(f"{cube_path}: cannot compare: {exc}") from None
     if as_json:
-        click.echo(json.dumps(out, allow_nan=False, default=_nan_safe))
+        _echo_json(out)
         return
     click.echo(f"estimated {out['layouts']} layouts of sweep '{name}' in {seconds * 1e3:.0f} ms")
     unit = "µm/deg" if spec.layout == "ring" else ""
@@ -837,6 +837,23 @@ def bench(
 
 def _nan_safe(value: Any) -> Any:  # pragma: no cover - only non-JSON types reach here
     return str(value)
+
+
+def _finite_or_none(value: Any) -> Any:
+    """``value`` with every non-finite float (a metric not simulated, e.g. pv_interp_nm with
+    --no-interp-error) replaced by None, so the output stays strict JSON (null)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_none(v) for v in value]
+    return value
+
+
+def _echo_json(value: Any) -> None:
+    """Exactly one strict JSON document on stdout."""
+    click.echo(json.dumps(_finite_or_none(value), allow_nan=False, default=_nan_safe))
 
 
 def _stderr_progress(label: str):  # type: ignore[no-untyped-def]

@@ -3,12 +3,15 @@ pv_interp_nm NaN, and unchanged hashes for specs that keep the default."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
 import xarray as xr
+from click.testing import CliRunner
 
 from ftsweep.case import Case, LayoutRequest, Resolution, run_case
+from ftsweep.cli import main
 from ftsweep.run import run_sweep
 
 SMALL = """
@@ -52,3 +55,20 @@ def test_a_sweep_can_leave_it_out(tmp_path, catalog_dir):
     assert report.done == 2
     ds = xr.open_zarr(out).load()
     assert np.all(np.isnan(ds["pv_interp_nm"].values)) and np.all(np.isfinite(ds["pv_nm"].values))
+    # such a cube's selection is still strict JSON: the metric not simulated is null
+    r = CliRunner().invoke(main, ["select", str(out), "--budget-points", "8000", "--json"])
+    assert r.exit_code == 0, r.output
+    chosen = json.loads(r.stdout)
+    assert chosen["pv_interp_nm"] is None and chosen["pv_nm"] > 0
+
+
+ARGS = ["predict", "--surface", "sinewave2d", "--drho-um", "20", "--dtheta-deg", "5", "--no-interp-error"]
+
+
+def test_predict_json_names_the_skipped_metric_null():
+    r = CliRunner().invoke(main, [*ARGS, "--json"])
+    assert r.exit_code == 0, r.output
+    record = json.loads(r.stdout)
+    assert record["pv_interp_nm"] is None and record["pv_nm"] > 0
+    text = CliRunner().invoke(main, ARGS)
+    assert "interp. P-V  not simulated" in text.stdout

@@ -83,7 +83,7 @@ def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
     out["aspect_actual"] = float(point["aspect_actual"])
     for var in ("pv_nm", "rms_nm", "pv_interp_nm", "pv_inner_nm", "pv_outer_nm"):
         out[var] = float(point[var])
-    out["status"] = ("pending", "done", "failed")[int(point["status"])]
+    out["status"] = cube.STATUS_MEANINGS.split()[int(point["status"])]
     if "feasible" in ds:
         out["feasible"] = bool(int(point["feasible"]) == 1)
     return out

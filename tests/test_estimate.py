@@ -114,6 +114,7 @@ def test_prune_leaves_out_hopeless_cases_and_keeps_the_optimum(tmp_path, catalog
     import xarray as xr
 
     from ftsweep import cube
+    from ftsweep.query import describe
     from ftsweep.run import best_per_point_count, run_sweep
     from ftsweep.select import SelectError, check_exportable
 
@@ -137,6 +138,7 @@ def test_prune_leaves_out_hopeless_cases_and_keeps_the_optimum(tmp_path, catalog
     flat = int(np.flatnonzero(pruned.ravel())[0])
     with pytest.raises(SelectError, match="pruned by the estimate"):
         check_exportable(ds, flat)
+    assert describe(ds, flat)["status"] == "pruned"
     # without --prune, the pruned cases are computed and the cube equals the full one
     again = run_sweep(str(spec), out, **kw)
     assert again.done == pruned.sum()

@@ -22,6 +22,7 @@ from typing import Any, Optional
 import numpy as np
 
 import ftsweep.accessor  # noqa: F401  (registers ds.ftsweep)
+from ftsweep import cube
 from ftsweep.accessor import _axes, plot_map
 from ftsweep.case import build_layout, control_table, run_case
 from ftsweep.catalogs import aperture_of
@@ -155,7 +156,11 @@ def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[s
             ("ftsweep version", attrs.get("ftsweep_version")),
             ("git revision", attrs.get("git_revision")),
             ("cube created", attrs.get("created")),
-            ("cases", f"{int(ds['status'].size)} ({int((ds['status'] == 1).sum())} done)"),
+            (
+                "cases",
+                f"{int(ds['status'].size)} ({int((ds['status'] == cube.DONE).sum())} done, "
+                f"{int((ds['status'] == cube.PRUNED).sum())} pruned)",
+            ),
         )
     )
     case_rows = "".join(

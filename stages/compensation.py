@@ -303,19 +303,21 @@ def _illinois_max(surface, rho, ct, st, rc, a, b, fa, fb, tol_um, max_iter):
 
 
 @njit(nogil=True, cache=True)
-def compensate_on_ray(g, gp, spacing_um, nose_radius_um, nodes, mode, out):  # pragma: no cover - jit
-    """Control values along one sampled radial section (model §4), in place.
-
-    g, gp : section height [µm] and radial slope [-] at nodes r_n = r_0 − n·spacing.
-    spacing_um : node spacing [µm] (positive; node index grows inwards).
-    nodes : int64 node indices of the tool passes whose commands are wanted.
-    mode : 0 exact, 1 slope, 2 none (see ``MODE_CODES``).
-    out : float64 array receiving w [µm] for each entry of ``nodes``.
-
-    For ``exact`` the sampled h_j = g[n+j] − arc(j·spacing) is hill-climbed from the
-    slope-predicted contact and refined by the parabola through the best three samples.
-    """
+def _lift_table(spacing_um, nose_radius_um):  # pragma: no cover - jit
+    """arc(j·spacing) = Rc − sqrt(Rc² − (j·spacing)²) [µm] for j = 0 … Rc/spacing − 1: the
+    arc heights at the grid's offsets, computed once instead of at every hill-climbing step."""
     rc = nose_radius_um
+    jmax = int(rc / spacing_um) - 1
+    lift = np.empty(max(jmax, 0) + 2)
+    for j in range(lift.size):
+        d = j * spacing_um
+        lift[j] = rc - math.sqrt(max(rc * rc - d * d, 0.0))
+    return lift
+
+
+@njit(nogil=True, cache=True)
+def _on_ray(g, gp, spacing_um, rc, nodes, mode, lift, out):  # pragma: no cover - jit
+    """:func:`compensate_on_ray` with the arc heights ``lift`` of :func:`_lift_table`."""
     n_nodes = g.size
     jmax = int(rc / spacing_um) - 1
     for p in range(nodes.size):
@@ -332,21 +334,18 @@ def compensate_on_ray(g, gp, spacing_um, nose_radius_um, nodes, mode, out):  # p
         jlo = max(-jmax, -n)
         jhi = min(jmax, n_nodes - 1 - n)
         j = min(max(j, jlo), jhi)
-        dj = j * spacing_um
-        hj = g[n + j] - (rc - math.sqrt(rc * rc - dj * dj))
+        hj = g[n + j] - lift[abs(j)]
         while True:
             moved = False
             if j + 1 <= jhi:
-                d = (j + 1) * spacing_um
-                hn = g[n + j + 1] - (rc - math.sqrt(rc * rc - d * d))
+                hn = g[n + j + 1] - lift[abs(j + 1)]
                 if hn > hj:
                     j += 1
                     hj = hn
                     moved = True
                     continue
             if j - 1 >= jlo:
-                d = (j - 1) * spacing_um
-                hn = g[n + j - 1] - (rc - math.sqrt(rc * rc - d * d))
+                hn = g[n + j - 1] - lift[abs(j - 1)]
                 if hn > hj:
                     j -= 1
                     hj = hn
@@ -355,14 +354,37 @@ def compensate_on_ray(g, gp, spacing_um, nose_radius_um, nodes, mode, out):  # p
                 break
         best = hj
         if jlo < j < jhi:
-            d1 = (j + 1) * spacing_um
-            d0 = (j - 1) * spacing_um
-            hp = g[n + j + 1] - (rc - math.sqrt(rc * rc - d1 * d1))
-            hm = g[n + j - 1] - (rc - math.sqrt(rc * rc - d0 * d0))
+            hp = g[n + j + 1] - lift[abs(j + 1)]
+            hm = g[n + j - 1] - lift[abs(j - 1)]
             curv = hm - 2.0 * hj + hp
             if curv < 0.0:
                 best = hj - (hp - hm) * (hp - hm) / (8.0 * curv)
         out[p] = best
+
+
+@njit(nogil=True, cache=True)
+def compensate_on_ray(g, gp, spacing_um, nose_radius_um, nodes, mode, out):  # pragma: no cover - jit
+    """Control values along one sampled radial section (model §4), in place.
+
+    g, gp : section height [µm] and radial slope [-] at nodes r_n = r_0 − n·spacing.
+    spacing_um : node spacing [µm] (positive; node index grows inwards).
+    nodes : int64 node indices of the tool passes whose commands are wanted.
+    mode : 0 exact, 1 slope, 2 none (see ``MODE_CODES``).
+    out : float64 array receiving w [µm] for each entry of ``nodes``.
+
+    For ``exact`` the sampled h_j = g[n+j] − arc(j·spacing) is hill-climbed from the
+    slope-predicted contact and refined by the parabola through the best three samples.
+    """
+    lift = _lift_table(spacing_um, nose_radius_um)
+    _on_ray(g, gp, spacing_um, nose_radius_um, nodes, mode, lift, out)
+
+
+@njit(nogil=True, cache=True)
+def _commands_kernel(g, gp, spacing_um, rc, pass_nodes, n_passes, mode, out):  # pragma: no cover - jit
+    lift = _lift_table(spacing_um, rc)
+    for a in range(g.shape[0]):
+        k = n_passes[a]
+        _on_ray(g[a], gp[a], spacing_um, rc, pass_nodes[a, :k], mode, lift, out[a, :k])
 
 
 def commands_on_rays(
@@ -378,7 +400,14 @@ def commands_on_rays(
     samples ``g``, ``gp`` (R, G) along each ray, the passes at node indices ``pass_nodes``
     (R, Kmax), ``n_passes`` (R,) of them on each ray. Returns (R, Kmax), NaN past the passes."""
     out = np.full(pass_nodes.shape, np.nan)
-    for a in range(g.shape[0]):
-        k = int(n_passes[a])
-        compensate_on_ray(g[a], gp[a], spacing_um, nose_radius_um, pass_nodes[a, :k], mode, out[a, :k])
+    _commands_kernel(
+        np.ascontiguousarray(g),
+        np.ascontiguousarray(gp),
+        float(spacing_um),
+        float(nose_radius_um),
+        np.ascontiguousarray(pass_nodes, dtype=np.int64),
+        np.ascontiguousarray(n_passes, dtype=np.int64),
+        int(mode),
+        out,
+    )
     return out

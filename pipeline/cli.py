@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
@@ -18,6 +17,7 @@ from pydantic import ValidationError
 from ftsweep import __version__, catalogs, result
 from ftsweep.case import MAX_NODES, Case, CaseError, Resolution, run_case
 from ftsweep.catalogs import CatalogError
+from ftsweep.io import dumps_json
 from ftsweep.sweep import MAX_CASES
 from ftsweep.usersurfaces import SurfaceLoadError
 
@@ -134,7 +134,7 @@ def list_catalogs(as_json: bool) -> None:
         }
         data["sweeps"] = sweeps
         data["catalog_dir"] = str(catalogs.catalog_dir())
-        click.echo(json.dumps(data, allow_nan=False))
+        _echo_json(data)
         return
     width = max(40, min(shutil.get_terminal_size((100, 24)).columns, 120))
     for kind in kinds:
@@ -839,21 +839,9 @@ def _nan_safe(value: Any) -> Any:  # pragma: no cover - only non-JSON types reac
     return str(value)
 
 
-def _finite_or_none(value: Any) -> Any:
-    """``value`` with every non-finite float (a metric not simulated, e.g. pv_interp_nm with
-    --no-interp-error) replaced by None, so the output stays strict JSON (null)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _finite_or_none(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite_or_none(v) for v in value]
-    return value
-
-
 def _echo_json(value: Any) -> None:
     """Exactly one strict JSON document on stdout."""
-    click.echo(json.dumps(_finite_or_none(value), allow_nan=False, default=_nan_safe))
+    click.echo(dumps_json(value, default=_nan_safe))
 
 
 def _stderr_progress(label: str):  # type: ignore[no-untyped-def]

@@ -25,7 +25,7 @@ import numpy as np
 from ftsweep import __version__
 from ftsweep.case import Case, build_layout, control_table, run_case
 from ftsweep.catalogs import specs_from_entries
-from ftsweep.io import write_texts_atomic
+from ftsweep.io import dumps_json, write_texts_atomic
 from ftsweep.select import check_exportable, choose, open_cube, recorded_case
 
 INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}
@@ -103,7 +103,7 @@ def sidecar_digest(sidecar: dict[str, Any]) -> str:
     """SHA-256 of a sidecar's content without the fields that depend on the header text
     (``crc32``, ``header_sha256``): the header's ``SIDECAR_SHA256`` macro holds it."""
     core = {k: v for k, v in sidecar.items() if k not in ("crc32", "header_sha256")}
-    text = json.dumps(core, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    text = dumps_json(core, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
@@ -257,7 +257,7 @@ def export(
     meta["sidecar_sha256"] = sidecar_digest(sidecar)
     text, crc = render_header(name or out.stem, meta, ints, machine.table_int_type)
     sidecar.update(crc32=crc, header_sha256=hashlib.sha256(text.encode("utf-8")).hexdigest())
-    side_text = json.dumps(sidecar, indent=2, allow_nan=False) + "\n"
+    side_text = dumps_json(sidecar, indent=2) + "\n"
     write_texts_atomic({side: side_text, out: text})
     return sidecar
 

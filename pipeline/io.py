@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -60,6 +61,24 @@ def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
     return [Path(t) for t in files]
 
 
+def json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float (a metric not simulated, e.g. ``pv_interp_nm``
+    with ``interp_error`` off) replaced by None, so it serialises as strict JSON (null)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    return value
+
+
+def dumps_json(value: Any, **options: Any) -> str:
+    """Strict JSON of ``value`` (:func:`json_safe`): the one serialiser of every JSON the
+    project prints or writes, so no output carries NaN and none fails on it."""
+    return json.dumps(json_safe(value), allow_nan=False, **options)
+
+
 def write_json_atomic(path: str | os.PathLike[str], data: Any) -> Path:
-    """:func:`write_text_atomic` of ``data`` as indented JSON (NaN refused)."""
-    return write_text_atomic(path, json.dumps(data, indent=2, allow_nan=False) + "\n")
+    """:func:`write_text_atomic` of ``data`` as indented strict JSON (:func:`dumps_json`)."""
+    return write_text_atomic(path, dumps_json(data, indent=2) + "\n")

@@ -12,6 +12,7 @@ from click.testing import CliRunner
 
 from ftsweep.case import Case, LayoutRequest, Resolution, run_case
 from ftsweep.cli import main
+from ftsweep.export import export, verify
 from ftsweep.run import run_sweep
 
 SMALL = """
@@ -60,6 +61,12 @@ def test_a_sweep_can_leave_it_out(tmp_path, catalog_dir):
     assert r.exit_code == 0, r.output
     chosen = json.loads(r.stdout)
     assert chosen["pv_interp_nm"] is None and chosen["pv_nm"] > 0
+    # and its export writes strict JSON (the sidecar's selection names the metric null) that verifies
+    header = tmp_path / "off.h"
+    sidecar = export(out, header, budget_points=8000)
+    assert sidecar["selection"]["pv_interp_nm"] != sidecar["selection"]["pv_interp_nm"]  # NaN in memory
+    assert json.loads(header.with_suffix(".json").read_text())["selection"]["pv_interp_nm"] is None
+    assert verify(header)["pv_nm"] > 0
 
 
 ARGS = ["predict", "--surface", "sinewave2d", "--drho-um", "20", "--dtheta-deg", "5", "--no-interp-error"]

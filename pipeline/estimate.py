@@ -12,9 +12,9 @@ import numpy as np
 import xarray as xr
 
 from ftsweep import catalogs
+from ftsweep.case import LayoutRequest, build_layout
 from ftsweep.cube import DONE
 from ftsweep.stages import estimate as est
-from ftsweep.stages import layouts
 from ftsweep.sweep import SweepSpec, coordinates
 
 
@@ -32,16 +32,12 @@ def second_derivatives(
 def pitches(surface_spec: Any, kind: str, points: float, aspect: float) -> tuple[float, float, int]:
     """(pitch 1, pitch 2, realised N) of the layout for target (N, α), in the estimate's
     coordinates: (Δρ µm, Δθ rad) for rings, (Δx, Δy) µm for meshes; NaN if it cannot be built."""
-    aperture = catalogs.aperture_of(surface_spec)
     try:
-        if kind == "ring":
-            layout = layouts.ring_layout_for(aperture.outer_radius_um, points, aspect)
-            return layout.pitch[0], math.radians(layout.pitch[1]), layout.n_points
-        hw, hh = aperture.half_extent_um
-        layout = layouts.mesh_layout_for(2.0 * hw, 2.0 * hh, points, aspect)
-        return layout.pitch[0], layout.pitch[1], layout.n_points
+        layout = build_layout(surface_spec, LayoutRequest(kind=kind, points=points, aspect=aspect))
     except ValueError:
         return math.nan, math.nan, 0
+    second = math.radians(layout.pitch[1]) if kind == "ring" else layout.pitch[1]
+    return layout.pitch[0], second, layout.n_points
 
 
 def interp_plane(

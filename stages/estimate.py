@@ -28,9 +28,9 @@ def ring_second_derivatives(
 ) -> tuple[np.ndarray, np.ndarray]:
     """∂²f/∂ρ² [1/µm] and ∂²f/∂θ² [µm/rad²] on a polar grid over the aperture (flattened).
 
-    ∂²f/∂ρ² is the central difference of the radial slope over ±``step_um``;
-    ∂²f/∂θ² = ρ·∂(∂f/∂θ … ) is the central difference of ∂f/∂θ = ρ·(−f_x sinθ + f_y cosθ)
-    over ±``step_um``/ρ radians (the same arc length). Points outside the aperture are dropped.
+    ∂²f/∂ρ² is the central difference of the radial slope over ±``step_um``; ∂²f/∂θ² the
+    central difference of ∂f/∂θ = ρ·(−f_x sinθ + f_y cosθ) over ±``step_um``/ρ radians (the
+    same arc length). Points outside the aperture are dropped.
     """
     rho = np.linspace(0.0, aperture.outer_radius_um, n_rho + 1)[1:]
     theta = np.linspace(0.0, 2.0 * math.pi, n_theta, endpoint=False)
@@ -90,6 +90,29 @@ def _span_kernel(d11, d22, p1, p2, out):  # pragma: no cover - jit
         out[k] = hi - lo
 
 
+def _pareto_front(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Indices of the points (a_i, b_i) no other point dominates (a ≥ and b ≥): the maximum
+    of w₁·a + w₂·b with w₁, w₂ ≥ 0 is always attained on them."""
+    order = np.lexsort((-b, -a))  # a descending, ties by b descending
+    b_sorted = b[order]
+    best_before = np.maximum.accumulate(np.concatenate(([-np.inf], b_sorted[:-1])))
+    return order[b_sorted > best_before]
+
+
+def extreme_samples(d11: np.ndarray, d22: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The samples that can set the span for some pitches: the Pareto fronts of the positive
+    parts (the top of the error) and of the negated negative parts (its bottom). The span of
+    :func:`interp_span_nm` over them equals that over all samples, bit for bit, in a few
+    samples instead of ~10⁵."""
+    a, b = np.asarray(d11, dtype=np.float64), np.asarray(d22, dtype=np.float64)
+    if a.size == 0:
+        return a, b
+    top = _pareto_front(np.maximum(a, 0.0), np.maximum(b, 0.0))
+    bottom = _pareto_front(-np.minimum(a, 0.0), -np.minimum(b, 0.0))
+    keep = np.union1d(top, bottom)
+    return a[keep], b[keep]
+
+
 def interp_span_nm(d11: np.ndarray, d22: np.ndarray, pitch1: np.ndarray, pitch2: np.ndarray) -> np.ndarray:
     """Span [nm] of the first-order bilinear error over the part for each pair of pitches.
 
@@ -99,9 +122,8 @@ def interp_span_nm(d11: np.ndarray, d22: np.ndarray, pitch1: np.ndarray, pitch2:
     p1 = np.ascontiguousarray(pitch1, dtype=np.float64).reshape(-1)
     p2 = np.ascontiguousarray(pitch2, dtype=np.float64).reshape(-1)
     out = np.empty(p1.size)
-    _span_kernel(
-        np.ascontiguousarray(d11, dtype=np.float64), np.ascontiguousarray(d22, dtype=np.float64), p1, p2, out
-    )
+    a, b = extreme_samples(d11, d22)
+    _span_kernel(np.ascontiguousarray(a), np.ascontiguousarray(b), p1, p2, out)
     return (out * 1e3).reshape(np.shape(pitch1))
 
 

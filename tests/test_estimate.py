@@ -146,3 +146,15 @@ def test_prune_leaves_out_hopeless_cases_and_keeps_the_optimum(tmp_path, catalog
     xr.testing.assert_equal(
         xr.open_zarr(out).drop_vars(drop).load(), xr.open_zarr(full).drop_vars(drop).load()
     )
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(1, 3000))
+def test_the_extreme_samples_give_the_span_of_all_samples_bit_for_bit(seed, n):
+    rng = np.random.default_rng(seed)
+    d11, d22 = rng.normal(0.0, 0.01, (2, n))
+    d11[rng.random(n) < 0.1] = 0.0  # ties and zeros, as flat regions give
+    p1, p2 = rng.uniform(0.1, 20.0, (2, 50))
+    full = np.empty(50)
+    est._span_kernel(d11, d22, p1, p2, full)
+    np.testing.assert_array_equal(est.interp_span_nm(d11, d22, p1, p2), full * 1e3)
+    assert est.extreme_samples(d11, d22)[0].size <= n

@@ -28,6 +28,26 @@ def sine_params(ax, ay, lx, ly, px, py):
     )
 
 
+def sine_sections(amplitude, wavelength, nose_radius):
+    """Strategies of (Ax, Ay, λx, λy, φx, φy, Rc, seed) for random sinewave sections [µm, deg]."""
+    return (
+        st.floats(*amplitude),
+        st.floats(*amplitude),
+        st.floats(*wavelength),
+        st.floats(*wavelength),
+        st.floats(0.0, 360.0),
+        st.floats(0.0, 360.0),
+        st.floats(*nose_radius),
+        st.integers(0, 2**32 - 1),
+    )
+
+
+def random_points(seed, radius, n=60):
+    """n random radii [0, radius) µm and section angles [rad]."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(0.0, radius, n), rng.uniform(0.0, 2 * math.pi, n)
+
+
 def sine_bounds(params):
     family = FAMILIES["sinewave2d"]
     return family.gradient_bound(**params), family.curvature_bound(**params)
@@ -42,17 +62,8 @@ def worst_undercut(surface, rho, theta, w, rc, n_s=2001):
     return float(np.max(g - arc))
 
 
-# smooth sinewaves whose concave radius stays above Rc (no gouge), random geometry
-@given(
-    st.floats(0.05, 1.0),
-    st.floats(0.05, 1.0),
-    st.floats(60.0, 400.0),
-    st.floats(60.0, 400.0),
-    st.floats(0.0, 360.0),
-    st.floats(0.0, 360.0),
-    st.floats(20.0, 200.0),
-    st.integers(0, 2**32 - 1),
-)
+# random sinewaves and nose radii, gouging ones included
+@given(*sine_sections(amplitude=(0.05, 1.0), wavelength=(60.0, 400.0), nose_radius=(20.0, 200.0)))
 # sections with several local maxima that a five-sample scan missed (1.5 and 7.2 nm undercut)
 @example(1.0, 1.0, 60.0, 60.0, 0.0, 26.0, 124.0, 0)
 @example(1.0, 1.0, 60.0, 60.0, 196.0, 38.0, 99.0, 188)
@@ -60,9 +71,7 @@ def test_exact_compensation_never_cuts_below_the_design(ax, ay, lx, ly, px, py, 
     params = sine_params(ax, ay, lx, ly, px, py)
     surface = functools.partial(sinewave2d, **params)
     bound, curvature = sine_bounds(params)
-    rng = np.random.default_rng(seed)
-    rho = rng.uniform(0.0, 1000.0, 60)
-    theta = rng.uniform(0.0, 2 * math.pi, 60)
+    rho, theta = random_points(seed, 1000.0)
     # with the family's curvature bound, as the case runner passes it
     w, gouge = compensate(surface, rho, theta, rc, "exact", bound, curvature_bound=curvature)
     undercut = worst_undercut(surface, rho, theta, w, rc)
@@ -75,9 +84,7 @@ def test_exact_compensation_never_cuts_below_the_design(ax, ay, lx, ly, px, py, 
 def test_exact_compensation_on_the_lens_array(rc, seed):
     surface = functools.partial(lens_array, **LENS)
     bound = FAMILIES["lens_array"].gradient_bound(**LENS)
-    rng = np.random.default_rng(seed)
-    rho = rng.uniform(0.0, 1100.0, 60)
-    theta = rng.uniform(0.0, 2 * math.pi, 60)
+    rho, theta = random_points(seed, 1100.0)
     curvature = FAMILIES["lens_array"].curvature_bound(**LENS)
     w, _ = compensate(surface, rho, theta, rc, "exact", bound, curvature_bound=curvature)
     undercut = worst_undercut(surface, rho, theta, w, rc, n_s=8001)
@@ -149,21 +156,7 @@ def test_rejects_bad_arguments():
 
 
 # ------------------------------------------------------------------ the fast (secant) solver
-def random_points(seed, radius, n=60):
-    rng = np.random.default_rng(seed)
-    return rng.uniform(0.0, radius, n), rng.uniform(0.0, 2 * math.pi, n)
-
-
-@given(
-    st.floats(0.02, 1.0),
-    st.floats(0.02, 1.0),
-    st.floats(60.0, 400.0),
-    st.floats(60.0, 400.0),
-    st.floats(0.0, 360.0),
-    st.floats(0.0, 360.0),
-    st.floats(20.0, 200.0),
-    st.integers(0, 2**32 - 1),
-)
+@given(*sine_sections(amplitude=(0.02, 1.0), wavelength=(60.0, 400.0), nose_radius=(20.0, 200.0)))
 def test_secant_solver_equals_scan_and_refine_where_the_section_is_concave(ax, ay, lx, ly, px, py, rc, seed):
     params = sine_params(ax, ay, lx, ly, px, py)
     bound, curvature = sine_bounds(params)
@@ -199,16 +192,7 @@ def brute_force(surface, rho, theta, rc, bound, n_s=40001):
 
 
 @settings(max_examples=30, deadline=None)
-@given(
-    st.floats(0.3, 1.0),
-    st.floats(0.3, 1.0),
-    st.floats(30.0, 80.0),
-    st.floats(30.0, 80.0),
-    st.floats(0.0, 360.0),
-    st.floats(0.0, 360.0),
-    st.floats(60.0, 200.0),
-    st.integers(0, 2**32 - 1),
-)
+@given(*sine_sections(amplitude=(0.3, 1.0), wavelength=(30.0, 80.0), nose_radius=(60.0, 200.0)))
 def test_dense_scan_finds_the_global_maximum_on_gouging_sections(ax, ay, lx, ly, px, py, rc, seed):
     params = sine_params(ax, ay, lx, ly, px, py)
     bound, curvature = sine_bounds(params)

@@ -163,13 +163,12 @@ def _check_slope(gp: np.ndarray, gradient_bound: float) -> None:
 def _check_curvature(gp: np.ndarray, gp_prev: np.ndarray, ds: np.ndarray, curvature_bound: float) -> None:
     """By the mean value theorem |Δg'/Δs| ≤ sup|g''| ≤ K: a larger difference quotient proves
     the declared curvature bound wrong (and the concavity the secant solver relies on)."""
+    change, step = np.abs(gp - gp_prev), np.abs(ds)
     # rounding of g' (~1e-16) divided by a small step must not read as curvature
-    with np.errstate(divide="ignore", invalid="ignore"):
-        excess = np.abs(gp - gp_prev) - 1e-12 - curvature_bound * (1.0 + 1e-6) * np.abs(ds)
-        quotient = np.abs(gp - gp_prev) / np.abs(ds)
-    bad = excess > 0.0
-    worst = float(np.max(quotient[bad], initial=0.0))
+    bad = change - 1e-12 > curvature_bound * (1.0 + 1e-6) * step
     if bad.any():
+        with np.errstate(divide="ignore"):  # a jump of g' at no step is infinitely curved
+            worst = float(np.max(change[bad] / step[bad]))
         raise ValueError(
             f"surface curvature {worst:.4g} /µm exceeds the curvature bound {curvature_bound:.4g} /µm "
             "given to exact compensation; raise or remove the bound"

@@ -733,8 +733,6 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
       ftsweep estimate sinewave-ring
       ftsweep estimate lens-array-mesh --compare outputs/lens-array-mesh.zarr --json
     """
-    import time
-
     from ftsweep.cube import CubeError
     from ftsweep.estimate import agreement, best_aspect, estimate_sweep
     from ftsweep.select import open_cube

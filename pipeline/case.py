@@ -11,7 +11,9 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal, Optional
@@ -71,13 +73,25 @@ class Resolution(Strict):
         "leaves pv_interp_nm NaN",
     )
 
+    angular_ladder: Optional[float] = Field(
+        None,
+        gt=1.0,
+        le=2.0,
+        description="round the angular samples of the samples_per_cell rule up to the next rung "
+        "2·⌈r^k/2⌉ of a geometric ladder of ratio r, so cases of a sweep with nearby samplings share "
+        "the same lines and reuse their layout-independent work; costs up to a factor r more samples, "
+        "and ring samples no longer fall on the cells' angular midpoints (None: the rule's own count)",
+    )
+
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
-        # a default interp_error is left out, so specs and case keys written before the
-        # option existed keep their hashes (and their cubes stay resumable)
+        # options left at their defaults are left out, so specs and case keys written before
+        # the options existed keep their hashes (and their cubes stay resumable)
         data = handler(self)
-        if isinstance(data, dict) and data.get("interp_error") is True:
-            del data["interp_error"]
+        if isinstance(data, dict):
+            for name, default in (("interp_error", True), ("angular_ladder", None)):
+                if name in data and data[name] is default:
+                    del data[name]
         return data
 
     @field_validator("points_per_feed")
@@ -158,15 +172,29 @@ def angular_samples(layout: Layout, rho0_um: float, resolution: Resolution) -> i
     """Spindle angles sampled over 360° (even): ``n_theta`` if set, else ``samples_per_cell``
     per table cell along the outer circumference (Np cells for rings, 2πρ0/max(Δx, Δy) for
     meshes: bilinear error grows as the pitch squared, so the coarse direction's cells carry
-    the error that must be resolved)."""
+    the error that must be resolved); with ``angular_ladder``, the rule's count rounded up to
+    the ladder's next rung (:func:`ladder_rung`)."""
     if resolution.n_theta is not None:
         n = resolution.n_theta
-    elif layout.kind == "ring":
-        n = resolution.samples_per_cell * layout.shape[1]
     else:
-        cells = math.ceil(2.0 * math.pi * rho0_um / max(layout.pitch))
-        n = resolution.samples_per_cell * cells
+        if layout.kind == "ring":
+            n = resolution.samples_per_cell * layout.shape[1]
+        else:
+            cells = math.ceil(2.0 * math.pi * rho0_um / max(layout.pitch))
+            n = resolution.samples_per_cell * cells
+        if resolution.angular_ladder is not None:
+            return ladder_rung(n, resolution.angular_ladder)
     return n + (n % 2)
+
+
+def ladder_rung(n: int, ratio: float) -> int:
+    """The smallest even rung 2·⌈r^k/2⌉ (k = 0, 1, ...) of the geometric ladder of ratio
+    ``ratio`` that is ≥ ``n``. Rungs depend on ``ratio`` alone, so any two counts between the
+    same rungs share one."""
+    k = max(0, math.floor(math.log(n) / math.log(ratio)) - 1)
+    while 2 * math.ceil(ratio**k / 2.0) < n:
+        k += 1
+    return 2 * math.ceil(ratio**k / 2.0)
 
 
 class ErrorMap:
@@ -408,6 +436,7 @@ def run_case(
     table: Optional[np.ndarray] = None,
     specs: Optional[tuple[Any, Any, Any]] = None,
     max_nodes: float = MAX_NODES,
+    lines: Optional[LineCache] = None,
 ) -> dict[str, Any]:
     """Predict the form error of one case (model §1–§6).
 
@@ -422,6 +451,9 @@ def run_case(
     entries a cube or header recorded. A case of more than ``max_nodes`` evaluation nodes, or
     whose single line would not fit in memory, is refused before any work (:func:`check_cost`);
     a non-finite height, slope, command or metric fails the case naming where it occurred.
+    With a ``lines`` cache, the layout-independent work on each batch of lines
+    (:class:`LineData`) is taken from it when an earlier case computed it, and kept for later
+    cases: the result is the same.
     """
     t_start = time.perf_counter()
     rcase = resolve_case(case, catalog_folder, specs)
@@ -433,8 +465,14 @@ def run_case(
     stats = metrics.empty_stats()
     bins = case.resolution.error_map_bins
     emap = ErrorMap.over(rcase.aperture, bins) if bins else None
+    key = line_key(rcase, plan) if lines is not None else None
     for b in range(plan.n_batches):
-        _simulate_lines(rcase, plan, plan.batch(b), table, stats, emap, timer)
+        data = lines.get((key, b)) if lines is not None else None
+        if data is None:
+            data = _line_data(rcase, plan, plan.batch(b), timer)
+            if lines is not None:
+                lines.put((key, b), data)
+        _simulate_lines(rcase, plan, plan.batch(b), table, stats, emap, timer, data)
         if progress is not None:
             progress(b + 1, plan.n_batches)
     t = time.perf_counter()
@@ -480,19 +518,99 @@ def _table_of(
     return table, gouge
 
 
-def _simulate_lines(
-    rcase: ResolvedCase,
-    plan: LinePlan,
-    lines: np.ndarray,
-    table: np.ndarray,
-    stats: np.ndarray,
-    emap: Optional[ErrorMap],
-    timer: Timer,
-) -> None:
-    """One batch of feed-plane lines through the stages (model §3–§6): surface samples,
-    exact commands along the path, the controller's interpolation, the two arc envelopes,
-    and the metrics accumulated into ``stats`` (and ``emap``)."""
-    res, rc, aperture = rcase.case.resolution, rcase.nose_radius_um, rcase.aperture
+@dataclass(frozen=True)
+class LineData:
+    """What a batch of feed-plane lines gives independently of the table (model §3–§6): the
+    path grid, the ray directions, the design height ``g`` [µm] and radial slope ``gp`` on the
+    nodes, which nodes lie inside the aperture, and the envelope ``z_exact`` [µm] of the exact
+    commands (None when the case does not ask for it)."""
+
+    grid: Any
+    ct: np.ndarray
+    st: np.ndarray
+    g: np.ndarray
+    gp: np.ndarray
+    inside: np.ndarray
+    z_exact: Optional[np.ndarray]
+
+    @property
+    def nbytes(self) -> int:
+        arrays = [self.ct, self.st, self.g, self.gp, self.inside, self.grid.node_r]
+        arrays += [self.grid.ray_theta, self.grid.first_pass, self.grid.n_passes]
+        return sum(a.nbytes for a in arrays) + (0 if self.z_exact is None else self.z_exact.nbytes)
+
+
+# default memory [MiB] per sweep worker for shared lines: on this 24 GiB, 2-core machine a
+# twelfth of the memory per worker, the lines of a 250k-point ring case (about 0.2 GB) ten times over
+LINE_CACHE_MB = 2048.0
+
+
+class LineCache:
+    """The :class:`LineData` of batches of lines, kept within ``budget_bytes`` for the cases
+    that follow on the same lines (e.g. the cases of a sweep that share an angular sampling).
+
+    Entries are keyed by everything the line data depend on (:func:`line_key`) and the batch,
+    so a cached batch is the very array a case would compute: results are identical with and
+    without the cache. The least recently used entries are dropped first; a batch larger
+    than the whole budget is never kept. Safe to share between threads (a Dask worker may
+    run several tasks at once)."""
+
+    def __init__(self, budget_bytes: float) -> None:
+        self.budget_bytes = float(budget_bytes)
+        self.nbytes = 0
+        self.hits = 0
+        self.misses = 0
+        self._entries: OrderedDict[tuple[Any, ...], LineData] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple[Any, ...]) -> Optional[LineData]:
+        """The cached batch of ``key`` (None if not held)."""
+        with self._lock:
+            data = self._entries.get(key)
+            if data is None:
+                self.misses += 1
+                return None
+            self._entries.move_to_end(key)
+            self.hits += 1
+            return data
+
+    def put(self, key: tuple[Any, ...], data: LineData) -> None:
+        """Keep ``data`` under ``key``, dropping the least recently used to stay in budget."""
+        size = data.nbytes
+        with self._lock:
+            if size > self.budget_bytes or key in self._entries:
+                return
+            while self._entries and self.nbytes + size > self.budget_bytes:
+                self.nbytes -= self._entries.popitem(last=False)[1].nbytes
+            self._entries[key] = data
+            self.nbytes += size
+
+
+def line_key(rcase: ResolvedCase, plan: LinePlan) -> tuple[Any, ...]:
+    """Everything the :class:`LineData` of a case's batches depend on: the surface entry, the
+    spiral (start radius, feed), the arc, the sampling (angles, nodes per feed, margin, batch
+    size) and, for the exact envelope, the compensation method."""
+    res = rcase.case.resolution
+    surface = rcase.surface_spec.model_dump_json()
+    mode = rcase.case.compensation if res.interp_error else None
+    return (
+        surface,
+        rcase.rho0_um,
+        rcase.feed_um,
+        rcase.nose_radius_um,
+        plan.n_theta,
+        res.points_per_feed,
+        plan.margin_um,
+        plan.window_um,
+        plan.per_batch,
+        mode,
+    )
+
+
+def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Timer) -> LineData:
+    """The layout-independent part of a batch of lines (model §3, §5, §6): surface samples,
+    the exact commands along the path and their envelope."""
+    res, rc = rcase.case.resolution, rcase.nose_radius_um
     t = time.perf_counter()
     grid = interpolation.path_grid(lines, rcase.rho0_um, rcase.feed_um, res.points_per_feed, plan.margin_um)
     ray_theta = grid.ray_theta[:, None]
@@ -501,34 +619,57 @@ def _simulate_lines(
     where = _node_point(grid.node_r, ray_theta)
     require_finite(g, f"the surface '{rcase.case.surface}' height", where)
     require_finite(gp, f"the surface '{rcase.case.surface}' slope", where)
-    inside = aperture.contains_polar(grid.node_r, ct, st)
+    inside = rcase.aperture.contains_polar(grid.node_r, ct, st)
     t = timer.add("sampling", t)
+    if not res.interp_error:
+        return LineData(grid, ct, st, g, gp, inside, None)
+    mode = compensation.MODE_CODES[rcase.case.compensation]
+    w_exact = compensation.commands_on_rays(g, gp, grid.spacing_um, rc, grid.pass_nodes, grid.n_passes, mode)
+    t = timer.add("compensation", t)
+    passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
+    require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))
+    start = interpolation.first_machined_node(grid, plan.window_um)
+    passes_of = (grid.n_passes, grid.node_offset, grid.ppf, start, rc)
+    z_exact = envelope.machined_lines(grid.node_r, w_exact, *passes_of)[0]
+    timer.add("envelope", t)
+    return LineData(grid, ct, st, g, gp, inside, z_exact)
 
-    w_exact = None
-    if res.interp_error:
-        mode = compensation.MODE_CODES[rcase.case.compensation]
-        w_exact = compensation.commands_on_rays(
-            g, gp, grid.spacing_um, rc, grid.pass_nodes, grid.n_passes, mode
-        )
-        t = timer.add("compensation", t)
-        passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
-        require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))
+
+def _simulate_lines(
+    rcase: ResolvedCase,
+    plan: LinePlan,
+    lines: np.ndarray,
+    table: np.ndarray,
+    stats: np.ndarray,
+    emap: Optional[ErrorMap],
+    timer: Timer,
+    data: LineData,
+) -> None:
+    """One batch of feed-plane lines through the stages that depend on the table (model
+    §3–§6): the controller's interpolation along the path, the arc envelope, and the metrics
+    against the design and the exact-command envelope of ``data``, accumulated into ``stats``
+    (and ``emap``)."""
+    rc, aperture, grid = rcase.nose_radius_um, rcase.aperture, data.grid
+    t = time.perf_counter()
+    ray_theta = grid.ray_theta[:, None]
     w_interp = interpolation.interpolate(rcase.layout, table, np.maximum(grid.pass_rho, 0.0), ray_theta)
     t = timer.add("interpolation", t)
 
     start = interpolation.first_machined_node(grid, plan.window_um)
-    passes_of = (grid.n_passes, grid.node_offset, grid.ppf, start, rc)
-    z, cusp_r, cusp_z = envelope.machined_lines(grid.node_r, w_interp, *passes_of)
+    z, cusp_r, cusp_z = envelope.machined_lines(
+        grid.node_r, w_interp, grid.n_passes, grid.node_offset, grid.ppf, start, rc
+    )
     # without the exact commands, z stands in for z_exact: pv_interp_nm is then set NaN
-    z_exact = z if w_exact is None else envelope.machined_lines(grid.node_r, w_exact, *passes_of)[0]
+    z_exact = z if data.z_exact is None else data.z_exact
     t = timer.add("envelope", t)
 
+    g, inside = data.g, data.inside
     metrics.accumulate(z, z_exact, g, inside, np.abs(grid.node_r), plan.zone_split_um, stats)
-    cusp_f = interpolation.sample_on_nodes(grid, g, gp, cusp_r)
-    cusp_inside = aperture.contains_polar(cusp_r, ct, st)
+    cusp_f = interpolation.sample_on_nodes(grid, g, data.gp, cusp_r)
+    cusp_inside = aperture.contains_polar(cusp_r, data.ct, data.st)
     metrics.accumulate_extrema(cusp_z, cusp_f, cusp_inside, cusp_r, plan.zone_split_um, stats)
     if emap is not None:
-        emap.add(z, g, inside, grid.node_r, ct, st)
+        emap.add(z, g, inside, grid.node_r, data.ct, data.st)
     timer.add("metrics", t)
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from ftsweep import __version__, catalogs, result
-from ftsweep.case import MAX_NODES, Case, CaseError, Resolution, run_case
+from ftsweep.case import LINE_CACHE_MB, MAX_NODES, Case, CaseError, Resolution, run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.io import dumps_json
 from ftsweep.sweep import MAX_CASES
@@ -287,6 +287,15 @@ def predict(**opts: Any) -> None:
     "estimate of their point count; they are marked pruned, and a run without --prune computes "
     "them. The estimate was within 0.62-1.23 of the simulation on the reference sweeps, so 3 is safe.",
 )
+@click.option(
+    "--line-cache-mb",
+    type=NON_NEGATIVE,
+    default=LINE_CACHE_MB,
+    show_default=True,
+    help="Memory [MiB] each worker may keep of the lines (surface samples, exact commands and "
+    "their envelope) that cases on the same angular sampling share; 0 computes every case on its "
+    "own. Results are the same either way. resolution.angular_ladder in the spec makes cases share.",
+)
 def sweep(
     sweep_name: str,
     out: Optional[Path],
@@ -296,6 +305,7 @@ def sweep(
     retry_failed: bool,
     max_cases: int,
     prune: Optional[float],
+    line_cache_mb: float,
 ) -> None:
     """Run a sweep of point counts and aspect ratios into a Zarr result cube.
 
@@ -337,6 +347,7 @@ def sweep(
             progress=progress,
             max_cases=max_cases,
             prune=prune,
+            line_cache_mb=line_cache_mb,
         )
     except (CatalogError, CubeError, CaseError, LockError, ExecutorError) as exc:
         raise click.ClickException(str(exc)) from None
@@ -396,6 +407,12 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
         f"wall time    {report.wall_s:.1f} s with {report.workers} worker(s): {rate:.3g} cases/s; "
         f"summed case time {busy:.1f} s"
     )
+    reused = [r.get("reused_batches", 0) for r in report.rows if r["status"] == "done"]
+    if any(reused):
+        click.echo(
+            f"shared lines {sum(1 for n in reused if n)} case(s) reused {sum(reused):,} batches of lines "
+            "computed by an earlier case on the same worker"
+        )
     for r in [r for r in report.rows if r["status"] != "done"][:5]:
         click.echo(f"failed       {_case_label(r)}: {one_line(r['message'], 300)}")
     click.echo("best P-V per point count (among the cases select may choose):")

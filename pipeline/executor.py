@@ -21,7 +21,7 @@ from typing import Any, Optional
 import dask
 
 from ftsweep import allocator
-from ftsweep.case import Case, LayoutRequest, run_case
+from ftsweep.case import Case, LayoutRequest, LineCache, run_case
 from ftsweep.cube import CubeWriter
 from ftsweep.sweep import SweepSpec, case_at
 
@@ -34,12 +34,30 @@ class TaskSpec:
     spec_json : the resolved sweep spec (:class:`ftsweep.sweep.SweepSpec` as JSON).
     catalog_folder : catalogs to read, or None for the default.
     run_id : identifier recorded with every case this run computes.
+    line_cache_mb : memory [MiB] each worker may hold of the lines its cases share
+        (:class:`ftsweep.case.LineCache`); 0 computes every case on its own.
     """
 
     cube: str
     spec_json: str
     catalog_folder: Optional[str]
     run_id: str
+    line_cache_mb: float = 0.0
+
+
+# the cache of the run this worker process serves (a new run releases the previous run's)
+_LINE_CACHES: dict[str, LineCache] = {}
+
+
+def line_cache(task: TaskSpec) -> Optional[LineCache]:
+    """This worker's line cache for ``task``'s run, or None when the run asks for none."""
+    if task.line_cache_mb <= 0:
+        return None
+    cache = _LINE_CACHES.get(task.run_id)
+    if cache is None:
+        _LINE_CACHES.clear()
+        cache = _LINE_CACHES[task.run_id] = LineCache(task.line_cache_mb * 2**20)
+    return cache
 
 
 TaskFn = Callable[[TaskSpec, list[int]], list[dict]]
@@ -60,11 +78,13 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
     folder = Path(task.catalog_folder) if task.catalog_folder else None
     writer = CubeWriter(Path(task.cube))
     run_id = task.run_id
+    cache = line_cache(task)
     out = []
     for index in indices:
         case = case_at(spec, index)
+        hits = cache.hits if cache is not None else 0
         try:
-            record = run_case(case, folder)
+            record = run_case(case, folder, lines=cache)
         except Exception as exc:  # a failing case is recorded and the rest run on
             message = f"{type(exc).__name__}: {exc}"
             writer.write_failed(index, message, run_id)
@@ -88,6 +108,7 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
                 "points": case.layout.points,
                 "aspect": case.layout.aspect,
                 "seconds": record["seconds"],
+                "reused_batches": (cache.hits - hits) if cache is not None else 0,
             }
         )
     return out

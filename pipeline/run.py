@@ -18,6 +18,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep import catalogs, cube
+from ftsweep.case import LINE_CACHE_MB
 from ftsweep.cube import CubeError
 from ftsweep.executor import TaskSpec, execute, run_task, warm_up
 from ftsweep.lock import cube_lock
@@ -134,6 +135,7 @@ def run_sweep(
     progress: Optional[Callable[[SweepReport, list[dict]], None]] = None,
     max_cases: int = MAX_CASES,
     prune: Optional[float] = None,
+    line_cache_mb: float = LINE_CACHE_MB,
 ) -> SweepReport:
     """Run (or resume) a sweep; cases already done in the cube are skipped.
 
@@ -147,6 +149,8 @@ def run_sweep(
     prune : leave out (status ``pruned``, not computed) every pending case whose estimated
         P-V (:mod:`ftsweep.estimate`) exceeds ``prune`` times the best estimate among the
         aspect ratios of its point count. A run without ``prune`` computes earlier pruned cases.
+    line_cache_mb : memory [MiB] per worker for the lines that cases share (0: none); the
+        results are the same either way.
     """
     name, spec = load_sweep(name_or_path, catalog_folder)
     check_sweep_size(spec, max_cases)
@@ -156,7 +160,14 @@ def run_sweep(
     workers = 1 if scheduler == "synchronous" else (workers or default_workers())
     with cube_lock(out, command=f"ftsweep sweep {name_or_path}"):
         return _run_locked(
-            name, spec, out, scheduler, workers, restart, (retry_failed, prune), catalog_folder, progress
+            name,
+            spec,
+            out,
+            (scheduler, workers, line_cache_mb),
+            restart,
+            (retry_failed, prune),
+            catalog_folder,
+            progress,
         )
 
 
@@ -164,8 +175,7 @@ def _run_locked(
     name: str,
     spec: SweepSpec,
     out: Path,
-    scheduler: Optional[str],
-    workers: int,
+    where: tuple[Optional[str], int, float],
     restart: bool,
     rerun: tuple[bool, Optional[float]],
     catalog_folder: Optional[Path],
@@ -180,6 +190,7 @@ def _run_locked(
         status = cube.read_status(out).ravel()
         already -= len(damaged)
     retry_failed, prune = rerun
+    scheduler, workers, line_cache_mb = where
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
     if prune is not None:
         prune_cases(spec, out, status, prune, run_id, catalog_folder)
@@ -205,7 +216,13 @@ def _run_locked(
     assert spec.layout is not None
     execute(
         tasks,
-        TaskSpec(cube=str(out), spec_json=spec.model_dump_json(), catalog_folder=folder, run_id=run_id),
+        TaskSpec(
+            cube=str(out),
+            spec_json=spec.model_dump_json(),
+            catalog_folder=folder,
+            run_id=run_id,
+            line_cache_mb=line_cache_mb,
+        ),
         scheduler,
         workers,
         on_result,

@@ -26,7 +26,7 @@ from pydantic import (
 )
 
 from ftsweep import catalogs
-from ftsweep.case import Case, LayoutRequest, Resolution, build_layout
+from ftsweep.case import Case, LayoutRequest, Resolution, angular_samples, build_layout
 from ftsweep.catalogs import CatalogError, Strict
 
 MAX_AXIS_VALUES = 100_000
@@ -263,20 +263,28 @@ def n_cases(spec: SweepSpec) -> int:
     return int(math.prod(v.size for v in coordinates(spec).values()))
 
 
-def estimated_cost(spec: SweepSpec, index: int, catalog_folder: Path | None = None) -> float:
-    """Relative cost of a case (control points plus simulated nodes), for load balancing."""
+def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) -> tuple[float, Any]:
+    """Relative cost of a case (control points plus simulated nodes, for load balancing) and
+    the key of the lines it simulates: cases of one sweep with equal keys (angular samples,
+    feed, nose radius) share their layout-independent work (:class:`ftsweep.case.LineCache`).
+    A case whose layout cannot be built costs 0 and shares nothing (key None)."""
     case = case_at(spec, index)
     surface = catalogs.entry("surfaces", case.surface, catalog_folder)
     try:
         layout = build_layout(surface, case.layout)
     except ValueError:
-        return 0.0
-    from ftsweep.case import angular_samples
-
+        return 0.0, None
     rho0 = catalogs.aperture_of(surface).outer_radius_um
-    feed = case.feed_um or catalogs.entry("cutting", case.cutting, catalog_folder).feed_um
-    nodes = angular_samples(layout, rho0, case.resolution) * rho0 / feed * case.resolution.points_per_feed
-    return 8.0 * layout.n_points + nodes
+    cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
+    feed = case.feed_um or cutting.feed_um
+    n_theta = angular_samples(layout, rho0, case.resolution)
+    nodes = n_theta * rho0 / feed * case.resolution.points_per_feed
+    return 8.0 * layout.n_points + nodes, (n_theta, feed, case.nose_radius_um or cutting.nose_radius_um)
+
+
+def estimated_cost(spec: SweepSpec, index: int, catalog_folder: Path | None = None) -> float:
+    """Relative cost of a case (see :func:`case_lines`)."""
+    return case_lines(spec, index, catalog_folder)[0]
 
 
 def plan_tasks(
@@ -284,12 +292,23 @@ def plan_tasks(
 ) -> list[list[int]]:
     """Group case indices into tasks, the costliest first (longest-processing-time order).
 
-    Tasks hold ``cases_per_task`` cases, by default as many as keeps at least four tasks per
-    worker, at most four. Each case is written as soon as it finishes, so a task's size
-    only affects scheduling, never what a crash can lose.
+    Cases that simulate the same lines (:func:`case_lines`) form one task, so a worker
+    computes their shared work once. The other cases are packed ``cases_per_task`` to a task,
+    by default as many as keeps at least four tasks per worker, at most four; an explicit
+    ``cases_per_task`` also caps the shared groups. Each case is written as soon as it
+    finishes, so a task's size only affects scheduling, never what a crash can lose.
     """
     if not indices:
         return []
     per_task = spec.cases_per_task or max(1, min(4, len(indices) // (4 * max(workers, 1))))
-    order = sorted(indices, key=lambda i: -estimated_cost(spec, i, catalog_folder))
-    return [order[i : i + per_task] for i in range(0, len(order), per_task)]
+    cost: dict[int, float] = {}
+    shared: dict[Any, list[int]] = {}
+    for i in indices:
+        cost[i], key = case_lines(spec, i, catalog_folder)
+        shared.setdefault(key if key is not None else ("alone", i), []).append(i)
+    groups = [sorted(g, key=lambda i: -cost[i]) for g in shared.values()]
+    alone = sorted((g[0] for g in groups if len(g) == 1), key=lambda i: -cost[i])
+    cap = spec.cases_per_task or len(indices)
+    tasks = [g[j : j + cap] for g in groups if len(g) > 1 for j in range(0, len(g), cap)]
+    tasks += [alone[j : j + per_task] for j in range(0, len(alone), per_task)]
+    return sorted(tasks, key=lambda t: -sum(cost[i] for i in t))

@@ -549,10 +549,10 @@ class LineCache:
     """The :class:`LineData` of batches of lines, kept within ``budget_bytes`` for the cases
     that follow on the same lines (e.g. the cases of a sweep that share an angular sampling).
 
-    Entries are keyed by everything the line data depend on (:func:`line_key`) and the batch,
-    so a cached batch is the very array a case would compute: results are identical with and
-    without the cache. The least recently used entries are dropped first; a batch larger
-    than the whole budget is never kept. Safe to share between threads (a Dask worker may
+    Entries are keyed by (everything the line data depend on (:func:`line_key`), batch), so a
+    cached batch is the very array a case would compute: results are identical with and
+    without the cache. To make room, the least recently used batches of other lines are
+    dropped first; lines larger than the whole budget keep their first batches. Safe to share between threads (a Dask worker may
     run several tasks at once)."""
 
     def __init__(self, budget_bytes: float) -> None:
@@ -580,8 +580,14 @@ class LineCache:
         with self._lock:
             if size > self.budget_bytes or key in self._entries:
                 return
-            while self._entries and self.nbytes + size > self.budget_bytes:
-                self.nbytes -= self._entries.popitem(last=False)[1].nbytes
+            while self.nbytes + size > self.budget_bytes:
+                # never evict batches of the lines being filled: cases read their batches in
+                # order, so lines larger than the budget keep their first batches (which the
+                # next case reuses) instead of each batch evicting the one the next case reads first
+                older = next((k for k in self._entries if k[0] != key[0]), None)
+                if older is None:
+                    return
+                self.nbytes -= self._entries.pop(older).nbytes
             self._entries[key] = data
             self.nbytes += size
 

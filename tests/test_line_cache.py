@@ -1,0 +1,145 @@
+"""Work shared across cases (issue 10, item 2): cases on the same lines reuse their surface
+samples, exact commands and exact envelope, and give exactly what they give alone."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import xarray as xr
+from hypothesis import given
+from hypothesis import strategies as st
+
+from ftsweep.case import Case, LayoutRequest, LineCache, Resolution, ladder_rung, run_case
+from ftsweep.cube import TIMING_VARS
+from ftsweep.run import run_sweep
+from ftsweep.sweep import case_lines, load_sweep, plan_tasks
+
+
+def _same(a: dict, b: dict) -> list[str]:
+    """Fields of two records that differ (timings aside; NaN equals NaN)."""
+
+    def equal(x, y):
+        if isinstance(x, np.ndarray):
+            return np.array_equal(x, y, equal_nan=True)
+        return x == y or (isinstance(x, float) and math.isnan(x) and math.isnan(y))
+
+    return [k for k in a if not k.startswith("seconds") and not equal(a[k], b[k])]
+
+
+def _case(pitch, n_theta=240, **kw):
+    return Case(
+        surface="small_sine",
+        layout=LayoutRequest(kind="ring", pitch=pitch),
+        resolution=Resolution(n_theta=n_theta, **kw),
+    )
+
+
+def test_cases_on_the_same_lines_reuse_them_and_give_what_they_give_alone(catalog_dir):
+    cache = LineCache(2**30)
+    first = run_case(_case((20.0, 6.0)), catalog_dir, lines=cache)
+    misses = cache.misses
+    assert cache.hits == 0 and misses > 0 and cache.nbytes > 0
+    second = run_case(_case((10.0, 12.0)), catalog_dir, lines=cache)
+    assert cache.hits == misses and cache.misses == misses  # every batch came from the cache
+    assert second["seconds_sampling"] == 0.0  # nothing was sampled again
+    alone = run_case(_case((10.0, 12.0)), catalog_dir)
+    assert _same(second, alone) == []
+    assert first["pv_nm"] != second["pv_nm"]  # the table's own work was done: another answer
+
+
+def test_different_lines_or_methods_are_not_mixed_up(catalog_dir):
+    cache = LineCache(2**30)
+    run_case(_case((20.0, 6.0)), catalog_dir, lines=cache)
+    for other in (
+        _case((20.0, 6.0), n_theta=244),  # other angles
+        Case(**{**_case((20.0, 6.0)).model_dump(), "feed_um": 4.0}),  # other spiral
+        Case(**{**_case((20.0, 6.0)).model_dump(), "compensation": "slope"}),  # other exact commands
+    ):
+        hits = cache.hits
+        record = run_case(other, catalog_dir, lines=cache)
+        assert cache.hits == hits
+        assert _same(record, run_case(other, catalog_dir)) == []
+
+
+def test_a_small_budget_keeps_less_and_changes_nothing(catalog_dir):
+    cache = LineCache(1.0)  # smaller than any batch: nothing kept
+    a = run_case(_case((20.0, 6.0)), catalog_dir, lines=cache)
+    assert cache.nbytes == 0 and cache.hits == 0
+    assert _same(a, run_case(_case((20.0, 6.0)), catalog_dir)) == []
+    full = LineCache(2**30)
+    run_case(_case((20.0, 6.0)), catalog_dir, batch_nodes=20_000, lines=full)
+    budget = full.nbytes // 2
+    half = LineCache(budget)
+    run_case(_case((20.0, 6.0)), catalog_dir, batch_nodes=20_000, lines=half)
+    assert 0 < half.nbytes <= budget
+    run_case(_case((10.0, 12.0)), catalog_dir, batch_nodes=20_000, lines=half)
+    # the first batches stay (the lines being filled never evict their own), and the next case on
+    # the same lines reuses them and recomputes the rest
+    assert 0 < half.hits < full.misses
+    # other lines make room by dropping the older lines' batches, staying within the budget
+    run_case(_case((20.0, 6.0), n_theta=300), catalog_dir, batch_nodes=20_000, lines=half)
+    assert 0 < half.nbytes <= budget
+    hits = half.hits
+    run_case(_case((10.0, 12.0)), catalog_dir, batch_nodes=20_000, lines=half)
+    assert half.hits - hits < hits
+
+
+@given(st.integers(2, 10**6), st.floats(1.01, 2.0))
+def test_ladder_rungs_are_even_shared_and_within_the_ratio(n, ratio):
+    rung = ladder_rung(n, ratio)
+    assert rung >= n and rung % 2 == 0
+    assert rung <= ratio * n + 2.0
+    assert ladder_rung(rung, ratio) == rung  # a rung is its own rung: counts between rungs share it
+    assert ladder_rung(max(2, n - 1), ratio) <= rung
+
+
+def test_the_ladder_shares_samples_and_keeps_hashes(catalog_dir):
+    assert "angular_ladder" not in Resolution().model_dump()
+    spc = Resolution(angular_ladder=1.5)
+
+    def run(aspect):
+        layout = LayoutRequest(kind="ring", points=8000, aspect=aspect)
+        return run_case(Case(surface="small_sine", layout=layout, resolution=spc), catalog_dir)
+
+    ra, rb = run(1.0), run(1.2)
+    assert ra["table_cols"] != rb["table_cols"]
+    assert ra["n_theta"] == rb["n_theta"] == ladder_rung(3 * ra["table_cols"], 1.5)
+
+
+SPEC = """
+surface: small_sine
+layout: ring
+resolution: {angular_ladder: 1.5}
+axes: {points: [4000, 8000], aspect: [0.5, 1.0, 2.0, 4.0]}
+"""
+
+
+def test_a_sweep_with_shared_lines_equals_the_sweep_case_by_case(tmp_path, catalog_dir):
+    spec = tmp_path / "ladder.yaml"
+    spec.write_text(SPEC)
+    _, sweep = load_sweep(str(spec), catalog_dir)
+    keys = [case_lines(sweep, i, catalog_dir)[1] for i in range(8)]
+    assert len(set(keys)) < len(keys)  # the ladder makes some cases share lines
+    tasks = plan_tasks(sweep, list(range(8)), workers=2, catalog_folder=catalog_dir)
+    assert sorted(i for t in tasks for i in t) == list(range(8))
+    for key in set(keys):
+        sharing = {i for i in range(8) if keys[i] == key}
+        assert any(sharing <= set(t) for t in tasks), "cases on the same lines are one task"
+    kw = {"scheduler": "synchronous", "catalog_folder": catalog_dir}
+    shared = run_sweep(str(spec), tmp_path / "shared.zarr", line_cache_mb=512, **kw)
+    alone = run_sweep(str(spec), tmp_path / "alone.zarr", line_cache_mb=0, **kw)
+    assert shared.done == alone.done == 8
+    assert sum(r["reused_batches"] for r in shared.rows) > 0
+    assert sum(r["reused_batches"] for r in alone.rows) == 0
+    a, b = xr.open_zarr(tmp_path / "shared.zarr").load(), xr.open_zarr(tmp_path / "alone.zarr").load()
+    compared = 0
+    for name, var in a.data_vars.items():
+        if name in TIMING_VARS:
+            continue
+        if var.dtype.kind == "f":
+            assert np.array_equal(var.values, b[name].values, equal_nan=True), name
+        else:
+            assert np.array_equal(var.values, b[name].values), name
+        compared += 1
+    assert compared > 10

@@ -552,8 +552,8 @@ class LineCache:
     Entries are keyed by (everything the line data depend on (:func:`line_key`), batch), so a
     cached batch is the very array a case would compute: results are identical with and
     without the cache. To make room, the least recently used batches of other lines are
-    dropped first; lines larger than the whole budget keep their first batches. Safe to share between threads (a Dask worker may
-    run several tasks at once)."""
+    dropped first; lines larger than the whole budget keep their first batches. Safe to share
+    between threads (a Dask worker may run several tasks at once)."""
 
     def __init__(self, budget_bytes: float) -> None:
         self.budget_bytes = float(budget_bytes)
@@ -670,7 +670,7 @@ def _simulate_lines(
     t = timer.add("envelope", t)
 
     g, inside = data.g, data.inside
-    metrics.accumulate(z, z_exact, g, inside, np.abs(grid.node_r), plan.zone_split_um, stats)
+    metrics.accumulate(z, z_exact, g, inside, grid.node_r, plan.zone_split_um, stats)
     cusp_f = interpolation.sample_on_nodes(grid, g, data.gp, cusp_r)
     cusp_inside = aperture.contains_polar(cusp_r, data.ct, data.st)
     metrics.accumulate_extrema(cusp_z, cusp_f, cusp_inside, cusp_r, plan.zone_split_um, stats)

@@ -75,9 +75,18 @@ def accumulate(z, z_exact, g, inside, node_r, zone_split_um, stats):  # pragma: 
         the evaluation nodes.
     g : (R, G) design height f at the nodes [µm].
     inside : (R, G) bool, node inside the aperture.
-    node_r : (R, G) node radius [µm]; nodes with r ≤ ``zone_split_um`` form the inner zone.
+    node_r : (R, G) node radius [µm] (its sign ignored); nodes with |r| ≤ ``zone_split_um``
+        form the inner zone.
     stats : float64 vector laid out as :data:`STAT_NAMES`; errors are accumulated in µm.
     """
+    # running values live in locals, not in ``stats``: the compiler cannot keep array slots
+    # in registers across iterations, and the sums are added in the same order as before,
+    # so the result is the same to the last bit
+    count, total, total_sq = stats[COUNT], stats[SUM], stats[SUM_SQ]
+    lo, hi = stats[MIN], stats[MAX]
+    in_lo, in_hi, in_n = stats[INNER_MIN], stats[INNER_MAX], stats[INNER_COUNT]
+    out_lo, out_hi, out_n = stats[OUTER_MIN], stats[OUTER_MAX], stats[OUTER_COUNT]
+    d_lo, d_hi = stats[INTERP_MIN], stats[INTERP_MAX]
     n_rays, n_nodes = z.shape
     for a in range(n_rays):
         for j in range(n_nodes):
@@ -86,21 +95,26 @@ def accumulate(z, z_exact, g, inside, node_r, zone_split_um, stats):  # pragma: 
                 continue
             e = zz - g[a, j]
             d = zz - z_exact[a, j]
-            stats[COUNT] += 1.0
-            stats[SUM] += e
-            stats[SUM_SQ] += e * e
-            stats[MIN] = min(stats[MIN], e)
-            stats[MAX] = max(stats[MAX], e)
-            if node_r[a, j] <= zone_split_um:
-                stats[INNER_MIN] = min(stats[INNER_MIN], e)
-                stats[INNER_MAX] = max(stats[INNER_MAX], e)
-                stats[INNER_COUNT] += 1.0
+            count += 1.0
+            total += e
+            total_sq += e * e
+            lo = min(lo, e)
+            hi = max(hi, e)
+            if abs(node_r[a, j]) <= zone_split_um:
+                in_lo = min(in_lo, e)
+                in_hi = max(in_hi, e)
+                in_n += 1.0
             else:
-                stats[OUTER_MIN] = min(stats[OUTER_MIN], e)
-                stats[OUTER_MAX] = max(stats[OUTER_MAX], e)
-                stats[OUTER_COUNT] += 1.0
-            stats[INTERP_MIN] = min(stats[INTERP_MIN], d)
-            stats[INTERP_MAX] = max(stats[INTERP_MAX], d)
+                out_lo = min(out_lo, e)
+                out_hi = max(out_hi, e)
+                out_n += 1.0
+            d_lo = min(d_lo, d)
+            d_hi = max(d_hi, d)
+    stats[COUNT], stats[SUM], stats[SUM_SQ] = count, total, total_sq
+    stats[MIN], stats[MAX] = lo, hi
+    stats[INNER_MIN], stats[INNER_MAX], stats[INNER_COUNT] = in_lo, in_hi, in_n
+    stats[OUTER_MIN], stats[OUTER_MAX], stats[OUTER_COUNT] = out_lo, out_hi, out_n
+    stats[INTERP_MIN], stats[INTERP_MAX] = d_lo, d_hi
 
 
 @njit(nogil=True, cache=True)

@@ -657,8 +657,7 @@ def _simulate_lines(
     (and ``emap``)."""
     rc, aperture, grid = rcase.nose_radius_um, rcase.aperture, data.grid
     t = time.perf_counter()
-    ray_theta = grid.ray_theta[:, None]
-    w_interp = interpolation.interpolate(rcase.layout, table, np.maximum(grid.pass_rho, 0.0), ray_theta)
+    w_interp = interpolation.pass_commands(rcase.layout, table, grid)
     t = timer.add("interpolation", t)
 
     start = interpolation.first_machined_node(grid, plan.window_um)

@@ -23,36 +23,58 @@ from numba import njit
 from .layouts import Layout
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _bilinear_at(table, u, v, periodic):  # pragma: no cover - jit
+    """Eq. (2) at fractional indices (u, v): u clamped, v wrapped when ``periodic``."""
+    n0, n1 = table.shape
+    # first index: clamped to the table (the controller holds the edge value)
+    i = int(math.floor(u))
+    if i < 0:
+        i, t = 0, 0.0
+    elif i > n0 - 2:
+        i, t = n0 - 2, 1.0
+    else:
+        t = u - i
+    j = int(math.floor(v))
+    s = v - j
+    if periodic:
+        j = j % n1
+        j1 = (j + 1) % n1
+    else:
+        if j < 0:
+            j, s = 0, 0.0
+        elif j > n1 - 2:
+            j, s = n1 - 2, 1.0
+        j1 = j + 1
+    return (
+        (1.0 - t) * (1.0 - s) * table[i, j]
+        + t * (1.0 - s) * table[i + 1, j]
+        + t * s * table[i + 1, j1]
+        + (1.0 - t) * s * table[i, j1]
+    )
+
+
 @njit(nogil=True, cache=True)
 def _bilinear_kernel(table, u, v, periodic, out):  # pragma: no cover - jit
-    n0, n1 = table.shape
     for p in range(u.size):
-        # first index: clamped to the table (the controller holds the edge value)
-        i = int(math.floor(u[p]))
-        if i < 0:
-            i, t = 0, 0.0
-        elif i > n0 - 2:
-            i, t = n0 - 2, 1.0
-        else:
-            t = u[p] - i
-        vj = v[p]
-        j = int(math.floor(vj))
-        s = vj - j
-        if periodic:
-            j = j % n1
-            j1 = (j + 1) % n1
-        else:
-            if j < 0:
-                j, s = 0, 0.0
-            elif j > n1 - 2:
-                j, s = n1 - 2, 1.0
-            j1 = j + 1
-        out[p] = (
-            (1.0 - t) * (1.0 - s) * table[i, j]
-            + t * (1.0 - s) * table[i + 1, j]
-            + t * s * table[i + 1, j1]
-            + (1.0 - t) * s * table[i, j1]
-        )
+        out[p] = _bilinear_at(table, u[p], v[p], periodic)
+
+
+@njit(nogil=True, cache=True)
+def _pass_commands_kernel(table, polar, o0, o1, p0, p1, periodic, first, step, ray_a, ray_b, out):  # noqa: E501  # pragma: no cover - jit
+    # the tool positions ρ_k = max(first − k·step, 0) and their table indices are formed here,
+    # pass by pass, instead of as (rays × passes) arrays; the arithmetic is that of
+    # pass_rho and table_indices, so the commands are the same to the last bit
+    for a in range(out.shape[0]):
+        for k in range(out.shape[1]):
+            rho = max(first[a] - k * step, 0.0)
+            if polar:
+                u = (rho - o0) / p0
+                v = ray_a[a]
+            else:
+                u = (rho * ray_a[a] - o0) / p0
+                v = (rho * ray_b[a] - o1) / p1
+            out[a, k] = _bilinear_at(table, u, v, periodic)
 
 
 def bilinear(table: np.ndarray, u: np.ndarray, v: np.ndarray, periodic: bool) -> np.ndarray:
@@ -87,6 +109,35 @@ def interpolate(layout: Layout, table: np.ndarray, rho: np.ndarray, theta: np.nd
     """FTS command w [µm] at tool positions ρ [µm], θ [rad]: the controller's lookup (§3)."""
     u, v = table_indices(layout, rho, theta)
     return bilinear(table, u, v, layout.periodic)
+
+
+def pass_commands(layout: Layout, table: np.ndarray, grid: PathGrid) -> np.ndarray:
+    """FTS commands w [µm] of every pass of ``grid`` (R, Kmax): :func:`interpolate` at the
+    tool positions ρ_k = max(ρ_0 − k·F, 0) of each ray, in one pass without the position and
+    index arrays, bit for bit equal to ``interpolate(layout, table, max(grid.pass_rho, 0),
+    grid.ray_theta[:, None])`` (model §1, §3). Entries k ≥ n_passes are meaningless."""
+    theta = grid.ray_theta[:, None]
+    if layout.kind == "ring":
+        ray_a = ((np.degrees(theta) - layout.origin[1]) / layout.pitch[1]).ravel()
+        ray_b = ray_a
+    else:
+        ray_a, ray_b = np.cos(theta).ravel(), np.sin(theta).ravel()
+    out = np.empty((grid.ray_theta.size, int(grid.n_passes.max())))
+    _pass_commands_kernel(
+        np.ascontiguousarray(table, dtype=np.float64),
+        layout.kind == "ring",
+        float(layout.origin[0]),
+        float(layout.origin[1]),
+        float(layout.pitch[0]),
+        float(layout.pitch[1]),
+        bool(layout.periodic),
+        grid.first_pass,
+        grid.spacing_um * grid.ppf,
+        ray_a,
+        ray_b,
+        out,
+    )
+    return out
 
 
 class PathGrid(NamedTuple):

@@ -125,3 +125,21 @@ def test_hermite_sampling_is_exact_for_cubics():
     got = interpolation.sample_on_nodes(grid, g, gp, q)
     want = 0.3 + 0.01 * q - 2e-4 * q**2 + 1e-6 * q**3
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["ring", "mesh"])
+def test_pass_commands_are_the_lookup_at_the_pass_positions_bit_for_bit(kind):
+    """The fused pass-command kernel forms ρ_k and the table indices itself; it must give
+    exactly what the lookup at max(pass_rho, 0) gives (the stored expectations rely on it)."""
+    rng = np.random.default_rng(7)
+    lay = (
+        layouts.ring_layout(400.0, 7.0, 3.0)
+        if kind == "ring"
+        else layouts.mesh_layout(800.0, 800.0, 9.0, 13.0)
+    )
+    table = rng.normal(size=lay.shape)
+    lines = interpolation.line_angles(38)
+    grid = interpolation.path_grid(lines, 400.0, 5.0, 2, 12.0)
+    want = interpolation.interpolate(lay, table, np.maximum(grid.pass_rho, 0.0), grid.ray_theta[:, None])
+    got = interpolation.pass_commands(lay, table, grid)
+    np.testing.assert_array_equal(got, want)

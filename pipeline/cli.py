@@ -433,6 +433,11 @@ def _selection_text(chosen: dict[str, Any]) -> str:
         if chosen["layout"] == "ring"
         else f"Δx = {chosen['dx_um']:.4g} µm, Δy = {chosen['dy_um']:.4g} µm"
     )
+    interp = (
+        f"interpolation alone {chosen['pv_interp_nm']:.2f} nm"
+        if math.isfinite(chosen["pv_interp_nm"])
+        else "interpolation alone not simulated"
+    )
     return "\n".join(
         [
             f"rule         {chosen['rule']}",
@@ -440,8 +445,7 @@ def _selection_text(chosen: dict[str, Any]) -> str:
             f"(target N {chosen['points_target']:,.0f}, α {chosen['aspect_target']:.4g})",
             f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch} "
             f"(α = {chosen['aspect_actual']:.4g})",
-            f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, interpolation alone "
-            f"{chosen['pv_interp_nm']:.2f} nm)",
+            f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, {interp})",
         ]
     )
 

@@ -61,6 +61,9 @@ def test_a_sweep_can_leave_it_out(tmp_path, catalog_dir):
     assert r.exit_code == 0, r.output
     chosen = json.loads(r.stdout)
     assert chosen["pv_interp_nm"] is None and chosen["pv_nm"] > 0
+    text = CliRunner().invoke(main, ["select", str(out), "--budget-points", "8000"])
+    assert text.exit_code == 0, text.output
+    assert "interpolation alone not simulated" in text.stdout and "nan" not in text.stdout
     # and its export writes strict JSON (the sidecar's selection names the metric null) that verifies
     header = tmp_path / "off.h"
     sidecar = export(out, header, budget_points=8000)

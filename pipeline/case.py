@@ -472,7 +472,7 @@ def run_case(
             data = _line_data(rcase, plan, plan.batch(b), timer)
             if lines is not None:
                 lines.put((key, b), data)
-        _simulate_lines(rcase, plan, plan.batch(b), table, stats, emap, timer, data)
+        _simulate_lines(rcase, plan, table, stats, emap, timer, data)
         if progress is not None:
             progress(b + 1, plan.n_batches)
     t = time.perf_counter()
@@ -634,17 +634,23 @@ def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Ti
     t = timer.add("compensation", t)
     passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
     require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))
-    start = interpolation.first_machined_node(grid, plan.window_um)
-    passes_of = (grid.n_passes, grid.node_offset, grid.ppf, start, rc)
-    z_exact = envelope.machined_lines(grid.node_r, w_exact, *passes_of)[0]
+    z_exact = _machined(grid, w_exact, plan, rc)[0]
     timer.add("envelope", t)
     return LineData(grid, ct, st, g, gp, inside, z_exact)
+
+
+def _machined(
+    grid: Any, pass_w: np.ndarray, plan: LinePlan, rc: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The envelope (model §5) of commands ``pass_w`` [µm] on ``grid``, evaluated over the
+    fully machined zone: machined height z and the cusp peaks (radius, height) [µm]."""
+    start = interpolation.first_machined_node(grid, plan.window_um)
+    return envelope.machined_lines(grid.node_r, pass_w, grid.n_passes, grid.node_offset, grid.ppf, start, rc)
 
 
 def _simulate_lines(
     rcase: ResolvedCase,
     plan: LinePlan,
-    lines: np.ndarray,
     table: np.ndarray,
     stats: np.ndarray,
     emap: Optional[ErrorMap],
@@ -660,10 +666,7 @@ def _simulate_lines(
     w_interp = interpolation.pass_commands(rcase.layout, table, grid)
     t = timer.add("interpolation", t)
 
-    start = interpolation.first_machined_node(grid, plan.window_um)
-    z, cusp_r, cusp_z = envelope.machined_lines(
-        grid.node_r, w_interp, grid.n_passes, grid.node_offset, grid.ppf, start, rc
-    )
+    z, cusp_r, cusp_z = _machined(grid, w_interp, plan, rc)
     # without the exact commands, z stands in for z_exact: pv_interp_nm is then set NaN
     z_exact = z if data.z_exact is None else data.z_exact
     t = timer.add("envelope", t)

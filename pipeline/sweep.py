@@ -282,11 +282,6 @@ def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) 
     return 8.0 * layout.n_points + nodes, (n_theta, feed, case.nose_radius_um or cutting.nose_radius_um)
 
 
-def estimated_cost(spec: SweepSpec, index: int, catalog_folder: Path | None = None) -> float:
-    """Relative cost of a case (see :func:`case_lines`)."""
-    return case_lines(spec, index, catalog_folder)[0]
-
-
 def plan_tasks(
     spec: SweepSpec, indices: list[int], workers: int, catalog_folder: Path | None = None
 ) -> list[list[int]]:

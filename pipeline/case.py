@@ -339,6 +339,7 @@ class ResolvedCase:
     feed_um: float
     nose_radius_um: float
     gradient_bound: float
+    lines: Any = None  # the family's line evaluator (catalogs.line_sampler), or None
 
     @property
     def rho0_um(self) -> float:
@@ -385,6 +386,7 @@ def resolve_case(
         feed_um=feed,
         nose_radius_um=rc,
         gradient_bound=bound,
+        lines=catalogs.line_sampler(surface_spec),
     )
 
 
@@ -621,7 +623,10 @@ def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Ti
     grid = interpolation.path_grid(lines, rcase.rho0_um, rcase.feed_um, res.points_per_feed, plan.margin_um)
     ray_theta = grid.ray_theta[:, None]
     ct, st = np.cos(ray_theta), np.sin(ray_theta)
-    g, gp = radial_section(rcase.surface, grid.node_r, ct, st)
+    if rcase.lines is not None:
+        g, gp = rcase.lines(grid.first_pass, grid.spacing_um, grid.node_offset, grid.node_r.shape[1], ct, st)
+    else:
+        g, gp = radial_section(rcase.surface, grid.node_r, ct, st)
     where = _node_point(grid.node_r, ray_theta)
     require_finite(g, f"the surface '{rcase.case.surface}' height", where)
     require_finite(gp, f"the surface '{rcase.case.surface}' slope", where)

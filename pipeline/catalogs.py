@@ -12,9 +12,11 @@ import functools
 import math
 import os
 import reprlib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
+import numpy as np
 import yaml
 from pydantic import (
     BaseModel,
@@ -213,6 +215,17 @@ def surface_callable(spec: Any, folder: Path | None = None) -> SurfaceFn:
             spec.family, spec.params.model_dump(mode="json"), aperture_of(spec), folder or catalog_dir()
         )
     return functools.partial(FAMILIES[spec.family].evaluate, **spec.params.model_dump())
+
+
+def line_sampler(spec: Any) -> Callable[..., tuple[np.ndarray, np.ndarray]] | None:
+    """The family's line evaluator ``fn(first, spacing, offset, n_nodes, cos_t, sin_t) -> (g, g')``
+    of a catalog entry (model §4, §5; see :func:`ftsweep.stages.geometry.evaluate_lines`), or
+    None where the family has none (user surfaces): the case runner then samples the node grid
+    through :func:`surface_callable`."""
+    family = FAMILIES.get(spec.family)
+    if spec.family in USER_FAMILIES or family is None or family.lines is None:
+        return None
+    return functools.partial(family.lines, **spec.params.model_dump())
 
 
 def gradient_bound(spec: Any, folder: Path | None = None) -> float:

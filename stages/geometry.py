@@ -31,6 +31,32 @@ def evaluate_flat(
     return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
 
 
+def evaluate_lines(
+    kernel: Callable[..., None],
+    first_um: np.ndarray,
+    spacing_um: float,
+    offset: int,
+    n_nodes: int,
+    cos_t: np.ndarray,
+    sin_t: np.ndarray,
+    *args: Any,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Run a family's line kernel ``kernel(first, spacing, offset, cos_t, sin_t, *args, g, gp)``
+    over radial sections sampled at r_ij = first_i − (j − offset)·spacing [µm], j < ``n_nodes``
+    (the node grid of :func:`ftsweep.stages.interpolation.path_grid`), and return the section
+    height g [µm] and radial slope g' [-], each (R, n_nodes): :func:`radial_section` on that
+    grid in one pass, the wrapper every family's ``lines`` evaluator shares (model §4, §5)."""
+    first = np.ascontiguousarray(first_um, dtype=np.float64).reshape(-1)
+    c = np.ascontiguousarray(cos_t, dtype=np.float64).reshape(-1)
+    s = np.ascontiguousarray(sin_t, dtype=np.float64).reshape(-1)
+    if not first.size == c.size == s.size:
+        raise ValueError(f"line sampling needs one cos and sin per ray, got {first.size}, {c.size}, {s.size}")
+    g = np.empty((first.size, int(n_nodes)))
+    gp = np.empty_like(g)
+    kernel(first, float(spacing_um), int(offset), c, s, *args, g, gp)
+    return g, gp
+
+
 def sampled_gradient_bound(
     surface: SurfaceFn, half_width_um: float, n: int = 401, margin: float = 1.25
 ) -> float:

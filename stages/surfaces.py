@@ -20,7 +20,14 @@ import numpy as np
 from numba import njit
 
 from .bspline import bspline2d
-from .geometry import Aperture, SurfaceFn, evaluate_flat, radial_section, sampled_gradient_bound
+from .geometry import (
+    Aperture,
+    SurfaceFn,
+    evaluate_flat,
+    evaluate_lines,
+    radial_section,
+    sampled_gradient_bound,
+)
 
 __all__ = [
     "FAMILIES",
@@ -55,13 +62,17 @@ class Family(NamedTuple):
     bound is estimated by sampling the aperture, see :func:`sampled_gradient_bound`), its
     catalog parameters, a check of parameter combinations (raises ValueError), and an
     analytic bound of the Hessian's spectral norm ‖∇²f‖ [1/µm] (None: unknown), with which
-    exact compensation takes its fast solver where K·Rc < 1 (model §4)."""
+    exact compensation takes its fast solver where K·Rc < 1 (model §4), and a line evaluator
+    ``lines(first, spacing, offset, n_nodes, cos_t, sin_t, **params) -> (g, g')`` that samples
+    the radial sections of a path grid in one pass (see :func:`evaluate_lines`; None: the
+    case runner forms the grid's x, y and calls ``evaluate``)."""
 
     evaluate: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]]
     gradient_bound: Callable[..., float] | None
     params: dict[str, Param]
     check: Callable[[dict[str, Any]], None] | None = None
     curvature_bound: Callable[..., float] | None = None
+    lines: Callable[..., tuple[np.ndarray, np.ndarray]] | None = None
 
 
 FAMILIES: dict[str, Family] = {}
@@ -73,6 +84,7 @@ def surface_family(
     gradient_bound: Callable[..., float] | None = None,
     check: Callable[[dict[str, Any]], None] | None = None,
     curvature_bound: Callable[..., float] | None = None,
+    lines: Callable[..., tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Register the decorated evaluator as surface family ``name`` (usable in the catalogs as
     ``family: name`` with ``params``): the one place a new family is declared."""
@@ -80,7 +92,7 @@ def surface_family(
     def register(evaluate: Callable[..., Any]) -> Callable[..., Any]:
         if name in FAMILIES:
             raise ValueError(f"surface family {name!r} is registered twice")
-        FAMILIES[name] = Family(evaluate, gradient_bound, dict(params), check, curvature_bound)
+        FAMILIES[name] = Family(evaluate, gradient_bound, dict(params), check, curvature_bound, lines)
         return evaluate
 
     return register
@@ -99,6 +111,81 @@ def _sinewave2d_kernel(x, y, ax, ay, kx, ky, px, py, f, fx, fy):  # pragma: no c
         f[i] = ax * math.sin(argx) + ay * math.sin(argy)
         fx[i] = ax * kx * math.cos(argx)
         fy[i] = ay * ky * math.cos(argy)
+
+
+# Along a radial section the phases kx·x and ky·y advance by a fixed step per node, so sin and
+# cos are carried from node to node by the angle-addition rotation and computed afresh only
+# every _ANCHOR nodes: the libm calls dominated sampling, and ≤ _ANCHOR − 1 rotations add a
+# rounding error of a few 1e-15 relative, below that of forming the phase itself (|kx·x|·ε).
+_ANCHOR = 32
+
+
+@njit(nogil=True, cache=True)
+def _sinewave2d_lines_kernel(first, spacing, offset, ct, st, ax, ay, kx, ky, px, py, g, gp):  # noqa: E501  # pragma: no cover - jit
+    n_rays, n_nodes = g.shape
+    for i in range(n_rays):
+        c = ct[i]
+        s = st[i]
+        # r falls by one spacing per node
+        dx = -kx * (spacing * c)
+        dy = -ky * (spacing * s)
+        cdx, sdx = math.cos(dx), math.sin(dx)
+        cdy, sdy = math.cos(dy), math.sin(dy)
+        sx = cx = sy = cy = 0.0
+        for j in range(n_nodes):
+            if j % _ANCHOR == 0:
+                r = first[i] - (j - offset) * spacing
+                argx = kx * (r * c) + px
+                argy = ky * (r * s) + py
+                sx, cx = math.sin(argx), math.cos(argx)
+                sy, cy = math.sin(argy), math.cos(argy)
+            else:
+                sx, cx = sx * cdx + cx * sdx, cx * cdx - sx * sdx
+                sy, cy = sy * cdy + cy * sdy, cy * cdy - sy * sdy
+            g[i, j] = ax * sx + ay * sy
+            gp[i, j] = ax * kx * cx * c + ay * ky * cy * s
+
+
+def _sinewave2d_args(
+    amplitude_x_um: float,
+    amplitude_y_um: float,
+    wavelength_x_um: float,
+    wavelength_y_um: float,
+    phase_x_deg: float,
+    phase_y_deg: float,
+) -> tuple[float, ...]:
+    return (
+        float(amplitude_x_um),
+        float(amplitude_y_um),
+        2.0 * math.pi / wavelength_x_um,
+        2.0 * math.pi / wavelength_y_um,
+        math.radians(phase_x_deg),
+        math.radians(phase_y_deg),
+    )
+
+
+def sinewave2d_lines(
+    first_um: np.ndarray,
+    spacing_um: float,
+    offset: int,
+    n_nodes: int,
+    cos_t: np.ndarray,
+    sin_t: np.ndarray,
+    **params: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`sinewave2d` on the radial sections of a path grid (:func:`evaluate_lines`):
+    height g [µm] and radial slope g' [-], (R, n_nodes), with sin and cos carried along each
+    section by rotation (model §7 ``sinewave2d``)."""
+    return evaluate_lines(
+        _sinewave2d_lines_kernel,
+        first_um,
+        spacing_um,
+        offset,
+        n_nodes,
+        cos_t,
+        sin_t,
+        *_sinewave2d_args(**params),
+    )
 
 
 def sinewave2d_gradient_bound(
@@ -142,6 +229,7 @@ def sinewave2d_curvature_bound(
     },
     gradient_bound=sinewave2d_gradient_bound,
     curvature_bound=sinewave2d_curvature_bound,
+    lines=sinewave2d_lines,
 )
 def sinewave2d(
     x: np.ndarray,
@@ -169,55 +257,90 @@ def sinewave2d(
     -------
     f [µm], ∂f/∂x [-], ∂f/∂y [-], each of the shape of ``x``.
     """
-    return evaluate_flat(
-        _sinewave2d_kernel,
-        x,
-        y,
-        float(amplitude_x_um),
-        float(amplitude_y_um),
-        2.0 * math.pi / wavelength_x_um,
-        2.0 * math.pi / wavelength_y_um,
-        math.radians(phase_x_deg),
-        math.radians(phase_y_deg),
+    args = _sinewave2d_args(
+        amplitude_x_um, amplitude_y_um, wavelength_x_um, wavelength_y_um, phase_x_deg, phase_y_deg
     )
+    return evaluate_flat(_sinewave2d_kernel, x, y, *args)
 
 
 # --------------------------------------------------------------------------- lens_array
-@njit(nogil=True, cache=True)
-def _lens_array_kernel(x, y, R, h, pitch, nx, ny, f, fx, fy):  # pragma: no cover - jit
+@njit(nogil=True, cache=True, inline="always")
+def _lens_point(x, y, R, h, pitch, nx, ny):  # pragma: no cover - jit
+    """Height [µm] and gradient [-] of the lens array at one point (see :func:`lens_array`)."""
     a = math.sqrt(2.0 * h * R - h * h)
     rt = 0.5 * R
     Rt = a * (1.0 + rt / R)
-    zc = rt * (R - h) / R  # depth of the torus tube centre below the plane z = 0
-    plane = rt * h / R
     cx0 = 0.5 * (nx - 1)
     cy0 = 0.5 * (ny - 1)
+    # nearest lenslet centre, clipped to the grid of lenslets
+    i = math.floor(x / pitch + cx0 + 0.5)
+    j = math.floor(y / pitch + cy0 + 0.5)
+    i = min(max(i, 0), nx - 1)
+    j = min(max(j, 0), ny - 1)
+    dx = x - (i - cx0) * pitch
+    dy = y - (j - cy0) * pitch
+    r = math.sqrt(dx * dx + dy * dy)
+    if r <= a:
+        root = math.sqrt(R * R - r * r)
+        f = R - h - root
+        dfdr = r / root
+    elif r <= Rt:
+        root = math.sqrt(max(rt * rt - (r - Rt) * (r - Rt), 0.0))
+        f = root - rt * (R - h) / R  # the torus tube centre lies rt·(R − h)/R below z = 0
+        dfdr = -(r - Rt) / root if root > 0.0 else 0.0
+    else:
+        f = rt * h / R
+        dfdr = 0.0
+    if r > 0.0:
+        return f, dfdr * dx / r, dfdr * dy / r
+    return f, 0.0, 0.0
+
+
+@njit(nogil=True, cache=True)
+def _lens_array_kernel(x, y, R, h, pitch, nx, ny, f, fx, fy):  # pragma: no cover - jit
     for n in range(x.size):
-        # nearest lenslet centre, clipped to the grid of lenslets
-        i = math.floor(x[n] / pitch + cx0 + 0.5)
-        j = math.floor(y[n] / pitch + cy0 + 0.5)
-        i = min(max(i, 0), nx - 1)
-        j = min(max(j, 0), ny - 1)
-        dx = x[n] - (i - cx0) * pitch
-        dy = y[n] - (j - cy0) * pitch
-        r = math.sqrt(dx * dx + dy * dy)
-        if r <= a:
-            root = math.sqrt(R * R - r * r)
-            f[n] = R - h - root
-            dfdr = r / root
-        elif r <= Rt:
-            root = math.sqrt(max(rt * rt - (r - Rt) * (r - Rt), 0.0))
-            f[n] = root - zc
-            dfdr = -(r - Rt) / root if root > 0.0 else 0.0
-        else:
-            f[n] = plane
-            dfdr = 0.0
-        if r > 0.0:
-            fx[n] = dfdr * dx / r
-            fy[n] = dfdr * dy / r
-        else:
-            fx[n] = 0.0
-            fy[n] = 0.0
+        f[n], fx[n], fy[n] = _lens_point(x[n], y[n], R, h, pitch, nx, ny)
+
+
+@njit(nogil=True, cache=True)
+def _lens_array_lines_kernel(first, spacing, offset, ct, st, R, h, pitch, nx, ny, g, gp):  # noqa: E501  # pragma: no cover - jit
+    n_rays, n_nodes = g.shape
+    for i in range(n_rays):
+        c = ct[i]
+        s = st[i]
+        for j in range(n_nodes):
+            r = first[i] - (j - offset) * spacing
+            f, fx, fy = _lens_point(r * c, r * s, R, h, pitch, nx, ny)
+            g[i, j] = f
+            gp[i, j] = fx * c + fy * s
+
+
+def lens_array_lines(
+    first_um: np.ndarray,
+    spacing_um: float,
+    offset: int,
+    n_nodes: int,
+    cos_t: np.ndarray,
+    sin_t: np.ndarray,
+    *,
+    radius_um: float,
+    sag_um: float,
+    pitch_um: float,
+    count_x: int,
+    count_y: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`lens_array` on the radial sections of a path grid (:func:`evaluate_lines`):
+    height g [µm] and radial slope g' [-], (R, n_nodes), in one pass (model §7 ``lens_array``)."""
+    _check_lens(radius_um, sag_um)
+    args = (float(radius_um), float(sag_um), float(pitch_um), int(count_x), int(count_y))
+    return evaluate_lines(
+        _lens_array_lines_kernel, first_um, spacing_um, offset, n_nodes, cos_t, sin_t, *args
+    )
+
+
+def _check_lens(radius_um: float, sag_um: float) -> None:
+    if not 0.0 < sag_um < radius_um:
+        raise ValueError(f"lens_array needs 0 < sag_um < radius_um, got {sag_um}, {radius_um}")
 
 
 def lens_array_gradient_bound(*, radius_um: float, sag_um: float, **_: float) -> float:
@@ -250,6 +373,7 @@ def lens_array_curvature_bound(*, radius_um: float, sag_um: float, **_: float) -
     },
     gradient_bound=lens_array_gradient_bound,
     curvature_bound=lens_array_curvature_bound,
+    lines=lens_array_lines,
 )
 def lens_array(
     x: np.ndarray,
@@ -279,8 +403,7 @@ def lens_array(
     -------
     f [µm], ∂f/∂x [-], ∂f/∂y [-].
     """
-    if not 0.0 < sag_um < radius_um:
-        raise ValueError(f"lens_array needs 0 < sag_um < radius_um, got {sag_um}, {radius_um}")
+    _check_lens(radius_um, sag_um)
     return evaluate_flat(
         _lens_array_kernel, x, y, float(radius_um), float(sag_um), float(pitch_um), int(count_x), int(count_y)
     )

@@ -109,3 +109,41 @@ def test_catalog_surfaces_build_callables():
     spec = catalogs.entry("surfaces", "sinewave2d")
     f, _, _ = catalogs.surface_callable(spec)(np.array([0.0]), np.array([0.0]))
     assert f[0] == pytest.approx(1.0)  # both cosines at their crest
+
+
+LINE_FAMILIES = {"sinewave2d": SINE, "lens_array": LENS}
+
+
+def test_the_reference_families_have_line_evaluators():
+    assert {name for name, fam in FAMILIES.items() if fam.lines is not None} >= set(LINE_FAMILIES)
+
+
+@pytest.mark.parametrize("name", sorted(LINE_FAMILIES))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    spacing=st.floats(0.05, 20.0),
+    offset=st.integers(0, 40),
+    n_nodes=st.integers(1, 700),
+)
+def test_line_evaluator_equals_the_section_of_the_pointwise_surface(name, seed, spacing, offset, n_nodes):
+    # the line evaluators sample the node grid of path_grid in one pass; sinewave2d carries
+    # its sin/cos by rotation between exact anchors, which may move g by a few 1e-15
+    # relative, so it is compared to 1e-12 µm (1e-9 nm), lens_array to the last bit
+    from ftsweep.stages.interpolation import path_grid
+
+    rng = np.random.default_rng(seed)
+    family, params = FAMILIES[name], LINE_FAMILIES[name]
+    grid = path_grid(np.sort(rng.uniform(0.0, math.pi, 3)), rng.uniform(100.0, 900.0), 4.0 * spacing, 4, 0.0)
+    node_r = grid.first_pass[:, None] - (np.arange(n_nodes)[None, :] - offset) * spacing
+    ct, sn = np.cos(grid.ray_theta[:, None]), np.sin(grid.ray_theta[:, None])
+    g0, gp0 = radial_section(lambda x, y: family.evaluate(x, y, **params), node_r, ct, sn)
+    g1, gp1 = family.lines(grid.first_pass, spacing, offset, n_nodes, ct, sn, **params)
+    assert g1.shape == gp1.shape == node_r.shape
+    tol = 0.0 if name == "lens_array" else 1e-12
+    np.testing.assert_allclose(g1, g0, rtol=0.0, atol=tol)
+    np.testing.assert_allclose(gp1, gp0, rtol=0.0, atol=tol)
+
+
+def test_line_evaluator_refuses_mismatched_rays():
+    with pytest.raises(ValueError, match="one cos and sin per ray"):
+        FAMILIES["sinewave2d"].lines(np.zeros(3), 1.0, 0, 5, np.ones(2), np.zeros(2), **SINE)

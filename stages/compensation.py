@@ -160,62 +160,79 @@ def _check_slope(gp: np.ndarray, gradient_bound: float) -> None:
         )
 
 
-def _check_curvature(gp: np.ndarray, gp_prev: np.ndarray, ds: np.ndarray, curvature_bound: float) -> None:
-    """By the mean value theorem |Δg'/Δs| ≤ sup|g''| ≤ K: a larger difference quotient proves
-    the declared curvature bound wrong (and the concavity the secant solver relies on)."""
-    change, step = np.abs(gp - gp_prev), np.abs(ds)
-    # rounding of g' (~1e-16) divided by a small step must not read as curvature
-    bad = change - 1e-12 > curvature_bound * (1.0 + 1e-6) * step
-    if bad.any():
-        with np.errstate(divide="ignore"):  # a jump of g' at no step is infinitely curved
-            worst = float(np.max(change[bad] / step[bad]))
-        raise ValueError(
-            f"surface curvature {worst:.4g} /µm exceeds the curvature bound {curvature_bound:.4g} /µm "
-            "given to exact compensation; raise or remove the bound"
-        )
-
-
 def _secant_max(surface, rho, ct, st, rc, half, bounds, tol_um, max_iter):
     """Maximise h(s) = g(ρ+s) − arc(s) over |s| ≤ half where h is strictly concave: the root
     of the decreasing h'(s) = g'(ρ+s) − s/sqrt(Rc² − s²) by secant steps, bracketed by
     [−half, half] (where h' ≥ 0 ≥ h' because |g'| ≤ G) and bisected when a step leaves the
-    bracket. Starts at s = 0 and the slope-predicted contact Rc·g'/sqrt(1 + g'²)."""
+    bracket. Starts at s = 0 and the slope-predicted contact Rc·g'/sqrt(1 + g'²). The surface
+    is evaluated once per iteration on the points still moving; the rest of an iteration is
+    one pass of :func:`_secant_update`."""
     gradient_bound, curvature_bound = bounds
     f0, g0 = radial_section(surface, rho, ct, st)
     _check_slope(g0, gradient_bound)
     best = f0.copy()
-    n = rho.size
-    a = np.where(g0 > 0.0, 0.0, -half)
-    b = np.where(g0 > 0.0, half, 0.0)
-    s_prev, d_prev = np.zeros(n), g0.copy()  # h'(0) = g'(ρ): the arc is level at its bottom
-    gp_prev = g0.copy()
-    s = np.clip(rc * g0 / np.sqrt(1.0 + g0 * g0), a, b)
     idx = np.flatnonzero(g0 != 0.0)
-    a, b, s, s_prev, d_prev, gp_prev = a[idx], b[idx], s[idx], s_prev[idx], d_prev[idx], gp_prev[idx]
+    g = g0[idx]
+    a = np.where(g > 0.0, 0.0, -half)
+    b = np.where(g > 0.0, half, 0.0)
+    s_prev, d_prev, gp_prev = np.zeros(idx.size), g.copy(), g.copy()  # h'(0) = g'(ρ)
+    s = np.clip(rc * g / np.sqrt(1.0 + g * g), a, b)
+    n = idx.size
     for _ in range(max_iter):
-        if idx.size == 0:
+        if n == 0:
             break
-        f, gp = radial_section(surface, rho[idx] + s, ct[idx], st[idx])
+        f, gp = radial_section(surface, rho[idx[:n]] + s[:n], ct[idx[:n]], st[idx[:n]])
         _check_slope(gp, gradient_bound)
-        _check_curvature(gp, gp_prev, s - s_prev, curvature_bound)
-        root = np.sqrt(rc * rc - s * s)
-        best[idx] = np.maximum(best[idx], f - (rc - root))
-        d = gp - s / root
-        a = np.where(d > 0.0, s, a)
-        b = np.where(d < 0.0, s, b)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(d != d_prev, d * (s - s_prev) / (d - d_prev), np.nan)
-        s_new = s - step
-        inside = np.isfinite(s_new) & (s_new > a) & (s_new < b)
+        state = (idx, s, s_prev, d_prev, gp_prev, a, b)
+        n, worst = _secant_update(f, gp, rc, tol_um, curvature_bound, *state, best)
+        if worst > 0.0:
+            raise ValueError(
+                f"surface curvature {worst:.4g} /µm exceeds the curvature bound {curvature_bound:.4g} "
+                "/µm given to exact compensation; raise or remove the bound"
+            )
+    return best
+
+
+@njit(nogil=True, cache=True)
+def _secant_update(f, gp, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, gp_prev, a, b, best):  # noqa: E501  # pragma: no cover - jit
+    """One secant iteration of :func:`_secant_max` on its ``f.size`` active points, in place:
+    records h at s in ``best``, moves s, and packs the points still moving to the front of
+    the state arrays. Returns their number and the largest difference quotient |Δg'/Δs|
+    found above the curvature bound K (0 when none: by the mean value theorem it is at most
+    sup|g''| ≤ K, so a larger one proves the declared bound, and the concavity the solver
+    relies on, wrong)."""
+    n_keep = 0
+    worst = 0.0
+    for i in range(f.size):
+        si, ds = s[i], s[i] - s_prev[i]
+        change = abs(gp[i] - gp_prev[i])
+        # rounding of g' (~1e-16) divided by a small step must not read as curvature
+        if change - 1e-12 > curvature_bound * (1.0 + 1e-6) * abs(ds):
+            worst = max(worst, change / abs(ds) if ds != 0.0 else math.inf)
+        root = math.sqrt(rc * rc - si * si)
+        p = idx[i]
+        h = f[i] - (rc - root)
+        if h > best[p] or h != h:
+            best[p] = h
+        d = gp[i] - si / root
+        ai = si if d > 0.0 else a[i]
+        bi = si if d < 0.0 else b[i]
+        step = d * ds / (d - d_prev[i]) if d != d_prev[i] else math.nan
+        s_new = si - step
+        inside = math.isfinite(s_new) and ai < s_new < bi
         # a secant step below tol means s is within ~tol of the contact: w is then off by at
         # most ½·|h''|·tol² (~1e-10 µm), so that step is not evaluated
-        done = (inside & (np.abs(step) < tol_um)) | (d == 0.0) | (b - a < tol_um)
-        s_prev, d_prev, gp_prev = s, d, gp
-        s = np.where(inside, s_new, 0.5 * (a + b))
-        keep = ~done
-        idx, a, b, s = idx[keep], a[keep], b[keep], s[keep]
-        s_prev, d_prev, gp_prev = s_prev[keep], d_prev[keep], gp_prev[keep]
-    return best
+        done = (inside and abs(step) < tol_um) or d == 0.0 or bi - ai < tol_um
+        if not done:
+            idx[n_keep] = p
+            s_prev[n_keep] = si
+            d_prev[n_keep] = d
+            gp_prev[n_keep] = gp[i]
+            a[n_keep] = ai
+            b[n_keep] = bi
+            s[n_keep] = s_new if inside else 0.5 * (ai + bi)
+            n_keep += 1
+    return n_keep, worst
 
 
 def _scan_max(surface, rho, ct, st, rc, half, count, gradient_bound, tol_um, max_iter):

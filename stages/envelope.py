@@ -34,15 +34,10 @@ def _crossing(pa, wa, pb, wb, rc):  # pragma: no cover - jit
     return 0.5 * (pa + pb) + math.sqrt(rc * rc - 0.25 * d2) * dw / d
 
 
-@njit(nogil=True, cache=True)
-def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover - jit
-    """Lower envelope of arcs at ``pos`` [µm] (ascending) with lowest points ``w`` [µm],
-    evaluated at ``query`` [µm] (ascending) into ``out`` [µm] (model §5).
-
-    ``stack`` (int64) and ``breaks`` (float64) are scratch arrays of at least ``pos.size``;
-    on return ``stack[:n]`` holds the winning arcs in order and ``breaks[1:n]`` where each
-    takes over (the cusp peaks). Returns n.
-    """
+@njit(nogil=True, cache=True, inline="always")
+def _hull(pos, w, rc, stack, breaks):  # pragma: no cover - jit
+    """The winning arcs of :func:`lower_envelope`, in order, into ``stack[:n]`` with where
+    each takes over in ``breaks[1:n]``; returns n."""
     top = -1
     for k in range(pos.size):
         push = True
@@ -61,15 +56,34 @@ def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover -
         top += 1
         stack[top] = k
         breaks[top] = -math.inf if top == 0 else x
+    return top + 1
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _arc_at(r, m, n_arcs, pos, w, rc, stack, breaks):  # pragma: no cover - jit
+    """Height of the envelope at ``r`` [µm] ≥ the previous query, the winning arc's slot
+    ``m`` advanced to it; returns (height, m)."""
+    while m < n_arcs - 1 and breaks[m + 1] <= r:
+        m += 1
+    k = stack[m]
+    d = r - pos[k]
+    return w[k] + rc - math.sqrt(max(rc * rc - d * d, 0.0)), m
+
+
+@njit(nogil=True, cache=True)
+def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover - jit
+    """Lower envelope of arcs at ``pos`` [µm] (ascending) with lowest points ``w`` [µm],
+    evaluated at ``query`` [µm] (ascending) into ``out`` [µm] (model §5).
+
+    ``stack`` (int64) and ``breaks`` (float64) are scratch arrays of at least ``pos.size``;
+    on return ``stack[:n]`` holds the winning arcs in order and ``breaks[1:n]`` where each
+    takes over (the cusp peaks). Returns n.
+    """
+    n_arcs = _hull(pos, w, rc, stack, breaks)
     m = 0
     for q in range(query.size):
-        r = query[q]
-        while m < top and breaks[m + 1] <= r:
-            m += 1
-        k = stack[m]
-        d = r - pos[k]
-        out[q] = w[k] + rc - math.sqrt(max(rc * rc - d * d, 0.0))
-    return top + 1
+        out[q], m = _arc_at(query[q], m, n_arcs, pos, w, rc, stack, breaks)
+    return n_arcs
 
 
 @njit(nogil=True, cache=True)
@@ -89,7 +103,6 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
         fall; these are the exact peaks, which move off the nodes by about Rc·slope.
     """
     n_rays, n_nodes = node_r.shape
-    z[:, :] = np.nan
     cusp_r[:, :] = np.nan
     cusp_z[:, :] = np.nan
     kmax = pass_w.shape[1]
@@ -97,8 +110,6 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
     w = np.empty(2 * kmax)
     stack = np.empty(2 * kmax, dtype=np.int64)
     breaks = np.empty(2 * kmax)
-    query = np.empty(2 * n_nodes)
-    out = np.empty(2 * n_nodes)
     for line in range(n_rays // 2):
         own, opp = 2 * line, 2 * line + 1
         # passes along the line in ascending position: opposite ray (−ρ'), then own (+ρ)
@@ -119,14 +130,18 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
         last_own = first
         while last_own < n_nodes and node_r[own, last_own] >= 0.0:
             last_own += 1
-        nq = 0
+        z[opp, :first] = np.nan
+        z[opp, last_opp:] = np.nan
+        z[own, :first] = np.nan
+        z[own, last_own:] = np.nan
+        # the nodes in ascending position: the opposite ray's at −r (j upwards), then the own
+        # ray's (j downwards)
+        n_arcs = _hull(pos[:n], w[:n], rc, stack, breaks)
+        m = 0
         for j in range(first, last_opp):
-            query[nq] = -node_r[opp, j]
-            nq += 1
+            z[opp, j], m = _arc_at(-node_r[opp, j], m, n_arcs, pos, w, rc, stack, breaks)
         for j in range(last_own - 1, first - 1, -1):
-            query[nq] = node_r[own, j]
-            nq += 1
-        n_arcs = lower_envelope(pos[:n], w[:n], rc, query[:nq], out[:nq], stack, breaks)
+            z[own, j], m = _arc_at(node_r[own, j], m, n_arcs, pos, w, rc, stack, breaks)
         r_opp = node_r[opp, first] if first < n_nodes else -1.0
         r_own = node_r[own, first] if first < n_nodes else -1.0
         c_opp = 0
@@ -144,13 +159,6 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
                 cusp_r[own, c_own] = x
                 cusp_z[own, c_own] = zc
                 c_own += 1
-        q = 0
-        for j in range(first, last_opp):
-            z[opp, j] = out[q]
-            q += 1
-        for j in range(last_own - 1, first - 1, -1):
-            z[own, j] = out[q]
-            q += 1
 
 
 def machined_lines(

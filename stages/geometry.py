@@ -8,6 +8,7 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
+from numba import njit
 
 SurfaceFn = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -84,6 +85,13 @@ def radial_section(
 
 
 # --------------------------------------------------------------------------- apertures
+@njit(nogil=True, cache=True)
+def _inside_rectangle_rows(r, ct, st, hw, hh, out):  # pragma: no cover - jit
+    for i in range(r.shape[0]):
+        for j in range(r.shape[1]):
+            out[i, j] = abs(r[i, j] * ct[i]) <= hw and abs(r[i, j] * st[i]) <= hh
+
+
 class Aperture(NamedTuple):
     """A centred aperture: ``circle`` of ``radius_um`` or ``rectangle`` ``width_um`` × ``height_um``
     (model §2 and §7). All lengths in µm."""
@@ -103,7 +111,15 @@ class Aperture(NamedTuple):
         """:meth:`contains` for points at radius ``r`` [µm] on sections of angle θ (cos, sin)."""
         if self.shape == "circle":
             return np.abs(r) <= self.radius_um
-        return (np.abs(r * cos_t) <= 0.5 * self.width_um) & (np.abs(r * sin_t) <= 0.5 * self.height_um)
+        hw, hh = 0.5 * self.width_um, 0.5 * self.height_um
+        if r.ndim == 2 and np.shape(cos_t) == np.shape(sin_t) == (r.shape[0], 1):
+            # the case runner's (rays, nodes) grids: one pass instead of six array operations
+            out = np.empty(r.shape, dtype=np.bool_)
+            _inside_rectangle_rows(
+                np.ascontiguousarray(r), cos_t[:, 0].copy(), sin_t[:, 0].copy(), hw, hh, out
+            )
+            return out
+        return (np.abs(r * cos_t) <= hw) & (np.abs(r * sin_t) <= hh)
 
     @property
     def half_extent_um(self) -> tuple[float, float]:

@@ -58,6 +58,29 @@ def evaluate_lines(
     return g, gp
 
 
+def line_evaluator(
+    kernel: Callable[..., None], kernel_args: Callable[..., tuple[Any, ...]], doc: str
+) -> Callable[..., tuple[np.ndarray, np.ndarray]]:
+    """A family's ``lines`` evaluator ``fn(first, spacing, offset, n_nodes, cos_t, sin_t,
+    **params) -> (g, g')``: :func:`evaluate_lines` of ``kernel`` with the kernel arguments
+    ``kernel_args(**params)`` (which also checks the parameters), documented by ``doc``."""
+
+    def lines(
+        first_um: np.ndarray,
+        spacing_um: float,
+        offset: int,
+        n_nodes: int,
+        cos_t: np.ndarray,
+        sin_t: np.ndarray,
+        **params: Any,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        args = kernel_args(**params)
+        return evaluate_lines(kernel, first_um, spacing_um, offset, n_nodes, cos_t, sin_t, *args)
+
+    lines.__doc__ = doc
+    return lines
+
+
 def sampled_gradient_bound(
     surface: SurfaceFn, half_width_um: float, n: int = 401, margin: float = 1.25
 ) -> float:

@@ -24,7 +24,7 @@ from .geometry import (
     Aperture,
     SurfaceFn,
     evaluate_flat,
-    evaluate_lines,
+    line_evaluator,
     radial_section,
     sampled_gradient_bound,
 )
@@ -147,6 +147,7 @@ def _sinewave2d_lines_kernel(first, spacing, offset, ct, st, ax, ay, kx, ky, px,
 
 
 def _sinewave2d_args(
+    *,
     amplitude_x_um: float,
     amplitude_y_um: float,
     wavelength_x_um: float,
@@ -154,6 +155,7 @@ def _sinewave2d_args(
     phase_x_deg: float,
     phase_y_deg: float,
 ) -> tuple[float, ...]:
+    """The kernels' arguments (Ax, Ay, kx, ky, φx, φy) of :func:`sinewave2d`'s parameters."""
     return (
         float(amplitude_x_um),
         float(amplitude_y_um),
@@ -164,28 +166,13 @@ def _sinewave2d_args(
     )
 
 
-def sinewave2d_lines(
-    first_um: np.ndarray,
-    spacing_um: float,
-    offset: int,
-    n_nodes: int,
-    cos_t: np.ndarray,
-    sin_t: np.ndarray,
-    **params: float,
-) -> tuple[np.ndarray, np.ndarray]:
+sinewave2d_lines = line_evaluator(
+    _sinewave2d_lines_kernel,
+    _sinewave2d_args,
     """:func:`sinewave2d` on the radial sections of a path grid (:func:`evaluate_lines`):
     height g [µm] and radial slope g' [-], (R, n_nodes), with sin and cos carried along each
-    section by rotation (model §7 ``sinewave2d``)."""
-    return evaluate_lines(
-        _sinewave2d_lines_kernel,
-        first_um,
-        spacing_um,
-        offset,
-        n_nodes,
-        cos_t,
-        sin_t,
-        *_sinewave2d_args(**params),
-    )
+    section by rotation (model §7 ``sinewave2d``).""",
+)
 
 
 def sinewave2d_gradient_bound(
@@ -258,7 +245,12 @@ def sinewave2d(
     f [µm], ∂f/∂x [-], ∂f/∂y [-], each of the shape of ``x``.
     """
     args = _sinewave2d_args(
-        amplitude_x_um, amplitude_y_um, wavelength_x_um, wavelength_y_um, phase_x_deg, phase_y_deg
+        amplitude_x_um=amplitude_x_um,
+        amplitude_y_um=amplitude_y_um,
+        wavelength_x_um=wavelength_x_um,
+        wavelength_y_um=wavelength_y_um,
+        phase_x_deg=phase_x_deg,
+        phase_y_deg=phase_y_deg,
     )
     return evaluate_flat(_sinewave2d_kernel, x, y, *args)
 
@@ -311,32 +303,21 @@ def _lens_array_lines_kernel(first, spacing, offset, ct, st, R, h, pitch, nx, ny
             gp[i, j] = fx * c + fy * s
 
 
-def lens_array_lines(
-    first_um: np.ndarray,
-    spacing_um: float,
-    offset: int,
-    n_nodes: int,
-    cos_t: np.ndarray,
-    sin_t: np.ndarray,
-    *,
-    radius_um: float,
-    sag_um: float,
-    pitch_um: float,
-    count_x: int,
-    count_y: int,
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`lens_array` on the radial sections of a path grid (:func:`evaluate_lines`):
-    height g [µm] and radial slope g' [-], (R, n_nodes), in one pass (model §7 ``lens_array``)."""
-    _check_lens(radius_um, sag_um)
-    args = (float(radius_um), float(sag_um), float(pitch_um), int(count_x), int(count_y))
-    return evaluate_lines(
-        _lens_array_lines_kernel, first_um, spacing_um, offset, n_nodes, cos_t, sin_t, *args
-    )
-
-
-def _check_lens(radius_um: float, sag_um: float) -> None:
+def _lens_array_args(
+    *, radius_um: float, sag_um: float, pitch_um: float, count_x: int, count_y: int
+) -> tuple[float, float, float, int, int]:
+    """The kernels' arguments (R, h, pitch, nx, ny) of :func:`lens_array`'s parameters."""
     if not 0.0 < sag_um < radius_um:
         raise ValueError(f"lens_array needs 0 < sag_um < radius_um, got {sag_um}, {radius_um}")
+    return float(radius_um), float(sag_um), float(pitch_um), int(count_x), int(count_y)
+
+
+lens_array_lines = line_evaluator(
+    _lens_array_lines_kernel,
+    _lens_array_args,
+    """:func:`lens_array` on the radial sections of a path grid (:func:`evaluate_lines`):
+    height g [µm] and radial slope g' [-], (R, n_nodes), in one pass (model §7 ``lens_array``).""",
+)
 
 
 def lens_array_gradient_bound(*, radius_um: float, sag_um: float, **_: float) -> float:
@@ -399,10 +380,10 @@ def lens_array(
     -------
     f [µm], ∂f/∂x [-], ∂f/∂y [-].
     """
-    _check_lens(radius_um, sag_um)
-    return evaluate_flat(
-        _lens_array_kernel, x, y, float(radius_um), float(sag_um), float(pitch_um), int(count_x), int(count_y)
+    args = _lens_array_args(
+        radius_um=radius_um, sag_um=sag_um, pitch_um=pitch_um, count_x=count_x, count_y=count_y
     )
+    return evaluate_flat(_lens_array_kernel, x, y, *args)
 
 
 # --------------------------------------------------------------------------- chebyshev_freeform

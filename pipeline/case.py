@@ -8,6 +8,7 @@ metrics. The part is simulated on batches of feed-plane lines so memory stays bo
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -16,6 +17,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal, Optional
 
 import numpy as np
@@ -24,7 +26,8 @@ from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_s
 from ftsweep import catalogs, result
 from ftsweep.catalogs import Strict
 from ftsweep.result import STAGES
-from ftsweep.stages import compensation, dynamics, envelope, interpolation, layouts, metrics
+from ftsweep.stages import compensation, dynamics, envelope, interpolation, layouts, metrics, spiral
+from ftsweep.stages.interpolation import Program
 from ftsweep.stages.layouts import Layout
 from ftsweep.stages.surfaces import radial_section
 
@@ -103,19 +106,56 @@ class Resolution(Strict):
 
 
 class LayoutRequest(Strict):
-    """A layout method with either explicit pitches or a target point count and aspect ratio.
+    """A program: a table (ring or mesh) with either explicit pitches or a target point count
+    and aspect ratio, or a spiral path program with one sampling rule ([4]).
 
     pitch: (Δρ [µm], Δθ [deg]) for rings, (Δx [µm], Δy [µm]) for meshes.
     points, aspect: target N and α (Δρ/Δθ [µm/deg] for rings, Δx/Δy for meshes).
+    points_per_rev, arc_um, chord_um: the spiral's rule (constant angle, constant arc length
+    [µm], chord-error budget [µm]); residual_um: the residual budget [µm] that sets the
+    spiral's feed ([4] eqs. 1–3) instead of the cutting entry's.
     """
 
-    kind: Literal["ring", "mesh"]
+    kind: Literal["ring", "mesh", "spiral"]
     pitch: Optional[tuple[PositiveFloat, PositiveFloat]] = None
     points: Optional[PositiveFloat] = None
     aspect: Optional[PositiveFloat] = None
+    points_per_rev: Optional[int] = Field(None, ge=3, description="spiral: points per revolution")
+    arc_um: Optional[PositiveFloat] = Field(None, description="spiral: path length between points [µm]")
+    chord_um: Optional[PositiveFloat] = Field(None, description="spiral: chord-error budget Δcho [µm]")
+    residual_um: Optional[PositiveFloat] = Field(
+        None, description="spiral: residual (cusp) budget Δres [µm] that sets the feed"
+    )
+
+    @model_serializer(mode="wrap")
+    def _stable_dump(self, handler: Any) -> Any:
+        # the spiral's fields are left out when unset, so table cases keep their keys
+        data = handler(self)
+        if isinstance(data, dict):
+            for name in SPIRAL_FIELDS:
+                if data.get(name) is None:
+                    data.pop(name, None)
+        return data
 
     @model_validator(mode="after")
     def _one_way(self) -> LayoutRequest:
+        rules = [name for name in SPIRAL_RULES if getattr(self, name) is not None]
+        if self.kind == "spiral":
+            table = [n for n in ("pitch", "points", "aspect") if getattr(self, n) is not None]
+            if table:
+                raise ValueError(
+                    f"a spiral program takes no {', '.join(table)}: give one of points_per_rev, "
+                    "arc_um or chord_um"
+                )
+            if len(rules) != 1:
+                raise ValueError(
+                    "a spiral program needs exactly one sampling rule: points_per_rev, arc_um or "
+                    f"chord_um (got {', '.join(rules) or 'none'})"
+                )
+            return self
+        spiral = [n for n in SPIRAL_FIELDS if getattr(self, n) is not None]
+        if spiral:
+            raise ValueError(f"{', '.join(spiral)} belong(s) to spiral programs, not to a {self.kind} table")
         target = self.points is not None or self.aspect is not None
         if self.pitch is not None and target:
             raise ValueError(
@@ -130,6 +170,18 @@ class LayoutRequest(Strict):
         if self.points is None or self.aspect is None:
             raise ValueError("this layout request gives explicit pitches, not a target")
         return self.points, self.aspect
+
+    def spiral_rule(self) -> tuple[str, float]:
+        """(rule, parameter) of a spiral request: ("angle", Np), ("arc", µm) or ("chord", µm)."""
+        for name, rule in zip(SPIRAL_RULES, spiral.RULES, strict=True):
+            value = getattr(self, name)
+            if value is not None:
+                return rule, float(value)
+        raise ValueError("this request is not a spiral program")
+
+
+SPIRAL_RULES = ("points_per_rev", "arc_um", "chord_um")
+SPIRAL_FIELDS = (*SPIRAL_RULES, "residual_um")
 
 
 class Case(Strict):
@@ -155,6 +207,8 @@ def build_layout(surface: Any, request: LayoutRequest) -> Layout:
 
     Rings cover the aperture's circumscribed radius; meshes its bounding box.
     """
+    if request.kind == "spiral":
+        raise ValueError("a spiral program is planned with its commands (spiral_program), not as a table")
     ap = catalogs.aperture_of(surface)
     if request.kind == "ring":
         radius = ap.outer_radius_um
@@ -168,16 +222,19 @@ def build_layout(surface: Any, request: LayoutRequest) -> Layout:
     return layouts.mesh_layout_for(width, height, *request.target())
 
 
-def angular_samples(layout: Layout, rho0_um: float, resolution: Resolution) -> int:
+def angular_samples(layout: Program, rho0_um: float, resolution: Resolution) -> int:
     """Spindle angles sampled over 360° (even): ``n_theta`` if set, else ``samples_per_cell``
     per table cell along the outer circumference (Np cells for rings, 2πρ0/max(Δx, Δy) for
     meshes: bilinear error grows as the pitch squared, so the coarse direction's cells carry
-    the error that must be resolved); with ``angular_ladder``, the rule's count rounded up to
+    the error that must be resolved; for a spiral program, the segments of its most densely
+    sampled revolution); with ``angular_ladder``, the rule's count rounded up to
     the ladder's next rung (:func:`ladder_rung`)."""
     if resolution.n_theta is not None:
         n = resolution.n_theta
     else:
-        if layout.kind == "ring":
+        if isinstance(layout, spiral.SpiralPath):
+            n = resolution.samples_per_cell * layout.max_points_per_rev
+        elif layout.kind == "ring":
             n = resolution.samples_per_cell * layout.shape[1]
         else:
             cells = math.ceil(2.0 * math.pi * rho0_um / max(layout.pitch))
@@ -289,7 +346,10 @@ def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -
         )
 
 
-def _layout_point(layout: Layout, flat: int) -> str:
+def _layout_point(layout: Program, flat: int) -> str:
+    if isinstance(layout, spiral.SpiralPath):
+        rho, theta = float(layout.rho[flat]), float(layout.theta[flat])
+        return f"spiral point {flat} (ρ = {rho:.6g} µm, C = {math.degrees(theta):.6g}°)"
     i, j = np.unravel_index(flat, layout.shape)
     if layout.kind == "ring":
         rho = layout.origin[0] + i * layout.pitch[0]
@@ -327,19 +387,26 @@ STAGE_TIMERS = STAGES
 @dataclass(frozen=True)
 class ResolvedCase:
     """A case with its catalog entries looked up and every rule checked: all the stages need
-    (lengths µm). Built by :func:`resolve_case`."""
+    (lengths µm). Built by :func:`resolve_case`. For a spiral program, ``layout`` is its
+    :class:`~ftsweep.stages.spiral.SpiralPath` and ``values``/``gouge`` its compensated
+    commands [µm] and their gouge flags, planned with it (``plan_seconds``)."""
 
     case: Case
     surface_spec: Any
     machine: Any
     cutting: Any
-    layout: Layout
+    layout: Program
     surface: Any  # the surface callable fn(x, y) -> (f, ∂f/∂x, ∂f/∂y)
     aperture: Any
     feed_um: float
     nose_radius_um: float
     gradient_bound: float
     lines: Any = None  # the family's line evaluator (catalogs.line_sampler), or None
+    values: Optional[np.ndarray] = None
+    gouge: Optional[np.ndarray] = None
+    chord_error_um: float = math.nan
+    residual_error_um: float = math.nan
+    plan_seconds: float = 0.0
 
     @property
     def rho0_um(self) -> float:
@@ -348,32 +415,58 @@ class ResolvedCase:
 
 
 def resolve_case(
-    case: Case, catalog_folder: Any = None, specs: Optional[tuple[Any, Any, Any]] = None
+    case: Case,
+    catalog_folder: Any = None,
+    specs: Optional[tuple[Any, Any, Any]] = None,
+    program: Optional[tuple[spiral.SpiralPath, np.ndarray]] = None,
 ) -> ResolvedCase:
     """Look up a case's entries (or take ``specs``) and refuse what cannot be simulated: a
     feed not below 2·Rc (model §5), a layout the aperture or the
-    controller's capacity rules out, a surface without a finite slope bound."""
+    controller's capacity rules out, a surface without a finite slope bound.
+
+    A spiral case is planned here ([4]): its feed from the residual budget if it has
+    one, its points by its rule, their compensated commands; a given ``program`` (path,
+    commands [µm]), e.g. read back from an exported file, is taken as it stands instead."""
     surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
-    feed = case.feed_um or cutting.feed_um
     rc = case.nose_radius_um or cutting.nose_radius_um
+    request = case.layout
+    sections = section_samples(surface_spec, catalog_folder) if request.kind == "spiral" else None
+    if program is not None:
+        feed = program[0].feed_um
+    elif request.residual_um is not None and sections is not None:
+        if case.feed_um is not None:
+            raise CaseError("give either a feed or a residual budget (which sets the feed), not both")
+        feed = residual_feed_um(sections, request.residual_um, rc, case.surface)
+    else:
+        feed = case.feed_um or cutting.feed_um
     try:
         catalogs.check_feed(feed, rc)
     except ValueError as exc:
         raise CaseError(str(exc)) from None
-    try:
-        layout = build_layout(surface_spec, case.layout)
-    except ValueError as exc:
-        raise CaseError(f"layout: {exc}") from None
-    if layout.n_points > machine.capacity_points:
-        raise CaseError(
-            f"the {layout.kind} layout has {layout.n_points:,} points, over the capacity of machine "
-            f"'{case.machine}' ({machine.capacity_points:,}); use larger pitches or fewer points"
-        )
     bound = catalogs.gradient_bound(surface_spec, catalog_folder)
     if not math.isfinite(bound):
         raise CaseError(
             f"the slope bound of surface '{case.surface}' is not finite: the surface gives no finite "
             "slope on its aperture"
+        )
+    surface = catalogs.surface_callable(surface_spec, catalog_folder)
+    extra: dict[str, Any] = {}
+    if request.kind == "spiral":
+        t = time.perf_counter()
+        layout, extra = plan_spiral(case, surface_spec, surface, feed, rc, bound, program)
+        assert sections is not None
+        extra["residual_error_um"] = residual_error_um(sections, feed, rc)
+        extra["plan_seconds"] = time.perf_counter() - t
+    else:
+        try:
+            layout = build_layout(surface_spec, request)
+        except ValueError as exc:
+            raise CaseError(f"layout: {exc}") from None
+    if layout.n_points > machine.capacity_points:
+        raise CaseError(
+            f"the {layout.kind} {'program' if layout.kind == 'spiral' else 'layout'} has "
+            f"{layout.n_points:,} points, over the capacity of machine '{case.machine}' "
+            f"({machine.capacity_points:,}); use larger pitches, steps or budgets, or fewer points"
         )
     return ResolvedCase(
         case=case,
@@ -381,13 +474,120 @@ def resolve_case(
         machine=machine,
         cutting=cutting,
         layout=layout,
-        surface=catalogs.surface_callable(surface_spec, catalog_folder),
+        surface=surface,
         aperture=catalogs.aperture_of(surface_spec),
         feed_um=feed,
         nose_radius_um=rc,
         gradient_bound=bound,
         lines=catalogs.line_sampler(surface_spec),
+        **extra,
     )
+
+
+def plan_spiral(
+    case: Case,
+    surface_spec: Any,
+    surface: Any,
+    feed_um: float,
+    rc: float,
+    bound: float,
+    program: Optional[tuple[spiral.SpiralPath, np.ndarray]] = None,
+) -> tuple[spiral.SpiralPath, dict[str, Any]]:
+    """The spiral program of a case ([4]): its points by the request's rule from the
+    aperture's circumscribed radius to the centre, and their commands compensated as a
+    table's (model §4); or the given ``program`` as it stands (no gouge flags)."""
+    rho0 = float(catalogs.aperture_of(surface_spec).outer_radius_um)
+    if program is not None:
+        path, values = program
+        values = np.asarray(values, dtype=np.float64)
+        return path, {"values": values, "gouge": np.zeros(values.shape, dtype=bool)}
+
+    def compensated(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return compensation.compensate(
+            surface,
+            spiral.spiral_radius(phi, rho0, feed_um),
+            np.mod(phi, 2.0 * math.pi),
+            rc,
+            case.compensation,
+            bound,
+            n_scan=case.resolution.compensation_scan,
+            curvature_bound=catalogs.curvature_bound(surface_spec),
+        )
+
+    rule, value = case.layout.spiral_rule()
+    extra: dict[str, Any] = {}
+    try:
+        if rule == "angle":
+            path = spiral.constant_angle(rho0, feed_um, int(value))
+        elif rule == "arc":
+            path = spiral.constant_arc(rho0, feed_um, value)
+        else:
+            path, _, errors = spiral.chord_budget(rho0, feed_um, value, lambda phi: compensated(phi)[0])
+            extra["chord_error_um"] = float(errors.max()) if errors.size else 0.0
+    except ValueError as exc:
+        raise CaseError(f"spiral program: {exc}") from None
+    values, gouge = compensated(path.phi)
+    return path, {"values": values, "gouge": gouge, **extra}
+
+
+# residual-budget sampling of the radial sections ([4] eq. 1): radii × angles over the
+# circumscribed circle; the feed is the smallest over these samples inside the aperture
+SECTION_RADII = 2001
+SECTION_ANGLES = 720
+
+
+@functools.lru_cache(maxsize=16)
+def _section_samples(spec_json: str, folder: Optional[str]) -> tuple[np.ndarray, ...]:
+    from pydantic import TypeAdapter
+
+    spec = TypeAdapter(catalogs.surface_spec()).validate_json(spec_json)
+    path = None if folder is None else Path(folder)
+    surface = catalogs.surface_callable(spec, path)
+    aperture = catalogs.aperture_of(spec)
+    step = aperture.outer_radius_um / (SECTION_RADII - 1)
+    # r = 0 is left out: sections of umbrella-like surfaces have no curvature at the apex
+    theta = (np.arange(SECTION_ANGLES) * (2.0 * math.pi / SECTION_ANGLES))[:, None]
+    rho = np.repeat((np.arange(1, SECTION_RADII) * step)[None, :], SECTION_ANGLES, axis=0)
+    ct, st = np.cos(theta), np.sin(theta)
+    slope, second = spiral.section_curvature(surface, rho, ct, st, 0.25 * step)
+    inside = aperture.contains_polar(rho, ct, st)
+    radius = spiral.signed_radius_um(slope, second)
+    x, y = rho * ct, rho * st
+    return radius[inside], slope[inside], x[inside], y[inside]
+
+
+def section_samples(surface_spec: Any, catalog_folder: Any = None) -> tuple[np.ndarray, ...]:
+    """Signed radius of curvature [µm], slope [-] and place (x, y [µm]) of the radial
+    sections of the surface on a polar grid of :data:`SECTION_RADII` radii by
+    :data:`SECTION_ANGLES` angles inside the aperture ([4] eq. 1; cached per entry)."""
+    folder = None if catalog_folder is None else str(catalog_folder)
+    return _section_samples(surface_spec.model_dump_json(), folder)
+
+
+def residual_feed_um(sections: tuple[np.ndarray, ...], residual_um: float, rc: float, name: str) -> float:
+    """The feed [µm/rev] of a residual budget Δres [µm] ([4] eqs. 2–3): the smallest
+    over the part of :func:`ftsweep.stages.spiral.feed_for_cusp`. Refuses a part with a
+    concave section tighter than the nose radius, where no feed meets the budget."""
+    radius, slope, x, y = sections
+    if not residual_um < rc:
+        raise CaseError(f"the residual budget {residual_um:g} µm must be below the nose radius {rc:g} µm")
+    feeds = spiral.feed_for_cusp(residual_um, rc, radius, slope)
+    worst = int(np.argmin(feeds))
+    if not feeds[worst] > 0.0:
+        raise CaseError(
+            f"surface '{name}' has a concave section of radius {radius[worst]:.4g} µm at x = "
+            f"{x[worst]:.6g} µm, y = {y[worst]:.6g} µm, tighter than the nose radius {rc:g} µm: no "
+            "feed meets a residual budget there; use a smaller nose radius"
+        )
+    return float(feeds[worst])
+
+
+def residual_error_um(sections: tuple[np.ndarray, ...], feed_um: float, rc: float) -> float:
+    """Largest residual (cusp) height [µm] the feed leaves over the part, from each section's
+    curvature (the inverse of [4] eq. 2, :func:`ftsweep.stages.spiral.cusp_for_feed`)."""
+    radius, slope, _, _ = sections
+    cusp = spiral.cusp_for_feed(feed_um, rc, radius, slope)
+    return float(np.nanmax(cusp)) if np.isfinite(cusp).any() else math.nan
 
 
 @dataclass(frozen=True)
@@ -439,8 +639,9 @@ def run_case(
     specs: Optional[tuple[Any, Any, Any]] = None,
     max_nodes: float = MAX_NODES,
     lines: Optional[LineCache] = None,
+    program: Optional[tuple[spiral.SpiralPath, np.ndarray]] = None,
 ) -> dict[str, Any]:
-    """Predict the form error of one case (model §1–§6).
+    """Predict the form error of one case (model §1–§6), a table or a spiral program.
 
     Returns a flat record whose fields :mod:`ftsweep.result` declares (names, units, order):
     the resolved inputs (surface, layout, n_points, pitches, cutting conditions), the metrics
@@ -455,11 +656,13 @@ def run_case(
     a non-finite height, slope, command or metric fails the case naming where it occurred.
     With a ``lines`` cache, the layout-independent work on each batch of lines
     (:class:`LineData`) is taken from it when an earlier case computed it, and kept for later
-    cases: the result is the same.
+    cases: the result is the same. A spiral case is planned by its rule unless ``program``
+    (path, commands [µm]) gives it as stored, e.g. read from an exported program.
     """
     t_start = time.perf_counter()
-    rcase = resolve_case(case, catalog_folder, specs)
+    rcase = resolve_case(case, catalog_folder, specs, program)
     timer = Timer()
+    timer.seconds["compensation"] = rcase.plan_seconds
     t = time.perf_counter()
     table, gouge = _table_of(rcase, table, catalog_folder)
     timer.add("compensation", t)
@@ -505,17 +708,22 @@ def _table_of(
     rcase: ResolvedCase, table: Optional[np.ndarray], catalog_folder: Any
 ) -> tuple[np.ndarray, np.ndarray]:
     """The compensated control table [µm] and its gouge flags, or a given table checked
-    against the layout (no gouge flags: it is used as stored)."""
+    against the layout (no gouge flags: it is used as stored). A spiral program's commands
+    were planned with it (:func:`plan_spiral`)."""
     layout = rcase.layout
-    if table is None:
+    if table is None and rcase.values is not None and rcase.gouge is not None:
+        table, gouge = rcase.values, rcase.gouge
+    elif table is None:
+        assert isinstance(layout, Layout)
         table, gouge = control_table(
             rcase.case, layout, rcase.surface_spec, rcase.nose_radius_um, catalog_folder
         )
     else:
         table = np.asarray(table, dtype=np.float64)
-        if table.shape != layout.shape:
-            raise CaseError(f"the given table has shape {table.shape}, the layout {layout.shape}")
-        gouge = np.zeros(layout.shape, dtype=bool)
+        shape = layout.shape if isinstance(layout, Layout) else (layout.n_points,)
+        if table.shape != shape:
+            raise CaseError(f"the given table has shape {table.shape}, the layout {shape}")
+        gouge = np.zeros(shape, dtype=bool)
     require_finite(table, "the control table", lambda i: _layout_point(layout, i))
     return table, gouge
 
@@ -703,17 +911,32 @@ def _record(
     feasible, reason = dynamics.feasibility(
         dyn, machine.travel_um, machine.peak_accel_m_s2, machine.continuous_accel_m_s2, machine.bandwidth_hz
     )
-    pitch_names = result.pitch_names(layout.kind)
-    record: dict[str, Any] = {
-        "surface": case.surface,
-        "layout": layout.kind,
-        "n_points": layout.n_points,
-        "table_rows": layout.shape[0],
-        "table_cols": layout.shape[1],
-        pitch_names[0]: layout.pitch[0],
-        pitch_names[1]: layout.pitch[1],
-        "aspect_actual": layout.aspect,
-    }
+    record: dict[str, Any] = {"surface": case.surface, "layout": layout.kind, "n_points": layout.n_points}
+    if isinstance(layout, spiral.SpiralPath):
+        rule, value = case.layout.spiral_rule()
+        record.update(
+            spiral_rule=rule,
+            points_per_rev=value if rule == "angle" else math.nan,
+            arc_um=value if rule == "arc" else math.nan,
+            chord_um=value if rule == "chord" else math.nan,
+            residual_um=case.layout.residual_um or math.nan,
+            revolutions=layout.revolutions,
+            dphi_deg=layout.dphi_deg,
+            ds_um=layout.ds_um,
+            chord_error_nm=rcase.chord_error_um * 1e3,
+            residual_error_nm=rcase.residual_error_um * 1e3,
+        )
+    else:
+        pitch_names = result.pitch_names(layout.kind)
+        record.update(
+            {
+                "table_rows": layout.shape[0],
+                "table_cols": layout.shape[1],
+                pitch_names[0]: layout.pitch[0],
+                pitch_names[1]: layout.pitch[1],
+            }
+        )
+    record["aspect_actual"] = layout.aspect
     record.update(
         compensation=case.compensation,
         machine=case.machine,

@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from ftsweep import __version__, catalogs, result
-from ftsweep.case import LINE_CACHE_MB, MAX_NODES, Case, CaseError, Resolution, run_case
+from ftsweep.case import LINE_CACHE_MB, MAX_NODES, SPIRAL_FIELDS, Case, CaseError, Resolution, run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.io import dumps_json
 from ftsweep.sweep import MAX_CASES
@@ -160,9 +160,11 @@ def list_catalogs(as_json: bool) -> None:
 @click.option("--surface", required=True, metavar="NAME", help="Surface from catalogs/surfaces.yaml.")
 @click.option(
     "--layout",
-    type=click.Choice(["ring", "mesh"]),
+    type=click.Choice(["ring", "mesh", "spiral"]),
     default=None,
-    help="Layout method: ring (polar grid) or mesh (Cartesian grid). Default: the surface's.",
+    help="Program: a ring (polar grid) or mesh (Cartesian grid) table for an independent FTS "
+    "controller, or a spiral path program (points along the tool path, linear between them). "
+    "Default: the surface's table method.",
 )
 @click.option("--drho-um", type=float, help="Ring pitch Δρ [µm] (ring layout).")
 @click.option(
@@ -174,6 +176,17 @@ def list_catalogs(as_json: bool) -> None:
 @click.option("--dy-um", type=float, help="Mesh pitch Δy [µm] (mesh layout).")
 @click.option("--points", type=float, help="Target number of control points N (with --aspect).")
 @click.option("--aspect", type=float, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh).")
+@click.option("--points-per-rev", type=int, help="Spiral: constant-angle rule, points per revolution.")
+@click.option("--arc-um", type=float, help="Spiral: constant-arc rule, path length between points [µm].")
+@click.option(
+    "--chord-um", type=float, help="Spiral: chord-error budget Δcho [µm] that places each next point."
+)
+@click.option(
+    "--residual-um",
+    type=float,
+    help="Spiral: residual (cusp) budget Δres [µm]; the feed is the largest that keeps every cusp "
+    "within it, from each radial section's curvature (instead of --feed-um).",
+)
 @click.option("--feed-um", type=float, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
 @click.option("--nose-radius-um", type=float, help="Tool nose radius Rc [µm]. Default: cutting entry.")
 @click.option(
@@ -223,17 +236,25 @@ def list_catalogs(as_json: bool) -> None:
 )
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def predict(**opts: Any) -> None:
-    """Predict the form error one control-point layout leaves on the machined surface.
+    """Predict the form error one program leaves on the machined surface.
 
-    Give the layout either by explicit pitches (--drho-um and --dtheta-deg for rings,
+    Give a table either by explicit pitches (--drho-um and --dtheta-deg for rings,
     --dx-um and --dy-um for meshes) or by a target point count and aspect ratio
     (--points and --aspect); the actual point count and pitches are reported.
+
+    A spiral program (--layout spiral) places its points along the tool path by one rule:
+    --points-per-rev (constant angle), --arc-um (constant path length) or --chord-um (each
+    chord within the budget of the compensated path, [4]); its feed is --feed-um, the
+    cutting entry's, or the largest the residual budget --residual-um allows.
 
     \b
     Examples:
       ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5
       ftsweep predict --surface lens_array --layout mesh --dx-um 4 --dy-um 4 --json
       ftsweep predict --surface sinewave2d --points 500000 --aspect 8
+      ftsweep predict --surface sinewave2d --layout spiral --points-per-rev 500
+      ftsweep predict --surface sinusoidal_mesh --layout spiral --chord-um 0.5 --residual-um 0.5 \\
+          --cutting seed003 --machine sts-nanoform
     """
     case = _build_case(opts)
     as_json = opts["as_json"]
@@ -887,15 +908,30 @@ def _build_case(opts: dict[str, Any]) -> Case:
     kind = layout or spec.layout
     own = _RING_PITCH if kind == "ring" else _MESH_PITCH
     given = {k: opts[k] for k in (*_RING_PITCH, *_MESH_PITCH)}
-    pitch_given = _check_layout_options(kind, given, opts["points"], opts["aspect"])
-    try:
-        # validated as part of the case, so that an error's location names the option
+    spiral_given = {k: opts[k] for k in SPIRAL_FIELDS if opts[k] is not None}
+    if kind == "spiral":
+        table_given = [
+            k for k, v in {**given, "points": opts["points"], "aspect": opts["aspect"]}.items() if v
+        ]
+        if table_given:
+            _fail(
+                f"{_flag(table_given[0])} belongs to tables; a spiral takes --points-per-rev, --arc-um "
+                "or --chord-um"
+            )
+        request: dict[str, Any] = {"kind": kind, **spiral_given}
+        pitch_given = False
+    else:
+        if spiral_given:
+            _fail(f"{_flag(next(iter(spiral_given)))} belongs to spiral programs (--layout spiral)")
+        pitch_given = _check_layout_options(kind, given, opts["points"], opts["aspect"])
         request = {
             "kind": kind,
             "pitch": (given[own[0]], given[own[1]]) if pitch_given else None,
             "points": opts["points"],
             "aspect": opts["aspect"],
         }
+    try:
+        # validated as part of the case, so that an error's location names the option
         case = Case(
             surface=surface,
             layout=request,  # type: ignore[arg-type]
@@ -976,7 +1012,26 @@ def _check_layout_options(kind: str, given: dict[str, Any], points: Any, aspect:
     return bool(pitch_given)
 
 
-def _summary(r: dict[str, Any]) -> str:
+def _program_lines(r: dict[str, Any]) -> list[str]:
+    """The summary lines that describe the program: its points and pitches (or steps)."""
+    if r["layout"] == "spiral":
+        rule = {
+            "angle": f"{r['points_per_rev']:g} points per revolution",
+            "arc": f"a point every {r['arc_um']:g} µm of path",
+            "chord": f"chord budget {r['chord_um']:g} µm (largest chord error {r['chord_error_nm']:.1f} nm)",
+        }[r["spiral_rule"]]
+        budget = (
+            f"from the residual budget {r['residual_um']:g} µm"
+            if math.isfinite(r["residual_um"])
+            else "given"
+        )
+        return [
+            f"program      spiral: {r['n_points']:,} points, {rule}",
+            f"steps        mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm along the path, "
+            f"{r['revolutions']:.4g} revolutions  (α = {r['aspect_actual']:.4g} µm/deg)",
+            f"feed         {r['feed_um']:.4g} µm/rev ({budget}); largest residual (cusp) "
+            f"{r['residual_error_nm']:.1f} nm from the section curvature",
+        ]
     if r["layout"] == "ring":
         pitches = (
             f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.7g}°  (α = {r['aspect_actual']:.4g} µm/deg)"
@@ -984,10 +1039,16 @@ def _summary(r: dict[str, Any]) -> str:
     else:
         pitches = f"Δx = {r['dx_um']:.4g} µm, Δy = {r['dy_um']:.4g} µm  (α = {r['aspect_actual']:.4g})"
     shape = f"{r['table_rows']} × {r['table_cols']}"
-    lines = [
-        f"surface      {r['surface']}",
+    return [
         f"layout       {r['layout']}: {r['n_points']:,} control points ({shape})",
         f"pitches      {pitches}",
+    ]
+
+
+def _summary(r: dict[str, Any]) -> str:
+    lines = [
+        f"surface      {r['surface']}",
+        *_program_lines(r),
         f"cutting      feed {r['feed_um']:g} µm/rev, nose radius {r['nose_radius_um']:g} µm, "
         f"compensation {r['compensation']}",
         f"resolution   {r['n_theta']:,} angles × {r['points_per_feed']} points/feed "

@@ -12,7 +12,8 @@ from typing import Any, Optional
 
 import numpy as np
 
-KINDS = ("ring", "mesh")
+KINDS = ("ring", "mesh", "spiral")
+TABLES = ("ring", "mesh")
 
 
 @dataclass(frozen=True)
@@ -39,8 +40,8 @@ def _f(name: str, units: Any, long_name: str, kinds: tuple[str, ...] = KINDS) ->
     return Quantity(name, long_name, units, "float64", np.nan, kinds)
 
 
-def _i(name: str, long_name: str, dtype: str = "int64") -> Quantity:
-    return Quantity(name, long_name, "1", dtype, -1)
+def _i(name: str, long_name: str, dtype: str = "int64", kinds: tuple[str, ...] = KINDS) -> Quantity:
+    return Quantity(name, long_name, "1", dtype, -1, kinds)
 
 
 def _text(name: str, long_name: str) -> Quantity:
@@ -56,7 +57,7 @@ STAGES = ("sampling", "compensation", "interpolation", "envelope", "metrics", "d
 RESULT: tuple[Quantity, ...] = (
     # what was simulated
     _text("surface", "surface catalog entry"),
-    _text("layout", "program kind: ring or mesh table"),
+    _text("layout", "program kind: ring or mesh table, or spiral path"),
     _text("compensation", "tool-nose compensation of the table: exact, slope or none"),
     _text("machine", "machine catalog entry"),
     _input("feed_um", "um", "feed per spindle revolution"),
@@ -65,14 +66,34 @@ RESULT: tuple[Quantity, ...] = (
     _input("points_per_feed", "1", "evaluation points per feed along each angle"),
     _input("edge_band_um", "um", "band at the aperture's edge outside the fully machined zone"),
     # the table
-    _i("n_points", "number of control points of the table"),
-    _i("table_rows", "table rows (rings M or mesh nx)", "int32"),
-    _i("table_cols", "table columns (points per ring Np or mesh ny)", "int32"),
+    _i("n_points", "number of control points of the program"),
+    _i("table_rows", "table rows (rings M or mesh nx)", "int32", TABLES),
+    _i("table_cols", "table columns (points per ring Np or mesh ny)", "int32", TABLES),
     _f("drho_um", "um", "ring pitch Δρ", ("ring",)),
     _f("dtheta_deg", "deg", "angular pitch Δθ", ("ring",)),
     _f("dx_um", "um", "mesh pitch Δx", ("mesh",)),
     _f("dy_um", "um", "mesh pitch Δy", ("mesh",)),
-    _f("aspect_actual", {"ring": "um/deg", "mesh": "1"}, "aspect ratio of the realised pitches"),
+    # the spiral program ([4])
+    _text("spiral_rule", "spiral sampling rule: angle, arc or chord"),
+    _f("points_per_rev", "1", "points per revolution of the constant-angle rule", ("spiral",)),
+    _f("arc_um", "um", "path length between points of the constant-arc rule", ("spiral",)),
+    _f("chord_um", "um", "chord-error budget of the chord rule", ("spiral",)),
+    _f("residual_um", "um", "residual (cusp) budget that set the feed", ("spiral",)),
+    _f("revolutions", "1", "revolutions of the spiral from the edge to the centre", ("spiral",)),
+    _f("dphi_deg", "deg", "mean spindle-angle step between points", ("spiral",)),
+    _f("ds_um", "um", "mean path length between points", ("spiral",)),
+    _f("chord_error_nm", "nm", "largest chord deviation from the compensated path", ("spiral",)),
+    _f(
+        "residual_error_nm",
+        "nm",
+        "largest residual (cusp) height from the feed and the section curvature",
+        ("spiral",),
+    ),  # noqa: E501
+    _f(
+        "aspect_actual",
+        {"ring": "um/deg", "mesh": "1", "spiral": "um/deg"},
+        "aspect ratio of the realised pitches (spiral: feed over mean angular step)",
+    ),
     # the form error (model §6)
     _f("pv_nm", "nm", "peak-to-valley form error"),
     _f("rms_nm", "nm", "RMS form error about its mean"),
@@ -108,12 +129,13 @@ def result_names(kind: str) -> list[str]:
     return [q.name for q in RESULT if kind in q.kinds]
 
 
+PITCHES = {"ring": ("drho_um", "dtheta_deg"), "mesh": ("dx_um", "dy_um"), "spiral": ("dphi_deg", "ds_um")}
+
+
 def pitch_names(kind: str) -> tuple[str, str]:
-    """The two pitch fields of layout ``kind``: the declared fields that only it holds, other
-    than none (Δρ, Δθ for rings; Δx, Δy for meshes)."""
-    names = tuple(q.name for q in RESULT if q.kinds == (kind,))
-    assert len(names) == 2, names
-    return names[0], names[1]
+    """The two pitch fields of program ``kind``: Δρ, Δθ for rings; Δx, Δy for meshes; the
+    mean angular and path steps between a spiral's points."""
+    return PITCHES[kind]
 
 
 def stored(kind: str) -> dict[str, tuple[str, Optional[str], str, Any]]:

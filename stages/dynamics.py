@@ -15,8 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .interpolation import interpolate
-from .layouts import Layout
+from .interpolation import Program, interpolate
 
 
 class Dynamics(NamedTuple):
@@ -36,7 +35,7 @@ def commands_per_revolution(command_rate_hz: float, spindle_rpm: float) -> int:
 
 
 def revolution_commands(
-    layout: Layout,
+    layout: Program,
     table: np.ndarray,
     rho_start_um: float,
     feed_um: float,
@@ -74,7 +73,7 @@ def highest_significant_frequency(freq: np.ndarray, amp: np.ndarray, floor_um: f
 
 
 def analyse(
-    layout: Layout,
+    layout: Program,
     table: np.ndarray,
     rho0_um: float,
     feed_um: float,

@@ -21,6 +21,11 @@ import numpy as np
 from numba import njit
 
 from .layouts import Layout
+from .spiral import SpiralPath, phi_on_path, spiral_commands
+
+# a program the controller executes: a table (bilinear, model §3) or a spiral path (linear
+# in the spindle angle between consecutive points, [4])
+Program = Layout | SpiralPath
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -105,17 +110,29 @@ def table_indices(layout: Layout, rho: np.ndarray, theta: np.ndarray) -> tuple[n
     return (x - layout.origin[0]) / layout.pitch[0], (y - layout.origin[1]) / layout.pitch[1]
 
 
-def interpolate(layout: Layout, table: np.ndarray, rho: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """FTS command w [µm] at tool positions ρ [µm], θ [rad]: the controller's lookup (§3)."""
+def interpolate(layout: Program, table: np.ndarray, rho: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """FTS command w [µm] at tool positions ρ [µm], θ [rad]: the controller's lookup (§3),
+    or for a spiral program its linear interpolation along the path at the positions'
+    place on the spiral (:func:`ftsweep.stages.spiral.phi_on_path`)."""
+    if isinstance(layout, SpiralPath):
+        return spiral_commands(layout, table, phi_on_path(layout, np.asarray(rho), np.asarray(theta)))
     u, v = table_indices(layout, rho, theta)
     return bilinear(table, u, v, layout.periodic)
 
 
-def pass_commands(layout: Layout, table: np.ndarray, grid: PathGrid) -> np.ndarray:
+def pass_commands(layout: Program, table: np.ndarray, grid: PathGrid) -> np.ndarray:
     """FTS commands w [µm] of every pass of ``grid`` (R, Kmax): :func:`interpolate` at the
     tool positions ρ_k = max(ρ_0 − k·F, 0) of each ray, in one pass without the position and
     index arrays, bit for bit equal to ``interpolate(layout, table, max(grid.pass_rho, 0),
-    grid.ray_theta[:, None])`` (model §1, §3). Entries k ≥ n_passes are meaningless."""
+    grid.ray_theta[:, None])`` (model §1, §3). Entries k ≥ n_passes are meaningless.
+
+    For a spiral program (``table`` its commands at its points), pass k of the ray at θ is
+    the tool at accumulated angle φ = 2πk + θ, where the controller interpolates linearly
+    between the points around φ."""
+    if isinstance(layout, SpiralPath):
+        k = np.arange(int(grid.n_passes.max()))
+        phi = 2.0 * math.pi * k[None, :] + grid.ray_theta[:, None]
+        return spiral_commands(layout, np.asarray(table, dtype=np.float64), phi)
     theta = grid.ray_theta[:, None]
     if layout.kind == "ring":
         ray_a = ((np.degrees(theta) - layout.origin[1]) / layout.pitch[1]).ravel()

@@ -518,7 +518,7 @@ def _sinusoidal_mesh_kernel(x, y, a1, a2, l_circ, k_rad, f, fx, fy):  # pragma: 
         "h1_um": Param(float, _um("umbrella height h1")),
         "h2_um": Param(float, _um("sinusoid amplitude h2")),
         "periods_circumferential": Param(float, "periods l around the axis", positive=True),
-        "periods_radial": Param(float, "periods ω along the radius", positive=True),
+        "radial_wavelength_um": Param(float, _um("radial wavelength ω"), positive=True),
         "workpiece_radius_um": Param(float, _um("workpiece radius"), positive=True),
     },
 )
@@ -529,19 +529,21 @@ def sinusoidal_mesh(
     h1_um: float,
     h2_um: float,
     periods_circumferential: float,
-    periods_radial: float,
+    radial_wavelength_um: float,
     workpiece_radius_um: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Umbrella plus radial sinusoid "complex sinusoidal mesh" surface ([4], eq. 6):
 
-    f = (h1/Rw)·r·(sin(l·φ − π/2) − 1) + (h2/Rw)·r·(sin(2π·ω·r/Rw) − 1)
+    f = (h1/Rw)·r·(sin(l·φ − π/2) − 1) + (h2/Rw)·r·(sin(2π·r/ω) − 1)
 
-    with l the complete periods around the part and ω those along its radius, as the seed's
-    text defines them (its printed eq. 6 garbles both arguments: read literally it would not
-    close over 360°). Each term lies within [−2h·r/Rw, 0], so the depth stays within
-    2(h1 + h2), the seed's h_max = 0.2 mm for h1 = h2 = h_max/4 (with ω = 32/15 the deepest
-    point reached is about 164 µm, near r = 0.82·Rw). Lengths in µm; f ≤ 0 everywhere.
-    The gradient is discontinuous at r = 0 (an umbrella's apex), as the published surface.
+    with l the complete periods around the part and ω the radial wavelength. The printed
+    eq. 6 is garbled (it puts φ in both sines and 2πRw/l before the first); this reading is
+    the one the seed's own numbers support: with ω = 32/15 mm, Rw = 8 mm and h1 = h2 =
+    h_max/4 both sines reach −1 together at the rim (8/ω = 3.75 periods), so the part is
+    exactly h_max = 0.2 mm deep there, and its curvature gives the residual-budget feed of
+    the seed's Table 1 (see README). Each term lies within [−2h·r/Rw, 0]. Lengths in µm;
+    f ≤ 0 everywhere. The gradient is discontinuous at r = 0 (an umbrella's apex), as the
+    published surface.
     """
     return evaluate_flat(
         _sinusoidal_mesh_kernel,
@@ -550,7 +552,7 @@ def sinusoidal_mesh(
         h1_um / workpiece_radius_um,
         h2_um / workpiece_radius_um,
         float(periods_circumferential),
-        2.0 * math.pi * periods_radial / workpiece_radius_um,
+        2.0 * math.pi / radial_wavelength_um,
     )
 
 

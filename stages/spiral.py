@@ -1,0 +1,394 @@
+"""Spiral path programs: control points along the tool path, planned from error budgets
+([4], model §1, §4).
+
+A *spiral program* is what an integrated servo controller (a slow tool servo, or an FTS run
+by the lathe's own controller) executes: control points on the Archimedean spiral
+ρ(φ) = ρ0 − F·φ/2π (model §1), each with its compensated command w [µm] (the same exact
+arc contact as a table's, §4), interpolated *linearly in the spindle angle φ* between
+consecutive points. Tables and paths differ only in where the points are and how they are
+interpolated; the envelope, metrics and dynamics are the engine's.
+
+A point is identified by its accumulated spindle angle φ [rad] (0 at the outer edge ρ0,
+Φ = 2π·ρ0/F at the centre). Three sampling strategies place the points:
+
+* constant angle — Np points per revolution, φ_j = j·2π/Np;
+* constant arc length — one point every ``arc_um`` along the spiral (in the XY plane),
+  with at least ``min_points_per_rev`` per revolution so the centre stays sampled;
+* chord budget ([4] eq. 4) — each next point as far along the path as the chord to it
+  stays within Δcho of the compensated path. [4] approximates the path between points
+  by a circle of radius R_j and steps by |P_j P_j+1| = 2·sqrt(2R_jΔ − Δ²); here the
+  deviation of the chord (the controller's linear interpolation) from the compensated path
+  is measured directly on a dense sampling of the path, so the budget holds where the
+  circle approximation would not (inflections, curvature changing within a step).
+
+The feed may come from a residual (scallop) budget, [4] eqs. 1–3, derived here for
+the tool-centre spacing (see :func:`feed_for_cusp`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+RULES = ("angle", "arc", "chord")
+# fewest points per revolution of the arc and chord rules: without a floor the arc rule's
+# angular step would grow without bound towards the centre
+MIN_POINTS_PER_REV = 16
+
+
+class SpiralPath(NamedTuple):
+    """The control points of a spiral program (model §1). Angles in rad, lengths in µm.
+
+    kind : ``"spiral"`` (the program kind, beside the tables' ``"ring"`` and ``"mesh"``).
+    phi : (N,) accumulated spindle angle of each point [rad], increasing from 0 to Φ.
+    rho0_um : radius where the spiral starts [µm].
+    feed_um : feed per revolution F [µm/rev].
+    rule : sampling rule, one of :data:`RULES`.
+    parameter : the rule's parameter: points per revolution, arc length [µm] or chord
+        budget [µm].
+    """
+
+    kind: str
+    phi: np.ndarray
+    rho0_um: float
+    feed_um: float
+    rule: str
+    parameter: float
+
+    @property
+    def n_points(self) -> int:
+        """Number of control points N."""
+        return int(self.phi.size)
+
+    @property
+    def rho(self) -> np.ndarray:
+        """Radius of each point [µm] (model §1)."""
+        return spiral_radius(self.phi, self.rho0_um, self.feed_um)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Spindle angle of each point, φ mod 2π [rad]."""
+        return np.mod(self.phi, 2.0 * math.pi)
+
+    @property
+    def revolutions(self) -> float:
+        """Revolutions from the outer edge to the centre, ρ0/F."""
+        return self.rho0_um / self.feed_um
+
+    @property
+    def dphi_deg(self) -> float:
+        """Mean angular step between consecutive points [deg]."""
+        return math.degrees(float(self.phi[-1] - self.phi[0]) / max(self.n_points - 1, 1))
+
+    @property
+    def ds_um(self) -> float:
+        """Mean path length between consecutive points [µm] (in the XY plane)."""
+        return path_length_um(self.rho0_um, self.feed_um) / max(self.n_points - 1, 1)
+
+    @property
+    def aspect(self) -> float:
+        """Aspect ratio F [µm] / mean Δφ [deg], the ring method's Δρ/Δθ for a path."""
+        return self.feed_um / self.dphi_deg
+
+    @property
+    def max_points_per_rev(self) -> int:
+        """Most points any one revolution holds."""
+        return int(np.bincount((self.phi // (2.0 * math.pi)).astype(np.int64)).max())
+
+
+def spiral_end_rad(rho0_um: float, feed_um: float) -> float:
+    """Accumulated spindle angle Φ = 2π·ρ0/F [rad] where the spiral reaches the centre."""
+    return 2.0 * math.pi * rho0_um / feed_um
+
+
+def spiral_radius(phi: np.ndarray, rho0_um: float, feed_um: float) -> np.ndarray:
+    """ρ(φ) = max(ρ0 − F·φ/2π, 0) [µm] (model §1)."""
+    return np.maximum(rho0_um - feed_um * np.asarray(phi) / (2.0 * math.pi), 0.0)
+
+
+def _arc_from_centre(rho: np.ndarray, b: float) -> np.ndarray:
+    """Length [µm] of the spiral ρ = b·ψ from the centre out to radius ρ: (b/2)·(u·sqrt(1+u²)
+    + asinh u), u = ρ/b."""
+    u = np.asarray(rho, dtype=np.float64) / b
+    return 0.5 * b * (u * np.sqrt(1.0 + u * u) + np.arcsinh(u))
+
+
+def path_length_um(rho0_um: float, feed_um: float) -> float:
+    """Length [µm] of the whole spiral in the XY plane, from ρ0 to the centre."""
+    return float(_arc_from_centre(np.array(rho0_um), feed_um / (2.0 * math.pi)))
+
+
+def _check(name: str, value: float) -> None:
+    if not (value > 0.0 and math.isfinite(value)):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def _close(phi: np.ndarray, end: float) -> np.ndarray:
+    """Points up to and including the spiral's end Φ (the centre), no duplicates."""
+    phi = phi[phi < end - 1e-12 * max(end, 1.0)]
+    return np.append(phi, end)
+
+
+def _cap_steps(phi: np.ndarray, max_step: float) -> np.ndarray:
+    """``phi`` with every gap wider than ``max_step`` [rad] split into equal steps."""
+    gaps = np.diff(phi)
+    pieces = np.maximum(np.ceil(gaps / max_step - 1e-9), 1).astype(np.int64)
+    if (pieces == 1).all():
+        return phi
+    starts = np.repeat(phi[:-1], pieces)
+    within = np.arange(pieces.sum()) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    return np.append(starts + within * np.repeat(gaps / pieces, pieces), phi[-1])
+
+
+def constant_angle(rho0_um: float, feed_um: float, points_per_rev: int) -> SpiralPath:
+    """Points at a constant spindle-angle step 2π/Np from the outer edge to the centre."""
+    _check("points_per_rev", points_per_rev)
+    if int(points_per_rev) != points_per_rev or points_per_rev < 3:
+        raise ValueError(f"points_per_rev must be an integer ≥ 3, got {points_per_rev!r}")
+    end = spiral_end_rad(rho0_um, feed_um)
+    n = int(points_per_rev)
+    phi = np.arange(int(math.ceil(end * n / (2.0 * math.pi) - 1e-9)) + 1) * (2.0 * math.pi / n)
+    return SpiralPath("spiral", _close(phi, end), rho0_um, feed_um, "angle", float(n))
+
+
+def constant_arc(
+    rho0_um: float, feed_um: float, arc_um: float, min_points_per_rev: int = MIN_POINTS_PER_REV
+) -> SpiralPath:
+    """Points every ``arc_um`` [µm] of path length (XY plane) from the outer edge, and at
+    least ``min_points_per_rev`` per revolution."""
+    _check("arc_um", arc_um)
+    b = feed_um / (2.0 * math.pi)
+    end = spiral_end_rad(rho0_um, feed_um)
+    total = path_length_um(rho0_um, feed_um)
+    # the radius where the path has run s_j = j·Δs from the edge, by Newton on the closed-form
+    # length (monotone and convex in ρ, so Newton from the linear guess converges)
+    target = total - np.arange(int(math.ceil(total / arc_um - 1e-9)) + 1) * arc_um
+    target = np.maximum(target, 0.0)
+    rho = np.sqrt(2.0 * b * target)  # the small-ρ limit s ≈ ρ²/(2b) as a start
+    rho = np.minimum(rho, rho0_um)
+    for _ in range(60):
+        step = (_arc_from_centre(rho, b) - target) * b / np.sqrt(rho * rho + b * b)
+        rho = np.clip(rho - step, 0.0, rho0_um)
+        if np.max(np.abs(step)) < 1e-9 * max(rho0_um, 1.0):
+            break
+    phi = np.sort((rho0_um - rho) / b)
+    phi = _cap_steps(_close(phi, end), 2.0 * math.pi / min_points_per_rev)
+    return SpiralPath("spiral", phi, rho0_um, feed_um, "arc", float(arc_um))
+
+
+@njit(nogil=True, cache=True)
+def _segment_ok(phi, w, j, i, budget):  # pragma: no cover - jit
+    # largest deviation of the dense samples strictly between j and i from the chord j–i
+    slope = (w[i] - w[j]) / (phi[i] - phi[j])
+    for m in range(j + 1, i):
+        if abs(w[j] + slope * (phi[m] - phi[j]) - w[m]) > budget:
+            return False
+    return True
+
+
+@njit(nogil=True, cache=True)
+def _greedy_chords(phi, w, budget, max_step, keep):  # pragma: no cover - jit
+    """Mark in ``keep`` the dense samples a greedy chord walk keeps: from each kept sample,
+    the farthest sample (by galloping, then bisection) whose chord stays within ``budget``
+    of every dense sample in between and spans at most ``max_step`` rad. Every accepted
+    chord was checked, so the budget holds on the dense samples whatever the search visits."""
+    n = phi.size
+    j = 0
+    keep[0] = True
+    while j < n - 1:
+        good = j + 1
+        width = 1
+        bad = -1
+        while True:
+            cand = j + 2 * width
+            if cand >= n:
+                cand = n - 1
+            if cand <= good:
+                break
+            if phi[cand] - phi[j] <= max_step and _segment_ok(phi, w, j, cand, budget):
+                good = cand
+                width *= 2
+                if cand == n - 1:
+                    break
+            else:
+                bad = cand
+                break
+        if bad > 0:
+            lo, hi = good, bad
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                if phi[mid] - phi[j] <= max_step and _segment_ok(phi, w, j, mid, budget):
+                    lo = mid
+                else:
+                    hi = mid
+            good = lo
+        keep[good] = True
+        j = good
+
+
+@njit(nogil=True, cache=True)
+def _chord_errors(phi, w, keep_idx, out):  # pragma: no cover - jit
+    for s in range(keep_idx.size - 1):
+        j, i = keep_idx[s], keep_idx[s + 1]
+        slope = (w[i] - w[j]) / (phi[i] - phi[j])
+        worst = 0.0
+        for m in range(j + 1, i):
+            worst = max(worst, abs(w[j] + slope * (phi[m] - phi[j]) - w[m]))
+        out[s] = worst
+
+
+# dense samples the chord rule wants in every kept segment: with d dense intervals per segment the
+# chord's deviation between dense samples exceeds the largest sampled one by about Δ/d² of
+# the budget on a segment of uniform curvature, which the rule's margin (DENSE_MARGIN) covers
+DENSE_PER_SEGMENT = 8
+DENSE_MARGIN = 1.0 / 16.0
+
+
+def chord_budget(
+    rho0_um: float,
+    feed_um: float,
+    chord_um: float,
+    commands: Callable[[np.ndarray], np.ndarray],
+    dense_um: float | None = None,
+    min_points_per_rev: int = MIN_POINTS_PER_REV,
+    max_refine: int = 5,
+) -> tuple[SpiralPath, np.ndarray, np.ndarray]:
+    """Points placed by the chord-error budget Δcho = ``chord_um`` [µm] ([4] eq. 4).
+
+    ``commands(phi)`` gives the compensated command w [µm] at accumulated spindle angles φ
+    [rad] (model §4). The path is sampled densely at constant arc length (``dense_um``,
+    default the feed), the greedy walk of :func:`_greedy_chords` keeps the farthest next
+    point whose chord stays within (1 − 1/16)·Δcho of every dense sample in between, and
+    the dense spacing is refined (up to ``max_refine`` times) until every kept segment
+    spans at least 8 dense intervals, where the chord's deviation between dense samples is
+    within the margin. Returns the path, the commands at its points [µm] and the largest
+    sampled chord deviation of each segment [µm].
+    """
+    _check("chord_um", chord_um)
+    step = dense_um if dense_um is not None else feed_um
+    _check("dense_um", step)
+    budget = chord_um * (1.0 - DENSE_MARGIN)
+    max_step = 2.0 * math.pi / min_points_per_rev
+    for attempt in range(max_refine + 1):
+        # the dense angular floor leaves the rule's widest steps their DENSE_PER_SEGMENT samples
+        dense = constant_arc(rho0_um, feed_um, step, DENSE_PER_SEGMENT * min_points_per_rev).phi
+        w = np.ascontiguousarray(commands(dense), dtype=np.float64)
+        keep = np.zeros(dense.size, dtype=np.bool_)
+        _greedy_chords(dense, w, budget, max_step, keep)
+        idx = np.flatnonzero(keep)
+        # the last segment ends at the centre wherever it falls: it sets no spacing
+        per_segment = float(np.min(np.diff(idx)[:-1])) if idx.size > 2 else math.inf
+        if per_segment >= DENSE_PER_SEGMENT or attempt == max_refine:
+            break
+        # segments scale little with the dense step, so one refinement usually suffices
+        step *= 0.9 * per_segment / DENSE_PER_SEGMENT
+    errors = np.empty(idx.size - 1)
+    _chord_errors(dense, w, idx, errors)
+    path = SpiralPath("spiral", dense[idx], rho0_um, feed_um, "chord", float(chord_um))
+    return path, w[idx], errors
+
+
+def spiral_commands(path: SpiralPath, values: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """The controller's command w [µm] at accumulated spindle angles ``phi`` [rad]: linear
+    interpolation in φ between consecutive control points, the end values held outside."""
+    return np.interp(phi, path.phi, values)
+
+
+def phi_on_path(path: SpiralPath, rho: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Accumulated angle [rad] of tool positions (ρ [µm], θ [rad]) on the spiral: θ plus the
+    whole revolutions that bring ρ(φ) nearest ρ (model §1)."""
+    theta = np.mod(theta, 2.0 * math.pi)
+    k = np.rint((path.rho0_um - path.feed_um * theta / (2.0 * math.pi) - rho) / path.feed_um)
+    return 2.0 * math.pi * np.maximum(k, 0.0) + theta
+
+
+# ------------------------------------------------------------------ residual budget (eqs. 1–3)
+def signed_radius_um(slope: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """Radius of curvature [µm] of a radial section z = g(r) ([4] eq. 1), signed as g'':
+    positive where the section is concave (a valley, curving up towards the tool), negative
+    where convex; ±inf where flat."""
+    with np.errstate(divide="ignore"):
+        return (1.0 + np.square(slope)) ** 1.5 / np.asarray(second, dtype=np.float64)
+
+
+def feed_for_cusp(
+    cusp_um: float, nose_radius_um: float, radius_um: np.ndarray, slope: np.ndarray
+) -> np.ndarray:
+    """Largest feed per revolution [µm] (X-slide advance) whose cusp stays within
+    ``cusp_um`` = Δres on a section of signed radius ``radius_um`` (:func:`signed_radius_um`)
+    and slope ``slope`` ([4] eqs. 2–3, derived for the tool-centre spacing).
+
+    Consecutive tool positions touch the section (locally a circle of radius |R| about O)
+    with their arc centres on the offset circle of radius A = |R| + r (convex) or |R| − r
+    (concave). With centres d apart and the residual height h between the arcs, the law of
+    cosines in the triangle (O, arc centre, cusp) gives
+
+        convex  (R < 0): d = sqrt(h(2r − h)(2|R| + h)(2|R| + 2r + h)) / (|R| + h)
+        concave (R > 0): d = sqrt(h(2r − h)(2R − h)(2R − 2r − h)) / (R − h)
+        flat    (R = ∞): d = 2·sqrt(h(2r − h))
+
+    (the seed's f3, f2 and f1 with their signs made explicit; both curved forms tend to f1
+    as |R| → ∞, and F²/(8r) ≈ h for small h). The centres lie along the section, inclined by
+    its slope β, so the X feed is d·cos β. Concave sections of radius R ≤ r + h/2 leave no
+    feed (the arc cannot follow them): 0 there.
+    """
+    h, r = float(cusp_um), float(nose_radius_um)
+    R = np.abs(np.asarray(radius_um, dtype=np.float64))
+    concave = np.asarray(radius_um) > 0.0
+    flat = 2.0 * math.sqrt(h * (2.0 * r - h))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        convex_d = np.sqrt(h * (2.0 * r - h) * (2.0 * R + h) * (2.0 * R + 2.0 * r + h)) / (R + h)
+        concave_d = np.sqrt(np.maximum(h * (2.0 * r - h) * (2.0 * R - h) * (2.0 * R - 2.0 * r - h), 0.0)) / (
+            R - h
+        )
+    d = np.where(concave, concave_d, convex_d)
+    d = np.where(np.isfinite(R), d, flat)
+    d = np.where(concave & (R <= r + 0.5 * h), 0.0, d)
+    return d / np.sqrt(1.0 + np.square(slope))
+
+
+def cusp_for_feed(
+    feed_um: float, nose_radius_um: float, radius_um: np.ndarray, slope: np.ndarray
+) -> np.ndarray:
+    """Residual (cusp) height [µm] that feed ``feed_um`` leaves on a section of signed radius
+    ``radius_um`` and slope ``slope``: the inverse of :func:`feed_for_cusp`. The cusp is the
+    intersection of the two arcs, on the bisector at distance A·cosγ ± sqrt(r² − A²sin²γ)
+    from the section's centre of curvature, sin γ = d/(2A); NaN where the arcs do not meet."""
+    r = float(nose_radius_um)
+    d = feed_um * np.sqrt(1.0 + np.square(slope))
+    R = np.abs(np.asarray(radius_um, dtype=np.float64))
+    concave = np.asarray(radius_um) > 0.0
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        a = np.where(concave, R - r, R + r)
+        half = d / (2.0 * a)
+        lateral = np.sqrt(r * r - np.square(a * half))
+        along = a * np.sqrt(1.0 - np.square(half))
+        h = np.where(concave, R - (along + lateral), (along - lateral) - R)
+    flat = r - np.sqrt(np.maximum(r * r - 0.25 * d * d, 0.0))
+    # beyond a million nose radii the section is flat to a part in 1e6, and the difference of
+    # large radii above would lose the cusp to rounding
+    return np.where(R < 1e6 * r, h, flat)
+
+
+def section_curvature(
+    surface: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]],
+    rho: np.ndarray,
+    ct: np.ndarray,
+    st: np.ndarray,
+    step_um: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Slope g' [-] and second derivative g'' [1/µm] of radial sections g(r) = f(r cosθ,
+    r sinθ) at radii ``rho`` [µm] (directions cos θ = ``ct``, sin θ = ``st``): g' from the
+    surface's gradient, g'' by a central difference of g' over ±``step_um``."""
+
+    def slope(r: np.ndarray) -> np.ndarray:
+        _, fx, fy = surface(r * ct, r * st)
+        return fx * ct + fy * st
+
+    g1 = slope(rho)
+    g2 = (slope(rho + step_um) - slope(rho - step_um)) / (2.0 * step_um)
+    return g1, g2

@@ -1,0 +1,202 @@
+"""Spiral path programs (seed 003): sampling rules, the residual-budget feed, linear
+interpolation along the path, and the seed's own numbers through the one engine."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ftsweep.case import Case, CaseError, LayoutRequest, Resolution, resolve_case, run_case
+from ftsweep.stages import interpolation, spiral
+from ftsweep.stages.interpolation import path_grid
+
+# ----------------------------------------------------------------- sampling rules
+
+
+@given(
+    rho0=st.floats(50.0, 2000.0),
+    feed=st.floats(1.0, 40.0),
+    n=st.integers(3, 720),
+)
+@settings(max_examples=40, deadline=None)
+def test_constant_angle_counts_and_steps(rho0, feed, n):
+    path = spiral.constant_angle(rho0, feed, n)
+    steps = np.diff(path.phi)
+    end = spiral.spiral_end_rad(rho0, feed)
+    assert path.phi[0] == 0.0 and path.phi[-1] == pytest.approx(end, rel=1e-12)
+    assert np.all(steps > 0) and np.all(steps <= 2 * math.pi / n * (1 + 1e-9))
+    # the layout formula: Np points per revolution over ρ0/F revolutions, plus the centre
+    assert path.n_points == math.ceil(end * n / (2 * math.pi) - 1e-9) + 1
+
+
+@given(rho0=st.floats(100.0, 2000.0), feed=st.floats(1.0, 20.0), arc=st.floats(1.0, 50.0))
+@settings(max_examples=30, deadline=None)
+def test_constant_arc_spacing(rho0, feed, arc):
+    path = spiral.constant_arc(rho0, feed, arc)
+    b = feed / (2 * math.pi)
+    s = spiral._arc_from_centre(path.rho, b)
+    ds = -np.diff(s)
+    cap = 2 * math.pi / spiral.MIN_POINTS_PER_REV
+    # every step is the arc length asked, or shorter near the centre, where the angular floor
+    # splits steps wider than 2π/16 (and the last step, which ends at the centre)
+    assert np.all(ds <= arc * (1 + 1e-6) + 1e-9)
+    short = ds[:-1] < arc * (1 - 1e-6)
+    assert np.all(path.rho[:-2][short] <= arc / cap + feed)
+    assert np.all(np.diff(path.phi) <= cap * (1 + 1e-9))
+
+
+def _wavy(phi: np.ndarray, rho0: float, feed: float, amp: float, waves: int) -> np.ndarray:
+    rho = spiral.spiral_radius(phi, rho0, feed)
+    return amp * (rho / rho0) * np.sin(waves * phi) + 1e-3 * rho
+
+
+@given(
+    amp=st.floats(0.05, 2.0),
+    waves=st.integers(1, 30),
+    budget=st.floats(0.005, 0.2),
+)
+@settings(max_examples=12, deadline=None)
+def test_chord_budget_holds_on_every_segment(amp, waves, budget):
+    rho0, feed = 500.0, 5.0
+
+    def commands(phi):
+        return _wavy(phi, rho0, feed, amp, waves)
+
+    path, values, errors = spiral.chord_budget(rho0, feed, budget, commands)
+    assert np.array_equal(values, commands(path.phi))
+    assert errors.max() <= budget
+    # the budget holds between the dense samples too: the chord against the path itself
+    u = np.linspace(0.0, 1.0, 33)[1:-1]
+    phi = path.phi[:-1, None] + np.diff(path.phi)[:, None] * u[None, :]
+    chord = values[:-1, None] + np.diff(values)[:, None] * u[None, :]
+    assert np.max(np.abs(chord - commands(phi))) <= budget
+
+
+def test_chord_budget_takes_fewer_points_where_the_path_is_straighter():
+    rho0, feed = 500.0, 5.0
+    gentle, _, _ = spiral.chord_budget(rho0, feed, 0.01, lambda p: _wavy(p, rho0, feed, 0.1, 4))
+    steep, _, _ = spiral.chord_budget(rho0, feed, 0.01, lambda p: _wavy(p, rho0, feed, 1.0, 12))
+    assert steep.n_points > 2 * gentle.n_points
+
+
+# ----------------------------------------------------------------- interpolation along the path
+
+
+@given(a=st.floats(-2.0, 2.0), b=st.floats(-1e-3, 1e-3), n=st.integers(3, 400))
+@settings(max_examples=30, deadline=None)
+def test_a_command_linear_along_the_path_is_interpolated_exactly(a, b, n):
+    rho0, feed = 300.0, 3.0
+    path = spiral.constant_angle(rho0, feed, n)
+    values = a + b * path.phi
+    grid = path_grid(np.array([0.1, 1.3, 2.9]), rho0, feed, 2, 10.0)
+    w = interpolation.pass_commands(path, values, grid)
+    k = np.arange(w.shape[1])
+    phi = 2 * math.pi * k[None, :] + grid.ray_theta[:, None]
+    valid = k[None, :] < grid.n_passes[:, None]
+    assert np.allclose(w[valid], (a + b * phi)[valid], rtol=0, atol=1e-12)
+    # the same commands from the tool positions (what the dynamics stage asks for)
+    rho = np.maximum(grid.pass_rho, 0.0)
+    again = interpolation.interpolate(path, values, rho, np.broadcast_to(grid.ray_theta[:, None], rho.shape))
+    assert np.allclose(again[valid], w[valid], atol=1e-12)
+
+
+# ----------------------------------------------------------------- residual budget (eqs. 1–3)
+
+
+@given(h=st.floats(1e-4, 5.0), r=st.floats(20.0, 2000.0), radius=st.floats(-1e6, 1e6))
+@settings(max_examples=80, deadline=None)
+def test_feed_for_cusp_inverts_cusp_for_feed(h, r, radius):
+    if radius > 0 and radius <= r + h:
+        return  # a concave section tighter than the arc: no feed (tested below)
+    if abs(radius) < 1e-3:
+        return
+    f = spiral.feed_for_cusp(h, r, np.array([radius]), np.array([0.0]))
+    assert f[0] > 0
+    assert spiral.cusp_for_feed(float(f[0]), r, np.array([radius]), np.array([0.0]))[0] == pytest.approx(
+        h, rel=1e-6, abs=1e-9
+    )
+
+
+def test_feed_for_cusp_flat_limit_and_order():
+    h, r = 0.5, 496.0
+    flat = spiral.feed_for_cusp(h, r, np.array([np.inf]), np.array([0.0]))[0]
+    assert flat == pytest.approx(2 * math.sqrt(h * (2 * r - h)), rel=1e-12)
+    # F²/(8·Rc) ≈ Δres for a small budget (model §6)
+    assert flat**2 / (8 * r) == pytest.approx(h, rel=1e-3)
+    for big in (1e7, -1e7):
+        assert spiral.feed_for_cusp(h, r, np.array([big]), np.array([0.0]))[0] == pytest.approx(
+            flat, rel=1e-4
+        )
+    concave = spiral.feed_for_cusp(h, r, np.array([2000.0]), np.array([0.0]))[0]
+    convex = spiral.feed_for_cusp(h, r, np.array([-2000.0]), np.array([0.0]))[0]
+    # with the tool-centre spacing as the feed, a valley leaves higher cusps than a crest
+    assert concave < flat < convex
+    assert spiral.feed_for_cusp(h, r, np.array([r]), np.array([0.0]))[0] == 0.0
+    # on a slope the centres are further apart than the X advance
+    assert spiral.feed_for_cusp(h, r, np.array([np.inf]), np.array([0.5]))[0] == pytest.approx(
+        flat / math.sqrt(1.25)
+    )
+
+
+# ----------------------------------------------------------------- through the engine
+
+
+def test_flat_part_machines_to_the_feed_cusp(catalog_dir):
+    """A flat part cut by a constant-angle spiral program: cusps F²/(8·Rc) away from the
+    axis (model §6), only the last passes across the axis further apart (as for tables)."""
+    for feed, rc, n in ((4.0, 83.0, 36), (2.0, 50.0, 7)):
+        case = Case(
+            surface="flat",
+            layout=LayoutRequest(kind="spiral", points_per_rev=n),
+            feed_um=feed,
+            nose_radius_um=rc,
+            resolution=Resolution(n_theta=8),
+        )
+        rec = run_case(case, catalog_dir)
+        exact = (rc - math.sqrt(rc**2 - feed**2 / 4)) * 1e3
+        assert rec["pv_outer_nm"] == pytest.approx(exact, rel=1e-9)
+        assert rec["pv_outer_nm"] == pytest.approx(feed**2 / (8 * rc) * 1e3, rel=1e-3)
+        assert rec["pv_nm"] <= (1.5 * feed) ** 2 / (8 * rc) * 1e3 * 1.02
+        assert rec["pv_interp_nm"] == pytest.approx(0.0, abs=1e-9)
+        # the layout formula: Np points per revolution over ρ0/F revolutions, plus the centre
+        assert rec["n_points"] == n * round(300.0 / feed) + 1 and rec["layout"] == "spiral"
+
+
+def test_the_seed_003_case_meets_its_budgets():
+    """Seed 003 §2.2 and Table 1: Δres = Δcho = 0.5 µm, rε = 0.496 mm on the complex
+    sinusoidal mesh. The residual budget gives the feed (Table 1: 0.0402 mm; within 3 %),
+    the chord and residual errors stay within 0.5 µm, and the P-V within eq. 7's 2 µm."""
+    case = Case(
+        surface="sinusoidal_mesh",
+        machine="sts-nanoform",
+        cutting="seed003",
+        layout=LayoutRequest(kind="spiral", chord_um=0.5, residual_um=0.5),
+    )
+    rec = run_case(case)
+    assert rec["feed_um"] == pytest.approx(40.2, rel=0.03)
+    assert rec["chord_error_nm"] <= 500.0
+    assert rec["residual_error_nm"] <= 500.0 * (1 + 1e-9)
+    assert rec["pv_nm"] <= 2000.0
+    assert rec["feasible"], rec["infeasible_reason"]
+
+
+def test_spiral_requests_are_checked():
+    with pytest.raises(ValueError, match="exactly one sampling rule"):
+        LayoutRequest(kind="spiral", chord_um=1.0, arc_um=2.0)
+    with pytest.raises(ValueError, match="belong"):
+        LayoutRequest(kind="ring", points=1e5, aspect=1.0, chord_um=1.0)
+    with pytest.raises(CaseError, match="not both"):
+        resolve_case(
+            Case(
+                surface="sinewave2d",
+                feed_um=1.0,
+                layout=LayoutRequest(kind="spiral", arc_um=5.0, residual_um=0.01),
+            )
+        )
+    # a table case's key does not change with the spiral's fields
+    case = Case(surface="sinewave2d", layout=LayoutRequest(kind="ring", pitch=(2.0, 1.0)))
+    assert "chord_um" not in case.model_dump()["layout"]

@@ -80,19 +80,40 @@ class FtsweepAccessor:
         ds = self.done()
         pv = self.pv()
         n = ds["n_points"]
-        other = [d for d in n.dims if d not in ("points", "aspect")]
-        if other:
-            n = n.max(other)
-        cmap = _cmap(len(ds["aspect"]))
-        for i, a in enumerate(ds["aspect"].values):
-            ax.plot(n.isel(aspect=i), pv.isel(aspect=i), "o-", ms=3, color=cmap(i), label=f"α = {a:.3g}")
+        if "aspect" not in ds.dims:
+            # a spiral cube: one line along its rule axis per value of the next axis
+            rule = ds["n_points"].dims[0]
+            lines = [d for d in pv.dims if d != rule]
+            stacked = pv.stack(line=lines) if lines else pv.expand_dims(line=[0])
+            counts = n.stack(line=lines) if lines else n.expand_dims(line=[0])
+            cmap = _cmap(stacked.sizes["line"])
+            for i in range(stacked.sizes["line"]):
+                label = ", ".join(f"{d} = {stacked['line'].values[i][j]:.3g}" for j, d in enumerate(lines))
+                order = np.argsort(counts.isel(line=i).values)
+                ax.plot(
+                    counts.isel(line=i).values[order],
+                    stacked.isel(line=i).values[order],
+                    "o-",
+                    ms=3,
+                    color=cmap(i),
+                    label=label or rule,
+                )
+            legend_title = f"spiral, rule axis {rule}"
+        else:
+            other = [d for d in n.dims if d not in ("points", "aspect")]
+            if other:
+                n = n.max(other)
+            cmap = _cmap(len(ds["aspect"]))
+            for i, a in enumerate(ds["aspect"].values):
+                ax.plot(n.isel(aspect=i), pv.isel(aspect=i), "o-", ms=3, color=cmap(i), label=f"α = {a:.3g}")
+            legend_title = aspect_label(self._ds)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("control points N [1]")
         ax.set_ylabel("P-V form error [nm]")
         ax.set_title(f"{self._ds.attrs.get('sweep_name', '')}: P-V against point count")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, ncol=2, title=aspect_label(self._ds), title_fontsize=7)
+        ax.legend(fontsize=7, ncol=2, title=legend_title, title_fontsize=7)
         return ax
 
     def plot_aspect(self, ax: Any = None) -> Any:

@@ -387,7 +387,9 @@ def sweep(
 
 
 def _case_label(row: dict[str, Any]) -> str:
-    return f"case {row['index']} (N≈{row.get('points', 0):,.0f} α={row.get('aspect', 0):.3g})"
+    if row.get("points") is None or row.get("aspect") is None:
+        return f"case {row['index']}"  # a spiral case: no target count and aspect
+    return f"case {row['index']} (N≈{row['points']:,.0f} α={row['aspect']:.3g})"
 
 
 def _sweep_progress(started: float) -> Callable[[Any, list[dict]], None]:
@@ -437,7 +439,7 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
     for r in [r for r in report.rows if r["status"] != "done"][:5]:
         click.echo(f"failed       {_case_label(r)}: {one_line(r['message'], 300)}")
     click.echo("best P-V per point count (among the cases select may choose):")
-    click.echo(f"  {'target N':>10s} {'actual N':>10s} {'best α':>8s} {'P-V nm':>9s}")
+    click.echo(f"  {'target':>10s} {'actual N':>10s} {'best α':>8s} {'P-V nm':>9s}")
     for row in best_per_point_count(report.cube):
         if row["pv_nm"] is None:
             click.echo(f"  {row['points']:10,.0f} {'–':>10s} {'–':>8s} {'–':>9s}")
@@ -449,21 +451,26 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
 
 
 def _selection_text(chosen: dict[str, Any]) -> str:
-    pitch = (
-        f"Δρ = {chosen['drho_um']:.4g} µm, Δθ = {chosen['dtheta_deg']:.4g}°"
-        if chosen["layout"] == "ring"
-        else f"Δx = {chosen['dx_um']:.4g} µm, Δy = {chosen['dy_um']:.4g} µm"
-    )
+    if chosen["layout"] == "spiral":
+        pitch = f"mean Δφ = {chosen['dphi_deg']:.4g}°, mean Δs = {chosen['ds_um']:.4g} µm"
+    elif chosen["layout"] == "ring":
+        pitch = f"Δρ = {chosen['drho_um']:.4g} µm, Δθ = {chosen['dtheta_deg']:.4g}°"
+    else:
+        pitch = f"Δx = {chosen['dx_um']:.4g} µm, Δy = {chosen['dy_um']:.4g} µm"
     interp = (
         f"interpolation alone {chosen['pv_interp_nm']:.2f} nm"
         if math.isfinite(chosen["pv_interp_nm"])
         else "interpolation alone not simulated"
     )
+    targets = ", ".join(
+        f"{name[: -len('_target')]} {value:,.4g}"
+        for name, value in chosen.items()
+        if name.endswith("_target")
+    )
     return "\n".join(
         [
             f"rule         {chosen['rule']}",
-            f"case         {chosen['index']} "
-            f"(target N {chosen['points_target']:,.0f}, α {chosen['aspect_target']:.4g})",
+            f"case         {chosen['index']} ({targets})",
             f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch} "
             f"(α = {chosen['aspect_actual']:.4g})",
             f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, {interp})",

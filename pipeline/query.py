@@ -55,15 +55,19 @@ def best_flat(ds: xr.Dataset, where: Optional[xr.DataArray] = None) -> Optional[
 
 
 def best_per_points(ds: xr.Dataset) -> list[tuple[float, Optional[int]]]:
-    """For each target point count: (target, flat index of its best eligible case or None)."""
-    index = xr.DataArray(np.arange(ds.sizes["points"]), dims="points")
-    return [(float(p), best_flat(ds, index == i)) for i, p in enumerate(ds["points"].values)]
+    """For each target point count: (target, flat index of its best eligible case or None);
+    for a spiral cube, for each value of its rule axis (its first dimension)."""
+    axis = "points" if "points" in ds.dims else str(ds["status"].dims[0])
+    index = xr.DataArray(np.arange(ds.sizes[axis]), dims=axis)
+    return [(float(p), best_flat(ds, index == i)) for i, p in enumerate(ds[axis].values)]
 
 
 def best_pv_over_aspect(ds: xr.Dataset) -> xr.DataArray:
     """Lowest eligible P-V [nm] over (points, aspect), every other sweep axis reduced by its
     minimum: the surface the optimum per point count is read from."""
     pv = eligible_pv(ds)
+    if "aspect" not in pv.dims:
+        return pv  # a spiral cube: every axis is kept
     other = [d for d in pv.dims if d not in ("points", "aspect")]
     return pv.min(other) if other else pv
 

@@ -74,11 +74,12 @@ RESULT: tuple[Quantity, ...] = (
     _f("dx_um", "um", "mesh pitch Δx", ("mesh",)),
     _f("dy_um", "um", "mesh pitch Δy", ("mesh",)),
     # the spiral program ([4])
-    _text("spiral_rule", "spiral sampling rule: angle, arc or chord"),
-    _f("points_per_rev", "1", "points per revolution of the constant-angle rule", ("spiral",)),
-    _f("arc_um", "um", "path length between points of the constant-arc rule", ("spiral",)),
-    _f("chord_um", "um", "chord-error budget of the chord rule", ("spiral",)),
-    _f("residual_um", "um", "residual (cusp) budget that set the feed", ("spiral",)),
+    Quantity("spiral_rule", "spiral sampling rule: angle, arc or chord", kinds=("spiral",)),
+    # the rule's parameters are inputs (a spiral cube's axes), not stored per case
+    Quantity("points_per_rev", "points per revolution of the constant-angle rule", "1", kinds=("spiral",)),
+    Quantity("arc_um", "path length between points of the constant-arc rule", "um", kinds=("spiral",)),
+    Quantity("chord_um", "chord-error budget of the chord rule", "um", kinds=("spiral",)),
+    Quantity("residual_um", "residual (cusp) budget that set the feed", "um", kinds=("spiral",)),
     _f("revolutions", "1", "revolutions of the spiral from the edge to the centre", ("spiral",)),
     _f("dphi_deg", "deg", "mean spindle-angle step between points", ("spiral",)),
     _f("ds_um", "um", "mean path length between points", ("spiral",)),

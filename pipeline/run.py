@@ -18,7 +18,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep import catalogs, cube
-from ftsweep.case import LINE_CACHE_MB
+from ftsweep.case import LINE_CACHE_MB, CaseError
 from ftsweep.cube import CubeError
 from ftsweep.executor import TaskSpec, execute, run_task, warm_up
 from ftsweep.lock import cube_lock
@@ -193,6 +193,8 @@ def _run_locked(
     scheduler, workers, line_cache_mb = where
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
     if prune is not None:
+        if spec.layout == "spiral":
+            raise CaseError("--prune estimates tables over their aspect ratios; a spiral sweep has none")
         prune_cases(spec, out, status, prune, run_id, catalog_folder)
         status = cube.read_status(out).ravel()
     wanted = (
@@ -277,7 +279,7 @@ def best_per_point_count(path: Path) -> list[dict[str, Any]]:
         rows.append(
             {
                 "points": target,
-                "aspect": case["aspect_target"],
+                "aspect": case.get("aspect_target", case["aspect_actual"]),
                 "pv_nm": case["pv_nm"],
                 "n_points": case["n_points"],
                 "index": flat,

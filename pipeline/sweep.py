@@ -22,6 +22,7 @@ from pydantic import (
     ValidationError,
     ValidationInfo,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -49,12 +50,32 @@ AxisSpec = Union[Annotated[list[PositiveFloat], Field(min_length=1)], AxisRange]
 
 
 class SweepAxes(Strict):
-    """The sweep axes; ``points`` and ``aspect`` are required, the others optional."""
+    """The sweep axes: ``points`` and ``aspect`` for tables; for spiral programs exactly one
+    rule axis (``points_per_rev``, ``arc_um`` or ``chord_um``) and optionally ``residual_um``;
+    ``feed_um`` and ``nose_radius_um`` optional for both."""
 
-    points: AxisSpec = Field(description="target numbers of control points N")
-    aspect: AxisSpec = Field(description="target aspect ratios α (Δρ/Δθ µm/deg for rings, Δx/Δy for meshes)")
+    points: Optional[AxisSpec] = Field(None, description="target numbers of control points N (tables)")
+    aspect: Optional[AxisSpec] = Field(
+        None, description="target aspect ratios α (Δρ/Δθ µm/deg for rings, Δx/Δy for meshes)"
+    )
+    points_per_rev: Optional[AxisSpec] = Field(None, description="spiral: points per revolution")
+    arc_um: Optional[AxisSpec] = Field(None, description="spiral: path length between points [µm]")
+    chord_um: Optional[AxisSpec] = Field(None, description="spiral: chord-error budgets [µm]")
+    residual_um: Optional[AxisSpec] = Field(
+        None, description="spiral: residual budgets that set the feed [µm]"
+    )
     feed_um: Optional[AxisSpec] = Field(None, description="feeds per revolution [µm/rev]")
     nose_radius_um: Optional[AxisSpec] = Field(None, description="tool nose radii [µm]")
+
+    @model_serializer(mode="wrap")
+    def _stable_dump(self, handler: Any) -> Any:
+        # the spiral axes are left out when unset, so table specs keep their hashes
+        data = handler(self)
+        if isinstance(data, dict):
+            for name in SPIRAL_AXES:
+                if data.get(name) is None:
+                    data.pop(name, None)
+        return data
 
 
 CATALOG_KIND = {"surface": "surfaces", "machine": "machines", "cutting": "cutting"}
@@ -80,7 +101,7 @@ class SweepSpec(Strict):
 
     description: str = ""
     surface: str
-    layout: Optional[Literal["ring", "mesh"]] = Field(None, description="default: the surface's")
+    layout: Optional[Literal["ring", "mesh", "spiral"]] = Field(None, description="default: the surface's")
     machine: str = "fts-1m"
     cutting: str = "reference"
     compensation: Literal["exact", "slope", "none"] = "exact"
@@ -132,6 +153,30 @@ class SweepSpec(Strict):
         return self
 
     @model_validator(mode="after")
+    def _axes_of_the_program(self) -> SweepSpec:
+        axes = self.axes
+        rules = [n for n in SPIRAL_RULE_AXES if getattr(axes, n) is not None]
+        table = [n for n in ("points", "aspect") if getattr(axes, n) is not None]
+        if self.layout == "spiral":
+            if table:
+                raise ValueError(f"axes.{table[0]} belongs to tables; a spiral sweep has one rule axis")
+            if len(rules) != 1:
+                raise ValueError(
+                    "a spiral sweep needs exactly one rule axis: points_per_rev, arc_um or chord_um "
+                    f"(got {', '.join(rules) or 'none'})"
+                )
+            if axes.residual_um is not None and axes.feed_um is not None:
+                raise ValueError("axes.residual_um sets the feed: give it or axes.feed_um, not both")
+        elif self.layout is not None:
+            spiral = [n for n in SPIRAL_AXES if getattr(axes, n) is not None]
+            if spiral:
+                raise ValueError(f"axes.{spiral[0]} belongs to spiral sweeps (layout: spiral)")
+            for name in ("points", "aspect"):
+                if getattr(axes, name) is None:
+                    raise ValueError(f"axes.{name}: required key is missing for a {self.layout} sweep")
+        return self
+
+    @model_validator(mode="after")
     def _no_duplicate_values(self) -> SweepSpec:
         for name in AXIS_ORDER:
             spec = getattr(self.axes, name)
@@ -147,9 +192,15 @@ class SweepSpec(Strict):
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-AXIS_ORDER = ("points", "aspect", "feed_um", "nose_radius_um")
+SPIRAL_RULE_AXES = ("points_per_rev", "arc_um", "chord_um")
+SPIRAL_AXES = (*SPIRAL_RULE_AXES, "residual_um")
+AXIS_ORDER = ("points", "aspect", *SPIRAL_AXES, "feed_um", "nose_radius_um")
 AXIS_ATTRS = {
     "points": {"units": "1", "long_name": "target number of control points"},
+    "points_per_rev": {"units": "1", "long_name": "points per revolution of the spiral"},
+    "arc_um": {"units": "um", "long_name": "path length between the spiral's points"},
+    "chord_um": {"units": "um", "long_name": "chord-error budget of the spiral"},
+    "residual_um": {"units": "um", "long_name": "residual (cusp) budget that sets the feed"},
     "feed_um": {"units": "um", "long_name": "feed per spindle revolution"},
     "nose_radius_um": {"units": "um", "long_name": "tool nose radius"},
 }
@@ -246,9 +297,20 @@ def case_at(spec: SweepSpec, index: int) -> Case:
     pos = dict(zip(coords, np.unravel_index(index, shape), strict=True))
     value = {name: float(coords[name][pos[name]]) for name in coords}
     assert spec.layout is not None
+    if spec.layout == "spiral":
+        request = LayoutRequest(
+            kind="spiral",
+            **{
+                k: (int(round(v)) if k == "points_per_rev" else v)
+                for k, v in value.items()
+                if k in SPIRAL_AXES
+            },
+        )
+    else:
+        request = LayoutRequest(kind=spec.layout, points=value["points"], aspect=value["aspect"])
     return Case(
         surface=spec.surface,
-        layout=LayoutRequest(kind=spec.layout, points=value["points"], aspect=value["aspect"]),
+        layout=request,
         machine=spec.machine,
         cutting=spec.cutting,
         feed_um=value.get("feed_um"),
@@ -270,6 +332,13 @@ def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) 
     A case whose layout cannot be built costs 0 and shares nothing (key None)."""
     case = case_at(spec, index)
     surface = catalogs.entry("surfaces", case.surface, catalog_folder)
+    if case.layout.kind == "spiral":
+        # a spiral's points (and with a chord budget its angular sampling) are only known once
+        # planned: its cost is its simulated nodes at the part's outer circumference, and its
+        # lines are its own
+        rho0 = catalogs.aperture_of(surface).outer_radius_um
+        feed = case.feed_um or catalogs.entry("cutting", case.cutting, catalog_folder).feed_um
+        return 3.0 * 2.0 * math.pi * rho0 * rho0 / feed, None
     try:
         layout = build_layout(surface, case.layout)
     except ValueError:

@@ -16,6 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .interpolation import Program, interpolate
+from .spiral import SpiralPath
 
 
 class Dynamics(NamedTuple):
@@ -103,7 +104,11 @@ def analyse(
     spectra = []
     for frac in radii_fraction:
         # one revolution plus its neighbouring commands, so the differences cover all of it
-        w = revolution_commands(layout, table, frac * rho0_um, feed_um, k, k + 2, first=-1)
+        start = frac * rho0_um
+        if isinstance(layout, SpiralPath):
+            # a path program is only defined on its own spiral: start on its revolution nearest
+            start = rho0_um - feed_um * round((rho0_um - start) / feed_um)
+        w = revolution_commands(layout, table, start, feed_um, k, k + 2, first=-1)
         v = np.diff(w) / dt * 1e-3  # µm/s → mm/s
         a = np.diff(w, 2) / (dt * dt) * 1e-6  # µm/s² → m/s²
         v_peak = max(v_peak, float(np.max(np.abs(v))))

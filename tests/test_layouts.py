@@ -59,7 +59,9 @@ def test_reference_layout_counts(name):
 def test_ring_target_round_trips_within_one_ring(n, alpha, r):
     lay = layouts.ring_layout_for(r, n, alpha)
     np_ = lay.shape[1]
-    assert n - np_ < lay.n_points <= n or lay.shape[0] == 2  # a budget: never over, within one ring
+    # a budget: never over (but for the 1e-9 of a ring that M = floor(N/Np + 1e-9) forgives
+    # a target a rounding error below a whole count), within one ring
+    assert n - np_ < lay.n_points <= n + 1e-9 * np_ or lay.shape[0] == 2
     again = layouts.ring_layout(r, *lay.pitch)
     assert again == lay  # pitches → table reproduces the same table
     # α is met as well as rounding Np (half a step) and then M (half a ring) allows

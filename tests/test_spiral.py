@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep.case import Case, CaseError, LayoutRequest, Resolution, resolve_case, run_case
+from ftsweep.catalogs import CatalogError
 from ftsweep.stages import interpolation, spiral
 from ftsweep.stages.interpolation import path_grid
 
@@ -200,3 +201,56 @@ def test_spiral_requests_are_checked():
     # a table case's key does not change with the spiral's fields
     case = Case(surface="sinewave2d", layout=LayoutRequest(kind="ring", pitch=(2.0, 1.0)))
     assert "chord_um" not in case.model_dump()["layout"]
+
+
+# ----------------------------------------------------------------- sweeps of spiral programs
+SPIRAL_SWEEP = """
+surface: small_sine
+layout: spiral
+axes:
+  points_per_rev: [40, 90]
+  feed_um: [2.0, 4.0]
+"""
+
+
+def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_dir):
+    import xarray as xr
+
+    from ftsweep.query import best_per_points
+    from ftsweep.run import run_sweep
+    from ftsweep.select import choose
+    from ftsweep.sweep import case_at, load_sweep
+
+    spec_path = tmp_path / "spiral.yaml"
+    spec_path.write_text(SPIRAL_SWEEP)
+    _, spec = load_sweep(str(spec_path), catalog_dir)
+    assert case_at(spec, 3).layout.points_per_rev == 90 and case_at(spec, 3).feed_um == 4.0
+    sync = run_sweep(str(spec_path), tmp_path / "a.zarr", scheduler="synchronous", catalog_folder=catalog_dir)
+    dist = run_sweep(str(spec_path), tmp_path / "b.zarr", workers=2, catalog_folder=catalog_dir)
+    assert sync.done == dist.done == 4
+    a, b = xr.open_zarr(tmp_path / "a.zarr").load(), xr.open_zarr(tmp_path / "b.zarr").load()
+    for name in ("pv_nm", "rms_nm", "n_points", "dphi_deg", "w_accel_peak_m_s2"):
+        assert np.array_equal(a[name].values, b[name].values), name
+    # N = Np·(ρ0/F) + 1
+    assert a["n_points"].values.tolist() == [[40 * 150 + 1, 40 * 75 + 1], [90 * 150 + 1, 90 * 75 + 1]]
+    chosen = choose(a, budget_points=20_000)
+    assert chosen["layout"] == "spiral" and chosen["n_points"] <= 20_000
+    assert chosen["pv_nm"] == pytest.approx(float(a["pv_nm"].where(a["n_points"] <= 20_000).min()))
+    assert [target for target, _ in best_per_points(a)] == [40.0, 90.0]
+
+
+def test_spiral_sweep_axes_are_checked(tmp_path, catalog_dir):
+    from ftsweep.sweep import load_sweep
+
+    bad = {
+        "points": "surface: small_sine\nlayout: spiral\naxes: {points: [1000], chord_um: [0.1]}\n",
+        "exactly one rule axis": (
+            "surface: small_sine\nlayout: spiral\naxes: {chord_um: [0.1], arc_um: [3]}\n"
+        ),
+        "belongs to spiral": "surface: small_sine\naxes: {points: [1e4], aspect: [1], chord_um: [0.1]}\n",
+    }
+    for message, text in bad.items():
+        path = tmp_path / "bad.yaml"
+        path.write_text(text)
+        with pytest.raises(CatalogError, match=message):
+            load_sweep(str(path), catalog_dir)

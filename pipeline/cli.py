@@ -532,7 +532,9 @@ def export(
     name: Optional[str],
     force: bool,
 ) -> None:
-    """Export the chosen layout as a C header for the FTS controller.
+    """Export the chosen layout as a C header for the FTS controller, or a spiral program as
+    plain text (one line per point: C [deg] X [mm] Z [mm], under a header of units, surface,
+    tool, budgets and predicted P-V; e.g. -o outputs/part.txt).
 
     The table is stored as fixed-point integers (unit and type from the machine catalog) in
     the order the controller indexes it, with macros for the layout, pitches, origin, units,
@@ -549,10 +551,13 @@ def export(
     except (exp.ExportError, SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(_selection_text(meta["selection"]))
-    click.echo(
-        f"header       {out} ({meta['shape'][0]} × {meta['shape'][1]} {meta['int_type']}, "
-        f"unit {meta['unit_nm']} nm, CRC-32 0x{meta['crc32']:08x})"
-    )
+    if meta["layout"] == "spiral":
+        click.echo(f"program      {out} ({meta['n_points']:,} lines C X Z, CRC-32 0x{meta['crc32']:08x})")
+    else:
+        click.echo(
+            f"header       {out} ({meta['shape'][0]} × {meta['shape'][1]} {meta['int_type']}, "
+            f"unit {meta['unit_nm']} nm, CRC-32 0x{meta['crc32']:08x})"
+        )
     click.echo(f"sidecar      {exp.sidecar_path(out)}")
 
 
@@ -586,10 +591,13 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> Non
     if as_json:
         _echo_json(record)
         return
-    click.echo(f"checksum     {record['checksum']} (macros and table) ok; sidecar and header hashes ok")
-    click.echo(f"table        {record['layout']}: {record['n_points']:,} points")
+    spiral = record["layout"] == "spiral"
+    covered = "data lines" if spiral else "macros and table"
+    click.echo(f"checksum     {record['checksum']} ({covered}) ok; sidecar and header hashes ok")
+    click.echo(f"{'program' if spiral else 'table':<12s} {record['layout']}: {record['n_points']:,} points")
+    source = "the program's lines" if spiral else "the stored integers"
     click.echo(
-        f"P-V          {record['pv_nm']:.2f} nm re-simulated from the stored integers "
+        f"P-V          {record['pv_nm']:.2f} nm re-simulated from {source} "
         f"(predicted at export: {record['predicted_pv_nm']:.2f} nm, "
         f"tolerance {record['pv_tolerance_nm']:.2f} nm) ok"
     )

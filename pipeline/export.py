@@ -196,7 +196,8 @@ def export(
     name: str | None = None,
 ) -> dict[str, Any]:
     """Choose a case, compute its table from the cube's recorded spec and catalog entries,
-    and write the header and its sidecar atomically. Returns the sidecar's content."""
+    and write the header and its sidecar atomically. Returns the sidecar's content. A spiral
+    case is written as a plain-text program instead (:mod:`ftsweep.program`)."""
     out = Path(out)
     side = sidecar_path(out)
     if side == out:
@@ -217,6 +218,14 @@ def export(
     check_exportable(ds, flat)
 
     case, (surface, machine, cutting) = recorded_case(ds, flat)
+    if case.layout.kind == "spiral":
+        from ftsweep import program
+
+        extra = {"cube": str(cube_path), "cube_git_revision": ds.attrs.get("git_revision")}
+        try:
+            return program.export_program(out, side, case, (surface, machine, cutting), chosen, extra)
+        except program.ProgramError as exc:
+            raise ExportError(str(exc)) from None
     layout = build_layout(surface, case.layout)
     if layout.n_points != chosen["n_points"]:
         raise ExportError(f"the cube says {chosen['n_points']} points but the spec gives {layout.n_points}")
@@ -392,6 +401,13 @@ def verify(
     predicted P-V and the tolerance applied.
     """
     path = Path(path)
+    from ftsweep import program
+
+    if program.is_program(path):
+        try:
+            return program.verify_program(path, progress, pv_tolerance_nm)
+        except program.ProgramError as exc:
+            raise ExportError(str(exc)) from None
     macros, ints, meta = check_integrity(path)
     try:
         case = Case.model_validate(meta["case"])

@@ -238,6 +238,24 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     assert chosen["pv_nm"] == pytest.approx(float(a["pv_nm"].where(a["n_points"] <= 20_000).min()))
     assert [target for target, _ in best_per_points(a)] == [40.0, 90.0]
 
+    # export the chosen program as text, verify it, and catch a changed line or sidecar
+    from ftsweep.export import ExportError, export, verify
+
+    out = tmp_path / "part.txt"
+    meta = export(tmp_path / "a.zarr", out, budget_points=20_000)
+    lines = out.read_text().splitlines()
+    data = lines[lines.index("C_deg X_mm Z_mm") + 1 :]
+    assert len(data) == chosen["n_points"] == meta["n_points"]
+    assert any(line.startswith("# predicted P-V") for line in lines)
+    record = verify(out)
+    assert record["pv_nm"] == pytest.approx(chosen["pv_nm"], abs=record["pv_tolerance_nm"])
+    with pytest.raises(ExportError, match="exists"):
+        export(tmp_path / "a.zarr", out, budget_points=20_000)
+    c, x, z = data[5].split()
+    out.write_text("\n".join(lines).replace(data[5], f"{c} {x} {float(z) + 1e-6:.9f}") + "\n")
+    with pytest.raises(ExportError, match="CRC32"):
+        verify(out)
+
 
 def test_spiral_sweep_axes_are_checked(tmp_path, catalog_dir):
     from ftsweep.sweep import load_sweep

@@ -1098,5 +1098,59 @@ def _summary(r: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+@main.command()
+@click.argument(
+    "cubes",
+    nargs=-1,
+    required=True,
+    metavar="CUBE...",
+    type=click.Path(exists=True, file_okay=False, path_type=Path),
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the plot of P-V against point count here (PNG). Default: no plot.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object (the rows) on stdout.")
+def compare(cubes: tuple[Path, ...], out: Optional[Path], as_json: bool) -> None:
+    """Compare program kinds on one surface: tables (ring, mesh) against spiral programs.
+
+    Give the cubes of sweeps on the same surface, e.g. a ring sweep and a spiral sweep. For
+    each point count of each cube (target N of a table sweep, the rule axis of a spiral
+    sweep) its best feasible case is listed with its realised N and P-V, one block per
+    program; -o draws P-V against point count, one line per program.
+
+    \b
+    Example:
+      ftsweep sweep sinewave-ring && ftsweep sweep sinewave-spiral
+      ftsweep compare outputs/sinewave-ring.zarr outputs/sinewave-spiral.zarr -o outputs/compare.png
+    """
+    from ftsweep.compare import compare_rows, plot_compare
+    from ftsweep.cube import CubeError
+    from ftsweep.report import _save
+    from ftsweep.select import SelectError
+
+    try:
+        rows = compare_rows(list(cubes))
+    except (SelectError, CubeError) as exc:
+        raise click.ClickException(str(exc)) from None
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        _save(plot_compare(rows), out)
+    if as_json:
+        _echo_json({"rows": rows, "plot": str(out) if out else None})
+        return
+    head = f"  {'program':<40s} {'target':>10s} {'actual N':>10s} {'P-V nm':>9s} {'RMS nm':>8s}"
+    click.echo(head + f" {'interp nm':>9s}")
+    for r in rows:
+        click.echo(
+            f"  {r['program']:<40s} {r['target']:10,.4g} {r['n_points']:10,d} {r['pv_nm']:9.2f} "
+            f"{r['rms_nm']:8.2f} {r['pv_interp_nm']:9.2f}"
+        )
+    if out is not None:
+        click.echo(f"plot         {out}")
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

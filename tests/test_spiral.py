@@ -3,6 +3,7 @@ interpolation along the path, and the seed's own numbers through the one engine.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -255,6 +256,34 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     out.write_text("\n".join(lines).replace(data[5], f"{c} {x} {float(z) + 1e-6:.9f}") + "\n")
     with pytest.raises(ExportError, match="CRC32"):
         verify(out)
+
+    # compare: the spiral cube beside a ring cube of the same part, table and plot
+    from click.testing import CliRunner
+
+    from ftsweep.cli import main
+
+    ring = tmp_path / "ring.yaml"
+    ring.write_text("surface: small_sine\nlayout: ring\naxes: {points: [6000, 13000], aspect: [1, 4]}\n")
+    run_sweep(str(ring), tmp_path / "r.zarr", scheduler="synchronous", catalog_folder=catalog_dir)
+    png = tmp_path / "cmp.png"
+    res = CliRunner().invoke(
+        main,
+        ["compare", str(tmp_path / "r.zarr"), str(tmp_path / "a.zarr"), "-o", str(png), "--json"],
+        env={"FTSWEEP_CATALOGS": str(catalog_dir)},
+    )
+    assert res.exit_code == 0, res.output
+    rows = json.loads(res.stdout)["rows"]
+    assert {r["program"].split()[0] for r in rows} == {"ring", "spiral"} and len(rows) == 4
+    spiral_rows = [r for r in rows if r["program"].startswith("spiral")]
+    assert [r["pv_nm"] for r in spiral_rows] == [best_pv(a, 40), best_pv(a, 90)]
+    assert png.stat().st_size > 0
+
+
+def best_pv(ds, points_per_rev):
+    """Lowest eligible P-V [nm] of a spiral cube at one points_per_rev."""
+    from ftsweep.query import eligible_pv
+
+    return float(eligible_pv(ds).sel(points_per_rev=points_per_rev).min())
 
 
 def test_spiral_sweep_axes_are_checked(tmp_path, catalog_dir):

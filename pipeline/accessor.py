@@ -202,7 +202,9 @@ def plot_map(
     lim = float(np.nanmax(np.abs(values_nm))) if np.any(np.isfinite(values_nm)) else 1.0
     im = ax.imshow(values_nm, origin="lower", extent=extent, cmap="RdBu_r", vmin=-lim, vmax=lim)
     ax.figure.colorbar(im, ax=ax, label=f"{kind} form error e = z − f [nm]")
-    if case.get("layout") == "ring":
+    if case.get("layout") == "spiral":
+        pitch = f"mean Δφ {case['dphi_deg']:.3g}°, mean Δs {case['ds_um']:.3g} µm"
+    elif case.get("layout") == "ring":
         pitch = f"Δρ {case['drho_um']:.3g} µm, Δθ {case['dtheta_deg']:.3g}°"
     else:
         pitch = f"Δx {case['dx_um']:.3g} µm, Δy {case['dy_um']:.3g} µm"

@@ -24,7 +24,7 @@ import numpy as np
 import ftsweep.accessor  # noqa: F401  (registers ds.ftsweep)
 from ftsweep import cube
 from ftsweep.accessor import _axes, plot_map
-from ftsweep.case import build_layout, control_table, run_case
+from ftsweep.case import build_layout, control_table, resolve_case, run_case
 from ftsweep.catalogs import aperture_of
 from ftsweep.io import write_text_atomic
 from ftsweep.select import SelectError, choose, describe, eligible, open_cube, recorded_case
@@ -63,6 +63,14 @@ def resimulate(
     case = base.model_copy(
         update={"resolution": base.resolution.model_copy(update={"error_map_bins": map_bins})}
     )
+    if case.layout.kind == "spiral":
+        # a spiral is planned once, here, and handed to the run as its program
+        rcase = resolve_case(case, specs=specs)
+        assert rcase.values is not None and rcase.gouge is not None
+        layout, table, gouge = rcase.layout, rcase.values, rcase.gouge
+        record = run_case(case, progress=progress, specs=specs, program=(layout, table))
+        record["gouge_points"] = int(np.count_nonzero(gouge))
+        return record, (case, layout, table, specs)
     layout = build_layout(specs[0], case.layout)
     # the table is compensated once, here, and handed to the run (which would redo it)
     table, gouge = control_table(case, layout, specs[0], case.nose_radius_um or specs[2].nose_radius_um)
@@ -127,11 +135,12 @@ def make_report(
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
     paths["pv_vs_points"] = _save(ds.ftsweep.plot_pv(), out / "pv_vs_points.png")
-    paths["pv_vs_aspect"] = _save(ds.ftsweep.plot_aspect(), out / "pv_vs_aspect.png")
-    paths["pv_heatmap"] = _save(ds.ftsweep.plot_heatmap(), out / "pv_heatmap.png")
+    if "aspect" in ds.dims:  # a spiral cube has no aspect axis to plot over
+        paths["pv_vs_aspect"] = _save(ds.ftsweep.plot_aspect(), out / "pv_vs_aspect.png")
+        paths["pv_heatmap"] = _save(ds.ftsweep.plot_heatmap(), out / "pv_heatmap.png")
 
     if index is None:
-        budget = int(np.nanmax(ds["points"].values))
+        budget = int(np.nanmax(ds["points"].values if "points" in ds.dims else ds["n_points"].values))
         chosen = choose(ds, budget_points=budget)
     else:
         chosen = choose(ds, index=index)
@@ -178,6 +187,7 @@ def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[s
         f'<figure><img src="{html.escape(paths[k].name)}" alt="{html.escape(t)}"><figcaption>{html.escape(t)}'
         f"</figcaption></figure>"
         for k, t in FIGURES.items()
+        if k in paths
     )
     spec = html.escape(json.dumps(json.loads(attrs.get("sweep_spec", "{}")), indent=2))
     title = html.escape(str(attrs.get("sweep_name")))

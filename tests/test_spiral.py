@@ -278,6 +278,21 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     assert [r["pv_nm"] for r in spiral_rows] == [best_pv(a, 40), best_pv(a, 90)]
     assert png.stat().st_size > 0
 
+    # the report of a spiral cube: P-V against points, the chosen case's map and spectrum
+    from ftsweep.report import make_report
+
+    paths = make_report(tmp_path / "a.zarr", tmp_path / "report", map_bins=16)
+    assert {"pv_vs_points", "error_map", "w_spectrum", "index"} <= set(paths)
+    assert all(p.stat().st_size > 0 for p in paths.values())
+
+
+def test_spiral_results_do_not_depend_on_the_batch_size(catalog_dir):
+    case = Case(surface="small_sine", layout=LayoutRequest(kind="spiral", arc_um=15.0), feed_um=3.0)
+    small = run_case(case, catalog_dir, batch_nodes=3_000)
+    large = run_case(case, catalog_dir, batch_nodes=2_000_000)
+    for name in ("pv_nm", "rms_nm", "pv_interp_nm", "n_points", "w_accel_peak_m_s2"):
+        assert small[name] == large[name], name
+
 
 def best_pv(ds, points_per_rev):
     """Lowest eligible P-V [nm] of a spiral cube at one points_per_rev."""

@@ -66,9 +66,17 @@ class FtsweepAccessor:
 
         return choose(self._ds, budget_points=budget_points, tolerance_nm=tolerance_nm)
 
+    def _need_aspect(self, what: str) -> None:
+        if "aspect" not in self._ds.dims:
+            raise ValueError(
+                f"{what} reads a table sweep's aspect axis; this {self._ds.attrs.get('layout_method')} cube "
+                "has none (use plot_pv, best or ftsweep compare)"
+            )
+
     def optimum(self) -> xr.DataArray:
         """Best aspect ratio per target point count among the eligible cases (the sweep
         summary's and ``select``'s best; NaN where none is eligible)."""
+        self._need_aspect("optimum")
         pv = self.pv()
         found = pv.notnull().any("aspect")
         return pv.fillna(np.inf).idxmin("aspect").where(found)
@@ -118,6 +126,7 @@ class FtsweepAccessor:
 
     def plot_aspect(self, ax: Any = None) -> Any:
         """P-V [nm] against aspect ratio, one line per target point count, optimum marked."""
+        self._need_aspect("plot_aspect")
         ax = _axes(ax)
         pv = self.pv()
         aspect = self._ds["aspect"].values
@@ -141,6 +150,7 @@ class FtsweepAccessor:
         """Heat map of log10 P-V over (target point count, aspect ratio)."""
         import matplotlib.colors as mcolors
 
+        self._need_aspect("plot_heatmap")
         ax = _axes(ax)
         pv = self.pv().transpose("aspect", "points")
         values = pv.values

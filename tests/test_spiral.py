@@ -284,6 +284,8 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     paths = make_report(tmp_path / "a.zarr", tmp_path / "report", map_bins=16)
     assert {"pv_vs_points", "error_map", "w_spectrum", "index"} <= set(paths)
     assert all(p.stat().st_size > 0 for p in paths.values())
+    with pytest.raises(ValueError, match="aspect axis"):
+        a.ftsweep.optimum()
 
 
 def test_spiral_results_do_not_depend_on_the_batch_size(catalog_dir):

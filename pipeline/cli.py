@@ -450,6 +450,11 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
     return counts
 
 
+def _target_text(value: float) -> str:
+    """A sweep axis value: whole counts with thousands separators, others to 4 digits."""
+    return f"{value:,.0f}" if value == round(value) and abs(value) >= 1000 else f"{value:.4g}"
+
+
 def _selection_text(chosen: dict[str, Any]) -> str:
     if chosen["layout"] == "spiral":
         pitch = f"mean Δφ = {chosen['dphi_deg']:.4g}°, mean Δs = {chosen['ds_um']:.4g} µm"
@@ -463,7 +468,7 @@ def _selection_text(chosen: dict[str, Any]) -> str:
         else "interpolation alone not simulated"
     )
     targets = ", ".join(
-        f"{name[: -len('_target')]} {value:,.4g}"
+        f"{name[: -len('_target')]} {_target_text(value)}"
         for name, value in chosen.items()
         if name.endswith("_target")
     )

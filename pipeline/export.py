@@ -99,10 +99,11 @@ def checksum(macros: list[tuple[str, str]], ints: np.ndarray, int_type: str) -> 
     return zlib.crc32(np.ascontiguousarray(ints, dtype=LE_DTYPE[int_type]).tobytes(), crc) & 0xFFFFFFFF
 
 
-def sidecar_digest(sidecar: dict[str, Any]) -> str:
-    """SHA-256 of a sidecar's content without the fields that depend on the header text
-    (``crc32``, ``header_sha256``): the header's ``SIDECAR_SHA256`` macro holds it."""
-    core = {k: v for k, v in sidecar.items() if k not in ("crc32", "header_sha256")}
+def sidecar_digest(sidecar: dict[str, Any], text_fields: tuple[str, ...] = ("crc32", "header_sha256")) -> str:
+    """SHA-256 of a sidecar's content without the fields that depend on the exported text
+    (``text_fields``: for a header ``crc32`` and ``header_sha256``): the header's
+    ``SIDECAR_SHA256`` macro (a program's ``# sidecar:`` line) holds it."""
+    core = {k: v for k, v in sidecar.items() if k not in text_fields}
     text = dumps_json(core, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
@@ -186,6 +187,23 @@ def sidecar_path(header: Path) -> Path:
     return header.with_suffix(".json")
 
 
+def recorded_entries(specs: tuple[Any, Any, Any]) -> dict[str, Any]:
+    """The (surface, machine, cutting) entries as a sidecar records them."""
+    keys = ("surface", "machine", "cutting")
+    return {key: spec.model_dump(mode="json") for key, spec in zip(keys, specs, strict=True)}
+
+
+def recorded_case_of(meta: dict[str, Any], side: Path) -> tuple[Case, tuple[Any, Any, Any]]:
+    """The case and (surface, machine, cutting) specs a sidecar ``side`` recorded;
+    :class:`ExportError` if they cannot be read."""
+    try:
+        entries = meta["catalog_entries"]
+        specs = specs_from_entries(entries["surface"], entries["machine"], entries["cutting"])
+        return Case.model_validate(meta["case"]), specs
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ExportError(f"{side}: the recorded case cannot be read ({str(exc)[:200]})") from None
+
+
 def export(
     cube_path: Path,
     out: Path,
@@ -222,10 +240,7 @@ def export(
         from ftsweep import program
 
         extra = {"cube": str(cube_path), "cube_git_revision": ds.attrs.get("git_revision")}
-        try:
-            return program.export_program(out, side, case, (surface, machine, cutting), chosen, extra)
-        except program.ProgramError as exc:
-            raise ExportError(str(exc)) from None
+        return program.export_program(out, side, case, (surface, machine, cutting), chosen, extra)
     layout = build_layout(surface, case.layout)
     if layout.n_points != chosen["n_points"]:
         raise ExportError(f"the cube says {chosen['n_points']} points but the spec gives {layout.n_points}")
@@ -255,11 +270,7 @@ def export(
         cube_git_revision=ds.attrs.get("git_revision"),
         selection=chosen,
         case=case.model_dump(mode="json"),
-        catalog_entries={
-            "surface": surface.model_dump(mode="json"),
-            "machine": machine.model_dump(mode="json"),
-            "cutting": cutting.model_dump(mode="json"),
-        },
+        catalog_entries=recorded_entries((surface, machine, cutting)),
     )
     # the header names the sidecar's hash and the sidecar the header's: editing either one,
     # or re-forging the table with its CRC, is caught by verify
@@ -404,19 +415,9 @@ def verify(
     from ftsweep import program
 
     if program.is_program(path):
-        try:
-            return program.verify_program(path, progress, pv_tolerance_nm)
-        except program.ProgramError as exc:
-            raise ExportError(str(exc)) from None
+        return program.verify_program(path, progress, pv_tolerance_nm)
     macros, ints, meta = check_integrity(path)
-    try:
-        case = Case.model_validate(meta["case"])
-        entries = meta["catalog_entries"]
-        specs = specs_from_entries(entries["surface"], entries["machine"], entries["cutting"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ExportError(
-            f"{sidecar_path(path)}: the recorded case cannot be read ({str(exc)[:200]})"
-        ) from None
+    case, specs = recorded_case_of(meta, sidecar_path(path))
     unit_nm = _macro_value(macros, "UNIT_NM", float, path)
     predicted = _macro_value(macros, "PREDICTED_PV_NM", float, path)
     record = run_case(case, table=ints * unit_nm * 1e-3, specs=specs, progress=progress)

@@ -23,7 +23,7 @@ import numpy as np
 
 from ftsweep import __version__
 from ftsweep.case import Case, resolve_case, run_case
-from ftsweep.catalogs import specs_from_entries
+from ftsweep.export import ExportError, recorded_case_of, recorded_entries, sidecar_digest, sidecar_path
 from ftsweep.io import dumps_json, write_texts_atomic
 from ftsweep.stages.spiral import SpiralPath
 
@@ -33,7 +33,7 @@ COLUMNS = "C_deg X_mm Z_mm"
 LINE = "{:.9f} {:.9f} {:.9f}"
 
 
-class ProgramError(ValueError):
+class ProgramError(ExportError):
     """A program file cannot be trusted; the message says why."""
 
 
@@ -54,10 +54,8 @@ def _crc(lines: list[str]) -> int:
     return zlib.crc32("\n".join(lines).encode("ascii")) & 0xFFFFFFFF
 
 
-def sidecar_digest(sidecar: dict[str, Any]) -> str:
-    """SHA-256 of the sidecar's content without the fields that name the program's hash."""
-    core = {k: v for k, v in sidecar.items() if k not in ("program", "program_sha256", "crc32")}
-    return hashlib.sha256(dumps_json(core).encode("utf-8")).hexdigest()
+# the sidecar fields that depend on the program's text (left out of the sidecar's digest)
+TEXT_FIELDS = ("program", "program_sha256", "crc32")
 
 
 def export_program(
@@ -96,11 +94,7 @@ def export_program(
         **extra,
         "selection": chosen,
         "case": case.model_dump(mode="json"),
-        "catalog_entries": {
-            "surface": specs[0].model_dump(mode="json"),
-            "machine": specs[1].model_dump(mode="json"),
-            "cutting": specs[2].model_dump(mode="json"),
-        },
+        "catalog_entries": recorded_entries(specs),
     }
     unit = {"angle": "points/rev", "arc": "um of path", "chord": "um chord budget"}[rule]
     crc = _crc(lines)
@@ -115,7 +109,7 @@ def export_program(
         f"# predicted P-V: {chosen['pv_nm']:.6f} nm",
         f"# points: {path.n_points}",
         "# units: C [deg] accumulated spindle angle from the edge, X [mm] radius, Z [mm] tool tip",
-        f"# sidecar: {side.name} sha256 {sidecar_digest(meta)}",
+        f"# sidecar: {side.name} sha256 {sidecar_digest(meta, TEXT_FIELDS)}",
         f"# CRC32: 0x{crc:08x} over the data lines",
         COLUMNS,
     ]
@@ -159,24 +153,23 @@ def verify_program(
     path: Path, progress: Callable[[int, int], None] | None = None, pv_tolerance_nm: float | None = None
 ) -> dict[str, Any]:
     """Check a program and its sidecar, rebuild the path from its lines (C, X, Z) and
-    re-simulate the part from them. Raises :class:`ProgramError` on any mismatch; returns the
-    re-simulated record with the predicted P-V and the tolerance applied."""
+    re-simulate the part from them. Raises :class:`ProgramError` (an ``ExportError``) on any
+    mismatch; returns the re-simulated record with the predicted P-V and the tolerance
+    applied."""
     import json
 
     path = Path(path)
     head, data = read_program(path)
-    side = path.with_suffix(".json")
+    side = sidecar_path(path)
     try:
         meta = json.loads(side.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise ProgramError(f"{side}: the sidecar cannot be read ({exc})") from None
     if meta.get("program_sha256") != hashlib.sha256(path.read_bytes()).hexdigest():
         raise ProgramError(f"{side} does not belong to {path} (SHA-256 of the program differs)")
-    if head.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta):
+    if head.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta, TEXT_FIELDS):
         raise ProgramError(f"{path}: the sidecar was changed (its SHA-256 differs from the header's)")
-    case = Case.model_validate(meta["case"])
-    entries = meta["catalog_entries"]
-    specs = specs_from_entries(entries["surface"], entries["machine"], entries["cutting"])
+    case, specs = recorded_case_of(meta, side)
     phi = np.radians(data[:, 0])
     feed, rho0 = float(meta["feed_um"]), float(meta["rho0_um"])
     rule, value = case.layout.spiral_rule()

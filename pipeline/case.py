@@ -88,14 +88,8 @@ class Resolution(Strict):
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
-        # options left at their defaults are left out, so specs and case keys written before
-        # the options existed keep their hashes (and their cubes stay resumable)
-        data = handler(self)
-        if isinstance(data, dict):
-            for name, default in (("interp_error", True), ("angular_ladder", None)):
-                if name in data and data[name] is default:
-                    del data[name]
-        return data
+        # cubes of specs written before these options existed stay resumable
+        return catalogs.without_defaults(handler(self), {"interp_error": True, "angular_ladder": None})
 
     @field_validator("points_per_feed")
     @classmethod
@@ -129,13 +123,8 @@ class LayoutRequest(Strict):
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
-        # the spiral's fields are left out when unset, so table cases keep their keys
-        data = handler(self)
-        if isinstance(data, dict):
-            for name in SPIRAL_FIELDS:
-                if data.get(name) is None:
-                    data.pop(name, None)
-        return data
+        # table cases keep their keys
+        return catalogs.without_defaults(handler(self), dict.fromkeys(SPIRAL_FIELDS))
 
     @model_validator(mode="after")
     def _one_way(self) -> LayoutRequest:

@@ -74,6 +74,17 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
+def without_defaults(data: Any, defaults: dict[str, Any]) -> Any:
+    """``data`` (a model's dump) without the keys of ``defaults`` whose value is that default:
+    options added after specs were first written are left out of a dump while unset, so the
+    hashes of those specs (case keys, cube spec hashes) do not change."""
+    if isinstance(data, dict):
+        for name, default in defaults.items():
+            if name in data and data[name] is default:
+                del data[name]
+    return data
+
+
 # --------------------------------------------------------------------------- apertures
 class CircleAperture(Strict):
     shape: Literal["circle"]

@@ -69,13 +69,8 @@ class SweepAxes(Strict):
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
-        # the spiral axes are left out when unset, so table specs keep their hashes
-        data = handler(self)
-        if isinstance(data, dict):
-            for name in SPIRAL_AXES:
-                if data.get(name) is None:
-                    data.pop(name, None)
-        return data
+        # table sweep specs keep their hashes
+        return catalogs.without_defaults(handler(self), dict.fromkeys(SPIRAL_AXES))
 
 
 CATALOG_KIND = {"surface": "surfaces", "machine": "machines", "cutting": "cutting"}

@@ -122,6 +122,14 @@ def path_length_um(rho0_um: float, feed_um: float) -> float:
     return float(_arc_from_centre(np.array(rho0_um), feed_um / (2.0 * math.pi)))
 
 
+def arc_length_between(phi_a: np.ndarray, phi_b: np.ndarray, rho0_um: float, feed_um: float) -> np.ndarray:
+    """Length [µm] of the spiral in the XY plane between accumulated angles φa ≤ φb [rad]."""
+    b = feed_um / (2.0 * math.pi)
+    return _arc_from_centre(spiral_radius(phi_a, rho0_um, feed_um), b) - _arc_from_centre(
+        spiral_radius(phi_b, rho0_um, feed_um), b
+    )
+
+
 def _check(name: str, value: float) -> None:
     if not (value > 0.0 and math.isfinite(value)):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")

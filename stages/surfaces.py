@@ -556,6 +556,82 @@ def sinusoidal_mesh(
     )
 
 
+# --------------------------------------------------------------------------- microprism
+@njit(nogil=True, cache=True)
+def _microprism_kernel(x, y, height, inradius, faces, rotation, f, fx, fy):  # pragma: no cover - jit
+    slope = height / inradius
+    step = 2.0 * math.pi / faces
+    for p in range(x.size):
+        # the pyramid is the lowest of its face planes: the face with the largest projection
+        best, best_k = -math.inf, 0
+        for k in range(faces):
+            a = rotation + k * step
+            d = x[p] * math.cos(a) + y[p] * math.sin(a)
+            if d > best:
+                best, best_k = d, k
+        if best < inradius:
+            a = rotation + best_k * step
+            f[p] = height * (1.0 - best / inradius)
+            fx[p] = -slope * math.cos(a)
+            fy[p] = -slope * math.sin(a)
+        else:
+            f[p] = 0.0
+            fx[p] = 0.0
+            fy[p] = 0.0
+
+
+def microprism_gradient_bound(*, height_um: float, base_um: float, **_: float) -> float:
+    """|∇f| of :func:`microprism` [-]: every face slopes by height over the base's inradius."""
+    return 2.0 * height_um / base_um
+
+
+@surface_family(
+    "microprism",
+    {
+        "height_um": Param(float, _um("height H of the prism's apex above its base plane"), positive=True),
+        "base_um": Param(
+            float, _um("width of the base polygon across flats (twice its inradius)"), positive=True
+        ),
+        "faces": Param(int, "faces of the regular pyramid (4: a square base)", 4),
+        "rotation_deg": Param(float, "angle of the first face's outward normal from +x [deg]", 0.0),
+    },
+    gradient_bound=microprism_gradient_bound,
+    check=lambda params: _check_faces(params["faces"]),
+)
+def microprism(
+    x: np.ndarray,
+    y: np.ndarray,
+    *,
+    height_um: float,
+    base_um: float,
+    faces: int = 4,
+    rotation_deg: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A single microprism ([3]): a regular pyramid of ``faces`` planar faces on a flat base
+    plane, apex H above it on the axis.
+
+    With a = base/2 the base's inradius and d = max over faces k of (x·cos α_k + y·sin α_k),
+    α_k = rotation + 2πk/faces:  d < a: f = H·(1 − d/a);  else f = 0 (the base plane).
+    Lengths in µm; ridges are convex edges, the base edges concave ones (a nose radius cannot
+    follow them: the compensation flags them, model §4).
+    """
+    _check_faces(faces)
+    return evaluate_flat(
+        _microprism_kernel,
+        x,
+        y,
+        float(height_um),
+        0.5 * float(base_um),
+        int(faces),
+        math.radians(rotation_deg),
+    )
+
+
+def _check_faces(faces: int) -> None:
+    if not 3 <= faces <= 64:
+        raise ValueError(f"a microprism needs 3 to 64 faces, got {faces}")
+
+
 # --------------------------------------------------------------------------- zernike
 def noll_to_nm(j: int) -> tuple[int, int]:
     """Radial order n and signed azimuthal frequency m of Noll index j ≥ 1 (Noll 1976):

@@ -26,7 +26,7 @@ from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_s
 from ftsweep import catalogs, result
 from ftsweep.catalogs import Strict
 from ftsweep.result import STAGES
-from ftsweep.stages import compensation, dynamics, envelope, interpolation, layouts, metrics, spiral
+from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers, layouts, metrics, spiral
 from ftsweep.stages.interpolation import Program
 from ftsweep.stages.layouts import Layout
 from ftsweep.stages.surfaces import radial_section
@@ -184,6 +184,19 @@ class Case(Strict):
     nose_radius_um: Optional[PositiveFloat] = Field(None, description="overrides the cutting entry [µm]")
     compensation: Literal["exact", "slope", "none"] = "exact"
     resolution: Resolution = Resolution()
+    layers: Literal["auto", "off"] = Field(
+        "auto",
+        description="auto: cut commands spanning more than the machine's travel in layers ([3]); "
+        "off: one pass, infeasible when the commands exceed the travel",
+    )
+    z_error_um: Optional[float] = Field(
+        None, description="Z positioning error per retraction between layers [µm]; overrides the machine's"
+    )
+
+    @model_serializer(mode="wrap")
+    def _stable_dump(self, handler: Any) -> Any:
+        # keys of cases written before layered machining stay the same
+        return catalogs.without_defaults(handler(self), {"layers": "auto", "z_error_um": None})
 
     def key(self) -> str:
         """Stable hash of the canonical JSON of the spec (16 hex digits)."""
@@ -656,6 +669,9 @@ def run_case(
     table, gouge = _table_of(rcase, table, catalog_folder)
     timer.add("compensation", t)
     plan = LinePlan.of(rcase, batch_nodes, max_nodes)
+    t = time.perf_counter()
+    layering = layer_plan(rcase, table)
+    timer.add("interpolation", t)
     stats = metrics.empty_stats()
     bins = case.resolution.error_map_bins
     emap = ErrorMap.over(rcase.aperture, bins) if bins else None
@@ -666,7 +682,7 @@ def run_case(
             data = _line_data(rcase, plan, plan.batch(b), timer)
             if lines is not None:
                 lines.put((key, b), data)
-        _simulate_lines(rcase, plan, table, stats, emap, timer, data)
+        _simulate_lines(rcase, plan, table, stats, emap, timer, data, layering)
         if progress is not None:
             progress(b + 1, plan.n_batches)
     t = time.perf_counter()
@@ -684,7 +700,7 @@ def run_case(
     errors = metrics.finalize(stats)
     if not case.resolution.interp_error:
         errors["pv_interp_nm"] = math.nan  # not simulated: asked off
-    record = _record(rcase, plan, errors, dyn, gouge)
+    record = _record(rcase, plan, errors, dyn, gouge, layering)
     if emap is not None:
         record.update(emap.as_record())
     for name in STAGE_TIMERS:
@@ -858,14 +874,25 @@ def _simulate_lines(
     emap: Optional[ErrorMap],
     timer: Timer,
     data: LineData,
+    layering: Optional[layers.LayerPlan] = None,
 ) -> None:
     """One batch of feed-plane lines through the stages that depend on the table (model
-    §3–§6): the controller's interpolation along the path, the arc envelope, and the metrics
-    against the design and the exact-command envelope of ``data``, accumulated into ``stats``
-    (and ``emap``)."""
+    §3–§6): the controller's interpolation along the path (executed layer by layer when
+    ``layering`` is given, [3]), the arc envelope, and the metrics against the design and the
+    exact-command envelope of ``data``, accumulated into ``stats`` (and ``emap``)."""
     rc, aperture, grid = rcase.nose_radius_um, rcase.aperture, data.grid
     t = time.perf_counter()
     w_interp = interpolation.pass_commands(rcase.layout, table, grid)
+    if layering is not None:
+        w_interp = layers.layered_pass_commands(
+            layering, grid.ray_theta, grid.n_passes, w_interp, z_error_of(rcase)
+        )
+        passes = np.arange(w_interp.shape[1])[None, :] < grid.n_passes[:, None]
+        require_finite(
+            np.where(passes, w_interp, 0.0),
+            "the layered W command (a pass no layer cuts)",
+            _pass_point(grid, grid.ray_theta[:, None]),
+        )
     t = timer.add("interpolation", t)
 
     z, cusp_r, cusp_z = _machined(grid, w_interp, plan, rc)
@@ -883,8 +910,95 @@ def _simulate_lines(
     timer.add("metrics", t)
 
 
+def z_error_of(rcase: ResolvedCase) -> float:
+    """Z positioning error per retraction [µm]: the case's, else the machine's."""
+    z_error = rcase.case.z_error_um
+    return float(rcase.machine.z_error_um if z_error is None else z_error)
+
+
+def layer_plan(rcase: ResolvedCase, table: np.ndarray) -> Optional[layers.LayerPlan]:
+    """The layered plan ([3], :mod:`ftsweep.stages.layers`) of a case whose commands span
+    more than the machine's travel (the table's range bounds every interpolated command),
+    planned on the commands the controller executes along the spiral; None for a single
+    pass (the commands fit the travel, or the case asks ``layers: off``)."""
+    machine = rcase.machine
+    span = float(np.max(table) - np.min(table))
+    if rcase.case.layers == "off" or span <= machine.travel_um:
+        return None
+    k = dynamics.commands_per_revolution(machine.command_rate_hz, rcase.cutting.spindle_rpm)
+
+    def chunks() -> Any:
+        return layers.command_stream(rcase.layout, table, rcase.rho0_um, rcase.feed_um, k)
+
+    phi_end = spiral.spiral_end_rad(rcase.rho0_um, rcase.feed_um)
+    try:
+        return layers.plan_layers(chunks, machine.travel_um, machine.layer_margin_um, phi_end)
+    except ValueError as exc:
+        raise CaseError(f"layered plan: {exc}") from None
+
+
+def layer_record(
+    rcase: ResolvedCase, layering: Optional[layers.LayerPlan], stroke_um: float
+) -> dict[str, Any]:
+    """The plan's fields of a case record: the scalars a cube stores and ``layers``, the
+    schedule per layer (None for a single pass, which is one layer: its zone the whole
+    travel, its stroke the commands' range ``stroke_um``)."""
+    rpm, machine = rcase.cutting.spindle_rpm, rcase.machine
+    single_s = spiral.spiral_end_rad(rcase.rho0_um, rcase.feed_um) / (rpm * 2.0 * math.pi / 60.0)
+    z_error = z_error_of(rcase)
+    if layering is None:
+        return dict(
+            n_layers=1,
+            layer_segments=1,
+            layer_zone_um=machine.travel_um,
+            layer_stroke_um=stroke_um,
+            z_error_um=z_error,
+            machining_s=single_s,
+            single_pass_s=single_s,
+            layers=None,
+        )
+    times = layers.layer_times(layering, rcase.rho0_um, rcase.feed_um, rpm, machine.layer_change_s)
+    stroke = layering.stroke_used_um
+    schedule = {
+        "n_layers": layering.n_layers,
+        "zone_um": layering.zone_um,
+        "margin_um": layering.margin_um,
+        "travel_um": layering.travel_um,
+        "z_error_um": z_error,
+        "order": "outer edge to centre within a layer; layers from the lowest zone up",
+        "offset_um": layering.offsets_um.tolist(),
+        "zone_bottom_um": layering.bottoms_um.tolist(),
+        "z_shift_um": (-z_error * np.arange(layering.n_layers)).tolist(),
+        "start_radius_um": times.start_radius_um.tolist(),
+        "end_radius_um": times.end_radius_um.tolist(),
+        "start_phi_rad": layering.seg_start[layering.seg_ptr[:-1]].tolist(),
+        "segments": times.segments.tolist(),
+        "stroke_used_um": stroke.tolist(),
+        "spiral_length_um": times.cut_length_um.tolist(),
+        "time_s": times.time_s.tolist(),
+        "total_time_s": float(times.time_s.sum()),
+        "single_pass_time_s": times.single_pass_s,
+        "stroke_extension": float(layering.w_high.max() - layering.levels_um[0]) / layering.travel_um,
+    }
+    return dict(
+        n_layers=layering.n_layers,
+        layer_segments=layering.n_segments,
+        layer_zone_um=layering.zone_um,
+        layer_stroke_um=float(stroke.max()),
+        z_error_um=z_error,
+        machining_s=float(times.time_s.sum()),
+        single_pass_s=times.single_pass_s,
+        layers=schedule,
+    )
+
+
 def _record(
-    rcase: ResolvedCase, plan: LinePlan, errors: dict[str, float], dyn: Any, gouge: np.ndarray
+    rcase: ResolvedCase,
+    plan: LinePlan,
+    errors: dict[str, float],
+    dyn: Any,
+    gouge: np.ndarray,
+    layering: Optional[layers.LayerPlan] = None,
 ) -> dict[str, Any]:
     """The flat record of a finished case (see :func:`run_case`); ``errors`` are the metrics
     of :func:`ftsweep.stages.metrics.finalize`. Refuses non-finite metrics."""
@@ -897,9 +1011,18 @@ def _record(
             "the feed and the nose radius"
         )
     case, layout, machine = rcase.case, rcase.layout, rcase.machine
+    # layered, the servo strokes each layer's zone; the Z axis takes the rest ([3])
+    stroke_dyn = dyn if layering is None else dyn._replace(stroke_um=float(layering.stroke_used_um.max()))
     feasible, reason = dynamics.feasibility(
-        dyn, machine.travel_um, machine.peak_accel_m_s2, machine.continuous_accel_m_s2, machine.bandwidth_hz
+        stroke_dyn,
+        machine.travel_um,
+        machine.peak_accel_m_s2,
+        machine.continuous_accel_m_s2,
+        machine.bandwidth_hz,
     )
+    if layering is None and dyn.stroke_um > machine.travel_um:
+        needed = layers.layers_needed(dyn.stroke_um, machine.travel_um, machine.layer_margin_um)
+        reason += f" (layers off; layered machining would cut it in {needed} layers)"
     record: dict[str, Any] = {"surface": case.surface, "layout": layout.kind, "n_points": layout.n_points}
     if isinstance(layout, spiral.SpiralPath):
         rule, value = case.layout.spiral_rule()
@@ -948,6 +1071,7 @@ def _record(
         feasible=feasible,
         infeasible_reason=reason,
     )
+    record.update(layer_record(rcase, layering, dyn.stroke_um))
     return record
 
 

@@ -80,7 +80,7 @@ def without_defaults(data: Any, defaults: dict[str, Any]) -> Any:
     hashes of those specs (case keys, cube spec hashes) do not change."""
     if isinstance(data, dict):
         for name, default in defaults.items():
-            if name in data and data[name] is default:
+            if name in data and type(data[name]) is type(default) and data[name] == default:
                 del data[name]
     return data
 
@@ -296,6 +296,24 @@ class Machine(Strict):
         1.0, description="value of one integer step in the header table [nm]"
     )
     table_int_type: Literal["int16", "int32"] = Field("int32", description="integer type of the header table")
+    # layered machining of parts deeper than the travel ([3]; ftsweep.stages.layers)
+    layer_margin_um: float = Field(
+        0.0, ge=0.0, description="stroke kept free at the travel's ends in layered machining, in all [µm]"
+    )
+    z_error_um: float = Field(
+        0.0, description="Z positioning error per retraction between layers [µm] (positive: falls short)"
+    )
+    layer_change_s: float = Field(
+        2.0, ge=0.0, description="time to stop the spindle, move Z and restart, per layer segment [s]"
+    )
+
+    @model_validator(mode="after")
+    def _margin_below_travel(self) -> Machine:
+        if not self.layer_margin_um < self.travel_um:
+            raise ValueError(
+                f"layer_margin_um {self.layer_margin_um:g} must be below travel_um {self.travel_um:g}"
+            )
+        return self
 
 
 class Cutting(Strict):

@@ -118,6 +118,15 @@ RESULT: tuple[Quantity, ...] = (
         "feasible", "1 if the W motion fits the machine's travel, acceleration and bandwidth", "1", "int8", -1
     ),  # noqa: E501
     _text("infeasible_reason", "machine limits the W motion exceeds (empty when feasible)"),
+    # layered machining of parts deeper than the travel ([3])
+    _i("n_layers", "layers the part is cut in (1: one pass)", "int32"),
+    _i("layer_segments", "spiral segments cut over all layers (each begins with a stop and a Z move)"),
+    _f("layer_zone_um", "um", "height of a layer's stroke zone (travel less margin; one pass: the travel)"),
+    _f("layer_stroke_um", "um", "largest W range within one layer"),
+    _f("z_error_um", "um", "Z positioning error per retraction between layers"),
+    _f("machining_s", "s", "machining time: the spiral at the spindle speed plus the stops of the layers"),
+    _f("single_pass_s", "s", "machining time of one uninterrupted spiral"),
+    Quantity("layers", "layer schedule: offsets, start radii, strokes, lengths and times per layer"),
     # wall times
     *(_f(f"seconds_{stage}", "s", f"wall time of {stage}") for stage in STAGES),
     _f("seconds", "s", "wall time of the case"),

@@ -48,6 +48,17 @@ sluggish-fts:
   continuous_accel_m_s2: 250.0
   bandwidth_hz: 1.0
   bandwidth_amplitude_um: 100.0
+short-fts:
+  description: A 0.8 µm stroke, shorter than small_sine's 2 µm span, so it is cut in layers (for tests).
+  capacity_points: 1000000
+  command_rate_hz: 20000.0
+  travel_um: 0.8
+  peak_accel_m_s2: 400.0
+  continuous_accel_m_s2: 250.0
+  bandwidth_hz: 440.0
+  bandwidth_amplitude_um: 0.8
+  layer_margin_um: 0.1
+  layer_change_s: 1.0
 tiny-fts:
   description: A controller holding only 30,000 points (for tests).
   capacity_points: 30000

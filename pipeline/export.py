@@ -23,10 +23,11 @@ from typing import Any
 import numpy as np
 
 from ftsweep import __version__
-from ftsweep.case import Case, build_layout, control_table, run_case
+from ftsweep.case import Case, ResolvedCase, build_layout, control_table, layer_plan, resolve_case, run_case
 from ftsweep.catalogs import specs_from_entries
 from ftsweep.io import dumps_json, write_texts_atomic
 from ftsweep.select import check_exportable, choose, open_cube, recorded_case
+from ftsweep.stages.spiral import spiral_radius
 
 INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}
 LE_DTYPE = {"int16": "<i2", "int32": "<i4"}
@@ -108,10 +109,106 @@ def sidecar_digest(sidecar: dict[str, Any], text_fields: tuple[str, ...] = ("crc
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
+# a controller's layer schedule is a short list: beyond this the part is not one for layers
+MAX_EXPORT_SEGMENTS = 100_000
+
+
+def layer_schedule(rcase: ResolvedCase, values: Any) -> dict[str, Any] | None:
+    """The layer schedule ([3]) of a case whose commands ``values`` [µm] (the table or
+    program as exported) exceed the travel, as a controller runs it: per layer its Z offset
+    [µm] and start radius [µm]; per segment its layer and the accumulated spindle angles
+    [deg] where it starts and ends (C = φ mod 360, X = ρ0 − F·φ/360). None for one pass."""
+    plan = layer_plan(rcase, np.asarray(values, dtype=np.float64))
+    if plan is None:
+        return None
+    if plan.n_segments > MAX_EXPORT_SEGMENTS:
+        raise ExportError(
+            f"the layered plan has {plan.n_segments:,} segments, more than a controller's schedule "
+            f"({MAX_EXPORT_SEGMENTS:,}); nothing exported: use a longer stroke"
+        )
+    first = plan.seg_start[plan.seg_ptr[:-1]]
+    return {
+        "n_layers": plan.n_layers,
+        "zone_um": plan.zone_um,
+        "margin_um": plan.margin_um,
+        "travel_um": plan.travel_um,
+        "rho0_um": rcase.rho0_um,
+        "offset_um": plan.offsets_um.tolist(),
+        "start_radius_um": spiral_radius(first, rcase.rho0_um, rcase.feed_um).tolist(),
+        "segment_layer": np.repeat(np.arange(plan.n_layers), np.diff(plan.seg_ptr)).tolist(),
+        "segment_phi_deg": np.degrees(np.column_stack((plan.seg_start, plan.seg_end))).tolist(),
+    }
+
+
+def check_schedule(recorded: dict[str, Any] | None, planned: dict[str, Any] | None, path: Path) -> None:
+    """Refuse a file whose recorded layer schedule is not the one its commands plan (offsets
+    to 1 pm, angles to 1 µdeg)."""
+    if (recorded is None) != (planned is None):
+        which = "has none" if recorded is None else "has one"
+        raise ExportError(
+            f"{path}: its commands {'need' if planned else 'need no'} layers, but the file {which}; "
+            "do not load it"
+        )
+    if recorded is None or planned is None:
+        return
+    keys = ("offset_um", "start_radius_um", "segment_layer", "segment_phi_deg")
+    for key in keys:
+        a, b = np.asarray(recorded[key], dtype=np.float64), np.asarray(planned[key], dtype=np.float64)
+        if a.shape != b.shape or not np.allclose(a, b, rtol=0.0, atol=1e-6):
+            raise ExportError(
+                f"{path}: the layer schedule ({key}) is not the one its commands plan; do not load it"
+            )
+
+
+def _c_list(values: Any) -> str:
+    return "{" + ", ".join(repr(float(v)) if isinstance(v, float) else str(v) for v in values) + "}"
+
+
+def layer_macros(schedule: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """Macros of a layered header: the schedule of :func:`layer_schedule` (initializer lists
+    usable as ``static const double x[] = PREFIX_LAYER_OFFSETS_UM;``)."""
+    phis = [v for pair in schedule["segment_phi_deg"] for v in pair]
+    return [
+        ("N_LAYERS", str(schedule["n_layers"]), "layers, cut in this order"),
+        ("LAYER_ZONE_UM", repr(schedule["zone_um"]), "height of a stroke zone [um]"),
+        ("LAYER_MARGIN_UM", repr(schedule["margin_um"]), "travel kept free, half at each end [um]"),
+        ("RHO0_UM", repr(schedule["rho0_um"]), "spiral start radius [um]"),
+        ("LAYER_OFFSETS_UM", _c_list(schedule["offset_um"]), "Z offset of each layer: W = table - offset"),
+        ("LAYER_START_RADII_UM", _c_list(schedule["start_radius_um"]), "radius of each layer's first cut"),
+        ("N_SEGMENTS", str(len(schedule["segment_layer"])), ""),
+        ("SEGMENT_LAYERS", _c_list(schedule["segment_layer"]), "layer of each segment"),
+        ("SEGMENT_PHI_DEG", _c_list(phis), "start, end of each segment [deg of spindle from the edge]"),
+    ]
+
+
+def parse_schedule(macros: dict[str, str], path: Path) -> dict[str, Any] | None:
+    """The layer schedule a header's macros hold (None for a single-pass header)."""
+    if "N_LAYERS" not in macros:
+        return None
+
+    def numbers(name: str) -> list[float]:
+        text = macros.get(name, "").strip()
+        if not (text.startswith("{") and text.endswith("}")):
+            raise ExportError(f"{path}: macro {name} is missing or not an initializer list")
+        try:
+            return [float(v) for v in text[1:-1].split(",") if v.strip()]
+        except ValueError:
+            raise ExportError(f"{path}: macro {name} holds a value that is not a number") from None
+
+    phis = numbers("SEGMENT_PHI_DEG")
+    return {
+        "offset_um": numbers("LAYER_OFFSETS_UM"),
+        "start_radius_um": numbers("LAYER_START_RADII_UM"),
+        "segment_layer": numbers("SEGMENT_LAYERS"),
+        "segment_phi_deg": [phis[i : i + 2] for i in range(0, len(phis), 2)],
+    }
+
+
 def header_macros(meta: dict[str, Any], shape: tuple[int, int], int_type: str) -> list[tuple[str, str, str]]:
     """(name without prefix, value as written, comment) of every macro of the header."""
     kind = meta["layout"]
     rows, cols = shape
+    layered = layer_macros(meta["layers"]) if meta.get("layers") else []
     return [
         ("LAYOUT_KIND", c_string(kind), ""),
         ("LAYOUT_IS_RING", str(1 if kind == "ring" else 0), ""),
@@ -131,6 +228,7 @@ def header_macros(meta: dict[str, Any], shape: tuple[int, int], int_type: str) -
         ("SPINDLE_RPM", repr(meta["spindle_rpm"]), ""),
         ("PREDICTED_PV_NM", repr(meta["pv_nm"]), ""),
         ("GENERATOR", c_string(meta["generator"]), ""),
+        *layered,
         ("SIDECAR_SHA256", c_string(meta["sidecar_sha256"]), "of the sidecar without crc32, header_sha256"),
     ]
 
@@ -141,6 +239,16 @@ COMPENSATION_CITED = {
     "slope": "slope-approximated compensated commands, section 4 eq. 4",
     "none": "surface heights without nose compensation, section 4",
 }
+
+
+LAYERED_NOTE = [
+    " * Layered ([3], README 'Layered trajectories'): the part is cut in N_LAYERS layers, in",
+    " * order. In layer k the Z axis sets the workpiece at LAYER_OFFSETS_UM[k] and the FTS",
+    " * outputs W = table - LAYER_OFFSETS_UM[k] (within its travel); the layer cuts the",
+    " * spiral only on its segments, from SEGMENT_PHI_DEG[2s] to SEGMENT_PHI_DEG[2s+1]",
+    " * (spindle angle accumulated from the edge: C = phi mod 360, X = RHO0_UM - FEED_UM*phi/360),",
+    " * stopping the spindle and lifting the tool between them.",
+]
 
 
 def render_header(name: str, meta: dict[str, Any], ints: np.ndarray, int_type: str) -> tuple[str, int]:
@@ -161,7 +269,9 @@ def render_header(name: str, meta: dict[str, Any], ints: np.ndarray, int_type: s
         f" * {axes[1]} = {macro}_ORIGIN1 + j*{macro}_PITCH1, in units of {macro}_UNIT_NM nm.",
         f" * Values are {COMPENSATION_CITED[meta['compensation']]} (ftsweep README, 'The model'),",
         " * interpolated bilinearly by the FTS controller (section 3, eq. 2; the method of",
-        " * reference [1] there). */",
+        " * reference [1] there).",
+        *(LAYERED_NOTE if meta.get("layers") else []),
+        " */",
         f"#ifndef {macro}_H",
         f"#define {macro}_H",
         "",
@@ -247,6 +357,9 @@ def export(
     rc = case.nose_radius_um or cutting.nose_radius_um
     table_um, _ = control_table(case, layout, surface, rc)
     ints = quantise(table_um, machine.table_unit_nm, machine.table_int_type)
+    # the schedule of the table as stored: verify plans it again from the same integers
+    rcase = resolve_case(case, specs=(surface, machine, cutting))
+    schedule = layer_schedule(rcase, ints * machine.table_unit_nm * 1e-3)
     meta = {
         "generator": f"ftsweep {__version__}",
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
@@ -262,6 +375,7 @@ def export(
         "nose_radius_um": rc,
         "spindle_rpm": cutting.spindle_rpm,
         "pv_nm": chosen["pv_nm"],
+        "layers": schedule,
     }
     sidecar = dict(meta)
     sidecar.update(
@@ -420,7 +534,9 @@ def verify(
     case, specs = recorded_case_of(meta, sidecar_path(path))
     unit_nm = _macro_value(macros, "UNIT_NM", float, path)
     predicted = _macro_value(macros, "PREDICTED_PV_NM", float, path)
-    record = run_case(case, table=ints * unit_nm * 1e-3, specs=specs, progress=progress)
+    table = ints * unit_nm * 1e-3
+    check_schedule(parse_schedule(macros, path), layer_schedule(resolve_case(case, specs=specs), table), path)
+    record = run_case(case, table=table, specs=specs, progress=progress)
     tol = default_pv_tolerance_nm(unit_nm, predicted) if pv_tolerance_nm is None else pv_tolerance_nm
     record["predicted_pv_nm"] = predicted
     record["pv_tolerance_nm"] = tol

@@ -23,7 +23,15 @@ import numpy as np
 
 from ftsweep import __version__
 from ftsweep.case import Case, resolve_case, run_case
-from ftsweep.export import ExportError, recorded_case_of, recorded_entries, sidecar_digest, sidecar_path
+from ftsweep.export import (
+    ExportError,
+    check_schedule,
+    layer_schedule,
+    recorded_case_of,
+    recorded_entries,
+    sidecar_digest,
+    sidecar_path,
+)
 from ftsweep.io import dumps_json, write_texts_atomic
 from ftsweep.stages.spiral import SpiralPath
 
@@ -74,6 +82,7 @@ def export_program(
     if path.n_points != chosen["n_points"]:
         raise ProgramError(f"the cube says {chosen['n_points']} points but the spec plans {path.n_points}")
     lines = _data_lines(path, rcase.values)
+    schedule = _schedule_of_lines(case, specs, path, lines)
     rule, value = case.layout.spiral_rule()
     residual = case.layout.residual_um
     meta = {
@@ -91,6 +100,7 @@ def export_program(
         "nose_radius_um": rcase.nose_radius_um,
         "spindle_rpm": specs[2].spindle_rpm,
         "pv_nm": chosen["pv_nm"],
+        "layers": schedule,
         **extra,
         "selection": chosen,
         "case": case.model_dump(mode="json"),
@@ -108,6 +118,7 @@ def export_program(
         + (f"{residual:g} um" if residual is not None else "none (feed given)"),
         f"# predicted P-V: {chosen['pv_nm']:.6f} nm",
         f"# points: {path.n_points}",
+        *_layer_lines(schedule),
         "# units: C [deg] accumulated spindle angle from the edge, X [mm] radius, Z [mm] tool tip",
         f"# sidecar: {side.name} sha256 {sidecar_digest(meta, TEXT_FIELDS)}",
         f"# CRC32: 0x{crc:08x} over the data lines",
@@ -117,6 +128,34 @@ def export_program(
     meta.update(program=out.name, crc32=crc, program_sha256=hashlib.sha256(text.encode()).hexdigest())
     write_texts_atomic({side: dumps_json(meta, indent=2) + "\n", out: text})
     return meta
+
+
+def _values_of(lines: list[str]) -> np.ndarray:
+    return np.array([float(line.split()[2]) for line in lines]) * 1e3
+
+
+def _schedule_of_lines(
+    case: Case, specs: tuple[Any, Any, Any], path: SpiralPath, lines: list[str]
+) -> dict[str, Any] | None:
+    """The layer schedule of the program as written (Z to 1 pm), planned as verify plans it."""
+    values = _values_of(lines)
+    return layer_schedule(resolve_case(case, specs=specs, program=(path, values)), values)
+
+
+def _layer_lines(schedule: dict[str, Any] | None) -> list[str]:
+    """Header lines of a layered program ([3]): the Z offset of each layer (Z to execute =
+    the line's Z − the offset) and each segment: the C range a layer cuts."""
+    if schedule is None:
+        return []
+    offsets = " ".join(f"{v:.9f}" for v in np.asarray(schedule["offset_um"]) * 1e-3)
+    out = [
+        f"# layers: {schedule['n_layers']} (Z zone {schedule['zone_um']:.6g} um); in layer k the Z axis "
+        "offsets the part by offset_mm[k] and the servo executes Z - offset, on that layer's segments only",
+        f"# offset_mm: {offsets}",
+    ]
+    for layer, (a, b) in zip(schedule["segment_layer"], schedule["segment_phi_deg"], strict=True):
+        out.append(f"# segment: layer {layer} C {a:.9f} to {b:.9f}")
+    return out
 
 
 def read_program(path: Path) -> tuple[dict[str, str], np.ndarray]:
@@ -177,7 +216,10 @@ def verify_program(
     off = np.max(np.abs(spiral_path.rho * 1e-3 - data[:, 1]))
     if not off <= 1e-6:
         raise ProgramError(f"{path}: X leaves the spiral of the recorded feed by up to {off * 1e3:.3g} µm")
-    record = run_case(case, specs=specs, progress=progress, program=(spiral_path, data[:, 2] * 1e3))
+    values = data[:, 2] * 1e3
+    planned = layer_schedule(resolve_case(case, specs=specs, program=(spiral_path, values)), values)
+    check_schedule(meta.get("layers"), planned, path)
+    record = run_case(case, specs=specs, progress=progress, program=(spiral_path, values))
     predicted = float(meta["pv_nm"])
     # Z is printed to 1 pm: the re-simulation agrees to far better than 0.01 nm + 0.1 %
     tol = 0.01 + 1e-3 * predicted if pv_tolerance_nm is None else pv_tolerance_nm

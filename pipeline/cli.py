@@ -199,6 +199,21 @@ def list_catalogs(as_json: bool) -> None:
 @click.option("--machine", default="fts-1m", show_default=True, help="Machine from catalogs/machines.yaml.")
 @click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
 @click.option(
+    "--layers",
+    type=click.Choice(["auto", "off"]),
+    default="auto",
+    show_default=True,
+    help="auto: commands spanning more than the machine's travel are cut in layers, the Z axis "
+    "retracting the part by one stroke zone between them ([3]); off: one pass, infeasible when "
+    "the commands exceed the travel.",
+)
+@click.option(
+    "--z-error-um",
+    type=float,
+    help="Z positioning error per retraction between layers [µm] (positive: each falls short, "
+    "so later layers cut deeper). Default: the machine entry's.",
+)
+@click.option(
     "--samples-per-cell",
     type=int,
     default=Resolution().samples_per_cell,
@@ -242,6 +257,10 @@ def predict(**opts: Any) -> None:
     --dx-um and --dy-um for meshes) or by a target point count and aspect ratio
     (--points and --aspect); the actual point count and pitches are reported.
 
+    Commands spanning more than the machine's travel are cut in layers (--layers auto, [3]):
+    stroke zones of the travel less the machine's margin, one Z offset each; the JSON's
+    "layers" holds the schedule (offsets, start radii, strokes, lengths, times per layer).
+
     A spiral program (--layout spiral) places its points along the tool path by one rule:
     --points-per-rev (constant angle), --arc-um (constant path length) or --chord-um (each
     chord within the budget of the compensated path, [4]); its feed is --feed-um, the
@@ -255,6 +274,8 @@ def predict(**opts: Any) -> None:
       ftsweep predict --surface sinewave2d --layout spiral --points-per-rev 500
       ftsweep predict --surface sinusoidal_mesh --layout spiral --chord-um 0.5 --residual-um 0.5 \\
           --cutting seed003 --machine sts-nanoform
+      ftsweep predict --surface microprism --machine fts-5um --cutting microprism --points 250000 \\
+          --aspect 1 --z-error-um 0.1
     """
     case = _build_case(opts)
     as_json = opts["as_json"]
@@ -960,6 +981,8 @@ def _build_case(opts: dict[str, Any]) -> Case:
             feed_um=opts["feed_um"],
             nose_radius_um=opts["nose_radius_um"],
             compensation=opts["compensation"],
+            layers=opts["layers"],
+            z_error_um=opts["z_error_um"],
             resolution=Resolution(
                 samples_per_cell=opts["samples_per_cell"],
                 points_per_feed=opts["points_per_feed"],
@@ -1091,6 +1114,17 @@ def _summary(r: dict[str, Any]) -> str:
             f"peak acceleration {r['w_accel_peak_m_s2']:.3g} m/s² (RMS {r['w_accel_rms_m_s2']:.3g}), "
             f"content up to {r['w_freq_max_hz']:.0f} Hz: {verdict}"
         )
+    if r.get("layers"):
+        lay = r["layers"]
+        starts = ", ".join(f"{v:.1f}" for v in lay["start_radius_um"])
+        lines += [
+            f"layers       {lay['n_layers']} zones of {lay['zone_um']:.4g} µm ({r['layer_segments']:,} "
+            f"segments), stroke extended {lay['stroke_extension']:.3g}×, Z error "
+            f"{lay['z_error_um']:.3g} µm per retraction",
+            f"             offsets {', '.join(f'{v:.4g}' for v in lay['offset_um'])} µm; "
+            f"start radii {starts} µm",
+            f"machining    {r['machining_s']:.0f} s in layers, {r['single_pass_s']:.0f} s for one pass",
+        ]
     if r["gouge_points"]:
         lines.append(
             f"gouge        {r['gouge_points']:,} control points where the concave radius is below Rc"

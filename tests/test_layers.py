@@ -296,7 +296,9 @@ def test_catalog_entries_of_the_layered_example():
 def test_a_layered_spiral_program_round_trips_through_verify(tmp_path, catalog_dir, monkeypatch):
     monkeypatch.setenv("FTSWEEP_CATALOGS", str(catalog_dir))
     spec = tmp_path / "sine.yaml"
-    spec.write_text("surface: small_sine\nlayout: spiral\nmachine: short-fts\naxes: {points_per_rev: [120]}\n")
+    spec.write_text(
+        "surface: small_sine\nlayout: spiral\nmachine: short-fts\naxes: {points_per_rev: [120]}\n"
+    )
     cube_path = tmp_path / "sine.zarr"
     run_sweep(str(spec), cube_path, scheduler="synchronous", catalog_folder=catalog_dir)
     out = tmp_path / "sine.txt"

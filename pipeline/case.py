@@ -971,7 +971,7 @@ def layer_record(
         "z_shift_um": (-z_error * np.arange(layering.n_layers)).tolist(),
         "start_radius_um": times.start_radius_um.tolist(),
         "end_radius_um": times.end_radius_um.tolist(),
-        "start_phi_rad": layering.seg_start[layering.seg_ptr[:-1]].tolist(),
+        "start_phi_rad": layering.first_phi.tolist(),
         "segments": times.segments.tolist(),
         "stroke_used_um": stroke.tolist(),
         "spiral_length_um": times.cut_length_um.tolist(),

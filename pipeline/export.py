@@ -126,7 +126,6 @@ def layer_schedule(rcase: ResolvedCase, values: Any) -> dict[str, Any] | None:
             f"the layered plan has {plan.n_segments:,} segments, more than a controller's schedule "
             f"({MAX_EXPORT_SEGMENTS:,}); nothing exported: use a longer stroke"
         )
-    first = plan.seg_start[plan.seg_ptr[:-1]]
     return {
         "n_layers": plan.n_layers,
         "zone_um": plan.zone_um,
@@ -134,8 +133,8 @@ def layer_schedule(rcase: ResolvedCase, values: Any) -> dict[str, Any] | None:
         "travel_um": plan.travel_um,
         "rho0_um": rcase.rho0_um,
         "offset_um": plan.offsets_um.tolist(),
-        "start_radius_um": spiral_radius(first, rcase.rho0_um, rcase.feed_um).tolist(),
-        "segment_layer": np.repeat(np.arange(plan.n_layers), np.diff(plan.seg_ptr)).tolist(),
+        "start_radius_um": spiral_radius(plan.first_phi, rcase.rho0_um, rcase.feed_um).tolist(),
+        "segment_layer": plan.seg_layer.tolist(),
         "segment_phi_deg": np.degrees(np.column_stack((plan.seg_start, plan.seg_end))).tolist(),
     }
 

@@ -82,7 +82,8 @@ def export_program(
     if path.n_points != chosen["n_points"]:
         raise ProgramError(f"the cube says {chosen['n_points']} points but the spec plans {path.n_points}")
     lines = _data_lines(path, rcase.values)
-    schedule = _schedule_of_lines(case, specs, path, lines)
+    # planned from Z as printed, as verify plans it
+    schedule = layer_schedule(rcase, _values_of(lines))
     rule, value = case.layout.spiral_rule()
     residual = case.layout.residual_um
     meta = {
@@ -132,14 +133,6 @@ def export_program(
 
 def _values_of(lines: list[str]) -> np.ndarray:
     return np.array([float(line.split()[2]) for line in lines]) * 1e3
-
-
-def _schedule_of_lines(
-    case: Case, specs: tuple[Any, Any, Any], path: SpiralPath, lines: list[str]
-) -> dict[str, Any] | None:
-    """The layer schedule of the program as written (Z to 1 pm), planned as verify plans it."""
-    values = _values_of(lines)
-    return layer_schedule(resolve_case(case, specs=specs, program=(path, values)), values)
 
 
 def _layer_lines(schedule: dict[str, Any] | None) -> list[str]:

@@ -96,6 +96,21 @@ class LayerPlan(NamedTuple):
         """(K,) W range each layer executes [µm], within the travel by construction."""
         return self.w_high - np.minimum(self.w_low, self.bottoms_um)
 
+    @property
+    def first_phi(self) -> np.ndarray:
+        """(K,) angle [rad] where each layer's first segment starts."""
+        return self.seg_start[self.seg_ptr[:-1]]
+
+    @property
+    def last_phi(self) -> np.ndarray:
+        """(K,) angle [rad] where each layer's last segment ends."""
+        return self.seg_end[self.seg_ptr[1:] - 1]
+
+    @property
+    def seg_layer(self) -> np.ndarray:
+        """(M,) layer of each segment."""
+        return np.repeat(np.arange(self.n_layers), np.diff(self.seg_ptr))
+
     def segments_of(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """(start, end) angles [rad] of layer ``k``'s segments."""
         sl = slice(int(self.seg_ptr[k]), int(self.seg_ptr[k + 1]))
@@ -257,7 +272,7 @@ def plan_layers(chunks: Chunks, travel_um: float, margin_um: float, phi_end: flo
         w_min, w_max = min(w_min, float(np.min(w))), max(w_max, float(np.max(w)))
     if not (math.isfinite(w_min) and math.isfinite(w_max)):
         raise ValueError("the program's commands are not finite: no layered plan")
-    n_zones = max(1, math.ceil((w_max - w_min) / zone - 1e-12))
+    n_zones = _zones(w_max - w_min, zone)
     levels = w_min + zone * np.arange(n_zones + 1, dtype=np.float64)
     levels[-1] = max(levels[-1], w_max)
     planner = _Planner(levels)
@@ -378,17 +393,14 @@ def layer_times(
     whole spiral at the same speed, without stops."""
     omega = spindle_rpm * 2.0 * math.pi / 60.0
     k = plan.n_layers
-    first = plan.seg_start[plan.seg_ptr[:-1]]
-    last = plan.seg_end[plan.seg_ptr[1:] - 1]
     seg_len = arc_length_between(plan.seg_start, plan.seg_end, rho0_um, feed_um)
-    layer_of = np.repeat(np.arange(k), np.diff(plan.seg_ptr))
     counts = np.diff(plan.seg_ptr)
-    span = last - first
+    span = plan.last_phi - plan.first_phi
     return LayerTimes(
-        start_radius_um=spiral_radius(first, rho0_um, feed_um),
-        end_radius_um=spiral_radius(last, rho0_um, feed_um),
+        start_radius_um=spiral_radius(plan.first_phi, rho0_um, feed_um),
+        end_radius_um=spiral_radius(plan.last_phi, rho0_um, feed_um),
         segments=counts,
-        cut_length_um=np.bincount(layer_of, weights=seg_len, minlength=k),
+        cut_length_um=np.bincount(plan.seg_layer, weights=seg_len, minlength=k),
         span_rad=span,
         time_s=span / omega + change_s * counts,
         single_pass_s=plan.phi_end / omega,
@@ -399,4 +411,9 @@ def layers_needed(span_um: float, travel_um: float, margin_um: float) -> int:
     """Zones of ``travel − margin`` [µm] a command span [µm] needs (1 if it fits the travel)."""
     if span_um <= travel_um:
         return 1
-    return max(1, math.ceil(span_um / (travel_um - margin_um) - 1e-12))
+    return _zones(span_um, travel_um - margin_um)
+
+
+def _zones(span_um: float, zone_um: float) -> int:
+    """Zones of ``zone_um`` that cover a span [µm] (at least one)."""
+    return max(1, math.ceil(span_um / zone_um - 1e-12))

@@ -24,6 +24,7 @@ import numpy as np
 from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_serializer, model_validator
 
 from ftsweep import catalogs, result
+from ftsweep import dpath as dpath_program
 from ftsweep.catalogs import Strict
 from ftsweep.result import STAGES
 from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers, layouts, metrics, spiral
@@ -110,7 +111,7 @@ class LayoutRequest(Strict):
     spiral's feed ([4] eqs. 1–3) instead of the cutting entry's.
     """
 
-    kind: Literal["ring", "mesh", "spiral"]
+    kind: Literal["ring", "mesh", "spiral", "dpath"]
     pitch: Optional[tuple[PositiveFloat, PositiveFloat]] = None
     points: Optional[PositiveFloat] = None
     aspect: Optional[PositiveFloat] = None
@@ -120,15 +121,48 @@ class LayoutRequest(Strict):
     residual_um: Optional[PositiveFloat] = Field(
         None, description="spiral: residual (cusp) budget Δres [µm] that sets the feed"
     )
+    # D-shaped slow-tool-servo paths ([5]); unset: ftsweep.dpath.DEFAULTS
+    spacing_um: Optional[PositiveFloat] = Field(
+        None, description="dpath: spacing h between cuts [µm] (default: the feed)"
+    )
+    points_per_cut: Optional[int] = Field(None, ge=2, description="dpath: points on every cut (default 201)")
+    transition: Optional[Literal["traditional", "optimised"]] = Field(
+        None, description="dpath: turn-round between cuts, arc (traditional) or quintic (optimised, default)"
+    )
+    zones: Optional[Literal[1, 2, 4]] = Field(
+        None, description="dpath: cutting zones per revolution (default 1)"
+    )
+    offaxis_um: Optional[PositiveFloat] = Field(
+        None, description="dpath: distance of the part's centre from the C axis [µm] (default 30 mm)"
+    )
+    cut_angle_deg: Optional[float] = Field(
+        None, description="dpath: direction of the cuts in the part's frame [deg from +x] (default 90)"
+    )
+    transition_step_deg: Optional[PositiveFloat] = Field(
+        None, description="dpath: largest C step between transition points [deg] (default 1)"
+    )
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
-        # table cases keep their keys
-        return catalogs.without_defaults(handler(self), dict.fromkeys(SPIRAL_FIELDS))
+        # table and spiral cases keep their keys
+        return catalogs.without_defaults(handler(self), dict.fromkeys((*SPIRAL_FIELDS, *DPATH_FIELDS)))
 
     @model_validator(mode="after")
     def _one_way(self) -> LayoutRequest:
         rules = [name for name in SPIRAL_RULES if getattr(self, name) is not None]
+        dpath_given = [n for n in DPATH_FIELDS if getattr(self, n) is not None]
+        if self.kind == "dpath":
+            other = [n for n in ("pitch", "points", "aspect", *SPIRAL_FIELDS) if getattr(self, n) is not None]
+            if other:
+                raise ValueError(
+                    f"a D-path program takes no {', '.join(other)}: give spacing_um, points_per_cut and "
+                    "its path options"
+                )
+            return self
+        if dpath_given:
+            raise ValueError(
+                f"{', '.join(dpath_given)} belong(s) to D-path programs, not to a {self.kind} program"
+            )
         if self.kind == "spiral":
             table = [n for n in ("pitch", "points", "aspect") if getattr(self, n) is not None]
             if table:
@@ -171,6 +205,15 @@ class LayoutRequest(Strict):
 
 SPIRAL_RULES = ("points_per_rev", "arc_um", "chord_um")
 SPIRAL_FIELDS = (*SPIRAL_RULES, "residual_um")
+DPATH_FIELDS = (
+    "spacing_um",
+    "points_per_cut",
+    "transition",
+    "zones",
+    "offaxis_um",
+    "cut_angle_deg",
+    "transition_step_deg",
+)
 
 
 class Case(Strict):
@@ -209,8 +252,8 @@ def build_layout(surface: Any, request: LayoutRequest) -> Layout:
 
     Rings cover the aperture's circumscribed radius; meshes its bounding box.
     """
-    if request.kind == "spiral":
-        raise ValueError("a spiral program is planned with its commands (spiral_program), not as a table")
+    if request.kind in ("spiral", "dpath"):
+        raise ValueError(f"a {request.kind} program is planned with its commands, not as a table")
     ap = catalogs.aperture_of(surface)
     if request.kind == "ring":
         radius = ap.outer_radius_um
@@ -397,7 +440,7 @@ class ResolvedCase:
     surface_spec: Any
     machine: Any
     cutting: Any
-    layout: Program
+    layout: Any  # a table (Layout), a SpiralPath or a DPath
     surface: Any  # the surface callable fn(x, y) -> (f, ∂f/∂x, ∂f/∂y)
     aperture: Any
     feed_um: float
@@ -420,7 +463,7 @@ def resolve_case(
     case: Case,
     catalog_folder: Any = None,
     specs: Optional[tuple[Any, Any, Any]] = None,
-    program: Optional[tuple[spiral.SpiralPath, np.ndarray]] = None,
+    program: Optional[tuple[Any, np.ndarray]] = None,
 ) -> ResolvedCase:
     """Look up a case's entries (or take ``specs``) and refuse what cannot be simulated: a
     feed not below 2·Rc (model §5), a layout the aperture or the
@@ -433,14 +476,7 @@ def resolve_case(
     rc = case.nose_radius_um or cutting.nose_radius_um
     request = case.layout
     sections = section_samples(surface_spec, catalog_folder) if request.kind == "spiral" else None
-    if program is not None:
-        feed = program[0].feed_um
-    elif request.residual_um is not None and sections is not None:
-        if case.feed_um is not None:
-            raise CaseError("give either a feed or a residual budget (which sets the feed), not both")
-        feed = residual_feed_um(sections, request.residual_um, rc, case.surface)
-    else:
-        feed = case.feed_um or cutting.feed_um
+    feed = _feed_of(case, cutting, rc, sections, program)
     try:
         catalogs.check_feed(feed, rc)
     except ValueError as exc:
@@ -459,6 +495,10 @@ def resolve_case(
         assert sections is not None
         extra["residual_error_um"] = residual_error_um(sections, feed, rc)
         extra["plan_seconds"] = time.perf_counter() - t
+    elif request.kind == "dpath":
+        t = time.perf_counter()
+        layout, extra = plan_dpath(case, surface_spec, surface, feed, rc, bound, program)
+        extra["plan_seconds"] = time.perf_counter() - t
     else:
         try:
             layout = build_layout(surface_spec, request)
@@ -466,7 +506,7 @@ def resolve_case(
             raise CaseError(f"layout: {exc}") from None
     if layout.n_points > machine.capacity_points:
         raise CaseError(
-            f"the {layout.kind} {'program' if layout.kind == 'spiral' else 'layout'} has "
+            f"the {layout.kind} {'layout' if layout.kind in ('ring', 'mesh') else 'program'} has "
             f"{layout.n_points:,} points, over the capacity of machine '{case.machine}' "
             f"({machine.capacity_points:,}); use larger pitches, steps or budgets, or fewer points"
         )
@@ -484,6 +524,25 @@ def resolve_case(
         lines=catalogs.line_sampler(surface_spec),
         **extra,
     )
+
+
+def _feed_of(
+    case: Case, cutting: Any, rc: float, sections: Optional[tuple[np.ndarray, ...]], program: Any
+) -> float:
+    """The feed per revolution [µm/rev] of a case: a D path's spacing between cuts, a given
+    program's, a spiral's from its residual budget, else the case's or the cutting entry's."""
+    request = case.layout
+    if request.kind == "dpath":
+        if program is not None:
+            return float(program[0].geometry.spacing_um)
+        return float(request.spacing_um or case.feed_um or cutting.feed_um)
+    if program is not None:
+        return float(program[0].feed_um)
+    if request.residual_um is not None and sections is not None:
+        if case.feed_um is not None:
+            raise CaseError("give either a feed or a residual budget (which sets the feed), not both")
+        return residual_feed_um(sections, request.residual_um, rc, case.surface)
+    return float(case.feed_um or cutting.feed_um)
 
 
 def plan_spiral(
@@ -530,6 +589,38 @@ def plan_spiral(
         raise CaseError(f"spiral program: {exc}") from None
     values, gouge = compensated(path.phi)
     return path, {"values": values, "gouge": gouge, **extra}
+
+
+def plan_dpath(
+    case: Case,
+    surface_spec: Any,
+    surface: Any,
+    spacing_um: float,
+    rc: float,
+    bound: float,
+    program: Optional[tuple[Any, np.ndarray]] = None,
+) -> tuple[Any, dict[str, Any]]:
+    """The D-path program of a case ([5], :func:`ftsweep.dpath.plan`): its cut points
+    compensated as a table's (model §4), or the given ``program`` as it stands."""
+
+    def compensated(part: Any, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return compensation.compensate(
+            part,
+            rho,
+            theta,
+            rc,
+            case.compensation,
+            bound,
+            n_scan=case.resolution.compensation_scan,
+            curvature_bound=catalogs.curvature_bound(surface_spec),
+        )
+
+    try:
+        return dpath_program.plan(
+            case.layout, catalogs.aperture_of(surface_spec), surface, spacing_um, rc, compensated, program
+        )
+    except ValueError as exc:
+        raise CaseError(f"D path: {exc}") from None
 
 
 # residual-budget sampling of the radial sections ([4] eq. 1): radii × angles over the
@@ -665,6 +756,8 @@ def run_case(
     rcase = resolve_case(case, catalog_folder, specs, program)
     timer = Timer()
     timer.seconds["compensation"] = rcase.plan_seconds
+    if case.layout.kind == "dpath":
+        return _run_dpath(rcase, timer, progress, t_start)
     t = time.perf_counter()
     table, gouge = _table_of(rcase, table, catalog_folder)
     timer.add("compensation", t)
@@ -1073,6 +1166,50 @@ def _record(
     )
     record.update(layer_record(rcase, layering, dyn.stroke_um))
     return record
+
+
+def _run_dpath(
+    rcase: ResolvedCase, timer: Timer, progress: Optional[Callable[[int, int], None]], t_start: float
+) -> dict[str, Any]:
+    """:func:`run_case` of a D-path program ([5]): its form error through the same envelope
+    and metrics (:func:`ftsweep.dpath.simulate`), its axis motion and the machine's axis
+    limits (:func:`ftsweep.dpath.record_fields`)."""
+    case, path = rcase.case, rcase.layout
+    assert rcase.values is not None and rcase.gouge is not None
+    z = rcase.values
+    require_finite(z, "the D-path Z", lambda i: f"point {i} (C {math.degrees(path.phi[i]):.4f}°)")
+    errors, rays, n_eval, band = dpath_program.simulate(rcase, z, progress, timer.seconds)
+    skipped = set() if case.resolution.interp_error else {"pv_interp_nm"}
+    bad = [k for k, v in errors.items() if not math.isfinite(v) and k not in skipped]
+    if bad:
+        raise CaseError(
+            f"the metrics came out non-finite ({', '.join(bad)}): no evaluation point inside the fully "
+            "machined part; check the part against the spacing and the nose radius"
+        )
+    t = time.perf_counter()
+    summary = dpath_program.motion_summary(path, z, rcase.cutting.spindle_rpm)
+    timer.add("dynamics", t)
+    record: dict[str, Any] = {"surface": case.surface, "layout": "dpath", "n_points": path.n_points}
+    record.update(
+        compensation=case.compensation,
+        machine=case.machine,
+        feed_um=rcase.feed_um,
+        nose_radius_um=rcase.nose_radius_um,
+        spindle_rpm=rcase.cutting.spindle_rpm,
+        n_theta=rays,
+        n_eval=n_eval,
+        points_per_feed=case.resolution.points_per_feed,
+        edge_band_um=band,
+    )
+    record.update(errors)
+    record["n_eval"] = n_eval
+    record["cusp_nm"] = metrics.cusp_height_um(rcase.feed_um, rcase.nose_radius_um) * 1e3
+    record["gouge_points"] = int(np.count_nonzero(rcase.gouge))
+    record.update(dpath_program.record_fields(rcase, summary, z))
+    for name in STAGE_TIMERS:
+        record[f"seconds_{name}"] = timer.seconds.get(name, 0.0)
+    record["seconds"] = time.perf_counter() - t_start
+    return result.in_declared_order(record)
 
 
 def resolve_specs(case: Case, catalog_folder: Any = None) -> tuple[Any, Any, Any]:

@@ -275,8 +275,32 @@ def aperture_of(spec: Any) -> Aperture:
 
 
 # --------------------------------------------------------------------------- machines
+class AxisLimits(Strict):
+    """The X, Z and C limits of a slow-tool-servo lathe ([5]): positions [mm], speeds and
+    accelerations an exported program must respect on every line."""
+
+    x_min_mm: float = Field(description="lowest X position (tool radius) [mm]")
+    x_max_mm: float = Field(description="highest X position (tool radius) [mm]")
+    z_min_mm: float = Field(description="lowest Z position [mm]")
+    z_max_mm: float = Field(description="highest Z position [mm]")
+    x_feed_mm_s: PositiveFloat = Field(description="largest X feed-rate [mm/s]")
+    x_accel_m_s2: PositiveFloat = Field(description="largest X acceleration [m/s²]")
+    z_velocity_mm_s: PositiveFloat = Field(description="largest Z velocity [mm/s]")
+    z_accel_m_s2: PositiveFloat = Field(description="largest Z acceleration [m/s²]")
+    c_speed_rpm: PositiveFloat = Field(description="largest C (spindle) speed in position mode [rev/min]")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> AxisLimits:
+        for axis in ("x", "z"):
+            lo, hi = getattr(self, f"{axis}_min_mm"), getattr(self, f"{axis}_max_mm")
+            if not lo < hi:
+                raise ValueError(f"{axis}_min_mm {lo:g} must be below {axis}_max_mm {hi:g}")
+        return self
+
+
 class Machine(Strict):
-    """A fast tool servo and its controller (model §1, §6 dynamics)."""
+    """A fast tool servo and its controller (model §1, §6 dynamics); a slow-tool-servo lathe
+    also declares its X, Z, C ``axes`` limits ([5])."""
 
     description: str = ""
     capacity_points: PositiveInt = Field(description="control points the controller can hold")
@@ -306,6 +330,7 @@ class Machine(Strict):
     layer_change_s: float = Field(
         2.0, ge=0.0, description="time to stop the spindle, move Z and restart, per layer segment [s]"
     )
+    axes: Optional[AxisLimits] = Field(None, description="X, Z, C limits of a slow-tool-servo lathe ([5])")
 
     @model_validator(mode="after")
     def _margin_below_travel(self) -> Machine:

@@ -477,7 +477,7 @@ def _target_text(value: float) -> str:
 
 
 def _selection_text(chosen: dict[str, Any]) -> str:
-    if chosen["layout"] == "spiral":
+    if chosen["layout"] in ("spiral", "dpath"):
         pitch = f"mean Δφ = {chosen['dphi_deg']:.4g}°, mean Δs = {chosen['ds_um']:.4g} µm"
     elif chosen["layout"] == "ring":
         pitch = f"Δρ = {chosen['drho_um']:.4g} µm, Δθ = {chosen['dtheta_deg']:.4g}°"
@@ -579,6 +579,8 @@ def export(
     click.echo(_selection_text(meta["selection"]))
     if meta["layout"] == "spiral":
         click.echo(f"program      {out} ({meta['n_points']:,} lines C X Z, CRC-32 0x{meta['crc32']:08x})")
+    elif meta["layout"] == "dpath":
+        click.echo(f"program      {out} ({meta['n_points']:,} lines t C X Z, CRC-32 0x{meta['crc32']:08x})")
     else:
         click.echo(
             f"header       {out} ({meta['shape'][0]} × {meta['shape'][1]} {meta['int_type']}, "
@@ -617,7 +619,7 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> Non
     if as_json:
         _echo_json(record)
         return
-    spiral = record["layout"] == "spiral"
+    spiral = record["layout"] in ("spiral", "dpath")
     covered = "data lines" if spiral else "macros and table"
     click.echo(f"checksum     {record['checksum']} ({covered}) ok; sidecar and header hashes ok")
     click.echo(f"{'program' if spiral else 'table':<12s} {record['layout']}: {record['n_points']:,} points")
@@ -1189,6 +1191,139 @@ def compare(cubes: tuple[Path, ...], out: Optional[Path], as_json: bool) -> None
         )
     if out is not None:
         click.echo(f"plot         {out}")
+
+
+@main.command("dpath")
+@click.option(
+    "--surface", default="concave_sphere", show_default=True, help="Surface catalog entry (the part)."
+)
+@click.option(
+    "--machine", default="sts-xzc", show_default=True, help="Machine entry with X, Z, C axis limits."
+)
+@click.option(
+    "--cutting", default="dpath-finish", show_default=True, help="Cutting entry (nose radius, rpm)."
+)
+@click.option(
+    "--spacing-um",
+    type=click.FloatRange(min=0, min_open=True),
+    help="Spacing h between cuts [µm]. Default: the cutting entry's feed.",
+)  # noqa: E501
+@click.option("--points-per-cut", type=click.IntRange(min=2), help="Points on every cut. Default: 201.")
+@click.option("--zones", type=click.Choice(["1", "2", "4"]), help="Cutting zones per revolution. Default: 1.")
+@click.option(
+    "--offaxis-mm",
+    type=click.FloatRange(min=0, min_open=True),
+    help="Distance of the part's centre from the C axis [mm]. Default: 30.",
+)  # noqa: E501
+@click.option(
+    "--cut-angle-deg",
+    type=float,
+    help="Direction of the cuts in the part's frame [deg from +x]. Default: 90 (along y).",
+)  # noqa: E501
+@click.option(
+    "--transition-step-deg",
+    type=click.FloatRange(min=0, min_open=True),
+    help="Largest C step in a transition [deg]. Default: 1.",
+)  # noqa: E501
+@click.option(
+    "--feed-mm-min",
+    type=click.FloatRange(min=0, min_open=True),
+    default=2000.0,
+    show_default=True,
+    help="Feed of the constant-feed XZC mode [mm/min].",
+)  # noqa: E501
+@click.option("--no-spiral", is_flag=True, help="Skip the spiral on the same part.")
+@click.option(
+    "--plots",
+    "plot_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs"),
+    show_default=True,
+    help="Folder for the plots (dpath-<surface>-x.png, -z.png).",
+)  # noqa: E501
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Export the optimised program here (t C X Z lines + FILE.json sidecar).",
+)  # noqa: E501
+@click.option("--force", is_flag=True, help="Replace an existing program.")
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def dpath_command(**opts: Any) -> None:
+    """Plan, predict, plot and export D-shaped slow-tool-servo paths ([5]) for an off-axis part.
+
+    Plans the traditional (arc) and the optimised (quintic) path on the part, reports their
+    X range, feed and acceleration at constant spindle speed, the junctions' continuity,
+    the constant-feed XZC mode (time, C speed), and the form error of each through the
+    envelope; then the Archimedean spiral on the same part (centred, feed = spacing) for
+    Z motion, time and P-V. With no options it runs the example of [5]: a 20 mm square
+    zone 30 mm off-axis at 40 rpm, on its concave R 300 mm sphere, 10 µm spacing.
+
+    \b
+    Examples:
+      ftsweep dpath
+      ftsweep dpath --surface integral_mirror --json
+      ftsweep dpath --spacing-um 20 -o outputs/sphere-dpath.txt --force
+    """
+    from ftsweep import dstudy
+
+    options = {
+        "spacing_um": opts["spacing_um"],
+        "points_per_cut": opts["points_per_cut"],
+        "zones": int(opts["zones"]) if opts["zones"] else None,
+        "offaxis_um": opts["offaxis_mm"] * 1e3 if opts["offaxis_mm"] else None,
+        "cut_angle_deg": opts["cut_angle_deg"],
+        "transition_step_deg": opts["transition_step_deg"],
+    }
+    try:
+        base = dstudy.default_case(opts["surface"], opts["machine"], opts["cutting"], options)
+        progress = None if opts["as_json"] else _stderr_progress("dpath")
+        summary = dstudy.study(base, opts["feed_mm_min"], not opts["no_spiral"], progress)
+    except (CaseError, CatalogError, ValidationError, ValueError) as exc:
+        raise click.ClickException(one_line(str(exc))) from None
+    if progress is not None:
+        click.echo("", err=True)
+    rpm = summary["optimised"]["spindle_rpm"]
+    folder = opts["plot_dir"]
+    folder.mkdir(parents=True, exist_ok=True)
+    plots = [str(dstudy.plot_x_motion(summary["_programs"], rpm, folder / f"dpath-{base.surface}-x.png"))]
+    if "_spiral_motion" in summary:
+        out_z = folder / f"dpath-{base.surface}-z.png"
+        plots.append(
+            str(
+                dstudy.plot_z_motion(summary["_spiral_motion"], summary["_programs"]["optimised"], rpm, out_z)
+            )
+        )  # noqa: E501
+    result = dstudy.public(summary)
+    result["plots"] = plots
+    if opts["out"] is not None:
+        result["program"] = _export_dpath(base, summary["optimised"], opts["out"], opts["force"])
+    if opts["as_json"]:
+        _echo_json(result)
+        return
+    for line in dstudy.text_lines(summary):
+        click.echo(line)
+    click.echo(f"plots        {', '.join(plots)}")
+    if opts["out"] is not None:
+        click.echo(f"program      {result['program']['path']} ({result['program']['lines']:,} lines t C X Z)")
+
+
+def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool) -> dict[str, Any]:
+    """Export the optimised program of ``dpath`` (refusing to replace files without --force)."""
+    from ftsweep import dstudy, program
+    from ftsweep.case import resolve_specs
+    from ftsweep.export import ExportError, sidecar_path
+
+    side = sidecar_path(out)
+    try:
+        for path in (out, side):
+            if path.exists() and not force:
+                raise ExportError(f"{path} exists; give --force to replace it")
+        case = dstudy.d_case(base, "optimised")
+        meta = program.export_dpath(out, side, case, resolve_specs(case), record, {})
+    except (ExportError, CaseError) as exc:
+        raise click.ClickException(str(exc)) from None
+    return {"path": str(out), "sidecar": str(side), "lines": meta["n_points"]}
 
 
 if __name__ == "__main__":  # pragma: no cover

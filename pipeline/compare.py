@@ -18,8 +18,8 @@ from ftsweep.select import SelectError, open_cube
 def label_of(ds: Any, path: Path) -> str:
     """``kind: rule`` of a cube, e.g. ``ring table`` or ``spiral (chord_um)``."""
     kind = ds.attrs.get("layout_method", "?")
-    if kind == "spiral":
-        return f"spiral ({ds['status'].dims[0]}) {path.stem}"
+    if kind in ("spiral", "dpath"):
+        return f"{kind} ({ds['status'].dims[0]}) {path.stem}"
     return f"{kind} table {path.stem}"
 
 

@@ -345,11 +345,12 @@ def export(
     check_exportable(ds, flat)
 
     case, (surface, machine, cutting) = recorded_case(ds, flat)
-    if case.layout.kind == "spiral":
+    if case.layout.kind in ("spiral", "dpath"):
         from ftsweep import program
 
         extra = {"cube": str(cube_path), "cube_git_revision": ds.attrs.get("git_revision")}
-        return program.export_program(out, side, case, (surface, machine, cutting), chosen, extra)
+        write = program.export_program if case.layout.kind == "spiral" else program.export_dpath
+        return write(out, side, case, (surface, machine, cutting), chosen, extra)
     layout = build_layout(surface, case.layout)
     if layout.n_points != chosen["n_points"]:
         raise ExportError(f"the cube says {chosen['n_points']} points but the spec gives {layout.n_points}")

@@ -46,9 +46,9 @@ class ProgramError(ExportError):
 
 
 def is_program(path: Path) -> bool:
-    """Whether ``path`` starts like an exported spiral program."""
+    """Whether ``path`` starts like an exported spiral or D-path program."""
     with open(path, encoding="utf-8", errors="replace") as fh:
-        return fh.readline().startswith(MAGIC)
+        return fh.readline().startswith((MAGIC, D_MAGIC))
 
 
 def _data_lines(path: SpiralPath, values_um: np.ndarray) -> list[str]:
@@ -151,18 +151,18 @@ def _layer_lines(schedule: dict[str, Any] | None) -> list[str]:
     return out
 
 
-def read_program(path: Path) -> tuple[dict[str, str], np.ndarray]:
-    """The header fields and the (N, 3) data of a program file, its CRC checked."""
+def read_program(path: Path, magic: str = MAGIC, columns: str = COLUMNS) -> tuple[dict[str, str], np.ndarray]:
+    """The header fields and the (N, columns) data of a program file, its CRC checked."""
     head: dict[str, str] = {}
     with open(path, encoding="utf-8") as fh:
         text = fh.read()
     rows = text.splitlines()
-    if not rows or not rows[0].startswith(MAGIC):
-        raise ProgramError(f"{path} is not an ftsweep spiral program (no '{MAGIC}' first line)")
+    if not rows or not rows[0].startswith(magic):
+        raise ProgramError(f"{path} is not an ftsweep program of this kind (no '{magic}' first line)")
     try:
-        start = rows.index(COLUMNS) + 1
+        start = rows.index(columns) + 1
     except ValueError:
-        raise ProgramError(f"{path}: the column line '{COLUMNS}' is missing") from None
+        raise ProgramError(f"{path}: the column line '{columns}' is missing") from None
     for row in rows[1 : start - 1]:
         key, _, value = row[2:].partition(": ")
         head[key] = value
@@ -175,9 +175,9 @@ def read_program(path: Path) -> tuple[dict[str, str], np.ndarray]:
     try:
         data = np.array([[float(v) for v in line.split()] for line in lines], dtype=np.float64)
     except ValueError as exc:
-        raise ProgramError(f"{path}: a data line is not three numbers ({exc})") from None
-    if data.ndim != 2 or data.shape[1] != 3:
-        raise ProgramError(f"{path}: every data line must hold C, X and Z")
+        raise ProgramError(f"{path}: a data line is not {columns.count(' ') + 1} numbers ({exc})") from None
+    if data.ndim != 2 or data.shape[1] != columns.count(" ") + 1:
+        raise ProgramError(f"{path}: every data line must hold {columns}")
     return head, data
 
 
@@ -188,20 +188,13 @@ def verify_program(
     re-simulate the part from them. Raises :class:`ProgramError` (an ``ExportError``) on any
     mismatch; returns the re-simulated record with the predicted P-V and the tolerance
     applied."""
-    import json
-
     path = Path(path)
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        if fh.readline().startswith(D_MAGIC):
+            return verify_dpath(path, progress, pv_tolerance_nm)
     head, data = read_program(path)
-    side = sidecar_path(path)
-    try:
-        meta = json.loads(side.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise ProgramError(f"{side}: the sidecar cannot be read ({exc})") from None
-    if meta.get("program_sha256") != hashlib.sha256(path.read_bytes()).hexdigest():
-        raise ProgramError(f"{side} does not belong to {path} (SHA-256 of the program differs)")
-    if head.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta, TEXT_FIELDS):
-        raise ProgramError(f"{path}: the sidecar was changed (its SHA-256 differs from the header's)")
-    case, specs = recorded_case_of(meta, side)
+    meta = _checked_sidecar(path, head)
+    case, specs = recorded_case_of(meta, sidecar_path(path))
     phi = np.radians(data[:, 0])
     feed, rho0 = float(meta["feed_um"]), float(meta["rho0_um"])
     rule, value = case.layout.spiral_rule()
@@ -213,6 +206,30 @@ def verify_program(
     planned = layer_schedule(resolve_case(case, specs=specs, program=(spiral_path, values)), values)
     check_schedule(meta.get("layers"), planned, path)
     record = run_case(case, specs=specs, progress=progress, program=(spiral_path, values))
+    return _checked_pv(path, meta, record, pv_tolerance_nm)
+
+
+def _checked_sidecar(path: Path, head: dict[str, str]) -> dict[str, Any]:
+    """The sidecar of a program, refused unless it and the program name each other."""
+    import json
+
+    side = sidecar_path(path)
+    try:
+        meta = json.loads(side.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ProgramError(f"{side}: the sidecar cannot be read ({exc})") from None
+    if meta.get("program_sha256") != hashlib.sha256(path.read_bytes()).hexdigest():
+        raise ProgramError(f"{side} does not belong to {path} (SHA-256 of the program differs)")
+    if head.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta, TEXT_FIELDS):
+        raise ProgramError(f"{path}: the sidecar was changed (its SHA-256 differs from the header's)")
+    return dict(meta)
+
+
+def _checked_pv(
+    path: Path, meta: dict[str, Any], record: dict[str, Any], pv_tolerance_nm: float | None
+) -> dict[str, Any]:
+    """``record`` (a re-simulation) with the predicted P-V and tolerance; refused when they
+    disagree."""
     predicted = float(meta["pv_nm"])
     # Z is printed to 1 pm: the re-simulation agrees to far better than 0.01 nm + 0.1 %
     tol = 0.01 + 1e-3 * predicted if pv_tolerance_nm is None else pv_tolerance_nm
@@ -224,3 +241,140 @@ def verify_program(
             f"{predicted:.3f} nm (tolerance {tol:.3f} nm); do not run it"
         )
     return record
+
+
+# --------------------------------------------------------------------------- D paths ([5])
+D_MAGIC = "# ftsweep D-path program"
+D_COLUMNS = "t_s C_deg X_mm Z_mm"
+D_LINE = "{:.9f} {:.9f} {:.9f} {:.9f}"
+
+
+def _limits_of_lines(machine: Any, data: np.ndarray, rpm: float) -> str:
+    """The axis limits the lines (t [s], C [deg], X [mm], Z [mm]) exceed, checked on every
+    line: positions directly, feeds and accelerations by differences between lines."""
+    from ftsweep import dpath as dprog
+    from ftsweep.stages import dpath
+
+    t, phi, x_um, z_um = data[:, 0], np.radians(data[:, 1]), data[:, 2] * 1e3, data[:, 3] * 1e3
+    if not np.all(np.diff(t) > 0.0):
+        return "time does not increase from line to line"
+    m = dpath.axis_motion(t, phi, x_um, z_um)
+    summary = {
+        "x_min_um": float(x_um.min()),
+        "x_max_um": float(x_um.max()),
+        "x_feed_peak_mm_s": float(np.abs(m["x_feed_mm_s"]).max()),
+        "x_accel_peak_m_s2": float(np.abs(m["x_accel_m_s2"]).max()),
+        "z_velocity_peak_mm_s": float(np.abs(m["z_velocity_mm_s"]).max()),
+        "z_accel_peak_m_s2": float(np.abs(m["z_accel_m_s2"]).max()),
+    }
+    reasons = [
+        dprog.limits_reason(machine, summary, z_um),
+        dprog.c_speed_ok(machine, float(np.abs(m["c_speed_rpm"]).max()) - 1e-6),
+    ]  # noqa: E501
+    return "; ".join(r for r in reasons if r)
+
+
+def export_dpath(
+    out: Path,
+    side: Path,
+    case: Case,
+    specs: tuple[Any, Any, Any],
+    chosen: dict[str, Any],
+    extra: dict[str, Any],
+) -> dict[str, Any]:
+    """Plan the chosen D-path case again ([5]) and write it as position-time lines
+    (t [s] at constant spindle speed, accumulated C [deg], X [mm], Z [mm]) with its sidecar,
+    atomically; refused if any line leaves the machine's axis limits."""
+    from ftsweep import dpath as dprog
+
+    rcase = resolve_case(case, specs=specs)
+    path, z = rcase.layout, rcase.values
+    if path.n_points != chosen["n_points"]:
+        raise ProgramError(
+            f"the prediction says {chosen['n_points']} points but the spec plans {path.n_points}"
+        )
+    rpm = specs[2].spindle_rpm
+    t = dprog.times(path, z, rpm)
+    lines = [
+        D_LINE.format(*row) for row in zip(t, np.degrees(path.phi), path.rho * 1e-3, z * 1e-3, strict=True)
+    ]
+    data = np.array([[float(v) for v in line.split()] for line in lines])
+    reason = _limits_of_lines(specs[1], data, rpm)
+    if reason:
+        raise ProgramError(
+            f"the program leaves the axis limits of machine '{case.machine}': {reason}; nothing exported"
+        )
+    g = path.geometry
+    meta = {
+        "generator": f"ftsweep {__version__}",
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "layout": "dpath",
+        "n_points": path.n_points,
+        "surface": case.surface,
+        "compensation": case.compensation,
+        "spacing_um": g.spacing_um,
+        "points_per_cut": path.points_per_cut,
+        "transition": g.transition,
+        "zones": g.zones,
+        "nose_radius_um": rcase.nose_radius_um,
+        "spindle_rpm": rpm,
+        "machining_s": float(t[-1]),
+        "pv_nm": chosen["pv_nm"],
+        **extra,
+        "selection": {k: v for k, v in chosen.items() if not isinstance(v, (list, dict)) or k == "case"},
+        "case": case.model_dump(mode="json"),
+        "catalog_entries": recorded_entries(specs),
+    }
+    crc = _crc(lines)
+    head = [
+        f"{D_MAGIC} (X, Z and C move linearly in time between consecutive lines)",
+        f"# generator: ftsweep {__version__}; created {meta['created']}",
+        f"# surface: {case.surface}; compensation: {case.compensation}; machine: {case.machine}",
+        f"# zone: {g.length_um / 1e3:.6g} x {g.width_um / 1e3:.6g} mm, centre {g.centre_um / 1e3:.6g} mm off-axis; "  # noqa: E501
+        f"{g.zones} zone(s) per revolution",
+        f"# cuts: {path.n_cuts} at spacing {g.spacing_um:.9g} um, {path.points_per_cut} points each; "
+        f"transition {g.transition}",
+        f"# tool: nose radius {rcase.nose_radius_um:.6g} um; spindle {rpm:g} rpm (constant)",
+        f"# timing: {float(t[-1]):.3f} s in all",
+        f"# predicted P-V: {chosen['pv_nm']:.6f} nm",
+        f"# points: {path.n_points}",
+        "# units: t [s] from the first line, C [deg] accumulated, X [mm] tool radius, Z [mm] tool tip",
+        f"# sidecar: {side.name} sha256 {sidecar_digest(meta, TEXT_FIELDS)}",
+        f"# CRC32: 0x{crc:08x} over the data lines",
+        D_COLUMNS,
+    ]
+    text = "\n".join(head + lines) + "\n"
+    meta.update(program=out.name, crc32=crc, program_sha256=hashlib.sha256(text.encode()).hexdigest())
+    write_texts_atomic({side: dumps_json(meta, indent=2) + "\n", out: text})
+    return meta
+
+
+def verify_dpath(
+    path: Path, progress: Callable[[int, int], None] | None = None, pv_tolerance_nm: float | None = None
+) -> dict[str, Any]:
+    """Check a D-path program: CRC and sidecar, every line within the machine's axis limits,
+    C and X on the path its recorded case plans (within 1 nm and 1e-6°), and the part
+    re-simulated from the lines' Z."""
+    head, data = read_program(path, D_MAGIC, D_COLUMNS)
+    meta = _checked_sidecar(path, head)
+    case, specs = recorded_case_of(meta, sidecar_path(path))
+    reason = _limits_of_lines(specs[1], data, specs[2].spindle_rpm)
+    if reason:
+        raise ProgramError(
+            f"{path}: a line leaves the axis limits of machine '{case.machine}': {reason}; do not run it"
+        )
+    rcase = resolve_case(case, specs=specs)
+    planned = rcase.layout
+    if planned.n_points != data.shape[0]:
+        raise ProgramError(
+            f"{path}: {data.shape[0]} lines, but the recorded case plans {planned.n_points} points"
+        )
+    off_x = float(np.max(np.abs(planned.rho * 1e-3 - data[:, 2])))
+    off_c = float(np.max(np.abs(np.degrees(planned.phi) - data[:, 1])))
+    if not (off_x <= 1e-6 and off_c <= 1e-6):
+        raise ProgramError(
+            f"{path}: the lines leave the planned D path (X by {off_x * 1e3:.3g} µm, C by {off_c:.3g}°)"
+        )
+    values = data[:, 3] * 1e3
+    record = run_case(case, specs=specs, progress=progress, program=(planned, values))
+    return _checked_pv(path, meta, record, pv_tolerance_nm)

@@ -8,6 +8,7 @@ without a finite P-V) is never anyone's best.
 from __future__ import annotations
 
 import json
+import math
 from typing import Any, Optional
 
 import numpy as np
@@ -84,7 +85,8 @@ def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
     out["n_points"] = int(point["n_points"])
     out[names[0]] = float(point[names[0]])
     out[names[1]] = float(point[names[1]])
-    out["aspect_actual"] = float(point["aspect_actual"])
+    # a D path has no pitch aspect
+    out["aspect_actual"] = float(point["aspect_actual"]) if "aspect_actual" in point else math.nan
     for var in ("pv_nm", "rms_nm", "pv_interp_nm", "pv_inner_nm", "pv_outer_nm"):
         out[var] = float(point[var])
     out["status"] = cube.STATUS_MEANINGS.split()[int(point["status"])]

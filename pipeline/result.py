@@ -12,8 +12,11 @@ from typing import Any, Optional
 
 import numpy as np
 
-KINDS = ("ring", "mesh", "spiral")
+KINDS = ("ring", "mesh", "spiral", "dpath")
 TABLES = ("ring", "mesh")
+SPINDLE = ("ring", "mesh", "spiral")  # programs on the spiral about the spindle axis
+PATHS = ("spiral", "dpath")
+DPATH = ("dpath",)
 
 
 @dataclass(frozen=True)
@@ -57,7 +60,7 @@ STAGES = ("sampling", "compensation", "interpolation", "envelope", "metrics", "d
 RESULT: tuple[Quantity, ...] = (
     # what was simulated
     _text("surface", "surface catalog entry"),
-    _text("layout", "program kind: ring or mesh table, or spiral path"),
+    _text("layout", "program kind: ring or mesh table, spiral path or D path"),
     _text("compensation", "tool-nose compensation of the table: exact, slope or none"),
     _text("machine", "machine catalog entry"),
     _input("feed_um", "um", "feed per spindle revolution"),
@@ -80,9 +83,9 @@ RESULT: tuple[Quantity, ...] = (
     Quantity("arc_um", "path length between points of the constant-arc rule", "um", kinds=("spiral",)),
     Quantity("chord_um", "chord-error budget of the chord rule", "um", kinds=("spiral",)),
     Quantity("residual_um", "residual (cusp) budget that set the feed", "um", kinds=("spiral",)),
-    _f("revolutions", "1", "revolutions of the spiral from the edge to the centre", ("spiral",)),
-    _f("dphi_deg", "deg", "mean spindle-angle step between points", ("spiral",)),
-    _f("ds_um", "um", "mean path length between points", ("spiral",)),
+    _f("revolutions", "1", "revolutions of the path (spiral: from the edge to the centre)", PATHS),
+    _f("dphi_deg", "deg", "mean spindle-angle step between points", PATHS),
+    _f("ds_um", "um", "mean path length between points", PATHS),
     _f("chord_error_nm", "nm", "largest chord deviation from the compensated path", ("spiral",)),
     _f(
         "residual_error_nm",
@@ -94,7 +97,19 @@ RESULT: tuple[Quantity, ...] = (
         "aspect_actual",
         {"ring": "um/deg", "mesh": "1", "spiral": "um/deg"},
         "aspect ratio of the realised pitches (spiral: feed over mean angular step)",
+        SPINDLE,
     ),
+    # the D-shaped slow-tool-servo path ([5]); its options are inputs (a D-path cube's axes)
+    Quantity("spacing_um", "spacing h between the D path's cuts", "um", kinds=DPATH),
+    Quantity("points_per_cut", "points on every cut of the D path", "1", kinds=DPATH),
+    Quantity("transition", "turn-round between cuts: traditional (arc) or optimised (quintic)", kinds=DPATH),
+    Quantity("zones", "cutting zones per revolution", "1", kinds=DPATH),
+    Quantity("offaxis_um", "distance of the part's centre from the C axis", "um", kinds=DPATH),
+    Quantity("cut_angle_deg", "direction of the cuts in the part's frame", "deg", kinds=DPATH),
+    _i("n_cuts", "cuts over all zones", kinds=DPATH),
+    _f("cut_length_um", "um", "length l of the cuts (the zone along them)", DPATH),
+    _f("cut_width_um", "um", "width s of the cutting zone across the cuts", DPATH),
+    _f("cut_step_um", "um", "distance between consecutive points of a cut", DPATH),
     # the form error (model §6)
     _f("pv_nm", "nm", "peak-to-valley form error"),
     _f("rms_nm", "nm", "RMS form error about its mean"),
@@ -113,20 +128,48 @@ RESULT: tuple[Quantity, ...] = (
     _f("w_velocity_peak_mm_s", "mm/s", "peak W velocity at the spindle speed"),
     _f("w_accel_peak_m_s2", "m/s^2", "peak W acceleration at the spindle speed"),
     _f("w_accel_rms_m_s2", "m/s^2", "RMS W acceleration at the spindle speed"),
-    _f("w_freq_max_hz", "Hz", "highest significant frequency of the W command"),
+    _f("w_freq_max_hz", "Hz", "highest significant frequency of the W command", SPINDLE),
+    # the X axis of a D path at constant spindle speed ([5] eqs. 5-6)
+    _f("x_min_um", "um", "smallest X (polar radius) of the path", DPATH),
+    _f("x_max_um", "um", "largest X (polar radius) of the path, transitions included", DPATH),
+    _f("x_feed_peak_mm_s", "mm/s", "peak X feed-rate at the spindle speed", DPATH),
+    _f("x_accel_peak_m_s2", "m/s^2", "peak X acceleration at the spindle speed (over the points)", DPATH),
+    _f("x_accel_cut_m_s2", "m/s^2", "peak X acceleration on the cuts", DPATH),
+    _f("x_accel_transition_m_s2", "m/s^2", "peak X acceleration in the transitions", DPATH),
+    _f(
+        "slope_jump_um_rad",
+        "um/rad",
+        "largest jump of d(rho)/d(theta) at a junction of cut and transition",
+        DPATH,
+    ),
     Quantity(
         "feasible", "1 if the W motion fits the machine's travel, acceleration and bandwidth", "1", "int8", -1
     ),  # noqa: E501
     _text("infeasible_reason", "machine limits the W motion exceeds (empty when feasible)"),
     # layered machining of parts deeper than the travel ([3])
-    _i("n_layers", "layers the part is cut in (1: one pass)", "int32"),
-    _i("layer_segments", "spiral segments cut over all layers (each begins with a stop and a Z move)"),
-    _f("layer_zone_um", "um", "height of a layer's stroke zone (travel less margin; one pass: the travel)"),
-    _f("layer_stroke_um", "um", "largest W range within one layer"),
-    _f("z_error_um", "um", "Z positioning error per retraction between layers"),
-    _f("machining_s", "s", "machining time: the spiral at the spindle speed plus the stops of the layers"),
-    _f("single_pass_s", "s", "machining time of one uninterrupted spiral"),
-    Quantity("layers", "layer schedule: offsets, start radii, strokes, lengths and times per layer"),
+    _i("n_layers", "layers the part is cut in (1: one pass)", "int32", SPINDLE),
+    _i(
+        "layer_segments",
+        "spiral segments cut over all layers (each begins with a stop and a Z move)",
+        kinds=SPINDLE,
+    ),  # noqa: E501
+    _f(
+        "layer_zone_um",
+        "um",
+        "height of a layer's stroke zone (travel less margin; one pass: the travel)",
+        SPINDLE,
+    ),  # noqa: E501
+    _f("layer_stroke_um", "um", "largest W range within one layer", SPINDLE),
+    _f("z_error_um", "um", "Z positioning error per retraction between layers", SPINDLE),
+    _f(
+        "machining_s",
+        "s",
+        "machining time: the path at the spindle speed (spiral: plus the stops of the layers)",
+    ),
+    _f("single_pass_s", "s", "machining time of one uninterrupted spiral", SPINDLE),
+    Quantity(
+        "layers", "layer schedule: offsets, start radii, strokes, lengths and times per layer", kinds=SPINDLE
+    ),
     # wall times
     *(_f(f"seconds_{stage}", "s", f"wall time of {stage}") for stage in STAGES),
     _f("seconds", "s", "wall time of the case"),
@@ -139,7 +182,12 @@ def result_names(kind: str) -> list[str]:
     return [q.name for q in RESULT if kind in q.kinds]
 
 
-PITCHES = {"ring": ("drho_um", "dtheta_deg"), "mesh": ("dx_um", "dy_um"), "spiral": ("dphi_deg", "ds_um")}
+PITCHES = {
+    "ring": ("drho_um", "dtheta_deg"),
+    "mesh": ("dx_um", "dy_um"),
+    "spiral": ("dphi_deg", "ds_um"),
+    "dpath": ("dphi_deg", "ds_um"),
+}
 
 
 def pitch_names(kind: str) -> tuple[str, str]:

@@ -193,8 +193,10 @@ def _run_locked(
     scheduler, workers, line_cache_mb = where
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
     if prune is not None:
-        if spec.layout == "spiral":
-            raise CaseError("--prune estimates tables over their aspect ratios; a spiral sweep has none")
+        if spec.layout in ("spiral", "dpath"):
+            raise CaseError(
+                f"--prune estimates tables over their aspect ratios; a {spec.layout} sweep has none"
+            )
         prune_cases(spec, out, status, prune, run_id, catalog_folder)
         status = cube.read_status(out).ravel()
     wanted = (

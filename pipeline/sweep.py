@@ -64,13 +64,15 @@ class SweepAxes(Strict):
     residual_um: Optional[AxisSpec] = Field(
         None, description="spiral: residual budgets that set the feed [µm]"
     )
+    spacing_um: Optional[AxisSpec] = Field(None, description="D path: spacing h between cuts [µm]")
+    points_per_cut: Optional[AxisSpec] = Field(None, description="D path: points on every cut")
     feed_um: Optional[AxisSpec] = Field(None, description="feeds per revolution [µm/rev]")
     nose_radius_um: Optional[AxisSpec] = Field(None, description="tool nose radii [µm]")
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
-        # table sweep specs keep their hashes
-        return catalogs.without_defaults(handler(self), dict.fromkeys(SPIRAL_AXES))
+        # table and spiral sweep specs keep their hashes
+        return catalogs.without_defaults(handler(self), dict.fromkeys((*SPIRAL_AXES, *DPATH_AXES)))
 
 
 CATALOG_KIND = {"surface": "surfaces", "machine": "machines", "cutting": "cutting"}
@@ -96,7 +98,14 @@ class SweepSpec(Strict):
 
     description: str = ""
     surface: str
-    layout: Optional[Literal["ring", "mesh", "spiral"]] = Field(None, description="default: the surface's")
+    layout: Optional[Literal["ring", "mesh", "spiral", "dpath"]] = Field(
+        None, description="default: the surface's"
+    )
+    dpath: Optional[dict[str, Any]] = Field(
+        None,
+        description="D path options for every case (transition, zones, offaxis_um, cut_angle_deg, "
+        "transition_step_deg)",
+    )
     machine: str = "fts-1m"
     cutting: str = "reference"
     compensation: Literal["exact", "slope", "none"] = "exact"
@@ -152,6 +161,8 @@ class SweepSpec(Strict):
         axes = self.axes
         rules = [n for n in SPIRAL_RULE_AXES if getattr(axes, n) is not None]
         table = [n for n in ("points", "aspect") if getattr(axes, n) is not None]
+        if self.layout == "dpath" or any(getattr(axes, n) is not None for n in DPATH_AXES) or self.dpath:
+            return self._dpath_axes()
         if self.layout == "spiral":
             if table:
                 raise ValueError(f"axes.{table[0]} belongs to tables; a spiral sweep has one rule axis")
@@ -169,6 +180,25 @@ class SweepSpec(Strict):
             for name in ("points", "aspect"):
                 if getattr(axes, name) is None:
                     raise ValueError(f"axes.{name}: required key is missing for a {self.layout} sweep")
+        return self
+
+    def _dpath_axes(self) -> SweepSpec:
+        axes = self.axes
+        dpath_axes = [n for n in DPATH_AXES if getattr(axes, n) is not None]
+        if self.layout != "dpath":
+            name = "axes." + dpath_axes[0] if dpath_axes else "dpath"
+            raise ValueError(f"{name} belongs to D-path sweeps (layout: dpath)")
+        table = [n for n in ("points", "aspect") if getattr(axes, n) is not None]
+        other = table + [n for n in SPIRAL_AXES if getattr(axes, n) is not None]
+        if other:
+            raise ValueError(
+                f"axes.{other[0]} does not belong to a D-path sweep (spacing_um, points_per_cut)"
+            )
+        if not dpath_axes:
+            raise ValueError("a D-path sweep needs an axis: spacing_um and/or points_per_cut")
+        if axes.spacing_um is not None and axes.feed_um is not None:
+            raise ValueError("axes.spacing_um is the D path's feed: give it or axes.feed_um, not both")
+        LayoutRequest(kind="dpath", **(self.dpath or {}))  # names a bad option
         return self
 
     @model_validator(mode="after")
@@ -189,13 +219,16 @@ class SweepSpec(Strict):
 
 SPIRAL_RULE_AXES = ("points_per_rev", "arc_um", "chord_um")
 SPIRAL_AXES = (*SPIRAL_RULE_AXES, "residual_um")
-AXIS_ORDER = ("points", "aspect", *SPIRAL_AXES, "feed_um", "nose_radius_um")
+DPATH_AXES = ("spacing_um", "points_per_cut")
+AXIS_ORDER = ("points", "aspect", *SPIRAL_AXES, *DPATH_AXES, "feed_um", "nose_radius_um")
 AXIS_ATTRS = {
     "points": {"units": "1", "long_name": "target number of control points"},
     "points_per_rev": {"units": "1", "long_name": "points per revolution of the spiral"},
     "arc_um": {"units": "um", "long_name": "path length between the spiral's points"},
     "chord_um": {"units": "um", "long_name": "chord-error budget of the spiral"},
     "residual_um": {"units": "um", "long_name": "residual (cusp) budget that sets the feed"},
+    "spacing_um": {"units": "um", "long_name": "spacing between the D path's cuts"},
+    "points_per_cut": {"units": "1", "long_name": "points on every cut of the D path"},
     "feed_um": {"units": "um", "long_name": "feed per spindle revolution"},
     "nose_radius_um": {"units": "um", "long_name": "tool nose radius"},
 }
@@ -292,7 +325,17 @@ def case_at(spec: SweepSpec, index: int) -> Case:
     pos = dict(zip(coords, np.unravel_index(index, shape), strict=True))
     value = {name: float(coords[name][pos[name]]) for name in coords}
     assert spec.layout is not None
-    if spec.layout == "spiral":
+    if spec.layout == "dpath":
+        request = LayoutRequest(
+            kind="dpath",
+            **(spec.dpath or {}),
+            **{
+                k: (int(round(v)) if k == "points_per_cut" else v)
+                for k, v in value.items()
+                if k in DPATH_AXES
+            },
+        )
+    elif spec.layout == "spiral":
         request = LayoutRequest(
             kind="spiral",
             **{
@@ -327,6 +370,13 @@ def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) 
     A case whose layout cannot be built costs 0 and shares nothing (key None)."""
     case = case_at(spec, index)
     surface = catalogs.entry("surfaces", case.surface, catalog_folder)
+    if case.layout.kind == "dpath":
+        # its cost: the evaluated nodes (rays × cuts × points per feed)
+        cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
+        ap = catalogs.aperture_of(surface)
+        spacing = case.layout.spacing_um or case.feed_um or cutting.feed_um
+        ppc = case.layout.points_per_cut or 201
+        return 3.0 * ppc * 2.0 * ap.half_extent_um[0] / spacing * case.resolution.points_per_feed, None
     if case.layout.kind == "spiral":
         # a spiral's points (and with a chord budget its angular sampling) are only known once
         # planned: its cost is its simulated nodes at the part's outer circumference, and its

@@ -177,3 +177,43 @@ def machined_lines(
     cusp_r, cusp_z = np.empty(cusp_shape), np.empty(cusp_shape)
     envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, nose_radius_um, z, cusp_r, cusp_z)
     return z, cusp_r, cusp_z
+
+
+@njit(nogil=True, cache=True)
+def envelope_rows(pos, w, n_valid, rc, query, z, cusp_r, cusp_z):  # pragma: no cover - jit
+    """Machined height z [µm] along a batch of rays whose passes are given directly (§5):
+    the same lower envelope as :func:`envelope_lines`, for programs whose passes do not
+    follow the spiral (e.g. the cuts of a D path, [5]).
+
+    pos, w : (R, K) pass positions [µm] (the first ``n_valid[a]`` ascending) and commands [µm].
+    query : (R, G) evaluation radii [µm], ascending along each row; NaN: not evaluated.
+    z : (R, G) output (NaN where the query is NaN). cusp_r, cusp_z : (R, K) outputs: where one
+    arc takes over from the next and the height there [µm], NaN-padded.
+    """
+    n_rays = pos.shape[0]
+    kmax = pos.shape[1]
+    stack = np.empty(kmax, dtype=np.int64)
+    breaks = np.empty(kmax)
+    cusp_r[:, :] = np.nan
+    cusp_z[:, :] = np.nan
+    for a in range(n_rays):
+        n = n_valid[a]
+        if n == 0:
+            z[a, :] = np.nan
+            continue
+        p = pos[a, :n]
+        ww = w[a, :n]
+        n_arcs = _hull(p, ww, rc, stack, breaks)
+        m = 0
+        for q in range(query.shape[1]):
+            r = query[a, q]
+            if math.isnan(r):
+                z[a, q] = math.nan
+                continue
+            z[a, q], m = _arc_at(r, m, n_arcs, p, ww, rc, stack, breaks)
+        for c in range(1, n_arcs):
+            x = breaks[c]
+            k = stack[c]
+            d = x - p[k]
+            cusp_r[a, c - 1] = x
+            cusp_z[a, c - 1] = ww[k] + rc - math.sqrt(max(rc * rc - d * d, 0.0))

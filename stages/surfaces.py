@@ -632,6 +632,114 @@ def _check_faces(faces: int) -> None:
         raise ValueError(f"a microprism needs 3 to 64 faces, got {faces}")
 
 
+# --------------------------------------------------------------------------- sphere
+@njit(nogil=True, cache=True)
+def _sphere_kernel(x, y, radius, f, fx, fy):  # pragma: no cover - jit
+    r_abs = abs(radius)
+    sense = 1.0 if radius > 0.0 else -1.0
+    for p in range(x.size):
+        rr = x[p] * x[p] + y[p] * y[p]
+        # beyond the sphere's equator the height is undefined: NaN is refused by the runner
+        root = math.sqrt(r_abs * r_abs - rr) if rr < r_abs * r_abs else math.nan
+        f[p] = sense * (r_abs - root)
+        fx[p] = sense * x[p] / root
+        fy[p] = sense * y[p] / root
+
+
+def _check_sphere(params: dict[str, Any]) -> None:
+    if params["radius_um"] == 0.0:
+        raise ValueError("radius_um must be non-zero (positive: concave, negative: convex)")
+
+
+@surface_family(
+    "sphere",
+    {
+        "radius_um": Param(
+            float, _um("radius of curvature R; positive: concave (a cup), negative: convex (a dome)")
+        ),
+    },
+    check=_check_sphere,
+)
+def sphere(x: np.ndarray, y: np.ndarray, *, radius_um: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A sphere with its vertex at the origin ([5] §3): f = sign(R)·(|R| − sqrt(R² − x² − y²)).
+    Lengths in µm. Its slope grows with r, so the catalog entry states the bounds over its
+    aperture (gradient_bound, curvature_bound)."""
+    _check_sphere({"radius_um": radius_um})
+    return evaluate_flat(_sphere_kernel, x, y, float(radius_um))
+
+
+# --------------------------------------------------------------------------- cylinder array
+@njit(nogil=True, cache=True)
+def _cylinder_array_kernel(x, y, pitch, radius, count, ca, sa, f, fx, fy):  # pragma: no cover - jit
+    r_abs = abs(radius)
+    sense = 1.0 if radius > 0.0 else -1.0
+    for p in range(x.size):
+        # across the cylinders' axes, measured from the array's centre
+        u = x[p] * ca + y[p] * sa
+        k = math.floor(u / pitch + 0.5 * count)
+        k = min(max(k, 0), count - 1)
+        xi = u - (k + 0.5 - 0.5 * count) * pitch
+        root = math.sqrt(r_abs * r_abs - xi * xi) if xi * xi < r_abs * r_abs else math.nan
+        f[p] = sense * (r_abs - root)
+        g = sense * xi / root
+        fx[p] = g * ca
+        fy[p] = g * sa
+
+
+def _check_cylinders(params: dict[str, Any]) -> None:
+    if params["radius_um"] == 0.0:
+        raise ValueError("radius_um must be non-zero (positive: concave, negative: convex)")
+    if not 0.5 * params["pitch_um"] < abs(params["radius_um"]):
+        raise ValueError("a cylinder must be wider than its pitch: |radius_um| > pitch_um / 2")
+    if params["count"] < 1:
+        raise ValueError(f"count must be at least 1, got {params['count']}")
+
+
+def cylinder_array_gradient_bound(*, pitch_um: float, radius_um: float, **_: Any) -> float:
+    """|∇f| of :func:`cylinder_array` inside the array [-]: the slope at a cylinder's edge."""
+    half = 0.5 * pitch_um
+    return half / math.sqrt(radius_um * radius_um - half * half)
+
+
+@surface_family(
+    "cylinder_array",
+    {
+        "pitch_um": Param(float, _um("width of each cylinder across its axis"), positive=True),
+        "radius_um": Param(float, _um("radius of each cylinder; positive: concave, negative: convex")),
+        "count": Param(int, "number of cylinders, centred on the origin"),
+        "axis_deg": Param(float, "direction of the cylinders' axes from +x [deg]", 90.0),
+    },
+    gradient_bound=cylinder_array_gradient_bound,
+    check=_check_cylinders,
+)
+def cylinder_array(
+    x: np.ndarray,
+    y: np.ndarray,
+    *,
+    pitch_um: float,
+    radius_um: float,
+    count: int,
+    axis_deg: float = 90.0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An integral mirror of ``count`` cylindrical facets side by side ([5] §3, fig. 6b):
+    with u the coordinate across the axes (direction axis_deg − 90°) and ξ = u − u_k its
+    offset from the nearest facet's centre line u_k = (k + ½ − count/2)·pitch,
+    f = sign(R)·(|R| − sqrt(R² − ξ²)). Facets meet in straight ridges (slope jumps) along the
+    axes; beyond the array the outer facets continue. Lengths in µm."""
+    _check_cylinders({"pitch_um": pitch_um, "radius_um": radius_um, "count": count})
+    across = math.radians(axis_deg - 90.0)
+    return evaluate_flat(
+        _cylinder_array_kernel,
+        x,
+        y,
+        float(pitch_um),
+        float(radius_um),
+        int(count),
+        math.cos(across),
+        math.sin(across),
+    )
+
+
 # --------------------------------------------------------------------------- zernike
 def noll_to_nm(j: int) -> tuple[int, int]:
     """Radial order n and signed azimuthal frequency m of Noll index j ≥ 1 (Noll 1976):

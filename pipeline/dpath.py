@@ -1,0 +1,336 @@
+"""D-shaped slow-tool-servo programs ([5]): planning a case's path, its axis motion, and
+its form error through the engine's envelope (model §4–§6).
+
+The part is mounted off-axis in the cutting zone (its centre ``offaxis_um`` from the C axis,
+turned so the cuts run along ``cut_angle_deg`` of the part's frame). The nose arc lies in
+the XZ plane, the plane through the spindle axis and the tool: a point of the part is cut
+only by tool positions on its own radial line. So the machined surface is still the lower
+envelope of the arcs along rays from the axis (model §5); on a ray at θ the program passes
+once per revolution, at φ = θ + 2πc, where it crosses the cut of that revolution (or, near
+the zone's ends, its transition). Crossings are taken from the program as the machine
+moves (X and Z linear between points), so the points per cut and the transitions act on the
+result. The rays span the zone, the evaluation nodes lie between the cuts (``points_per_feed``
+per spacing along d), and only the fully machined part is evaluated: an edge band (one
+spacing plus the nose's contact window) off the first and last cut and off the cuts' ends
+is excluded, as the spiral's outer edge is; in it the turn-round's arcs overhang the part.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any, Optional
+
+import numpy as np
+
+from ftsweep import catalogs
+from ftsweep.stages import compensation, dpath, envelope, metrics
+
+DEFAULTS: dict[str, Any] = {
+    "points_per_cut": 201,
+    "transition": "optimised",
+    "zones": 1,
+    "offaxis_um": 30000.0,
+    "cut_angle_deg": 90.0,
+    "transition_step_deg": 1.0,
+    "timing": "spindle",
+}
+RAYS_PER_BATCH = 64
+
+
+def option(request: Any, name: str) -> Any:
+    """A D-path option of a layout request, or its default (:data:`DEFAULTS`)."""
+    value = getattr(request, name, None)
+    return DEFAULTS[name] if value is None else value
+
+
+def rotation_of(request: Any) -> float:
+    """Rotation [rad] of the part on the chuck that lays its ``cut_angle_deg`` along the cuts."""
+    return math.radians(float(option(request, "cut_angle_deg")) - 90.0)
+
+
+def geometry_of(request: Any, aperture: Any, spacing_um: float) -> dpath.DGeometry:
+    """The zone of a part: its extent along and across the cuts (the part fills it, [5]),
+    centred ``offaxis_um`` from the C axis."""
+    half_w, half_h = aperture.half_extent_um
+    along, across = dpath.zone_of(half_w, half_h, rotation_of(request))
+    return dpath.DGeometry(
+        length_um=along,
+        width_um=across,
+        outer_um=float(option(request, "offaxis_um")) + 0.5 * across,
+        spacing_um=float(spacing_um),
+        zones=int(option(request, "zones")),
+        transition=str(option(request, "transition")),
+    )
+
+
+def part_surface(request: Any, geometry: dpath.DGeometry, surface: Callable[..., Any]) -> Callable[..., Any]:
+    """The part's surface callable in the spindle frame (zone 0)."""
+    return dpath.placed(surface, geometry.centre_um, rotation_of(request))
+
+
+def plan(
+    request: Any,
+    aperture: Any,
+    surface: Callable[..., Any],
+    spacing_um: float,
+    rc: float,
+    compensate: Callable[[Callable[..., Any], np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+    program: Optional[tuple[dpath.DPath, np.ndarray]] = None,
+) -> tuple[dpath.DPath, dict[str, Any]]:
+    """The D-path program of a request ([5]): the path, Z [µm] of every point (the cut
+    points compensated as a table's, model §4, along the radial section at the tool; the
+    transitions linear between cuts, [5] eq. 14) and the gouge flags; or ``program``
+    (path, Z) as it stands, e.g. read back from an exported file."""
+    if program is not None:
+        path, values = program
+        values = np.asarray(values, dtype=np.float64)
+        return path, {"values": values, "gouge": np.zeros(values.shape, dtype=bool)}
+    geometry = geometry_of(request, aperture, spacing_um)
+    path = dpath.plan(
+        geometry, int(option(request, "points_per_cut")), float(option(request, "transition_step_deg"))
+    )
+    on = path.cut >= 0
+    # every zone holds the same part: a cut point is compensated in its zone's own frame
+    local = path.phi[on] - path.cut_centre[path.cut[on]]
+    z_cut, gouge_cut = compensate(part_surface(request, geometry, surface), path.rho[on], local)
+    gouge = np.zeros(path.n_points, dtype=bool)
+    gouge[on] = gouge_cut
+    return path, {"values": dpath.transition_z(path, z_cut), "gouge": gouge}
+
+
+def times(
+    path: dpath.DPath, z_um: np.ndarray, rpm: float, mode: str = "spindle", feed_mm_min: float = math.nan
+) -> np.ndarray:  # noqa: E501
+    """Time [s] of every point (:func:`ftsweep.stages.dpath.point_times`)."""
+    return dpath.point_times(path.phi, path.rho, z_um, mode, rpm, feed_mm_min)
+
+
+def motion_summary(path: dpath.DPath, z_um: np.ndarray, rpm: float) -> dict[str, float]:
+    """Peaks of the axis motion at constant spindle speed ([5] eqs. 5–6, finite differences
+    over the program's points) and the junctions' continuity: X range, feed and acceleration
+    (overall, on the cuts, on the transitions), Z velocity and acceleration, the largest
+    dρ/dθ jump at a junction and the machining time."""
+    t = times(path, z_um, rpm)
+    m = dpath.axis_motion(t, path.phi, path.rho, z_um)
+    ax = np.abs(m["x_accel_m_s2"])
+    on = path.cut >= 0
+    jumps = dpath.junctions(path)
+    return {
+        "x_min_um": float(path.rho.min()),
+        "x_max_um": float(path.rho.max()),
+        "x_feed_peak_mm_s": float(np.abs(m["x_feed_mm_s"]).max()),
+        "x_accel_peak_m_s2": float(ax.max()),
+        "x_accel_cut_m_s2": float(ax[on].max()),
+        "x_accel_transition_m_s2": float(ax[~on].max()) if np.any(~on) else 0.0,
+        "z_velocity_peak_mm_s": float(np.abs(m["z_velocity_mm_s"]).max()),
+        "z_accel_peak_m_s2": float(np.abs(m["z_accel_m_s2"]).max()),
+        "z_accel_rms_m_s2": float(np.sqrt(np.mean(m["z_accel_m_s2"] ** 2))),
+        "slope_jump_um_rad": float(np.abs(jumps["jump_d1"]).max()) if jumps["jump_d1"].size else 0.0,
+        "machining_s": float(t[-1]),
+    }
+
+
+def limits_reason(machine: Any, summary: dict[str, float], z_um: np.ndarray) -> str:
+    """The machine's X, Z and C limits the program exceeds ('' when it fits them); a
+    machine without axis limits cannot run a D path."""
+    lim = machine.axes
+    if lim is None:
+        return "the machine declares no X, Z, C axis limits (axes:) for a slow-tool-servo program"
+    out = []
+    checks = (
+        ("X", summary["x_min_um"] * 1e-3, ">=", lim.x_min_mm, "mm"),
+        ("X", summary["x_max_um"] * 1e-3, "<=", lim.x_max_mm, "mm"),
+        ("Z", float(np.min(z_um)) * 1e-3, ">=", lim.z_min_mm, "mm"),
+        ("Z", float(np.max(z_um)) * 1e-3, "<=", lim.z_max_mm, "mm"),
+        ("X feed", summary["x_feed_peak_mm_s"], "<=", lim.x_feed_mm_s, "mm/s"),
+        ("X acceleration", summary["x_accel_peak_m_s2"], "<=", lim.x_accel_m_s2, "m/s²"),
+        ("Z velocity", summary["z_velocity_peak_mm_s"], "<=", lim.z_velocity_mm_s, "mm/s"),
+        ("Z acceleration", summary["z_accel_peak_m_s2"], "<=", lim.z_accel_m_s2, "m/s²"),
+    )
+    for name, value, sense, bound, unit in checks:
+        ok = value >= bound if sense == ">=" else value <= bound
+        if not ok:
+            out.append(f"{name} {value:.6g} {unit} {'<' if sense == '>=' else '>'} limit {bound:g} {unit}")
+    return "; ".join(out)
+
+
+def c_speed_ok(machine: Any, rpm: float) -> str:
+    """'' when the spindle speed is within the C limit, else the reason."""
+    lim = machine.axes
+    if lim is not None and rpm > lim.c_speed_rpm:
+        return f"C speed {rpm:g} rpm > limit {lim.c_speed_rpm:g} rpm"
+    return ""
+
+
+class Rays:
+    """The rays a D-path case samples: ``n`` angles [rad] evenly inside the zone's span."""
+
+    def __init__(self, geometry: dpath.DGeometry, n: int) -> None:
+        span = float(geometry.half_angle(geometry.inner_um))
+        self.theta = (np.arange(n) + 0.5) / n * 2.0 * span - span
+        self.n = n
+
+
+def n_rays(path: dpath.DPath, resolution: Any) -> int:
+    """Rays over the zone: ``n_theta`` if set, else ``samples_per_cell`` per point step of the
+    innermost (widest) cut."""
+    if resolution.n_theta is not None:
+        return int(resolution.n_theta)
+    return int(resolution.samples_per_cell * (path.points_per_cut - 1))
+
+
+def simulate(
+    rcase: Any,
+    z_prog: np.ndarray,
+    progress: Optional[Callable[[int, int], None]] = None,
+    seconds: Optional[dict[str, float]] = None,
+) -> tuple[dict[str, float], int, int, float]:
+    """Form error of a D-path case (module docstring; model §5–§6): the metrics in nm, the
+    rays, the evaluated nodes and the edge band [µm]."""
+    path: dpath.DPath = rcase.layout
+    g = path.geometry
+    request, res, rc = rcase.case.layout, rcase.case.resolution, rcase.nose_radius_um
+    seconds = {} if seconds is None else seconds
+    surface = part_surface(request, g, rcase.surface)
+    rotation = rotation_of(request)
+    window = compensation.contact_window_um(rcase.gradient_bound, rc)
+    band = g.spacing_um + window
+    ppf = res.points_per_feed
+    d_nodes = g.outer_um - np.arange((g.n_cycles - 1) * ppf + 1)[::-1] * (g.spacing_um / ppf)
+    machined = (d_nodes >= g.inner_um + band) & (d_nodes <= g.outer_um - band)
+    rays = Rays(g, n_rays(path, res))
+    zone_split = res.zone_split * rcase.aperture.inner_radius_um
+    stats = metrics.empty_stats()
+    mode = rcase.case.compensation
+    batches = math.ceil(rays.n / RAYS_PER_BATCH)
+    n_eval = 0
+
+    def tick(name: str, start: float) -> float:
+        now = time.perf_counter()
+        seconds[name] = seconds.get(name, 0.0) + now - start
+        return now
+
+    for b in range(batches):
+        t = time.perf_counter()
+        theta = rays.theta[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH]
+        pos, w, seg = dpath.crossings(path.phi, path.rho, z_prog, theta)
+        order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
+        pos = np.take_along_axis(pos, order, axis=1)
+        w = np.take_along_axis(w, order, axis=1)
+        seg = np.take_along_axis(seg, order, axis=1)
+        valid = np.isfinite(pos)
+        # passes on a cut (both neighbouring points on it) carry compensated commands; the
+        # transitions' Z is the program's own interpolation ([5] eq. 14), exact as it stands
+        step = np.maximum(seg, 0)
+        on_cut = (
+            valid
+            & (path.cut[step] >= 0)
+            & (path.cut[step] == path.cut[np.minimum(step + 1, path.n_points - 1)])
+        )
+        n_valid = valid.sum(axis=1).astype(np.int64)
+        ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
+        # the fully machined part: the edge band off the first and last cut and off the cuts'
+        # ends, where the turn-round's arcs overhang the part
+        side = np.abs(d_nodes[None, :] * (st / ct)) <= 0.5 * g.length_um - band
+        query = np.where(machined[None, :] & side, d_nodes[None, :] / ct, np.nan)
+        px, py = dpath.to_part(query * ct, query * st, g.centre_um, rotation)
+        inside = rcase.aperture.contains(px, py) & np.isfinite(query)
+        f = np.zeros(query.shape)
+        f[inside] = rcase.surface(px[inside], py[inside])[0]
+        t = tick("sampling", t)
+        w_exact = w.copy()
+        if res.interp_error:
+            w_exact[on_cut], _ = compensation.compensate(
+                surface,
+                pos[on_cut],
+                np.broadcast_to(theta[:, None], pos.shape)[on_cut],
+                rc,
+                mode,
+                rcase.gradient_bound,
+                n_scan=res.compensation_scan,
+                curvature_bound=catalogs.curvature_bound(rcase.surface_spec),
+            )
+        t = tick("compensation", t)
+        z, cusp_r, cusp_z = _envelope(pos, w, n_valid, rc, query)
+        z_exact = _envelope(pos, w_exact, n_valid, rc, query)[0] if res.interp_error else z
+        t = tick("envelope", t)
+        r_part = np.hypot(px, py)
+        metrics.accumulate(z, z_exact, f, inside, r_part, zone_split, stats)
+        cx, cy = dpath.to_part(cusp_r * ct, cusp_r * st, g.centre_um, rotation)
+        d_cusp = cusp_r * ct
+        cusp_in = (
+            rcase.aperture.contains(cx, cy)
+            & (d_cusp >= g.inner_um + band)
+            & (d_cusp <= g.outer_um - band)
+            & (np.abs(cusp_r * st) <= 0.5 * g.length_um - band)
+            & np.isfinite(cusp_r)
+        )
+        fc = np.full(cusp_r.shape, np.nan)
+        fc[cusp_in] = rcase.surface(cx[cusp_in], cy[cusp_in])[0]
+        metrics.accumulate_extrema(cusp_z, fc, cusp_in, np.hypot(cx, cy), zone_split, stats)
+        n_eval += int(inside.sum())
+        tick("metrics", t)
+        if progress is not None:
+            progress(b + 1, batches)
+    errors = metrics.finalize(stats)
+    if not res.interp_error:
+        errors["pv_interp_nm"] = math.nan
+    return errors, rays.n, n_eval, band
+
+
+def _envelope(
+    pos: np.ndarray, w: np.ndarray, n_valid: np.ndarray, rc: float, query: np.ndarray
+) -> tuple[np.ndarray, ...]:  # noqa: E501
+    z = np.empty(query.shape)
+    cusp_r = np.empty(pos.shape)
+    cusp_z = np.empty(pos.shape)
+    envelope.envelope_rows(
+        np.ascontiguousarray(pos),
+        np.ascontiguousarray(w),
+        n_valid,
+        rc,
+        np.ascontiguousarray(query),
+        z,
+        cusp_r,
+        cusp_z,
+    )
+    return z, cusp_r, cusp_z
+
+
+def record_fields(rcase: Any, summary: dict[str, float], z_um: np.ndarray) -> dict[str, Any]:
+    """The D-path fields of a case record ([5]; declared in :mod:`ftsweep.result`)."""
+    path: dpath.DPath = rcase.layout
+    g, request = path.geometry, rcase.case.layout
+    rpm = rcase.cutting.spindle_rpm
+    reason = "; ".join(
+        r for r in (limits_reason(rcase.machine, summary, z_um), c_speed_ok(rcase.machine, rpm)) if r
+    )
+    step = np.diff(path.phi)
+    return {
+        "spacing_um": g.spacing_um,
+        "points_per_cut": path.points_per_cut,
+        "transition": g.transition,
+        "zones": g.zones,
+        "offaxis_um": g.centre_um,
+        "cut_angle_deg": float(option(request, "cut_angle_deg")),
+        "n_cuts": path.n_cuts,
+        "cut_length_um": g.length_um,
+        "cut_width_um": g.width_um,
+        "cut_step_um": path.cut_step_um,
+        "revolutions": path.revolutions,
+        "dphi_deg": float(np.degrees(step.mean())),
+        "ds_um": float(np.mean(np.hypot(np.diff(path.rho), 0.5 * (path.rho[1:] + path.rho[:-1]) * step))),
+        **{
+            k: v
+            for k, v in summary.items()
+            if k not in ("z_velocity_peak_mm_s", "z_accel_peak_m_s2", "z_accel_rms_m_s2")
+        },  # noqa: E501
+        "stroke_um": float(np.max(z_um) - np.min(z_um)),
+        "w_velocity_peak_mm_s": summary["z_velocity_peak_mm_s"],
+        "w_accel_peak_m_s2": summary["z_accel_peak_m_s2"],
+        "w_accel_rms_m_s2": summary["z_accel_rms_m_s2"],
+        "feasible": int(not reason),
+        "infeasible_reason": reason,
+    }

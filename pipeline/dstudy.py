@@ -1,0 +1,243 @@
+"""``ftsweep dpath``: a D-path study ([5]): the traditional and the optimised path on one
+part, their X motion and junctions, the form error of each through the engine, and the
+Archimedean spiral on the same part for comparison (its Z motion, time and P-V), with the
+plots of [5] figs. 3 and 7.
+
+The spiral is the usual way to turn the part: centred on the spindle, feed = the D path's
+spacing, a point every cut step of path, the same tool and spindle speed
+(:func:`spiral_case`). Both are predicted by :func:`ftsweep.case.run_case`.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+
+from ftsweep.case import Case, LayoutRequest, Resolution, resolve_case, run_case
+from ftsweep.stages import dpath
+
+
+def d_case(base: Case, transition: str) -> Case:
+    """``base`` (a D-path case) with the given transition."""
+    return base.model_copy(update={"layout": base.layout.model_copy(update={"transition": transition})})
+
+
+def spiral_case(base: Case, record: dict[str, Any]) -> Case:
+    """The Archimedean spiral on the same part: centred on the C axis, feed = spacing h, a
+    point every cut step along the path ([4] constant-arc rule), same tool and entries."""
+    return Case(
+        surface=base.surface,
+        layout=LayoutRequest(kind="spiral", arc_um=float(record["cut_step_um"])),
+        machine=base.machine,
+        cutting=base.cutting,
+        feed_um=float(record["spacing_um"]),
+        nose_radius_um=base.nose_radius_um,
+        compensation=base.compensation,
+        resolution=Resolution(),
+    )
+
+
+def spiral_motion(case: Case) -> dict[str, Any]:
+    """The spiral program's axis motion at constant spindle speed: t [s], C [rad], X, Z [µm]
+    and :func:`ftsweep.stages.dpath.axis_motion`."""
+    rcase = resolve_case(case)
+    path = rcase.layout
+    rpm = rcase.cutting.spindle_rpm
+    t = dpath.point_times(path.phi, path.rho, rcase.values, "spindle", rpm)
+    motion = dpath.axis_motion(t, path.phi, path.rho, rcase.values)
+    return {"t": t, "phi": path.phi, "x": path.rho, "z": rcase.values, **motion}
+
+
+def feed_mode(path: dpath.DPath, z: np.ndarray, rpm: float, feed_mm_min: float) -> dict[str, float]:
+    """The constant-feed XZC interpolation of a program: time and C speed range."""
+    t = dpath.point_times(path.phi, path.rho, z, "feed", rpm, feed_mm_min)
+    c = dpath.axis_motion(t, path.phi, path.rho, z)["c_speed_rpm"]
+    return {"time_s": float(t[-1]), "c_speed_min_rpm": float(c.min()), "c_speed_max_rpm": float(c.max())}
+
+
+def continuity(path: dpath.DPath) -> dict[str, float]:
+    """Largest relative jump of ρ, dρ/dθ and d²ρ/dθ² over the junctions (relative to the
+    largest magnitude of each on the cut side) and the largest dρ/dθ jump [µm/rad]."""
+    j = dpath.junctions(path)
+    out = {}
+    for name in ("rho", "d1", "d2"):
+        scale = float(np.abs(j[name]).max()) if j[name].size else 1.0
+        out[f"{name}_rel_jump"] = float(np.abs(j[f"jump_{name}"]).max()) / scale if j[name].size else 0.0
+    out["slope_jump_um_rad"] = float(np.abs(j["jump_d1"]).max()) if j["jump_d1"].size else 0.0
+    return out
+
+
+def study(base: Case, feed_mm_min: float, with_spiral: bool = True, progress: Any = None) -> dict[str, Any]:
+    """Both transitions of ``base`` and (optionally) the spiral: one JSON-ready summary."""
+    out: dict[str, Any] = {"surface": base.surface, "machine": base.machine, "cutting": base.cutting}
+    programs = {}
+    for kind in ("traditional", "optimised"):
+        case = d_case(base, kind)
+        record = run_case(case, progress=progress)
+        rcase = resolve_case(case)
+        programs[kind] = (rcase.layout, rcase.values)
+        keep = {k: v for k, v in record.items() if not k.startswith("seconds") and k != "layers"}
+        keep.update(continuity(rcase.layout))
+        keep["feed_mode"] = feed_mode(rcase.layout, rcase.values, rcase.cutting.spindle_rpm, feed_mm_min)
+        out[kind] = keep
+    trad, opt = out["traditional"], out["optimised"]
+    out["x_accel_ratio"] = opt["x_accel_peak_m_s2"] / trad["x_accel_peak_m_s2"]
+    out["x_accel_max_on_cut"] = bool(opt["x_accel_cut_m_s2"] >= opt["x_accel_transition_m_s2"])
+    path = programs["traditional"][0]
+    out["traditional_step_deg"] = _junction_step_deg(path)
+    if with_spiral:
+        scase = spiral_case(base, opt)
+        srec = run_case(scase, progress=progress)
+        motion = spiral_motion(scase)
+        out["spiral"] = {
+            "n_points": srec["n_points"],
+            "pv_nm": srec["pv_nm"],
+            "rms_nm": srec["rms_nm"],
+            "cusp_nm": srec["cusp_nm"],
+            "machining_s": srec["machining_s"],
+            "z_velocity_peak_mm_s": float(np.abs(motion["z_velocity_mm_s"]).max()),
+            "z_accel_peak_m_s2": float(np.abs(motion["z_accel_m_s2"]).max()),
+            "x_accel_peak_m_s2": float(np.abs(motion["x_accel_m_s2"]).max()),
+        }
+        out["z_velocity_ratio"] = opt["w_velocity_peak_mm_s"] / out["spiral"]["z_velocity_peak_mm_s"]
+        out["time_ratio"] = opt["machining_s"] / out["spiral"]["machining_s"]
+        out["_spiral_motion"] = motion
+    out["_programs"] = programs
+    return out
+
+
+def _junction_step_deg(path: dpath.DPath) -> float:
+    """Mean of the C steps on both sides of the first cut's end [deg] (the step the
+    traditional path's acceleration spike is read over)."""
+    end = int(np.flatnonzero(path.cut == 0)[-1])
+    return float(np.degrees(0.5 * (path.phi[end + 1] - path.phi[end - 1])))
+
+
+def plot_x_motion(
+    programs: dict[str, tuple[dpath.DPath, np.ndarray]], rpm: float, out: Path, cycles: int = 2
+) -> Path:  # noqa: E501
+    """[5] fig. 3: ρ, X feed-rate and X acceleration against the polar angle over the first
+    ``cycles`` revolutions, traditional against optimised (analytic path at constant spindle
+    speed, eqs. 3–6; the traditional acceleration is a spike over one command step)."""
+    from ftsweep.accessor import _axes
+    from ftsweep.report import _save
+
+    ax = _axes(None, (8.0, 7.5))
+    fig = ax.figure
+    fig.clear()
+    axes = fig.subplots(3, 1, sharex=True)
+    omega = rpm * 2.0 * math.pi / 60.0
+    for kind, (path, z) in programs.items():
+        t = dpath.point_times(path.phi, path.rho, z, "spindle", rpm)
+        m = dpath.axis_motion(t, path.phi, path.rho, z)
+        sel = path.phi <= path.phi[0] + 2.0 * math.pi * cycles
+        deg = np.degrees(path.phi[sel])
+        axes[0].plot(deg, path.rho[sel] * 1e-3, label=kind)
+        axes[1].plot(deg, m["x_feed_mm_s"][sel], label=kind)
+        axes[2].plot(deg, m["x_accel_m_s2"][sel], label=kind)
+    axes[0].set_ylabel("ρ = X [mm]")
+    axes[1].set_ylabel("X feed [mm/s]")
+    axes[2].set_ylabel("X acceleration [m/s²]")
+    axes[2].set_xlabel("polar angle θ (accumulated C) [deg]")
+    axes[0].set_title(
+        f"D path: traditional against optimised transition at {rpm:g} rpm (ω = {omega:.3g} rad/s)", fontsize=9
+    )  # noqa: E501
+    for a in axes:
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=7)
+    return _save(axes[0], out)
+
+
+def plot_z_motion(
+    spiral: dict[str, Any], program: tuple[dpath.DPath, np.ndarray], rpm: float, out: Path
+) -> Path:
+    """[5] fig. 7: Z over one revolution of the spiral (mid-radius) and over one cycle of the
+    D path, with their Z velocities."""
+    from ftsweep.accessor import _axes
+    from ftsweep.report import _save
+
+    ax = _axes(None, (8.0, 6.0))
+    fig = ax.figure
+    fig.clear()
+    axes = fig.subplots(2, 1)
+    phi = spiral["phi"]
+    mid = 0.5 * phi[-1]
+    sel = (phi >= mid) & (phi < mid + 2.0 * math.pi)
+    path, z = program
+    t = dpath.point_times(path.phi, path.rho, z, "spindle", rpm)
+    m = dpath.axis_motion(t, path.phi, path.rho, z)
+    cycle = path.n_cuts // 2
+    dsel = (path.phi >= path.cut_centre[cycle] - math.pi) & (path.phi < path.cut_centre[cycle] + math.pi)
+    axes[0].plot(np.degrees(phi[sel] - phi[sel][0]), spiral["z"][sel], label="spiral")
+    axes[0].plot(np.degrees(path.phi[dsel] - path.phi[dsel][0]), z[dsel], label="D path")
+    axes[0].set_ylabel("Z [µm]")
+    axes[1].plot(np.degrees(phi[sel] - phi[sel][0]), spiral["z_velocity_mm_s"][sel], label="spiral")
+    axes[1].plot(np.degrees(path.phi[dsel] - path.phi[dsel][0]), m["z_velocity_mm_s"][dsel], label="D path")
+    axes[1].set_ylabel("Z velocity [mm/s]")
+    axes[1].set_xlabel("C within one revolution [deg]")
+    axes[0].set_title(
+        "Z motion over one revolution: spiral (mid-radius) against D path (mid-zone cut)", fontsize=9
+    )
+    for a in axes:
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=7)
+    return _save(axes[0], out)
+
+
+def public(summary: dict[str, Any]) -> dict[str, Any]:
+    """The summary without its private arrays (for JSON)."""
+    return {k: v for k, v in summary.items() if not k.startswith("_")}
+
+
+def text_lines(s: dict[str, Any]) -> list[str]:
+    """Human-readable summary of :func:`study`."""
+    trad, opt = s["traditional"], s["optimised"]
+    lines = [
+        f"D path on {s['surface']}: zone {opt['cut_length_um'] / 1e3:g} × {opt['cut_width_um'] / 1e3:g} mm, centre "  # noqa: E501
+        f"{opt['offaxis_um'] / 1e3:g} mm off-axis, spacing {opt['spacing_um']:g} µm, {opt['n_cuts']} cuts × "
+        f"{opt['points_per_cut']} points, {opt['spindle_rpm']:g} rpm",
+    ]
+    for name, r in (("traditional", trad), ("optimised", opt)):
+        lines.append(
+            f"  {name:<11}: X {r['x_min_um'] / 1e3:.3f}..{r['x_max_um'] / 1e3:.3f} mm, peak X feed "
+            f"{r['x_feed_peak_mm_s']:.1f} mm/s, peak X accel {r['x_accel_peak_m_s2']:.3f} m/s² (cuts "
+            f"{r['x_accel_cut_m_s2']:.3f}, transitions {r['x_accel_transition_m_s2']:.3f}); P-V {r['pv_nm']:.1f} nm; "  # noqa: E501
+            f"{r['machining_s']:.0f} s; {'feasible' if r['feasible'] else 'INFEASIBLE: ' + r['infeasible_reason']}"  # noqa: E501
+        )
+    lines.append(
+        f"  X acceleration ratio optimised/traditional: {s['x_accel_ratio']:.3f} (traditional spike read over a "  # noqa: E501
+        f"{s['traditional_step_deg']:.3g}° C step; it scales as 1/step)"
+    )
+    lines.append(
+        f"  junctions: traditional dρ/dθ jump {trad['slope_jump_um_rad'] / 1e3:.3f} mm/rad; optimised relative jumps "  # noqa: E501
+        f"ρ {opt['rho_rel_jump']:.1e}, dρ/dθ {opt['d1_rel_jump']:.1e}, d²ρ/dθ² {opt['d2_rel_jump']:.1e}"
+    )
+    for name in ("traditional", "optimised"):
+        f = s[name]["feed_mode"]
+        lines.append(
+            f"  constant feed ({name}): {f['time_s']:.0f} s, C {f['c_speed_min_rpm']:.1f}..{f['c_speed_max_rpm']:.1f} rpm"  # noqa: E501
+        )
+    if "spiral" in s:
+        sp = s["spiral"]
+        lines.append(
+            f"  spiral on the same part (centred): P-V {sp['pv_nm']:.1f} nm, {sp['machining_s']:.0f} s, peak Z velocity "  # noqa: E501
+            f"{sp['z_velocity_peak_mm_s']:.4g} mm/s (D path {opt['w_velocity_peak_mm_s']:.4g} mm/s, ratio "
+            f"{s['z_velocity_ratio']:.2e}); D path time / spiral time {s['time_ratio']:.2f}"
+        )
+    return lines
+
+
+def default_case(
+    surface: str = "concave_sphere",
+    machine: str = "sts-xzc",
+    cutting: str = "dpath-finish",
+    options: Optional[dict[str, Any]] = None,
+) -> Case:
+    """The D-path case of the study (defaults: [5]'s example on its sphere)."""
+    given = {k: v for k, v in (options or {}).items() if v is not None}
+    return Case(
+        surface=surface, layout=LayoutRequest(kind="dpath", **given), machine=machine, cutting=cutting
+    )

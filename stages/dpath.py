@@ -1,0 +1,464 @@
+"""D-shaped slow-tool-servo paths for off-axis parts ([5], model §1, §4, §5).
+
+The part sits in a rectangular *cutting zone* of length l (along the cuts) and width s
+(across them) off the spindle axis. Every spindle revolution the tool cuts one straight
+line across the zone, parallel to the zone's long side at the distance d_n = d_e − n·h
+from the C axis (d_e: the zone's outer edge, h: the spacing between cuts), and turns round
+outside the part in the *transition zone* to start the next line. In the polar (ρ, θ)
+plane a cut of the zone centred at θ_z is
+
+    ρ_c(θ) = d / cos(θ − θ_z),   |θ − θ_z| ≤ a(d) = atan(l / 2d)          ([5] eq. 3)
+
+and the transition joins the end of one cut (θ_a) to the start of the next (θ_b):
+
+* ``traditional`` — the arc of commercial software: the radius held (nearly) constant,
+  moving linearly in θ from the end radius to the next start radius. Position is
+  continuous, dρ/dθ jumps at both junctions, so the X feed jumps and the X acceleration
+  spikes there by ω²·Δ(dρ/dθ)/Δθ over a command step Δθ (it grows as the step shrinks).
+* ``optimised`` — a fifth-degree polynomial ρ_t(θ) = Σ c_m θ^m ([5] eq. 4) whose six
+  coefficients follow from continuity of ρ, dρ/dθ and d²ρ/dθ² at both junctions ([5]
+  eqs. 7–12), solved as the 6×6 linear system of eq. 13 for every transition. It is set up
+  in τ = (θ − θ_a)/(θ_b − θ_a) ∈ [0, 1], the same polynomial in a well-conditioned basis.
+
+With a constant spindle speed ω the X feed and acceleration are v = ω·dρ/dθ and
+a = ω²·d²ρ/dθ² ([5] eqs. 5–6). One, two or four zones share a revolution ([5] fig. 5):
+zone j is centred at θ_z = 2πj/k and every zone cuts line n in revolution n. Z follows the
+compensated surface along the cuts and is interpolated linearly in θ across each
+transition between the end of one cut and the start of the next ([5] eq. 14).
+
+A program is a list of points (accumulated C angle φ [rad], X = ρ [µm], Z [µm]); the
+machine moves every axis linearly in time between them. Lengths µm, angles rad.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+TRANSITIONS = ("traditional", "optimised")
+ZONE_COUNTS = (1, 2, 4)
+TIMINGS = ("spindle", "feed")
+
+
+class DGeometry(NamedTuple):
+    """The cutting zone and the cuts of a D path ([5] fig. 2c). Lengths in µm.
+
+    length_um : l, length of every cut (the zone's extent along the cuts).
+    width_um : s, the zone's extent across the cuts.
+    outer_um : d_e, distance of the zone's outer edge (the first cut) from the C axis.
+    spacing_um : h, distance between consecutive cuts (the feed per revolution).
+    zones : cutting zones per revolution (1, 2 or 4), centred at θ = 2πj/zones.
+    transition : ``traditional`` or ``optimised`` (module docstring).
+    """
+
+    length_um: float
+    width_um: float
+    outer_um: float
+    spacing_um: float
+    zones: int
+    transition: str
+
+    @property
+    def n_cycles(self) -> int:
+        """Cuts per zone: the lines d_e − n·h, n = 0 .. floor(s/h), inside the zone."""
+        return int(math.floor(self.width_um / self.spacing_um + 1e-9)) + 1
+
+    @property
+    def inner_um(self) -> float:
+        """d of the last cut [µm]."""
+        return self.outer_um - (self.n_cycles - 1) * self.spacing_um
+
+    @property
+    def centre_um(self) -> float:
+        """Distance of the zone's centre from the C axis [µm] (the off-axis distance)."""
+        return self.outer_um - 0.5 * self.width_um
+
+    def half_angle(self, d: np.ndarray | float) -> np.ndarray | float:
+        """a(d) = atan(l/2d) [rad]: a cut at distance d spans θ_z ± a(d)."""
+        return np.arctan(0.5 * self.length_um / np.asarray(d, dtype=np.float64))
+
+
+def check_geometry(g: DGeometry) -> None:
+    """Refuse a zone the path cannot cut, naming the problem (ValueError)."""
+    for name in ("length_um", "width_um", "outer_um", "spacing_um"):
+        value = getattr(g, name)
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f"{name} must be a positive number of µm, got {value!r}")
+    if g.transition not in TRANSITIONS:
+        raise ValueError(f"transition must be one of {', '.join(TRANSITIONS)}, got {g.transition!r}")
+    if g.zones not in ZONE_COUNTS:
+        raise ValueError(f"zones per revolution must be 1, 2 or 4, got {g.zones}")
+    if g.spacing_um > g.width_um:
+        raise ValueError(f"the spacing h = {g.spacing_um:g} µm exceeds the zone width s = {g.width_um:g} µm")
+    if not g.outer_um - g.width_um > 0.0:
+        raise ValueError(
+            f"the zone reaches the C axis: its outer edge is {g.outer_um:g} µm off the axis and it is "
+            f"{g.width_um:g} µm wide; place it further off-axis"
+        )
+    widest = 2.0 * float(g.half_angle(g.inner_um))
+    if not widest < 2.0 * math.pi / g.zones:
+        raise ValueError(
+            f"{g.zones} zones do not fit in a revolution: the innermost cut spans {math.degrees(widest):.1f}° "  # noqa: E501
+            f"of the {360.0 / g.zones:.0f}° each zone has; use fewer zones or place the zone further off-axis"
+        )
+
+
+class DPath(NamedTuple):
+    """The points of a D-path program and its analytic path ([5]).
+
+    kind : ``"dpath"`` (the program kind, beside ``ring``, ``mesh`` and ``spiral``).
+    geometry : the zone and cuts.
+    phi : (N,) accumulated C angle of each point [rad], increasing.
+    rho : (N,) polar radius ρ = X of each point [µm].
+    cut : (N,) index of the cut a point lies on (revolution·zones + zone), −1 in transitions.
+    points_per_cut : points on every cut, equally spaced along it.
+    transition_step_deg : largest C step between the points of a transition [deg].
+    bounds : (2C,) φ where cut i starts (2i) and ends (2i + 1) [rad].
+    cut_d : (C,) distance of cut i from the C axis [µm].
+    cut_centre : (C,) φ of the zone centre of cut i [rad].
+    coeffs : (C − 1, 6) the transition after cut i as a polynomial in τ ∈ [0, 1].
+    """
+
+    kind: str
+    geometry: DGeometry
+    phi: np.ndarray
+    rho: np.ndarray
+    cut: np.ndarray
+    points_per_cut: int
+    transition_step_deg: float
+    bounds: np.ndarray
+    cut_d: np.ndarray
+    cut_centre: np.ndarray
+    coeffs: np.ndarray
+
+    @property
+    def n_points(self) -> int:
+        return int(self.phi.size)
+
+    @property
+    def n_cuts(self) -> int:
+        """Cuts over all zones."""
+        return int(self.cut_d.size)
+
+    @property
+    def revolutions(self) -> float:
+        return float((self.phi[-1] - self.phi[0]) / (2.0 * math.pi))
+
+    @property
+    def cut_step_um(self) -> float:
+        """Distance between consecutive points of a cut [µm]."""
+        return self.geometry.length_um / (self.points_per_cut - 1)
+
+
+def cut_radius(d: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """ρ = d·sec x and its first two derivatives in θ [µm, µm/rad, µm/rad²] at the angle x
+    from the zone centre ([5] eq. 3)."""
+    sec, tan = 1.0 / np.cos(x), np.tan(x)
+    return d * sec, d * sec * tan, d * sec * (tan * tan + sec * sec)
+
+
+def transition_coefficients(
+    start: tuple[np.ndarray, np.ndarray, np.ndarray],
+    end: tuple[np.ndarray, np.ndarray, np.ndarray],
+    span: np.ndarray,
+    kind: str,
+) -> np.ndarray:
+    """Coefficients (T, 6) in τ = (θ − θ_a)/span of the transitions from (ρ, ρ', ρ'') at their
+    start to (ρ, ρ', ρ'') at their end (derivatives in θ), over ``span`` = θ_b − θ_a [rad].
+
+    ``optimised``: the quintic of [5] eqs. 4, 7–13: the six conditions (value, slope and
+    curvature at both ends) as one 6×6 system per transition, solved by LU. ``traditional``:
+    ρ linear from start to end value (the slopes are not matched)."""
+    r0, r0p, r0pp = (np.asarray(v, dtype=np.float64) for v in start)
+    r1, r1p, r1pp = (np.asarray(v, dtype=np.float64) for v in end)
+    span = np.asarray(span, dtype=np.float64)
+    out = np.zeros((span.size, 6))
+    if kind == "traditional":
+        out[:, 0] = r0
+        out[:, 1] = r1 - r0
+        return out
+    # rows: ρ(0), ρ'(0), ρ''(0), ρ(1), ρ'(1), ρ''(1) of Σ b_m τ^m; d/dθ = (1/span)·d/dτ
+    m = np.arange(6)
+    a = np.zeros((6, 6))
+    a[0, 0] = 1.0
+    a[1, 1] = 1.0
+    a[2, 2] = 2.0
+    a[3, :] = 1.0
+    a[4, :] = m
+    a[5, :] = m * (m - 1)
+    rhs = np.stack([r0, r0p * span, r0pp * span**2, r1, r1p * span, r1pp * span**2], axis=-1)
+    out[:] = np.linalg.solve(np.broadcast_to(a, (span.size, 6, 6)), rhs[..., None])[..., 0]
+    return out
+
+
+def _poly(coeffs: np.ndarray, tau: np.ndarray, span: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Σ b_m τ^m and its first two θ-derivatives (Horner), rows of ``coeffs`` per point."""
+    p = np.zeros_like(tau)
+    dp = np.zeros_like(tau)
+    ddp = np.zeros_like(tau)
+    for m in range(5, -1, -1):
+        ddp = ddp * tau + 2.0 * dp
+        dp = dp * tau + p
+        p = p * tau + coeffs[:, m]
+    return p, dp / span, ddp / span**2
+
+
+def plan(geometry: DGeometry, points_per_cut: int, transition_step_deg: float = 1.0) -> DPath:
+    """The D path of ``geometry`` ([5]): every cut sampled by ``points_per_cut`` points
+    equally spaced along it (ends included), every transition by points at most
+    ``transition_step_deg`` apart in C; the transitions solved per cycle.
+
+    The path starts at the first cut's start (φ = −a(d_e), zone 0 centred at φ = 0) and ends
+    at the last cut's end; the outermost cut comes first."""
+    check_geometry(geometry)
+    if points_per_cut < 2:
+        raise ValueError(f"a cut needs at least 2 points, got {points_per_cut}")
+    if not (math.isfinite(transition_step_deg) and transition_step_deg > 0.0):
+        raise ValueError(f"transition_step_deg must be positive, got {transition_step_deg!r}")
+    g = geometry
+    cycles, k = g.n_cycles, g.zones
+    n = np.repeat(np.arange(cycles), k)
+    zone = np.tile(np.arange(k), cycles)
+    cut_d = g.outer_um - n * g.spacing_um
+    cut_centre = 2.0 * math.pi * (n + zone / k)
+    half = g.half_angle(cut_d)
+    bounds = np.empty(2 * cut_d.size)
+    bounds[0::2] = cut_centre - half
+    bounds[1::2] = cut_centre + half
+    start = cut_radius(cut_d[:-1], half[:-1])
+    end = cut_radius(cut_d[1:], -half[1:])
+    span = bounds[2::2] - bounds[1:-1:2]
+    coeffs = transition_coefficients(start, end, span, g.transition)
+
+    u = np.linspace(-0.5 * g.length_um, 0.5 * g.length_um, points_per_cut)
+    cut_phi = cut_centre[:, None] + np.arctan(u[None, :] / cut_d[:, None])
+    cut_rho = np.hypot(cut_d[:, None], u[None, :])
+    steps = np.maximum(np.ceil(span / math.radians(transition_step_deg)).astype(np.int64), 1)
+    # interior transition points (the ends are the cuts' points)
+    tau = np.concatenate([np.arange(1, s) / s for s in steps]) if steps.size else np.empty(0)
+    owner = np.repeat(np.arange(steps.size), steps - 1)
+    t_phi = bounds[1:-1:2][owner] + tau * span[owner]
+    t_rho = _poly(coeffs[owner], tau, span[owner])[0]
+    count = points_per_cut * cut_d.size + t_phi.size
+    phi, rho = np.empty(count), np.empty(count)
+    cut = np.empty(count, dtype=np.int32)
+    # interleave: cut i, then the interior of transition i
+    lengths = np.full(2 * cut_d.size - 1, points_per_cut)
+    lengths[1::2] = steps - 1
+    offsets = np.concatenate([[0], np.cumsum(lengths)])
+    cut_slots = (offsets[0::2][:, None] + np.arange(points_per_cut)[None, :]).ravel()
+    phi[cut_slots] = cut_phi.ravel()
+    rho[cut_slots] = cut_rho.ravel()
+    cut[cut_slots] = np.repeat(np.arange(cut_d.size), points_per_cut)
+    t_slots = (
+        np.concatenate([np.arange(offsets[2 * i + 1], offsets[2 * i + 2]) for i in range(steps.size)])
+        if steps.size
+        else np.empty(0, dtype=np.int64)
+    )  # noqa: E501
+    phi[t_slots] = t_phi
+    rho[t_slots] = t_rho
+    cut[t_slots] = -1
+    return DPath(
+        "dpath",
+        g,
+        phi,
+        rho,
+        cut,
+        int(points_per_cut),
+        float(transition_step_deg),
+        bounds,
+        cut_d,
+        cut_centre,
+        coeffs,
+    )  # noqa: E501
+
+
+def evaluate(path: DPath, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The analytic path at accumulated angles ``phi`` [rad] within the program: ρ [µm],
+    dρ/dθ [µm/rad], d²ρ/dθ² [µm/rad²] and whether each angle lies on a cut (bool). At a
+    junction the cut's value is taken."""
+    phi = np.asarray(phi, dtype=np.float64)
+    seg = np.clip(np.searchsorted(path.bounds, phi, side="right") - 1, 0, path.bounds.size - 1)
+    on_cut = (seg % 2 == 0) | np.isin(phi, path.bounds)
+    i = seg // 2
+    rho, d1, d2 = cut_radius(
+        path.cut_d[np.minimum(i, path.n_cuts - 1)], phi - path.cut_centre[np.minimum(i, path.n_cuts - 1)]
+    )  # noqa: E501
+    t = ~on_cut
+    if np.any(t):
+        j = np.minimum(i[t], path.coeffs.shape[0] - 1)
+        a = path.bounds[1:-1:2][j]
+        span = path.bounds[2::2][j] - a
+        rho[t], d1[t], d2[t] = _poly(path.coeffs[j], (phi[t] - a) / span, span)
+    return rho, d1, d2, on_cut
+
+
+def junctions(path: DPath) -> dict[str, np.ndarray]:
+    """ρ, dρ/dθ and d²ρ/dθ² on both sides of every junction of a cut and a transition:
+    ``jump_rho``, ``jump_d1``, ``jump_d2`` (transition side minus cut side; µm, µm/rad,
+    µm/rad²) and ``rho``, ``d1``, ``d2`` (the cut side), one entry per junction in path order."""
+    if path.coeffs.shape[0] == 0:
+        empty = np.empty(0)
+        return {k: empty for k in ("rho", "d1", "d2", "jump_rho", "jump_d1", "jump_d2")}
+    half = path.geometry.half_angle(path.cut_d)
+    ends = cut_radius(path.cut_d[:-1], half[:-1])
+    starts = cut_radius(path.cut_d[1:], -half[1:])
+    span = path.bounds[2::2] - path.bounds[1:-1:2]
+    at0 = _poly(path.coeffs, np.zeros(span.size), span)
+    at1 = _poly(path.coeffs, np.ones(span.size), span)
+    out = {}
+    for name, q in zip(("rho", "d1", "d2"), range(3), strict=True):
+        cut_side = np.empty(2 * span.size)
+        cut_side[0::2], cut_side[1::2] = ends[q], starts[q]
+        t_side = np.empty(2 * span.size)
+        t_side[0::2], t_side[1::2] = at0[q], at1[q]
+        out[name] = cut_side
+        out[f"jump_{name}"] = t_side - cut_side
+    return out
+
+
+def transition_z(path: DPath, z_cut: np.ndarray) -> np.ndarray:
+    """Z [µm] of every point given Z on the cut points ``z_cut`` (in path order): on each
+    transition linear in θ from the end of one cut to the start of the next ([5] eq. 14)."""
+    on = path.cut >= 0
+    z = np.empty(path.n_points)
+    z[on] = z_cut
+    z[~on] = np.interp(path.phi[~on], path.phi[on], z_cut)
+    return z
+
+
+def point_times(
+    phi: np.ndarray,
+    rho: np.ndarray,
+    z: np.ndarray,
+    mode: str,
+    spindle_rpm: float,
+    feed_mm_min: float = math.nan,
+) -> np.ndarray:
+    """Time [s] of every point of a program (φ [rad], ρ and Z [µm]) from the first.
+
+    ``spindle``: constant spindle speed, t = (φ − φ0)/ω. ``feed``: the XZC interpolation at
+    a constant feed ``feed_mm_min`` along the tool's path over the part (step length
+    sqrt(Δρ² + (ρ̄·Δφ)² + ΔZ²)), the C speed capped at ``spindle_rpm``."""
+    if mode not in TIMINGS:
+        raise ValueError(f"timing mode must be one of {', '.join(TIMINGS)}, got {mode!r}")
+    omega = spindle_rpm * 2.0 * math.pi / 60.0
+    dphi = np.diff(phi)
+    dt = dphi / omega
+    if mode == "feed":
+        if not (math.isfinite(feed_mm_min) and feed_mm_min > 0.0):
+            raise ValueError(f"the constant-feed mode needs a positive feed [mm/min], got {feed_mm_min!r}")
+        mean_rho = 0.5 * (rho[1:] + rho[:-1])
+        step_um = np.sqrt(np.diff(rho) ** 2 + (mean_rho * dphi) ** 2 + np.diff(z) ** 2)
+        dt = np.maximum(dt, step_um / (feed_mm_min * 1000.0 / 60.0))
+    return np.concatenate([[0.0], np.cumsum(dt)])
+
+
+def _derivative(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """dy/dt on a non-uniform grid: the three-point (second-order) formula inside, one-sided
+    at the ends."""
+    return np.gradient(y, t, edge_order=2) if t.size > 2 else np.gradient(y, t)
+
+
+def axis_motion(t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarray) -> dict[str, np.ndarray]:
+    """Velocities and accelerations of the X, Z and C axes along a program sampled at times
+    ``t`` [s]: ``x_feed_mm_s``, ``x_accel_m_s2``, ``z_velocity_mm_s``, ``z_accel_m_s2``,
+    ``c_speed_rpm`` (finite differences over the points, as the machine moves between them;
+    at a slope discontinuity the acceleration is the velocity jump over the local step)."""
+    vx = _derivative(t, x_um) * 1e-3
+    vz = _derivative(t, z_um) * 1e-3
+    return {
+        "x_feed_mm_s": vx,
+        "x_accel_m_s2": _derivative(t, vx) * 1e-3,
+        "z_velocity_mm_s": vz,
+        "z_accel_m_s2": _derivative(t, vz) * 1e-3,
+        "c_speed_rpm": _derivative(t, phi) * 60.0 / (2.0 * math.pi),
+    }
+
+
+@njit(nogil=True, cache=True)
+def _crossings(phi, rho, z, ray_theta, n_rev, pos, w, seg):  # pragma: no cover - jit
+    period = 2.0 * math.pi
+    lo, hi = phi[0], phi[-1]
+    for a in range(ray_theta.size):
+        j = 0
+        for c in range(n_rev):
+            q = ray_theta[a] + period * c
+            if q < lo or q > hi:
+                pos[a, c] = math.nan
+                w[a, c] = math.nan
+                seg[a, c] = -1
+                continue
+            # revolutions come in increasing φ: the search resumes where the last ended
+            while j < phi.size - 2 and phi[j + 1] < q:
+                j += 1
+            s = (q - phi[j]) / (phi[j + 1] - phi[j])
+            seg[a, c] = j
+            pos[a, c] = rho[j] + s * (rho[j + 1] - rho[j])
+            w[a, c] = z[j] + s * (z[j + 1] - z[j])
+
+
+def crossings(
+    phi: np.ndarray, rho: np.ndarray, z: np.ndarray, ray_theta: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where the program passes the rays at ``ray_theta`` [rad] (model §5): once per
+    revolution, at φ = θ + 2πc; the radius [µm] and Z [µm] there, linear between the program's
+    points as the machine moves, and the program step j (between points j and j + 1) it falls
+    in. (R, revolutions) arrays, NaN (step −1) where the program does not run."""
+    n_rev = int(math.ceil((phi[-1] - phi[0]) / (2.0 * math.pi))) + 2
+    base = math.floor(phi[0] / (2.0 * math.pi))
+    theta = np.asarray(ray_theta, dtype=np.float64) + 2.0 * math.pi * base
+    pos = np.empty((theta.size, n_rev))
+    w = np.empty((theta.size, n_rev))
+    seg = np.empty((theta.size, n_rev), dtype=np.int64)
+    _crossings(
+        np.asarray(phi, np.float64),
+        np.asarray(rho, np.float64),
+        np.asarray(z, np.float64),
+        theta,
+        n_rev,
+        pos,
+        w,
+        seg,
+    )  # noqa: E501
+    return pos, w, seg
+
+
+def placed(
+    surface: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]], centre_um: float, rotation_rad: float
+) -> Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The part ``surface`` (its own frame, centred) mounted with its centre at (centre, 0)
+    on the chuck and turned by ``rotation_rad``: a surface callable in the spindle's frame,
+    (X, Y) [µm] -> (f, ∂f/∂X, ∂f/∂Y)."""
+    c, s = math.cos(rotation_rad), math.sin(rotation_rad)
+
+    def at(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        dx = np.asarray(x) - centre_um
+        y = np.asarray(y)
+        f, fx, fy = surface(c * dx - s * y, s * dx + c * y)
+        return f, c * fx + s * fy, -s * fx + c * fy
+
+    return at
+
+
+def to_part(
+    x: np.ndarray, y: np.ndarray, centre_um: float, rotation_rad: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Spindle-frame (X, Y) [µm] to the part's own frame (see :func:`placed`)."""
+    c, s = math.cos(rotation_rad), math.sin(rotation_rad)
+    dx = x - centre_um
+    return c * dx - s * y, s * dx + c * y
+
+
+def zone_of(half_w: float, half_h: float, rotation_rad: float) -> tuple[float, float]:
+    """(l, s) [µm]: the extent along and across the cuts of a part whose bounding box is
+    2·half_w × 2·half_h, turned by ``rotation_rad`` on the chuck (cuts run along the
+    spindle frame's Y in zone 0)."""
+    c, s = abs(math.cos(rotation_rad)), abs(math.sin(rotation_rad))
+    across = 2.0 * (half_w * c + half_h * s)
+    along = 2.0 * (half_w * s + half_h * c)
+    return along, across

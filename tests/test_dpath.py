@@ -1,0 +1,241 @@
+"""D-shaped slow-tool-servo paths ([5] = seed 004): planner, junctions, X motion, form error
+through the engine's envelope, Z motion against the spiral, export and verify, sweeps."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ftsweep import dstudy, program
+from ftsweep.case import Case, CaseError, LayoutRequest, run_case
+from ftsweep.catalogs import CatalogError
+from ftsweep.export import ExportError
+from ftsweep.stages import dpath
+
+# [5]'s example: l = s = 20 mm, zone centre 30 mm from the C axis (outer edge 40 mm), 40 rpm
+SEED = {"length_um": 20000.0, "width_um": 20000.0, "outer_um": 40000.0, "zones": 1}
+
+
+def seed_path(transition: str, spacing_um: float = 100.0, ppc: int = 201) -> dpath.DPath:
+    return dpath.plan(dpath.DGeometry(spacing_um=spacing_um, transition=transition, **SEED), ppc, 1.0)
+
+
+def x_motion(path: dpath.DPath, rpm: float = 40.0) -> dict[str, np.ndarray]:
+    z = np.zeros(path.n_points)
+    return dpath.axis_motion(dpath.point_times(path.phi, path.rho, z, "spindle", rpm), path.phi, path.rho, z)
+
+
+def test_seed_example_optimised_acceleration_is_a_fraction_of_the_traditional_and_on_the_cuts():
+    trad, opt = seed_path("traditional"), seed_path("optimised")
+    a_trad = np.abs(x_motion(trad)["x_accel_m_s2"])
+    a_opt = np.abs(x_motion(opt)["x_accel_m_s2"])
+    ratio = a_opt.max() / a_trad.max()
+    # [5] reports 0.16; the traditional spike is the slope jump over the C step at the junction
+    assert ratio <= 0.3
+    on = opt.cut >= 0
+    assert a_opt[on].max() >= a_opt[~on].max()
+    # the spike: ω²·Δ(dρ/dθ) spread by the differences over the two C steps either side of the
+    # junction (the velocity there is the mean of the two slopes); it grows as the step shrinks
+    omega = 40.0 * 2.0 * math.pi / 60.0
+    end = int(np.flatnonzero(trad.cut == 0)[-1])
+    span = trad.phi[end + 1] - trad.phi[end - 1]
+    jump = abs(dpath.junctions(trad)["jump_d1"][0])
+    expected = omega**2 * jump / (2.0 * span) * 1e-6 * 2.0
+    assert abs(a_trad[end] - expected) <= 0.1 * expected
+    # the cuts' analytic acceleration, ω²·d(sec tan² + sec³), bounds the optimised peak
+    half = math.atan(10.0 / 40.0)
+    sec = 1.0 / math.cos(half)
+    cut_peak = omega**2 * 40000.0 * sec * (math.tan(half) ** 2 + sec**2) * 1e-6
+    assert a_opt.max() <= cut_peak * 1.01
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    length=st.floats(2000.0, 30000.0),
+    width=st.floats(2000.0, 30000.0),
+    gap=st.floats(5000.0, 60000.0),
+    spacing=st.floats(50.0, 2000.0),
+    zones=st.sampled_from([1, 2, 4]),
+)
+def test_optimised_junctions_are_continuous_to_third_order(length, width, gap, spacing, zones):
+    g = dpath.DGeometry(length, width, gap + width, spacing, zones, "optimised")
+    try:
+        dpath.check_geometry(g)
+    except ValueError:
+        return  # zones that do not fit are refused, tested below
+    path = dpath.plan(g, 5, 5.0)
+    j = dpath.junctions(path)
+    for name in ("rho", "d1", "d2"):
+        scale = max(float(np.abs(j[name]).max()), 1e-300)
+        assert float(np.abs(j[f"jump_{name}"]).max()) <= 1e-9 * scale
+    # the analytic path and the points agree on the points
+    rho, _, _, _ = dpath.evaluate(path, path.phi)
+    assert np.allclose(rho, path.rho, rtol=0, atol=1e-6 * path.rho.max())
+
+
+def test_traditional_junctions_keep_the_radius_and_jump_in_slope():
+    path = seed_path("traditional")
+    j = dpath.junctions(path)
+    assert np.abs(j["jump_rho"]).max() <= 1e-9 * j["rho"].max()
+    # the slope of the cut at its end, ρ·tan a, against the arc's (nearly) zero
+    assert np.abs(j["jump_d1"]).min() > 0.9 * 40000.0 * 0.25
+
+
+def test_cuts_are_straight_parallel_lines_at_the_spacing():
+    path = seed_path("optimised", spacing_um=500.0, ppc=11)
+    on = path.cut >= 0
+    x = path.rho[on] * np.cos(path.phi[on] - path.cut_centre[path.cut[on]])
+    d = path.cut_d[path.cut[on]]
+    assert np.allclose(x, d, atol=1e-9)
+    assert path.n_cuts == math.floor(20000.0 / 500.0) + 1
+    assert np.allclose(-np.diff(path.cut_d), 500.0)
+    assert np.all(np.diff(path.phi) > 0)
+
+
+def test_zone_geometry_is_checked():
+    with pytest.raises(ValueError, match="reaches the C axis"):
+        dpath.check_geometry(dpath.DGeometry(20000.0, 20000.0, 15000.0, 10.0, 1, "optimised"))
+    with pytest.raises(ValueError, match="zones do not fit"):
+        dpath.check_geometry(dpath.DGeometry(20000.0, 20000.0, 22000.0, 10.0, 4, "optimised"))
+    with pytest.raises(ValueError, match="spacing"):
+        dpath.check_geometry(dpath.DGeometry(20000.0, 200.0, 40000.0, 500.0, 1, "optimised"))
+
+
+def test_transition_z_is_linear_between_cuts():
+    path = seed_path("optimised", spacing_um=2000.0, ppc=5)
+    on = path.cut >= 0
+    z = dpath.transition_z(path, np.arange(on.sum(), dtype=float))
+    first = int(np.flatnonzero(~on)[0])
+    a, b = first - 1, int(np.flatnonzero(on[first:])[0]) + first
+    expected = z[a] + (z[b] - z[a]) * (path.phi[first:b] - path.phi[a]) / (path.phi[b] - path.phi[a])
+    assert np.allclose(z[first:b], expected)
+
+
+def d_case(surface: str = "concave_sphere", **options) -> Case:
+    return Case(
+        surface=surface,
+        layout=LayoutRequest(kind="dpath", **options),
+        machine="sts-xzc",
+        cutting="dpath-finish",
+    )
+
+
+def test_sphere_form_error_matches_the_spiral_within_the_cusp_and_never_cuts_below():
+    spacing = 20.0
+    record = run_case(d_case(spacing_um=spacing))
+    assert record["error_min_nm"] >= -1e-3  # exact compensation: no arc below the design
+    spiral = run_case(dstudy.spiral_case(d_case(spacing_um=spacing), record))
+    assert abs(record["pv_nm"] - spiral["pv_nm"]) <= record["cusp_nm"]
+    # the cusps between cuts: h²/(8Rc) on the rays normal to the cuts, up to 1/cos² off them
+    # (the cuts cross the rays h/cos apart), plus the chords between a cut's points
+    corner = math.atan(10.0 / 20.0)
+    top = record["cusp_nm"] / math.cos(corner) ** 2 + record["pv_interp_nm"] + 1.0
+    assert record["cusp_nm"] * 0.9 <= record["pv_nm"] <= top
+
+
+def test_cylinder_array_d_path_z_velocity_is_far_below_the_spiral():
+    case = d_case("integral_mirror", spacing_um=100.0, points_per_cut=101)
+    record = run_case(case)
+    spiral = dstudy.spiral_motion(dstudy.spiral_case(case, record))
+    ratio = record["w_velocity_peak_mm_s"] / float(np.abs(spiral["z_velocity_mm_s"]).max())
+    assert ratio < 0.01
+    assert record["gouge_points"] == 0
+
+
+def test_layout_options_are_checked():
+    with pytest.raises(ValueError, match="D-path"):
+        LayoutRequest(kind="spiral", arc_um=10.0, spacing_um=5.0)
+    with pytest.raises(ValueError, match="takes no"):
+        LayoutRequest(kind="dpath", points=1000.0)
+    with pytest.raises(CaseError, match="reaches the C axis"):
+        run_case(d_case(offaxis_um=5000.0, spacing_um=500.0))
+    with pytest.raises(CatalogError):
+        run_case(Case(surface="concave_sphere", layout=LayoutRequest(kind="dpath"), machine="nope"))
+
+
+def test_export_lines_stay_within_the_axis_limits_and_verify(tmp_path):
+    from ftsweep.case import resolve_specs
+
+    case = d_case(spacing_um=500.0, points_per_cut=41)
+    record = run_case(case)
+    out, side = tmp_path / "p.txt", tmp_path / "p.json"
+    meta = program.export_dpath(out, side, case, resolve_specs(case), record, {})
+    _, data = program.read_program(out, program.D_MAGIC, program.D_COLUMNS)
+    lim = resolve_specs(case)[1].axes
+    assert data.shape == (meta["n_points"], 4)
+    assert lim.x_min_mm <= data[:, 2].min() and data[:, 2].max() <= lim.x_max_mm
+    assert lim.z_min_mm <= data[:, 3].min() and data[:, 3].max() <= lim.z_max_mm
+    assert np.all(np.diff(data[:, 0]) > 0)
+    checked = program.verify_program(out)
+    assert abs(checked["pv_nm"] - record["pv_nm"]) <= checked["pv_tolerance_nm"]
+    # a changed line is refused
+    text = out.read_text().splitlines()
+    text[-1] = text[-1][:-1] + ("1" if text[-1][-1] != "1" else "2")
+    out.write_text("\n".join(text) + "\n")
+    with pytest.raises(ExportError, match="CRC32"):
+        program.verify_program(out)
+
+
+def test_export_refuses_a_program_beyond_the_machine(tmp_path):
+    from ftsweep.case import resolve_specs
+
+    case = d_case(spacing_um=500.0, points_per_cut=41)
+    record = run_case(case)
+    surface, machine, cutting = resolve_specs(case)
+    tight = machine.model_copy(update={"axes": machine.axes.model_copy(update={"x_max_mm": 60.0})})
+    with pytest.raises(ExportError, match="X .* > limit 60 mm"):
+        program.export_dpath(
+            tmp_path / "p.txt", tmp_path / "p.json", case, (surface, tight, cutting), record, {}
+        )
+    assert not (tmp_path / "p.txt").exists()
+
+
+def test_dpath_sweep_is_scheduler_independent_and_compares(tmp_path):
+    from ftsweep.compare import compare_rows
+    from ftsweep.run import run_sweep
+
+    spec = {
+        "surface": "concave_sphere",
+        "layout": "dpath",
+        "machine": "sts-xzc",
+        "cutting": "dpath-finish",
+        "dpath": {"transition": "optimised"},
+        "axes": {"spacing_um": [250.0, 500.0], "points_per_cut": [21, 41]},
+    }
+    path = tmp_path / "d.yaml"
+    path.write_text(json.dumps(spec))
+    run_sweep(str(path), tmp_path / "a.zarr", scheduler="synchronous")
+    run_sweep(str(path), tmp_path / "b.zarr", workers=2)
+    import xarray as xr
+
+    a, b = xr.open_zarr(tmp_path / "a.zarr").load(), xr.open_zarr(tmp_path / "b.zarr").load()
+    for var in ("pv_nm", "rms_nm", "x_accel_peak_m_s2", "n_points"):
+        assert np.array_equal(a[var].values, b[var].values, equal_nan=True)
+    assert a["pv_nm"].dims == ("spacing_um", "points_per_cut")
+    rows = compare_rows([tmp_path / "a.zarr"])
+    assert {r["program"].split()[0] for r in rows} == {"dpath"}
+
+
+def test_dpath_cli_json_reports_the_ratio(tmp_path):
+    from click.testing import CliRunner
+
+    from ftsweep.cli import main
+
+    res = CliRunner().invoke(
+        main,
+        ["dpath", "--spacing-um", "500", "--points-per-cut", "41", "--plots", str(tmp_path), "--json"],
+    )
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert 0.0 < out["x_accel_ratio"] <= 0.3
+    assert out["x_accel_max_on_cut"] is True
+    assert out["optimised"]["d2_rel_jump"] <= 1e-9
+    assert out["traditional"]["slope_jump_um_rad"] > 0.0
+    assert out["spiral"]["pv_nm"] > 0.0
+    for plot in out["plots"]:
+        assert (tmp_path / plot.split("/")[-1]).stat().st_size > 0

@@ -19,6 +19,12 @@ KIND_CASES = {
     "ring": Case(surface="small_sine", layout=LayoutRequest(kind="ring", pitch=(10.0, 4.0))),
     "mesh": Case(surface="small_lens", layout=LayoutRequest(kind="mesh", pitch=(10.0, 10.0))),
     "spiral": Case(surface="small_sine", layout=LayoutRequest(kind="spiral", points_per_rev=40), feed_um=4.0),
+    "dpath": Case(
+        surface="concave_sphere",
+        layout=LayoutRequest(kind="dpath", spacing_um=500.0, points_per_cut=21),
+        machine="sts-xzc",
+        cutting="dpath-finish",
+    ),
 }
 
 

@@ -796,10 +796,7 @@ def run_case(
     record = _record(rcase, plan, errors, dyn, gouge, layering)
     if emap is not None:
         record.update(emap.as_record())
-    for name in STAGE_TIMERS:
-        record[f"seconds_{name}"] = timer.seconds.get(name, 0.0)
-    record["seconds"] = time.perf_counter() - t_start
-    return result.in_declared_order(record)
+    return _timed(record, timer, t_start)
 
 
 def _table_of(
@@ -1095,8 +1092,7 @@ def _record(
 ) -> dict[str, Any]:
     """The flat record of a finished case (see :func:`run_case`); ``errors`` are the metrics
     of :func:`ftsweep.stages.metrics.finalize`. Refuses non-finite metrics."""
-    skipped = set() if rcase.case.resolution.interp_error else {"pv_interp_nm"}
-    bad = [k for k, v in errors.items() if not math.isfinite(v) and k not in skipped]
+    bad = _non_finite(rcase, errors)
     if bad or not math.isfinite(dyn.stroke_um):
         raise CaseError(
             f"the metrics came out non-finite ({', '.join(bad) or 'stroke_um'}): no evaluation point "
@@ -1142,19 +1138,7 @@ def _record(
             }
         )
     record["aspect_actual"] = layout.aspect
-    record.update(
-        compensation=case.compensation,
-        machine=case.machine,
-        feed_um=rcase.feed_um,
-        nose_radius_um=rcase.nose_radius_um,
-        spindle_rpm=rcase.cutting.spindle_rpm,
-        n_theta=plan.n_theta,
-        points_per_feed=case.resolution.points_per_feed,
-        edge_band_um=rcase.feed_um + plan.window_um,
-    )
-    record.update(errors)
-    record["cusp_nm"] = metrics.cusp_height_um(rcase.feed_um, rcase.nose_radius_um) * 1e3
-    record["gouge_points"] = int(np.count_nonzero(gouge))
+    record.update(_simulated(rcase, errors, plan.n_theta, rcase.feed_um + plan.window_um, gouge))
     record.update(
         stroke_um=dyn.stroke_um,
         w_velocity_peak_mm_s=dyn.velocity_peak_mm_s,
@@ -1178,9 +1162,8 @@ def _run_dpath(
     assert rcase.values is not None and rcase.gouge is not None
     z = rcase.values
     require_finite(z, "the D-path Z", lambda i: f"point {i} (C {math.degrees(path.phi[i]):.4f}°)")
-    errors, rays, n_eval, band = dpath_program.simulate(rcase, z, progress, timer.seconds)
-    skipped = set() if case.resolution.interp_error else {"pv_interp_nm"}
-    bad = [k for k, v in errors.items() if not math.isfinite(v) and k not in skipped]
+    errors, rays, band = dpath_program.simulate(rcase, z, progress, timer.seconds)
+    bad = _non_finite(rcase, errors)
     if bad:
         raise CaseError(
             f"the metrics came out non-finite ({', '.join(bad)}): no evaluation point inside the fully "
@@ -1190,22 +1173,41 @@ def _run_dpath(
     summary = dpath_program.motion_summary(path, z, rcase.cutting.spindle_rpm)
     timer.add("dynamics", t)
     record: dict[str, Any] = {"surface": case.surface, "layout": "dpath", "n_points": path.n_points}
-    record.update(
-        compensation=case.compensation,
-        machine=case.machine,
-        feed_um=rcase.feed_um,
-        nose_radius_um=rcase.nose_radius_um,
-        spindle_rpm=rcase.cutting.spindle_rpm,
-        n_theta=rays,
-        n_eval=n_eval,
-        points_per_feed=case.resolution.points_per_feed,
-        edge_band_um=band,
-    )
-    record.update(errors)
-    record["n_eval"] = n_eval
-    record["cusp_nm"] = metrics.cusp_height_um(rcase.feed_um, rcase.nose_radius_um) * 1e3
-    record["gouge_points"] = int(np.count_nonzero(rcase.gouge))
+    record.update(_simulated(rcase, errors, rays, band, rcase.gouge))
     record.update(dpath_program.record_fields(rcase, summary, z))
+    return _timed(record, timer, t_start)
+
+
+def _non_finite(rcase: ResolvedCase, errors: dict[str, float]) -> list[str]:
+    """The metrics that came out non-finite (pv_interp_nm is NaN by request when the
+    exact-command envelope is asked off)."""
+    skipped = set() if rcase.case.resolution.interp_error else {"pv_interp_nm"}
+    return [k for k, v in errors.items() if not math.isfinite(v) and k not in skipped]
+
+
+def _simulated(
+    rcase: ResolvedCase, errors: dict[str, float], n_theta: int, edge_band_um: float, gouge: np.ndarray
+) -> dict[str, Any]:
+    """The record fields every program kind shares: cutting conditions, sampling, the metrics,
+    the flat-surface cusp and the gouging points."""
+    case = rcase.case
+    return {
+        "compensation": case.compensation,
+        "machine": case.machine,
+        "feed_um": rcase.feed_um,
+        "nose_radius_um": rcase.nose_radius_um,
+        "spindle_rpm": rcase.cutting.spindle_rpm,
+        "n_theta": n_theta,
+        "points_per_feed": case.resolution.points_per_feed,
+        "edge_band_um": edge_band_um,
+        **errors,
+        "cusp_nm": metrics.cusp_height_um(rcase.feed_um, rcase.nose_radius_um) * 1e3,
+        "gouge_points": int(np.count_nonzero(gouge)),
+    }
+
+
+def _timed(record: dict[str, Any], timer: Timer, t_start: float) -> dict[str, Any]:
+    """``record`` with the wall time of each stage and in all, in declared order."""
     for name in STAGE_TIMERS:
         record[f"seconds_{name}"] = timer.seconds.get(name, 0.0)
     record["seconds"] = time.perf_counter() - t_start

@@ -102,37 +102,51 @@ def plan(
 
 def times(
     path: dpath.DPath, z_um: np.ndarray, rpm: float, mode: str = "spindle", feed_mm_min: float = math.nan
-) -> np.ndarray:  # noqa: E501
+) -> np.ndarray:
     """Time [s] of every point (:func:`ftsweep.stages.dpath.point_times`)."""
     return dpath.point_times(path.phi, path.rho, z_um, mode, rpm, feed_mm_min)
 
 
-def motion_summary(path: dpath.DPath, z_um: np.ndarray, rpm: float) -> dict[str, float]:
-    """Peaks of the axis motion at constant spindle speed ([5] eqs. 5–6, finite differences
-    over the program's points) and the junctions' continuity: X range, feed and acceleration
-    (overall, on the cuts, on the transitions), Z velocity and acceleration, the largest
-    dρ/dθ jump at a junction and the machining time."""
-    t = times(path, z_um, rpm)
-    m = dpath.axis_motion(t, path.phi, path.rho, z_um)
-    ax = np.abs(m["x_accel_m_s2"])
-    on = path.cut >= 0
-    jumps = dpath.junctions(path)
+def motion_peaks(
+    t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarray
+) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    """Ranges and peaks of the axis motion of points at times ``t`` [s] (C [rad], X, Z [µm]):
+    X range, feed and acceleration, Z velocity and acceleration (peak and RMS), C speed —
+    what the machine's limits are checked against — and the motion itself
+    (:func:`ftsweep.stages.dpath.axis_motion`)."""
+    m = dpath.axis_motion(t, phi, x_um, z_um)
     return {
-        "x_min_um": float(path.rho.min()),
-        "x_max_um": float(path.rho.max()),
+        "x_min_um": float(x_um.min()),
+        "x_max_um": float(x_um.max()),
         "x_feed_peak_mm_s": float(np.abs(m["x_feed_mm_s"]).max()),
-        "x_accel_peak_m_s2": float(ax.max()),
-        "x_accel_cut_m_s2": float(ax[on].max()),
-        "x_accel_transition_m_s2": float(ax[~on].max()) if np.any(~on) else 0.0,
+        "x_accel_peak_m_s2": float(np.abs(m["x_accel_m_s2"]).max()),
         "z_velocity_peak_mm_s": float(np.abs(m["z_velocity_mm_s"]).max()),
         "z_accel_peak_m_s2": float(np.abs(m["z_accel_m_s2"]).max()),
         "z_accel_rms_m_s2": float(np.sqrt(np.mean(m["z_accel_m_s2"] ** 2))),
+        "c_speed_peak_rpm": float(np.abs(m["c_speed_rpm"]).max()),
+    }, m
+
+
+def motion_summary(path: dpath.DPath, z_um: np.ndarray, rpm: float) -> dict[str, float]:
+    """:func:`motion_peaks` at constant spindle speed ([5] eqs. 5–6, finite differences over
+    the program's points), the X acceleration on the cuts and in the transitions, the largest
+    dρ/dθ jump at a junction and the machining time."""
+    t = times(path, z_um, rpm)
+    peaks, motion = motion_peaks(t, path.phi, path.rho, z_um)
+    ax = np.abs(motion["x_accel_m_s2"])
+    del peaks["c_speed_peak_rpm"]  # the spindle speed itself, checked as such
+    on = path.cut >= 0
+    jumps = dpath.junctions(path)
+    return {
+        **peaks,
+        "x_accel_cut_m_s2": float(ax[on].max()),
+        "x_accel_transition_m_s2": float(ax[~on].max()) if np.any(~on) else 0.0,
         "slope_jump_um_rad": float(np.abs(jumps["jump_d1"]).max()) if jumps["jump_d1"].size else 0.0,
         "machining_s": float(t[-1]),
     }
 
 
-def limits_reason(machine: Any, summary: dict[str, float], z_um: np.ndarray) -> str:
+def limits_reason(machine: Any, summary: dict[str, float], z_um: np.ndarray, c_speed_rpm: float) -> str:
     """The machine's X, Z and C limits the program exceeds ('' when it fits them); a
     machine without axis limits cannot run a D path."""
     lim = machine.axes
@@ -148,6 +162,7 @@ def limits_reason(machine: Any, summary: dict[str, float], z_um: np.ndarray) -> 
         ("X acceleration", summary["x_accel_peak_m_s2"], "<=", lim.x_accel_m_s2, "m/s²"),
         ("Z velocity", summary["z_velocity_peak_mm_s"], "<=", lim.z_velocity_mm_s, "mm/s"),
         ("Z acceleration", summary["z_accel_peak_m_s2"], "<=", lim.z_accel_m_s2, "m/s²"),
+        ("C speed", c_speed_rpm, "<=", lim.c_speed_rpm, "rpm"),
     )
     for name, value, sense, bound, unit in checks:
         ok = value >= bound if sense == ">=" else value <= bound
@@ -156,21 +171,11 @@ def limits_reason(machine: Any, summary: dict[str, float], z_um: np.ndarray) -> 
     return "; ".join(out)
 
 
-def c_speed_ok(machine: Any, rpm: float) -> str:
-    """'' when the spindle speed is within the C limit, else the reason."""
-    lim = machine.axes
-    if lim is not None and rpm > lim.c_speed_rpm:
-        return f"C speed {rpm:g} rpm > limit {lim.c_speed_rpm:g} rpm"
-    return ""
-
-
-class Rays:
-    """The rays a D-path case samples: ``n`` angles [rad] evenly inside the zone's span."""
-
-    def __init__(self, geometry: dpath.DGeometry, n: int) -> None:
-        span = float(geometry.half_angle(geometry.inner_um))
-        self.theta = (np.arange(n) + 0.5) / n * 2.0 * span - span
-        self.n = n
+def ray_angles(geometry: dpath.DGeometry, n: int) -> np.ndarray:
+    """``n`` ray angles [rad] evenly inside the zone's angular span (that of its widest,
+    innermost cut)."""
+    span = float(geometry.half_angle(geometry.inner_um))
+    return (np.arange(n) + 0.5) / n * 2.0 * span - span
 
 
 def n_rays(path: dpath.DPath, resolution: Any) -> int:
@@ -186,9 +191,9 @@ def simulate(
     z_prog: np.ndarray,
     progress: Optional[Callable[[int, int], None]] = None,
     seconds: Optional[dict[str, float]] = None,
-) -> tuple[dict[str, float], int, int, float]:
+) -> tuple[dict[str, float], int, float]:
     """Form error of a D-path case (module docstring; model §5–§6): the metrics in nm, the
-    rays, the evaluated nodes and the edge band [µm]."""
+    rays and the edge band [µm]."""
     path: dpath.DPath = rcase.layout
     g = path.geometry
     request, res, rc = rcase.case.layout, rcase.case.resolution, rcase.nose_radius_um
@@ -200,12 +205,12 @@ def simulate(
     ppf = res.points_per_feed
     d_nodes = g.outer_um - np.arange((g.n_cycles - 1) * ppf + 1)[::-1] * (g.spacing_um / ppf)
     machined = (d_nodes >= g.inner_um + band) & (d_nodes <= g.outer_um - band)
-    rays = Rays(g, n_rays(path, res))
+    rays = ray_angles(g, n_rays(path, res))
+    curvature = catalogs.curvature_bound(rcase.surface_spec)
     zone_split = res.zone_split * rcase.aperture.inner_radius_um
     stats = metrics.empty_stats()
     mode = rcase.case.compensation
-    batches = math.ceil(rays.n / RAYS_PER_BATCH)
-    n_eval = 0
+    batches = math.ceil(rays.size / RAYS_PER_BATCH)
 
     def tick(name: str, start: float) -> float:
         now = time.perf_counter()
@@ -214,7 +219,7 @@ def simulate(
 
     for b in range(batches):
         t = time.perf_counter()
-        theta = rays.theta[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH]
+        theta = rays[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH]
         pos, w, seg = dpath.crossings(path.phi, path.rho, z_prog, theta)
         order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
         pos = np.take_along_axis(pos, order, axis=1)
@@ -250,7 +255,7 @@ def simulate(
                 mode,
                 rcase.gradient_bound,
                 n_scan=res.compensation_scan,
-                curvature_bound=catalogs.curvature_bound(rcase.surface_spec),
+                curvature_bound=curvature,
             )
         t = tick("compensation", t)
         z, cusp_r, cusp_z = _envelope(pos, w, n_valid, rc, query)
@@ -270,14 +275,13 @@ def simulate(
         fc = np.full(cusp_r.shape, np.nan)
         fc[cusp_in] = rcase.surface(cx[cusp_in], cy[cusp_in])[0]
         metrics.accumulate_extrema(cusp_z, fc, cusp_in, np.hypot(cx, cy), zone_split, stats)
-        n_eval += int(inside.sum())
         tick("metrics", t)
         if progress is not None:
             progress(b + 1, batches)
     errors = metrics.finalize(stats)
     if not res.interp_error:
         errors["pv_interp_nm"] = math.nan
-    return errors, rays.n, n_eval, band
+    return errors, rays.size, band
 
 
 def _envelope(
@@ -304,9 +308,7 @@ def record_fields(rcase: Any, summary: dict[str, float], z_um: np.ndarray) -> di
     path: dpath.DPath = rcase.layout
     g, request = path.geometry, rcase.case.layout
     rpm = rcase.cutting.spindle_rpm
-    reason = "; ".join(
-        r for r in (limits_reason(rcase.machine, summary, z_um), c_speed_ok(rcase.machine, rpm)) if r
-    )
+    reason = limits_reason(rcase.machine, summary, z_um, rpm)
     step = np.diff(path.phi)
     return {
         "spacing_um": g.spacing_um,

@@ -60,13 +60,13 @@ def feed_mode(path: dpath.DPath, z: np.ndarray, rpm: float, feed_mm_min: float) 
 
 def continuity(path: dpath.DPath) -> dict[str, float]:
     """Largest relative jump of ρ, dρ/dθ and d²ρ/dθ² over the junctions (relative to the
-    largest magnitude of each on the cut side) and the largest dρ/dθ jump [µm/rad]."""
+    largest magnitude of each on the cut side; the dρ/dθ jump itself [µm/rad] is the case
+    record's ``slope_jump_um_rad``)."""
     j = dpath.junctions(path)
     out = {}
     for name in ("rho", "d1", "d2"):
         scale = float(np.abs(j[name]).max()) if j[name].size else 1.0
         out[f"{name}_rel_jump"] = float(np.abs(j[f"jump_{name}"]).max()) / scale if j[name].size else 0.0
-    out["slope_jump_um_rad"] = float(np.abs(j["jump_d1"]).max()) if j["jump_d1"].size else 0.0
     return out
 
 

@@ -108,7 +108,6 @@ def export_program(
         "catalog_entries": recorded_entries(specs),
     }
     unit = {"angle": "points/rev", "arc": "um of path", "chord": "um chord budget"}[rule]
-    crc = _crc(lines)
     head = [
         f"{MAGIC} (linear interpolation of X and Z in C between consecutive lines)",
         f"# generator: ftsweep {__version__}; created {meta['created']}",
@@ -121,9 +120,21 @@ def export_program(
         f"# points: {path.n_points}",
         *_layer_lines(schedule),
         "# units: C [deg] accumulated spindle angle from the edge, X [mm] radius, Z [mm] tool tip",
+    ]
+    return _write_program(out, side, head, COLUMNS, lines, meta)
+
+
+def _write_program(
+    out: Path, side: Path, head: list[str], columns: str, lines: list[str], meta: dict[str, Any]
+) -> dict[str, Any]:
+    """Close the header (the sidecar's digest, the CRC over the data lines, the column line),
+    name the program and its digest in the sidecar, and write both atomically."""
+    crc = _crc(lines)
+    head = [
+        *head,
         f"# sidecar: {side.name} sha256 {sidecar_digest(meta, TEXT_FIELDS)}",
         f"# CRC32: 0x{crc:08x} over the data lines",
-        COLUMNS,
+        columns,
     ]
     text = "\n".join(head + lines) + "\n"
     meta.update(program=out.name, crc32=crc, program_sha256=hashlib.sha256(text.encode()).hexdigest())
@@ -249,29 +260,17 @@ D_COLUMNS = "t_s C_deg X_mm Z_mm"
 D_LINE = "{:.9f} {:.9f} {:.9f} {:.9f}"
 
 
-def _limits_of_lines(machine: Any, data: np.ndarray, rpm: float) -> str:
+def _limits_of_lines(machine: Any, data: np.ndarray) -> str:
     """The axis limits the lines (t [s], C [deg], X [mm], Z [mm]) exceed, checked on every
     line: positions directly, feeds and accelerations by differences between lines."""
     from ftsweep import dpath as dprog
-    from ftsweep.stages import dpath
 
     t, phi, x_um, z_um = data[:, 0], np.radians(data[:, 1]), data[:, 2] * 1e3, data[:, 3] * 1e3
     if not np.all(np.diff(t) > 0.0):
         return "time does not increase from line to line"
-    m = dpath.axis_motion(t, phi, x_um, z_um)
-    summary = {
-        "x_min_um": float(x_um.min()),
-        "x_max_um": float(x_um.max()),
-        "x_feed_peak_mm_s": float(np.abs(m["x_feed_mm_s"]).max()),
-        "x_accel_peak_m_s2": float(np.abs(m["x_accel_m_s2"]).max()),
-        "z_velocity_peak_mm_s": float(np.abs(m["z_velocity_mm_s"]).max()),
-        "z_accel_peak_m_s2": float(np.abs(m["z_accel_m_s2"]).max()),
-    }
-    reasons = [
-        dprog.limits_reason(machine, summary, z_um),
-        dprog.c_speed_ok(machine, float(np.abs(m["c_speed_rpm"]).max()) - 1e-6),
-    ]  # noqa: E501
-    return "; ".join(r for r in reasons if r)
+    peaks, _ = dprog.motion_peaks(t, phi, x_um, z_um)
+    # the C speed from printed times and angles: allow their last digit
+    return dprog.limits_reason(machine, peaks, z_um, peaks["c_speed_peak_rpm"] - 1e-6)
 
 
 def export_dpath(
@@ -299,7 +298,7 @@ def export_dpath(
         D_LINE.format(*row) for row in zip(t, np.degrees(path.phi), path.rho * 1e-3, z * 1e-3, strict=True)
     ]
     data = np.array([[float(v) for v in line.split()] for line in lines])
-    reason = _limits_of_lines(specs[1], data, rpm)
+    reason = _limits_of_lines(specs[1], data)
     if reason:
         raise ProgramError(
             f"the program leaves the axis limits of machine '{case.machine}': {reason}; nothing exported"
@@ -325,7 +324,6 @@ def export_dpath(
         "case": case.model_dump(mode="json"),
         "catalog_entries": recorded_entries(specs),
     }
-    crc = _crc(lines)
     head = [
         f"{D_MAGIC} (X, Z and C move linearly in time between consecutive lines)",
         f"# generator: ftsweep {__version__}; created {meta['created']}",
@@ -339,14 +337,8 @@ def export_dpath(
         f"# predicted P-V: {chosen['pv_nm']:.6f} nm",
         f"# points: {path.n_points}",
         "# units: t [s] from the first line, C [deg] accumulated, X [mm] tool radius, Z [mm] tool tip",
-        f"# sidecar: {side.name} sha256 {sidecar_digest(meta, TEXT_FIELDS)}",
-        f"# CRC32: 0x{crc:08x} over the data lines",
-        D_COLUMNS,
     ]
-    text = "\n".join(head + lines) + "\n"
-    meta.update(program=out.name, crc32=crc, program_sha256=hashlib.sha256(text.encode()).hexdigest())
-    write_texts_atomic({side: dumps_json(meta, indent=2) + "\n", out: text})
-    return meta
+    return _write_program(out, side, head, D_COLUMNS, lines, meta)
 
 
 def verify_dpath(
@@ -358,7 +350,7 @@ def verify_dpath(
     head, data = read_program(path, D_MAGIC, D_COLUMNS)
     meta = _checked_sidecar(path, head)
     case, specs = recorded_case_of(meta, sidecar_path(path))
-    reason = _limits_of_lines(specs[1], data, specs[2].spindle_rpm)
+    reason = _limits_of_lines(specs[1], data)
     if reason:
         raise ProgramError(
             f"{path}: a line leaves the axis limits of machine '{case.machine}': {reason}; do not run it"

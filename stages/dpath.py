@@ -238,15 +238,16 @@ def plan(geometry: DGeometry, points_per_cut: int, transition_step_deg: float = 
     cut_phi = cut_centre[:, None] + np.arctan(u[None, :] / cut_d[:, None])
     cut_rho = np.hypot(cut_d[:, None], u[None, :])
     steps = np.maximum(np.ceil(span / math.radians(transition_step_deg)).astype(np.int64), 1)
-    # interior transition points (the ends are the cuts' points)
-    tau = np.concatenate([np.arange(1, s) / s for s in steps]) if steps.size else np.empty(0)
+    # interior transition points (the ends are the cuts' points): k = 1 .. steps − 1 of each
     owner = np.repeat(np.arange(steps.size), steps - 1)
+    first = np.concatenate([[0], np.cumsum(steps - 1)])[:-1] if steps.size else np.empty(0, dtype=np.int64)
+    tau = (np.arange(owner.size) - first[owner] + 1) / steps[owner]
     t_phi = bounds[1:-1:2][owner] + tau * span[owner]
     t_rho = _poly(coeffs[owner], tau, span[owner])[0]
     count = points_per_cut * cut_d.size + t_phi.size
     phi, rho = np.empty(count), np.empty(count)
-    cut = np.empty(count, dtype=np.int32)
-    # interleave: cut i, then the interior of transition i
+    cut = np.full(count, -1, dtype=np.int32)
+    # interleave: cut i, then the interior of transition i; the rest of the slots are transitions'
     lengths = np.full(2 * cut_d.size - 1, points_per_cut)
     lengths[1::2] = steps - 1
     offsets = np.concatenate([[0], np.cumsum(lengths)])
@@ -254,14 +255,8 @@ def plan(geometry: DGeometry, points_per_cut: int, transition_step_deg: float = 
     phi[cut_slots] = cut_phi.ravel()
     rho[cut_slots] = cut_rho.ravel()
     cut[cut_slots] = np.repeat(np.arange(cut_d.size), points_per_cut)
-    t_slots = (
-        np.concatenate([np.arange(offsets[2 * i + 1], offsets[2 * i + 2]) for i in range(steps.size)])
-        if steps.size
-        else np.empty(0, dtype=np.int64)
-    )  # noqa: E501
-    phi[t_slots] = t_phi
-    rho[t_slots] = t_rho
-    cut[t_slots] = -1
+    phi[cut < 0] = t_phi
+    rho[cut < 0] = t_rho
     return DPath(
         "dpath",
         g,

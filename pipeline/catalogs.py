@@ -120,8 +120,18 @@ class PluginParams(Strict):
     params: dict[str, Any] = Field(default_factory=dict, description="keyword arguments for the function")
 
 
+class FresnelSlicing(Strict):
+    """Slice the surface into a Fresnel form ([2] eq. 3): facets of constant height along its
+    contour lines, counted from the lowest point inside the aperture."""
+
+    facet_height_um: PositiveFloat = Field(description="height h of every facet [µm]")
+
+
 class _SurfaceBase(Strict):
     description: str = ""
+    fresnel: Optional[FresnelSlicing] = Field(
+        None, description="evaluate the surface's Fresnel form: {facet_height_um: h} ([2] eq. 3)"
+    )
     aperture: ApertureSpec
     layout: Literal["ring", "mesh"] = Field(description="layout method used by default")
     gradient_bound: Optional[PositiveFloat] = Field(
@@ -218,7 +228,18 @@ USER_FAMILIES = ("height_map", "plugin")
 
 
 def surface_callable(spec: Any, folder: Path | None = None) -> SurfaceFn:
-    """The surface callable ``fn(x, y) -> (f, fx, fy)`` of a catalog entry (µm in, µm out)."""
+    """The surface callable ``fn(x, y) -> (f, fx, fy)`` of a catalog entry (µm in, µm out); its
+    Fresnel form ([2] eq. 3) when the entry sets ``fresnel``."""
+    fn = base_callable(spec, folder)
+    if getattr(spec, "fresnel", None) is None:
+        return fn
+    from ftsweep import fresnel
+
+    return fresnel.sliced_callable(fn, aperture_of(spec), spec.fresnel.facet_height_um)
+
+
+def base_callable(spec: Any, folder: Path | None = None) -> SurfaceFn:
+    """The surface callable of a catalog entry without its ``fresnel`` transform."""
     if spec.family in USER_FAMILIES:
         from ftsweep import usersurfaces
 
@@ -234,7 +255,8 @@ def line_sampler(spec: Any) -> Callable[..., tuple[np.ndarray, np.ndarray]] | No
     None where the family has none (user surfaces): the case runner then samples the node grid
     through :func:`surface_callable`."""
     family = FAMILIES.get(spec.family)
-    if spec.family in USER_FAMILIES or family is None or family.lines is None:
+    sliced = getattr(spec, "fresnel", None) is not None
+    if spec.family in USER_FAMILIES or family is None or family.lines is None or sliced:
         return None
     return functools.partial(family.lines, **spec.params.model_dump())
 
@@ -276,8 +298,9 @@ def aperture_of(spec: Any) -> Aperture:
 
 # --------------------------------------------------------------------------- machines
 class AxisLimits(Strict):
-    """The X, Z and C limits of a slow-tool-servo lathe ([5]): positions [mm], speeds and
-    accelerations an exported program must respect on every line."""
+    """The X, Z and C limits of a slow-tool-servo lathe ([5]), and the Y axis and C
+    acceleration of an X-Y-Z-C lathe ([2]): positions [mm], speeds and accelerations an
+    exported program must respect on every line."""
 
     x_min_mm: float = Field(description="lowest X position (tool radius) [mm]")
     x_max_mm: float = Field(description="highest X position (tool radius) [mm]")
@@ -288,10 +311,21 @@ class AxisLimits(Strict):
     z_velocity_mm_s: PositiveFloat = Field(description="largest Z velocity [mm/s]")
     z_accel_m_s2: PositiveFloat = Field(description="largest Z acceleration [m/s²]")
     c_speed_rpm: PositiveFloat = Field(description="largest C (spindle) speed in position mode [rev/min]")
+    # the Y axis and C acceleration of an X-Y-Z-C lathe ([2]); None on an X-Z-C lathe
+    y_min_mm: Optional[float] = Field(None, description="lowest Y position [mm] (X-Y-Z-C lathe)")
+    y_max_mm: Optional[float] = Field(None, description="highest Y position [mm]")
+    y_feed_mm_s: Optional[PositiveFloat] = Field(None, description="largest Y feed-rate [mm/s]")
+    y_accel_m_s2: Optional[PositiveFloat] = Field(None, description="largest Y acceleration [m/s²]")
+    c_accel_rad_s2: Optional[PositiveFloat] = Field(
+        None, description="largest C (spindle) acceleration in position mode [rad/s²]"
+    )
 
     @model_validator(mode="after")
     def _ranges(self) -> AxisLimits:
-        for axis in ("x", "z"):
+        ys = (self.y_min_mm, self.y_max_mm, self.y_feed_mm_s, self.y_accel_m_s2)
+        if any(v is None for v in ys) and not all(v is None for v in ys):
+            raise ValueError("a Y axis needs all of y_min_mm, y_max_mm, y_feed_mm_s and y_accel_m_s2")
+        for axis in ("x", "z") if self.y_min_mm is None else ("x", "y", "z"):
             lo, hi = getattr(self, f"{axis}_min_mm"), getattr(self, f"{axis}_max_mm")
             if not lo < hi:
                 raise ValueError(f"{axis}_min_mm {lo:g} must be below {axis}_max_mm {hi:g}")
@@ -330,7 +364,9 @@ class Machine(Strict):
     layer_change_s: float = Field(
         2.0, ge=0.0, description="time to stop the spindle, move Z and restart, per layer segment [s]"
     )
-    axes: Optional[AxisLimits] = Field(None, description="X, Z, C limits of a slow-tool-servo lathe ([5])")
+    axes: Optional[AxisLimits] = Field(
+        None, description="X, Z, C (and Y) limits of a slow-tool-servo or X-Y-Z-C lathe ([5], [2])"
+    )
 
     @model_validator(mode="after")
     def _margin_below_travel(self) -> Machine:

@@ -608,7 +608,11 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> Non
     the difference: do not load that header.
     """
     from ftsweep import export as exp
+    from ftsweep import fstudy
 
+    with open(header, encoding="utf-8", errors="replace") as fh:
+        if fh.readline().startswith(fstudy.F_MAGIC):
+            return _verify_fresnel(header, as_json)
     progress = _stderr_progress("re-simulating") if (not as_json and sys.stderr.isatty()) else None
     try:
         record = exp.verify(header, progress, pv_tolerance_nm)
@@ -931,9 +935,7 @@ def _stderr_progress(label: str):  # type: ignore[no-untyped-def]
     def report(done: int, total: int) -> None:
         width = 30
         filled = int(width * done / max(total, 1))
-        click.echo(
-            f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total} batches", err=True, nl=False
-        )
+        click.echo(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total}", err=True, nl=False)
 
     return report
 
@@ -1324,6 +1326,133 @@ def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool) ->
     except (ExportError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None
     return {"path": str(out), "sidecar": str(side), "lines": meta["n_points"]}
+
+
+def _verify_fresnel(path: Path, as_json: bool) -> None:
+    """``verify`` of a Fresnel program ([2]): integrity, limits on every line, planned path."""
+    from ftsweep import fstudy
+    from ftsweep.export import ExportError
+
+    try:
+        record = fstudy.verify(path)
+    except (ExportError, CatalogError, ValueError) as exc:
+        raise click.ClickException(one_line(str(exc))) from None
+    if as_json:
+        _echo_json(record)
+        return
+    click.echo(f"checksum     {record['checksum']} (data lines) ok; sidecar and program hashes ok")
+    click.echo(
+        f"program      fresnel: {record['lines']:,} lines t C X Y Z, {record['machining_s']:.1f} s; "
+        "every line within the machine's limits; C, X, Y, Z on the planned path"
+    )
+
+
+@main.command("fresnel")
+@click.option("--surface", default="chebyshev_example", show_default=True, help="Surface catalog entry.")
+@click.option(
+    "--facet-height-um",
+    type=click.FloatRange(min=0, min_open=True),
+    default=10.0,
+    show_default=True,
+    help="Height h of every Fresnel facet [µm] ([2] eq. 3).",
+)
+@click.option(
+    "--machine", default="xyzc-nanoform", show_default=True, help="Machine entry with X, Y, Z, C limits."
+)
+@click.option(
+    "--cutting",
+    default="fresnel-finish",
+    show_default=True,
+    help="Cutting entry: nose radius, feed Δr per turn, rpm (sets T0).",
+)
+@click.option(
+    "--points-per-turn", type=click.IntRange(min=8), help="Control points K per edge. Default: 360."
+)
+@click.option("--deviation-deg", type=float, help="Rake-face deviation Δφ [deg] ([2] eq. 9). Default: 0.")
+@click.option(
+    "--compensation",
+    type=click.Choice(["exact", "straight", "none"]),
+    help="Tool-edge compensation: eq. 10 (exact), eq. 12 (straight) or none. Default: exact.",
+)
+@click.option(
+    "--control",
+    "scheme",
+    type=click.Choice(["auto", "polar", "arc"]),
+    help="Control points: polar about centroids (eqs. 5-6), arc length (appendix A.3), auto. Default: auto.",
+)
+@click.option(
+    "--safety", type=click.FloatRange(min=1.0), help="Safety factor K_s on every axis limit. Default: 1.25."
+)
+@click.option(
+    "--plots",
+    "plot_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs"),
+    show_default=True,
+    help="Folder for the plots (fresnel-<surface>-path.png, -axes.png, -timesteps.png).",
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Export the program (t C X Y Z lines).",
+)
+@click.option("--force", is_flag=True, help="Replace an existing program.")
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def fresnel_command(**opts: Any) -> None:
+    """Plan a freeform Fresnel program for an X-Y-Z-C lathe ([2]) and time it adaptively.
+
+    Slices the surface along its contour lines into facets of the given height, plans the
+    quasi-spiral path along the facets' edges (feed Δr per turn from the cutting entry),
+    the 4-axis trajectory that keeps the rake face on the cutting direction, the tool-edge
+    compensation (eq. 10 and eq. 12, both reported), and the timesteps: per turn optimised
+    (scipy L-BFGS-B) to level the axes' relative accelerations, then scaled by K_s; the
+    machining time is compared with one constant timestep at the global acceleration limit.
+    Progress on stderr; plots in --plots; with -o the program and a JSON sidecar
+    (check it with `ftsweep verify FILE`).
+
+    \b
+    Examples:
+      ftsweep fresnel
+      ftsweep fresnel --surface chebyshev_example --facet-height-um 10 --json
+      ftsweep fresnel -o outputs/fresnel.txt --force
+    """
+    from ftsweep import fstudy
+    from ftsweep.export import ExportError, sidecar_path
+
+    keys = ("facet_height_um", "points_per_turn", "deviation_deg", "compensation", "scheme", "safety")
+    inp = fstudy.inputs(opts["surface"], opts["machine"], opts["cutting"], **{k: opts[k] for k in keys})
+    out = opts["out"]
+    if out is not None and not opts["force"]:
+        for path in (out, sidecar_path(out)):
+            if path.exists():
+                raise click.ClickException(f"{path} exists; give --force to replace it")
+    progress = None if opts["as_json"] else _stderr_progress("timesteps (turns)")
+    try:
+        summary = fstudy.study(inp, progress=progress)
+        plots = [str(p) for p in fstudy.plot(summary, opts["plot_dir"])]
+        if out is not None:
+            fstudy.export(summary, out, sidecar_path(out), inp)
+    except (CatalogError, ExportError, ValidationError, ValueError) as exc:
+        raise click.ClickException(one_line(str(exc))) from None
+    if progress is not None:
+        click.echo("", err=True)
+    result = fstudy.public(summary)
+    result["plots"] = plots
+    if out is not None:
+        result["program"] = {"path": str(out), "sidecar": str(sidecar_path(out)), "lines": result["n_points"]}
+    _print_fresnel(result, fstudy.text_lines(summary), opts["as_json"])
+
+
+def _print_fresnel(result: dict[str, Any], lines: list[str], as_json: bool) -> None:
+    if as_json:
+        _echo_json(result)
+        return
+    for line in lines:
+        click.echo(line)
+    click.echo(f"plots        {', '.join(result['plots'])}")
+    if "program" in result:
+        click.echo(f"program      {result['program']['path']} ({result['n_points']:,} lines t C X Y Z)")
 
 
 if __name__ == "__main__":  # pragma: no cover

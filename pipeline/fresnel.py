@@ -1,0 +1,423 @@
+"""Freeform Fresnel programs on an X-Y-Z-C lathe ([2]): slicing a catalog surface, planning
+its quasi-spiral path and 4-axis trajectory (:mod:`ftsweep.stages.fresnel`), and choosing the
+timesteps (model §6 axis dynamics).
+
+*Timesteps* ([2] §2.5). The positions of every axis along the path are fixed by the plan;
+the time between consecutive points is free. Per turn of the path (K steps) the timesteps
+minimise the largest relative acceleration max |a/a_lim| over the four axes with their
+mean held at T0 (eq. 15), warm-started from the previous turn's solution; the step into a
+turn is taken at the turn's own last timestep (adjacent turns are nearly periodic, [2]
+§2.5); the max is replaced by a p-norm (p = 32) so that scipy's L-BFGS-B can follow its
+gradient, and the timesteps are parametrised as K·T0·softmax(u) so the mean constraint
+always holds. Each turn is then scaled so that its largest relative acceleration is 1/K_s
+(eq. 16) and no axis exceeds 1/K_s of its velocity limit; the factor is interpolated
+between turn centres so consecutive turns meet without a jump in timestep, and raised
+where a step between turns would still exceed a bound: every step of the final program is
+within 1/K_s of every limit. The reference program runs at one constant timestep, the
+least for which the whole program meets the same bounds ([2]: "a constant timestep
+determined by the global maximum acceleration").
+
+Units: positions µm (C in rad), timesteps s, accelerations m/s² (C rad/s²).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any, NamedTuple, Optional
+
+import numpy as np
+
+from ftsweep.stages import fresnel as ff
+
+DEFAULTS: dict[str, Any] = {
+    "facet_height_um": 10.0,
+    "points_per_turn": 360,
+    "deviation_deg": 0.0,
+    "safety": 1.25,
+    "compensation": "exact",
+    "scheme": "auto",
+}
+COMPENSATIONS = ("exact", "straight", "none")
+AXES = ("C", "X", "Y", "Z")
+# the p-norm standing in for the max of eq. 15, and the optimiser's budget per turn: p = 32 puts
+# the smooth maximum within 1.2 % of the true one for K = 360 steps of four axes
+POWER = 32.0
+MAX_ITERATIONS = 200
+
+
+class FresnelPlan(NamedTuple):
+    """A planned Fresnel program: the quasi-spiral and its 4-axis trajectory.
+
+    path : the quasi-spiral (:class:`ftsweep.stages.fresnel.QuasiSpiral`).
+    f_ref_um, max_um : the surface's lowest point in the aperture and its highest [µm].
+    apex_um : (X, Y) of the lowest point [µm].
+    z_um : Z of the sliced surface at every point [µm] ([2] eq. 8).
+    ez_exact_um, ez_straight_um : tool-edge compensation by [2] eq. 10 and eq. 12 [µm].
+    ez_um : the compensation applied (``compensation``), z = Z + e_z ([2] eq. 13).
+    phi, x_um, y_um : spindle angle [rad] and the tool's global X, Y [µm] ([2] eq. 9).
+    slope : |∇f| at every point [-].
+    """
+
+    path: ff.QuasiSpiral
+    f_ref_um: float
+    max_um: float
+    apex_um: np.ndarray
+    facet_height_um: float
+    feed_um: float
+    nose_radius_um: float
+    deviation_rad: float
+    compensation: str
+    z_um: np.ndarray
+    ez_exact_um: np.ndarray
+    ez_straight_um: np.ndarray
+    phi: np.ndarray
+    x_um: np.ndarray
+    y_um: np.ndarray
+    slope: np.ndarray
+    planning_s: float
+
+    @property
+    def ez_um(self) -> np.ndarray:
+        if self.compensation == "none":
+            return np.zeros_like(self.z_um)
+        return self.ez_exact_um if self.compensation == "exact" else self.ez_straight_um
+
+    @property
+    def tool_z_um(self) -> np.ndarray:
+        """The Z axis: the sliced surface plus the compensation ([2] eq. 13) [µm]."""
+        return self.z_um + self.ez_um
+
+    def axes_si(self) -> np.ndarray:
+        """(P, 4) positions C [rad], X, Y, Z [m] of every point."""
+        return np.column_stack([self.phi, self.x_um * 1e-6, self.y_um * 1e-6, self.tool_z_um * 1e-6])
+
+
+# --------------------------------------------------------------------------- surface
+def surface_range(fn: Callable[..., Any], aperture: Any, samples: int = 241) -> dict[str, Any]:
+    """The surface's lowest point inside the aperture (refined by scipy's bounded L-BFGS-B
+    from the best of a ``samples``² grid) and its highest sampled height [µm]; ``interior``
+    tells whether the lowest point lies inside (a bowl whose contours close about it)."""
+    from scipy.optimize import minimize
+
+    hx, hy = aperture.half_extent_um
+    gx, gy = np.meshgrid(np.linspace(-hx, hx, samples), np.linspace(-hy, hy, samples))
+    inside = aperture.contains(gx, gy)
+    f = fn(gx[inside], gy[inside])[0]
+    edge = _aperture_edge(aperture, 4096)
+    f_edge = fn(edge[:, 0], edge[:, 1])[0]
+    best = int(np.argmin(f))
+    start = np.array([gx[inside][best], gy[inside][best]])
+
+    def fun(p: np.ndarray) -> tuple[float, np.ndarray]:
+        v, dx, dy = fn(p[:1], p[1:])
+        return float(v[0]), np.array([dx[0], dy[0]])
+
+    res = minimize(fun, start, jac=True, method="L-BFGS-B", bounds=[(-hx, hx), (-hy, hy)])
+    apex = _newton_minimum(fn, np.asarray(res.x, dtype=np.float64))
+    f_ref = min(float(fn(apex[:1], apex[1:])[0][0]), float(f.min()))
+    step = 2.0 * max(hx, hy) / (samples - 1)
+    interior = bool(aperture.contains(apex[:1], apex[1:])[0]) and float(f_edge.min()) > f_ref
+    clear = float(np.min(np.hypot(*(edge - apex).T))) > step
+    return {
+        "apex_um": apex,
+        "f_ref_um": f_ref,
+        "max_um": float(max(f.max(), f_edge.max())),
+        "interior": interior and clear,
+        "reach_um": 1.5 * float(np.max(np.hypot(*(edge - apex).T))),
+    }
+
+
+def _newton_minimum(fn: Callable[..., Any], p: np.ndarray, iterations: int = 6) -> np.ndarray:
+    """Newton steps on ∇f = 0 from p [µm] (Hessian by central differences of the analytic
+    gradient): the path closes on this point, where eq. 9 follows the gradient's direction
+    down to radii of nanometres, so the optimiser's tolerance is not enough."""
+    for _ in range(iterations):
+        d = 0.5
+        xs = p[0] + np.array([0.0, d, -d, 0.0, 0.0])
+        ys = p[1] + np.array([0.0, 0.0, 0.0, d, -d])
+        _, gx, gy = fn(xs, ys)
+        hess = np.array([[gx[1] - gx[2], gx[3] - gx[4]], [gy[1] - gy[2], gy[3] - gy[4]]]) / (2.0 * d)
+        try:
+            step = np.linalg.solve(0.5 * (hess + hess.T), np.array([gx[0], gy[0]]))
+        except np.linalg.LinAlgError:
+            return p
+        if not np.all(np.isfinite(step)) or np.hypot(*step) > 10.0 * d:
+            return p
+        p = p - step
+    return p
+
+
+def _aperture_edge(aperture: Any, n: int) -> np.ndarray:
+    """``n`` points along the aperture's boundary [µm]."""
+    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    if aperture.shape == "circle":
+        r = aperture.radius_um
+        return np.column_stack([r * np.cos(t), r * np.sin(t)])
+    hx, hy = aperture.half_extent_um
+    # the square's boundary by the unit circle's radial projection
+    c, s = np.cos(t), np.sin(t)
+    scale = 1.0 / np.maximum(np.abs(c) / hx, np.abs(s) / hy)
+    return np.column_stack([c * scale, s * scale])
+
+
+def sliced_callable(fn: Callable[..., Any], aperture: Any, facet_height_um: float) -> Callable[..., Any]:
+    """The Fresnel form of a surface callable ([2] eq. 3), facets counted from the lowest
+    point inside the aperture: the catalog's ``fresnel: {facet_height_um}`` transform."""
+    rng = surface_range(fn, aperture)
+    return ff.fresnel_surface(fn, rng["f_ref_um"], float(facet_height_um))
+
+
+# --------------------------------------------------------------------------- planning
+def plan(
+    fn: Callable[..., Any],
+    aperture: Any,
+    facet_height_um: float,
+    feed_um: float,
+    nose_radius_um: float,
+    points_per_turn: int = DEFAULTS["points_per_turn"],
+    deviation_deg: float = DEFAULTS["deviation_deg"],
+    compensation: str = DEFAULTS["compensation"],
+    scheme: str = DEFAULTS["scheme"],
+) -> FresnelPlan:
+    """Slice the surface at ``facet_height_um`` [µm] and plan its quasi-spiral path, the
+    4-axis trajectory (rake face turned ``deviation_deg`` [deg] from the cutting direction)
+    and both tool-edge compensations ([2] §2.1–2.4). Raises ``FresnelError`` naming the
+    problem when the surface has no interior lowest point or its contours do not close."""
+    if compensation not in COMPENSATIONS:
+        raise ff.FresnelError(f"compensation {compensation!r} is not one of {', '.join(COMPENSATIONS)}")
+    if not facet_height_um > 0.0 or not feed_um > 0.0:
+        raise ff.FresnelError(
+            f"facet height {facet_height_um:g} µm and feed {feed_um:g} µm per turn must be positive"
+        )
+    start = time.perf_counter()
+    rng = surface_range(fn, aperture)
+    if not rng["interior"]:
+        raise ff.FresnelError(
+            "the surface's lowest point lies on the aperture's edge: its contours do not close "
+            "inside the part, so it cannot be cut along a quasi-spiral path ([2] appendix A.2: "
+            "split it into sub-regions first)"
+        )
+    h = float(facet_height_um)
+    n_facets = max(1, math.ceil((rng["max_um"] - rng["f_ref_um"]) / h - 1e-9))
+    path = ff.plan(
+        fn,
+        rng["apex_um"],
+        rng["f_ref_um"],
+        h,
+        n_facets,
+        float(feed_um),
+        int(points_per_turn),
+        rng["reach_um"],
+        scheme,
+    )
+    f, gx, gy = fn(path.xy[:, 0], path.xy[:, 1])
+    z = ff.sliced(f, rng["f_ref_um"], h, path.level)[0]
+    exact = ff.compensation_exact(fn, path.xy[:, 0], path.xy[:, 1], float(nose_radius_um))
+    straight = ff.compensation_straight(gx, gy, float(nose_radius_um))
+    dev = math.radians(float(deviation_deg))
+    phi, x, y = ff.pose(path.xy, gx, gy, dev)
+    # the closing point is the lowest point itself, where ∇f = 0 leaves eq. 9's angle open:
+    # the spindle carries on at its last speed
+    phi[-1] = 2.0 * phi[-2] - phi[-3]
+    x[-1:], y[-1:] = ff.global_of(phi[-1:], path.xy[-1:])
+    return FresnelPlan(
+        path,
+        rng["f_ref_um"],
+        rng["max_um"],
+        rng["apex_um"],
+        h,
+        float(feed_um),
+        float(nose_radius_um),
+        dev,
+        compensation,
+        z,
+        exact,
+        straight,
+        phi,
+        x,
+        y,
+        np.hypot(gx, gy),
+        time.perf_counter() - start,
+    )
+
+
+# --------------------------------------------------------------------------- timesteps
+class Limits(NamedTuple):
+    """Axis limits of a 4-axis lathe in SI, in the order C, X, Y, Z: accelerations (C in
+    rad/s², linear in m/s²), velocities (rad/s, m/s), position ranges (C free; m)."""
+
+    accel: np.ndarray
+    velocity: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+
+
+def limits_of(machine: Any, name: str = "machine") -> Limits:
+    """The 4-axis limits of a machine entry; raises ``FresnelError`` when it lacks a Y axis or
+    a C acceleration (a Fresnel program needs an X-Y-Z-C lathe, [2] §2.3)."""
+    ax = machine.axes
+    missing = (
+        []
+        if ax is None
+        else [
+            k for k in ("y_min_mm", "y_feed_mm_s", "y_accel_m_s2", "c_accel_rad_s2") if getattr(ax, k) is None
+        ]
+    )
+    if ax is None or missing:
+        what = "axes" if ax is None else "axes." + ", axes.".join(missing)
+        raise ff.FresnelError(
+            f"machine '{name}' is not a 4-axis X-Y-Z-C lathe (no {what}); a Fresnel program needs "
+            "all four axes' limits"
+        )
+    return Limits(
+        accel=np.array([ax.c_accel_rad_s2, ax.x_accel_m_s2, ax.y_accel_m_s2, ax.z_accel_m_s2]),
+        velocity=np.array(
+            [
+                ax.c_speed_rpm * 2.0 * np.pi / 60.0,
+                ax.x_feed_mm_s * 1e-3,
+                ax.y_feed_mm_s * 1e-3,
+                ax.z_velocity_mm_s * 1e-3,
+            ]
+        ),
+        low=np.array([-np.inf, ax.x_min_mm * 1e-3, ax.y_min_mm * 1e-3, ax.z_min_mm * 1e-3]),
+        high=np.array([np.inf, ax.x_max_mm * 1e-3, ax.y_max_mm * 1e-3, ax.z_max_mm * 1e-3]),
+    )
+
+
+def relative_peaks(q: np.ndarray, steps: np.ndarray, limits: Limits) -> tuple[np.ndarray, np.ndarray]:
+    """Relative accelerations |a|/a_lim at every point ([2] eq. 14) and relative velocities
+    |v|/v_lim over every step, (P, 4) and (P − 1, 4), of positions q (P, 4) in SI."""
+    acc = np.abs(ff.accelerations(q, steps)) / limits.accel
+    vel = np.abs(np.diff(q, axis=0)) / steps[:, None] / limits.velocity
+    return acc, vel
+
+
+def constant_step(q: np.ndarray, limits: Limits, safety: float) -> float:
+    """The least constant timestep [s] at which no axis exceeds 1/K_s of its acceleration or
+    velocity limit anywhere in the program (the reference of [2] §2.5)."""
+    one = np.ones(q.shape[0] - 1)
+    acc, vel = relative_peaks(q, one, limits)
+    # at T = 1 s: accelerations scale as 1/T², velocities as 1/T
+    return max(math.sqrt(safety * float(acc.max())), safety * float(vel.max()), 1e-12)
+
+
+class Timesteps(NamedTuple):
+    """Adaptive timesteps of a program ([2] §2.5).
+
+    steps : (P − 1,) final timesteps [s] (after the K_s scaling).
+    reference : T0 [s]. constant : the constant timestep of the reference program [s].
+    peak_constant, peak_optimised : (turns,) max relative acceleration of every turn with
+    constant timesteps T0 and with the optimised ones (same mean T0), before scaling.
+    scale : (turns,) the factor applied to every turn (eq. 16).
+    """
+
+    steps: np.ndarray
+    reference: float
+    constant: float
+    peak_constant: np.ndarray
+    peak_optimised: np.ndarray
+    scale: np.ndarray
+    seconds: float
+
+
+def _turn_deltas(q: np.ndarray, k: int, turn: int) -> np.ndarray:
+    """(K + 1, 4) position differences of one turn, row 0 the step into its first point."""
+    lo = turn * k
+    rows = np.diff(q[max(lo - 1, 0) : lo + k + 1], axis=0)
+    return rows if lo > 0 else np.vstack([np.zeros((1, q.shape[1])), rows])
+
+
+def _optimise_turn(u0: np.ndarray, t0: float, deltas: np.ndarray, inv: np.ndarray, first: bool) -> np.ndarray:
+    """Minimise the turn's largest relative acceleration at mean timestep T0 (eq. 15):
+    L-BFGS-B on the p-norm of :data:`POWER`, in softmax coordinates u."""
+    from scipy.optimize import minimize
+
+    k = u0.size
+    total = k * t0
+
+    def steps_of(u: np.ndarray) -> np.ndarray:
+        # no step shorter than e^-20 of the longest: keeps the line search off T = 0
+        w = np.exp(np.maximum(u - u.max(), -20.0))
+        return total * w / w.sum()
+
+    def cost(v: np.ndarray) -> tuple[float, np.ndarray]:
+        t = steps_of(v)
+        val, grad = ff.turn_cost(t, deltas, inv, POWER, first)
+        # chain rule through T = total·softmax(u)
+        return val, t * (grad - float(np.dot(grad, t)) / total)
+
+    opts = {"maxiter": MAX_ITERATIONS, "ftol": 1e-7}
+    u = minimize(cost, u0, jac=True, method="L-BFGS-B", options=opts).x
+    return np.asarray(u - u.mean())
+
+
+def _smoothly_scaled(
+    q: np.ndarray, unscaled: np.ndarray, knots: np.ndarray, k: int, limits: Limits, safety: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Final timesteps [s]: the optimised ones times a factor interpolated linearly between
+    turn centres from eq. 16's per-turn factors ``knots``, so that consecutive turns' steps
+    meet without a jump; a turn where an axis still exceeds 1/K_s of a limit (a step between
+    turns) has its factor raised until none does. Returns (steps, final factors)."""
+    turns = knots.size
+    centres = np.arange(turns) * k + 0.5 * (k - 1)
+    index = np.arange(unscaled.size)
+    knots = knots.copy()
+    for _ in range(200):
+        steps = np.interp(index, centres, knots) * unscaled
+        acc, vel = relative_peaks(q, steps, limits)
+        peak_a = acc[: turns * k].reshape(turns, -1).max(axis=1)
+        peak_v = vel.reshape(turns, -1).max(axis=1)
+        need = np.maximum(np.sqrt(safety * peak_a), safety * peak_v)
+        if np.all(need <= 1.0 + 1e-9):
+            return steps, knots
+        knots *= np.maximum(need, 1.0) * (1.0 + 1e-6)
+    raise ff.FresnelError("the timesteps could not be brought within the axis limits")
+
+
+def timesteps(
+    fplan: FresnelPlan,
+    limits: Limits,
+    safety: float,
+    reference_s: float,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> Timesteps:
+    """Adaptive timesteps ([2] §2.5, module docstring) of a planned program, turn by turn,
+    with reference timestep T0 = ``reference_s`` [s] and safety factor K_s = ``safety``."""
+    if not safety >= 1.0:
+        raise ff.FresnelError(f"the safety factor K_s must be at least 1 (got {safety:g})")
+    start = time.perf_counter()
+    q = fplan.axes_si()
+    k = fplan.path.points_per_turn
+    turns = fplan.path.n_turns
+    inv = 1.0 / limits.accel
+    steps = np.empty(q.shape[0] - 1)
+    peak_c, peak_o, scale = np.empty(turns), np.empty(turns), np.empty(turns)
+    u = np.zeros(k)
+    const = np.full(k, reference_s)
+    unscaled = np.empty(q.shape[0] - 1)
+    for m in range(turns):
+        deltas = _turn_deltas(q, k, m)
+        first = m == 0
+        peak_c[m] = ff.turn_peak(const, deltas, inv, first)
+        u = _optimise_turn(u, reference_s, deltas, inv, first)
+        w = np.exp(np.maximum(u - u.max(), -20.0))
+        t = k * reference_s * w / w.sum()
+        peak_o[m] = ff.turn_peak(t, deltas, inv, first)
+        unscaled[m * k : (m + 1) * k] = t
+        # eq. 16, and 1/K_s of every velocity limit
+        v = float(np.max(np.abs(deltas[1:]) / t[:, None] / limits.velocity))
+        scale[m] = max(math.sqrt(safety * peak_o[m]), safety * v, 1e-12)
+        if progress is not None:
+            progress(m + 1, turns)
+    steps, scale = _smoothly_scaled(q, unscaled, scale, k, limits, safety)
+    return Timesteps(
+        steps,
+        reference_s,
+        constant_step(q, limits, safety),
+        peak_c,
+        peak_o,
+        scale,
+        time.perf_counter() - start,
+    )

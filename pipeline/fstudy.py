@@ -1,0 +1,367 @@
+"""The ``ftsweep fresnel`` study ([2]): plan a Fresnel program for a catalog surface, choose
+its timesteps, summarise it (facets, turns, compensation, machining time with constant and
+adaptive timesteps), plot it ([2] figs. 10, 12, 13) and export it as position-time lines
+``t [s]  C [deg]  X [mm]  Y [mm]  Z [mm]`` with a JSON sidecar, verified on re-reading.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, NamedTuple, Optional
+
+import numpy as np
+
+from ftsweep import __version__, catalogs
+from ftsweep import fresnel as fp
+
+F_MAGIC = "# ftsweep Fresnel program"
+F_COLUMNS = "t_s C_deg X_mm Y_mm Z_mm"
+F_LINE = "{:.9f} {:.9f} {:.9f} {:.9f} {:.9f}"
+
+
+class Inputs(NamedTuple):
+    """What a Fresnel program is made from: catalog entries by name and the options."""
+
+    surface: str
+    machine: str
+    cutting: str
+    facet_height_um: float
+    points_per_turn: int
+    deviation_deg: float
+    compensation: str
+    scheme: str
+    safety: float
+
+
+def inputs(surface: str, machine: str, cutting: str, **options: Any) -> Inputs:
+    """Inputs with the options not given (None) at their defaults (:data:`fresnel.DEFAULTS`)."""
+    merged = {k: (fp.DEFAULTS[k] if options.get(k) is None else options[k]) for k in fp.DEFAULTS}
+    return Inputs(surface, machine, cutting, **merged)
+
+
+def _entries(inp: Inputs, folder: Optional[Path] = None) -> tuple[Any, Any, Any]:
+    return (
+        catalogs.entry("surfaces", inp.surface, folder),
+        catalogs.entry("machines", inp.machine, folder),
+        catalogs.entry("cutting", inp.cutting, folder),
+    )
+
+
+def plan_of(inp: Inputs, specs: tuple[Any, Any, Any], folder: Optional[Path] = None) -> fp.FresnelPlan:
+    """The planned program of ``inp`` from validated (surface, machine, cutting) specs."""
+    surface, _, cutting = specs
+    return fp.plan(
+        catalogs.base_callable(surface, folder),
+        catalogs.aperture_of(surface),
+        inp.facet_height_um,
+        cutting.feed_um,
+        cutting.nose_radius_um,
+        inp.points_per_turn,
+        inp.deviation_deg,
+        inp.compensation,
+        inp.scheme,
+    )
+
+
+def reference_step(inp: Inputs, cutting: Any) -> float:
+    """T0 [s]: one turn of K steps at the cutting entry's spindle speed."""
+    return 60.0 / (cutting.spindle_rpm * inp.points_per_turn)
+
+
+def study(
+    inp: Inputs, folder: Optional[Path] = None, progress: Optional[Callable[[int, int], None]] = None
+) -> dict[str, Any]:
+    """Plan, time and summarise a Fresnel program; ``_plan`` and ``_steps`` hold the arrays."""
+    specs = _entries(inp, folder)
+    limits = fp.limits_of(specs[1], inp.machine)
+    fplan = plan_of(inp, specs, folder)
+    steps = fp.timesteps(fplan, limits, inp.safety, reference_step(inp, specs[2]), progress)
+    out = summary(inp, fplan, steps, limits)
+    out.update(_plan=fplan, _steps=steps, _specs=specs)
+    return out
+
+
+def feed_per_turn(fplan: fp.FresnelPlan) -> float:
+    """Largest distance [µm] between a path point and the same point one turn later ([2] eq. 8
+    moves each by 1/M_n of its edge-to-edge step; eq. 7 keeps that within Δr)."""
+    k = fplan.path.points_per_turn
+    xy = fplan.path.xy[:-1]
+    return float(np.max(np.hypot(*(xy[k:] - xy[:-k]).T)))
+
+
+def summary(inp: Inputs, fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: fp.Limits) -> dict[str, Any]:
+    """The figures of one program (JSON-ready); units in the key names."""
+    path = fplan.path
+    q = fplan.axes_si()
+    acc, vel = fp.relative_peaks(q, steps.steps, limits)
+    n_steps = q.shape[0] - 1
+    reduction = 1.0 - steps.peak_optimised / steps.peak_constant
+    diff = fplan.ez_exact_um - fplan.ez_straight_um
+    time_constant = steps.constant * n_steps
+    time_adaptive = float(steps.steps.sum())
+    return {
+        "surface": inp.surface,
+        "machine": inp.machine,
+        "cutting": inp.cutting,
+        "facet_height_um": inp.facet_height_um,
+        "feed_um": fplan.feed_um,
+        "nose_radius_um": fplan.nose_radius_um,
+        "points_per_turn": path.points_per_turn,
+        "deviation_deg": inp.deviation_deg,
+        "compensation": inp.compensation,
+        "control_points": path.scheme,
+        "safety": inp.safety,
+        "lowest_point_um": [float(v) for v in fplan.apex_um],
+        "height_range_um": fplan.max_um - fplan.f_ref_um,
+        "n_facets": path.n_facets,
+        "turns_per_facet": [int(m) for m in path.turns],
+        "turns_eq7": [float(m) for m in path.turns_eq7],
+        "n_turns": path.n_turns,
+        "n_points": int(q.shape[0]),
+        "feed_per_turn_max_um": feed_per_turn(fplan),
+        "slope_max": float(fplan.slope.max()),
+        "ez_exact_max_nm": float(fplan.ez_exact_um.max() * 1e3),
+        "ez_straight_max_nm": float(fplan.ez_straight_um.max() * 1e3),
+        "ez_difference_max_nm": float(np.abs(diff).max() * 1e3),
+        "x_range_mm": [float(fplan.x_um.min() * 1e-3), float(fplan.x_um.max() * 1e-3)],
+        "y_range_mm": [float(fplan.y_um.min() * 1e-3), float(fplan.y_um.max() * 1e-3)],
+        "reference_step_s": steps.reference,
+        "constant_step_s": steps.constant,
+        "adaptive_step_min_s": float(steps.steps.min()),
+        "adaptive_step_max_s": float(steps.steps.max()),
+        "time_constant_s": time_constant,
+        "time_adaptive_s": time_adaptive,
+        "speedup": time_constant / time_adaptive,
+        "turn_peak_reduction_first": float(reduction[0]),
+        "turn_peak_reduction_median": float(np.median(reduction)),
+        "turn_peak_reduction_min": float(reduction.min()),
+        "relative_accel_max": dict(zip(fp.AXES, (float(v) for v in acc.max(axis=0)), strict=True)),
+        "relative_velocity_max": dict(zip(fp.AXES, (float(v) for v in vel.max(axis=0)), strict=True)),
+        "limiting_axis_counts": _limiting_axes(acc, path.points_per_turn),
+        "within_limits": bool(acc.max() <= 1.0 and vel.max() <= 1.0 and not _position_reason(q, limits)),
+        "planning_s": fplan.planning_s,
+        "timesteps_s": steps.seconds,
+    }
+
+
+def _limiting_axes(acc: np.ndarray, k: int) -> dict[str, int]:
+    """How many turns each axis sets the largest relative acceleration of."""
+    turns = (acc.shape[0] - 1) // k
+    which = acc[: turns * k].reshape(turns, k, acc.shape[1]).max(axis=1).argmax(axis=1)
+    return {axis: int(np.sum(which == i)) for i, axis in enumerate(fp.AXES)}
+
+
+def _position_reason(q: np.ndarray, limits: fp.Limits) -> str:
+    """The axes whose position range the program leaves, or ''."""
+    low, high = q.min(axis=0), q.max(axis=0)
+    bad = [a for i, a in enumerate(fp.AXES) if low[i] < limits.low[i] or high[i] > limits.high[i]]
+    return f"positions out of range on {', '.join(bad)}" if bad else ""
+
+
+def limits_reason(q: np.ndarray, steps: np.ndarray, limits: fp.Limits, slack: float = 0.0) -> str:
+    """Which limit a program of positions q (P, 4) SI and timesteps (P − 1) [s] exceeds on
+    any step ([2] eq. 14 for accelerations, differences for velocities), or ''."""
+    if not np.all(steps > 0.0):
+        return "time does not increase from line to line"
+    reason = _position_reason(q, limits)
+    if reason:
+        return reason
+    acc, vel = fp.relative_peaks(q, steps, limits)
+    for what, rel in (("acceleration", acc), ("velocity", vel)):
+        peak = rel.max(axis=0)
+        if np.any(peak > 1.0 + slack):
+            axis = int(np.argmax(peak))
+            line = int(np.argmax(rel[:, axis]))
+            return f"{fp.AXES[axis]} {what} {peak[axis]:.4g}× its limit at line {line + 1}"
+    return ""
+
+
+def public(s: dict[str, Any]) -> dict[str, Any]:
+    """The summary without its arrays."""
+    return {k: v for k, v in s.items() if not k.startswith("_")}
+
+
+def _hms(seconds: float) -> str:
+    h, rest = divmod(int(round(seconds)), 3600)
+    return f"{h} h {rest // 60:02d} min {rest % 60:02d} s"
+
+
+def text_lines(s: dict[str, Any]) -> list[str]:
+    """The summary as aligned text lines."""
+    acc = ", ".join(f"{a} {v:.3f}" for a, v in s["relative_accel_max"].items())
+    return [
+        f"surface      {s['surface']}: height range {s['height_range_um']:.3f} µm, lowest point "
+        f"({s['lowest_point_um'][0]:.1f}, {s['lowest_point_um'][1]:.1f}) µm",
+        f"facets       {s['n_facets']} of {s['facet_height_um']:g} µm; turns per facet "
+        f"{s['turns_per_facet']} (eq. 7 estimates {[round(m) for m in s['turns_eq7']]})",
+        f"path         {s['n_turns']:,} turns, {s['n_points']:,} points ({s['points_per_turn']} per turn, "
+        f"{s['control_points']} control points); feed per turn ≤ {s['feed_per_turn_max_um']:.4f} µm "
+        f"(Δr {s['feed_um']:g} µm)",
+        f"tool         nose radius {s['nose_radius_um']:g} µm; e_z max {s['ez_exact_max_nm']:.2f} nm "
+        "(eq. 10), "
+        f"{s['ez_straight_max_nm']:.2f} nm (eq. 12); largest difference {s['ez_difference_max_nm']:.3f} nm",
+        f"axes         X {s['x_range_mm'][0]:.3f} to {s['x_range_mm'][1]:.3f} mm, "
+        f"Y {s['y_range_mm'][0]:.3f} to {s['y_range_mm'][1]:.3f} mm",
+        f"accel        peak |a|/a_lim after K_s = {s['safety']:g}: {acc}",
+        f"timesteps    per-turn peak acceleration cut by {100 * s['turn_peak_reduction_median']:.1f} % "
+        f"(median; first turn {100 * s['turn_peak_reduction_first']:.1f} %, least "
+        f"{100 * s['turn_peak_reduction_min']:.1f} %)",
+        f"time         constant {s['constant_step_s'] * 1e3:.4f} ms steps: {_hms(s['time_constant_s'])}; "
+        f"adaptive: {_hms(s['time_adaptive_s'])} ({s['speedup']:.2f}× faster)",
+        f"limits       {'every axis within its limits on every step' if s['within_limits'] else 'EXCEEDED'}",
+        f"compute      planning {s['planning_s']:.1f} s, timesteps {s['timesteps_s']:.1f} s",
+    ]
+
+
+# --------------------------------------------------------------------------- plots
+def plot(s: dict[str, Any], folder: Path) -> list[Path]:
+    """Figures of a study ([2] figs. 10, 12, 13): ``fresnel-<surface>-path.png`` (facets over
+    the part with the quasi-spiral, every 20th turn), ``-axes.png`` (C, X, Y, Z over the
+    first turns) and ``-timesteps.png`` (the first turn's optimised timesteps, and the mean
+    timestep of every turn against the constant one)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fplan, steps, specs = s["_plan"], s["_steps"], s["_specs"]
+    folder.mkdir(parents=True, exist_ok=True)
+    stem = folder / f"fresnel-{s['surface']}"
+    k = fplan.path.points_per_turn
+    out = [stem.with_name(stem.name + "-path.png")]
+    fig, ax = plt.subplots(1, 2, figsize=(11, 5))
+    aperture = catalogs.aperture_of(specs[0])
+    hx, hy = aperture.half_extent_um
+    gx, gy = np.meshgrid(np.linspace(-hx, hx, 301), np.linspace(-hy, hy, 301))
+    fn = catalogs.base_callable(specs[0])
+    fc = fp.ff.sliced(fn(gx, gy)[0], fplan.f_ref_um, fplan.facet_height_um)[0]
+    fc = np.where(aperture.contains(gx, gy), fc, np.nan)
+    im = ax[0].pcolormesh(gx * 1e-3, gy * 1e-3, fc, shading="auto", cmap="viridis")
+    fig.colorbar(im, ax=ax[0], label="f_c [µm]")
+    for edge in fplan.path.edges[:-1]:
+        closed = np.vstack([edge, edge[:1]]) * 1e-3
+        ax[0].plot(closed[:, 0], closed[:, 1], "w-", lw=0.8)
+    ax[0].set(title=f"{s['n_facets']} facets of {s['facet_height_um']:g} µm (edges white)", xlabel="X [mm]")
+    ax[0].set_ylabel("Y [mm]")
+    xy = fplan.path.xy[:-1].reshape(-1, k, 2)[::20].reshape(-1, 2) * 1e-3
+    ax[1].plot(xy[:, 0], xy[:, 1], lw=0.5)
+    ax[1].set(title="quasi-spiral (every 20th turn), workpiece frame", xlabel="X [mm]", ylabel="Y [mm]")
+    for a in ax:
+        a.set_aspect("equal")
+    fig.tight_layout()
+    fig.savefig(out[-1], dpi=110)
+    plt.close(fig)
+
+    out.append(stem.with_name(stem.name + "-axes.png"))
+    n = min(3 * k, steps.steps.size)
+    t = np.concatenate([[0.0], np.cumsum(steps.steps[:n])])
+    fig, ax = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
+    series = (np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um)
+    for a, v, label in zip(ax, series, ("C [deg]", "X [mm]", "Y [mm]", "Z [µm]"), strict=True):
+        a.plot(t, v[: n + 1])
+        a.set_ylabel(label)
+    ax[0].set_title("axis trajectories over the first three turns (adaptive timesteps)")
+    ax[-1].set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(out[-1], dpi=110)
+    plt.close(fig)
+
+    out.append(stem.with_name(stem.name + "-timesteps.png"))
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    ax[0].plot(np.arange(k), steps.steps[:k] * 1e3)
+    ax[0].set(title="first turn: adaptive timesteps", xlabel="step k", ylabel="T [ms]")
+    mean = steps.steps.reshape(-1, k).mean(axis=1)
+    ax[1].plot(mean * 1e3, label="adaptive, mean per turn")
+    ax[1].axhline(steps.constant * 1e3, color="k", ls="--", label="constant")
+    ax[1].set(title="timestep history", xlabel="turn", ylabel="T [ms]", yscale="log")
+    ax[1].legend()
+    fig.tight_layout()
+    fig.savefig(out[-1], dpi=110)
+    plt.close(fig)
+    return out
+
+
+# --------------------------------------------------------------------------- export
+def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, Any]:
+    """Write the study's program as ``t C X Y Z`` lines with its sidecar, atomically;
+    refused (nothing written) if any line leaves the machine's limits."""
+    from ftsweep import program
+    from ftsweep.export import recorded_entries
+
+    fplan, steps, specs = s["_plan"], s["_steps"], s["_specs"]
+    t = np.concatenate([[0.0], np.cumsum(steps.steps)])
+    cols = (t, np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um * 1e-3)
+    lines = [F_LINE.format(*row) for row in zip(*cols, strict=True)]
+    data = np.array([[float(v) for v in line.split()] for line in lines])
+    reason = lines_reason(data, fp.limits_of(specs[1], inp.machine))
+    if reason:
+        raise program.ProgramError(f"the program leaves the limits of machine '{inp.machine}': {reason}")
+    meta = {
+        "generator": f"ftsweep {__version__}",
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "layout": "fresnel",
+        "inputs": inp._asdict(),
+        "summary": public(s),
+        "catalog_entries": recorded_entries(specs),
+    }
+    head = [
+        f"{F_MAGIC} (C, X, Y, Z move linearly in time between consecutive lines)",
+        f"# generator: ftsweep {__version__}; created {meta['created']}",
+        f"# surface: {inp.surface}, Fresnel facets of {inp.facet_height_um:g} um ({s['n_facets']}); "
+        f"machine: {inp.machine}",
+        f"# path: quasi-spiral, {s['n_turns']} turns of {s['points_per_turn']} points, "
+        f"feed {s['feed_um']:g} um per turn; rake face {inp.deviation_deg:g} deg from the cutting direction",
+        f"# tool: nose radius {s['nose_radius_um']:g} um; compensation {inp.compensation} "
+        f"(e_z max {s['ez_exact_max_nm']:.3f} nm)",
+        f"# timing: adaptive timesteps, {s['time_adaptive_s']:.3f} s in all (constant timesteps: "
+        f"{s['time_constant_s']:.3f} s); safety factor K_s {inp.safety:g}",
+        f"# points: {len(lines)}",
+        "# units: t [s] from the first line, C [deg] accumulated, X Y [mm] tool, Z [mm] tool tip",
+    ]
+    return program._write_program(out, side, head, F_COLUMNS, lines, meta)
+
+
+def lines_reason(data: np.ndarray, limits: fp.Limits) -> str:
+    """The limit lines (t [s], C [deg], X, Y, Z [mm]) exceed, checked on every line, or ''."""
+    q = np.column_stack([np.radians(data[:, 1]), data[:, 2:] * 1e-3])
+    # printed digits (1 ns, 1 pm) move accelerations by far less than this slack
+    return limits_reason(q, np.diff(data[:, 0]), limits, slack=1e-6)
+
+
+def verify(path: Path) -> dict[str, Any]:
+    """Re-read a Fresnel program: CRC and sidecar, every line within the recorded machine's
+    limits (positions, velocities, accelerations by eq. 14), and C, X, Y, Z on the path its
+    recorded inputs plan (1 nm, 1e-6°). Raises ``ProgramError`` naming what differs."""
+    from ftsweep import program
+
+    head, data = program.read_program(path, F_MAGIC, F_COLUMNS)
+    meta = program._checked_sidecar(path, head)
+    inp = Inputs(**meta["inputs"])
+    entries = meta["catalog_entries"]
+    specs = catalogs.specs_from_entries(entries["surface"], entries["machine"], entries["cutting"])
+    reason = lines_reason(data, fp.limits_of(specs[1], inp.machine))
+    if reason:
+        raise program.ProgramError(f"{path}: a line leaves the machine's limits: {reason}; do not run it")
+    fplan = plan_of(inp, specs)
+    planned = np.column_stack(
+        [np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um * 1e-3]
+    )
+    if planned.shape[0] != data.shape[0]:
+        raise program.ProgramError(
+            f"{path}: {data.shape[0]} lines, the recorded inputs plan {planned.shape[0]}"
+        )
+    off = np.max(np.abs(planned - data[:, 1:]), axis=0)
+    if not (off[0] <= 1e-6 and np.all(off[1:] <= 1e-6)):
+        raise program.ProgramError(
+            f"{path}: the lines leave the planned path "
+            f"(C by {off[0]:.3g}°, X/Y/Z by {off[1:].max() * 1e3:.3g} µm)"
+        )
+    return {
+        "program": str(path),
+        "lines": int(data.shape[0]),
+        "machining_s": float(data[-1, 0]),
+        "checksum": head.get("CRC32", "").split(" ")[0],
+        "within_limits": True,
+    }

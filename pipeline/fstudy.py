@@ -15,6 +15,7 @@ import numpy as np
 
 from ftsweep import __version__, catalogs
 from ftsweep import fresnel as fp
+from ftsweep.stages import fresnel as ff
 
 F_MAGIC = "# ftsweep Fresnel program"
 F_COLUMNS = "t_s C_deg X_mm Y_mm Z_mm"
@@ -236,7 +237,7 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
     hx, hy = aperture.half_extent_um
     gx, gy = np.meshgrid(np.linspace(-hx, hx, 301), np.linspace(-hy, hy, 301))
     fn = catalogs.base_callable(specs[0])
-    fc = fp.ff.sliced(fn(gx, gy)[0], fplan.f_ref_um, fplan.facet_height_um)[0]
+    fc = ff.sliced(fn(gx, gy)[0], fplan.f_ref_um, fplan.facet_height_um)[0]
     fc = np.where(aperture.contains(gx, gy), fc, np.nan)
     im = ax[0].pcolormesh(gx * 1e-3, gy * 1e-3, fc, shading="auto", cmap="viridis")
     fig.colorbar(im, ax=ax[0], label="f_c [µm]")

@@ -346,6 +346,25 @@ def accelerations(q, steps):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
+def _turn_relative(steps, deltas, inv_limit, first):  # pragma: no cover - jit
+    """Relative accelerations a/a_lim (K, A) over one turn (eq. 14) and their largest
+    magnitude; arguments of :func:`turn_cost`."""
+    k_n = steps.size
+    rel = np.zeros((k_n, deltas.shape[1]))
+    big = 0.0
+    for k in range(k_n):
+        if first and k == 0:
+            continue
+        t0 = steps[k - 1] if k > 0 else steps[k_n - 1]
+        t1 = steps[k]
+        for j in range(deltas.shape[1]):
+            a = 2.0 * (deltas[k + 1, j] / t1 - deltas[k, j] / t0) / (t0 + t1)
+            rel[k, j] = a * inv_limit[j]
+            big = max(big, abs(rel[k, j]))
+    return rel, big
+
+
+@njit(nogil=True, cache=True)
 def turn_cost(steps, deltas, inv_limit, power, first):  # pragma: no cover - jit
     """Smooth maximum of the relative accelerations |a/a_lim| over one turn and its gradient
     with respect to the turn's K timesteps ([2] eq. 15, the max replaced by a p-norm).
@@ -357,17 +376,7 @@ def turn_cost(steps, deltas, inv_limit, power, first):  # pragma: no cover - jit
     Returns (log of the p-norm, gradient (K,))."""
     k_n = steps.size
     m = deltas.shape[1]
-    rel = np.zeros((k_n, m))
-    big = 0.0
-    for k in range(k_n):
-        if first and k == 0:
-            continue
-        t0 = steps[k - 1] if k > 0 else steps[k_n - 1]
-        t1 = steps[k]
-        for j in range(m):
-            a = 2.0 * (deltas[k + 1, j] / t1 - deltas[k, j] / t0) / (t0 + t1)
-            rel[k, j] = a * inv_limit[j]
-            big = max(big, abs(rel[k, j]))
+    rel, big = _turn_relative(steps, deltas, inv_limit, first)
     grad = np.zeros(k_n)
     if big == 0.0:
         return 0.0, grad
@@ -396,17 +405,7 @@ def turn_cost(steps, deltas, inv_limit, power, first):  # pragma: no cover - jit
 @njit(nogil=True, cache=True)
 def turn_peak(steps, deltas, inv_limit, first):  # pragma: no cover - jit
     """Largest relative acceleration max |a/a_lim| over one turn (arguments of turn_cost)."""
-    big = 0.0
-    k_n = steps.size
-    for k in range(k_n):
-        if first and k == 0:
-            continue
-        t0 = steps[k - 1] if k > 0 else steps[k_n - 1]
-        t1 = steps[k]
-        for j in range(deltas.shape[1]):
-            a = 2.0 * (deltas[k + 1, j] / t1 - deltas[k, j] / t0) / (t0 + t1)
-            big = max(big, abs(a * inv_limit[j]))
-    return big
+    return _turn_relative(steps, deltas, inv_limit, first)[1]
 
 
 # --------------------------------------------------------------------------- planning

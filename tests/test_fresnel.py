@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import make_catalog_dir
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -32,12 +33,7 @@ def cheb():
 @pytest.fixture(scope="module")
 def coarse(cheb, tmp_path_factory):
     """A study of the Chebyshev example at h = 10 µm with Δr = 8 µm and K = 120."""
-    folder = tmp_path_factory.mktemp("fresnel_catalogs")
-    import shutil
-
-    for item in catalogs.catalog_dir().iterdir():
-        if item.is_file():
-            shutil.copy(item, folder / item.name)
+    folder = make_catalog_dir(tmp_path_factory.mktemp("fresnel") / "catalogs")
     text = (folder / "cutting.yaml").read_text()
     text += "\ncoarse-fresnel:\n  feed_um: 8.0\n  nose_radius_um: 40.0\n  spindle_rpm: 30.0\n"
     (folder / "cutting.yaml").write_text(text)
@@ -65,12 +61,8 @@ def test_slicing_stays_in_one_facet_height_and_steps_by_h(cheb):
     assert set(np.unique(j[inside])) == {0, 1, 2, 3}
 
 
-def test_catalog_fresnel_transform_slices_any_surface(tmp_path, cheb):
-    import shutil
-
-    for item in catalogs.catalog_dir().iterdir():
-        if item.is_file():
-            shutil.copy(item, tmp_path / item.name)
+def test_catalog_fresnel_transform_slices_any_surface(catalog_dir):
+    tmp_path = catalog_dir
     text = (tmp_path / "surfaces.yaml").read_text()
     text = text.replace("chebyshev_example:\n", "chebyshev_example:\n  fresnel: {facet_height_um: 5.0}\n", 1)
     (tmp_path / "surfaces.yaml").write_text(text)

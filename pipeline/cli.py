@@ -39,6 +39,14 @@ POSITIVE = FiniteRange(min=0.0, min_open=True)
 NON_NEGATIVE = FiniteRange(min=0.0)
 COUNT = click.IntRange(min=1)
 
+# exported files and cubes are data: the plug-ins they name run only from the local catalog
+TRUST_PLUGINS = click.option(
+    "--trust-plugins",
+    is_flag=True,
+    help="Run a plug-in surface the file names even if the local catalog does not declare it "
+    "(plug-ins are code: only for files you trust; README 'Trust').",
+)
+
 
 def _fail(message: str) -> None:
     raise click.UsageError(message)
@@ -279,15 +287,13 @@ def predict(**opts: Any) -> None:
     """
     case = _build_case(opts)
     as_json = opts["as_json"]
-    progress = None
-    if not as_json and sys.stderr.isatty():
-        progress = _stderr_progress("simulating")
+    progress = _progress("simulating", as_json)
     try:
         record = run_case(case, progress=progress, max_nodes=opts["max_nodes"])
     except (CaseError, CatalogError, SurfaceLoadError) as exc:
         raise click.ClickException(str(exc)) from None
-    if progress is not None:
-        click.echo("", err=True)
+    finally:
+        _progress_done(progress)
     if as_json:
         _echo_json(record)
     else:
@@ -549,6 +555,7 @@ def select(
 )
 @click.option("--name", help="Prefix of the C identifiers. Default: the file name.")
 @click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
+@TRUST_PLUGINS
 def export(
     cube_path: Path,
     budget_points: Optional[int],
@@ -557,6 +564,7 @@ def export(
     out: Path,
     name: Optional[str],
     force: bool,
+    trust_plugins: bool,
 ) -> None:
     """Export the chosen layout as a C header for the FTS controller, or a spiral program as
     plain text (one line per point: C [deg] X [mm] Z [mm], under a header of units, surface,
@@ -573,7 +581,7 @@ def export(
     from ftsweep.select import SelectError
 
     try:
-        meta = exp.export(cube_path, out, budget_points, tolerance_nm, index, force, name)
+        meta = exp.export(cube_path, out, budget_points, tolerance_nm, index, force, name, trust_plugins)
     except (exp.ExportError, SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(_selection_text(meta["selection"]))
@@ -590,43 +598,56 @@ def export(
 
 
 @main.command()
-@click.argument("header", metavar="FILE.h", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("header", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option(
     "--pv-tolerance-nm",
     type=NON_NEGATIVE,
-    help="Largest allowed |re-simulated − predicted| P-V [nm]. Default: one table unit (the "
-    "quantisation bound) + 0.1 % of the P-V.",
+    help="Largest allowed |re-simulated − predicted| P-V [nm]. Default: a table's unit (the "
+    "quantisation bound) + 0.1 % of the P-V; a program's 0.01 nm + 0.1 %.",
 )
+@TRUST_PLUGINS
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
-def verify(header: Path, pv_tolerance_nm: Optional[float], as_json: bool) -> None:
-    """Check an exported header and its sidecar, and re-simulate the part from its integers.
+def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, as_json: bool) -> None:
+    """Check an exported file as the machine will read it, against the program its sidecar's
+    case plans: a controller header (ring or mesh table, layered or not: FILE.h) or a path
+    program (spiral, layered spiral, D path, Fresnel: FILE.txt).
 
-    Exit 0 only if everything the controller will use checks out: the CRC-32 over every
-    macro and the table, the sidecar's SHA-256 of the header and the header's SHA-256 of the
-    sidecar, and the P-V re-simulated from the table exactly as stored (quantisation
-    included) within the tolerance of the P-V predicted at export. Otherwise exit 1 naming
-    the difference: do not load that header.
+    \b
+    Exit 0 only if everything the machine will use checks out:
+    - the CRC-32 over every line the machine reads, the sidecar's SHA-256 of the file and
+      the file's SHA-256 of the sidecar;
+    - the file is exactly what export writes for the recorded case: every macro value (no
+      comment or expression inside one), every header and layer/segment line; every table
+      cell within one unit of the re-planned table, every program line (t, C, X, Y, Z)
+      within 1 µs, 1e-6° and 1 nm of the re-planned one;
+    - a D-path or Fresnel program: every line within the machine's axis limits;
+    - a table or spiral/D-path program: the P-V re-simulated from the file as stored within
+      the tolerance of the P-V predicted at export.
+    Otherwise exit 1 naming the first difference: do not load that file. Files are data: a
+    plug-in surface they name runs only if the local catalog declares it (--trust-plugins).
     """
     from ftsweep import export as exp
-    from ftsweep import fstudy
 
-    with open(header, encoding="utf-8", errors="replace") as fh:
-        if fh.readline().startswith(fstudy.F_MAGIC):
-            return _verify_fresnel(header, as_json)
-    progress = _stderr_progress("re-simulating") if (not as_json and sys.stderr.isatty()) else None
+    progress = _progress("re-simulating", as_json)
     try:
-        record = exp.verify(header, progress, pv_tolerance_nm)
+        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins)
     except (exp.ExportError, CaseError, CatalogError) as exc:
         raise click.ClickException(str(exc)) from None
-    if progress is not None:
-        click.echo("", err=True)
+    finally:
+        _progress_done(progress)
     if as_json:
         _echo_json(record)
         return
+    if record["layout"] == "fresnel":
+        _print_fresnel_verified(record)
+        return
     spiral = record["layout"] in ("spiral", "dpath")
-    covered = "data lines" if spiral else "macros and table"
-    click.echo(f"checksum     {record['checksum']} ({covered}) ok; sidecar and header hashes ok")
-    click.echo(f"{'program' if spiral else 'table':<12s} {record['layout']}: {record['n_points']:,} points")
+    covered = "every line" if spiral else "macros and table"
+    click.echo(f"checksum     {record['checksum']} ({covered}) ok; sidecar and file hashes ok")
+    click.echo(
+        f"{'program' if spiral else 'table':<12s} {record['layout']}: {record['n_points']:,} points, "
+        + ("every line as re-planned" if spiral else "every macro and cell as re-planned")
+    )
     source = "the program's lines" if spiral else "the stored integers"
     click.echo(
         f"P-V          {record['pv_nm']:.2f} nm re-simulated from {source} "
@@ -776,7 +797,10 @@ def optimize(
     show_default=True,
     help="Bins per side of the error map.",
 )
-def report(cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_bins: int) -> None:
+@TRUST_PLUGINS
+def report(
+    cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_bins: int, trust_plugins: bool
+) -> None:
     """Figures of a sweep's cube and one HTML page that shows them with its metadata.
 
     P-V against point count and against aspect ratio (optimum marked), a heat map of P-V,
@@ -787,14 +811,14 @@ def report(cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_b
     from ftsweep.report import make_report
     from ftsweep.select import SelectError
 
-    progress = _stderr_progress("error map") if sys.stderr.isatty() else None
+    progress = _progress("error map")
     click.echo("plotting the cube; re-simulating the chosen case for its error map ...", err=True)
     try:
-        paths = make_report(cube_path, out_dir, index, map_bins, progress)
+        paths = make_report(cube_path, out_dir, index, map_bins, progress, trust_plugins)
     except (CubeError, SelectError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None
-    if progress is not None:
-        click.echo("", err=True)
+    finally:
+        _progress_done(progress)
     for name, path in paths.items():
         click.echo(f"{name:14s} {path}")
 
@@ -931,13 +955,17 @@ def _echo_json(value: Any) -> None:
     click.echo(dumps_json(value, default=_nan_safe))
 
 
-def _stderr_progress(label: str):  # type: ignore[no-untyped-def]
-    def report(done: int, total: int) -> None:
-        width = 30
-        filled = int(width * done / max(total, 1))
-        click.echo(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total}", err=True, nl=False)
+def _progress(label: str, quiet: bool = False) -> Any:
+    """Progress on stderr (:mod:`ftsweep.progress`): a bar on a terminal, plain lines in a log."""
+    from ftsweep import progress
 
-    return report
+    return progress.progress(label, quiet)
+
+
+def _progress_done(bar: Any) -> None:
+    from ftsweep import progress
+
+    progress.done(bar)
 
 
 def _build_case(opts: dict[str, Any]) -> Case:
@@ -1277,14 +1305,14 @@ def dpath_command(**opts: Any) -> None:
         "cut_angle_deg": opts["cut_angle_deg"],
         "transition_step_deg": opts["transition_step_deg"],
     }
+    progress = _progress("dpath", opts["as_json"])
     try:
         base = dstudy.default_case(opts["surface"], opts["machine"], opts["cutting"], options)
-        progress = None if opts["as_json"] else _stderr_progress("dpath")
         summary = dstudy.study(base, opts["feed_mm_min"], not opts["no_spiral"], progress)
     except (CaseError, CatalogError, ValidationError, ValueError) as exc:
         raise click.ClickException(one_line(str(exc))) from None
-    if progress is not None:
-        click.echo("", err=True)
+    finally:
+        _progress_done(progress)
     rpm = summary["optimised"]["spindle_rpm"]
     folder = opts["plot_dir"]
     folder.mkdir(parents=True, exist_ok=True)
@@ -1328,22 +1356,12 @@ def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool) ->
     return {"path": str(out), "sidecar": str(side), "lines": meta["n_points"]}
 
 
-def _verify_fresnel(path: Path, as_json: bool) -> None:
-    """``verify`` of a Fresnel program ([2]): integrity, limits on every line, planned path."""
-    from ftsweep import fstudy
-    from ftsweep.export import ExportError
-
-    try:
-        record = fstudy.verify(path)
-    except (ExportError, CatalogError, ValueError) as exc:
-        raise click.ClickException(one_line(str(exc))) from None
-    if as_json:
-        _echo_json(record)
-        return
-    click.echo(f"checksum     {record['checksum']} (data lines) ok; sidecar and program hashes ok")
+def _print_fresnel_verified(record: dict[str, Any]) -> None:
+    """What ``verify`` says of a Fresnel program ([2]) that checked out."""
+    click.echo(f"checksum     {record['checksum']} (every line) ok; sidecar and program hashes ok")
     click.echo(
         f"program      fresnel: {record['lines']:,} lines t C X Y Z, {record['machining_s']:.1f} s; "
-        "every line within the machine's limits; C, X, Y, Z on the planned path"
+        "every line within the machine's limits and as re-planned (t, C, X, Y, Z)"
     )
 
 
@@ -1427,16 +1445,17 @@ def fresnel_command(**opts: Any) -> None:
         for path in (out, sidecar_path(out)):
             if path.exists():
                 raise click.ClickException(f"{path} exists; give --force to replace it")
-    progress = None if opts["as_json"] else _stderr_progress("timesteps (turns)")
+    progress = _progress("timesteps (turns)", opts["as_json"])
     try:
         summary = fstudy.study(inp, progress=progress)
+        _progress_done(progress)
         plots = [str(p) for p in fstudy.plot(summary, opts["plot_dir"])]
         if out is not None:
             fstudy.export(summary, out, sidecar_path(out), inp)
     except (CatalogError, ExportError, ValidationError, ValueError) as exc:
         raise click.ClickException(one_line(str(exc))) from None
-    if progress is not None:
-        click.echo("", err=True)
+    finally:
+        _progress_done(progress)
     result = fstudy.public(summary)
     result["plots"] = plots
     if out is not None:

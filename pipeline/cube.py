@@ -211,7 +211,10 @@ class CubeWriter:
         array = self.group[name]
         if not isinstance(array, zarr.Array):
             raise CubeError(f"{name} in the cube is not an array")
-        return array
+        # a chunk equal to the fill value (a NaN a kind legitimately leaves, e.g. a spiral's
+        # chord error under the angle rule) is still written: a finished case's chunk then
+        # always exists, and a missing one means damage (:func:`damaged_cases`)
+        return array.with_config({"write_empty_chunks": True})
 
     def _set(self, name: str, idx: tuple[Any, ...], value: Any) -> None:
         self._array(name)[idx] = value
@@ -286,9 +289,9 @@ def _read_array(path: Path, var: str, fill: Any = None) -> tuple[np.ndarray, dic
 
 
 def damaged_cases(path: Path, status: np.ndarray) -> dict[int, str]:
-    """Done cases whose data cannot be trusted: a metric chunk that is missing (it reads as
-    the fill value, which a finished case never writes) or any chunk that is unreadable.
-    Returns flat index → reason naming the variable's chunk file."""
+    """Done cases whose data cannot be trusted: a metric chunk that is missing (the writer
+    writes every chunk of a finished case, fill values included) or any chunk that is
+    unreadable. Returns flat index → reason naming the variable's chunk file."""
     path = Path(path)
     group = zarr.open_group(str(path), mode="r")
     shape = read_status_shape(path)
@@ -307,11 +310,8 @@ def damaged_cases(path: Path, status: np.ndarray) -> dict[int, str]:
             chunk = idx + (0,) * (values.ndim - len(idx))  # a case's map is one chunk (case, 0, 0)
             if chunk in bad:
                 damaged[flat] = f"{chunk_path(path, var, chunk)} is unreadable ({bad[chunk]})"
-            elif fill is not None:
-                v = values[idx]
-                missing = bool(np.isnan(v)) if isinstance(fill, float) else v == fill
-                if missing:
-                    damaged[flat] = f"{chunk_path(path, var, idx)} is missing"
+            elif fill is not None and not chunk_path(path, var, idx).exists():
+                damaged[flat] = f"{chunk_path(path, var, idx)} is missing"
     return damaged
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from ftsweep import __version__
 from ftsweep.case import Case, ResolvedCase, build_layout, control_table, layer_plan, resolve_case, run_case
-from ftsweep.catalogs import specs_from_entries
+from ftsweep.catalogs import CatalogError, specs_from_entries
 from ftsweep.io import dumps_json, write_texts_atomic
 from ftsweep.select import check_exportable, choose, open_cube, recorded_case
 from ftsweep.stages.spiral import spiral_radius
@@ -139,26 +139,6 @@ def layer_schedule(rcase: ResolvedCase, values: Any) -> dict[str, Any] | None:
     }
 
 
-def check_schedule(recorded: dict[str, Any] | None, planned: dict[str, Any] | None, path: Path) -> None:
-    """Refuse a file whose recorded layer schedule is not the one its commands plan (offsets
-    to 1 pm, angles to 1 µdeg)."""
-    if (recorded is None) != (planned is None):
-        which = "has none" if recorded is None else "has one"
-        raise ExportError(
-            f"{path}: its commands {'need' if planned else 'need no'} layers, but the file {which}; "
-            "do not load it"
-        )
-    if recorded is None or planned is None:
-        return
-    keys = ("offset_um", "start_radius_um", "segment_layer", "segment_phi_deg")
-    for key in keys:
-        a, b = np.asarray(recorded[key], dtype=np.float64), np.asarray(planned[key], dtype=np.float64)
-        if a.shape != b.shape or not np.allclose(a, b, rtol=0.0, atol=1e-6):
-            raise ExportError(
-                f"{path}: the layer schedule ({key}) is not the one its commands plan; do not load it"
-            )
-
-
 def _c_list(values: Any) -> str:
     return "{" + ", ".join(repr(float(v)) if isinstance(v, float) else str(v) for v in values) + "}"
 
@@ -178,29 +158,6 @@ def layer_macros(schedule: dict[str, Any]) -> list[tuple[str, str, str]]:
         ("SEGMENT_LAYERS", _c_list(schedule["segment_layer"]), "layer of each segment"),
         ("SEGMENT_PHI_DEG", _c_list(phis), "start, end of each segment [deg of spindle from the edge]"),
     ]
-
-
-def parse_schedule(macros: dict[str, str], path: Path) -> dict[str, Any] | None:
-    """The layer schedule a header's macros hold (None for a single-pass header)."""
-    if "N_LAYERS" not in macros:
-        return None
-
-    def numbers(name: str) -> list[float]:
-        text = macros.get(name, "").strip()
-        if not (text.startswith("{") and text.endswith("}")):
-            raise ExportError(f"{path}: macro {name} is missing or not an initializer list")
-        try:
-            return [float(v) for v in text[1:-1].split(",") if v.strip()]
-        except ValueError:
-            raise ExportError(f"{path}: macro {name} holds a value that is not a number") from None
-
-    phis = numbers("SEGMENT_PHI_DEG")
-    return {
-        "offset_um": numbers("LAYER_OFFSETS_UM"),
-        "start_radius_um": numbers("LAYER_START_RADII_UM"),
-        "segment_layer": numbers("SEGMENT_LAYERS"),
-        "segment_phi_deg": [phis[i : i + 2] for i in range(0, len(phis), 2)],
-    }
 
 
 def header_macros(meta: dict[str, Any], shape: tuple[int, int], int_type: str) -> list[tuple[str, str, str]]:
@@ -302,15 +259,57 @@ def recorded_entries(specs: tuple[Any, Any, Any]) -> dict[str, Any]:
     return {key: spec.model_dump(mode="json") for key, spec in zip(keys, specs, strict=True)}
 
 
-def recorded_case_of(meta: dict[str, Any], side: Path) -> tuple[Case, tuple[Any, Any, Any]]:
+def recorded_case_of(
+    meta: dict[str, Any], side: Path, trust_plugins: bool = False
+) -> tuple[Case, tuple[Any, Any, Any]]:
     """The case and (surface, machine, cutting) specs a sidecar ``side`` recorded;
-    :class:`ExportError` if they cannot be read."""
+    :class:`ExportError` if they cannot be read. A plug-in the sidecar names must be one of
+    the local catalog's unless ``trust_plugins`` (:func:`~ftsweep.catalogs.specs_from_entries`)."""
     try:
         entries = meta["catalog_entries"]
-        specs = specs_from_entries(entries["surface"], entries["machine"], entries["cutting"])
-        return Case.model_validate(meta["case"]), specs
+        parts = (entries["surface"], entries["machine"], entries["cutting"])
+        case = Case.model_validate(meta["case"])
     except (KeyError, TypeError, ValueError) as exc:
         raise ExportError(f"{side}: the recorded case cannot be read ({str(exc)[:200]})") from None
+    try:
+        specs = specs_from_entries(*parts, trust_plugins=trust_plugins)
+    except CatalogError as exc:
+        raise ExportError(f"{side}: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise ExportError(f"{side}: the recorded catalog entries cannot be read ({str(exc)[:200]})") from None
+    return case, specs
+
+
+def header_meta(
+    case: Case, specs: tuple[Any, Any, Any], layout: Any, pv_nm: float, created: str, generator: str
+) -> dict[str, Any]:
+    """What a header states about a table case (everything but the layer schedule and the
+    sidecar's digest): export writes it and verify re-derives it from the recorded case."""
+    _, machine, cutting = specs
+    return {
+        "generator": generator,
+        "created": created,
+        "layout": layout.kind,
+        "shape": list(layout.shape),
+        "pitch": list(layout.pitch),
+        "origin": list(layout.origin),
+        "unit_nm": machine.table_unit_nm,
+        "int_type": machine.table_int_type,
+        "surface": case.surface,
+        "compensation": case.compensation,
+        "feed_um": case.feed_um or cutting.feed_um,
+        "nose_radius_um": case.nose_radius_um or cutting.nose_radius_um,
+        "spindle_rpm": cutting.spindle_rpm,
+        "pv_nm": pv_nm,
+    }
+
+
+def planned_ints(case: Case, specs: tuple[Any, Any, Any], layout: Any) -> np.ndarray:
+    """The table [table units] a table case plans: compensated commands (model §4) quantised
+    to the machine's fixed-point unit."""
+    surface, machine, cutting = specs
+    table_um, _ = control_table(case, layout, surface, case.nose_radius_um or cutting.nose_radius_um)
+    return quantise(table_um, machine.table_unit_nm, machine.table_int_type)
 
 
 def export(
@@ -321,10 +320,12 @@ def export(
     index: int | None = None,
     force: bool = False,
     name: str | None = None,
+    trust_plugins: bool = False,
 ) -> dict[str, Any]:
     """Choose a case, compute its table from the cube's recorded spec and catalog entries,
     and write the header and its sidecar atomically. Returns the sidecar's content. A spiral
-    case is written as a plain-text program instead (:mod:`ftsweep.program`)."""
+    or D-path case is written as a plain-text program instead (:mod:`ftsweep.program`). A
+    plug-in surface the cube names must be in the local catalog unless ``trust_plugins``."""
     out = Path(out)
     side = sidecar_path(out)
     if side == out:
@@ -344,39 +345,23 @@ def export(
     flat = int(chosen["index"])
     check_exportable(ds, flat)
 
-    case, (surface, machine, cutting) = recorded_case(ds, flat)
+    case, specs = recorded_case(ds, flat, trust_plugins)
+    surface, machine, cutting = specs
     if case.layout.kind in ("spiral", "dpath"):
         from ftsweep import program
 
         extra = {"cube": str(cube_path), "cube_git_revision": ds.attrs.get("git_revision")}
         write = program.export_program if case.layout.kind == "spiral" else program.export_dpath
-        return write(out, side, case, (surface, machine, cutting), chosen, extra)
+        return write(out, side, case, specs, chosen, extra)
     layout = build_layout(surface, case.layout)
     if layout.n_points != chosen["n_points"]:
         raise ExportError(f"the cube says {chosen['n_points']} points but the spec gives {layout.n_points}")
-    rc = case.nose_radius_um or cutting.nose_radius_um
-    table_um, _ = control_table(case, layout, surface, rc)
-    ints = quantise(table_um, machine.table_unit_nm, machine.table_int_type)
+    ints = planned_ints(case, specs, layout)
+    meta = header_meta(
+        case, specs, layout, chosen["pv_nm"], time.strftime("%Y-%m-%dT%H:%M:%S%z"), f"ftsweep {__version__}"
+    )
     # the schedule of the table as stored: verify plans it again from the same integers
-    rcase = resolve_case(case, specs=(surface, machine, cutting))
-    schedule = layer_schedule(rcase, ints * machine.table_unit_nm * 1e-3)
-    meta = {
-        "generator": f"ftsweep {__version__}",
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        "layout": layout.kind,
-        "shape": list(layout.shape),
-        "pitch": list(layout.pitch),
-        "origin": list(layout.origin),
-        "unit_nm": machine.table_unit_nm,
-        "int_type": machine.table_int_type,
-        "surface": case.surface,
-        "compensation": case.compensation,
-        "feed_um": case.feed_um or cutting.feed_um,
-        "nose_radius_um": rc,
-        "spindle_rpm": cutting.spindle_rpm,
-        "pv_nm": chosen["pv_nm"],
-        "layers": schedule,
-    }
+    meta["layers"] = layer_schedule(resolve_case(case, specs=specs), ints * machine.table_unit_nm * 1e-3)
     sidecar = dict(meta)
     sidecar.update(
         header=out.name,
@@ -403,6 +388,16 @@ _NUMBER = re.compile(r"-?\d+")
 MAX_HEADER_BYTES = 200 * 2**20
 
 
+def _defines(text: str) -> list[tuple[str, str]]:
+    """(name, value) of every ``#define`` line, the trailing comment dropped."""
+    out = []
+    for line in text.splitlines():
+        m = _DEFINE.match(line)
+        if m:
+            out.append((m.group(1), m.group(2)))
+    return out
+
+
 def read_header(path: Path) -> tuple[list[tuple[str, str]], np.ndarray]:
     """The macros (name without prefix, value as written, in header order) and the integer
     table of a header written by :func:`export`; :class:`ExportError` if it is not one."""
@@ -413,11 +408,7 @@ def read_header(path: Path) -> tuple[list[tuple[str, str]], np.ndarray]:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
         raise ExportError(f"{path} is not an ftsweep header (not UTF-8 text at byte {exc.start})") from None
-    defines = []
-    for line in text.splitlines():
-        m = _DEFINE.match(line)
-        if m:
-            defines.append((m.group(1), m.group(2)))
+    defines = _defines(text)
     rows_key = next((k for k, _ in defines if k.endswith("_ROWS")), None)
     if rows_key is None:
         raise ExportError(f"{path} is not an ftsweep header (no *_ROWS macro)")
@@ -515,27 +506,43 @@ def verify(
     path: Path,
     progress: Callable[[int, int], None] | None = None,
     pv_tolerance_nm: float | None = None,
+    trust_plugins: bool = False,
 ) -> dict[str, Any]:
-    """Check a header and its sidecar, then re-simulate the part from the stored integers.
+    """Check a header (or program) as the controller will read it, then re-simulate the part.
 
-    Raises :class:`ExportError` when the CRC-32 (over every macro and the table) does not
-    match, when the sidecar's SHA-256 of the header or the header's SHA-256 of the sidecar
-    does not match, when header and sidecar disagree, or when the re-simulated P-V differs
-    from the predicted one by more than ``pv_tolerance_nm`` (default
-    :func:`default_pv_tolerance_nm`). Returns the re-simulated record with ``pv_nm``, the
-    predicted P-V and the tolerance applied.
+    A header passes only if: its CRC-32 (over every macro and the table), the sidecar's
+    SHA-256 of the header and the header's SHA-256 of the sidecar match; the whole text is
+    exactly what export writes for the recorded case (every macro value, the layer schedule,
+    no comment or expression inside a value, no other line), so what C reads is what was
+    checked; every table cell lies within one unit of the table the recorded case plans; and
+    the P-V re-simulated from the stored integers is within ``pv_tolerance_nm`` (default
+    :func:`default_pv_tolerance_nm`) of the predicted one. Raises :class:`ExportError` naming
+    the first difference. Program files go to :func:`ftsweep.program.verify_program`.
     """
     path = Path(path)
     from ftsweep import program
 
     if program.is_program(path):
-        return program.verify_program(path, progress, pv_tolerance_nm)
+        return program.verify_program(path, progress, pv_tolerance_nm, trust_plugins)
     macros, ints, meta = check_integrity(path)
-    case, specs = recorded_case_of(meta, sidecar_path(path))
-    unit_nm = _macro_value(macros, "UNIT_NM", float, path)
-    predicted = _macro_value(macros, "PREDICTED_PV_NM", float, path)
+    case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
+    surface, machine, _ = specs
+    try:
+        layout = build_layout(surface, case.layout)
+    except ValueError as exc:
+        raise ExportError(f"{path}: the recorded case plans no table ({exc})") from None
+    check_table(ints, planned_ints(case, specs, layout), path)
+    unit_nm = machine.table_unit_nm
     table = ints * unit_nm * 1e-3
-    check_schedule(parse_schedule(macros, path), layer_schedule(resolve_case(case, specs=specs), table), path)
+    expected = header_meta(
+        case, specs, layout, float(meta["pv_nm"]), str(meta["created"]), str(meta["generator"])
+    )
+    expected["layers"] = layer_schedule(resolve_case(case, specs=specs), table)
+    expected["sidecar_sha256"] = sidecar_digest(meta)
+    text = path.read_text(encoding="utf-8")
+    prefix = next(k for k, _ in _defines(text) if k.endswith("_ROWS"))[: -len("_ROWS")]
+    check_canonical(text, render_header(prefix, expected, ints, machine.table_int_type)[0], path, prefix)
+    predicted = float(meta["pv_nm"])
     record = run_case(case, table=table, specs=specs, progress=progress)
     tol = default_pv_tolerance_nm(unit_nm, predicted) if pv_tolerance_nm is None else pv_tolerance_nm
     record["predicted_pv_nm"] = predicted
@@ -549,3 +556,58 @@ def verify(
             "the header does not machine what was selected: do not load it"
         )
     return record
+
+
+# cells may differ from a re-planned table by one unit: the planned values are rounded to the
+# unit, so floating-point noise at a half-unit boundary can flip the last one
+TABLE_UNITS_TOLERANCE = 1
+
+
+def check_table(ints: np.ndarray, planned: np.ndarray, path: Path) -> None:
+    """Refuse a table whose shape differs from the re-planned one or any of whose cells lies
+    more than :data:`TABLE_UNITS_TOLERANCE` units from it, naming the first such cell."""
+    if ints.shape != planned.shape:
+        raise ExportError(
+            f"{path}: the table is {ints.shape[0]} × {ints.shape[1]}, the recorded case plans "
+            f"{planned.shape[0]} × {planned.shape[1]}; do not load it"
+        )
+    diff = np.abs(ints.astype(np.int64) - planned.astype(np.int64))
+    if diff.max(initial=0) > TABLE_UNITS_TOLERANCE:
+        off = diff > TABLE_UNITS_TOLERANCE
+        i, j = (int(v) for v in np.argwhere(off)[0])
+        raise ExportError(
+            f"{path}: table cell [{i}][{j}] holds {int(ints[i, j])}, the recorded case plans "
+            f"{int(planned[i, j])} ({int(off.sum()):,} cell(s) differ by more than "
+            f"{TABLE_UNITS_TOLERANCE} unit); do not load it"
+        )
+
+
+def check_canonical(text: str, expected: str, path: Path, prefix: str) -> None:
+    """Refuse a header whose text is not exactly the one export writes for the recorded case
+    (table excepted, which :func:`check_table` judges): a macro's value, a comment or an
+    expression inside a value, or any other line that C would read differently from the
+    values checked. Names the macro, or the line, that differs."""
+    got, want = text.split("\n"), expected.split("\n")
+    for number, (a, b) in enumerate(zip(got, want, strict=False), start=1):
+        if a != b:
+            raise ExportError(_difference(path, number, a, b, prefix))
+    if len(got) != len(want):
+        raise ExportError(
+            f"{path}: the header has {len(got)} lines where export writes {len(want)}: it was edited; "
+            "do not load it"
+        )
+
+
+def _difference(path: Path, number: int, got: str, want: str, prefix: str) -> str:
+    m = re.match(rf"#define {re.escape(prefix)}_(\w+)\s", want)
+    if m:
+        value = want.split(None, 2)[2]
+        return (
+            f"{path}: macro {m.group(1)} reads {got.split(None, 2)[-1][:120]!r} on line {number}, but the "
+            f"recorded case gives {value[:120]!r} (a value must be written exactly as export writes it: no "
+            "other value, expression or comment); do not load it"
+        )
+    return (
+        f"{path}: line {number} reads {got[:120]!r} where export writes {want[:120]!r}: the header was "
+        "edited; do not load it"
+    )

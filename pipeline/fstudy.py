@@ -72,10 +72,15 @@ def reference_step(inp: Inputs, cutting: Any) -> float:
 
 
 def study(
-    inp: Inputs, folder: Optional[Path] = None, progress: Optional[Callable[[int, int], None]] = None
+    inp: Inputs,
+    folder: Optional[Path] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
+    specs: Optional[tuple[Any, Any, Any]] = None,
 ) -> dict[str, Any]:
-    """Plan, time and summarise a Fresnel program; ``_plan`` and ``_steps`` hold the arrays."""
-    specs = _entries(inp, folder)
+    """Plan, time and summarise a Fresnel program; ``_plan`` and ``_steps`` hold the arrays.
+    ``specs`` (surface, machine, cutting) replace the catalog look-up of ``inp``'s names
+    (verify re-plans from the entries a sidecar recorded)."""
+    specs = specs or _entries(inp, folder)
     limits = fp.limits_of(specs[1], inp.machine)
     fplan = plan_of(inp, specs, folder)
     steps = fp.timesteps(fplan, limits, inp.safety, reference_step(inp, specs[2]), progress)
@@ -285,31 +290,32 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
 
 
 # --------------------------------------------------------------------------- export
-def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, Any]:
-    """Write the study's program as ``t C X Y Z`` lines with its sidecar, atomically;
-    refused (nothing written) if any line leaves the machine's limits."""
-    from ftsweep import program
+# wall times of the study: facts about a run, not about the program (left out of the sidecar)
+WALL_TIMES = ("planning_s", "timesteps_s")
+
+
+def document(
+    s: dict[str, Any], inp: Inputs, created: str, generator: str
+) -> tuple[list[str], list[str], dict[str, Any]]:
+    """The header lines, data lines and sidecar content of a studied Fresnel program: export
+    writes them and verify re-derives them from the recorded inputs and entries."""
     from ftsweep.export import recorded_entries
 
     fplan, steps, specs = s["_plan"], s["_steps"], s["_specs"]
     t = np.concatenate([[0.0], np.cumsum(steps.steps)])
     cols = (t, np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um * 1e-3)
     lines = [F_LINE.format(*row) for row in zip(*cols, strict=True)]
-    data = np.array([[float(v) for v in line.split()] for line in lines])
-    reason = lines_reason(data, fp.limits_of(specs[1], inp.machine))
-    if reason:
-        raise program.ProgramError(f"the program leaves the limits of machine '{inp.machine}': {reason}")
     meta = {
-        "generator": f"ftsweep {__version__}",
-        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "generator": generator,
+        "created": created,
         "layout": "fresnel",
         "inputs": inp._asdict(),
-        "summary": public(s),
+        "summary": {k: v for k, v in public(s).items() if k not in WALL_TIMES},
         "catalog_entries": recorded_entries(specs),
     }
     head = [
         f"{F_MAGIC} (C, X, Y, Z move linearly in time between consecutive lines)",
-        f"# generator: ftsweep {__version__}; created {meta['created']}",
+        f"# generator: {generator}; created {created}",
         f"# surface: {inp.surface}, Fresnel facets of {inp.facet_height_um:g} um ({s['n_facets']}); "
         f"machine: {inp.machine}",
         f"# path: quasi-spiral, {s['n_turns']} turns of {s['points_per_turn']} points, "
@@ -321,7 +327,21 @@ def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, A
         f"# points: {len(lines)}",
         "# units: t [s] from the first line, C [deg] accumulated, X Y [mm] tool, Z [mm] tool tip",
     ]
-    return program._write_program(out, side, head, F_COLUMNS, lines, meta)
+    return head, lines, meta
+
+
+def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, Any]:
+    """Write the study's program as ``t C X Y Z`` lines with its sidecar, atomically;
+    refused (nothing written) if any line leaves the machine's limits."""
+    from ftsweep import program
+
+    created = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    head, lines, meta = document(s, inp, created, f"ftsweep {__version__}")
+    data = np.array([[float(v) for v in line.split()] for line in lines])
+    reason = lines_reason(data, fp.limits_of(s["_specs"][1], inp.machine))
+    if reason:
+        raise program.ProgramError(f"the program leaves the limits of machine '{inp.machine}': {reason}")
+    return program.write_program(out, side, head, F_COLUMNS, lines, meta)
 
 
 def lines_reason(data: np.ndarray, limits: fp.Limits) -> str:
@@ -331,38 +351,57 @@ def lines_reason(data: np.ndarray, limits: fp.Limits) -> str:
     return limits_reason(q, np.diff(data[:, 0]), limits, slack=1e-6)
 
 
-def verify(path: Path) -> dict[str, Any]:
-    """Re-read a Fresnel program: CRC and sidecar, every line within the recorded machine's
-    limits (positions, velocities, accelerations by eq. 14), and C, X, Y, Z on the path its
-    recorded inputs plan (1 nm, 1e-6°). Raises ``ProgramError`` naming what differs."""
-    from ftsweep import program
+def recorded_inputs(meta: dict[str, Any], side: Path) -> Inputs:
+    """The :class:`Inputs` a sidecar recorded, refused with the sidecar named if malformed."""
+    from ftsweep.program import ProgramError
 
-    head, data = program.read_program(path, F_MAGIC, F_COLUMNS)
-    meta = program._checked_sidecar(path, head)
-    inp = Inputs(**meta["inputs"])
-    entries = meta["catalog_entries"]
-    specs = catalogs.specs_from_entries(entries["surface"], entries["machine"], entries["cutting"])
-    reason = lines_reason(data, fp.limits_of(specs[1], inp.machine))
+    try:
+        raw = dict(meta["inputs"])
+        inp = Inputs(**raw)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ProgramError(f"{side}: the recorded inputs cannot be read ({str(exc)[:200]})") from None
+    return inp
+
+
+def verify(
+    path: Path, trust_plugins: bool = False, progress: Optional[Callable[[int, int], None]] = None
+) -> dict[str, Any]:
+    """Re-read a Fresnel program: CRC (every line) and sidecar, every line within the
+    recorded machine's limits (positions, velocities, accelerations by eq. 14), and the
+    program planned and timed again from the recorded inputs and entries: every header line
+    equal, every line's t, C, X, Y, Z within ``program.LINE_TOLERANCE``, the sidecar's
+    summary equal. Raises ``ProgramError`` naming what differs."""
+    from ftsweep import program
+    from ftsweep.export import sidecar_path
+
+    doc = program.read_program_file(path, F_MAGIC, F_COLUMNS)
+    meta = program.checked_sidecar(path, doc.fields)
+    side = sidecar_path(path)
+    inp = recorded_inputs(meta, side)
+    try:
+        entries = meta["catalog_entries"]
+        specs = catalogs.specs_from_entries(
+            entries["surface"], entries["machine"], entries["cutting"], trust_plugins=trust_plugins
+        )
+    except catalogs.CatalogError as exc:
+        raise program.ProgramError(f"{side}: {exc}") from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise program.ProgramError(
+            f"{side}: the recorded entries cannot be read ({str(exc)[:200]})"
+        ) from None
+    reason = lines_reason(doc.data, fp.limits_of(specs[1], inp.machine))
     if reason:
         raise program.ProgramError(f"{path}: a line leaves the machine's limits: {reason}; do not run it")
-    fplan = plan_of(inp, specs)
-    planned = np.column_stack(
-        [np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um * 1e-3]
-    )
-    if planned.shape[0] != data.shape[0]:
-        raise program.ProgramError(
-            f"{path}: {data.shape[0]} lines, the recorded inputs plan {planned.shape[0]}"
-        )
-    off = np.max(np.abs(planned - data[:, 1:]), axis=0)
-    if not (off[0] <= 1e-6 and np.all(off[1:] <= 1e-6)):
-        raise program.ProgramError(
-            f"{path}: the lines leave the planned path "
-            f"(C by {off[0]:.3g}°, X/Y/Z by {off[1:].max() * 1e3:.3g} µm)"
-        )
+    s = study(inp, progress=progress, specs=specs)
+    planned = document(s, inp, str(meta["created"]), str(meta["generator"]))
+    program.check_document(path, doc, planned, meta, F_COLUMNS)
+    data = doc.data
     return {
+        "layout": "fresnel",
         "program": str(path),
         "lines": int(data.shape[0]),
+        "n_points": int(data.shape[0]),
         "machining_s": float(data[-1, 0]),
-        "checksum": head.get("CRC32", "").split(" ")[0],
+        "checksum": doc.crc,
         "within_limits": True,
     }

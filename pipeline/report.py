@@ -55,11 +55,15 @@ def _save(ax: Any, path: Path) -> Path:
 
 
 def resimulate(
-    cube_path: Path, index: int, map_bins: int, progress: Optional[Callable[[int, int], None]] = None
+    cube_path: Path,
+    index: int,
+    map_bins: int,
+    progress: Optional[Callable[[int, int], None]] = None,
+    trust_plugins: bool = False,
 ) -> tuple[dict[str, Any], Any]:
     """Re-run case ``index`` of a cube with an error map of ``map_bins`` bins, from the cube's
     recorded spec and catalog entries. Returns the record and (case, layout, table, specs)."""
-    base, specs = recorded_case(open_cube(cube_path), index)
+    base, specs = recorded_case(open_cube(cube_path), index, trust_plugins)
     case = base.model_copy(
         update={"resolution": base.resolution.model_copy(update={"error_map_bins": map_bins})}
     )
@@ -122,6 +126,7 @@ def make_report(
     index: Optional[int] = None,
     map_bins: int = 160,
     progress: Optional[Callable[[int, int], None]] = None,
+    trust_plugins: bool = False,
 ) -> dict[str, Path]:
     """Write the figures and ``index.html`` into ``out_dir``; returns their paths."""
     cube_path = Path(cube_path)
@@ -144,7 +149,9 @@ def make_report(
         chosen = choose(ds, budget_points=budget)
     else:
         chosen = choose(ds, index=index)
-    record, (case, layout, table, specs) = resimulate(cube_path, int(chosen["index"]), map_bins, progress)
+    record, (case, layout, table, specs) = resimulate(
+        cube_path, int(chosen["index"]), map_bins, progress, trust_plugins
+    )
     shown = dict(describe(ds, int(chosen["index"])), pv_nm=record["pv_nm"])
     paths["error_map"] = _save(
         plot_map(record["error_map_x_um"], record["error_map_peak_nm"], shown, "peak"), out / "error_map.png"

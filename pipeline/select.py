@@ -88,17 +88,24 @@ def choose(
     return chosen
 
 
-def recorded_case(ds: xr.Dataset, flat: int) -> tuple[Any, tuple[Any, Any, Any]]:
+def recorded_case(ds: xr.Dataset, flat: int, trust_plugins: bool = False) -> tuple[Any, tuple[Any, Any, Any]]:
     """The case at flat index ``flat`` of a cube and the (surface, machine, cutting) entries
-    the cube recorded for it."""
-    from ftsweep.catalogs import specs_from_entries
+    the cube recorded for it. A cube is data: a plug-in surface it names must be one of the
+    local catalog's unless ``trust_plugins`` (:func:`~ftsweep.catalogs.specs_from_entries`)."""
+    from ftsweep.catalogs import CatalogError, specs_from_entries
     from ftsweep.sweep import SweepSpec, case_at
 
     case = case_at(SweepSpec.model_validate_json(ds.attrs["sweep_spec"]), flat)
     entries = json.loads(ds.attrs["catalog_entries"])
-    return case, specs_from_entries(
-        entries["surface"][case.surface], entries["machine"][case.machine], entries["cutting"][case.cutting]
-    )
+    try:
+        return case, specs_from_entries(
+            entries["surface"][case.surface],
+            entries["machine"][case.machine],
+            entries["cutting"][case.cutting],
+            trust_plugins=trust_plugins,
+        )
+    except CatalogError as exc:
+        raise SelectError(f"the cube's case {flat}: {exc}") from None
 
 
 def check_exportable(ds: xr.Dataset, flat: int) -> None:

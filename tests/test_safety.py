@@ -202,18 +202,46 @@ def test_table_forged_with_its_crc_fails_on_the_header_hash(header_copy):
         verify(header_copy)
 
 
-def test_fully_consistent_forgery_fails_on_the_resimulated_pv(header_copy):
-    """Table, CRC and the sidecar's header hash forged together: only physics can tell."""
-    text = _forge_table(header_copy, 500)  # half a micrometre on one ring
-    side = header_copy.with_suffix(".json")
+def _forge_consistently(header: Path, text: str) -> None:
+    """Write ``text`` as the header with its CRC macro, and the sidecar's CRC and header
+    hash, all recomputed: every checksum agrees with the edit."""
+    header.write_text(text)
+    macro_list, ints = read_header(header)
+    crc = checksum(macro_list, ints, json.loads(dict(macro_list)["INT_TYPE"]))
+    text = _replace_macro(text, CHECKSUM_MACRO, f"0x{crc:08x}UL")
+    header.write_text(text)
+    side = header.with_suffix(".json")
     meta = json.loads(side.read_text())
     meta["header_sha256"] = hashlib.sha256(text.encode()).hexdigest()
-    meta["crc32"] = int(dict(read_header(header_copy)[0])[CHECKSUM_MACRO].rstrip("UL"), 16)
+    meta["crc32"] = crc
     side.write_text(json.dumps(meta, indent=2))
+
+
+def test_consistently_forged_table_fails_on_the_replanned_cells(header_copy):
+    """Table, CRC and the sidecar's header hash forged together: the re-planned table names
+    the cell."""
+    text = _forge_table(header_copy, 500)  # half a micrometre on one ring
+    _forge_consistently(header_copy, text)
+    with pytest.raises(ExportError, match=r"table cell \[\d+\]\[\d+\] holds"):
+        verify(header_copy)
+
+
+def test_consistently_forged_prediction_fails_on_the_resimulated_pv(header_copy):
+    """The predicted P-V forged in the sidecar and the header, every hash and CRC made to
+    agree: only the re-simulation can tell."""
+    side = header_copy.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    meta["pv_nm"] = meta["pv_nm"] / 2
+    side.write_text(json.dumps(meta, indent=2))
+    from ftsweep.export import sidecar_digest
+
+    text = _replace_macro(header_copy.read_text(), "PREDICTED_PV_NM", repr(meta["pv_nm"]))
+    text = _replace_macro(text, "SIDECAR_SHA256", json.dumps(sidecar_digest(meta)))
+    _forge_consistently(header_copy, text)
     with pytest.raises(ExportError, match="re-simulates to P-V"):
         verify(header_copy)
     # a tolerance wide enough accepts it, so the check above is the P-V comparison itself
-    assert verify(header_copy, pv_tolerance_nm=1e6)["pv_nm"] > meta["pv_nm"] + 100
+    assert verify(header_copy, pv_tolerance_nm=1e6)["pv_nm"] > meta["pv_nm"] + 1
 
 
 @pytest.mark.parametrize(

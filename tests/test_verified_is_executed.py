@@ -1,0 +1,325 @@
+"""The verified file is the executed file (issue 26): for every exported kind a fresh export
+verifies; an edit the machine would execute fails even with every checksum and hash forged to
+agree; files never make ftsweep import code; a finished sweep of every kind resumes with
+nothing computed."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import sys
+import zlib
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from ftsweep import program
+from ftsweep.cli import main
+from ftsweep.export import CHECKSUM_MACRO, checksum, read_header, sidecar_digest
+from ftsweep.run import run_sweep
+
+SPHERE_D = """
+surface: concave_sphere
+layout: dpath
+machine: sts-xzc
+cutting: dpath-finish
+dpath: {transition: optimised}
+axes: {spacing_um: [500.0], points_per_cut: [41]}
+"""
+# kind -> sweep spec (YAML); every one a single small case
+SWEEPS = {
+    "ring": "surface: small_sine\nlayout: ring\naxes: {points: [15000], aspect: [4.0]}\n",
+    "mesh": "surface: small_lens\nlayout: mesh\naxes: {points: [12000], aspect: [1.0]}\n",
+    "spiral-angle": "surface: small_sine\nlayout: spiral\naxes: {points_per_rev: [60]}\n",
+    "spiral-arc": "surface: small_sine\nlayout: spiral\naxes: {arc_um: [20.0]}\n",
+    "spiral-chord": "surface: small_sine\nlayout: spiral\naxes: {chord_um: [0.05]}\n",
+    "layered-table": "surface: small_sine\nlayout: ring\nmachine: short-fts\n"
+    "axes: {points: [15000], aspect: [4.0]}\n",
+    "layered-spiral": "surface: small_sine\nlayout: spiral\nmachine: short-fts\n"
+    "axes: {points_per_rev: [60]}\n",
+    "dpath": SPHERE_D,
+}
+SUFFIX = {"ring": ".h", "mesh": ".h", "layered-table": ".h"}
+
+
+def invoke(args: list[str], catalogs: Path):  # type: ignore[no-untyped-def]
+    return CliRunner().invoke(main, args, env={"FTSWEEP_CATALOGS": str(catalogs)})
+
+
+@pytest.fixture(scope="module")
+def catalogs_with_fresnel(module_catalog_dir):
+    with (module_catalog_dir / "cutting.yaml").open("a") as fh:
+        fh.write("\ncoarse-fresnel:\n  feed_um: 8.0\n  nose_radius_um: 40.0\n  spindle_rpm: 30.0\n")
+    return module_catalog_dir
+
+
+@pytest.fixture(scope="module")
+def cubes(tmp_path_factory, catalogs_with_fresnel):
+    """One finished one-case cube per sweepable kind."""
+    folder = tmp_path_factory.mktemp("cubes")
+    out = {}
+    for kind, text in SWEEPS.items():
+        spec = folder / f"{kind}.yaml"
+        spec.write_text(text)
+        out[kind] = folder / f"{kind}.zarr"
+        report = run_sweep(
+            str(spec), out[kind], scheduler="synchronous", catalog_folder=catalogs_with_fresnel
+        )
+        assert report.done == 1, report.rows
+    return out
+
+
+@pytest.fixture(scope="module")
+def exports(cubes, tmp_path_factory, catalogs_with_fresnel):
+    """A fresh export of every kind (Fresnel from ``ftsweep fresnel -o``); tests copy them."""
+    folder = tmp_path_factory.mktemp("exports")
+    out = {}
+    for kind, cube_path in cubes.items():
+        path = folder / f"{kind}{SUFFIX.get(kind, '.txt')}"
+        res = invoke(["export", str(cube_path), "--case", "0", "-o", str(path)], catalogs_with_fresnel)
+        assert res.exit_code == 0, res.output
+        out[kind] = path
+    path = folder / "fresnel.txt"
+    res = invoke(
+        ["fresnel", "--cutting", "coarse-fresnel", "--points-per-turn", "120", "--facet-height-um", "10",
+         "--plots", str(folder), "-o", str(path)],
+        catalogs_with_fresnel,
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    out["fresnel"] = path
+    return out
+
+
+def copy_of(exports: dict[str, Path], kind: str, folder: Path) -> Path:
+    src = exports[kind]
+    for suffix in (src.suffix, ".json"):
+        (folder / f"{kind}{suffix}").write_bytes(src.with_suffix(suffix).read_bytes())
+    return folder / src.name
+
+
+KINDS = [*SWEEPS, "fresnel"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_kind_verifies_its_fresh_export(kind, exports, catalogs_with_fresnel):
+    res = invoke(["verify", str(exports[kind]), "--json"], catalogs_with_fresnel)
+    assert res.exit_code == 0, res.output
+    record = json.loads(res.stdout)
+    if kind.startswith("layered"):
+        assert record["n_layers"] > 1
+    if kind != "fresnel":
+        assert abs(record["pv_nm"] - record["predicted_pv_nm"]) <= record["pv_tolerance_nm"]
+
+
+# ----------------------------------------------------------------------------- forging
+def forge_header(header: Path, text: str) -> None:
+    """Write ``text`` with its CRC macro recomputed from what ftsweep's parser reads, and
+    the sidecar's CRC and header hash updated: every checksum agrees with the edit."""
+    header.write_text(text)
+    macros, ints = read_header(header)
+    crc = checksum(macros, ints, json.loads(dict(macros)["INT_TYPE"]))
+    text = re.sub(rf"(_{CHECKSUM_MACRO}) 0x[0-9a-f]+UL", rf"\g<1> 0x{crc:08x}UL", text)
+    header.write_text(text)
+    side = header.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    meta.update(crc32=crc, header_sha256=hashlib.sha256(text.encode()).hexdigest())
+    side.write_text(json.dumps(meta, indent=2))
+
+
+def forge_program(path: Path, rows: list[str]) -> None:
+    """Write ``rows`` as the program with its CRC line recomputed over every other line and
+    the sidecar's CRC and program hash updated."""
+    at = next(i for i, row in enumerate(rows) if row.startswith("# CRC32:"))
+    crc = zlib.crc32("\n".join(rows[:at] + rows[at + 1 :]).encode()) & 0xFFFFFFFF
+    rows[at] = program.CRC_LINE.format(crc)
+    text = "\n".join(rows) + "\n"
+    path.write_text(text)
+    side = path.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    meta.update(crc32=crc, program_sha256=hashlib.sha256(text.encode()).hexdigest())
+    side.write_text(json.dumps(meta, indent=2))
+
+
+def macro_line(text: str, name: str) -> str:
+    return next(line for line in text.splitlines() if re.match(rf"#define \w+_{name} ", line))
+
+
+def double_pitch(text: str) -> str:
+    line = macro_line(text, "PITCH0")
+    value = line.split()[2]
+    return text.replace(line, line.replace(f" {value} ", f" {float(value) * 2!r} ", 1))
+
+
+def pitch_expression(text: str) -> str:
+    # C compiles this as twice the pitch; a parser dropping everything from the first /* to
+    # the last */ reads the old value, so the CRC does not change
+    line = macro_line(text, "PITCH0")
+    return text.replace(line, line + " * 2 /* x */")
+
+
+def table_cell(text: str) -> str:
+    start = text.index("= {", text.index("_table[")) + 3
+    row_start = text.index("{", start + 1) + 1
+    end = text.index(",", row_start)
+    return text[:row_start] + str(int(text[row_start:end]) + 4) + text[end:]
+
+
+def layer_offset(text: str) -> str:
+    line = macro_line(text, "LAYER_OFFSETS_UM")
+    values = line[line.index("{") + 1 : line.index("}")].split(", ")
+    values[1] = repr(float(values[1]) + 0.2)
+    return text.replace(line, line[: line.index("{") + 1] + ", ".join(values) + line[line.index("}") :])
+
+
+HEADER_EDITS = [
+    ("ring", double_pitch, "macro PITCH0"),
+    ("mesh", double_pitch, "macro PITCH0"),
+    ("ring", pitch_expression, "macro PITCH0"),
+    ("ring", table_cell, "table cell [0][0]"),
+    ("mesh", table_cell, "table cell [0][0]"),
+    ("layered-table", layer_offset, "macro LAYER_OFFSETS_UM"),
+    ("layered-table", table_cell, "table cell [0][0]"),
+]
+
+
+@pytest.mark.parametrize(
+    "kind, edit, named", HEADER_EDITS, ids=[f"{k}-{e.__name__}" for k, e, _ in HEADER_EDITS]
+)
+def test_a_consistently_forged_header_fails_naming_what_differs(
+    kind, edit, named, exports, tmp_path, catalogs_with_fresnel
+):
+    header = copy_of(exports, kind, tmp_path)
+    forge_header(header, edit(header.read_text()))
+    res = invoke(["verify", str(header)], catalogs_with_fresnel)
+    assert res.exit_code == 1, res.output
+    assert named in res.output and "do not load it" in res.output, res.output
+    assert len(res.output.strip().splitlines()) == 1
+
+
+def data_start(rows: list[str]) -> int:
+    return next(i for i, row in enumerate(rows) if row.startswith(("C_deg", "t_s"))) + 1
+
+
+def shift_column(rows: list[str], index: int, column: int, delta_mm: float) -> list[str]:
+    values = rows[index].split(" ")
+    values[column] = f"{float(values[column]) + delta_mm:.9f}"
+    rows[index] = " ".join(values)
+    return rows
+
+
+def z_line(rows: list[str], delta_nm: float, which: str = "middle") -> list[str]:
+    start = data_start(rows)
+    return shift_column(rows, (start + len(rows)) // 2, -1, delta_nm * 1e-6)
+
+
+def dpath_transition(rows: list[str]) -> list[str]:
+    """−1 µm in Z at a point of the first transition (between the first two cuts)."""
+    start = data_start(rows)
+    c = [float(row.split()[1]) for row in rows[start:]]
+    steps = [b - a for a, b in zip(c, c[1:], strict=False)]
+    # the first transition: where the C step first differs from the cut's own step
+    k = next(i for i in range(1, len(steps)) if abs(steps[i] - steps[0]) > 1e-6) + 1
+    return shift_column(rows, start + k, 3, -1e-3)
+
+
+def edit_line(prefix: str, change):  # type: ignore[no-untyped-def]
+    def edit(rows: list[str]) -> list[str]:
+        i = next(i for i, row in enumerate(rows) if row.startswith(prefix))
+        rows[i] = change(rows[i])
+        return rows
+
+    edit.__name__ = prefix.strip("# :").replace(" ", "_")
+    return edit
+
+
+def moved_offset(row: str) -> str:
+    values = row.split()
+    values[2] = f"{float(values[2]) + 0.0002:.9f}"  # +0.2 µm
+    return " ".join(values)
+
+
+def moved_segment(row: str) -> str:
+    values = row.split()
+    values[5] = f"{float(values[5]) + 720.0:.9f}"
+    return " ".join(values)
+
+
+PROGRAM_EDITS = [
+    ("spiral-angle", lambda r: z_line(r, 100.0), "Z_mm"),
+    ("spiral-arc", lambda r: z_line(r, -300.0), "Z_mm"),
+    ("spiral-chord", lambda r: z_line(r, 100.0), "Z_mm"),
+    ("layered-spiral", lambda r: z_line(r, 100.0), "Z_mm"),
+    ("layered-spiral", edit_line("# offset_mm:", moved_offset), "offset_mm"),
+    ("layered-spiral", edit_line("# segment:", moved_segment), "segment"),
+    ("dpath", lambda r: z_line(r, 30.0), "Z_mm"),
+    ("dpath", dpath_transition, "Z_mm"),
+    ("fresnel", lambda r: z_line(r, 30.0), "Z_mm"),
+    ("fresnel", edit_line("# timing:", lambda row: row.replace("s in all", "s  in all")), "timing"),
+    ("fresnel", edit_line("# tool:", lambda row: row.replace("nose radius", "nose  radius")), "tool"),
+]
+
+
+@pytest.mark.parametrize(
+    "kind, edit, named", PROGRAM_EDITS, ids=[f"{k}-{n}-{i}" for i, (k, _, n) in enumerate(PROGRAM_EDITS)]
+)
+def test_a_consistently_forged_program_fails_naming_the_line(
+    kind, edit, named, exports, tmp_path, catalogs_with_fresnel
+):
+    path = copy_of(exports, kind, tmp_path)
+    forge_program(path, edit(path.read_text().splitlines()))
+    res = invoke(["verify", str(path)], catalogs_with_fresnel)
+    assert res.exit_code == 1, res.output
+    assert named in res.output and "do not run it" in res.output, res.output
+    assert len(res.output.strip().splitlines()) == 1
+
+
+def test_program_crc_covers_the_layer_lines(exports, tmp_path, catalogs_with_fresnel):
+    """An unforged edit of an informational or layer line fails on the CRC itself."""
+    path = copy_of(exports, "layered-spiral", tmp_path)
+    rows = edit_line("# offset_mm:", moved_offset)(path.read_text().splitlines())
+    path.write_text("\n".join(rows) + "\n")
+    res = invoke(["verify", str(path)], catalogs_with_fresnel)
+    assert res.exit_code == 1 and "CRC32 mismatch" in res.output, res.output
+
+
+# ----------------------------------------------------------------------------- trust
+PROBE_MODULE = "ftsweep_probe_issue26"
+
+
+def test_a_sidecar_naming_a_plugin_is_refused_without_importing_it(
+    exports, tmp_path, catalogs_with_fresnel, monkeypatch
+):
+    (tmp_path / f"{PROBE_MODULE}.py").write_text("import numpy as np\n\ndef f(x, y):\n    return 0.0 * x\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    header = copy_of(exports, "ring", tmp_path)
+    side = header.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    surface = meta["catalog_entries"]["surface"]
+    surface.update(family="plugin", params={"function": f"{PROBE_MODULE}:f", "params": {}})
+    side.write_text(json.dumps(meta, indent=2))
+    text = header.read_text()
+    line = macro_line(text, "SIDECAR_SHA256")
+    forge_header(header, text.replace(line.split()[2], json.dumps(sidecar_digest(meta))))
+    res = invoke(["verify", str(header)], catalogs_with_fresnel)
+    assert res.exit_code == 1, res.output
+    assert "--trust-plugins" in res.output and PROBE_MODULE in res.output
+    assert PROBE_MODULE not in sys.modules
+    # trusted explicitly, the plug-in runs (and the forged surface no longer matches the table)
+    res = invoke(["verify", str(header), "--trust-plugins"], catalogs_with_fresnel)
+    assert res.exit_code == 1 and "--trust-plugins" not in res.output
+    assert PROBE_MODULE in sys.modules
+    sys.modules.pop(PROBE_MODULE)
+
+
+# ----------------------------------------------------------------------------- resume
+@pytest.mark.parametrize("kind", list(SWEEPS))
+def test_a_finished_sweep_of_every_kind_reruns_with_nothing_computed(
+    kind, cubes, tmp_path, catalogs_with_fresnel
+):
+    spec = tmp_path / f"{kind}.yaml"
+    spec.write_text(SWEEPS[kind])
+    report = run_sweep(str(spec), cubes[kind], scheduler="synchronous", catalog_folder=catalogs_with_fresnel)
+    assert report.queued == 0 and report.rows == [] and not report.damaged, report.damaged
+    assert report.skipped == report.total == 1

@@ -34,6 +34,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+# revolutions: the rounding slack of angles printed to 1e-9° (2.8e-12 rev), with room to spare
+REV_SLACK = 1e-9
+
 RULES = ("angle", "arc", "chord")
 # fewest points per revolution of the arc and chord rules: without a floor the arc rule's
 # angular step would grow without bound towards the centre
@@ -96,8 +99,11 @@ class SpiralPath(NamedTuple):
 
     @property
     def max_points_per_rev(self) -> int:
-        """Most points any one revolution holds."""
-        return int(np.bincount((self.phi // (2.0 * math.pi)).astype(np.int64)).max())
+        """Most points any one revolution holds. A point within 1e-9 rev below a revolution's
+        start counts in that revolution: angles read back from a program printed to 1e-9°
+        fall just short of k·360° and must give the same count as the planned path."""
+        rev = np.floor(self.phi / (2.0 * math.pi) + REV_SLACK).astype(np.int64)
+        return int(np.bincount(rev - rev.min()).max())
 
 
 def spiral_end_rad(rho0_um: float, feed_um: float) -> float:

@@ -323,3 +323,31 @@ def test_a_finished_sweep_of_every_kind_reruns_with_nothing_computed(
     report = run_sweep(str(spec), cubes[kind], scheduler="synchronous", catalog_folder=catalogs_with_fresnel)
     assert report.queued == 0 and report.rows == [] and not report.damaged, report.damaged
     assert report.skipped == report.total == 1
+
+
+# ----------------------------------------------------------------------------- microprism spiral
+def test_angles_read_back_from_a_program_give_the_planned_sampling():
+    """The spindle-angle sampling of a path read back from its printed lines (C to 1e-9°)
+    is the planned path's: a point printed just short of k·360° stays in revolution k."""
+    import numpy as np
+
+    from ftsweep.stages import spiral
+
+    path = spiral.constant_angle(296.98484809834997, 2.0, 200)
+    printed = np.radians(np.array([float(f"{v:.9f}") for v in np.degrees(path.phi)]))
+    read = path._replace(phi=printed)
+    assert read.max_points_per_rev == path.max_points_per_rev == 200
+
+
+def test_a_fresh_microprism_spiral_export_verifies(tmp_path, catalogs_with_fresnel):
+    spec = tmp_path / "prism.yaml"
+    spec.write_text(
+        "surface: microprism\nlayout: spiral\nmachine: fts-1m\ncutting: microprism\n"
+        "axes: {points_per_rev: [200]}\n"
+    )
+    cube_path = tmp_path / "prism.zarr"
+    run_sweep(str(spec), cube_path, scheduler="synchronous", catalog_folder=catalogs_with_fresnel)
+    out = tmp_path / "prism.txt"
+    assert invoke(["export", str(cube_path), "--case", "0", "-o", str(out)], catalogs_with_fresnel).exit_code == 0
+    res = invoke(["verify", str(out)], catalogs_with_fresnel)
+    assert res.exit_code == 0, res.output

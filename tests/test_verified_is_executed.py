@@ -348,6 +348,7 @@ def test_a_fresh_microprism_spiral_export_verifies(tmp_path, catalogs_with_fresn
     cube_path = tmp_path / "prism.zarr"
     run_sweep(str(spec), cube_path, scheduler="synchronous", catalog_folder=catalogs_with_fresnel)
     out = tmp_path / "prism.txt"
-    assert invoke(["export", str(cube_path), "--case", "0", "-o", str(out)], catalogs_with_fresnel).exit_code == 0
+    res = invoke(["export", str(cube_path), "--case", "0", "-o", str(out)], catalogs_with_fresnel)
+    assert res.exit_code == 0, res.output
     res = invoke(["verify", str(out)], catalogs_with_fresnel)
     assert res.exit_code == 0, res.output

@@ -360,6 +360,12 @@ MAX_NODES = 2.0e10  # about two hours of one core
 MAX_LINE_BYTES = 4 * 2**30
 
 
+def ray_nodes(rho0_um: float, margin_um: float, points_per_feed: float, feed_um: float) -> float:
+    """Evaluation nodes on one ray of a feed-plane line (model §5): the radius plus the margin
+    at both ends, ``points_per_feed`` per feed."""
+    return (rho0_um + 2.0 * margin_um) * points_per_feed / feed_um
+
+
 def check_cost(nodes_per_ray: float, n_theta: int, max_nodes: float = MAX_NODES) -> None:
     """Refuse a case that would exhaust memory (one feed-plane line, two rays, must fit) or
     run for hours (more than ``max_nodes`` evaluation nodes), with its estimated cost."""
@@ -487,29 +493,34 @@ def resolve_case(
             f"the slope bound of surface '{case.surface}' is not finite: the surface gives no finite "
             "slope on its aperture"
         )
+    # a line's memory is known before anything is planned or compensated: refuse it now
+    margin = compensation.contact_window_um(bound, rc) + 2.0 * feed
+    rho0 = float(catalogs.aperture_of(surface_spec).outer_radius_um)
+    check_cost(ray_nodes(rho0, margin, case.resolution.points_per_feed, feed), 2, math.inf)
     surface = catalogs.surface_callable(surface_spec, catalog_folder)
     extra: dict[str, Any] = {}
     if request.kind == "spiral":
         t = time.perf_counter()
+        note = " (estimated: a tenth of the count the curvature bound allows)" if request.chord_um else ""
+        estimate = spiral_points(case, surface_spec, feed)
+        check_capacity(case, "spiral program", estimate, machine.capacity_points, note)
         layout, extra = plan_spiral(case, surface_spec, surface, feed, rc, bound, program)
         assert sections is not None
         extra["residual_error_um"] = residual_error_um(sections, feed, rc)
         extra["plan_seconds"] = time.perf_counter() - t
     elif request.kind == "dpath":
         t = time.perf_counter()
-        layout, extra = plan_dpath(case, surface_spec, surface, feed, rc, bound, program)
+        layout, extra = plan_dpath(
+            case, surface_spec, surface, feed, rc, bound, program, machine.capacity_points
+        )
         extra["plan_seconds"] = time.perf_counter() - t
     else:
         try:
             layout = build_layout(surface_spec, request)
         except ValueError as exc:
             raise CaseError(f"layout: {exc}") from None
-    if layout.n_points > machine.capacity_points:
-        raise CaseError(
-            f"the {layout.kind} {'layout' if layout.kind in ('ring', 'mesh') else 'program'} has "
-            f"{layout.n_points:,} points, over the capacity of machine '{case.machine}' "
-            f"({machine.capacity_points:,}); use larger pitches, steps or budgets, or fewer points"
-        )
+    what = f"{layout.kind} {'layout' if layout.kind in ('ring', 'mesh') else 'program'}"
+    check_capacity(case, what, layout.n_points, machine.capacity_points)
     return ResolvedCase(
         case=case,
         surface_spec=surface_spec,
@@ -524,6 +535,47 @@ def resolve_case(
         lines=catalogs.line_sampler(surface_spec),
         **extra,
     )
+
+
+def count_text(n: float) -> str:
+    """A point count as people read it: grouped digits, or 3 significant digits when huge."""
+    return f"{n:,.0f}" if n < 1e12 else f"{n:.3g}"
+
+
+def check_capacity(case: Case, what: str, n_points: float, capacity: int, note: str = "") -> None:
+    """Refuse a program or layout of more points than the machine's controller holds (also an
+    estimate, before anything is planned or allocated; ``note`` says how it was estimated)."""
+    if n_points > capacity:
+        raise CaseError(
+            f"the {what} has {count_text(n_points)} points{note}, over the capacity of machine "
+            f"'{case.machine}' "
+            f"({capacity:,}); use larger pitches, steps or budgets, fewer points, or a larger machine"
+        )
+
+
+def spiral_points(case: Case, surface_spec: Any, feed_um: float) -> float:
+    """Points a spiral request's rule gives, estimated before planning ([4]): Np per
+    revolution times ρ0/F for the angle rule, the path length over the step for the arc
+    rule; 0 for the chord rule (known only once sampled; :func:`spiral.chord_budget` bounds
+    its own sampling)."""
+    rho0 = float(catalogs.aperture_of(surface_spec).outer_radius_um)
+    rule, value = case.layout.spiral_rule()
+    if rule == "angle":
+        return value * rho0 / feed_um
+    if rule == "arc":
+        return spiral.path_length_um(rho0, feed_um) / value
+    curvature = catalogs.curvature_bound(surface_spec)
+    if curvature is not None:
+        # a chord of length s on a curve of curvature ≤ K deviates by ≤ K·s²/8 ([4] eq. 4), so
+        # the budget needs points no closer than sqrt(8Δ/K): an upper estimate of the count,
+        # refused only when even a tenth of it is over the capacity
+        estimate = spiral.path_length_um(rho0, feed_um) * math.sqrt(curvature / (8.0 * value))
+        return estimate / CHORD_ESTIMATE_MARGIN
+    return 0.0
+
+
+# the chord rule's up-front count (an upper estimate) is divided by this before the capacity check
+CHORD_ESTIMATE_MARGIN = 10.0
 
 
 def _feed_of(
@@ -599,9 +651,11 @@ def plan_dpath(
     rc: float,
     bound: float,
     program: Optional[tuple[Any, np.ndarray]] = None,
+    max_points: float = math.inf,
 ) -> tuple[Any, dict[str, Any]]:
     """The D-path program of a case ([5], :func:`ftsweep.dpath.plan`): its cut points
-    compensated as a table's (model §4), or the given ``program`` as it stands."""
+    compensated as a table's (model §4), or the given ``program`` as it stands. A path of
+    more than ``max_points`` points is refused before it is made."""
 
     def compensated(part: Any, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return compensation.compensate(
@@ -617,10 +671,17 @@ def plan_dpath(
 
     try:
         return dpath_program.plan(
-            case.layout, catalogs.aperture_of(surface_spec), surface, spacing_um, rc, compensated, program
+            case.layout,
+            catalogs.aperture_of(surface_spec),
+            surface,
+            spacing_um,
+            rc,
+            compensated,
+            program,
+            max_points,
         )
     except ValueError as exc:
-        raise CaseError(f"D path: {exc}") from None
+        raise CaseError(f"D path (machine '{case.machine}'): {exc}") from None
 
 
 # residual-budget sampling of the radial sections ([4] eq. 1): radii × angles over the
@@ -703,7 +764,7 @@ class LinePlan:
         n_theta = angular_samples(rcase.layout, rcase.rho0_um, res)
         window = compensation.contact_window_um(rcase.gradient_bound, rcase.nose_radius_um)
         margin = window + 2.0 * rcase.feed_um
-        nodes_per_ray = (rcase.rho0_um + 2.0 * margin) * res.points_per_feed / rcase.feed_um
+        nodes_per_ray = ray_nodes(rcase.rho0_um, margin, res.points_per_feed, rcase.feed_um)
         check_cost(nodes_per_ray, n_theta, max_nodes)
         return cls(
             n_theta=n_theta,

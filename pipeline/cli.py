@@ -35,6 +35,7 @@ class FiniteRange(click.FloatRange):
         return number
 
 
+FINITE = FiniteRange()
 POSITIVE = FiniteRange(min=0.0, min_open=True)
 NON_NEGATIVE = FiniteRange(min=0.0)
 COUNT = click.IntRange(min=1)
@@ -174,29 +175,29 @@ def list_catalogs(as_json: bool) -> None:
     "controller, or a spiral path program (points along the tool path, linear between them). "
     "Default: the surface's table method.",
 )
-@click.option("--drho-um", type=float, help="Ring pitch Δρ [µm] (ring layout).")
+@click.option("--drho-um", type=FINITE, help="Ring pitch Δρ [µm] (ring layout).")
 @click.option(
     "--dtheta-deg",
-    type=float,
+    type=FINITE,
     help="Angular pitch Δθ [deg] (ring); rounded to the nearest 360/Np with a notice unless --strict.",
 )
-@click.option("--dx-um", type=float, help="Mesh pitch Δx [µm] (mesh layout).")
-@click.option("--dy-um", type=float, help="Mesh pitch Δy [µm] (mesh layout).")
-@click.option("--points", type=float, help="Target number of control points N (with --aspect).")
-@click.option("--aspect", type=float, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh).")
+@click.option("--dx-um", type=FINITE, help="Mesh pitch Δx [µm] (mesh layout).")
+@click.option("--dy-um", type=FINITE, help="Mesh pitch Δy [µm] (mesh layout).")
+@click.option("--points", type=FINITE, help="Target number of control points N (with --aspect).")
+@click.option("--aspect", type=FINITE, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh).")
 @click.option("--points-per-rev", type=int, help="Spiral: constant-angle rule, points per revolution.")
-@click.option("--arc-um", type=float, help="Spiral: constant-arc rule, path length between points [µm].")
+@click.option("--arc-um", type=FINITE, help="Spiral: constant-arc rule, path length between points [µm].")
 @click.option(
-    "--chord-um", type=float, help="Spiral: chord-error budget Δcho [µm] that places each next point."
+    "--chord-um", type=FINITE, help="Spiral: chord-error budget Δcho [µm] that places each next point."
 )
 @click.option(
     "--residual-um",
-    type=float,
+    type=FINITE,
     help="Spiral: residual (cusp) budget Δres [µm]; the feed is the largest that keeps every cusp "
     "within it, from each radial section's curvature (instead of --feed-um).",
 )
-@click.option("--feed-um", type=float, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
-@click.option("--nose-radius-um", type=float, help="Tool nose radius Rc [µm]. Default: cutting entry.")
+@click.option("--feed-um", type=FINITE, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
+@click.option("--nose-radius-um", type=FINITE, help="Tool nose radius Rc [µm]. Default: cutting entry.")
 @click.option(
     "--compensation",
     type=click.Choice(["exact", "slope", "none"]),
@@ -217,7 +218,7 @@ def list_catalogs(as_json: bool) -> None:
 )
 @click.option(
     "--z-error-um",
-    type=float,
+    type=FINITE,
     help="Z positioning error per retraction between layers [µm] (positive: each falls short, "
     "so later layers cut deeper). Default: the machine entry's.",
 )
@@ -668,7 +669,7 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, 
 @click.option("--tolerance-nm", type=POSITIVE, required=True, help="P-V the part must meet [nm].")
 @click.option(
     "--start-points",
-    type=float,
+    type=FINITE,
     default=50_000,
     show_default=True,
     help="Point count of the first, coarse round.",
@@ -1235,29 +1236,29 @@ def compare(cubes: tuple[Path, ...], out: Optional[Path], as_json: bool) -> None
 )
 @click.option(
     "--spacing-um",
-    type=click.FloatRange(min=0, min_open=True),
+    type=POSITIVE,
     help="Spacing h between cuts [µm]. Default: the cutting entry's feed.",
 )  # noqa: E501
 @click.option("--points-per-cut", type=click.IntRange(min=2), help="Points on every cut. Default: 201.")
 @click.option("--zones", type=click.Choice(["1", "2", "4"]), help="Cutting zones per revolution. Default: 1.")
 @click.option(
     "--offaxis-mm",
-    type=click.FloatRange(min=0, min_open=True),
+    type=POSITIVE,
     help="Distance of the part's centre from the C axis [mm]. Default: 30.",
 )  # noqa: E501
 @click.option(
     "--cut-angle-deg",
-    type=float,
+    type=FINITE,
     help="Direction of the cuts in the part's frame [deg from +x]. Default: 90 (along y).",
 )  # noqa: E501
 @click.option(
     "--transition-step-deg",
-    type=click.FloatRange(min=0, min_open=True),
+    type=POSITIVE,
     help="Largest C step in a transition [deg]. Default: 1.",
 )  # noqa: E501
 @click.option(
     "--feed-mm-min",
-    type=click.FloatRange(min=0, min_open=True),
+    type=POSITIVE,
     default=2000.0,
     show_default=True,
     help="Feed of the constant-feed XZC mode [mm/min].",
@@ -1369,7 +1370,7 @@ def _print_fresnel_verified(record: dict[str, Any]) -> None:
 @click.option("--surface", default="chebyshev_example", show_default=True, help="Surface catalog entry.")
 @click.option(
     "--facet-height-um",
-    type=click.FloatRange(min=0, min_open=True),
+    type=POSITIVE,
     default=10.0,
     show_default=True,
     help="Height h of every Fresnel facet [µm] ([2] eq. 3).",
@@ -1386,7 +1387,7 @@ def _print_fresnel_verified(record: dict[str, Any]) -> None:
 @click.option(
     "--points-per-turn", type=click.IntRange(min=8), help="Control points K per edge. Default: 360."
 )
-@click.option("--deviation-deg", type=float, help="Rake-face deviation Δφ [deg] ([2] eq. 9). Default: 0.")
+@click.option("--deviation-deg", type=FINITE, help="Rake-face deviation Δφ [deg] ([2] eq. 9). Default: 0.")
 @click.option(
     "--compensation",
     type=click.Choice(["exact", "straight", "none"]),
@@ -1399,7 +1400,7 @@ def _print_fresnel_verified(record: dict[str, Any]) -> None:
     help="Control points: polar about centroids (eqs. 5-6), arc length (appendix A.3), auto. Default: auto.",
 )
 @click.option(
-    "--safety", type=click.FloatRange(min=1.0), help="Safety factor K_s on every axis limit. Default: 1.25."
+    "--safety", type=FiniteRange(min=1.0), help="Safety factor K_s on every axis limit. Default: 1.25."
 )
 @click.option(
     "--plots",

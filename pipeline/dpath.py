@@ -78,6 +78,7 @@ def plan(
     rc: float,
     compensate: Callable[[Callable[..., Any], np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
     program: Optional[tuple[dpath.DPath, np.ndarray]] = None,
+    max_points: float = math.inf,
 ) -> tuple[dpath.DPath, dict[str, Any]]:
     """The D-path program of a request ([5]): the path, Z [µm] of every point (the cut
     points compensated as a table's, model §4, along the radial section at the tool; the
@@ -89,7 +90,10 @@ def plan(
         return path, {"values": values, "gouge": np.zeros(values.shape, dtype=bool)}
     geometry = geometry_of(request, aperture, spacing_um)
     path = dpath.plan(
-        geometry, int(option(request, "points_per_cut")), float(option(request, "transition_step_deg"))
+        geometry,
+        int(option(request, "points_per_cut")),
+        float(option(request, "transition_step_deg")),
+        max_points,
     )
     on = path.cut >= 0
     # every zone holds the same part: a cut point is compensated in its zone's own frame

@@ -180,11 +180,14 @@ def plan(
     deviation_deg: float = DEFAULTS["deviation_deg"],
     compensation: str = DEFAULTS["compensation"],
     scheme: str = DEFAULTS["scheme"],
+    max_points: float = math.inf,
 ) -> FresnelPlan:
     """Slice the surface at ``facet_height_um`` [µm] and plan its quasi-spiral path, the
     4-axis trajectory (rake face turned ``deviation_deg`` [deg] from the cutting direction)
     and both tool-edge compensations ([2] §2.1–2.4). Raises ``FresnelError`` naming the
-    problem when the surface has no interior lowest point or its contours do not close."""
+    problem when the surface has no interior lowest point or its contours do not close, or
+    when the path would hold more than ``max_points`` points (estimated before it is made:
+    K points per turn, a turn per facet at least and one per feed Δr over the reach)."""
     if compensation not in COMPENSATIONS:
         raise ff.FresnelError(f"compensation {compensation!r} is not one of {', '.join(COMPENSATIONS)}")
     if not facet_height_um > 0.0 or not feed_um > 0.0:
@@ -201,6 +204,14 @@ def plan(
         )
     h = float(facet_height_um)
     n_facets = max(1, math.ceil((rng["max_um"] - rng["f_ref_um"]) / h - 1e-9))
+    # every ray advances at most Δr a turn ([2] eq. 7), and reach_um is 1.5 × the farthest edge
+    turns = max(n_facets, rng["reach_um"] / 1.5 / float(feed_um))
+    if points_per_turn * turns > max_points:
+        raise ff.FresnelError(
+            f"the path would hold at least {points_per_turn * turns:.3g} points ({n_facets:,} facet(s) of "
+            f"{h:g} µm, {turns:.3g} turns of {points_per_turn:,} points), more than the machine holds "
+            f"({max_points:,.0f}): use a larger --facet-height-um, fewer --points-per-turn or a larger feed"
+        )
     path = ff.plan(
         fn,
         rng["apex_um"],

@@ -15,6 +15,7 @@ import numpy as np
 
 from ftsweep import __version__, catalogs
 from ftsweep import fresnel as fp
+from ftsweep.io import save_figure
 from ftsweep.stages import fresnel as ff
 
 F_MAGIC = "# ftsweep Fresnel program"
@@ -63,6 +64,7 @@ def plan_of(inp: Inputs, specs: tuple[Any, Any, Any], folder: Optional[Path] = N
         inp.deviation_deg,
         inp.compensation,
         inp.scheme,
+        specs[1].capacity_points,
     )
 
 
@@ -257,8 +259,7 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
     for a in ax:
         a.set_aspect("equal")
     fig.tight_layout()
-    fig.savefig(out[-1], dpi=110)
-    plt.close(fig)
+    save_figure(fig, out[-1])
 
     out.append(stem.with_name(stem.name + "-axes.png"))
     n = min(3 * k, steps.steps.size)
@@ -271,8 +272,7 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
     ax[0].set_title("axis trajectories over the first three turns (adaptive timesteps)")
     ax[-1].set_xlabel("t [s]")
     fig.tight_layout()
-    fig.savefig(out[-1], dpi=110)
-    plt.close(fig)
+    save_figure(fig, out[-1])
 
     out.append(stem.with_name(stem.name + "-timesteps.png"))
     fig, ax = plt.subplots(1, 2, figsize=(11, 4))
@@ -284,8 +284,7 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
     ax[1].set(title="timestep history", xlabel="turn", ylabel="T [ms]", yscale="log")
     ax[1].legend()
     fig.tight_layout()
-    fig.savefig(out[-1], dpi=110)
-    plt.close(fig)
+    save_figure(fig, out[-1])
     return out
 
 

@@ -27,6 +27,12 @@ def write_temporary(target: Path, text: str) -> Path:
             fh.flush()
             os.fchmod(fh.fileno(), 0o666 & ~_umask())
             os.fsync(fh.fileno())
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        # a full disk (ENOSPC) or quota says nothing of the file: name it
+        raise OSError(
+            exc.errno, f"{target}: cannot write it ({exc.strerror or exc}); nothing was replaced"
+        ) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -82,3 +88,21 @@ def dumps_json(value: Any, **options: Any) -> str:
 def write_json_atomic(path: str | os.PathLike[str], data: Any) -> Path:
     """:func:`write_text_atomic` of ``data`` as indented strict JSON (:func:`dumps_json`)."""
     return write_text_atomic(path, dumps_json(data, indent=2) + "\n")
+
+
+def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
+    """Save a matplotlib figure to ``path`` through a temporary file and a rename (no
+    half-written PNG), with the permissions the umask gives a plain ``open``; closes it."""
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=dpi)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+        plt.close(fig)
+    return path

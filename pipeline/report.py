@@ -13,8 +13,6 @@ from __future__ import annotations
 import html
 import json
 import math
-import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Optional
@@ -26,7 +24,7 @@ from ftsweep import cube
 from ftsweep.accessor import _axes, plot_map
 from ftsweep.case import build_layout, control_table, resolve_case, run_case
 from ftsweep.catalogs import aperture_of
-from ftsweep.io import write_text_atomic
+from ftsweep.io import save_figure, write_text_atomic
 from ftsweep.select import SelectError, choose, describe, eligible, open_cube, recorded_case
 from ftsweep.stages import dynamics
 
@@ -40,18 +38,8 @@ FIGURES = {
 
 
 def _save(ax: Any, path: Path) -> Path:
-    """Save a figure through a temporary file and a rename (no half-written PNG)."""
-    import matplotlib.pyplot as plt
-
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        ax.figure.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
-        plt.close(ax.figure)
-    return path
+    """Save the figure of ``ax`` atomically, with the umask's permissions (:func:`save_figure`)."""
+    return save_figure(ax.figure, path)
 
 
 def resimulate(

@@ -48,7 +48,13 @@ def read_grid(
             raise SurfaceLoadError(
                 f"{path}: a .npy height map needs spacing_um [dx, dy] in the catalog entry"
             )
-        z = np.load(path)
+        try:
+            # data, never code: object arrays (pickles) are refused
+            z = np.load(path, allow_pickle=False)
+        except ValueError as exc:
+            raise SurfaceLoadError(f"{path}: not a numeric .npy array ({exc})") from None
+        if z.dtype.kind not in "biuf":
+            raise SurfaceLoadError(f"{path}: heights must be numbers, got an array of {z.dtype}")
         if z.ndim != 2:
             raise SurfaceLoadError(f"{path}: expected a 2-D array (rows y, columns x), got shape {z.shape}")
         ny, nx = z.shape
@@ -118,6 +124,11 @@ def _import_function(target: str, source: str) -> Any:
     module_name, sep, func_name = target.partition(":")
     if not sep or not module_name or not func_name:
         raise SurfaceLoadError(f"{source}: function must read 'module:function', got {target!r}")
+    if "/" in module_name or "\\" in module_name or module_name.endswith(".py"):
+        raise SurfaceLoadError(
+            f"{source}: {module_name!r} is a file path; name an importable module ('module:function') "
+            "and put its folder on PYTHONPATH"
+        )
     try:
         fn = getattr(importlib.import_module(module_name), func_name)
     except (ImportError, AttributeError) as exc:

@@ -207,7 +207,34 @@ def _poly(coeffs: np.ndarray, tau: np.ndarray, span: np.ndarray) -> tuple[np.nda
     return p, dp / span, ddp / span**2
 
 
-def plan(geometry: DGeometry, points_per_cut: int, transition_step_deg: float = 1.0) -> DPath:
+def _spans(geometry: DGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per cut: its distance d from the C axis [µm], zone centre and half angle [rad]; per
+    transition: its C span [rad]."""
+    g = geometry
+    n = np.repeat(np.arange(g.n_cycles), g.zones)
+    zone = np.tile(np.arange(g.zones), g.n_cycles)
+    cut_d = g.outer_um - n * g.spacing_um
+    cut_centre = 2.0 * math.pi * (n + zone / g.zones)
+    half = g.half_angle(cut_d)
+    span = (cut_centre[1:] - half[1:]) - (cut_centre[:-1] + half[:-1])
+    return cut_d, cut_centre, half, span
+
+
+def point_count(geometry: DGeometry, points_per_cut: int, transition_step_deg: float) -> int:
+    """Points of the D path :func:`plan` would make, computed without making it (beyond a
+    billion cut points, that count alone: the transitions' spans are not worth allocating)."""
+    check_geometry(geometry)
+    on_cuts = geometry.n_cycles * geometry.zones * int(points_per_cut)
+    if on_cuts > 1e9:
+        return int(on_cuts)
+    span = _spans(geometry)[3]
+    steps = np.maximum(np.ceil(span / math.radians(transition_step_deg)), 1.0)
+    return int(points_per_cut) * (span.size + 1) + int(np.sum(steps - 1.0))
+
+
+def plan(
+    geometry: DGeometry, points_per_cut: int, transition_step_deg: float = 1.0, max_points: float = math.inf
+) -> DPath:
     """The D path of ``geometry`` ([5]): every cut sampled by ``points_per_cut`` points
     equally spaced along it (ends included), every transition by points at most
     ``transition_step_deg`` apart in C; the transitions solved per cycle.
@@ -219,13 +246,15 @@ def plan(geometry: DGeometry, points_per_cut: int, transition_step_deg: float = 
         raise ValueError(f"a cut needs at least 2 points, got {points_per_cut}")
     if not (math.isfinite(transition_step_deg) and transition_step_deg > 0.0):
         raise ValueError(f"transition_step_deg must be positive, got {transition_step_deg!r}")
+    count = point_count(geometry, points_per_cut, transition_step_deg)
+    if count > max_points:
+        raise ValueError(
+            f"the D path would hold {count:,} points ({geometry.n_cycles * geometry.zones:,} cuts of "
+            f"{points_per_cut:,} points and their transitions at {transition_step_deg:g}° steps), more than "
+            f"{max_points:,}: use fewer points per cut, a larger transition step or a larger spacing"
+        )
     g = geometry
-    cycles, k = g.n_cycles, g.zones
-    n = np.repeat(np.arange(cycles), k)
-    zone = np.tile(np.arange(k), cycles)
-    cut_d = g.outer_um - n * g.spacing_um
-    cut_centre = 2.0 * math.pi * (n + zone / k)
-    half = g.half_angle(cut_d)
+    cut_d, cut_centre, half, _ = _spans(geometry)
     bounds = np.empty(2 * cut_d.size)
     bounds[0::2] = cut_centre - half
     bounds[1::2] = cut_centre + half

@@ -259,6 +259,8 @@ def _chord_errors(phi, w, keep_idx, out):  # pragma: no cover - jit
 # chord's deviation between dense samples exceeds the largest sampled one by about Δ/d² of
 # the budget on a segment of uniform curvature, which the rule's margin (DENSE_MARGIN) covers
 DENSE_PER_SEGMENT = 8
+# dense samples of the chord rule: ~80 bytes each with the compensation's temporaries (2.4 GB)
+MAX_DENSE_SAMPLES = 30_000_000
 DENSE_MARGIN = 1.0 / 16.0
 
 
@@ -270,6 +272,7 @@ def chord_budget(
     dense_um: float | None = None,
     min_points_per_rev: int = MIN_POINTS_PER_REV,
     max_refine: int = 5,
+    max_samples: int = MAX_DENSE_SAMPLES,
 ) -> tuple[SpiralPath, np.ndarray, np.ndarray]:
     """Points placed by the chord-error budget Δcho = ``chord_um`` [µm] ([4] eq. 4).
 
@@ -280,14 +283,24 @@ def chord_budget(
     the dense spacing is refined (up to ``max_refine`` times) until every kept segment
     spans at least 8 dense intervals, where the chord's deviation between dense samples is
     within the margin. Returns the path, the commands at its points [µm] and the largest
-    sampled chord deviation of each segment [µm].
+    sampled chord deviation of each segment [µm]. A dense sampling of more than
+    ``max_samples`` points is refused (ValueError) before it is allocated.
     """
     _check("chord_um", chord_um)
     step = dense_um if dense_um is not None else feed_um
     _check("dense_um", step)
     budget = chord_um * (1.0 - DENSE_MARGIN)
     max_step = 2.0 * math.pi / min_points_per_rev
+    length = path_length_um(rho0_um, feed_um)
     for attempt in range(max_refine + 1):
+        needed = length / step + DENSE_PER_SEGMENT * min_points_per_rev * spiral_end_rad(rho0_um, feed_um) / (
+            2.0 * math.pi
+        )
+        if needed > max_samples:
+            raise ValueError(
+                f"the chord budget {chord_um:g} µm needs a dense sampling of about {needed:.3g} points "
+                f"(at {step:.3g} µm), more than {max_samples:,}: use a larger chord budget"
+            )
         # the dense angular floor leaves the rule's widest steps their DENSE_PER_SEGMENT samples
         dense = constant_arc(rho0_um, feed_um, step, DENSE_PER_SEGMENT * min_points_per_rev).phi
         w = np.ascontiguousarray(commands(dense), dtype=np.float64)

@@ -427,18 +427,29 @@ def _sweep_progress(started: float) -> Callable[[Any, list[dict]], None]:
         total_now = report.queued
         done = len(report.rows)
         elapsed = time.perf_counter() - started
-        eta = elapsed / done * (total_now - done) if done else float("nan")
+        eta = _eta_text(report, rows_all=report.rows, remaining=total_now - done)
         last = rows[-1]
         what = f"{_case_label(last)}: " + (
             f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else one_line(last["message"], 300)
         )
         click.echo(
             f"[{done:>{len(str(total_now))}}/{total_now}] {report.failed} failed | {elapsed:6.1f} s, "
-            f"ETA {eta:6.0f} s | {what}",
+            f"{eta} | {what}",
             err=True,
         )
 
     return progress
+
+
+def _eta_text(report: Any, rows_all: list[dict], remaining: int) -> str:
+    """The time left, from the measured times of the cases finished so far (their summed
+    case seconds over the workers), not from the wall time, which holds the cluster's start
+    and the kernels' compilation; none until two cases have finished."""
+    times = [r.get("seconds", 0.0) for r in rows_all if r.get("seconds")]
+    if len(times) < 2 or remaining <= 0:
+        return "ETA –" if remaining > 0 else "ETA 0 s"
+    per_case = sum(times) / len(times)
+    return f"ETA {per_case * remaining / max(report.workers, 1):6.0f} s"
 
 
 def _print_sweep_summary(report: Any) -> dict[str, int]:
@@ -467,14 +478,17 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
     for r in [r for r in report.rows if r["status"] != "done"][:5]:
         click.echo(f"failed       {_case_label(r)}: {one_line(r['message'], 300)}")
     click.echo("best P-V per point count (among the cases select may choose):")
-    click.echo(f"  {'target':>10s} {'actual N':>10s} {'best α':>8s} {'P-V nm':>9s}")
-    for row in best_per_point_count(report.cube):
+    rows = best_per_point_count(report.cube)
+    # tables are swept over aspect ratios; a path program's best is named by its case
+    tables = any(r["aspect"] is not None for r in rows)
+    third = "best α" if tables else "case"
+    click.echo(f"  {'target':>10s} {'actual N':>10s} {third:>8s} {'P-V nm':>9s}")
+    for row in rows:
         if row["pv_nm"] is None:
             click.echo(f"  {row['points']:10,.0f} {'–':>10s} {'–':>8s} {'–':>9s}")
-        else:
-            click.echo(
-                f"  {row['points']:10,.0f} {row['n_points']:10,d} {row['aspect']:8.3g} {row['pv_nm']:9.2f}"
-            )
+            continue
+        which = f"{row['aspect']:8.3g}" if tables else f"{row['index']:8d}"
+        click.echo(f"  {row['points']:10,.0f} {row['n_points']:10,d} {which} {row['pv_nm']:9.2f}")
     return counts
 
 
@@ -1054,7 +1068,8 @@ def _realisable_dtheta(dtheta_deg: float) -> float:
     from ftsweep.stages.layouts import nearest_ring_dtheta
 
     realised, n_per_ring = nearest_ring_dtheta(dtheta_deg)
-    if not math.isclose(realised, dtheta_deg, rel_tol=1e-9):
+    # the notice prints Δθ to 7 digits: that printed value, given back, is taken silently
+    if not math.isclose(realised, dtheta_deg, rel_tol=1e-6):
         click.echo(
             f"notice: Δθ = {dtheta_deg:g}° does not divide 360°; using the nearest realisable "
             f"Δθ = {realised:.7g}° ({n_per_ring} points per ring; --strict refuses instead)",

@@ -140,6 +140,7 @@ def execute(
     task: TaskFn = run_task,
     warm: Optional[Callable[[], Any]] = None,
     on_error: Optional[ErrorFn] = None,
+    on_workers: Optional[Callable[[int], None]] = None,
 ) -> None:
     """Run ``task(spec, group)`` for every group of case indices and call ``on_result`` with
     each task's summaries as it finishes.
@@ -151,6 +152,8 @@ def execute(
         task, e.g. to pay numba's compile cost outside the timed cases.
     on_error : the summaries of a task that raised (default :func:`task_failure`); the
         other tasks run on.
+    on_workers : told how many workers the cluster has once connected (an external
+        scheduler's count, not the ``workers`` asked for).
     """
     if not groups:
         return
@@ -162,6 +165,8 @@ def execute(
         return
     client, cluster = _connect(scheduler, workers)
     try:
+        if on_workers is not None:
+            on_workers(len(client.scheduler_info().get("workers", {})))
         if warm is not None:
             client.run(warm)
         _run_distributed(client, groups, spec, task, on_error, on_result)

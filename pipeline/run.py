@@ -232,6 +232,7 @@ def _run_locked(
         on_result,
         task=run_task,
         warm=functools.partial(warm_up, spec.surface, spec.layout, folder),
+        on_workers=lambda n: setattr(report, "workers", n),
     )
     report.wall_s = time.perf_counter() - start
     return report
@@ -281,7 +282,8 @@ def best_per_point_count(path: Path) -> list[dict[str, Any]]:
         rows.append(
             {
                 "points": target,
-                "aspect": case.get("aspect_target", case["aspect_actual"]),
+                # a table sweep's aspect axis; path programs have none worth naming
+                "aspect": case.get("aspect_target"),
                 "pv_nm": case["pv_nm"],
                 "n_points": case["n_points"],
                 "index": flat,

@@ -352,3 +352,68 @@ def test_a_fresh_microprism_spiral_export_verifies(tmp_path, catalogs_with_fresn
     assert res.exit_code == 0, res.output
     res = invoke(["verify", str(out)], catalogs_with_fresnel)
     assert res.exit_code == 0, res.output
+
+
+# ----------------------------------------------------------------------------- probes
+SPIRAL = ["predict", "--surface", "sinewave2d", "--layout", "spiral"]
+PROBES = [
+    # (args, fragment of the one-line message); every one refused before the work starts
+    ([*SPIRAL, "--chord-um", "1e-12"], "over the capacity"),
+    ([*SPIRAL, "--points-per-rev", "3000000"], "over the capacity"),
+    ([*SPIRAL, "--arc-um", "1e-6"], "over the capacity"),
+    ([*SPIRAL, "--points-per-rev", "100", "--nose-radius-um", "1e9"], "GiB"),
+    (["predict", "--surface", "sinewave2d", "--points", "1e300", "--aspect", "1"], "1e+300 points"),
+    (["dpath", "--points-per-cut", "100000"], "more than 20,000,000"),
+    (["dpath", "--transition-step-deg", "1e-9"], "more than 20,000,000"),
+    (["dpath", "--spacing-um", "nan"], "not a finite number"),
+    (["fresnel", "--points-per-turn", "100000000"], "more than the machine holds"),
+    (["fresnel", "--facet-height-um", "1e-6"], "more than the machine holds"),
+    (["fresnel", "--deviation-deg", "nan"], "not a finite number"),
+    (["fresnel", "--safety", "inf"], "not a finite number"),
+    (["predict", "--surface", "path_plugin", "--drho-um", "5", "--dtheta-deg", "2"], "is a file path"),
+    (["predict", "--surface", "object_map", "--drho-um", "5", "--dtheta-deg", "2"], "not a numeric .npy"),
+    (["verify", "{d}/list-sidecar.txt"], "not an ftsweep sidecar"),
+]
+PROBE_SURFACES = """
+path_plugin:
+  description: A plug-in named by a file path (for tests).
+  family: plugin
+  layout: ring
+  aperture: {shape: circle, radius_um: 300.0}
+  params: {function: "/tmp/some_folder/surface.py:f"}
+object_map:
+  description: A height map saved as an object array (a pickle; for tests).
+  family: height_map
+  layout: ring
+  aperture: {shape: circle, radius_um: 300.0}
+  params: {path: data/object_map.npy, spacing_um: [10.0, 10.0]}
+"""
+
+
+@pytest.mark.parametrize("args, fragment", PROBES, ids=[f"{a[0]}-{i}" for i, (a, _) in enumerate(PROBES)])
+def test_every_probe_is_refused_at_once_in_one_line(args, fragment, exports, catalog_dir, tmp_path):
+    import time
+
+    import numpy as np
+
+    with (catalog_dir / "surfaces.yaml").open("a") as fh:
+        fh.write(PROBE_SURFACES)
+    np.save(catalog_dir / "data" / "object_map.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    listed = tmp_path / "list-sidecar.txt"
+    listed.write_bytes(exports["spiral-angle"].read_bytes())
+    listed.with_suffix(".json").write_text("[]")
+    args = [a.replace("{d}", str(tmp_path)) for a in args]
+    invoke(["--help"], catalog_dir)  # imports paid before the clock starts
+    start = time.perf_counter()
+    res = invoke(args, catalog_dir)
+    elapsed = time.perf_counter() - start
+    assert res.exit_code != 0 and isinstance(res.exception, SystemExit), res.output
+    # one message line (a bad option value is shown under click's usage lines, as for any option)
+    last = res.output.strip().splitlines()[-1]
+    assert last.startswith("Error: ") and "Traceback" not in res.output, res.output
+    assert res.output.count("Error") == 1, res.output
+    assert fragment in last and "unexpected error" not in last and "pydantic" not in last, last
+    assert len(last) < 400
+    # refused before the work (measured 0.00-0.14 s in process on the 2-core machine)
+    assert elapsed < 2.0, elapsed
+    print(f"{' '.join(args[:3])}: {elapsed:.2f} s")

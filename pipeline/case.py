@@ -565,7 +565,7 @@ def spiral_points(case: Case, surface_spec: Any, feed_um: float) -> float:
     if rule == "arc":
         return spiral.path_length_um(rho0, feed_um) / value
     curvature = catalogs.curvature_bound(surface_spec)
-    if curvature is not None:
+    if curvature is not None and math.isfinite(curvature):
         # a chord of length s on a curve of curvature ≤ K deviates by ≤ K·s²/8 ([4] eq. 4), so
         # the budget needs points no closer than sqrt(8Δ/K): an upper estimate of the count,
         # refused only when even a tenth of it is over the capacity

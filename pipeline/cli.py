@@ -480,7 +480,7 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
     click.echo("best P-V per point count (among the cases select may choose):")
     rows = best_per_point_count(report.cube)
     # tables are swept over aspect ratios; a path program's best is named by its case
-    tables = any(r["aspect"] is not None for r in rows)
+    tables = any(r["table"] for r in rows)
     third = "best α" if tables else "case"
     click.echo(f"  {'target':>10s} {'actual N':>10s} {third:>8s} {'P-V nm':>9s}")
     for row in rows:
@@ -581,9 +581,11 @@ def export(
     force: bool,
     trust_plugins: bool,
 ) -> None:
-    """Export the chosen layout as a C header for the FTS controller, or a spiral program as
-    plain text (one line per point: C [deg] X [mm] Z [mm], under a header of units, surface,
-    tool, budgets and predicted P-V; e.g. -o outputs/part.txt).
+    """Export the chosen case of a cube: a ring or mesh table (layered or not) as a C header
+    for the FTS controller (-o FILE.h), a spiral program (layered or not) as plain-text lines
+    C [deg] X [mm] Z [mm], or a D-path program as lines t [s] C [deg] X [mm] Z [mm] (-o
+    FILE.txt), each under a header of units, surface, tool, budgets and predicted P-V. Fresnel
+    programs are exported by `ftsweep fresnel -o FILE.txt`; `ftsweep verify FILE` checks any.
 
     The table is stored as fixed-point integers (unit and type from the machine catalog) in
     the order the controller indexes it, with macros for the layout, pitches, origin, units,

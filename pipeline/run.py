@@ -276,7 +276,16 @@ def best_per_point_count(path: Path) -> list[dict[str, Any]]:
     rows = []
     for target, flat in query.best_per_points(ds):
         if flat is None:
-            rows.append({"points": target, "aspect": None, "pv_nm": None, "n_points": None, "index": None})
+            rows.append(
+                {
+                    "points": target,
+                    "aspect": None,
+                    "pv_nm": None,
+                    "n_points": None,
+                    "index": None,
+                    "table": "aspect" in ds.dims,
+                }
+            )
             continue
         case = query.describe(ds, flat)
         rows.append(
@@ -284,6 +293,7 @@ def best_per_point_count(path: Path) -> list[dict[str, Any]]:
                 "points": target,
                 # a table sweep's aspect axis; path programs have none worth naming
                 "aspect": case.get("aspect_target"),
+                "table": "aspect" in ds.dims,
                 "pv_nm": case["pv_nm"],
                 "n_points": case["n_points"],
                 "index": flat,

@@ -167,13 +167,17 @@ def load_plugin(
     fn = _import_function(target, source)
 
     def call(px: np.ndarray, py: np.ndarray) -> Any:
-        return fn(px, py, **params)
+        try:
+            return fn(px, py, **params)
+        except Exception as exc:
+            # user code: whatever it raises becomes this surface's failure, named
+            raise SurfaceLoadError(f"{source} raised {type(exc).__name__}: {exc}") from None
 
     half = aperture.outer_radius_um
     g = np.linspace(-half, half, 7)
     gx, gy = np.meshgrid(g, g)
     try:
-        out = call(gx, gy)
+        out = fn(gx, gy, **params)
     except Exception as exc:
         raise SurfaceLoadError(
             f"{source}: {target} raised {type(exc).__name__}: {exc} on a test grid"

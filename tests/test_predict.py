@@ -127,7 +127,7 @@ def test_readable_summary_names_units():
         ),
         (
             ["--surface", "lens_array", "--dx-um", "2", "--dy-um", "nan"],
-            "--dy-um: Input should be a finite number",
+            "'--dy-um': nan is not a finite number",
         ),
         (
             ["--surface", "sinewave2d", "--points", "1e5", "--aspect", "-1"],
@@ -135,7 +135,7 @@ def test_readable_summary_names_units():
         ),
         (
             ["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "1", "--feed-um", "inf"],
-            "--feed-um: Input",
+            "'--feed-um': inf is not a finite number",
         ),
         (
             ["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "1", "--n-theta", "0"],

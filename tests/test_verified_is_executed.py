@@ -417,3 +417,86 @@ def test_every_probe_is_refused_at_once_in_one_line(args, fragment, exports, cat
     # refused before the work (measured 0.00-0.14 s in process on the 2-core machine)
     assert elapsed < 2.0, elapsed
     print(f"{' '.join(args[:3])}: {elapsed:.2f} s")
+
+
+# ----------------------------------------------------------------------------- smaller probes
+RAISING_PLUGIN = '''
+import numpy as np
+
+def f(x, y):
+    """Fine on the load-time test grid, raises on a ring of radius 120-130 µm."""
+    r = np.hypot(x, y)
+    if np.any((r > 120) & (r < 130)):
+        raise RuntimeError("boom from the plug-in")
+    return 0.1 * np.sin(x / 30.0)
+'''
+
+
+def test_a_raising_plugin_fails_its_cases_by_name_and_the_sweep_goes_on(catalog_dir, tmp_path, monkeypatch):
+    (tmp_path / "raising_issue26.py").write_text(RAISING_PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with (catalog_dir / "surfaces.yaml").open("a") as fh:
+        fh.write(
+            "raiser:\n  description: raises off its test grid (for tests)\n  family: plugin\n  layout: ring\n"
+            "  aperture: {shape: circle, radius_um: 300.0}\n  params: {function: 'raising_issue26:f'}\n"
+        )
+    spec = tmp_path / "r.yaml"
+    spec.write_text("surface: raiser\nlayout: ring\naxes: {points: [8000], aspect: [1.0, 4.0]}\n")
+    report = run_sweep(str(spec), tmp_path / "r.zarr", scheduler="synchronous", catalog_folder=catalog_dir)
+    assert len(report.rows) == 2 and report.failed == 2
+    for row in report.rows:
+        assert "plug-in raising_issue26:f raised RuntimeError: boom" in row["message"], row["message"]
+
+
+def test_progress_in_a_log_is_plain_periodic_lines():
+    import io
+
+    from ftsweep.progress import Progress
+
+    log = io.StringIO()
+    bar = Progress("work", stream=log, interval_s=3600.0)
+    for done in range(1, 101):
+        bar(done, 100)
+    bar.close()
+    assert "\r" not in log.getvalue()
+    assert log.getvalue().splitlines() == ["work: 100/100"]  # nothing in between within the interval
+
+
+def test_eta_comes_from_measured_case_times_once_two_finished():
+    from types import SimpleNamespace
+
+    from ftsweep.cli import _eta_text
+
+    report = SimpleNamespace(workers=2)
+    assert _eta_text(report, [{"seconds": 5.0}], remaining=10) == "ETA –"
+    # 4 s a case over 2 workers, 10 cases left: 20 s, whatever the wall time so far
+    assert _eta_text(report, [{"seconds": 3.0}, {"seconds": 5.0}], remaining=10).split() == ["ETA", "20", "s"]
+
+
+def test_figures_and_files_respect_the_umask_and_write_errors_name_the_file(tmp_path, monkeypatch):
+    import errno
+    import os
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ftsweep import io
+
+    old = os.umask(0o022)
+    try:
+        fig, ax = plt.subplots()
+        ax.plot([0, 1], [0, 1])
+        path = io.save_figure(fig, tmp_path / "f.png")
+        assert path.stat().st_mode & 0o777 == 0o644
+
+        def full(fd: int) -> None:
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        monkeypatch.setattr(os, "fsync", full)
+        with pytest.raises(OSError, match=r"x\.txt: cannot write it \(No space left on device\)"):
+            io.write_text_atomic(tmp_path / "x.txt", "data")
+        assert not (tmp_path / "x.txt").exists() and not list(tmp_path.glob(".x.txt.*"))
+    finally:
+        os.umask(old)

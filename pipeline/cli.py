@@ -602,15 +602,8 @@ def export(
     except (exp.ExportError, SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(_selection_text(meta["selection"]))
-    if meta["layout"] == "spiral":
-        click.echo(f"program      {out} ({meta['n_points']:,} lines C X Z, CRC-32 0x{meta['crc32']:08x})")
-    elif meta["layout"] == "dpath":
-        click.echo(f"program      {out} ({meta['n_points']:,} lines t C X Z, CRC-32 0x{meta['crc32']:08x})")
-    else:
-        click.echo(
-            f"header       {out} ({meta['shape'][0]} × {meta['shape'][1]} {meta['int_type']}, "
-            f"unit {meta['unit_nm']} nm, CRC-32 0x{meta['crc32']:08x})"
-        )
+    for line in exp.format_of_file(out).exported(out, meta):
+        click.echo(line)
     click.echo(f"sidecar      {exp.sidecar_path(out)}")
 
 
@@ -655,22 +648,8 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, 
     if as_json:
         _echo_json(record)
         return
-    if record["layout"] == "fresnel":
-        _print_fresnel_verified(record)
-        return
-    spiral = record["layout"] in ("spiral", "dpath")
-    covered = "every line" if spiral else "macros and table"
-    click.echo(f"checksum     {record['checksum']} ({covered}) ok; sidecar and file hashes ok")
-    click.echo(
-        f"{'program' if spiral else 'table':<12s} {record['layout']}: {record['n_points']:,} points, "
-        + ("every line as re-planned" if spiral else "every macro and cell as re-planned")
-    )
-    source = "the program's lines" if spiral else "the stored integers"
-    click.echo(
-        f"P-V          {record['pv_nm']:.2f} nm re-simulated from {source} "
-        f"(predicted at export: {record['predicted_pv_nm']:.2f} nm, "
-        f"tolerance {record['pv_tolerance_nm']:.2f} nm) ok"
-    )
+    for line in exp.format_of_file(header).verified(record):
+        click.echo(line)
 
 
 @main.command()
@@ -1201,12 +1180,21 @@ def _summary(r: dict[str, Any]) -> str:
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write the plot of P-V against point count here (PNG). Default: no plot.",
 )
+@click.option(
+    "--allow-different",
+    is_flag=True,
+    help="List cubes made under different conditions (surface, nose radius, feed, machine, "
+    "compensation) instead of refusing them; the differences are flagged.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object (the rows) on stdout.")
-def compare(cubes: tuple[Path, ...], out: Optional[Path], as_json: bool) -> None:
-    """Compare program kinds on one surface: tables (ring, mesh) against spiral programs.
+def compare(cubes: tuple[Path, ...], out: Optional[Path], allow_different: bool, as_json: bool) -> None:
+    """Compare program kinds on one part: tables (ring, mesh), spiral and D-path programs.
 
-    Give the cubes of sweeps on the same surface, e.g. a ring sweep and a spiral sweep. For
-    each point count of each cube (target N of a table sweep, the rule axis of a spiral
+    Give the cubes of sweeps on the same part under the same conditions, e.g. a ring sweep
+    and a spiral sweep: cubes whose surface, nose radius, feed (a swept feed or D-path
+    spacing by its values), machine or compensation differ are refused, naming the
+    difference (--allow-different lists them, flagged). Each cube's conditions are shown;
+    for each point count of each cube (target N of a table sweep, the rule axis of a path
     sweep) its best feasible case is listed with its realised N and P-V, one block per
     program; -o draws P-V against point count, one line per program.
 
@@ -1215,21 +1203,27 @@ def compare(cubes: tuple[Path, ...], out: Optional[Path], as_json: bool) -> None
       ftsweep sweep sinewave-ring && ftsweep sweep sinewave-spiral
       ftsweep compare outputs/sinewave-ring.zarr outputs/sinewave-spiral.zarr -o outputs/compare.png
     """
-    from ftsweep.compare import compare_rows, plot_compare
+    from ftsweep.compare import CONDITIONS, compare_rows, differing, plot_compare
     from ftsweep.cube import CubeError
-    from ftsweep.report import _save
+    from ftsweep.io import save_figure
     from ftsweep.select import SelectError
 
     try:
-        rows = compare_rows(list(cubes))
+        rows, per_cube = compare_rows(list(cubes), allow_different)
     except (SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
-        _save(plot_compare(rows), out)
+        save_figure(plot_compare(rows).figure, out)
+    differ = differing(per_cube)
     if as_json:
-        _echo_json({"rows": rows, "plot": str(out) if out else None})
+        _echo_json(
+            {"rows": rows, "conditions": per_cube, "different": differ, "plot": str(out) if out else None}
+        )
         return
+    for label, cond in per_cube.items():
+        shown = "; ".join(f"{c} {cond[c]}" + (" (differs)" if c in differ else "") for c in CONDITIONS)
+        click.echo(f"conditions   {label}: {shown}")
     head = f"  {'program':<40s} {'target':>10s} {'actual N':>10s} {'P-V nm':>9s} {'RMS nm':>8s}"
     click.echo(head + f" {'interp nm':>9s}")
     for r in rows:
@@ -1323,6 +1317,7 @@ def dpath_command(**opts: Any) -> None:
         "cut_angle_deg": opts["cut_angle_deg"],
         "transition_step_deg": opts["transition_step_deg"],
     }
+    _check_overwrite(opts["out"], opts["force"])
     progress = _progress("dpath", opts["as_json"])
     try:
         base = dstudy.default_case(opts["surface"], opts["machine"], opts["cutting"], options)
@@ -1356,31 +1351,31 @@ def dpath_command(**opts: Any) -> None:
         click.echo(f"program      {result['program']['path']} ({result['program']['lines']:,} lines t C X Z)")
 
 
+def _check_overwrite(out: Optional[Path], force: bool) -> None:
+    """Refuse, before any work, to replace an existing program or its sidecar without --force."""
+    from ftsweep.files import ExportError, check_overwrite, sidecar_path
+
+    if out is not None:
+        try:
+            check_overwrite((out, sidecar_path(out)), force)
+        except ExportError as exc:
+            raise click.ClickException(str(exc)) from None
+
+
 def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool) -> dict[str, Any]:
     """Export the optimised program of ``dpath`` (refusing to replace files without --force)."""
     from ftsweep import dstudy, program
     from ftsweep.case import resolve_specs
-    from ftsweep.export import ExportError, sidecar_path
+    from ftsweep.files import ExportError, check_overwrite, sidecar_path
 
     side = sidecar_path(out)
     try:
-        for path in (out, side):
-            if path.exists() and not force:
-                raise ExportError(f"{path} exists; give --force to replace it")
+        check_overwrite((out, side), force)
         case = dstudy.d_case(base, "optimised")
         meta = program.export_dpath(out, side, case, resolve_specs(case), record, {})
     except (ExportError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None
     return {"path": str(out), "sidecar": str(side), "lines": meta["n_points"]}
-
-
-def _print_fresnel_verified(record: dict[str, Any]) -> None:
-    """What ``verify`` says of a Fresnel program ([2]) that checked out."""
-    click.echo(f"checksum     {record['checksum']} (every line) ok; sidecar and program hashes ok")
-    click.echo(
-        f"program      fresnel: {record['lines']:,} lines t C X Y Z, {record['machining_s']:.1f} s; "
-        "every line within the machine's limits and as re-planned (t, C, X, Y, Z)"
-    )
 
 
 @main.command("fresnel")
@@ -1454,15 +1449,12 @@ def fresnel_command(**opts: Any) -> None:
       ftsweep fresnel -o outputs/fresnel.txt --force
     """
     from ftsweep import fstudy
-    from ftsweep.export import ExportError, sidecar_path
+    from ftsweep.files import ExportError, sidecar_path
 
     keys = ("facet_height_um", "points_per_turn", "deviation_deg", "compensation", "scheme", "safety")
     inp = fstudy.inputs(opts["surface"], opts["machine"], opts["cutting"], **{k: opts[k] for k in keys})
     out = opts["out"]
-    if out is not None and not opts["force"]:
-        for path in (out, sidecar_path(out)):
-            if path.exists():
-                raise click.ClickException(f"{path} exists; give --force to replace it")
+    _check_overwrite(out, opts["force"])
     progress = _progress("timesteps (turns)", opts["as_json"])
     try:
         summary = fstudy.study(inp, progress=progress)

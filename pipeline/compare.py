@@ -1,4 +1,5 @@
-"""``ftsweep compare``: tables against spiral programs on one surface, from their cubes.
+"""``ftsweep compare``: program kinds against each other on one part, from their cubes, under
+the same conditions (surface, tool, feed, machine, compensation: :func:`conditions`).
 
 Each cube contributes one line: for every value of its point axis (target N of a table
 sweep, or the rule axis of a spiral sweep) its best eligible case, the one ``select`` would
@@ -8,6 +9,7 @@ the plot draws P-V against the realised point count, one line per cube (program 
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -23,15 +25,59 @@ def label_of(ds: Any, path: Path) -> str:
     return f"{kind} table {path.stem}"
 
 
-def compare_rows(paths: list[Path]) -> list[dict[str, Any]]:
-    """One row per (cube, point-axis value) with a chosen case: cube label, surface, the
-    axis value, realised N and the case's P-V, RMS and interpolation-only P-V [nm]."""
+# what must match for two cubes to be compared: the part, the tool, the feed, the machine and
+# the compensation (the spindle-angle sampling is the resolution's, recorded per case)
+CONDITIONS = ("surface", "nose_radius_um", "feed_um", "machine", "compensation")
+
+
+def _values_text(values: list[float]) -> str:
+    return ", ".join(f"{v:g}" for v in sorted(set(values)))
+
+
+def conditions(ds: Any) -> dict[str, str]:
+    """The cutting conditions of a cube as its recorded spec and entries give them: surface,
+    nose radius [µm] and feed [µm/rev] (one value, or every value of a swept axis: a D path's
+    spacing is its feed), machine, compensation. Text, to compare and to show."""
+    from ftsweep.sweep import SweepSpec, axis_values
+
+    spec = SweepSpec.model_validate_json(ds.attrs["sweep_spec"])
+    cutting = json.loads(ds.attrs["catalog_entries"])["cutting"][spec.cutting]
+    axes = spec.axes
+    if getattr(axes, "residual_um", None) is not None:
+        feed = "set by the residual budget " + _values_text(axis_values(axes.residual_um)) + " um"
+    else:
+        swept = axes.feed_um if axes.feed_um is not None else getattr(axes, "spacing_um", None)
+        feed = _values_text(axis_values(swept) if swept is not None else [cutting["feed_um"]])
+    radii = (
+        axis_values(axes.nose_radius_um) if axes.nose_radius_um is not None else [cutting["nose_radius_um"]]
+    )
+    return {
+        "surface": spec.surface,
+        "nose_radius_um": _values_text(radii),
+        "feed_um": feed,
+        "machine": spec.machine,
+        "compensation": spec.compensation,
+    }
+
+
+def differing(per_cube: dict[str, dict[str, str]]) -> list[str]:
+    """The conditions whose text differs between the cubes."""
+    return [c for c in CONDITIONS if len({cond[c] for cond in per_cube.values()}) > 1]
+
+
+def compare_rows(
+    paths: list[Path], allow_different: bool = False
+) -> tuple[list[dict[str, Any]], dict[str, dict[str, str]]]:
+    """One row per (cube, point-axis value) with a chosen case: cube label, the axis value,
+    realised N and the case's P-V, RMS and interpolation-only P-V [nm]; and each cube's
+    :func:`conditions` by label. Cubes whose conditions differ are refused, naming the
+    difference, unless ``allow_different``."""
     rows: list[dict[str, Any]] = []
-    surfaces = set()
+    per_cube: dict[str, dict[str, str]] = {}
     for path in paths:
         ds = open_cube(path).load()
-        surfaces.add(ds.attrs.get("surface", "?"))
         label = label_of(ds, Path(path))
+        per_cube[label] = conditions(ds)
         for target, flat in query.best_per_points(ds):
             if flat is None:
                 continue
@@ -46,13 +92,19 @@ def compare_rows(paths: list[Path]) -> list[dict[str, Any]]:
                     "pv_interp_nm": case["pv_interp_nm"],
                 }
             )
-    if len(surfaces) > 1:
+    differ = differing(per_cube)
+    if differ and not allow_different:
+        what = "; ".join(
+            f"{c}: " + " vs ".join(f"{cond[c]} ({label.split()[-1]})" for label, cond in per_cube.items())
+            for c in differ
+        )
         raise SelectError(
-            f"the cubes are of different surfaces ({', '.join(sorted(surfaces))}): compare one part"
+            f"the cubes were made under different conditions ({what}): compare like with like, or give "
+            "--allow-different to list them anyway"
         )
     if not rows:
         raise SelectError("none of the cubes has a computed, feasible case to compare")
-    return sorted(rows, key=lambda r: (r["program"], r["n_points"]))
+    return sorted(rows, key=lambda r: (r["program"], r["n_points"])), per_cube
 
 
 def plot_compare(rows: list[dict[str, Any]], title: str = "") -> Any:

@@ -298,7 +298,7 @@ def document(
 ) -> tuple[list[str], list[str], dict[str, Any]]:
     """The header lines, data lines and sidecar content of a studied Fresnel program: export
     writes them and verify re-derives them from the recorded inputs and entries."""
-    from ftsweep.export import recorded_entries
+    from ftsweep.files import recorded_entries
 
     fplan, steps, specs = s["_plan"], s["_steps"], s["_specs"]
     t = np.concatenate([[0.0], np.cumsum(steps.steps)])
@@ -332,15 +332,15 @@ def document(
 def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, Any]:
     """Write the study's program as ``t C X Y Z`` lines with its sidecar, atomically;
     refused (nothing written) if any line leaves the machine's limits."""
-    from ftsweep import program
+    from ftsweep import files
 
     created = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     head, lines, meta = document(s, inp, created, f"ftsweep {__version__}")
     data = np.array([[float(v) for v in line.split()] for line in lines])
     reason = lines_reason(data, fp.limits_of(s["_specs"][1], inp.machine))
     if reason:
-        raise program.ProgramError(f"the program leaves the limits of machine '{inp.machine}': {reason}")
-    return program.write_program(out, side, head, F_COLUMNS, lines, meta)
+        raise files.ProgramError(f"the program leaves the limits of machine '{inp.machine}': {reason}")
+    return files.write_program(out, side, head, F_COLUMNS, lines, meta)
 
 
 def lines_reason(data: np.ndarray, limits: fp.Limits) -> str:
@@ -352,7 +352,7 @@ def lines_reason(data: np.ndarray, limits: fp.Limits) -> str:
 
 def recorded_inputs(meta: dict[str, Any], side: Path) -> Inputs:
     """The :class:`Inputs` a sidecar recorded, refused with the sidecar named if malformed."""
-    from ftsweep.program import ProgramError
+    from ftsweep.files import ProgramError
 
     try:
         raw = dict(meta["inputs"])
@@ -368,14 +368,13 @@ def verify(
     """Re-read a Fresnel program: CRC (every line) and sidecar, every line within the
     recorded machine's limits (positions, velocities, accelerations by eq. 14), and the
     program planned and timed again from the recorded inputs and entries: every header line
-    equal, every line's t, C, X, Y, Z within ``program.LINE_TOLERANCE``, the sidecar's
+    equal, every line's t, C, X, Y, Z within ``files.LINE_TOLERANCE``, the sidecar's
     summary equal. Raises ``ProgramError`` naming what differs."""
-    from ftsweep import program
-    from ftsweep.export import sidecar_path
+    from ftsweep import files
 
-    doc = program.read_program_file(path, F_MAGIC, F_COLUMNS)
-    meta = program.checked_sidecar(path, doc.fields)
-    side = sidecar_path(path)
+    doc = files.read_program_file(path, F_MAGIC, F_COLUMNS)
+    meta = files.checked_sidecar(path, doc.fields)
+    side = files.sidecar_path(path)
     inp = recorded_inputs(meta, side)
     try:
         entries = meta["catalog_entries"]
@@ -383,17 +382,15 @@ def verify(
             entries["surface"], entries["machine"], entries["cutting"], trust_plugins=trust_plugins
         )
     except catalogs.CatalogError as exc:
-        raise program.ProgramError(f"{side}: {exc}") from None
+        raise files.ProgramError(f"{side}: {exc}") from None
     except (KeyError, TypeError, ValueError) as exc:
-        raise program.ProgramError(
-            f"{side}: the recorded entries cannot be read ({str(exc)[:200]})"
-        ) from None
+        raise files.ProgramError(f"{side}: the recorded entries cannot be read ({str(exc)[:200]})") from None
     reason = lines_reason(doc.data, fp.limits_of(specs[1], inp.machine))
     if reason:
-        raise program.ProgramError(f"{path}: a line leaves the machine's limits: {reason}; do not run it")
+        raise files.ProgramError(f"{path}: a line leaves the machine's limits: {reason}; do not run it")
     s = study(inp, progress=progress, specs=specs)
     planned = document(s, inp, str(meta["created"]), str(meta["generator"]))
-    program.check_document(path, doc, planned, meta, F_COLUMNS)
+    files.check_document(path, doc, planned, meta, F_COLUMNS)
     data = doc.data
     return {
         "layout": "fresnel",

@@ -8,18 +8,14 @@ part's edge, increasing by 360 per revolution), X the radius of the tool on the 
 the compensated tool-tip height; the controller interpolates X and Z linearly in C between
 consecutive lines. ``CRC32`` in the header covers every other line of the file (the header
 lines, the layer offsets and segments included); the header names the sidecar's SHA-256 and
-the sidecar the program's. :func:`verify_program` plans the program again from the recorded
-case and compares it with every line the machine reads: the header lines exactly, every data
-line within :data:`LINE_TOLERANCE` per column, the sidecar's claims with the re-derived ones.
+the sidecar the program's (the shared machinery is :mod:`ftsweep.files`). The verify
+functions plan the program again from the recorded case and compare it with every line the
+machine reads: the header lines exactly, every data line within ``files.LINE_TOLERANCE`` per
+column, the sidecar's claims with the re-derived ones.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
-import math
-import time
-import zlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -28,39 +24,26 @@ import numpy as np
 
 from ftsweep import __version__
 from ftsweep.case import Case, resolve_case, run_case
-from ftsweep.export import (
-    ExportError,
+from ftsweep.files import (
+    ProgramError,
+    check_document,
+    checked_pv,
+    checked_sidecar,
     layer_schedule,
+    now,
+    read_program_file,
     recorded_case_of,
     recorded_entries,
-    sidecar_digest,
+    recorded_extra,
     sidecar_path,
+    write_program,
 )
-from ftsweep.io import dumps_json, write_texts_atomic
 from ftsweep.stages.spiral import SpiralPath
 
 MAGIC = "# ftsweep spiral program"
 COLUMNS = "C_deg X_mm Z_mm"
 # printed digits: 1e-9 mm = 1 pm in X and Z, 1e-9 deg in C
 LINE = "{:.9f} {:.9f} {:.9f}"
-CRC_LINE = "# CRC32: 0x{:08x} over every other line"
-
-# How far a program line may lie from the re-planned one, per column unit: 1 µs, 1e-6°,
-# 1e-6 mm = 1 nm. Lines are printed to 1 ns, 1e-9° and 1 pm and re-planning is deterministic,
-# so an exported program lies far inside; an edit of a nanometre or more is refused.
-LINE_TOLERANCE = {"s": 1e-6, "deg": 1e-6, "mm": 1e-6}
-
-
-class ProgramError(ExportError):
-    """A program file cannot be trusted; the message says why."""
-
-
-def is_program(path: Path) -> bool:
-    """Whether ``path`` starts like an exported spiral, D-path or Fresnel program."""
-    from ftsweep.fstudy import F_MAGIC
-
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        return fh.readline().startswith((MAGIC, D_MAGIC, F_MAGIC))
 
 
 def _data_lines(path: SpiralPath, values_um: np.ndarray) -> list[str]:
@@ -68,15 +51,6 @@ def _data_lines(path: SpiralPath, values_um: np.ndarray) -> list[str]:
     x_mm = path.rho * 1e-3
     z_mm = np.asarray(values_um) * 1e-3
     return [LINE.format(c, x, z) for c, x, z in zip(c_deg, x_mm, z_mm, strict=True)]
-
-
-def _crc(rows: list[str]) -> int:
-    """CRC-32 of the file's lines but its CRC line, joined by newlines."""
-    return zlib.crc32("\n".join(rows).encode("utf-8")) & 0xFFFFFFFF
-
-
-# the sidecar fields that depend on the program's text (left out of the sidecar's digest)
-TEXT_FIELDS = ("program", "program_sha256", "crc32")
 
 
 def spiral_document(
@@ -137,10 +111,6 @@ def spiral_document(
     return head, lines, meta
 
 
-def _now() -> str:
-    return time.strftime("%Y-%m-%dT%H:%M:%S%z")
-
-
 def export_program(
     out: Path,
     side: Path,
@@ -151,25 +121,8 @@ def export_program(
 ) -> dict[str, Any]:
     """Plan the chosen spiral case again from its recorded spec and entries (the same
     program the cube predicted), and write the program and its sidecar atomically."""
-    head, lines, meta = spiral_document(case, specs, chosen, extra, _now(), f"ftsweep {__version__}")
+    head, lines, meta = spiral_document(case, specs, chosen, extra, now(), f"ftsweep {__version__}")
     return write_program(out, side, head, COLUMNS, lines, meta)
-
-
-def _closing_lines(side_name: str, meta: dict[str, Any]) -> list[str]:
-    return [f"# sidecar: {side_name} sha256 {sidecar_digest(meta, TEXT_FIELDS)}"]
-
-
-def write_program(
-    out: Path, side: Path, head: list[str], columns: str, lines: list[str], meta: dict[str, Any]
-) -> dict[str, Any]:
-    """Close the header (the sidecar's digest, the CRC over every other line, the column
-    line), name the program and its digest in the sidecar, and write both atomically."""
-    rows = [*head, *_closing_lines(side.name, meta)]
-    crc = _crc([*rows, columns, *lines])
-    text = "\n".join([*rows, CRC_LINE.format(crc), columns, *lines]) + "\n"
-    meta.update(program=out.name, crc32=crc, program_sha256=hashlib.sha256(text.encode()).hexdigest())
-    write_texts_atomic({side: dumps_json(meta, indent=2) + "\n", out: text})
-    return meta
 
 
 def _values_of(lines: list[str]) -> np.ndarray:
@@ -192,58 +145,10 @@ def _layer_lines(schedule: dict[str, Any] | None) -> list[str]:
     return out
 
 
-class ProgramFile:
-    """A program file as read: its header rows (magic line to the sidecar line), header
-    fields, data lines as written and as numbers, and its CRC-32 as written (``0x…``)."""
-
-    def __init__(
-        self, rows: list[str], fields: dict[str, str], lines: list[str], data: np.ndarray, crc: str
-    ) -> None:
-        self.rows, self.fields, self.lines, self.data, self.crc = rows, fields, lines, data, crc
-
-
 def read_program(path: Path, magic: str = MAGIC, columns: str = COLUMNS) -> tuple[dict[str, str], np.ndarray]:
     """The header fields and the (N, columns) data of a program file, its CRC checked."""
     doc = read_program_file(path, magic, columns)
     return doc.fields, doc.data
-
-
-def read_program_file(path: Path, magic: str, columns: str) -> ProgramFile:
-    """A program file, its CRC (over every line but the CRC line) checked; every data line
-    must hold the columns' count of plain numbers."""
-    with open(path, encoding="utf-8") as fh:
-        text = fh.read()
-    rows = text.split("\n")
-    if not rows or not rows[0].startswith(magic):
-        raise ProgramError(f"{path} is not an ftsweep program of this kind (no '{magic}' first line)")
-    if rows[-1] == "":
-        rows = rows[:-1]
-    try:
-        start = rows.index(columns) + 1
-    except ValueError:
-        raise ProgramError(f"{path}: the column line '{columns}' is missing") from None
-    crc_rows = [i for i, row in enumerate(rows[:start]) if row.startswith("# CRC32:")]
-    if len(crc_rows) != 1:
-        raise ProgramError(f"{path}: the header must hold exactly one CRC32 line; do not run it")
-    others = rows[: crc_rows[0]] + rows[crc_rows[0] + 1 :]
-    stored = rows[crc_rows[0]][len("# CRC32: ") :].split(" ")[0]
-    if stored != f"0x{_crc(others):08x}":
-        raise ProgramError(
-            f"{path}: CRC32 mismatch (header {stored or 'missing'}): a line was changed; do not run it"
-        )
-    head: dict[str, str] = {}
-    for row in rows[1 : start - 1]:
-        key, _, value = row[2:].partition(": ")
-        head[key] = value
-    lines = rows[start:]
-    n_cols = columns.count(" ") + 1
-    try:
-        data = np.array([[float(v) for v in line.split(" ")] for line in lines], dtype=np.float64)
-    except ValueError as exc:
-        raise ProgramError(f"{path}: a data line is not {n_cols} numbers ({exc})") from None
-    if data.ndim != 2 or data.shape[1] != n_cols or not np.all(np.isfinite(data)):
-        raise ProgramError(f"{path}: every data line must hold {columns} as {n_cols} finite numbers")
-    return ProgramFile(rows[: crc_rows[0]], head, lines, data, stored)
 
 
 def verify_program(
@@ -252,25 +157,17 @@ def verify_program(
     pv_tolerance_nm: float | None = None,
     trust_plugins: bool = False,
 ) -> dict[str, Any]:
-    """Check a program and its sidecar against the program its recorded case plans (every
-    header line, every data line within :data:`LINE_TOLERANCE`), then re-simulate the part
-    from the file's own lines. Raises :class:`ProgramError` (an ``ExportError``) naming the
-    first mismatch; returns the re-simulated record with the predicted P-V and the tolerance
-    applied. Spiral, D-path and Fresnel programs are told apart by their first line."""
+    """Check a spiral program and its sidecar against the program its recorded case plans
+    (every header line, every data line within ``LINE_TOLERANCE``: :func:`check_document`),
+    then re-simulate the part from the file's own lines. Raises :class:`ProgramError` (an
+    ``ExportError``) naming the first mismatch; returns the re-simulated record with the
+    predicted P-V and the tolerance applied."""
     path = Path(path)
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        first = fh.readline()
-    if first.startswith(D_MAGIC):
-        return verify_dpath(path, progress, pv_tolerance_nm, trust_plugins)
-    if not first.startswith(MAGIC):
-        from ftsweep import fstudy
-
-        return fstudy.verify(path, trust_plugins)
     doc = read_program_file(path, MAGIC, COLUMNS)
     meta = checked_sidecar(path, doc.fields)
     case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
     planned = spiral_document(
-        case, specs, meta["selection"], _extra_of(meta), meta["created"], meta["generator"]
+        case, specs, meta["selection"], recorded_extra(meta), meta["created"], meta["generator"]
     )
     check_document(path, doc, planned, meta, COLUMNS)
     data = doc.data
@@ -279,107 +176,6 @@ def verify_program(
     spiral_path = SpiralPath("spiral", phi, float(meta["rho0_um"]), float(meta["feed_um"]), rule, value)
     record = run_case(case, specs=specs, progress=progress, program=(spiral_path, data[:, 2] * 1e3))
     return checked_pv(path, meta, record, pv_tolerance_nm)
-
-
-def _extra_of(meta: dict[str, Any]) -> dict[str, Any]:
-    return {k: meta.get(k) for k in ("cube", "cube_git_revision") if k in meta}
-
-
-def check_document(
-    path: Path,
-    doc: ProgramFile,
-    planned: tuple[list[str], list[str], dict[str, Any]],
-    meta: dict[str, Any],
-    columns: str,
-) -> None:
-    """Refuse a program whose header lines are not exactly the re-planned ones, whose data
-    lines leave the re-planned ones by more than :data:`LINE_TOLERANCE`, or whose sidecar
-    claims other than the re-derived ones; each message names the line or field."""
-    head, lines, expected_meta = planned
-    side_name = sidecar_path(Path(str(meta.get("program", path.name)))).name
-    want = [*head, *_closing_lines(side_name, meta)]
-    for number, (a, b) in enumerate(zip(doc.rows, want, strict=False), start=1):
-        if a != b:
-            raise ProgramError(
-                f"{path}: line {number} reads {a[:120]!r} where the recorded case gives {b[:120]!r}; "
-                "do not run it"
-            )
-    if len(doc.rows) != len(want):
-        raise ProgramError(
-            f"{path}: the header has {len(doc.rows)} lines where the recorded case gives {len(want)}; "
-            "do not run it"
-        )
-    check_lines(path, doc.data, lines, columns, len(doc.rows) + 3)
-    _check_claims(path, meta, expected_meta)
-
-
-def check_lines(
-    path: Path, data: np.ndarray, planned_lines: list[str], columns: str, first_line: int
-) -> None:
-    """Every data line within :data:`LINE_TOLERANCE` of the planned one, column by column."""
-    if data.shape[0] != len(planned_lines):
-        raise ProgramError(
-            f"{path}: {data.shape[0]:,} data lines, but the recorded case plans {len(planned_lines):,}; "
-            "do not run it"
-        )
-    planned = np.array([[float(v) for v in line.split()] for line in planned_lines], dtype=np.float64)
-    names = columns.split()
-    for col, name in enumerate(names):
-        tol = LINE_TOLERANCE[name.rsplit("_", 1)[1]]
-        off = np.abs(data[:, col] - planned[:, col])
-        if not off.max(initial=0.0) <= tol:
-            k = int(np.argmax(~(off <= tol)))
-            raise ProgramError(
-                f"{path}: line {first_line + k} has {name} {data[k, col]:.9f}, the recorded case plans "
-                f"{planned[k, col]:.9f} (tolerance {tol:g}; {int(np.sum(~(off <= tol))):,} line(s) off); "
-                "do not run it"
-            )
-
-
-def _check_claims(path: Path, meta: dict[str, Any], expected: dict[str, Any]) -> None:
-    """The sidecar's fields must be the re-derived ones (those depending on the text aside)."""
-    got = json.loads(dumps_json({k: v for k, v in meta.items() if k not in TEXT_FIELDS}))
-    want = json.loads(dumps_json({k: v for k, v in expected.items() if k not in TEXT_FIELDS}))
-    differ = sorted(k for k in set(got) | set(want) if got.get(k) != want.get(k))
-    if differ:
-        raise ProgramError(
-            f"{sidecar_path(path)}: {', '.join(differ[:5])} differ(s) from what the recorded case gives; "
-            "do not run it"
-        )
-
-
-def checked_sidecar(path: Path, head: dict[str, str]) -> dict[str, Any]:
-    """The sidecar of a program, refused unless it and the program name each other."""
-    side = sidecar_path(path)
-    try:
-        meta = json.loads(side.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise ProgramError(f"{side}: the sidecar cannot be read ({exc})") from None
-    if not isinstance(meta, dict):
-        raise ProgramError(f"{side} is not an ftsweep sidecar (a JSON object is expected)")
-    if meta.get("program_sha256") != hashlib.sha256(path.read_bytes()).hexdigest():
-        raise ProgramError(f"{side} does not belong to {path} (SHA-256 of the program differs)")
-    if head.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta, TEXT_FIELDS):
-        raise ProgramError(f"{path}: the sidecar was changed (its SHA-256 differs from the header's)")
-    return dict(meta)
-
-
-def checked_pv(
-    path: Path, meta: dict[str, Any], record: dict[str, Any], pv_tolerance_nm: float | None
-) -> dict[str, Any]:
-    """``record`` (a re-simulation) with the predicted P-V and tolerance; refused when they
-    disagree."""
-    predicted = float(meta["pv_nm"])
-    # Z is printed to 1 pm: the re-simulation agrees to far better than 0.01 nm + 0.1 %
-    tol = 0.01 + 1e-3 * predicted if pv_tolerance_nm is None else pv_tolerance_nm
-    record.update(predicted_pv_nm=predicted, pv_tolerance_nm=tol, checksum=f"0x{int(meta['crc32']):08x}")
-    record["header"] = str(path)
-    if not abs(record["pv_nm"] - predicted) <= tol or not math.isfinite(record["pv_nm"]):
-        raise ProgramError(
-            f"{path}: the program re-simulates to P-V {record['pv_nm']:.3f} nm, not the predicted "
-            f"{predicted:.3f} nm (tolerance {tol:.3f} nm); do not run it"
-        )
-    return record
 
 
 # --------------------------------------------------------------------------- D paths ([5])
@@ -473,7 +269,7 @@ def export_dpath(
     """Plan the chosen D-path case again ([5]) and write it as position-time lines
     (t [s] at constant spindle speed, accumulated C [deg], X [mm], Z [mm]) with its sidecar,
     atomically; refused if any line leaves the machine's axis limits."""
-    head, lines, meta = dpath_document(case, specs, chosen, extra, _now(), f"ftsweep {__version__}")
+    head, lines, meta = dpath_document(case, specs, chosen, extra, now(), f"ftsweep {__version__}")
     data = np.array([[float(v) for v in line.split()] for line in lines])
     reason = _limits_of_lines(specs[1], data)
     if reason:
@@ -501,7 +297,7 @@ def verify_dpath(
             f"{path}: a line leaves the axis limits of machine '{case.machine}': {reason}; do not run it"
         )
     planned = dpath_document(
-        case, specs, meta["selection"], _extra_of(meta), meta["created"], meta["generator"]
+        case, specs, meta["selection"], recorded_extra(meta), meta["created"], meta["generator"]
     )
     check_document(path, doc, planned, meta, D_COLUMNS)
     data = doc.data

@@ -16,7 +16,8 @@ from ftsweep import cube
 from ftsweep.case import build_layout, control_table
 from ftsweep.catalogs import entry
 from ftsweep.cli import main
-from ftsweep.export import ExportError, c_identifier, c_string, export, read_header, verify
+from ftsweep.export import ExportError, export, verify
+from ftsweep.header import c_identifier, c_string, read_header
 from ftsweep.run import run_sweep
 from ftsweep.select import SelectError, choose, open_cube
 from ftsweep.sweep import case_at, load_sweep
@@ -188,7 +189,7 @@ def test_failed_and_infeasible_cases_are_refused(tmp_path, catalog_dir, monkeypa
 
 
 def test_identifiers_are_valid_c_whatever_the_names(ring_cube, tmp_path):
-    from ftsweep.export import C_KEYWORDS
+    from ftsweep.header import C_KEYWORDS
 
     for raw in ("3d lens/array", "ü-mlaut x", "__", "if", "int"):
         ident = c_identifier(raw)

@@ -244,7 +244,7 @@ def test_export_and_verify_round_trip(coarse, tmp_path):
     data = np.loadtxt(out, comments="#", skiprows=lines.index(fstudy.F_COLUMNS) + 1)
     assert np.all(np.diff(data[:, 0]) > 0.0)
     # a changed line is refused (CRC), and so is a line faster than the machine allows
-    from ftsweep.program import ProgramError
+    from ftsweep.files import ProgramError
 
     start = lines.index(fstudy.F_COLUMNS) + 1
     bad = lines.copy()

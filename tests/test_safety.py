@@ -22,7 +22,8 @@ from click.testing import CliRunner
 
 from ftsweep import cube
 from ftsweep.cli import main
-from ftsweep.export import CHECKSUM_MACRO, ExportError, checksum, export, read_header, verify
+from ftsweep.export import ExportError, export, verify
+from ftsweep.header import CHECKSUM_MACRO, checksum, read_header
 from ftsweep.lock import LockError, acquire, lock_path, release
 from ftsweep.run import run_sweep
 from ftsweep.select import SelectError, choose, open_cube
@@ -233,7 +234,7 @@ def test_consistently_forged_prediction_fails_on_the_resimulated_pv(header_copy)
     meta = json.loads(side.read_text())
     meta["pv_nm"] = meta["pv_nm"] / 2
     side.write_text(json.dumps(meta, indent=2))
-    from ftsweep.export import sidecar_digest
+    from ftsweep.files import sidecar_digest
 
     text = _replace_macro(header_copy.read_text(), "PREDICTED_PV_NM", repr(meta["pv_nm"]))
     text = _replace_macro(text, "SIDECAR_SHA256", json.dumps(sidecar_digest(meta)))
@@ -313,7 +314,7 @@ def test_nan_off_the_test_grid_fails_the_case_and_nothing_is_exported(tmp_path, 
 
 
 def test_quantisation_refuses_non_finite_values():
-    from ftsweep.export import quantise
+    from ftsweep.header import quantise
 
     with pytest.raises(ExportError, match="non-finite"):
         quantise(np.array([[1.0, np.nan]]), 1.0, "int32")

@@ -268,7 +268,16 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     png = tmp_path / "cmp.png"
     res = CliRunner().invoke(
         main,
-        ["compare", str(tmp_path / "r.zarr"), str(tmp_path / "a.zarr"), "-o", str(png), "--json"],
+        # the spiral cube sweeps feeds of 2 and 4 µm/rev against the ring's 1: listed, flagged
+        [
+            "compare",
+            str(tmp_path / "r.zarr"),
+            str(tmp_path / "a.zarr"),
+            "-o",
+            str(png),
+            "--json",
+            "--allow-different",
+        ],
         env={"FTSWEEP_CATALOGS": str(catalog_dir)},
     )
     assert res.exit_code == 0, res.output
@@ -277,6 +286,19 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     spiral_rows = [r for r in rows if r["program"].startswith("spiral")]
     assert [r["pv_nm"] for r in spiral_rows] == [best_pv(a, 40), best_pv(a, 90)]
     assert png.stat().st_size > 0
+    assert json.loads(res.stdout)["different"] == ["feed_um"]
+
+    # cubes made at different feeds are refused, naming the difference; --allow-different
+    # lists them with the difference flagged
+    fast = tmp_path / "fast.yaml"
+    fast.write_text("surface: small_sine\nlayout: spiral\naxes: {points_per_rev: [40], feed_um: [4.0]}\n")
+    run_sweep(str(fast), tmp_path / "f.zarr", scheduler="synchronous", catalog_folder=catalog_dir)
+    args = ["compare", str(tmp_path / "r.zarr"), str(tmp_path / "f.zarr")]
+    res = CliRunner().invoke(main, args, env={"FTSWEEP_CATALOGS": str(catalog_dir)})
+    assert res.exit_code == 1 and "different conditions (feed_um: 1 (r) vs 4 (f))" in res.output
+    res = CliRunner().invoke(main, [*args, "--allow-different"], env={"FTSWEEP_CATALOGS": str(catalog_dir)})
+    assert res.exit_code == 0, res.output
+    assert "feed_um 4 (differs)" in res.output and "nose_radius_um 83;" in res.output
 
     # the report of a spiral cube: P-V against points, the chosen case's map and spectrum
     from ftsweep.report import make_report

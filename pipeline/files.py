@@ -1,0 +1,302 @@
+"""The file machinery every exported kind shares: sidecars (path, digest, the recorded case
+and entries), the layer schedule a layered file carries, atomic writing with ``--force``, and
+for plain-text programs their CRC over every line, reading, and the line-by-line comparison
+with the program the recorded case plans again (:func:`check_document`). The formats
+themselves live with their kinds (:mod:`ftsweep.header`, :mod:`ftsweep.program`,
+:mod:`ftsweep.fstudy`); :mod:`ftsweep.export` dispatches between them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+import zlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ftsweep.case import Case, ResolvedCase, layer_plan
+from ftsweep.catalogs import CatalogError, specs_from_entries
+from ftsweep.io import dumps_json, write_texts_atomic
+from ftsweep.stages.spiral import spiral_radius
+
+
+class ExportError(ValueError):
+    """The header cannot be written or verified; the message says why."""
+
+
+def sidecar_path(header: Path) -> Path:
+    """``FILE.json`` beside ``FILE.h``."""
+    return header.with_suffix(".json")
+
+
+def sidecar_digest(sidecar: dict[str, Any], text_fields: tuple[str, ...] = ("crc32", "header_sha256")) -> str:
+    """SHA-256 of a sidecar's content without the fields that depend on the exported text
+    (``text_fields``: for a header ``crc32`` and ``header_sha256``): the header's
+    ``SIDECAR_SHA256`` macro (a program's ``# sidecar:`` line) holds it."""
+    core = {k: v for k, v in sidecar.items() if k not in text_fields}
+    text = dumps_json(core, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def recorded_entries(specs: tuple[Any, Any, Any]) -> dict[str, Any]:
+    """The (surface, machine, cutting) entries as a sidecar records them."""
+    keys = ("surface", "machine", "cutting")
+    return {key: spec.model_dump(mode="json") for key, spec in zip(keys, specs, strict=True)}
+
+
+def recorded_case_of(
+    meta: dict[str, Any], side: Path, trust_plugins: bool = False
+) -> tuple[Case, tuple[Any, Any, Any]]:
+    """The case and (surface, machine, cutting) specs a sidecar ``side`` recorded;
+    :class:`ExportError` if they cannot be read. A plug-in the sidecar names must be one of
+    the local catalog's unless ``trust_plugins`` (:func:`~ftsweep.catalogs.specs_from_entries`)."""
+    try:
+        entries = meta["catalog_entries"]
+        parts = (entries["surface"], entries["machine"], entries["cutting"])
+        case = Case.model_validate(meta["case"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ExportError(f"{side}: the recorded case cannot be read ({str(exc)[:200]})") from None
+    try:
+        specs = specs_from_entries(*parts, trust_plugins=trust_plugins)
+    except CatalogError as exc:
+        raise ExportError(f"{side}: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise ExportError(f"{side}: the recorded catalog entries cannot be read ({str(exc)[:200]})") from None
+    return case, specs
+
+
+# a controller's layer schedule is a short list: beyond this the part is not one for layers
+MAX_EXPORT_SEGMENTS = 100_000
+
+
+def layer_schedule(rcase: ResolvedCase, values: Any) -> dict[str, Any] | None:
+    """The layer schedule ([3]) of a case whose commands ``values`` [µm] (the table or
+    program as exported) exceed the travel, as a controller runs it: per layer its Z offset
+    [µm] and start radius [µm]; per segment its layer and the accumulated spindle angles
+    [deg] where it starts and ends (C = φ mod 360, X = ρ0 − F·φ/360). None for one pass."""
+    plan = layer_plan(rcase, np.asarray(values, dtype=np.float64))
+    if plan is None:
+        return None
+    if plan.n_segments > MAX_EXPORT_SEGMENTS:
+        raise ExportError(
+            f"the layered plan has {plan.n_segments:,} segments, more than a controller's schedule "
+            f"({MAX_EXPORT_SEGMENTS:,}); nothing exported: use a longer stroke"
+        )
+    return {
+        "n_layers": plan.n_layers,
+        "zone_um": plan.zone_um,
+        "margin_um": plan.margin_um,
+        "travel_um": plan.travel_um,
+        "rho0_um": rcase.rho0_um,
+        "offset_um": plan.offsets_um.tolist(),
+        "start_radius_um": spiral_radius(plan.first_phi, rcase.rho0_um, rcase.feed_um).tolist(),
+        "segment_layer": plan.seg_layer.tolist(),
+        "segment_phi_deg": np.degrees(np.column_stack((plan.seg_start, plan.seg_end))).tolist(),
+    }
+
+
+def check_overwrite(paths: tuple[Path, ...], force: bool) -> None:
+    """Refuse to replace an existing file unless ``force`` (every exported kind writes a file
+    and its sidecar as one unit: neither is replaced without ``--force``)."""
+    for path in paths:
+        if Path(path).exists() and not force:
+            raise ExportError(f"{path} exists; give --force to replace it")
+
+
+class ProgramError(ExportError):
+    """A program file cannot be trusted; the message says why."""
+
+
+# the one CRC line of a program: it covers every other line of the file
+CRC_LINE = "# CRC32: 0x{:08x} over every other line"
+
+# How far a program line may lie from the re-planned one, per column unit: 1 µs, 1e-6°,
+# 1e-6 mm = 1 nm. Lines are printed to 1 ns, 1e-9° and 1 pm and re-planning is deterministic,
+# so an exported program lies far inside; an edit of a nanometre or more is refused.
+LINE_TOLERANCE = {"s": 1e-6, "deg": 1e-6, "mm": 1e-6}
+
+
+# the sidecar fields that depend on the program's text (left out of the sidecar's digest)
+TEXT_FIELDS = ("program", "program_sha256", "crc32")
+
+
+def crc_of(rows: list[str]) -> int:
+    """CRC-32 of the file's lines but its CRC line, joined by newlines."""
+    return zlib.crc32("\n".join(rows).encode("utf-8")) & 0xFFFFFFFF
+
+
+def now() -> str:
+    """The local time an export is stamped with (ISO 8601 with its UTC offset)."""
+    return time.strftime("%Y-%m-%dT%H:%M:%S%z")
+
+
+def closing_lines(side_name: str, meta: dict[str, Any]) -> list[str]:
+    """The header line naming a program's sidecar and its digest (before the CRC line)."""
+    return [f"# sidecar: {side_name} sha256 {sidecar_digest(meta, TEXT_FIELDS)}"]
+
+
+def write_program(
+    out: Path, side: Path, head: list[str], columns: str, lines: list[str], meta: dict[str, Any]
+) -> dict[str, Any]:
+    """Close the header (the sidecar's digest, the CRC over every other line, the column
+    line), name the program and its digest in the sidecar, and write both atomically."""
+    rows = [*head, *closing_lines(side.name, meta)]
+    crc = crc_of([*rows, columns, *lines])
+    text = "\n".join([*rows, CRC_LINE.format(crc), columns, *lines]) + "\n"
+    meta.update(program=out.name, crc32=crc, program_sha256=hashlib.sha256(text.encode()).hexdigest())
+    write_texts_atomic({side: dumps_json(meta, indent=2) + "\n", out: text})
+    return meta
+
+
+class ProgramFile:
+    """A program file as read: its header rows (magic line to the sidecar line), header
+    fields, data lines as written and as numbers, and its CRC-32 as written (``0x…``)."""
+
+    def __init__(
+        self, rows: list[str], fields: dict[str, str], lines: list[str], data: np.ndarray, crc: str
+    ) -> None:
+        self.rows, self.fields, self.lines, self.data, self.crc = rows, fields, lines, data, crc
+
+
+def read_program_file(path: Path, magic: str, columns: str) -> ProgramFile:
+    """A program file, its CRC (over every line but the CRC line) checked; every data line
+    must hold the columns' count of plain numbers."""
+    with open(path, encoding="utf-8") as fh:
+        text = fh.read()
+    rows = text.split("\n")
+    if not rows or not rows[0].startswith(magic):
+        raise ProgramError(f"{path} is not an ftsweep program of this kind (no '{magic}' first line)")
+    if rows[-1] == "":
+        rows = rows[:-1]
+    try:
+        start = rows.index(columns) + 1
+    except ValueError:
+        raise ProgramError(f"{path}: the column line '{columns}' is missing") from None
+    crc_rows = [i for i, row in enumerate(rows[:start]) if row.startswith("# CRC32:")]
+    if len(crc_rows) != 1:
+        raise ProgramError(f"{path}: the header must hold exactly one CRC32 line; do not run it")
+    others = rows[: crc_rows[0]] + rows[crc_rows[0] + 1 :]
+    stored = rows[crc_rows[0]][len("# CRC32: ") :].split(" ")[0]
+    if stored != f"0x{crc_of(others):08x}":
+        raise ProgramError(
+            f"{path}: CRC32 mismatch (header {stored or 'missing'}): a line was changed; do not run it"
+        )
+    head: dict[str, str] = {}
+    for row in rows[1 : start - 1]:
+        key, _, value = row[2:].partition(": ")
+        head[key] = value
+    lines = rows[start:]
+    n_cols = columns.count(" ") + 1
+    try:
+        data = np.array([[float(v) for v in line.split(" ")] for line in lines], dtype=np.float64)
+    except ValueError as exc:
+        raise ProgramError(f"{path}: a data line is not {n_cols} numbers ({exc})") from None
+    if data.ndim != 2 or data.shape[1] != n_cols or not np.all(np.isfinite(data)):
+        raise ProgramError(f"{path}: every data line must hold {columns} as {n_cols} finite numbers")
+    return ProgramFile(rows[: crc_rows[0]], head, lines, data, stored)
+
+
+def recorded_extra(meta: dict[str, Any]) -> dict[str, Any]:
+    """The provenance a program's sidecar records beside its case (the cube it came from)."""
+    return {k: meta.get(k) for k in ("cube", "cube_git_revision") if k in meta}
+
+
+def check_document(
+    path: Path,
+    doc: ProgramFile,
+    planned: tuple[list[str], list[str], dict[str, Any]],
+    meta: dict[str, Any],
+    columns: str,
+) -> None:
+    """Refuse a program whose header lines are not exactly the re-planned ones, whose data
+    lines leave the re-planned ones by more than :data:`LINE_TOLERANCE`, or whose sidecar
+    claims other than the re-derived ones; each message names the line or field."""
+    head, lines, expected_meta = planned
+    side_name = sidecar_path(Path(str(meta.get("program", path.name)))).name
+    want = [*head, *closing_lines(side_name, meta)]
+    for number, (a, b) in enumerate(zip(doc.rows, want, strict=False), start=1):
+        if a != b:
+            raise ProgramError(
+                f"{path}: line {number} reads {a[:120]!r} where the recorded case gives {b[:120]!r}; "
+                "do not run it"
+            )
+    if len(doc.rows) != len(want):
+        raise ProgramError(
+            f"{path}: the header has {len(doc.rows)} lines where the recorded case gives {len(want)}; "
+            "do not run it"
+        )
+    check_lines(path, doc.data, lines, columns, len(doc.rows) + 3)
+    _check_claims(path, meta, expected_meta)
+
+
+def check_lines(
+    path: Path, data: np.ndarray, planned_lines: list[str], columns: str, first_line: int
+) -> None:
+    """Every data line within :data:`LINE_TOLERANCE` of the planned one, column by column."""
+    if data.shape[0] != len(planned_lines):
+        raise ProgramError(
+            f"{path}: {data.shape[0]:,} data lines, but the recorded case plans {len(planned_lines):,}; "
+            "do not run it"
+        )
+    planned = np.array([[float(v) for v in line.split()] for line in planned_lines], dtype=np.float64)
+    names = columns.split()
+    for col, name in enumerate(names):
+        tol = LINE_TOLERANCE[name.rsplit("_", 1)[1]]
+        off = np.abs(data[:, col] - planned[:, col])
+        if not off.max(initial=0.0) <= tol:
+            k = int(np.argmax(~(off <= tol)))
+            raise ProgramError(
+                f"{path}: line {first_line + k} has {name} {data[k, col]:.9f}, the recorded case plans "
+                f"{planned[k, col]:.9f} (tolerance {tol:g}; {int(np.sum(~(off <= tol))):,} line(s) off); "
+                "do not run it"
+            )
+
+
+def _check_claims(path: Path, meta: dict[str, Any], expected: dict[str, Any]) -> None:
+    """The sidecar's fields must be the re-derived ones (those depending on the text aside)."""
+    got = json.loads(dumps_json({k: v for k, v in meta.items() if k not in TEXT_FIELDS}))
+    want = json.loads(dumps_json({k: v for k, v in expected.items() if k not in TEXT_FIELDS}))
+    differ = sorted(k for k in set(got) | set(want) if got.get(k) != want.get(k))
+    if differ:
+        raise ProgramError(
+            f"{sidecar_path(path)}: {', '.join(differ[:5])} differ(s) from what the recorded case gives; "
+            "do not run it"
+        )
+
+
+def checked_sidecar(path: Path, head: dict[str, str]) -> dict[str, Any]:
+    """The sidecar of a program, refused unless it and the program name each other."""
+    side = sidecar_path(path)
+    try:
+        meta = json.loads(side.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ProgramError(f"{side}: the sidecar cannot be read ({exc})") from None
+    if not isinstance(meta, dict):
+        raise ProgramError(f"{side} is not an ftsweep sidecar (a JSON object is expected)")
+    if meta.get("program_sha256") != hashlib.sha256(path.read_bytes()).hexdigest():
+        raise ProgramError(f"{side} does not belong to {path} (SHA-256 of the program differs)")
+    if head.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta, TEXT_FIELDS):
+        raise ProgramError(f"{path}: the sidecar was changed (its SHA-256 differs from the header's)")
+    return dict(meta)
+
+
+def checked_pv(
+    path: Path, meta: dict[str, Any], record: dict[str, Any], pv_tolerance_nm: float | None
+) -> dict[str, Any]:
+    """``record`` (a re-simulation) with the predicted P-V and tolerance; refused when they
+    disagree."""
+    predicted = float(meta["pv_nm"])
+    # Z is printed to 1 pm: the re-simulation agrees to far better than 0.01 nm + 0.1 %
+    tol = 0.01 + 1e-3 * predicted if pv_tolerance_nm is None else pv_tolerance_nm
+    record.update(predicted_pv_nm=predicted, pv_tolerance_nm=tol, checksum=f"0x{int(meta['crc32']):08x}")
+    record["header"] = str(path)
+    if not abs(record["pv_nm"] - predicted) <= tol or not math.isfinite(record["pv_nm"]):
+        raise ProgramError(
+            f"{path}: the program re-simulates to P-V {record['pv_nm']:.3f} nm, not the predicted "
+            f"{predicted:.3f} nm (tolerance {tol:.3f} nm); do not run it"
+        )
+    return record

@@ -13,7 +13,8 @@ import time
 from typing import Any
 
 from ftsweep import __version__, catalogs
-from ftsweep.case import STAGE_TIMERS, Case, LayoutRequest, LineCache, Resolution, run_case
+from ftsweep.case import STAGE_TIMERS, LineCache, run_case
+from ftsweep.spec import Case, LayoutRequest, Resolution
 
 MILLION_CASES = {
     "ring-1M-a8": ("sinewave2d", LayoutRequest(kind="ring", points=1_000_000, aspect=8.0)),

@@ -430,62 +430,6 @@ def recorded_entries(
     }
 
 
-def specs_from_entries(
-    surface: dict[str, Any],
-    machine: dict[str, Any],
-    cutting: dict[str, Any],
-    trust_plugins: bool = False,
-    folder: Path | None = None,
-) -> tuple[Any, Machine, Cutting]:
-    """(surface, machine, cutting) specs validated from recorded entries (a cube's or a
-    header sidecar's provenance), so results are re-derived from what was used, not from the
-    catalogs as they are now.
-
-    Recorded entries are data (README "Trust"): a plug-in surface they name is accepted only
-    if a plug-in entry of the local catalog (``folder``, default :func:`catalog_dir`) names
-    the same function with the same parameters, unless ``trust_plugins``; otherwise
-    :class:`CatalogError`, before anything is imported."""
-    from pydantic import TypeAdapter
-
-    try:
-        spec = TypeAdapter(surface_spec()).validate_python(surface)
-    except ValidationError as exc:
-        raise CatalogError(f"the recorded surface entry is invalid ({one_error(exc)})") from None
-    if spec.family == "plugin" and not trust_plugins:
-        check_plugin_trusted(spec, folder)
-    return spec, Machine.model_validate(machine), Cutting.model_validate(cutting)
-
-
-def check_plugin_trusted(spec: Any, folder: Path | None = None) -> None:
-    """Refuse a recorded plug-in surface that no plug-in entry of the local catalog declares
-    with the same function and parameters (the code a file names is never imported)."""
-    folder = folder or catalog_dir()
-    wanted = spec.params.model_dump(mode="json")
-    try:
-        local = _load("surfaces", folder)
-    except CatalogError:
-        local = {}
-    for entry_spec in local.values():
-        if entry_spec.family == "plugin" and entry_spec.params.model_dump(mode="json") == wanted:
-            return
-    raise CatalogError(
-        f"the file names plug-in {short_repr(wanted['function'])}, which no plug-in entry of the local "
-        f"catalog ({folder / 'surfaces.yaml'}) declares with these parameters; ftsweep does not run code "
-        "named by a file it reads: add the entry to your catalog, or give --trust-plugins if you trust "
-        "this file"
-    )
-
-
-def one_error(exc: ValidationError) -> str:
-    """The first error of a validation, as ``location: message`` (no pydantic URL)."""
-    errors = exc.errors()
-    if not errors:
-        return str(exc).splitlines()[0]
-    e = errors[0]
-    loc = ".".join(str(p) for p in e["loc"])
-    return f"{loc}: {error_text(e)}" if loc else error_text(e)
-
-
 # --------------------------------------------------------------------------- loading
 def catalog_dir() -> Path:
     """Folder holding the catalog YAML files: ``$FTSWEEP_CATALOGS``, else the repository's

@@ -111,8 +111,8 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
     if bins:
         from pydantic import TypeAdapter
 
-        from ftsweep.case import ErrorMap
         from ftsweep.catalogs import aperture_of, surface_spec
+        from ftsweep.record import ErrorMap
 
         surface = TypeAdapter(surface_spec()).validate_python(catalog_entries["surface"][spec.surface])
         centres = ErrorMap.over(aperture_of(surface), bins).centres_um()

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import Any, Optional
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
@@ -190,6 +190,45 @@ def n_rays(path: dpath.DPath, resolution: Any) -> int:
     return int(resolution.samples_per_cell * (path.points_per_cut - 1))
 
 
+class _Setup(NamedTuple):
+    """What every batch of rays of one D-path simulation shares."""
+
+    rcase: Any
+    path: dpath.DPath
+    surface: Callable[..., Any]
+    rotation: float
+    band: float
+    d_nodes: np.ndarray
+    machined: np.ndarray
+    curvature: Any
+    zone_split: float
+
+
+def _setup(rcase: Any) -> tuple[_Setup, np.ndarray]:
+    """The shared pieces and the rays of a D-path simulation: the machined nodes' distances d
+    [µm] along each ray (``points_per_feed`` per spacing), the fully machined ones (a band of
+    spacing + contact window off the first and last cut), the part's surface in its frame."""
+    path: dpath.DPath = rcase.layout
+    g = path.geometry
+    request, res, rc = rcase.case.layout, rcase.case.resolution, rcase.nose_radius_um
+    band = g.spacing_um + compensation.contact_window_um(rcase.gradient_bound, rc)
+    ppf = res.points_per_feed
+    d_nodes = g.outer_um - np.arange((g.n_cycles - 1) * ppf + 1)[::-1] * (g.spacing_um / ppf)
+    machined = (d_nodes >= g.inner_um + band) & (d_nodes <= g.outer_um - band)
+    setup = _Setup(
+        rcase,
+        path,
+        part_surface(request, g, rcase.surface),
+        rotation_of(request),
+        band,
+        d_nodes,
+        machined,
+        catalogs.curvature_bound(rcase.surface_spec),
+        res.zone_split * rcase.aperture.inner_radius_um,
+    )
+    return setup, ray_angles(g, n_rays(path, res))
+
+
 def simulate(
     rcase: Any,
     z_prog: np.ndarray,
@@ -198,94 +237,102 @@ def simulate(
 ) -> tuple[dict[str, float], int, float]:
     """Form error of a D-path case (module docstring; model §5–§6): the metrics in nm, the
     rays and the edge band [µm]."""
-    path: dpath.DPath = rcase.layout
-    g = path.geometry
-    request, res, rc = rcase.case.layout, rcase.case.resolution, rcase.nose_radius_um
     seconds = {} if seconds is None else seconds
-    surface = part_surface(request, g, rcase.surface)
-    rotation = rotation_of(request)
-    window = compensation.contact_window_um(rcase.gradient_bound, rc)
-    band = g.spacing_um + window
-    ppf = res.points_per_feed
-    d_nodes = g.outer_um - np.arange((g.n_cycles - 1) * ppf + 1)[::-1] * (g.spacing_um / ppf)
-    machined = (d_nodes >= g.inner_um + band) & (d_nodes <= g.outer_um - band)
-    rays = ray_angles(g, n_rays(path, res))
-    curvature = catalogs.curvature_bound(rcase.surface_spec)
-    zone_split = res.zone_split * rcase.aperture.inner_radius_um
+    setup, rays = _setup(rcase)
     stats = metrics.empty_stats()
-    mode = rcase.case.compensation
     batches = math.ceil(rays.size / RAYS_PER_BATCH)
-
-    def tick(name: str, start: float) -> float:
-        now = time.perf_counter()
-        seconds[name] = seconds.get(name, 0.0) + now - start
-        return now
-
     for b in range(batches):
-        t = time.perf_counter()
-        theta = rays[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH]
-        pos, w, seg = dpath.crossings(path.phi, path.rho, z_prog, theta)
-        order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
-        pos = np.take_along_axis(pos, order, axis=1)
-        w = np.take_along_axis(w, order, axis=1)
-        seg = np.take_along_axis(seg, order, axis=1)
-        valid = np.isfinite(pos)
-        # passes on a cut (both neighbouring points on it) carry compensated commands; the
-        # transitions' Z is the program's own interpolation ([5] eq. 14), exact as it stands
-        step = np.maximum(seg, 0)
-        on_cut = (
-            valid
-            & (path.cut[step] >= 0)
-            & (path.cut[step] == path.cut[np.minimum(step + 1, path.n_points - 1)])
-        )
-        n_valid = valid.sum(axis=1).astype(np.int64)
-        ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
-        # the fully machined part: the edge band off the first and last cut and off the cuts'
-        # ends, where the turn-round's arcs overhang the part
-        side = np.abs(d_nodes[None, :] * (st / ct)) <= 0.5 * g.length_um - band
-        query = np.where(machined[None, :] & side, d_nodes[None, :] / ct, np.nan)
-        px, py = dpath.to_part(query * ct, query * st, g.centre_um, rotation)
-        inside = rcase.aperture.contains(px, py) & np.isfinite(query)
-        f = np.zeros(query.shape)
-        f[inside] = rcase.surface(px[inside], py[inside])[0]
-        t = tick("sampling", t)
-        w_exact = w.copy()
-        if res.interp_error:
-            w_exact[on_cut], _ = compensation.compensate(
-                surface,
-                pos[on_cut],
-                np.broadcast_to(theta[:, None], pos.shape)[on_cut],
-                rc,
-                mode,
-                rcase.gradient_bound,
-                n_scan=res.compensation_scan,
-                curvature_bound=curvature,
-            )
-        t = tick("compensation", t)
-        z, cusp_r, cusp_z = _envelope(pos, w, n_valid, rc, query)
-        z_exact = _envelope(pos, w_exact, n_valid, rc, query)[0] if res.interp_error else z
-        t = tick("envelope", t)
-        r_part = np.hypot(px, py)
-        metrics.accumulate(z, z_exact, f, inside, r_part, zone_split, stats)
-        cx, cy = dpath.to_part(cusp_r * ct, cusp_r * st, g.centre_um, rotation)
-        d_cusp = cusp_r * ct
-        cusp_in = (
-            rcase.aperture.contains(cx, cy)
-            & (d_cusp >= g.inner_um + band)
-            & (d_cusp <= g.outer_um - band)
-            & (np.abs(cusp_r * st) <= 0.5 * g.length_um - band)
-            & np.isfinite(cusp_r)
-        )
-        fc = np.full(cusp_r.shape, np.nan)
-        fc[cusp_in] = rcase.surface(cx[cusp_in], cy[cusp_in])[0]
-        metrics.accumulate_extrema(cusp_z, fc, cusp_in, np.hypot(cx, cy), zone_split, stats)
-        tick("metrics", t)
+        _ray_batch(setup, z_prog, rays[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH], stats, seconds)
         if progress is not None:
             progress(b + 1, batches)
     errors = metrics.finalize(stats)
-    if not res.interp_error:
+    if not rcase.case.resolution.interp_error:
         errors["pv_interp_nm"] = math.nan
-    return errors, rays.size, band
+    return errors, rays.size, setup.band
+
+
+def _tick(seconds: dict[str, float], name: str, start: float) -> float:
+    now = time.perf_counter()
+    seconds[name] = seconds.get(name, 0.0) + now - start
+    return now
+
+
+def _crossings(path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The passes crossing each ray, sorted by position: positions [µm], commands [µm],
+    segments, validity and whether each lies on a cut (both neighbouring points on it)."""
+    pos, w, seg = dpath.crossings(path.phi, path.rho, z_prog, theta)
+    order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
+    pos = np.take_along_axis(pos, order, axis=1)
+    w = np.take_along_axis(w, order, axis=1)
+    seg = np.take_along_axis(seg, order, axis=1)
+    valid = np.isfinite(pos)
+    # passes on a cut carry compensated commands; the transitions' Z is the program's own
+    # interpolation ([5] eq. 14), exact as it stands
+    step = np.maximum(seg, 0)
+    on_cut = (
+        valid & (path.cut[step] >= 0) & (path.cut[step] == path.cut[np.minimum(step + 1, path.n_points - 1)])
+    )
+    return pos, w, valid, on_cut
+
+
+def _ray_batch(
+    ctx: _Setup, z_prog: np.ndarray, theta: np.ndarray, stats: np.ndarray, seconds: dict[str, float]
+) -> None:
+    """One batch of rays through sampling, exact commands, the envelope of the passes'
+    arcs and the metrics, accumulated into ``stats`` (model §5–§6)."""
+    rcase, path = ctx.rcase, ctx.path
+    g, res, rc = path.geometry, rcase.case.resolution, rcase.nose_radius_um
+    t = time.perf_counter()
+    pos, w, valid, on_cut = _crossings(path, z_prog, theta)
+    n_valid = valid.sum(axis=1).astype(np.int64)
+    ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    # the fully machined part: the edge band off the first and last cut and off the cuts'
+    # ends, where the turn-round's arcs overhang the part
+    side = np.abs(ctx.d_nodes[None, :] * (st / ct)) <= 0.5 * g.length_um - ctx.band
+    query = np.where(ctx.machined[None, :] & side, ctx.d_nodes[None, :] / ct, np.nan)
+    px, py = dpath.to_part(query * ct, query * st, g.centre_um, ctx.rotation)
+    inside = rcase.aperture.contains(px, py) & np.isfinite(query)
+    f = np.zeros(query.shape)
+    f[inside] = rcase.surface(px[inside], py[inside])[0]
+    t = _tick(seconds, "sampling", t)
+    w_exact = w.copy()
+    if res.interp_error:
+        w_exact[on_cut], _ = compensation.compensate(
+            ctx.surface,
+            pos[on_cut],
+            np.broadcast_to(theta[:, None], pos.shape)[on_cut],
+            rc,
+            rcase.case.compensation,
+            rcase.gradient_bound,
+            n_scan=res.compensation_scan,
+            curvature_bound=ctx.curvature,
+        )
+    t = _tick(seconds, "compensation", t)
+    z, cusp_r, cusp_z = _envelope(pos, w, n_valid, rc, query)
+    z_exact = _envelope(pos, w_exact, n_valid, rc, query)[0] if res.interp_error else z
+    t = _tick(seconds, "envelope", t)
+    metrics.accumulate(z, z_exact, f, inside, np.hypot(px, py), ctx.zone_split, stats)
+    _cusp_extrema(ctx, cusp_r, cusp_z, ct, st, stats)
+    _tick(seconds, "metrics", t)
+
+
+def _cusp_extrema(
+    ctx: _Setup, cusp_r: np.ndarray, cusp_z: np.ndarray, ct: np.ndarray, st: np.ndarray, stats: np.ndarray
+) -> None:
+    """The cusp peaks between passes inside the fully machined part into ``stats``."""
+    rcase, g = ctx.rcase, ctx.path.geometry
+    cx, cy = dpath.to_part(cusp_r * ct, cusp_r * st, g.centre_um, ctx.rotation)
+    d_cusp = cusp_r * ct
+    cusp_in = (
+        rcase.aperture.contains(cx, cy)
+        & (d_cusp >= g.inner_um + ctx.band)
+        & (d_cusp <= g.outer_um - ctx.band)
+        & (np.abs(cusp_r * st) <= 0.5 * g.length_um - ctx.band)
+        & np.isfinite(cusp_r)
+    )
+    fc = np.full(cusp_r.shape, np.nan)
+    fc[cusp_in] = rcase.surface(cx[cusp_in], cy[cusp_in])[0]
+    metrics.accumulate_extrema(cusp_z, fc, cusp_in, np.hypot(cx, cy), ctx.zone_split, stats)
 
 
 def _envelope(

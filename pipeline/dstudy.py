@@ -16,7 +16,9 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.case import Case, LayoutRequest, Resolution, resolve_case, run_case
+from ftsweep.case import run_case
+from ftsweep.planning import resolve_case
+from ftsweep.spec import Case, LayoutRequest, Resolution
 from ftsweep.stages import dpath
 
 

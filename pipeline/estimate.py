@@ -12,8 +12,9 @@ import numpy as np
 import xarray as xr
 
 from ftsweep import catalogs
-from ftsweep.case import LayoutRequest, build_layout
 from ftsweep.cube import DONE
+from ftsweep.planning import build_layout
+from ftsweep.spec import LayoutRequest
 from ftsweep.stages import estimate as est
 from ftsweep.sweep import SweepSpec, coordinates
 

@@ -21,8 +21,9 @@ from typing import Any, Optional
 import dask
 
 from ftsweep import allocator
-from ftsweep.case import Case, LayoutRequest, LineCache, run_case
+from ftsweep.case import LineCache, run_case
 from ftsweep.cube import CubeWriter
+from ftsweep.spec import Case, LayoutRequest
 from ftsweep.sweep import SweepSpec, case_at
 
 

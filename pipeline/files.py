@@ -18,10 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.case import Case, ResolvedCase, layer_plan
-from ftsweep.catalogs import CatalogError, specs_from_entries
+from ftsweep.catalogs import CatalogError
 from ftsweep.io import dumps_json, write_texts_atomic
+from ftsweep.planning import ResolvedCase, layer_plan
+from ftsweep.spec import Case
 from ftsweep.stages.spiral import spiral_radius
+from ftsweep.trust import specs_from_entries
 
 
 class ExportError(ValueError):

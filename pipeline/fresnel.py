@@ -170,6 +170,54 @@ def sliced_callable(fn: Callable[..., Any], aperture: Any, facet_height_um: floa
 
 
 # --------------------------------------------------------------------------- planning
+def _facets(
+    fn: Callable[..., Any], aperture: Any, h: float, feed_um: float, points_per_turn: int, max_points: float
+) -> tuple[dict[str, Any], int]:
+    """The surface's range (its interior lowest point, [2] appendix A.2) and the facets of
+    height ``h`` [µm] it slices into; refuses, before the path is made, a program of more than
+    ``max_points`` points (K a turn, a turn per facet at least and one per feed over the reach)."""
+    rng = surface_range(fn, aperture)
+    if not rng["interior"]:
+        raise ff.FresnelError(
+            "the surface's lowest point lies on the aperture's edge: its contours do not close "
+            "inside the part, so it cannot be cut along a quasi-spiral path ([2] appendix A.2: "
+            "split it into sub-regions first)"
+        )
+    n_facets = max(1, math.ceil((rng["max_um"] - rng["f_ref_um"]) / h - 1e-9))
+    # every ray advances at most Δr a turn ([2] eq. 7), and reach_um is 1.5 × the farthest edge
+    turns = max(n_facets, rng["reach_um"] / 1.5 / feed_um)
+    if points_per_turn * turns > max_points:
+        raise ff.FresnelError(
+            f"the path would hold at least {points_per_turn * turns:.3g} points ({n_facets:,} facet(s) of "
+            f"{h:g} µm, {turns:.3g} turns of {points_per_turn:,} points), more than the machine holds "
+            f"({max_points:,.0f}): use a larger --facet-height-um, fewer --points-per-turn or a larger feed"
+        )
+    return rng, n_facets
+
+
+def _commands(
+    fn: Callable[..., Any], path: Any, f_ref_um: float, h: float, rc: float
+) -> tuple[np.ndarray, ...]:
+    """At the path's points: the facet heights f_c [µm] ([2] eq. 3), the exact (eq. 10) and
+    straight-line (eq. 12) compensations e_z [µm], and the slopes ∂f/∂x, ∂f/∂y."""
+    f, gx, gy = fn(path.xy[:, 0], path.xy[:, 1])
+    z = ff.sliced(f, f_ref_um, h, path.level)[0]
+    exact = ff.compensation_exact(fn, path.xy[:, 0], path.xy[:, 1], rc)
+    return z, exact, ff.compensation_straight(gx, gy, rc), gx, gy
+
+
+def _pose(
+    xy: np.ndarray, gx: np.ndarray, gy: np.ndarray, dev: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """C [rad], X, Y [µm] of the path's points ([2] eq. 9, rake face turned ``dev`` [rad])."""
+    phi, x, y = ff.pose(xy, gx, gy, dev)
+    # the closing point is the lowest point itself, where ∇f = 0 leaves eq. 9's angle open:
+    # the spindle carries on at its last speed
+    phi[-1] = 2.0 * phi[-2] - phi[-3]
+    x[-1:], y[-1:] = ff.global_of(phi[-1:], xy[-1:])
+    return phi, x, y
+
+
 def plan(
     fn: Callable[..., Any],
     aperture: Any,
@@ -195,23 +243,8 @@ def plan(
             f"facet height {facet_height_um:g} µm and feed {feed_um:g} µm per turn must be positive"
         )
     start = time.perf_counter()
-    rng = surface_range(fn, aperture)
-    if not rng["interior"]:
-        raise ff.FresnelError(
-            "the surface's lowest point lies on the aperture's edge: its contours do not close "
-            "inside the part, so it cannot be cut along a quasi-spiral path ([2] appendix A.2: "
-            "split it into sub-regions first)"
-        )
+    rng, n_facets = _facets(fn, aperture, float(facet_height_um), float(feed_um), points_per_turn, max_points)
     h = float(facet_height_um)
-    n_facets = max(1, math.ceil((rng["max_um"] - rng["f_ref_um"]) / h - 1e-9))
-    # every ray advances at most Δr a turn ([2] eq. 7), and reach_um is 1.5 × the farthest edge
-    turns = max(n_facets, rng["reach_um"] / 1.5 / float(feed_um))
-    if points_per_turn * turns > max_points:
-        raise ff.FresnelError(
-            f"the path would hold at least {points_per_turn * turns:.3g} points ({n_facets:,} facet(s) of "
-            f"{h:g} µm, {turns:.3g} turns of {points_per_turn:,} points), more than the machine holds "
-            f"({max_points:,.0f}): use a larger --facet-height-um, fewer --points-per-turn or a larger feed"
-        )
     path = ff.plan(
         fn,
         rng["apex_um"],
@@ -223,16 +256,9 @@ def plan(
         rng["reach_um"],
         scheme,
     )
-    f, gx, gy = fn(path.xy[:, 0], path.xy[:, 1])
-    z = ff.sliced(f, rng["f_ref_um"], h, path.level)[0]
-    exact = ff.compensation_exact(fn, path.xy[:, 0], path.xy[:, 1], float(nose_radius_um))
-    straight = ff.compensation_straight(gx, gy, float(nose_radius_um))
+    z, exact, straight, gx, gy = _commands(fn, path, rng["f_ref_um"], h, float(nose_radius_um))
     dev = math.radians(float(deviation_deg))
-    phi, x, y = ff.pose(path.xy, gx, gy, dev)
-    # the closing point is the lowest point itself, where ∇f = 0 leaves eq. 9's angle open:
-    # the spindle carries on at its last speed
-    phi[-1] = 2.0 * phi[-2] - phi[-3]
-    x[-1:], y[-1:] = ff.global_of(phi[-1:], path.xy[-1:])
+    phi, x, y = _pose(path.xy, gx, gy, dev)
     return FresnelPlan(
         path,
         rng["f_ref_um"],

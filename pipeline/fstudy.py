@@ -232,13 +232,25 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    fplan, steps, specs = s["_plan"], s["_steps"], s["_specs"]
     folder.mkdir(parents=True, exist_ok=True)
     stem = folder / f"fresnel-{s['surface']}"
+    out = []
+    for suffix, draw in (
+        ("-path.png", _plot_path),
+        ("-axes.png", _plot_axes),
+        ("-timesteps.png", _plot_steps),
+    ):
+        out.append(save_figure(draw(s), stem.with_name(stem.name + suffix)))
+    return out
+
+
+def _plot_path(s: dict[str, Any]) -> Any:
+    """The facets over the part (edges white) and the quasi-spiral, every 20th turn."""
+    import matplotlib.pyplot as plt
+
+    fplan, specs = s["_plan"], s["_specs"]
     k = fplan.path.points_per_turn
-    out = [stem.with_name(stem.name + "-path.png")]
     fig, ax = plt.subplots(1, 2, figsize=(11, 5))
     aperture = catalogs.aperture_of(specs[0])
     hx, hy = aperture.half_extent_um
@@ -259,10 +271,15 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
     for a in ax:
         a.set_aspect("equal")
     fig.tight_layout()
-    save_figure(fig, out[-1])
+    return fig
 
-    out.append(stem.with_name(stem.name + "-axes.png"))
-    n = min(3 * k, steps.steps.size)
+
+def _plot_axes(s: dict[str, Any]) -> Any:
+    """C, X, Y, Z over the first three turns, at the adaptive timesteps."""
+    import matplotlib.pyplot as plt
+
+    fplan, steps = s["_plan"], s["_steps"]
+    n = min(3 * fplan.path.points_per_turn, steps.steps.size)
     t = np.concatenate([[0.0], np.cumsum(steps.steps[:n])])
     fig, ax = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
     series = (np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um)
@@ -272,9 +289,14 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
     ax[0].set_title("axis trajectories over the first three turns (adaptive timesteps)")
     ax[-1].set_xlabel("t [s]")
     fig.tight_layout()
-    save_figure(fig, out[-1])
+    return fig
 
-    out.append(stem.with_name(stem.name + "-timesteps.png"))
+
+def _plot_steps(s: dict[str, Any]) -> Any:
+    """The first turn's adaptive timesteps, and every turn's mean against the constant one."""
+    import matplotlib.pyplot as plt
+
+    k, steps = s["_plan"].path.points_per_turn, s["_steps"]
     fig, ax = plt.subplots(1, 2, figsize=(11, 4))
     ax[0].plot(np.arange(k), steps.steps[:k] * 1e3)
     ax[0].set(title="first turn: adaptive timesteps", xlabel="step k", ylabel="T [ms]")
@@ -284,8 +306,7 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
     ax[1].set(title="timestep history", xlabel="turn", ylabel="T [ms]", yscale="log")
     ax[1].legend()
     fig.tight_layout()
-    save_figure(fig, out[-1])
-    return out
+    return fig
 
 
 # --------------------------------------------------------------------------- export
@@ -370,7 +391,7 @@ def verify(
     program planned and timed again from the recorded inputs and entries: every header line
     equal, every line's t, C, X, Y, Z within ``files.LINE_TOLERANCE``, the sidecar's
     summary equal. Raises ``ProgramError`` naming what differs."""
-    from ftsweep import files
+    from ftsweep import files, trust
 
     doc = files.read_program_file(path, F_MAGIC, F_COLUMNS)
     meta = files.checked_sidecar(path, doc.fields)
@@ -378,7 +399,7 @@ def verify(
     inp = recorded_inputs(meta, side)
     try:
         entries = meta["catalog_entries"]
-        specs = catalogs.specs_from_entries(
+        specs = trust.specs_from_entries(
             entries["surface"], entries["machine"], entries["cutting"], trust_plugins=trust_plugins
         )
     except catalogs.CatalogError as exc:

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from ftsweep import __version__
-from ftsweep.case import Case, build_layout, control_table, resolve_case, run_case
+from ftsweep.case import run_case
 from ftsweep.files import (
     ExportError,
     layer_schedule,
@@ -35,6 +35,8 @@ from ftsweep.files import (
     sidecar_path,
 )
 from ftsweep.io import dumps_json, write_texts_atomic
+from ftsweep.planning import build_layout, control_table, resolve_case
+from ftsweep.spec import Case
 
 INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}
 LE_DTYPE = {"int16": "<i2", "int32": "<i4"}

@@ -29,9 +29,10 @@ import xarray as xr
 import zarr
 
 from ftsweep import __version__, catalogs, cube
-from ftsweep.case import Case, CaseError, LayoutRequest, Resolution, run_case
+from ftsweep.case import run_case
 from ftsweep.cube import SCHEMA_VERSION, CubeError, CubeWriter, git_revision
 from ftsweep.lock import cube_lock
+from ftsweep.spec import Case, CaseError, LayoutRequest, Resolution
 from ftsweep.sweep import axis_attrs
 
 ASPECT_RANGE = {"ring": (0.3, 400.0), "mesh": (0.08, 16.0)}
@@ -270,6 +271,49 @@ class Optimizer:
         return min(valid, key=lambda r: r["pv_nm"]) if valid else None
 
 
+def _search_record(opt: Optimizer, start_points: float, max_rounds: int, seed: str) -> dict[str, Any]:
+    """What identifies a search (its evaluation cube resumes only the same one)."""
+    search = {
+        "surface": opt.surface,
+        "layout": opt.layout,
+        "tolerance_nm": opt.tol,
+        "start_points": start_points,
+        "machine": opt.machine,
+        "cutting": opt.cutting,
+        "compensation": opt.compensation,
+        "resolution": opt.resolution.model_dump(mode="json"),
+        "max_rounds": max_rounds,
+    }
+    if seed != "scan":  # the default stays out, so earlier evaluation cubes still resume
+        search["seed"] = seed
+    return search
+
+
+def _seeded(
+    opt: Optimizer, spec: Any, seed: str, start_points: float, ratio: float
+) -> tuple[float, float, Any]:
+    """The point count, aspect ratio and record the point-count search starts from: a log scan
+    of nine aspect ratios at ``start_points`` refined around the best (``scan``), or the
+    layout :func:`ftsweep.estimate.seed_layout` predicts for the tolerance, refined
+    (``estimate``)."""
+    lo, hi = ASPECT_RANGE[opt.layout]
+    cap = float(opt.capacity)
+    if seed == "estimate":
+        from ftsweep.estimate import seed_layout
+        from ftsweep.stages.estimate import cusp_nm
+
+        cut = catalogs.entry("cutting", opt.cutting, opt.folder)
+        cusp = cusp_nm(cut.feed_um, cut.nose_radius_um)
+        n, aspect, _ = seed_layout(spec, opt.layout, opt.tol, cap, cusp, (lo, hi), opt.folder)
+        n = min(n, cap)
+        aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 2)
+        return n, aspect, rec
+    n = min(start_points, cap)
+    aspect, rec = opt.best_aspect(n, np.geomspace(lo, hi, 9), "scan")
+    aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 3)
+    return n, aspect, rec
+
+
 def optimize(
     surface: str,
     layout: Optional[str],
@@ -313,44 +357,12 @@ def optimize(
             catalog_folder,
             on_eval,
         )
-        search = {
-            "surface": surface,
-            "layout": layout,
-            "tolerance_nm": tolerance_nm,
-            "start_points": float(start_points),
-            "machine": machine,
-            "cutting": cutting,
-            "compensation": compensation,
-            "resolution": opt.resolution.model_dump(mode="json"),
-            "max_rounds": max_rounds,
-        }
-        if seed != "scan":  # the default stays out, so earlier evaluation cubes still resume
-            search["seed"] = seed
+        search = _search_record(opt, float(start_points), max_rounds, seed)
         reused = opt.open_store(search, max_evaluations(max_rounds), restart)
-        lo, hi = ASPECT_RANGE[layout]
-        cap = opt.capacity
-        ratio = (hi / lo) ** (1 / 8)
-        if seed == "estimate":
-            from ftsweep.estimate import seed_layout
-            from ftsweep.stages.estimate import cusp_nm
-
-            cut = catalogs.entry("cutting", cutting, catalog_folder)
-            n, aspect, _ = seed_layout(
-                spec,
-                layout,
-                tolerance_nm,
-                cap,
-                cusp_nm(cut.feed_um, cut.nose_radius_um),
-                (lo, hi),
-                catalog_folder,
-            )
-            n = min(n, float(cap))
-            aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 2)
-        else:
-            n = min(float(start_points), float(cap))
-            aspect, rec = opt.best_aspect(n, np.geomspace(lo, hi, 9), "scan")
-            aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 3)
+        ratio = (ASPECT_RANGE[layout][1] / ASPECT_RANGE[layout][0]) ** (1 / 8)
+        n, aspect, rec = _seeded(opt, spec, seed, float(start_points), ratio)
         opt.search_points(n, aspect, rec, ratio**0.25, max_rounds)
+        cap = opt.capacity
 
         answer = opt.best_meeting()
         return {

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from ftsweep import __version__
-from ftsweep.case import Case, resolve_case, run_case
+from ftsweep.case import run_case
 from ftsweep.files import (
     ProgramError,
     check_document,
@@ -38,6 +38,8 @@ from ftsweep.files import (
     sidecar_path,
     write_program,
 )
+from ftsweep.planning import resolve_case
+from ftsweep.spec import Case
 from ftsweep.stages.spiral import SpiralPath
 
 MAGIC = "# ftsweep spiral program"

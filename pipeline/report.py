@@ -22,9 +22,10 @@ import numpy as np
 import ftsweep.accessor  # noqa: F401  (registers ds.ftsweep)
 from ftsweep import cube
 from ftsweep.accessor import _axes, plot_map
-from ftsweep.case import build_layout, control_table, resolve_case, run_case
+from ftsweep.case import run_case
 from ftsweep.catalogs import aperture_of
 from ftsweep.io import save_figure, write_text_atomic
+from ftsweep.planning import build_layout, control_table, resolve_case
 from ftsweep.select import SelectError, choose, describe, eligible, open_cube, recorded_case
 from ftsweep.stages import dynamics
 

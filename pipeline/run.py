@@ -18,10 +18,11 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep import catalogs, cube
-from ftsweep.case import LINE_CACHE_MB, CaseError
+from ftsweep.case import LINE_CACHE_MB
 from ftsweep.cube import CubeError
 from ftsweep.executor import TaskSpec, execute, run_task, warm_up
 from ftsweep.lock import cube_lock
+from ftsweep.spec import CaseError
 from ftsweep.sweep import MAX_CASES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
 
 
@@ -171,6 +172,17 @@ def run_sweep(
         )
 
 
+def _undamaged_status(out: Path, already: int) -> tuple[np.ndarray, dict[int, str]]:
+    """The cube's case status with every done case whose chunks are missing or unreadable
+    reset to pending (they are recomputed), and those cases with the reason."""
+    status = cube.read_status(out).ravel()
+    damaged = cube.damaged_cases(out, status) if already else {}
+    if damaged:
+        cube.reset_cases(out, list(damaged))
+        status = cube.read_status(out).ravel()
+    return status, damaged
+
+
 def _run_locked(
     name: str,
     spec: SweepSpec,
@@ -183,12 +195,8 @@ def _run_locked(
 ) -> SweepReport:
     cube.remove_stale_temporaries(out)
     already = prepare_cube(name, spec, out, restart, catalog_folder)
-    status = cube.read_status(out).ravel()
-    damaged = cube.damaged_cases(out, status) if already else {}
-    if damaged:
-        cube.reset_cases(out, list(damaged))
-        status = cube.read_status(out).ravel()
-        already -= len(damaged)
+    status, damaged = _undamaged_status(out, already)
+    already -= len(damaged)
     retry_failed, prune = rerun
     scheduler, workers, line_cache_mb = where
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
@@ -218,15 +226,10 @@ def _run_locked(
 
     start = time.perf_counter()
     assert spec.layout is not None
+    task_spec = TaskSpec(str(out), spec.model_dump_json(), folder, run_id, line_cache_mb)
     execute(
         tasks,
-        TaskSpec(
-            cube=str(out),
-            spec_json=spec.model_dump_json(),
-            catalog_folder=folder,
-            run_id=run_id,
-            line_cache_mb=line_cache_mb,
-        ),
+        task_spec,
         scheduler,
         workers,
         on_result,

@@ -92,8 +92,9 @@ def recorded_case(ds: xr.Dataset, flat: int, trust_plugins: bool = False) -> tup
     """The case at flat index ``flat`` of a cube and the (surface, machine, cutting) entries
     the cube recorded for it. A cube is data: a plug-in surface it names must be one of the
     local catalog's unless ``trust_plugins`` (:func:`~ftsweep.catalogs.specs_from_entries`)."""
-    from ftsweep.catalogs import CatalogError, specs_from_entries
+    from ftsweep.catalogs import CatalogError
     from ftsweep.sweep import SweepSpec, case_at
+    from ftsweep.trust import specs_from_entries
 
     case = case_at(SweepSpec.model_validate_json(ds.attrs["sweep_spec"]), flat)
     entries = json.loads(ds.attrs["catalog_entries"])

@@ -27,8 +27,10 @@ from pydantic import (
 )
 
 from ftsweep import catalogs
-from ftsweep.case import Case, LayoutRequest, Resolution, angular_samples, build_layout
 from ftsweep.catalogs import CatalogError, Strict
+from ftsweep.cost import angular_samples
+from ftsweep.planning import build_layout
+from ftsweep.spec import Case, LayoutRequest, Resolution
 
 MAX_AXIS_VALUES = 100_000
 # every case costs seconds of a core: beyond this many cases a sweep is refused unless the

@@ -8,7 +8,8 @@ import platform
 import pytest
 
 from ftsweep import allocator
-from ftsweep.case import Case, LayoutRequest, run_case
+from ftsweep.case import run_case
+from ftsweep.spec import Case, LayoutRequest
 
 
 @pytest.mark.skipif(platform.system() != "Linux" or not ctypes.util.find_library("c"), reason="glibc only")

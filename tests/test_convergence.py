@@ -9,7 +9,8 @@ from __future__ import annotations
 import pytest
 
 from ftsweep import catalogs
-from ftsweep.case import Case, LayoutRequest, Resolution, run_case
+from ftsweep.case import run_case
+from ftsweep.spec import Case, LayoutRequest, Resolution
 
 REFERENCES = catalogs.entries("references")
 

@@ -12,9 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep import dstudy, program
-from ftsweep.case import Case, CaseError, LayoutRequest, run_case
+from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.export import ExportError, verify
+from ftsweep.spec import Case, CaseError, LayoutRequest
 from ftsweep.stages import dpath
 
 # [5]'s example: l = s = 20 mm, zone centre 30 mm from the C axis (outer edge 40 mm), 40 rpm
@@ -159,7 +160,7 @@ def test_layout_options_are_checked():
 
 
 def test_export_lines_stay_within_the_axis_limits_and_verify(tmp_path):
-    from ftsweep.case import resolve_specs
+    from ftsweep.planning import resolve_specs
 
     case = d_case(spacing_um=500.0, points_per_cut=41)
     record = run_case(case)
@@ -182,7 +183,7 @@ def test_export_lines_stay_within_the_axis_limits_and_verify(tmp_path):
 
 
 def test_export_refuses_a_program_beyond_the_machine(tmp_path):
-    from ftsweep.case import resolve_specs
+    from ftsweep.planning import resolve_specs
 
     case = d_case(spacing_um=500.0, points_per_cut=41)
     record = run_case(case)

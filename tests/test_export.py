@@ -13,11 +13,11 @@ import xarray as xr
 from click.testing import CliRunner
 
 from ftsweep import cube
-from ftsweep.case import build_layout, control_table
 from ftsweep.catalogs import entry
 from ftsweep.cli import main
 from ftsweep.export import ExportError, export, verify
 from ftsweep.header import c_identifier, c_string, read_header
+from ftsweep.planning import build_layout, control_table
 from ftsweep.run import run_sweep
 from ftsweep.select import SelectError, choose, open_cube
 from ftsweep.sweep import case_at, load_sweep

@@ -12,9 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep import catalogs
-from ftsweep.case import Case, LayoutRequest, run_case
+from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError, SurfaceSpec, load_catalog
 from ftsweep.cli import main
+from ftsweep.spec import Case, LayoutRequest
 from ftsweep.stages.surfaces import Aperture, noll_to_nm, radial_section, sinewave2d
 from ftsweep.usersurfaces import SurfaceLoadError, height_map_surface
 

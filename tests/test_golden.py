@@ -17,7 +17,8 @@ from typing import Any
 import pytest
 
 from ftsweep import catalogs, fstudy
-from ftsweep.case import Case, LayoutRequest, Resolution, run_case
+from ftsweep.case import run_case
+from ftsweep.spec import Case, LayoutRequest, Resolution
 
 GOLDEN = Path(__file__).parent / "data" / "golden_cases.json"
 # same code, same platform: identical bits; the bound admits libm/SIMD last digits elsewhere

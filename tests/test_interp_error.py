@@ -10,10 +10,11 @@ import numpy as np
 import xarray as xr
 from click.testing import CliRunner
 
-from ftsweep.case import Case, LayoutRequest, Resolution, run_case
+from ftsweep.case import run_case
 from ftsweep.cli import main
 from ftsweep.export import export, verify
 from ftsweep.run import run_sweep
+from ftsweep.spec import Case, LayoutRequest, Resolution
 
 SMALL = """
 surface: small_sine

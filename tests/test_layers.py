@@ -11,21 +11,13 @@ from click.testing import CliRunner
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.case import (
-    Case,
-    LayoutRequest,
-    LinePlan,
-    Timer,
-    _line_data,
-    _machined,
-    _table_of,
-    layer_plan,
-    resolve_case,
-    run_case,
-)
+from ftsweep.case import LinePlan, _line_data, _machined, _table_of, run_case
 from ftsweep.cli import main
 from ftsweep.export import export, verify
+from ftsweep.planning import layer_plan, resolve_case
+from ftsweep.record import Timer
 from ftsweep.run import run_sweep
+from ftsweep.spec import Case, LayoutRequest
 from ftsweep.stages import dynamics, interpolation, layers
 from ftsweep.stages.surfaces import FAMILIES
 

@@ -10,9 +10,11 @@ import xarray as xr
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.case import Case, LayoutRequest, LineCache, Resolution, ladder_rung, run_case
+from ftsweep.case import LineCache, run_case
+from ftsweep.cost import ladder_rung
 from ftsweep.cube import TIMING_VARS
 from ftsweep.run import run_sweep
+from ftsweep.spec import Case, LayoutRequest, Resolution
 from ftsweep.sweep import case_lines, load_sweep, plan_tasks
 
 

@@ -14,9 +14,10 @@ import pytest
 from click.testing import CliRunner
 from pydantic import ValidationError
 
-from ftsweep.case import Case, CaseError, LayoutRequest, Resolution, run_case
+from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.cli import main
+from ftsweep.spec import Case, CaseError, LayoutRequest, Resolution
 from ftsweep.sweep import load_sweep
 
 REQUIRED = {"surface", "layout", "n_points", "pv_nm", "rms_nm", "pv_interp_nm", "seconds"}

@@ -27,7 +27,8 @@ NEW_FAMILY = textwrap.dedent(
 
     from pydantic import TypeAdapter
     from ftsweep import catalogs
-    from ftsweep.case import Case, LayoutRequest, run_case
+    from ftsweep.case import run_case
+    from ftsweep.spec import Case, LayoutRequest
 
     entry = {"family": "tilted_plane", "layout": "mesh", "aperture": {"shape": "circle", "radius_um": 300.0},
              "params": {"slope_x": 0.0, "offset_um": 2.0}}

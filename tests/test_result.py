@@ -10,10 +10,11 @@ import xarray as xr
 from click.testing import CliRunner
 
 from ftsweep import cube, result
-from ftsweep.case import Case, LayoutRequest, run_case
+from ftsweep.case import run_case
 from ftsweep.cli import main
 from ftsweep.query import describe
 from ftsweep.run import run_sweep
+from ftsweep.spec import Case, LayoutRequest
 
 KIND_CASES = {
     "ring": Case(surface="small_sine", layout=LayoutRequest(kind="ring", pitch=(10.0, 4.0))),

@@ -11,8 +11,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftsweep.case import Case, CaseError, LayoutRequest, Resolution, resolve_case, run_case
+from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError
+from ftsweep.planning import resolve_case
+from ftsweep.spec import Case, CaseError, LayoutRequest, Resolution
 from ftsweep.stages import interpolation, spiral
 from ftsweep.stages.interpolation import path_grid
 

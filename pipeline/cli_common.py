@@ -1,0 +1,91 @@
+"""What every ``ftsweep`` command shares: option types that refuse NaN and infinities at
+parse time, the one-line error format, strict JSON on stdout, progress on stderr and the
+``--trust-plugins`` option."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Optional
+
+import click
+
+from ftsweep import result
+from ftsweep.io import dumps_json
+
+_RING_PITCH = result.pitch_names("ring")
+_MESH_PITCH = result.pitch_names("mesh")
+
+
+class FiniteRange(click.FloatRange):
+    """A finite float within a range; click refuses anything else naming the option."""
+
+    def convert(self, value: Any, param: Optional[click.Parameter], ctx: Optional[click.Context]) -> Any:
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{number} is not a finite number", param, ctx)
+        return number
+
+
+FINITE = FiniteRange()
+POSITIVE = FiniteRange(min=0.0, min_open=True)
+NON_NEGATIVE = FiniteRange(min=0.0)
+COUNT = click.IntRange(min=1)
+
+# exported files and cubes are data: the plug-ins they name run only from the local catalog
+TRUST_PLUGINS = click.option(
+    "--trust-plugins",
+    is_flag=True,
+    help="Run a plug-in surface the file names even if the local catalog does not declare it "
+    "(plug-ins are code: only for files you trust; README 'Trust').",
+)
+
+
+def fail(message: str) -> None:
+    raise click.UsageError(message)
+
+
+MESSAGE_LIMIT = 1500
+
+
+def one_line(text: str, limit: int = MESSAGE_LIMIT) -> str:
+    """A message on one line: its lines joined with "; ", whitespace collapsed and the whole
+    cut at ``limit`` characters, so no input, however large, is echoed in full."""
+    parts = [" ".join(line.split()) for line in str(text).splitlines()]
+    joined = "; ".join(p for p in parts if p).replace(":; ", ": ")
+    return joined if len(joined) <= limit else joined[: limit - 1] + "…"
+
+
+# errors a user can cause: shown as one line, exit 1, no traceback
+USER_ERRORS: tuple[type[BaseException], ...] = (
+    ValueError,
+    OSError,
+    RuntimeError,
+    MemoryError,
+    RecursionError,
+)
+
+
+def _nan_safe(value: Any) -> Any:  # pragma: no cover - only non-JSON types reach here
+    return str(value)
+
+
+def echo_json(value: Any) -> None:
+    """Exactly one strict JSON document on stdout."""
+    click.echo(dumps_json(value, default=_nan_safe))
+
+
+def stderr_progress(label: str, quiet: bool = False) -> Any:
+    """Progress on stderr (:mod:`ftsweep.progress`): a bar on a terminal, plain lines in a log."""
+    from ftsweep import progress
+
+    return progress.progress(label, quiet)
+
+
+def progress_done(bar: Any) -> None:
+    from ftsweep import progress
+
+    progress.done(bar)
+
+
+def flag(name: str) -> str:
+    return "--" + name.replace("_", "-")

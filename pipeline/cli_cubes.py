@@ -1,0 +1,506 @@
+"""The commands on cubes and exported files: ``sweep``, ``select``, ``export``, ``verify``,
+``report`` and ``compare``."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Optional
+
+import click
+
+from ftsweep import result
+from ftsweep.case import LINE_CACHE_MB
+from ftsweep.catalogs import CatalogError
+from ftsweep.cli_common import (
+    COUNT,
+    NON_NEGATIVE,
+    POSITIVE,
+    TRUST_PLUGINS,
+    FiniteRange,
+    echo_json,
+    one_line,
+    progress_done,
+    stderr_progress,
+)
+from ftsweep.spec import CaseError
+from ftsweep.sweep import MAX_CASES
+
+_RING_PITCH = result.pitch_names("ring")
+_MESH_PITCH = result.pitch_names("mesh")
+
+
+@click.command()
+@click.argument("sweep_name", metavar="NAME|PATH")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Cube to write (a Zarr folder). Default: outputs/<sweep>.zarr.",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDRESS",
+    help="Address of a running dask scheduler (tcp://host:port); also read from "
+    "$DASK_SCHEDULER_ADDRESS. 'synchronous' runs in this process. Default: a local cluster.",
+)
+@click.option("--workers", type=COUNT, help="Worker processes of the local cluster. Default: one per core.")
+@click.option(
+    "--restart",
+    is_flag=True,
+    help="Discard an existing cube and start over (required when the spec changed).",
+)
+@click.option("--retry-failed", is_flag=True, help="Also recompute cases recorded as failed.")
+@click.option(
+    "--max-cases",
+    type=COUNT,
+    default=MAX_CASES,
+    show_default=True,
+    help="Refuse sweeps of more cases than this (each takes seconds of a core).",
+)
+@click.option(
+    "--prune",
+    type=FiniteRange(min=1.0, min_open=True),
+    metavar="FACTOR",
+    help="Leave out cases whose estimated P-V (`ftsweep estimate`) exceeds FACTOR times the best "
+    "estimate of their point count; they are marked pruned, and a run without --prune computes "
+    "them. The estimate was within 0.62-1.23 of the simulation on the reference sweeps, so 3 is safe.",
+)
+@click.option(
+    "--line-cache-mb",
+    type=NON_NEGATIVE,
+    default=LINE_CACHE_MB,
+    show_default=True,
+    help="Memory [MiB] each worker may keep of the lines (surface samples, exact commands and "
+    "their envelope) that cases on the same angular sampling share; 0 computes every case on its "
+    "own. Results are the same either way. resolution.angular_ladder in the spec makes cases share.",
+)
+def sweep(
+    sweep_name: str,
+    out: Optional[Path],
+    scheduler: Optional[str],
+    workers: Optional[int],
+    restart: bool,
+    retry_failed: bool,
+    max_cases: int,
+    prune: Optional[float],
+    line_cache_mb: float,
+) -> None:
+    """Run a sweep of point counts and aspect ratios into a Zarr result cube.
+
+    NAME is a spec in catalogs/sweeps/ (e.g. sinewave-ring, lens-array-mesh), or give a
+    path to a YAML file. Every case is written into its own region of the cube as soon as
+    it finishes. Re-running the same command computes only what is missing, so an
+    interrupted or killed run loses nothing already written; done cases whose data files are
+    missing or unreadable are recomputed. A cube made from a different spec is refused unless
+    --restart, which discards the cube and starts over. One process writes a cube at a time:
+    a second sweep on the same cube (also with --restart) is refused while the first runs.
+
+    \b
+    Examples:
+      ftsweep sweep sinewave-ring
+      ftsweep sweep my-sweep.yaml --out outputs/my.zarr --workers 2
+      ftsweep sweep lens-array-mesh --scheduler tcp://127.0.0.1:8786
+    """
+    from ftsweep.cube import CubeError
+    from ftsweep.executor import ExecutorError
+    from ftsweep.lock import LockError
+    from ftsweep.run import axis_summary, run_sweep
+    from ftsweep.sweep import load_sweep
+
+    try:
+        name, spec = load_sweep(sweep_name)
+    except CatalogError as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
+    progress = _sweep_progress(time.perf_counter())
+
+    try:
+        report = run_sweep(
+            sweep_name,
+            out,
+            scheduler,
+            workers,
+            restart,
+            retry_failed,
+            progress=progress,
+            max_cases=max_cases,
+            prune=prune,
+            line_cache_mb=line_cache_mb,
+        )
+    except (CatalogError, CubeError, CaseError, LockError, ExecutorError) as exc:
+        raise click.ClickException(str(exc)) from None
+    _report_problems(report)
+    counts = _print_sweep_summary(report)
+    if counts["pending"] or counts["failed"]:
+        sys.exit(1)
+
+
+def _report_problems(report: Any) -> None:
+    """Say which done cases were recomputed (damaged) and refuse a run whose cases could not
+    be started (they stay pending)."""
+    for index, reason in sorted(report.damaged.items())[:5]:
+        click.echo(f"recomputed   case {index}: it was done but {reason}", err=True)
+    errors = [r for r in report.rows if r["status"] == "error"]
+    if errors:
+        first = errors[0]
+        raise click.ClickException(
+            f"{len(errors)} case(s) could not be run and stay pending; first: {_case_label(first)}: "
+            f"{first['message']}"
+        )
+
+
+def _case_label(row: dict[str, Any]) -> str:
+    if row.get("points") is None or row.get("aspect") is None:
+        return f"case {row['index']}"  # a spiral case: no target count and aspect
+    return f"case {row['index']} (N≈{row['points']:,.0f} α={row['aspect']:.3g})"
+
+
+def _sweep_progress(started: float) -> Callable[[Any, list[dict]], None]:
+    """A progress line on stderr per finished task: cases done, failures, time, ETA, last case."""
+
+    def progress(report: Any, rows: list[dict]) -> None:
+        total_now = report.queued
+        done = len(report.rows)
+        elapsed = time.perf_counter() - started
+        eta = _eta_text(report, rows_all=report.rows, remaining=total_now - done)
+        last = rows[-1]
+        what = f"{_case_label(last)}: " + (
+            f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else one_line(last["message"], 300)
+        )
+        click.echo(
+            f"[{done:>{len(str(total_now))}}/{total_now}] {report.failed} failed | {elapsed:6.1f} s, "
+            f"{eta} | {what}",
+            err=True,
+        )
+
+    return progress
+
+
+def _eta_text(report: Any, rows_all: list[dict], remaining: int) -> str:
+    """The time left, from the measured times of the cases finished so far (their summed
+    case seconds over the workers), not from the wall time, which holds the cluster's start
+    and the kernels' compilation; none until two cases have finished."""
+    times = [r.get("seconds", 0.0) for r in rows_all if r.get("seconds")]
+    if len(times) < 2 or remaining <= 0:
+        return "ETA –" if remaining > 0 else "ETA 0 s"
+    per_case = sum(times) / len(times)
+    return f"ETA {per_case * remaining / max(report.workers, 1):6.0f} s"
+
+
+def _print_sweep_summary(report: Any) -> dict[str, int]:
+    """The end-of-run summary on stdout: counts, throughput, failures, best per point count."""
+    from ftsweep.run import best_per_point_count, cube_counts
+
+    counts = cube_counts(report.cube)
+    click.echo(f"cube         {report.cube}")
+    click.echo(
+        f"cases        {report.total} in all: {counts['done']} done, {counts['failed']} failed, "
+        f"{counts['pending']} pending, {counts['pruned']} pruned ({report.skipped} were done already, "
+        f"{len(report.rows)} run now)"
+    )
+    busy = sum(r.get("seconds", 0.0) for r in report.rows)
+    rate = len(report.rows) / report.wall_s if report.wall_s > 0 else float("nan")
+    click.echo(
+        f"wall time    {report.wall_s:.1f} s with {report.workers} worker(s): {rate:.3g} cases/s; "
+        f"summed case time {busy:.1f} s"
+    )
+    reused = [r.get("reused_batches", 0) for r in report.rows if r["status"] == "done"]
+    if any(reused):
+        click.echo(
+            f"shared lines {sum(1 for n in reused if n)} case(s) reused {sum(reused):,} batches of lines "
+            "computed by an earlier case on the same worker"
+        )
+    for r in [r for r in report.rows if r["status"] != "done"][:5]:
+        click.echo(f"failed       {_case_label(r)}: {one_line(r['message'], 300)}")
+    click.echo("best P-V per point count (among the cases select may choose):")
+    rows = best_per_point_count(report.cube)
+    # tables are swept over aspect ratios; a path program's best is named by its case
+    tables = any(r["table"] for r in rows)
+    third = "best α" if tables else "case"
+    click.echo(f"  {'target':>10s} {'actual N':>10s} {third:>8s} {'P-V nm':>9s}")
+    for row in rows:
+        if row["pv_nm"] is None:
+            click.echo(f"  {row['points']:10,.0f} {'–':>10s} {'–':>8s} {'–':>9s}")
+            continue
+        which = f"{row['aspect']:8.3g}" if tables else f"{row['index']:8d}"
+        click.echo(f"  {row['points']:10,.0f} {row['n_points']:10,d} {which} {row['pv_nm']:9.2f}")
+    return counts
+
+
+def _target_text(value: float) -> str:
+    """A sweep axis value: whole counts with thousands separators, others to 4 digits."""
+    return f"{value:,.0f}" if value == round(value) and abs(value) >= 1000 else f"{value:.4g}"
+
+
+def _selection_text(chosen: dict[str, Any]) -> str:
+    if chosen["layout"] in ("spiral", "dpath"):
+        pitch = f"mean Δφ = {chosen['dphi_deg']:.4g}°, mean Δs = {chosen['ds_um']:.4g} µm"
+    elif chosen["layout"] == "ring":
+        pitch = f"Δρ = {chosen['drho_um']:.4g} µm, Δθ = {chosen['dtheta_deg']:.4g}°"
+    else:
+        pitch = f"Δx = {chosen['dx_um']:.4g} µm, Δy = {chosen['dy_um']:.4g} µm"
+    interp = (
+        f"interpolation alone {chosen['pv_interp_nm']:.2f} nm"
+        if math.isfinite(chosen["pv_interp_nm"])
+        else "interpolation alone not simulated"
+    )
+    targets = ", ".join(
+        f"{name[: -len('_target')]} {_target_text(value)}"
+        for name, value in chosen.items()
+        if name.endswith("_target")
+    )
+    return "\n".join(
+        [
+            f"rule         {chosen['rule']}",
+            f"case         {chosen['index']} ({targets})",
+            f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch} "
+            f"(α = {chosen['aspect_actual']:.4g})",
+            f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, {interp})",
+        ]
+    )
+
+
+@click.command()
+@click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--budget-points", type=COUNT, help="Best aspect ratio at or under this many points.")
+@click.option("--tolerance-nm", type=POSITIVE, help="Fewest points whose P-V meets this tolerance [nm].")
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def select(
+    cube_path: Path, budget_points: Optional[int], tolerance_nm: Optional[float], as_json: bool
+) -> None:
+    """Choose the layout for production from a sweep's cube.
+
+    Only computed, feasible cases within the controller's capacity are ever chosen. With
+    --budget-points: the lowest P-V at or under that many points. With --tolerance-nm: the
+    smallest layout that meets the tolerance; when none does, say so and show the best.
+    """
+    from ftsweep.cube import CubeError
+    from ftsweep.select import SelectError, choose, open_cube
+
+    try:
+        chosen = choose(open_cube(cube_path), budget_points, tolerance_nm)
+    except (SelectError, CubeError) as exc:
+        raise click.ClickException(str(exc)) from None
+    if as_json:
+        echo_json(chosen)
+    else:
+        click.echo(_selection_text(chosen))
+    if chosen.get("met") is False:
+        click.echo(f"tolerance    not met: no case reaches {tolerance_nm:g} nm", err=True)
+        sys.exit(1)
+
+
+@click.command()
+@click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--budget-points", type=COUNT, help="Export the best layout at or under this many points.")
+@click.option("--tolerance-nm", type=POSITIVE, help="Export the smallest layout meeting this P-V [nm].")
+@click.option("--case", "index", type=int, help="Export the case at this flat index of the cube.")
+@click.option(
+    "-o",
+    "--output",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Header file to write (FILE.h); the sidecar FILE.json is written beside it.",
+)
+@click.option("--name", help="Prefix of the C identifiers. Default: the file name.")
+@click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
+@TRUST_PLUGINS
+def export(
+    cube_path: Path,
+    budget_points: Optional[int],
+    tolerance_nm: Optional[float],
+    index: Optional[int],
+    out: Path,
+    name: Optional[str],
+    force: bool,
+    trust_plugins: bool,
+) -> None:
+    """Export the chosen case of a cube: a ring or mesh table (layered or not) as a C header
+    for the FTS controller (-o FILE.h), a spiral program (layered or not) as plain-text lines
+    C [deg] X [mm] Z [mm], or a D-path program as lines t [s] C [deg] X [mm] Z [mm] (-o
+    FILE.txt), each under a header of units, surface, tool, budgets and predicted P-V. Fresnel
+    programs are exported by `ftsweep fresnel -o FILE.txt`; `ftsweep verify FILE` checks any.
+
+    The table is stored as fixed-point integers (unit and type from the machine catalog) in
+    the order the controller indexes it, with macros for the layout, pitches, origin, units,
+    surface, cutting conditions, predicted P-V, generator and a CRC-32 of the table. A JSON
+    sidecar holds the same metadata and the full case spec. Both are written atomically.
+    Failed, pending, infeasible and over-capacity cases are refused.
+    """
+    from ftsweep import export as exp
+    from ftsweep.cube import CubeError
+    from ftsweep.select import SelectError
+
+    try:
+        meta = exp.export(cube_path, out, budget_points, tolerance_nm, index, force, name, trust_plugins)
+    except (exp.ExportError, SelectError, CubeError) as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(_selection_text(meta["selection"]))
+    for line in exp.format_of_file(out).exported(out, meta):
+        click.echo(line)
+    click.echo(f"sidecar      {exp.sidecar_path(out)}")
+
+
+@click.command()
+@click.argument("header", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option(
+    "--pv-tolerance-nm",
+    type=NON_NEGATIVE,
+    help="Largest allowed |re-simulated − predicted| P-V [nm]. Default: a table's unit (the "
+    "quantisation bound) + 0.1 % of the P-V; a program's 0.01 nm + 0.1 %.",
+)
+@TRUST_PLUGINS
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, as_json: bool) -> None:
+    """Check an exported file as the machine will read it, against the program its sidecar's
+    case plans: a controller header (ring or mesh table, layered or not: FILE.h) or a path
+    program (spiral, layered spiral, D path, Fresnel: FILE.txt).
+
+    \b
+    Exit 0 only if everything the machine will use checks out:
+    - the CRC-32 over every line the machine reads, the sidecar's SHA-256 of the file and
+      the file's SHA-256 of the sidecar;
+    - the file is exactly what export writes for the recorded case: every macro value (no
+      comment or expression inside one), every header and layer/segment line; every table
+      cell within one unit of the re-planned table, every program line (t, C, X, Y, Z)
+      within 1 µs, 1e-6° and 1 nm of the re-planned one;
+    - a D-path or Fresnel program: every line within the machine's axis limits;
+    - a table or spiral/D-path program: the P-V re-simulated from the file as stored within
+      the tolerance of the P-V predicted at export.
+    Otherwise exit 1 naming the first difference: do not load that file. Files are data: a
+    plug-in surface they name runs only if the local catalog declares it (--trust-plugins).
+    """
+    from ftsweep import export as exp
+
+    progress = stderr_progress("re-simulating", as_json)
+    try:
+        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins)
+    except (exp.ExportError, CaseError, CatalogError) as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        progress_done(progress)
+    if as_json:
+        echo_json(record)
+        return
+    for line in exp.format_of_file(header).verified(record):
+        click.echo(line)
+
+
+@click.command()
+@click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Folder for the figures and index.html. Default: <cube>-report beside the cube.",
+)
+@click.option(
+    "--case",
+    "index",
+    type=int,
+    help="Case (flat index) for the error map and spectrum. Default: the best at the largest budget.",
+)
+@click.option(
+    "--map-bins",
+    type=click.IntRange(min=8),
+    default=160,
+    show_default=True,
+    help="Bins per side of the error map.",
+)
+@TRUST_PLUGINS
+def report(
+    cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_bins: int, trust_plugins: bool
+) -> None:
+    """Figures of a sweep's cube and one HTML page that shows them with its metadata.
+
+    P-V against point count and against aspect ratio (optimum marked), a heat map of P-V,
+    the error map of the chosen case over the part and its W command spectrum with the servo
+    bandwidth. The error map needs a re-simulation of that case, which shows progress.
+    """
+    from ftsweep.cube import CubeError
+    from ftsweep.report import make_report
+    from ftsweep.select import SelectError
+
+    progress = stderr_progress("error map")
+    click.echo("plotting the cube; re-simulating the chosen case for its error map ...", err=True)
+    try:
+        paths = make_report(cube_path, out_dir, index, map_bins, progress, trust_plugins)
+    except (CubeError, SelectError, CaseError) as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        progress_done(progress)
+    for name, path in paths.items():
+        click.echo(f"{name:14s} {path}")
+
+
+@click.command()
+@click.argument(
+    "cubes",
+    nargs=-1,
+    required=True,
+    metavar="CUBE...",
+    type=click.Path(exists=True, file_okay=False, path_type=Path),
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the plot of P-V against point count here (PNG). Default: no plot.",
+)
+@click.option(
+    "--allow-different",
+    is_flag=True,
+    help="List cubes made under different conditions (surface, nose radius, feed, machine, "
+    "compensation) instead of refusing them; the differences are flagged.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object (the rows) on stdout.")
+def compare(cubes: tuple[Path, ...], out: Optional[Path], allow_different: bool, as_json: bool) -> None:
+    """Compare program kinds on one part: tables (ring, mesh), spiral and D-path programs.
+
+    Give the cubes of sweeps on the same part under the same conditions, e.g. a ring sweep
+    and a spiral sweep: cubes whose surface, nose radius, feed (a swept feed or D-path
+    spacing by its values), machine or compensation differ are refused, naming the
+    difference (--allow-different lists them, flagged). Each cube's conditions are shown;
+    for each point count of each cube (target N of a table sweep, the rule axis of a path
+    sweep) its best feasible case is listed with its realised N and P-V, one block per
+    program; -o draws P-V against point count, one line per program.
+
+    \b
+    Example:
+      ftsweep sweep sinewave-ring && ftsweep sweep sinewave-spiral
+      ftsweep compare outputs/sinewave-ring.zarr outputs/sinewave-spiral.zarr -o outputs/compare.png
+    """
+    from ftsweep.compare import CONDITIONS, compare_rows, differing, plot_compare
+    from ftsweep.cube import CubeError
+    from ftsweep.io import save_figure
+    from ftsweep.select import SelectError
+
+    try:
+        rows, per_cube = compare_rows(list(cubes), allow_different)
+    except (SelectError, CubeError) as exc:
+        raise click.ClickException(str(exc)) from None
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        save_figure(plot_compare(rows).figure, out)
+    differ = differing(per_cube)
+    if as_json:
+        echo_json(
+            {"rows": rows, "conditions": per_cube, "different": differ, "plot": str(out) if out else None}
+        )
+        return
+    for label, cond in per_cube.items():
+        shown = "; ".join(f"{c} {cond[c]}" + (" (differs)" if c in differ else "") for c in CONDITIONS)
+        click.echo(f"conditions   {label}: {shown}")
+    head = f"  {'program':<40s} {'target':>10s} {'actual N':>10s} {'P-V nm':>9s} {'RMS nm':>8s}"
+    click.echo(head + f" {'interp nm':>9s}")
+    for r in rows:
+        click.echo(
+            f"  {r['program']:<40s} {r['target']:10,.4g} {r['n_points']:10,d} {r['pv_nm']:9.2f} "
+            f"{r['rms_nm']:8.2f} {r['pv_interp_nm']:9.2f}"
+        )
+    if out is not None:
+        click.echo(f"plot         {out}")

@@ -1,0 +1,356 @@
+"""``ftsweep predict``: one case from command-line options, its record printed."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import click
+from pydantic import ValidationError
+
+from ftsweep import catalogs, result
+from ftsweep.case import run_case
+from ftsweep.catalogs import CatalogError
+from ftsweep.cli_common import FINITE, POSITIVE, echo_json, fail, flag, progress_done, stderr_progress
+from ftsweep.cost import MAX_NODES
+from ftsweep.spec import SPIRAL_FIELDS, Case, CaseError, Resolution
+from ftsweep.usersurfaces import SurfaceLoadError
+
+_RING_PITCH = result.pitch_names("ring")
+_MESH_PITCH = result.pitch_names("mesh")
+_RING_PITCH = result.pitch_names("ring")
+_MESH_PITCH = result.pitch_names("mesh")
+
+
+@click.command()
+@click.option("--surface", required=True, metavar="NAME", help="Surface from catalogs/surfaces.yaml.")
+@click.option(
+    "--layout",
+    type=click.Choice(["ring", "mesh", "spiral"]),
+    default=None,
+    help="Program: a ring (polar grid) or mesh (Cartesian grid) table for an independent FTS "
+    "controller, or a spiral path program (points along the tool path, linear between them). "
+    "Default: the surface's table method.",
+)
+@click.option("--drho-um", type=FINITE, help="Ring pitch Δρ [µm] (ring layout).")
+@click.option(
+    "--dtheta-deg",
+    type=FINITE,
+    help="Angular pitch Δθ [deg] (ring); rounded to the nearest 360/Np with a notice unless --strict.",
+)
+@click.option("--dx-um", type=FINITE, help="Mesh pitch Δx [µm] (mesh layout).")
+@click.option("--dy-um", type=FINITE, help="Mesh pitch Δy [µm] (mesh layout).")
+@click.option("--points", type=FINITE, help="Target number of control points N (with --aspect).")
+@click.option("--aspect", type=FINITE, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh).")
+@click.option("--points-per-rev", type=int, help="Spiral: constant-angle rule, points per revolution.")
+@click.option("--arc-um", type=FINITE, help="Spiral: constant-arc rule, path length between points [µm].")
+@click.option(
+    "--chord-um", type=FINITE, help="Spiral: chord-error budget Δcho [µm] that places each next point."
+)
+@click.option(
+    "--residual-um",
+    type=FINITE,
+    help="Spiral: residual (cusp) budget Δres [µm]; the feed is the largest that keeps every cusp "
+    "within it, from each radial section's curvature (instead of --feed-um).",
+)
+@click.option("--feed-um", type=FINITE, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
+@click.option("--nose-radius-um", type=FINITE, help="Tool nose radius Rc [µm]. Default: cutting entry.")
+@click.option(
+    "--compensation",
+    type=click.Choice(["exact", "slope", "none"]),
+    default="exact",
+    show_default=True,
+    help="Tool-nose compensation of the table: exact arc contact, the slope approximation, or none.",
+)
+@click.option("--machine", default="fts-1m", show_default=True, help="Machine from catalogs/machines.yaml.")
+@click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
+@click.option(
+    "--layers",
+    type=click.Choice(["auto", "off"]),
+    default="auto",
+    show_default=True,
+    help="auto: commands spanning more than the machine's travel are cut in layers, the Z axis "
+    "retracting the part by one stroke zone between them ([3]); off: one pass, infeasible when "
+    "the commands exceed the travel.",
+)
+@click.option(
+    "--z-error-um",
+    type=FINITE,
+    help="Z positioning error per retraction between layers [µm] (positive: each falls short, "
+    "so later layers cut deeper). Default: the machine entry's.",
+)
+@click.option(
+    "--samples-per-cell",
+    type=int,
+    default=Resolution().samples_per_cell,
+    show_default=True,
+    help="Spindle angles simulated per table cell along the outer circumference.",
+)
+@click.option(
+    "--points-per-feed",
+    type=int,
+    default=Resolution().points_per_feed,
+    show_default=True,
+    help="Evaluation points per feed along each simulated angle (even).",
+)
+@click.option(
+    "--n-theta", type=int, help="Simulated spindle angles over 360° (overrides --samples-per-cell)."
+)
+@click.option(
+    "--interp-error/--no-interp-error",
+    default=True,
+    show_default=True,
+    help="Also simulate the exact commands for the interpolation-only P-V (pv_interp_nm); "
+    "off saves about a fifth of the time.",
+)
+@click.option(
+    "--strict",
+    is_flag=True,
+    help="Refuse an explicit Δθ that does not divide 360° instead of rounding it to the nearest that does.",
+)
+@click.option(
+    "--max-nodes",
+    type=POSITIVE,
+    default=MAX_NODES,
+    show_default=True,
+    help="Refuse cases of more evaluation nodes than this (about 3·10⁶ nodes a second on one core).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def predict(**opts: Any) -> None:
+    """Predict the form error one program leaves on the machined surface.
+
+    Give a table either by explicit pitches (--drho-um and --dtheta-deg for rings,
+    --dx-um and --dy-um for meshes) or by a target point count and aspect ratio
+    (--points and --aspect); the actual point count and pitches are reported.
+
+    Commands spanning more than the machine's travel are cut in layers (--layers auto, [3]):
+    stroke zones of the travel less the machine's margin, one Z offset each; the JSON's
+    "layers" holds the schedule (offsets, start radii, strokes, lengths, times per layer).
+
+    A spiral program (--layout spiral) places its points along the tool path by one rule:
+    --points-per-rev (constant angle), --arc-um (constant path length) or --chord-um (each
+    chord within the budget of the compensated path, [4]); its feed is --feed-um, the
+    cutting entry's, or the largest the residual budget --residual-um allows.
+
+    \b
+    Examples:
+      ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5
+      ftsweep predict --surface lens_array --layout mesh --dx-um 4 --dy-um 4 --json
+      ftsweep predict --surface sinewave2d --points 500000 --aspect 8
+      ftsweep predict --surface sinewave2d --layout spiral --points-per-rev 500
+      ftsweep predict --surface sinusoidal_mesh --layout spiral --chord-um 0.5 --residual-um 0.5 \\
+          --cutting seed003 --machine sts-nanoform
+      ftsweep predict --surface microprism --machine fts-5um --cutting microprism --points 250000 \\
+          --aspect 1 --z-error-um 0.1
+    """
+    case = _build_case(opts)
+    as_json = opts["as_json"]
+    progress = stderr_progress("simulating", as_json)
+    try:
+        record = run_case(case, progress=progress, max_nodes=opts["max_nodes"])
+    except (CaseError, CatalogError, SurfaceLoadError) as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        progress_done(progress)
+    if as_json:
+        echo_json(record)
+    else:
+        click.echo(summary_text(record))
+
+
+def _build_case(opts: dict[str, Any]) -> Case:
+    """The case of ``predict``'s options. The option combinations are checked here; every
+    value is validated by the spec models, whose errors are reported by option name."""
+    surface, layout, machine, cutting = opts["surface"], opts["layout"], opts["machine"], opts["cutting"]
+    try:
+        spec = catalogs.entry("surfaces", surface)
+        catalogs.entry("machines", machine)
+        catalogs.entry("cutting", cutting)
+    except CatalogError as exc:
+        raise click.ClickException(str(exc)) from None
+    kind = layout or spec.layout
+    own = _RING_PITCH if kind == "ring" else _MESH_PITCH
+    given = {k: opts[k] for k in (*_RING_PITCH, *_MESH_PITCH)}
+    spiral_given = {k: opts[k] for k in SPIRAL_FIELDS if opts[k] is not None}
+    if kind == "spiral":
+        table_given = [
+            k for k, v in {**given, "points": opts["points"], "aspect": opts["aspect"]}.items() if v
+        ]
+        if table_given:
+            fail(
+                f"{flag(table_given[0])} belongs to tables; a spiral takes --points-per-rev, --arc-um "
+                "or --chord-um"
+            )
+        request: dict[str, Any] = {"kind": kind, **spiral_given}
+        pitch_given = False
+    else:
+        if spiral_given:
+            fail(f"{flag(next(iter(spiral_given)))} belongs to spiral programs (--layout spiral)")
+        pitch_given = _check_layout_options(kind, given, opts["points"], opts["aspect"])
+        request = {
+            "kind": kind,
+            "pitch": (given[own[0]], given[own[1]]) if pitch_given else None,
+            "points": opts["points"],
+            "aspect": opts["aspect"],
+        }
+    try:
+        # validated as part of the case, so that an error's location names the option
+        case = Case(
+            surface=surface,
+            layout=request,  # type: ignore[arg-type]
+            machine=machine,
+            cutting=cutting,
+            feed_um=opts["feed_um"],
+            nose_radius_um=opts["nose_radius_um"],
+            compensation=opts["compensation"],
+            layers=opts["layers"],
+            z_error_um=opts["z_error_um"],
+            resolution=Resolution(
+                samples_per_cell=opts["samples_per_cell"],
+                points_per_feed=opts["points_per_feed"],
+                n_theta=opts["n_theta"],
+                interp_error=opts["interp_error"],
+            ),
+        )
+    except ValidationError as exc:
+        raise click.UsageError(_option_errors(exc, own)) from None
+    if kind == "ring" and pitch_given and not opts["strict"]:
+        drho, dtheta = given[own[0]], _realisable_dtheta(given[own[1]])
+        case = case.model_copy(update={"layout": case.layout.model_copy(update={"pitch": (drho, dtheta)})})
+    return case
+
+
+def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
+    """A spec model's validation errors, each named by the option that gave the value
+    (``layout.pitch.0`` is the first pitch option, ``resolution.n_theta`` is --n-theta)."""
+    parts = []
+    for e in exc.errors():
+        loc = [str(p) for p in e["loc"]]
+        if loc[:2] == ["layout", "pitch"] and len(loc) > 2:
+            name = pitch_names[int(loc[2])]
+        elif loc and loc[0] in ("layout", "resolution") and len(loc) > 1:
+            name = loc[1]
+        else:
+            name = loc[-1] if loc else ""
+        text = f"{catalogs.error_text(e)} (got {catalogs.short_repr(e.get('input'))})"
+        parts.append(f"{flag(name)}: {text}" if name else text)
+    return "; ".join(dict.fromkeys(parts))
+
+
+def _realisable_dtheta(dtheta_deg: float) -> float:
+    """The nearest Δθ that divides 360° (a ring holds a whole number of points), with a notice
+    on stderr when it differs from the one asked for."""
+    from ftsweep.stages.layouts import nearest_ring_dtheta
+
+    realised, n_per_ring = nearest_ring_dtheta(dtheta_deg)
+    # the notice prints Δθ to 7 digits: that printed value, given back, is taken silently
+    if not math.isclose(realised, dtheta_deg, rel_tol=1e-6):
+        click.echo(
+            f"notice: Δθ = {dtheta_deg:g}° does not divide 360°; using the nearest realisable "
+            f"Δθ = {realised:.7g}° ({n_per_ring} points per ring; --strict refuses instead)",
+            err=True,
+        )
+    return realised
+
+
+def _check_layout_options(kind: str, given: dict[str, Any], points: Any, aspect: Any) -> bool:
+    """Refuse pitches of the other layout kind, pitches mixed with a target, one pitch alone,
+    or no layout at all; returns whether explicit pitches were given."""
+    own, other = (_RING_PITCH, _MESH_PITCH) if kind == "ring" else (_MESH_PITCH, _RING_PITCH)
+    wrong = [k for k in other if given[k] is not None]
+    if wrong:
+        fail(
+            f"{flag(wrong[0])} belongs to the {'mesh' if kind == 'ring' else 'ring'} layout; "
+            f"for a {kind} layout give {flag(own[0])} and {flag(own[1])}"
+        )
+    pitch_given = [k for k in own if given[k] is not None]
+    if pitch_given and (points is not None or aspect is not None):
+        fail("give either explicit pitches or --points with --aspect, not both")
+    if len(pitch_given) == 1:
+        missing = [k for k in own if given[k] is None][0]
+        fail(f"{flag(missing)} is missing: a {kind} layout needs both pitches")
+    if not pitch_given and (points is None or aspect is None):
+        fail(f"give the layout: {flag(own[0])} and {flag(own[1])}, or --points N with --aspect A")
+    return bool(pitch_given)
+
+
+def _program_lines(r: dict[str, Any]) -> list[str]:
+    """The summary lines that describe the program: its points and pitches (or steps)."""
+    if r["layout"] == "spiral":
+        rule = {
+            "angle": f"{r['points_per_rev']:g} points per revolution",
+            "arc": f"a point every {r['arc_um']:g} µm of path",
+            "chord": f"chord budget {r['chord_um']:g} µm (largest chord error {r['chord_error_nm']:.1f} nm)",
+        }[r["spiral_rule"]]
+        budget = (
+            f"from the residual budget {r['residual_um']:g} µm"
+            if math.isfinite(r["residual_um"])
+            else "given"
+        )
+        return [
+            f"program      spiral: {r['n_points']:,} points, {rule}",
+            f"steps        mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm along the path, "
+            f"{r['revolutions']:.4g} revolutions  (α = {r['aspect_actual']:.4g} µm/deg)",
+            f"feed         {r['feed_um']:.4g} µm/rev ({budget}); largest residual (cusp) "
+            f"{r['residual_error_nm']:.1f} nm from the section curvature",
+        ]
+    if r["layout"] == "ring":
+        pitches = (
+            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.7g}°  (α = {r['aspect_actual']:.4g} µm/deg)"
+        )
+    else:
+        pitches = f"Δx = {r['dx_um']:.4g} µm, Δy = {r['dy_um']:.4g} µm  (α = {r['aspect_actual']:.4g})"
+    shape = f"{r['table_rows']} × {r['table_cols']}"
+    return [
+        f"layout       {r['layout']}: {r['n_points']:,} control points ({shape})",
+        f"pitches      {pitches}",
+    ]
+
+
+def summary_text(r: dict[str, Any]) -> str:
+    lines = [
+        f"surface      {r['surface']}",
+        *_program_lines(r),
+        f"cutting      feed {r['feed_um']:g} µm/rev, nose radius {r['nose_radius_um']:g} µm, "
+        f"compensation {r['compensation']}",
+        f"resolution   {r['n_theta']:,} angles × {r['points_per_feed']} points/feed "
+        f"({r['n_eval']:,} evaluation points)",
+        "",
+        f"P-V          {r['pv_nm']:.2f} nm   "
+        f"(inner zone {r['pv_inner_nm']:.2f} nm, outer zone {r['pv_outer_nm']:.2f} nm)",
+        f"RMS          {r['rms_nm']:.2f} nm",
+        f"error range  {r['error_min_nm']:.2f} … {r['error_max_nm']:.2f} nm",
+        f"interp. P-V  {r['pv_interp_nm']:.2f} nm   (interpolation alone)"
+        if math.isfinite(r["pv_interp_nm"])
+        else "interp. P-V  not simulated (--no-interp-error)",
+        f"feed cusp    {r['cusp_nm']:.2f} nm   (F²/8Rc)",
+    ]
+    if "stroke_um" in r:
+        verdict = "feasible" if r["feasible"] else f"INFEASIBLE: {r['infeasible_reason']}"
+        lines.append(
+            f"W motion     stroke {r['stroke_um']:.3g} µm, "
+            f"peak velocity {r['w_velocity_peak_mm_s']:.3g} mm/s, "
+            f"peak acceleration {r['w_accel_peak_m_s2']:.3g} m/s² (RMS {r['w_accel_rms_m_s2']:.3g}), "
+            f"content up to {r['w_freq_max_hz']:.0f} Hz: {verdict}"
+        )
+    if r.get("layers"):
+        lay = r["layers"]
+        starts = ", ".join(f"{v:.1f}" for v in lay["start_radius_um"])
+        lines += [
+            f"layers       {lay['n_layers']} zones of {lay['zone_um']:.4g} µm ({r['layer_segments']:,} "
+            f"segments), stroke extended {lay['stroke_extension']:.3g}×, Z error "
+            f"{lay['z_error_um']:.3g} µm per retraction",
+            f"             offsets {', '.join(f'{v:.4g}' for v in lay['offset_um'])} µm; "
+            f"start radii {starts} µm",
+            f"machining    {r['machining_s']:.0f} s in layers, {r['single_pass_s']:.0f} s for one pass",
+        ]
+    if r["gouge_points"]:
+        lines.append(
+            f"gouge        {r['gouge_points']:,} control points where the concave radius is below Rc"
+        )
+    lines.append(
+        f"time         {r['seconds']:.2f} s  (compensation {r['seconds_compensation']:.2f}, sampling "
+        f"{r['seconds_sampling']:.2f}, interpolation {r['seconds_interpolation']:.2f}, envelope "
+        f"{r['seconds_envelope']:.2f}, metrics {r['seconds_metrics']:.2f})"
+    )
+    return "\n".join(lines)

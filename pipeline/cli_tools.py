@@ -1,0 +1,278 @@
+"""The planning tools: ``optimize`` (the tolerance loop), ``estimate`` (predicted P-V of a
+sweep's cases without simulating them) and ``bench`` (timings)."""
+
+from __future__ import annotations
+
+import functools
+import sys
+import time
+from pathlib import Path
+from typing import Any, Optional
+
+import click
+import numpy as np
+
+from ftsweep import result
+from ftsweep.catalogs import CatalogError
+from ftsweep.cli_common import COUNT, FINITE, POSITIVE, echo_json, fail
+from ftsweep.cli_predict import summary_text
+
+_RING_PITCH = result.pitch_names("ring")
+_MESH_PITCH = result.pitch_names("mesh")
+
+
+@click.command()
+@click.argument("surface", required=False)
+@click.option(
+    "--sweep",
+    "sweep_name",
+    metavar="NAME|PATH",
+    help="Take surface, layout, machine, cutting and resolution from a sweep spec.",
+)
+@click.option("--layout", type=click.Choice(["ring", "mesh"]), help="Layout method. Default: the surface's.")
+@click.option("--tolerance-nm", type=POSITIVE, required=True, help="P-V the part must meet [nm].")
+@click.option(
+    "--start-points",
+    type=FINITE,
+    default=50_000,
+    show_default=True,
+    help="Point count of the first, coarse round.",
+)
+@click.option("--machine", default="fts-1m", show_default=True, help="Machine from catalogs/machines.yaml.")
+@click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Cube recording every evaluation. Default: outputs/optimize-<surface>-<layout>.zarr.",
+)
+@click.option(
+    "--restart",
+    is_flag=True,
+    help="Discard the evaluation cube and start over (required when the search changed); without "
+    "it, re-running the same search resumes, reusing every finished evaluation.",
+)
+@click.option(
+    "--seed",
+    type=click.Choice(["scan", "estimate"]),
+    default="scan",
+    show_default=True,
+    help="Where the search starts: a scan of nine aspect ratios at --start-points, or the point "
+    "count and aspect ratio `ftsweep estimate` predicts for the tolerance (fewer evaluations).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def optimize(
+    surface: Optional[str],
+    sweep_name: Optional[str],
+    layout: Optional[str],
+    tolerance_nm: float,
+    start_points: float,
+    machine: str,
+    cutting: str,
+    out: Optional[Path],
+    restart: bool,
+    seed: str,
+    as_json: bool,
+) -> None:
+    """Find the smallest layout that meets a P-V tolerance (the shop's tolerance loop).
+
+    Starts coarse (a scan of aspect ratios at --start-points), refines around the best
+    aspect ratio, then raises (or lowers) the point count using P-V ∝ 1/N until the
+    tolerance is met with as few points as possible or the controller's capacity is
+    reached. Every evaluation is recorded in a cube as soon as it finishes (the store
+    protocol of sweeps), so an interrupted search resumes where it stopped.
+
+    \b
+    Examples:
+      ftsweep optimize sinewave2d --layout ring --tolerance-nm 20
+      ftsweep optimize --sweep lens-array-mesh --tolerance-nm 30
+    """
+    from ftsweep.cube import CubeError
+    from ftsweep.optimize import optimize as run_optimize
+
+    resolution = None
+    compensation = "exact"
+    try:
+        if sweep_name:
+            surface, layout, machine, cutting, resolution, compensation = _of_sweep(sweep_name)
+        if not surface:
+            fail("give a SURFACE or --sweep")
+        assert surface is not None
+
+        result = run_optimize(
+            surface,
+            layout,
+            tolerance_nm,
+            out,
+            start_points,
+            machine,
+            cutting,
+            compensation,
+            resolution,
+            restart,
+            on_eval=functools.partial(_print_evaluation, tolerance_nm),
+            seed=seed,
+        )
+    except (CatalogError, CubeError, ValueError) as exc:
+        raise click.ClickException(str(exc)) from None
+    if as_json:
+        echo_json(result)
+    else:
+        _print_optimum(result, tolerance_nm)
+    if not result["met"]:
+        sys.exit(1)
+
+
+def _of_sweep(sweep_name: str) -> tuple[Any, ...]:
+    """Surface, layout, machine, cutting, resolution and compensation of a sweep spec."""
+    from ftsweep.sweep import load_sweep
+
+    _, spec = load_sweep(sweep_name)
+    return spec.surface, spec.layout, spec.machine, spec.cutting, spec.resolution, spec.compensation
+
+
+def _print_evaluation(tolerance_nm: float, rec: dict[str, Any]) -> None:
+    """One line on stderr per evaluation of the tolerance loop."""
+    pv = f"P-V {rec['pv_nm']:.2f} nm" if rec["status"] == "done" else rec["message"]
+    mark = "meets" if rec["status"] == "done" and rec["pv_nm"] <= tolerance_nm else ""
+    click.echo(
+        f"[{rec['stage']:>6s}] N≈{rec['points_target']:>9,.0f} α={rec['aspect_target']:<8.4g} {pv} {mark}",
+        err=True,
+    )
+
+
+def _print_optimum(result: dict[str, Any], tolerance_nm: float) -> None:
+    """The loop's verdict and the layout it found."""
+    verdict = "met" if result["met"] else "NOT met (best found below)"
+    click.echo(
+        f"tolerance    {tolerance_nm:g} nm: {verdict}; {result['evaluations']} evaluations "
+        f"({result['reused']} reused) in {result['cube']}"
+    )
+    if result["answer"] is not None:
+        click.echo(summary_text(result["answer"]))
+
+
+@click.command()
+@click.argument("sweep_name", metavar="SWEEP")
+@click.option(
+    "--compare",
+    "cube_path",
+    type=click.Path(path_type=Path),
+    help="A simulated cube of this sweep: also print how the estimate agrees with it.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
+    """Estimate the P-V of every layout of a sweep in milliseconds, without simulating.
+
+    The first-order bilinear error ⅛·(Δ₁²·∂₁₁f + Δ₂²·∂₂₂f) per cell (model §3), from the
+    surface's sampled second derivatives and each layout's pitches, spanned over the part,
+    plus the feed cusp F²/8Rc (model §5). It locates the aspect optimum and the hopeless
+    corners of a sweep plane; the simulation decides. With --compare CUBE it states its
+    measured agreement with a simulated cube of the same sweep.
+
+    \b
+    Examples:
+      ftsweep estimate sinewave-ring
+      ftsweep estimate lens-array-mesh --compare outputs/lens-array-mesh.zarr --json
+    """
+    from ftsweep.cube import CubeError
+    from ftsweep.estimate import agreement, best_aspect, estimate_sweep
+    from ftsweep.select import open_cube
+    from ftsweep.sweep import load_sweep
+
+    try:
+        name, spec = load_sweep(sweep_name)
+    except CatalogError as exc:
+        raise click.ClickException(str(exc)) from None
+    started = time.perf_counter()
+    ds = estimate_sweep(spec)
+    seconds = time.perf_counter() - started
+    pv = ds["pv_estimate_nm"]
+    while pv.ndim > 2:  # optional feed/nose-radius axes: their first values
+        pv = pv.isel({pv.dims[-1]: 0})
+    best = best_aspect(pv)
+    out: dict[str, Any] = {
+        "sweep": name,
+        "layouts": int(ds["interp_estimate_nm"].size),
+        "seconds": seconds,
+        "best": [
+            {"points": float(n), "aspect": float(a), "pv_estimate_nm": float(pv.sel(points=n, aspect=a))}
+            for n, a in zip(best["points"].values, best.values, strict=True)
+            if np.isfinite(a)
+        ],
+    }
+    if cube_path is not None:
+        try:
+            out["agreement"] = agreement(ds, open_cube(cube_path))
+        except (CubeError, OSError, KeyError, ValueError) as exc:
+            raise click.ClickException(f"{cube_path}: cannot compare: {exc}") from None
+    if as_json:
+        echo_json(out)
+        return
+    _print_estimate(out, name, "µm/deg" if spec.layout == "ring" else "")
+
+
+def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
+    """The estimate's best aspect per point count, and its agreement with a simulated cube."""
+    click.echo(f"estimated {out['layouts']} layouts of sweep '{name}' in {out['seconds'] * 1e3:.0f} ms")
+    click.echo(f"{'points':>12}  {'best aspect':>12}  {'P-V estimate':>14}")
+    for row in out["best"]:
+        click.echo(
+            f"{row['points']:>12,.0f}  {row['aspect']:>8.4g} {unit:<6} {row['pv_estimate_nm']:>9.2f} nm"
+        )
+    if "agreement" in out:
+        a = out["agreement"]
+        click.echo(
+            f"against {a['cases']} simulated cases: estimate/simulated P-V {a['pv_ratio_min']:.2f} … "
+            f"{a['pv_ratio_max']:.2f} (median {a['pv_ratio_median']:.2f}; "
+            f"{100 * a['within_factor_2']:.0f} % within a factor 2); aspect optimum within a factor "
+            f"{a['optimum_aspect_factor_max']:.2f} of the simulated one"
+        )
+
+
+@click.command()
+@click.option("--case", "names", multiple=True, metavar="NAME", help="Only this case (repeatable).")
+@click.option("--repeat", type=int, default=1, show_default=True, help="Runs per case; the fastest counts.")
+@click.option(
+    "--json",
+    "json_path",
+    type=click.Path(dir_okay=False, writable=True),
+    default="outputs/bench.json",
+    show_default=True,
+    help="Also write the figures to this JSON file.",
+)
+@click.option(
+    "--sweep",
+    "sweep_name",
+    metavar="SWEEP",
+    help="Also run this sweep on a local cluster (e.g. sinewave-ring, ~4 min) and report cases/s.",
+)
+@click.option("--workers", type=COUNT, default=2, show_default=True, help="Worker processes for --sweep.")
+def bench(
+    names: tuple[str, ...], repeat: int, json_path: str, sweep_name: Optional[str], workers: int
+) -> None:
+    """Time the case runner on the published reference cases and two 10⁶-point layouts.
+
+    Prints the seconds per case split into compensation, surface sampling, interpolation,
+    envelope and metrics, after a warm-up that pays numba's compile cost. Kernels are
+    single-threaded, so the figures are for one core. With --sweep, also the throughput of a
+    whole sweep on --workers processes. Nothing is asserted about time.
+    """
+    from ftsweep.bench import format_table, run_benchmark, sweep_throughput
+    from ftsweep.io import write_json_atomic
+
+    try:
+        result = run_benchmark(list(names) or None, repeat=repeat)
+    except ValueError as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(format_table(result))
+    if sweep_name is not None:
+        click.echo(f"running sweep {sweep_name} on {workers} worker(s) ...", err=True)
+        sweep = sweep_throughput(sweep_name, workers)
+        result["sweep"] = sweep
+        click.echo(
+            f"sweep {sweep['sweep']}: {sweep['cases']} cases in {sweep['wall_s']:.1f} s wall on "
+            f"{sweep['workers']} worker(s): {sweep['cases_per_s']:.3f} cases/s "
+            f"(summed case time {sweep['summed_case_s']:.1f} s)"
+        )
+    write_json_atomic(json_path, result)
+    click.echo(f"wrote {json_path}")

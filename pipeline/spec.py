@@ -1,0 +1,231 @@
+"""The spec of one case: an immutable, validated value with a stable key (its canonical JSON's
+hash). A case names its surface, program request (a ring or mesh table, a spiral or a D
+path), machine, cutting conditions and resolution; every combination rule is checked here,
+once, when the spec is built (CLI options, sweep YAML and sidecars alike).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from typing import Any, Literal, Optional
+
+from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_serializer, model_validator
+
+from ftsweep import catalogs
+from ftsweep.catalogs import Strict
+from ftsweep.stages import spiral
+
+
+class CaseError(ValueError):
+    """A case cannot be run as specified; the message says what to change."""
+
+
+class Resolution(Strict):
+    """Simulation resolution (model §5). The defaults are converged: P-V moves by less
+    than 3 % when the angular samples are quadrupled and the points per feed doubled."""
+
+    samples_per_cell: PositiveInt = Field(
+        3,
+        description="spindle angles sampled per table cell at the outer radius; an odd number puts "
+        "one sample on each ring cell's angular midpoint, where bilinear error peaks",
+    )
+    points_per_feed: PositiveInt = Field(
+        2,
+        description="evaluation points per feed along each angle; even, so the cusp midway "
+        "between passes is a node",
+    )
+    n_theta: Optional[PositiveInt] = Field(
+        None, description="number of sampled spindle angles over 360°; overrides samples_per_cell"
+    )
+    compensation_scan: int = Field(
+        5,
+        ge=3,
+        description="coarse-scan samples of the exact compensation where the surface declares no "
+        "curvature bound (with one, the solver and its scan density follow from the bound)",
+    )
+    zone_split: float = Field(
+        0.5, gt=0.0, lt=1.0, description="inner/outer zone boundary as a fraction of the inscribed radius"
+    )
+    error_map_bins: Optional[int] = Field(
+        None,
+        ge=4,
+        le=1024,
+        description="bins per side of a coarse error map over the aperture (None: no map)",
+    )
+
+    interp_error: bool = Field(
+        True,
+        description="also simulate the envelope of the exact commands, for pv_interp_nm (the "
+        "interpolation-only error, model §6); off skips them (about a fifth of a case) and "
+        "leaves pv_interp_nm NaN",
+    )
+
+    angular_ladder: Optional[float] = Field(
+        None,
+        gt=1.0,
+        le=2.0,
+        description="round the angular samples of the samples_per_cell rule up to the next rung "
+        "2·⌈r^k/2⌉ of a geometric ladder of ratio r, so cases of a sweep with nearby samplings share "
+        "the same lines and reuse their layout-independent work; costs up to a factor r more samples, "
+        "and ring samples no longer fall on the cells' angular midpoints (None: the rule's own count)",
+    )
+
+    @model_serializer(mode="wrap")
+    def _stable_dump(self, handler: Any) -> Any:
+        # cubes of specs written before these options existed stay resumable
+        return catalogs.without_defaults(handler(self), {"interp_error": True, "angular_ladder": None})
+
+    @field_validator("points_per_feed")
+    @classmethod
+    def _even(cls, value: int) -> int:
+        if value % 2:
+            raise ValueError("must be even so the cusp midway between passes is sampled")
+        return value
+
+
+class LayoutRequest(Strict):
+    """A program: a table (ring or mesh) with either explicit pitches or a target point count
+    and aspect ratio, or a spiral path program with one sampling rule ([4]).
+
+    pitch: (Δρ [µm], Δθ [deg]) for rings, (Δx [µm], Δy [µm]) for meshes.
+    points, aspect: target N and α (Δρ/Δθ [µm/deg] for rings, Δx/Δy for meshes).
+    points_per_rev, arc_um, chord_um: the spiral's rule (constant angle, constant arc length
+    [µm], chord-error budget [µm]); residual_um: the residual budget [µm] that sets the
+    spiral's feed ([4] eqs. 1–3) instead of the cutting entry's.
+    """
+
+    kind: Literal["ring", "mesh", "spiral", "dpath"]
+    pitch: Optional[tuple[PositiveFloat, PositiveFloat]] = None
+    points: Optional[PositiveFloat] = None
+    aspect: Optional[PositiveFloat] = None
+    points_per_rev: Optional[int] = Field(None, ge=3, description="spiral: points per revolution")
+    arc_um: Optional[PositiveFloat] = Field(None, description="spiral: path length between points [µm]")
+    chord_um: Optional[PositiveFloat] = Field(None, description="spiral: chord-error budget Δcho [µm]")
+    residual_um: Optional[PositiveFloat] = Field(
+        None, description="spiral: residual (cusp) budget Δres [µm] that sets the feed"
+    )
+    # D-shaped slow-tool-servo paths ([5]); unset: ftsweep.dpath.DEFAULTS
+    spacing_um: Optional[PositiveFloat] = Field(
+        None, description="dpath: spacing h between cuts [µm] (default: the feed)"
+    )
+    points_per_cut: Optional[int] = Field(None, ge=2, description="dpath: points on every cut (default 201)")
+    transition: Optional[Literal["traditional", "optimised"]] = Field(
+        None, description="dpath: turn-round between cuts, arc (traditional) or quintic (optimised, default)"
+    )
+    zones: Optional[Literal[1, 2, 4]] = Field(
+        None, description="dpath: cutting zones per revolution (default 1)"
+    )
+    offaxis_um: Optional[PositiveFloat] = Field(
+        None, description="dpath: distance of the part's centre from the C axis [µm] (default 30 mm)"
+    )
+    cut_angle_deg: Optional[float] = Field(
+        None, description="dpath: direction of the cuts in the part's frame [deg from +x] (default 90)"
+    )
+    transition_step_deg: Optional[PositiveFloat] = Field(
+        None, description="dpath: largest C step between transition points [deg] (default 1)"
+    )
+
+    @model_serializer(mode="wrap")
+    def _stable_dump(self, handler: Any) -> Any:
+        # table and spiral cases keep their keys
+        return catalogs.without_defaults(handler(self), dict.fromkeys((*SPIRAL_FIELDS, *DPATH_FIELDS)))
+
+    @model_validator(mode="after")
+    def _one_way(self) -> LayoutRequest:
+        rules = [name for name in SPIRAL_RULES if getattr(self, name) is not None]
+        dpath_given = [n for n in DPATH_FIELDS if getattr(self, n) is not None]
+        if self.kind == "dpath":
+            other = [n for n in ("pitch", "points", "aspect", *SPIRAL_FIELDS) if getattr(self, n) is not None]
+            if other:
+                raise ValueError(
+                    f"a D-path program takes no {', '.join(other)}: give spacing_um, points_per_cut and "
+                    "its path options"
+                )
+            return self
+        if dpath_given:
+            raise ValueError(
+                f"{', '.join(dpath_given)} belong(s) to D-path programs, not to a {self.kind} program"
+            )
+        if self.kind == "spiral":
+            table = [n for n in ("pitch", "points", "aspect") if getattr(self, n) is not None]
+            if table:
+                raise ValueError(
+                    f"a spiral program takes no {', '.join(table)}: give one of points_per_rev, "
+                    "arc_um or chord_um"
+                )
+            if len(rules) != 1:
+                raise ValueError(
+                    "a spiral program needs exactly one sampling rule: points_per_rev, arc_um or "
+                    f"chord_um (got {', '.join(rules) or 'none'})"
+                )
+            return self
+        spiral = [n for n in SPIRAL_FIELDS if getattr(self, n) is not None]
+        if spiral:
+            raise ValueError(f"{', '.join(spiral)} belong(s) to spiral programs, not to a {self.kind} table")
+        target = self.points is not None or self.aspect is not None
+        if self.pitch is not None and target:
+            raise ValueError(
+                "give either explicit pitches or a target point count and aspect ratio, not both"
+            )
+        if self.pitch is None and (self.points is None or self.aspect is None):
+            raise ValueError("give explicit pitches, or both a target point count and an aspect ratio")
+        return self
+
+    def target(self) -> tuple[float, float]:
+        """(points, aspect) of a target-count request."""
+        if self.points is None or self.aspect is None:
+            raise ValueError("this layout request gives explicit pitches, not a target")
+        return self.points, self.aspect
+
+    def spiral_rule(self) -> tuple[str, float]:
+        """(rule, parameter) of a spiral request: ("angle", Np), ("arc", µm) or ("chord", µm)."""
+        for name, rule in zip(SPIRAL_RULES, spiral.RULES, strict=True):
+            value = getattr(self, name)
+            if value is not None:
+                return rule, float(value)
+        raise ValueError("this request is not a spiral program")
+
+
+SPIRAL_RULES = ("points_per_rev", "arc_um", "chord_um")
+SPIRAL_FIELDS = (*SPIRAL_RULES, "residual_um")
+DPATH_FIELDS = (
+    "spacing_um",
+    "points_per_cut",
+    "transition",
+    "zones",
+    "offaxis_um",
+    "cut_angle_deg",
+    "transition_step_deg",
+)
+
+
+class Case(Strict):
+    """Everything that determines one prediction. ``key()`` is stable across processes."""
+
+    surface: str
+    layout: LayoutRequest
+    machine: str = "fts-1m"
+    cutting: str = "reference"
+    feed_um: Optional[PositiveFloat] = Field(None, description="overrides the cutting entry [µm/rev]")
+    nose_radius_um: Optional[PositiveFloat] = Field(None, description="overrides the cutting entry [µm]")
+    compensation: Literal["exact", "slope", "none"] = "exact"
+    resolution: Resolution = Resolution()
+    layers: Literal["auto", "off"] = Field(
+        "auto",
+        description="auto: cut commands spanning more than the machine's travel in layers ([3]); "
+        "off: one pass, infeasible when the commands exceed the travel",
+    )
+    z_error_um: Optional[float] = Field(
+        None, description="Z positioning error per retraction between layers [µm]; overrides the machine's"
+    )
+
+    @model_serializer(mode="wrap")
+    def _stable_dump(self, handler: Any) -> Any:
+        # keys of cases written before layered machining stay the same
+        return catalogs.without_defaults(handler(self), {"layers": "auto", "z_error_um": None})
+
+    def key(self) -> str:
+        """Stable hash of the canonical JSON of the spec (16 hex digits)."""
+        text = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]

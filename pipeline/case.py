@@ -18,10 +18,10 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import dpath as dpath_program
+from ftsweep import kinds
 from ftsweep.cost import MAX_NODES, angular_samples, check_cost, ray_nodes
 from ftsweep.planning import ResolvedCase, control_table, layer_plan, resolve_case, z_error_of
-from ftsweep.record import ErrorMap, Timer, non_finite, record_of, simulated, timed
+from ftsweep.record import ErrorMap, Timer, record_of, timed
 from ftsweep.result import STAGES
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers, metrics, spiral
@@ -153,8 +153,9 @@ def run_case(
     rcase = resolve_case(case, catalog_folder, specs, program)
     timer = Timer()
     timer.seconds["compensation"] = rcase.plan_seconds
-    if case.layout.kind == "dpath":
-        return _run_dpath(rcase, timer, progress, t_start)
+    kind = kinds.kind(case.layout.kind)
+    if kind.simulate is not None:
+        return kind.simulate(rcase, timer, progress, t_start)
     t = time.perf_counter()
     table, gouge = _table_of(rcase, table, catalog_folder)
     timer.add("compensation", t)
@@ -417,29 +418,3 @@ def _simulate_lines(
     if emap is not None:
         emap.add(z, g, inside, grid.node_r, data.ct, data.st)
     timer.add("metrics", t)
-
-
-def _run_dpath(
-    rcase: ResolvedCase, timer: Timer, progress: Optional[Callable[[int, int], None]], t_start: float
-) -> dict[str, Any]:
-    """:func:`run_case` of a D-path program ([5]): its form error through the same envelope
-    and metrics (:func:`ftsweep.dpath.simulate`), its axis motion and the machine's axis
-    limits (:func:`ftsweep.dpath.record_fields`)."""
-    case, path = rcase.case, rcase.layout
-    assert rcase.values is not None and rcase.gouge is not None
-    z = rcase.values
-    require_finite(z, "the D-path Z", lambda i: f"point {i} (C {math.degrees(path.phi[i]):.4f}°)")
-    errors, rays, band = dpath_program.simulate(rcase, z, progress, timer.seconds)
-    bad = non_finite(rcase, errors)
-    if bad:
-        raise CaseError(
-            f"the metrics came out non-finite ({', '.join(bad)}): no evaluation point inside the fully "
-            "machined part; check the part against the spacing and the nose radius"
-        )
-    t = time.perf_counter()
-    summary = dpath_program.motion_summary(path, z, rcase.cutting.spindle_rpm)
-    timer.add("dynamics", t)
-    record: dict[str, Any] = {"surface": case.surface, "layout": "dpath", "n_points": path.n_points}
-    record.update(simulated(rcase, errors, rays, band, rcase.gouge))
-    record.update(dpath_program.record_fields(rcase, summary, z))
-    return timed(record, timer, t_start)

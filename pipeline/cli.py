@@ -9,11 +9,8 @@ from typing import Any
 
 import click
 
-from ftsweep import __version__, catalogs, result
+from ftsweep import __version__, catalogs
 from ftsweep.cli_common import MESSAGE_LIMIT, USER_ERRORS, echo_json, one_line
-
-_RING_PITCH = result.pitch_names("ring")
-_MESH_PITCH = result.pitch_names("mesh")
 
 
 class _Group(click.Group):

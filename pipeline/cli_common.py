@@ -9,11 +9,7 @@ from typing import Any, Optional
 
 import click
 
-from ftsweep import result
 from ftsweep.io import dumps_json
-
-_RING_PITCH = result.pitch_names("ring")
-_MESH_PITCH = result.pitch_names("mesh")
 
 
 class FiniteRange(click.FloatRange):

@@ -12,7 +12,6 @@ from typing import Any, Optional
 
 import click
 
-from ftsweep import result
 from ftsweep.case import LINE_CACHE_MB
 from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import (
@@ -28,9 +27,6 @@ from ftsweep.cli_common import (
 )
 from ftsweep.spec import CaseError
 from ftsweep.sweep import MAX_CASES
-
-_RING_PITCH = result.pitch_names("ring")
-_MESH_PITCH = result.pitch_names("mesh")
 
 
 @click.command()

@@ -18,8 +18,6 @@ from ftsweep.usersurfaces import SurfaceLoadError
 
 _RING_PITCH = result.pitch_names("ring")
 _MESH_PITCH = result.pitch_names("mesh")
-_RING_PITCH = result.pitch_names("ring")
-_MESH_PITCH = result.pitch_names("mesh")
 
 
 @click.command()

@@ -9,7 +9,6 @@ from typing import Any, Optional
 import click
 from pydantic import ValidationError
 
-from ftsweep import result
 from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import (
     FINITE,
@@ -21,9 +20,6 @@ from ftsweep.cli_common import (
     stderr_progress,
 )
 from ftsweep.spec import Case, CaseError
-
-_RING_PITCH = result.pitch_names("ring")
-_MESH_PITCH = result.pitch_names("mesh")
 
 
 @click.command("dpath")

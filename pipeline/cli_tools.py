@@ -12,13 +12,9 @@ from typing import Any, Optional
 import click
 import numpy as np
 
-from ftsweep import result
 from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import COUNT, FINITE, POSITIVE, echo_json, fail
 from ftsweep.cli_predict import summary_text
-
-_RING_PITCH = result.pitch_names("ring")
-_MESH_PITCH = result.pitch_names("mesh")
 
 
 @click.command()

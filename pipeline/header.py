@@ -35,7 +35,8 @@ from ftsweep.files import (
     sidecar_path,
 )
 from ftsweep.io import dumps_json, write_texts_atomic
-from ftsweep.planning import build_layout, control_table, resolve_case
+from ftsweep.kind_table import build_layout
+from ftsweep.planning import control_table, resolve_case
 from ftsweep.spec import Case
 
 INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}

@@ -10,7 +10,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import result
+from ftsweep import kinds, result
 from ftsweep.planning import ResolvedCase, z_error_of
 from ftsweep.result import STAGES
 from ftsweep.spec import CaseError
@@ -156,7 +156,7 @@ def record_of(
         needed = layers.layers_needed(dyn.stroke_um, machine.travel_um, machine.layer_margin_um)
         reason += f" (layers off; layered machining would cut it in {needed} layers)"
     record: dict[str, Any] = {"surface": case.surface, "layout": layout.kind, "n_points": layout.n_points}
-    record.update(program_fields(rcase))
+    record.update(kinds.kind(layout.kind).record_fields(rcase))
     record["aspect_actual"] = layout.aspect
     record.update(simulated(rcase, errors, plan.n_theta, rcase.feed_um + plan.window_um, gouge))
     record.update(
@@ -170,33 +170,6 @@ def record_of(
     )
     record.update(layer_record(rcase, layering, dyn.stroke_um))
     return record
-
-
-def program_fields(rcase: ResolvedCase) -> dict[str, Any]:
-    """The fields that describe a spiral program ([4]: its rule and budgets, revolutions,
-    mean steps, chord and residual errors) or a table (its shape and pitches, model §2)."""
-    case, layout = rcase.case, rcase.layout
-    if isinstance(layout, spiral.SpiralPath):
-        rule, value = case.layout.spiral_rule()
-        return {
-            "spiral_rule": rule,
-            "points_per_rev": value if rule == "angle" else math.nan,
-            "arc_um": value if rule == "arc" else math.nan,
-            "chord_um": value if rule == "chord" else math.nan,
-            "residual_um": case.layout.residual_um or math.nan,
-            "revolutions": layout.revolutions,
-            "dphi_deg": layout.dphi_deg,
-            "ds_um": layout.ds_um,
-            "chord_error_nm": rcase.chord_error_um * 1e3,
-            "residual_error_nm": rcase.residual_error_um * 1e3,
-        }
-    pitch_names = result.pitch_names(layout.kind)
-    return {
-        "table_rows": layout.shape[0],
-        "table_cols": layout.shape[1],
-        pitch_names[0]: layout.pitch[0],
-        pitch_names[1]: layout.pitch[1],
-    }
 
 
 def non_finite(rcase: ResolvedCase, errors: dict[str, float]) -> list[str]:

@@ -26,10 +26,8 @@ from pydantic import (
     model_validator,
 )
 
-from ftsweep import catalogs
+from ftsweep import catalogs, kinds
 from ftsweep.catalogs import CatalogError, Strict
-from ftsweep.cost import angular_samples
-from ftsweep.planning import build_layout
 from ftsweep.spec import Case, LayoutRequest, Resolution
 
 MAX_AXIS_VALUES = 100_000
@@ -327,27 +325,7 @@ def case_at(spec: SweepSpec, index: int) -> Case:
     pos = dict(zip(coords, np.unravel_index(index, shape), strict=True))
     value = {name: float(coords[name][pos[name]]) for name in coords}
     assert spec.layout is not None
-    if spec.layout == "dpath":
-        request = LayoutRequest(
-            kind="dpath",
-            **(spec.dpath or {}),
-            **{
-                k: (int(round(v)) if k == "points_per_cut" else v)
-                for k, v in value.items()
-                if k in DPATH_AXES
-            },
-        )
-    elif spec.layout == "spiral":
-        request = LayoutRequest(
-            kind="spiral",
-            **{
-                k: (int(round(v)) if k == "points_per_rev" else v)
-                for k, v in value.items()
-                if k in SPIRAL_AXES
-            },
-        )
-    else:
-        request = LayoutRequest(kind=spec.layout, points=value["points"], aspect=value["aspect"])
+    request = kinds.kind(spec.layout).request_at(spec, value)
     return Case(
         surface=spec.surface,
         layout=request,
@@ -372,30 +350,7 @@ def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) 
     A case whose layout cannot be built costs 0 and shares nothing (key None)."""
     case = case_at(spec, index)
     surface = catalogs.entry("surfaces", case.surface, catalog_folder)
-    if case.layout.kind == "dpath":
-        # its cost: the evaluated nodes (rays × cuts × points per feed)
-        cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
-        ap = catalogs.aperture_of(surface)
-        spacing = case.layout.spacing_um or case.feed_um or cutting.feed_um
-        ppc = case.layout.points_per_cut or 201
-        return 3.0 * ppc * 2.0 * ap.half_extent_um[0] / spacing * case.resolution.points_per_feed, None
-    if case.layout.kind == "spiral":
-        # a spiral's points (and with a chord budget its angular sampling) are only known once
-        # planned: its cost is its simulated nodes at the part's outer circumference, and its
-        # lines are its own
-        rho0 = catalogs.aperture_of(surface).outer_radius_um
-        feed = case.feed_um or catalogs.entry("cutting", case.cutting, catalog_folder).feed_um
-        return 3.0 * 2.0 * math.pi * rho0 * rho0 / feed, None
-    try:
-        layout = build_layout(surface, case.layout)
-    except ValueError:
-        return 0.0, None
-    rho0 = catalogs.aperture_of(surface).outer_radius_um
-    cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
-    feed = case.feed_um or cutting.feed_um
-    n_theta = angular_samples(layout, rho0, case.resolution)
-    nodes = n_theta * rho0 / feed * case.resolution.points_per_feed
-    return 8.0 * layout.n_points + nodes, (n_theta, feed, case.nose_radius_um or cutting.nose_radius_um)
+    return kinds.kind(case.layout.kind).cost(case, surface, catalog_folder)
 
 
 def plan_tasks(

@@ -1,0 +1,141 @@
+"""D-shaped slow-tool-servo programs ([5]): straight parallel cuts over an off-axis part, one
+per revolution, joined by transitions outside it; planned by :func:`ftsweep.dpath.plan`, the
+cut points compensated as a table's (model §4), and simulated by their own engine of path
+crossings (:func:`ftsweep.dpath.simulate`) with the one envelope and metrics."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any, Optional
+
+import numpy as np
+
+from ftsweep import catalogs
+from ftsweep import dpath as dpath_program
+from ftsweep.kinds import Planning, ProgramKind
+from ftsweep.record import Timer, non_finite, simulated, timed
+from ftsweep.spec import Case, CaseError, LayoutRequest
+from ftsweep.stages import compensation
+
+AXES = ("spacing_um", "points_per_cut")
+
+
+def plan_dpath(
+    case: Case,
+    surface_spec: Any,
+    surface: Any,
+    spacing_um: float,
+    rc: float,
+    bound: float,
+    program: Optional[tuple[Any, np.ndarray]] = None,
+    max_points: float = math.inf,
+) -> tuple[Any, dict[str, Any]]:
+    """The D-path program of a case ([5], :func:`ftsweep.dpath.plan`): its cut points
+    compensated as a table's (model §4), or the given ``program`` as it stands. A path of
+    more than ``max_points`` points is refused before it is made."""
+
+    def compensated(part: Any, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return compensation.compensate(
+            part,
+            rho,
+            theta,
+            rc,
+            case.compensation,
+            bound,
+            n_scan=case.resolution.compensation_scan,
+            curvature_bound=catalogs.curvature_bound(surface_spec),
+        )
+
+    try:
+        return dpath_program.plan(
+            case.layout,
+            catalogs.aperture_of(surface_spec),
+            surface,
+            spacing_um,
+            rc,
+            compensated,
+            program,
+            max_points,
+        )
+    except ValueError as exc:
+        raise CaseError(f"D path (machine '{case.machine}'): {exc}") from None
+
+
+def _request_at(spec: Any, value: dict[str, float]) -> LayoutRequest:
+    return LayoutRequest(
+        kind="dpath",
+        **(spec.dpath or {}),
+        **{k: (int(round(v)) if k == "points_per_cut" else v) for k, v in value.items() if k in AXES},
+    )
+
+
+def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
+    """A D path's feed is its spacing between cuts [µm]: a given program's, else the request's,
+    the case's or the cutting entry's."""
+    if program is not None:
+        return float(program[0].geometry.spacing_um)
+    return float(case.layout.spacing_um or case.feed_um or cutting.feed_um)
+
+
+def _plan(p: Planning) -> tuple[Any, dict[str, Any]]:
+    t = time.perf_counter()
+    path, extra = plan_dpath(
+        p.case,
+        p.surface_spec,
+        p.surface,
+        p.feed_um,
+        p.nose_radius_um,
+        p.gradient_bound,
+        p.program,
+        p.machine.capacity_points,
+    )
+    extra["plan_seconds"] = time.perf_counter() - t
+    return path, extra
+
+
+def _record_fields(rcase: Any) -> dict[str, Any]:
+    return {}  # the D-path engine writes its own fields (:func:`ftsweep.dpath.record_fields`)
+
+
+def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
+    """The evaluated nodes (rays × cuts × points per feed); its lines are its own."""
+    cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
+    ap = catalogs.aperture_of(surface)
+    spacing = case.layout.spacing_um or case.feed_um or cutting.feed_um
+    ppc = case.layout.points_per_cut or dpath_program.DEFAULTS["points_per_cut"]
+    return 3.0 * ppc * 2.0 * ap.half_extent_um[0] / spacing * case.resolution.points_per_feed, None
+
+
+def _simulate(
+    rcase: Any, timer: Timer, progress: Optional[Callable[[int, int], None]], t_start: float
+) -> dict[str, Any]:
+    """The form error of a D-path program ([5]) through the same envelope and metrics
+    (:func:`ftsweep.dpath.simulate`), its axis motion and the machine's axis limits
+    (:func:`ftsweep.dpath.record_fields`)."""
+    from ftsweep.case import require_finite
+
+    case, path = rcase.case, rcase.layout
+    assert rcase.values is not None and rcase.gouge is not None
+    z = rcase.values
+    require_finite(z, "the D-path Z", lambda i: f"point {i} (C {math.degrees(path.phi[i]):.4f}°)")
+    errors, rays, band = dpath_program.simulate(rcase, z, progress, timer.seconds)
+    bad = non_finite(rcase, errors)
+    if bad:
+        raise CaseError(
+            f"the metrics came out non-finite ({', '.join(bad)}): no evaluation point inside the fully "
+            "machined part; check the part against the spacing and the nose radius"
+        )
+    t = time.perf_counter()
+    summary = dpath_program.motion_summary(path, z, rcase.cutting.spindle_rpm)
+    timer.add("dynamics", t)
+    record: dict[str, Any] = {"surface": case.surface, "layout": "dpath", "n_points": path.n_points}
+    record.update(simulated(rcase, errors, rays, band, rcase.gouge))
+    record.update(dpath_program.record_fields(rcase, summary, z))
+    return timed(record, timer, t_start)
+
+
+DPATH = ProgramKind(
+    "dpath", "D-path program", AXES, _request_at, _feed, _plan, _record_fields, _cost, _simulate
+)

@@ -1,0 +1,84 @@
+"""Tables: the ring and mesh layouts an independent FTS controller interpolates bilinearly
+(model §2-§3, [1]). Planned from a target point count and aspect ratio (or pitches), their
+commands compensated over the whole table by the line engine (:mod:`ftsweep.case`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ftsweep import catalogs, result
+from ftsweep.cost import angular_samples
+from ftsweep.kinds import Planning, ProgramKind
+from ftsweep.spec import Case, CaseError, LayoutRequest
+from ftsweep.stages import layouts
+from ftsweep.stages.layouts import Layout
+
+
+def build_layout(surface: Any, request: LayoutRequest) -> Layout:
+    """The control-point table of ``request`` covering the surface's aperture (model §2).
+
+    Rings cover the aperture's circumscribed radius; meshes its bounding box.
+    """
+    if request.kind not in ("ring", "mesh"):
+        raise ValueError(f"a {request.kind} program is planned with its commands, not as a table")
+    ap = catalogs.aperture_of(surface)
+    if request.kind == "ring":
+        radius = ap.outer_radius_um
+        if request.pitch is not None:
+            return layouts.ring_layout(radius, *request.pitch)
+        return layouts.ring_layout_for(radius, *request.target())
+    half_w, half_h = ap.half_extent_um
+    width, height = 2.0 * half_w, 2.0 * half_h
+    if request.pitch is not None:
+        return layouts.mesh_layout(width, height, *request.pitch)
+    return layouts.mesh_layout_for(width, height, *request.target())
+
+
+def _request_at(spec: Any, value: dict[str, float]) -> LayoutRequest:
+    return LayoutRequest(kind=spec.layout, points=value["points"], aspect=value["aspect"])
+
+
+def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
+    return float(case.feed_um or cutting.feed_um)
+
+
+def _plan(p: Planning) -> tuple[Layout, dict[str, Any]]:
+    try:
+        return build_layout(p.surface_spec, p.case.layout), {}
+    except ValueError as exc:
+        raise CaseError(f"layout: {exc}") from None
+
+
+def _record_fields(rcase: Any) -> dict[str, Any]:
+    layout = rcase.layout
+    pitch_names = result.pitch_names(layout.kind)
+    return {
+        "table_rows": layout.shape[0],
+        "table_cols": layout.shape[1],
+        pitch_names[0]: layout.pitch[0],
+        pitch_names[1]: layout.pitch[1],
+    }
+
+
+def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
+    """Control points plus simulated nodes; cases of equal angular samples, feed and nose
+    radius simulate the same lines and share them (:class:`ftsweep.case.LineCache`). A case
+    whose layout cannot be built costs 0 and shares nothing."""
+    try:
+        layout = build_layout(surface, case.layout)
+    except ValueError:
+        return 0.0, None
+    rho0 = catalogs.aperture_of(surface).outer_radius_um
+    cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
+    feed = case.feed_um or cutting.feed_um
+    n_theta = angular_samples(layout, rho0, case.resolution)
+    nodes = n_theta * rho0 / feed * case.resolution.points_per_feed
+    return 8.0 * layout.n_points + nodes, (n_theta, feed, case.nose_radius_um or cutting.nose_radius_um)
+
+
+RING = ProgramKind(
+    "ring", "ring layout", ("points", "aspect"), _request_at, _feed, _plan, _record_fields, _cost
+)
+MESH = ProgramKind(
+    "mesh", "mesh layout", ("points", "aspect"), _request_at, _feed, _plan, _record_fields, _cost
+)

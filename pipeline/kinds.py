@@ -1,0 +1,76 @@
+"""The program-kind contract and its registry (architecture.md, "The program-kind contract").
+
+A program kind is one :class:`ProgramKind` entry, in the spirit of flox's ``Aggregation``
+table and xarray's backend entrypoints: it names its sweep axes and says how a sweep point
+becomes its request, how its feed is set, how it is planned into a program, which record
+fields it adds, what a case of it costs, whether it runs an engine of its own, and which file
+format exports it. Generic code (sweeps, planning, the engine, records) asks the kind found
+by :func:`kind`; a kind's name is tested in its own module only. Adding a kind = its stage
+module, its kind module, one line in :func:`registry`, one conformance subclass in the tests.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple, Optional
+
+
+class Planning(NamedTuple):
+    """What a kind's ``plan`` receives: the case, its entries, the surface callable, the feed
+    [µm/rev] and nose radius [µm] in force, the slope bound, the catalog folder, and a given
+    program (path, commands [µm]) read back from a file, or None to plan one."""
+
+    case: Any
+    surface_spec: Any
+    machine: Any
+    surface: Callable[..., Any]
+    feed_um: float
+    nose_radius_um: float
+    gradient_bound: float
+    catalog_folder: Any
+    program: Optional[tuple[Any, Any]]
+
+
+@dataclass(frozen=True)
+class ProgramKind:
+    """One program kind.
+
+    name : the request's ``kind`` (``LayoutRequest.kind``), the record's ``layout``.
+    noun : what a program of it is called in messages (``ring layout``, ``spiral program``).
+    axes : its own sweep axes (beside the feed and nose-radius axes every kind may sweep).
+    request_at : ``(sweep spec, {axis: value}) -> LayoutRequest`` of one sweep point.
+    feed : ``(case, cutting, nose radius, surface spec, catalog folder, program) -> F [µm/rev]``.
+    plan : ``(Planning) -> (program, extra fields of the resolved case)``.
+    record_fields : ``(resolved case) -> its fields of the record`` (:mod:`ftsweep.result`).
+    cost : ``(case, surface spec, catalog folder) -> (relative cost, key of shared lines)``.
+    simulate : its own engine ``(resolved case, timer, progress, t_start) -> record``, or None
+        for the line engine of :func:`ftsweep.case.run_case`.
+    """
+
+    name: str
+    noun: str
+    axes: tuple[str, ...]
+    request_at: Callable[[Any, dict[str, float]], Any]
+    feed: Callable[..., float]
+    plan: Callable[[Planning], tuple[Any, dict[str, Any]]]
+    record_fields: Callable[[Any], dict[str, Any]]
+    cost: Callable[[Any, Any, Any], tuple[float, Any]]
+    simulate: Optional[Callable[..., dict[str, Any]]] = None
+
+
+@functools.cache
+def registry() -> dict[str, ProgramKind]:
+    """Every registered program kind by name."""
+    from ftsweep import kind_dpath, kind_spiral, kind_table
+
+    return {k.name: k for k in (kind_table.RING, kind_table.MESH, kind_spiral.SPIRAL, kind_dpath.DPATH)}
+
+
+def kind(name: str) -> ProgramKind:
+    """The registered kind ``name``."""
+    kinds = registry()
+    if name not in kinds:
+        raise ValueError(f"unknown program kind {name!r}; known: {', '.join(kinds)}")
+    return kinds[name]

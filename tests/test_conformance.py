@@ -1,0 +1,144 @@
+"""The conformance suite of the program-kind contract (issue 27; zarr's ``StoreTests``
+pattern): one subclass per registered kind (and per spiral rule and layered wrapper), each
+naming a one-case sweep; every subclass runs the same tests. Plan → simulate → export →
+verify round trip, the record holds exactly the kind's declared fields, a case's key is
+stable through its spec's serialisation, and a finished sweep resumes with nothing computed.
+Adding a kind adds one subclass here."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import xarray as xr
+from click.testing import CliRunner
+
+from ftsweep import kinds, result
+from ftsweep.cli import main
+from ftsweep.export import format_of_kind
+from ftsweep.run import run_sweep
+from ftsweep.select import open_cube, recorded_case
+from ftsweep.spec import Case
+from ftsweep.sweep import case_at, load_sweep
+
+
+class KindTests:
+    """Every program kind passes these; subclasses set ``kind``, ``sweep`` (YAML of a
+    one-case sweep) and ``suffix`` (the exported file's)."""
+
+    kind: str
+    sweep: str
+    suffix = ".txt"
+
+    @pytest.fixture(scope="class")
+    @classmethod
+    def cube(cls, tmp_path_factory, module_catalog_dir):
+        folder = tmp_path_factory.mktemp(cls.__name__)
+        spec = folder / "one.yaml"
+        spec.write_text(cls.sweep)
+        out = folder / "one.zarr"
+        report = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=module_catalog_dir)
+        assert report.done == 1, report.rows
+        return spec, out, module_catalog_dir
+
+    def test_the_kind_is_registered_and_has_a_file_format(self):
+        entry = kinds.kind(self.kind)
+        assert entry.name == self.kind and entry.axes
+        assert self.kind in format_of_kind(self.kind).kinds
+
+    def test_its_sweep_cases_ask_the_kind(self, cube):
+        spec_path, _, folder = cube
+        _, spec = load_sweep(str(spec_path), folder)
+        case = case_at(spec, 0)
+        assert case.layout.kind == self.kind
+        cost, _ = kinds.kind(self.kind).cost(case, _surface(case, folder), folder)
+        assert cost > 0
+
+    def test_a_case_key_is_stable_through_its_spec(self, cube):
+        _, out, _ = cube
+        case, _ = recorded_case(open_cube(out), 0)
+        again = Case.model_validate_json(case.model_dump_json())
+        assert again.key() == case.key() and again == case
+
+    def test_the_record_holds_exactly_the_declared_fields(self, cube):
+        _, out, _ = cube
+        ds = xr.open_zarr(out)
+        declared = set(result.stored(self.kind))
+        others = set().union(*(result.stored(k) for k in kinds.registry())) - declared
+        assert declared <= set(ds.data_vars) and not others & set(ds.data_vars)
+        assert float(ds["pv_nm"].values.ravel()[0]) > 0
+
+    def test_plan_simulate_export_verify_round_trip(self, cube, tmp_path):
+        _, out, folder = cube
+        path = tmp_path / f"part{self.suffix}"
+        res = CliRunner().invoke(
+            main, ["export", str(out), "--case", "0", "-o", str(path)], env={"FTSWEEP_CATALOGS": str(folder)}
+        )
+        assert res.exit_code == 0, res.output
+        res = CliRunner().invoke(main, ["verify", str(path), "--json"], env={"FTSWEEP_CATALOGS": str(folder)})
+        assert res.exit_code == 0, res.output
+        record = json.loads(res.stdout)
+        assert record["layout"] == self.kind
+        assert abs(record["pv_nm"] - record["predicted_pv_nm"]) <= record["pv_tolerance_nm"]
+
+    def test_a_finished_sweep_resumes_with_nothing_computed(self, cube):
+        spec_path, out, folder = cube
+        report = run_sweep(str(spec_path), out, scheduler="synchronous", catalog_folder=folder)
+        assert report.queued == 0 and not report.damaged and report.skipped == 1
+
+
+def _surface(case: Case, folder):  # type: ignore[no-untyped-def]
+    from ftsweep import catalogs
+
+    return catalogs.entry("surfaces", case.surface, folder)
+
+
+class TestRing(KindTests):
+    kind = "ring"
+    suffix = ".h"
+    sweep = "surface: small_sine\nlayout: ring\naxes: {points: [15000], aspect: [4.0]}\n"
+
+
+class TestMesh(KindTests):
+    kind = "mesh"
+    suffix = ".h"
+    sweep = "surface: small_lens\nlayout: mesh\naxes: {points: [12000], aspect: [1.0]}\n"
+
+
+class TestLayeredTable(KindTests):
+    kind = "ring"
+    suffix = ".h"
+    sweep = "surface: small_sine\nlayout: ring\nmachine: short-fts\naxes: {points: [15000], aspect: [4.0]}\n"
+
+
+class TestSpiralAngle(KindTests):
+    kind = "spiral"
+    sweep = "surface: small_sine\nlayout: spiral\naxes: {points_per_rev: [60]}\n"
+
+
+class TestSpiralArc(KindTests):
+    kind = "spiral"
+    sweep = "surface: small_sine\nlayout: spiral\naxes: {arc_um: [20.0]}\n"
+
+
+class TestSpiralChord(KindTests):
+    kind = "spiral"
+    sweep = "surface: small_sine\nlayout: spiral\naxes: {chord_um: [0.05]}\n"
+
+
+class TestLayeredSpiral(KindTests):
+    kind = "spiral"
+    sweep = "surface: small_sine\nlayout: spiral\nmachine: short-fts\naxes: {points_per_rev: [60]}\n"
+
+
+class TestDPath(KindTests):
+    kind = "dpath"
+    sweep = (
+        "surface: concave_sphere\nlayout: dpath\nmachine: sts-xzc\ncutting: dpath-finish\n"
+        "dpath: {transition: optimised}\naxes: {spacing_um: [500.0], points_per_cut: [41]}\n"
+    )
+
+
+def test_every_registered_kind_has_a_conformance_subclass():
+    covered = {cls.kind for cls in KindTests.__subclasses__()}
+    assert covered == set(kinds.registry())

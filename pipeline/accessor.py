@@ -34,9 +34,16 @@ def _axes(ax: Any = None, size: tuple[float, float] = (7.0, 4.6)) -> Any:
 
 def aspect_label(ds: xr.Dataset) -> str:
     """Axis label of the aspect ratio, with its unit for the cube's layout method."""
-    if ds.attrs.get("layout_method") == "ring":
-        return "aspect ratio α = Δρ/Δθ [µm/deg]"
-    return "aspect ratio α = Δx/Δy [1]"
+    from ftsweep import kinds, result
+
+    kind = str(ds.attrs.get("layout_method"))
+    first, second = (n.split("_")[0][1:] for n in result.pitch_names(kind))
+    units = kinds.kind(kind).aspect_units.replace("um", "µm")
+    return f"aspect ratio α = Δ{_greek(first)}/Δ{_greek(second)} [{units}]"
+
+
+def _greek(name: str) -> str:
+    return {"rho": "ρ", "theta": "θ"}.get(name, name)
 
 
 @xr.register_dataset_accessor("ftsweep")
@@ -212,12 +219,9 @@ def plot_map(
     lim = float(np.nanmax(np.abs(values_nm))) if np.any(np.isfinite(values_nm)) else 1.0
     im = ax.imshow(values_nm, origin="lower", extent=extent, cmap="RdBu_r", vmin=-lim, vmax=lim)
     ax.figure.colorbar(im, ax=ax, label=f"{kind} form error e = z − f [nm]")
-    if case.get("layout") == "spiral":
-        pitch = f"mean Δφ {case['dphi_deg']:.3g}°, mean Δs {case['ds_um']:.3g} µm"
-    elif case.get("layout") == "ring":
-        pitch = f"Δρ {case['drho_um']:.3g} µm, Δθ {case['dtheta_deg']:.3g}°"
-    else:
-        pitch = f"Δx {case['dx_um']:.3g} µm, Δy {case['dy_um']:.3g} µm"
+    from ftsweep import kinds
+
+    pitch = kinds.kind(str(case.get("layout"))).pitch_text(case)
     ax.set_title(f"P-V {case['pv_nm']:.1f} nm, {case['n_points']:,} points, {pitch}", fontsize=9)
     ax.set_xlabel("x [µm]")
     ax.set_ylabel("y [µm]")

@@ -43,16 +43,7 @@ def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -
 
 
 def _layout_point(layout: Program, flat: int) -> str:
-    if isinstance(layout, spiral.SpiralPath):
-        rho, theta = float(layout.rho[flat]), float(layout.theta[flat])
-        return f"spiral point {flat} (ρ = {rho:.6g} µm, C = {math.degrees(theta):.6g}°)"
-    i, j = np.unravel_index(flat, layout.shape)
-    if layout.kind == "ring":
-        rho = layout.origin[0] + i * layout.pitch[0]
-        theta = layout.origin[1] + j * layout.pitch[1]
-        return f"control point [{i}, {j}] (ρ = {rho:.6g} µm, θ = {theta:.6g}°)"
-    x, y = layout.origin[0] + i * layout.pitch[0], layout.origin[1] + j * layout.pitch[1]
-    return f"control point [{i}, {j}] (x = {x:.6g} µm, y = {y:.6g} µm)"
+    return kinds.kind(layout.kind).point_text(layout, flat)
 
 
 def _xy(r: float, theta: float) -> str:

@@ -232,12 +232,9 @@ def _target_text(value: float) -> str:
 
 
 def _selection_text(chosen: dict[str, Any]) -> str:
-    if chosen["layout"] in ("spiral", "dpath"):
-        pitch = f"mean Δφ = {chosen['dphi_deg']:.4g}°, mean Δs = {chosen['ds_um']:.4g} µm"
-    elif chosen["layout"] == "ring":
-        pitch = f"Δρ = {chosen['drho_um']:.4g} µm, Δθ = {chosen['dtheta_deg']:.4g}°"
-    else:
-        pitch = f"Δx = {chosen['dx_um']:.4g} µm, Δy = {chosen['dy_um']:.4g} µm"
+    from ftsweep import kinds
+
+    pitch = kinds.kind(chosen["layout"]).pitch_text(chosen)
     interp = (
         f"interpolation alone {chosen['pv_interp_nm']:.2f} nm"
         if math.isfinite(chosen["pv_interp_nm"])

@@ -13,14 +13,14 @@ import json
 from pathlib import Path
 from typing import Any
 
-from ftsweep import query
+from ftsweep import kinds, query
 from ftsweep.select import SelectError, open_cube
 
 
 def label_of(ds: Any, path: Path) -> str:
     """``kind: rule`` of a cube, e.g. ``ring table`` or ``spiral (chord_um)``."""
     kind = ds.attrs.get("layout_method", "?")
-    if kind in ("spiral", "dpath"):
+    if kinds.kind(kind).aspect_range is None:  # a path program: its rule or spacing axis
         return f"{kind} ({ds['status'].dims[0]}) {path.stem}"
     return f"{kind} table {path.stem}"
 

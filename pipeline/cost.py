@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ftsweep import catalogs
+from ftsweep import catalogs, kinds
 from ftsweep.spec import Case, CaseError, Resolution
 from ftsweep.stages import spiral
 from ftsweep.stages.interpolation import Program
@@ -25,13 +25,10 @@ def angular_samples(layout: Program, rho0_um: float, resolution: Resolution) -> 
     if resolution.n_theta is not None:
         n = resolution.n_theta
     else:
-        if isinstance(layout, spiral.SpiralPath):
-            n = resolution.samples_per_cell * layout.max_points_per_rev
-        elif layout.kind == "ring":
-            n = resolution.samples_per_cell * layout.shape[1]
-        else:
-            cells = math.ceil(2.0 * math.pi * rho0_um / max(layout.pitch))
-            n = resolution.samples_per_cell * cells
+        cells = kinds.kind(layout.kind).angular_cells
+        if cells is None:
+            raise ValueError(f"a {layout.kind} program is not sampled on spindle angles")
+        n = resolution.samples_per_cell * int(cells(layout, rho0_um))
         if resolution.angular_ladder is not None:
             return ladder_rung(n, resolution.angular_ladder)
     return n + (n % 2)

@@ -20,10 +20,10 @@ from typing import Any, Optional
 
 import dask
 
-from ftsweep import allocator
+from ftsweep import allocator, kinds
 from ftsweep.case import LineCache, run_case
 from ftsweep.cube import CubeWriter
-from ftsweep.spec import Case, LayoutRequest
+from ftsweep.spec import Case
 from ftsweep.sweep import SweepSpec, case_at
 
 
@@ -121,10 +121,9 @@ def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> fl
     every batch page-fault its arrays afresh); returns seconds."""
     t = time.perf_counter()
     allocator.tune()
-    pitch = (50.0, 10.0) if kind == "ring" else (50.0, 50.0)
     try:
         run_case(
-            Case(surface=surface, layout=LayoutRequest(kind=kind, pitch=pitch)),
+            Case(surface=surface, layout=kinds.kind(kind).warm_request()),
             Path(catalog_folder) if catalog_folder else None,
         )
     except Exception:  # noqa: BLE001

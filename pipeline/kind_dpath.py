@@ -136,6 +136,16 @@ def _simulate(
     return timed(record, timer, t_start)
 
 
+def _pitch(r: dict[str, Any]) -> str:
+    return f"mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
+
+
+def _point(path: Any, flat: int) -> str:
+    x, c = float(path.rho[flat]), math.degrees(path.phi[flat])
+    return f"D-path point {flat} (X = {x:.6g} µm, C = {c:.6g}°)"
+
+
 DPATH = ProgramKind(
-    "dpath", "D-path program", AXES, _request_at, _feed, _plan, _record_fields, _cost, _simulate
-)
+    "dpath", "D-path program", AXES, _request_at, _feed, _plan, _record_fields, _cost, _simulate,
+    _pitch, _point, None, lambda: LayoutRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
+)  # fmt: skip

@@ -191,4 +191,21 @@ def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
     return 3.0 * 2.0 * math.pi * rho0 * rho0 / feed, None
 
 
-SPIRAL = ProgramKind("spiral", "spiral program", AXES, _request_at, _feed, _plan, _record_fields, _cost)
+def _pitch(r: dict[str, Any]) -> str:
+    return f"mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
+
+
+def _point(path: spiral.SpiralPath, flat: int) -> str:
+    rho, theta = float(path.rho[flat]), float(path.theta[flat])
+    return f"spiral point {flat} (ρ = {rho:.6g} µm, C = {math.degrees(theta):.6g}°)"
+
+
+def _cells(path: spiral.SpiralPath, rho0_um: float) -> float:
+    """The segments of the most densely sampled revolution."""
+    return path.max_points_per_rev
+
+
+SPIRAL = ProgramKind(
+    "spiral", "spiral program", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
+    _pitch, _point, _cells, lambda: LayoutRequest(kind="spiral", points_per_rev=16),
+)  # fmt: skip

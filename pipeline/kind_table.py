@@ -4,7 +4,10 @@ commands compensated over the whole table by the line engine (:mod:`ftsweep.case
 
 from __future__ import annotations
 
+import math
 from typing import Any
+
+import numpy as np
 
 from ftsweep import catalogs, result
 from ftsweep.cost import angular_samples
@@ -76,9 +79,46 @@ def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
     return 8.0 * layout.n_points + nodes, (n_theta, feed, case.nose_radius_um or cutting.nose_radius_um)
 
 
+def _ring_pitch(r: dict[str, Any]) -> str:
+    return f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.4g}°"
+
+
+def _mesh_pitch(r: dict[str, Any]) -> str:
+    return f"Δx = {r['dx_um']:.4g} µm, Δy = {r['dy_um']:.4g} µm"
+
+
+def _ring_point(layout: Layout, flat: int) -> str:
+    i, j = np.unravel_index(flat, layout.shape)
+    rho = layout.origin[0] + i * layout.pitch[0]
+    theta = layout.origin[1] + j * layout.pitch[1]
+    return f"control point [{i}, {j}] (ρ = {rho:.6g} µm, θ = {theta:.6g}°)"
+
+
+def _mesh_point(layout: Layout, flat: int) -> str:
+    i, j = np.unravel_index(flat, layout.shape)
+    x, y = layout.origin[0] + i * layout.pitch[0], layout.origin[1] + j * layout.pitch[1]
+    return f"control point [{i}, {j}] (x = {x:.6g} µm, y = {y:.6g} µm)"
+
+
+def _ring_cells(layout: Layout, rho0_um: float) -> float:
+    """Np cells: one per point of a ring."""
+    return layout.shape[1]
+
+
+def _mesh_cells(layout: Layout, rho0_um: float) -> float:
+    """2πρ0/max(Δx, Δy): bilinear error grows as the pitch squared, so the coarse
+    direction's cells carry the error that must be resolved."""
+    return math.ceil(2.0 * math.pi * rho0_um / max(layout.pitch))
+
+
+AXES = ("points", "aspect")
 RING = ProgramKind(
-    "ring", "ring layout", ("points", "aspect"), _request_at, _feed, _plan, _record_fields, _cost
-)
+    "ring", "ring layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
+    _ring_pitch, _ring_point, _ring_cells, lambda: LayoutRequest(kind="ring", pitch=(50.0, 10.0)),
+    (0.3, 400.0), "um/deg",
+)  # fmt: skip
 MESH = ProgramKind(
-    "mesh", "mesh layout", ("points", "aspect"), _request_at, _feed, _plan, _record_fields, _cost
-)
+    "mesh", "mesh layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
+    _mesh_pitch, _mesh_point, _mesh_cells, lambda: LayoutRequest(kind="mesh", pitch=(50.0, 50.0)),
+    (0.08, 16.0), "1",
+)  # fmt: skip

@@ -47,6 +47,14 @@ class ProgramKind:
     cost : ``(case, surface spec, catalog folder) -> (relative cost, key of shared lines)``.
     simulate : its own engine ``(resolved case, timer, progress, t_start) -> record``, or None
         for the line engine of :func:`ftsweep.case.run_case`.
+    pitch_text : ``(record) -> text`` of a program's pitches or mean steps, with units.
+    point_text : ``(program, flat index) -> text`` naming where a point lies, for errors.
+    angular_cells : ``(program, ρ0 [µm]) -> cells`` along the outer circumference that set
+        the spindle angles the line engine samples (:func:`ftsweep.cost.angular_samples`).
+    warm_request : a coarse request of the kind that compiles its kernels in a new worker.
+    aspect_range : the aspect ratios [its units] a sweep or search may span, for kinds swept
+        over aspect ratios (tables); None for path programs.
+    aspect_units : units of its aspect ratio (model §2).
     """
 
     name: str
@@ -57,7 +65,13 @@ class ProgramKind:
     plan: Callable[[Planning], tuple[Any, dict[str, Any]]]
     record_fields: Callable[[Any], dict[str, Any]]
     cost: Callable[[Any, Any, Any], tuple[float, Any]]
-    simulate: Optional[Callable[..., dict[str, Any]]] = None
+    simulate: Optional[Callable[..., dict[str, Any]]]
+    pitch_text: Callable[[dict[str, Any]], str]
+    point_text: Callable[[Any, int], str]
+    angular_cells: Optional[Callable[[Any, float], float]]
+    warm_request: Callable[[], Any]
+    aspect_range: Optional[tuple[float, float]] = None
+    aspect_units: str = "um/deg"
 
 
 @functools.cache

@@ -28,14 +28,22 @@ import numpy as np
 import xarray as xr
 import zarr
 
-from ftsweep import __version__, catalogs, cube
+from ftsweep import __version__, catalogs, cube, kinds
 from ftsweep.case import run_case
 from ftsweep.cube import SCHEMA_VERSION, CubeError, CubeWriter, git_revision
 from ftsweep.lock import cube_lock
 from ftsweep.spec import Case, CaseError, LayoutRequest, Resolution
 from ftsweep.sweep import axis_attrs
 
-ASPECT_RANGE = {"ring": (0.3, 400.0), "mesh": (0.08, 16.0)}
+
+def _aspect_range(layout: str) -> tuple[float, float]:
+    """The aspect ratios a search spans (the kind's; tables only)."""
+    span = kinds.kind(layout).aspect_range
+    if span is None:
+        raise ValueError(
+            f"optimize searches aspect ratios of tables (ring, mesh); a {layout} program has none"
+        )
+    return span
 
 
 def _key(points: float, aspect: float) -> tuple[int, float]:
@@ -296,7 +304,7 @@ def _seeded(
     of nine aspect ratios at ``start_points`` refined around the best (``scan``), or the
     layout :func:`ftsweep.estimate.seed_layout` predicts for the tolerance, refined
     (``estimate``)."""
-    lo, hi = ASPECT_RANGE[opt.layout]
+    lo, hi = _aspect_range(opt.layout)
     cap = float(opt.capacity)
     if seed == "estimate":
         from ftsweep.estimate import seed_layout
@@ -359,11 +367,10 @@ def optimize(
         )
         search = _search_record(opt, float(start_points), max_rounds, seed)
         reused = opt.open_store(search, max_evaluations(max_rounds), restart)
-        ratio = (ASPECT_RANGE[layout][1] / ASPECT_RANGE[layout][0]) ** (1 / 8)
+        lo, hi = _aspect_range(layout)
+        ratio = (hi / lo) ** (1 / 8)
         n, aspect, rec = _seeded(opt, spec, seed, float(start_points), ratio)
         opt.search_points(n, aspect, rec, ratio**0.25, max_rounds)
-        cap = opt.capacity
-
         answer = opt.best_meeting()
         return {
             "met": answer is not None,
@@ -372,5 +379,5 @@ def optimize(
             "reused": reused,
             "cube": str(out),
             "tolerance_nm": tolerance_nm,
-            "capacity_points": cap,
+            "capacity_points": opt.capacity,
         }

@@ -20,7 +20,7 @@ from typing import Any, Optional
 import numpy as np
 
 import ftsweep.accessor  # noqa: F401  (registers ds.ftsweep)
-from ftsweep import cube
+from ftsweep import cube, kinds
 from ftsweep.accessor import _axes, plot_map
 from ftsweep.case import run_case
 from ftsweep.catalogs import aperture_of
@@ -57,8 +57,8 @@ def resimulate(
     case = base.model_copy(
         update={"resolution": base.resolution.model_copy(update={"error_map_bins": map_bins})}
     )
-    if case.layout.kind == "spiral":
-        # a spiral is planned once, here, and handed to the run as its program
+    if kinds.kind(case.layout.kind).aspect_range is None:
+        # a path program is planned once, here, and handed to the run as its program
         rcase = resolve_case(case, specs=specs)
         assert rcase.values is not None and rcase.gouge is not None
         layout, table, gouge = rcase.layout, rcase.values, rcase.gouge

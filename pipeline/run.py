@@ -17,7 +17,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import catalogs, cube
+from ftsweep import catalogs, cube, kinds
 from ftsweep.case import LINE_CACHE_MB
 from ftsweep.cube import CubeError
 from ftsweep.executor import TaskSpec, execute, run_task, warm_up
@@ -201,7 +201,7 @@ def _run_locked(
     scheduler, workers, line_cache_mb = where
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
     if prune is not None:
-        if spec.layout in ("spiral", "dpath"):
+        if kinds.kind(spec.layout).aspect_range is None:
             raise CaseError(
                 f"--prune estimates tables over their aspect ratios; a {spec.layout} sweep has none"
             )

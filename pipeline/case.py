@@ -165,7 +165,7 @@ def run_case(
         errors["pv_interp_nm"] = math.nan  # not simulated: asked off
     record = record_of(rcase, plan, errors, dyn, gouge, layering)
     if emap is not None:
-        record.update(emap.asrecord_of())
+        record.update(emap.as_record())
     return timed(record, timer, t_start)
 
 

@@ -85,3 +85,51 @@ def progress_done(bar: Any) -> None:
 
 def flag(name: str) -> str:
     return "--" + name.replace("_", "-")
+
+
+DPATH_FLAGS = ("spacing_um", "points_per_cut", "zones", "offaxis_mm", "cut_angle_deg", "transition_step_deg")
+
+
+def dpath_options(f: Any) -> Any:
+    """The options of a D-path program ([5]) shared by ``dpath`` and ``predict --layout dpath``."""
+    options = [
+        click.option(
+            "--spacing-um", type=POSITIVE, help="D path: spacing h between cuts [µm]. Default: the feed."
+        ),
+        click.option(
+            "--points-per-cut", type=click.IntRange(min=2), help="D path: points on every cut. Default: 201."
+        ),
+        click.option(
+            "--zones", type=click.Choice(["1", "2", "4"]), help="D path: zones per revolution. Default: 1."
+        ),
+        click.option(
+            "--offaxis-mm",
+            type=POSITIVE,
+            help="D path: distance of the part's centre from the C axis [mm]. Default: 30.",
+        ),
+        click.option(
+            "--cut-angle-deg",
+            type=FINITE,
+            help="D path: direction of the cuts [deg from +x]. Default: 90 (along y).",
+        ),
+        click.option(
+            "--transition-step-deg",
+            type=POSITIVE,
+            help="D path: largest C step in a transition [deg]. Default: 1.",
+        ),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+def dpath_request(opts: dict[str, Any]) -> dict[str, Any]:
+    """The D-path request options given on the command line (mm and strings converted)."""
+    return {
+        "spacing_um": opts["spacing_um"],
+        "points_per_cut": opts["points_per_cut"],
+        "zones": int(opts["zones"]) if opts["zones"] else None,
+        "offaxis_um": opts["offaxis_mm"] * 1e3 if opts["offaxis_mm"] else None,
+        "cut_angle_deg": opts["cut_angle_deg"],
+        "transition_step_deg": opts["transition_step_deg"],
+    }

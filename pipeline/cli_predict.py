@@ -8,10 +8,21 @@ from typing import Any
 import click
 from pydantic import ValidationError
 
-from ftsweep import catalogs, result
+from ftsweep import catalogs, kinds, result
 from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError
-from ftsweep.cli_common import FINITE, POSITIVE, echo_json, fail, flag, progress_done, stderr_progress
+from ftsweep.cli_common import (
+    DPATH_FLAGS,
+    FINITE,
+    POSITIVE,
+    dpath_options,
+    dpath_request,
+    echo_json,
+    fail,
+    flag,
+    progress_done,
+    stderr_progress,
+)
 from ftsweep.cost import MAX_NODES
 from ftsweep.spec import SPIRAL_FIELDS, Case, CaseError, Resolution
 from ftsweep.usersurfaces import SurfaceLoadError
@@ -24,12 +35,13 @@ _MESH_PITCH = result.pitch_names("mesh")
 @click.option("--surface", required=True, metavar="NAME", help="Surface from catalogs/surfaces.yaml.")
 @click.option(
     "--layout",
-    type=click.Choice(["ring", "mesh", "spiral"]),
+    type=click.Choice(["ring", "mesh", "spiral", "dpath"]),
     default=None,
     help="Program: a ring (polar grid) or mesh (Cartesian grid) table for an independent FTS "
-    "controller, or a spiral path program (points along the tool path, linear between them). "
-    "Default: the surface's table method.",
+    "controller, a spiral path program (points along the tool path, linear between them), or a "
+    "D-path program ([5]: straight cuts over an off-axis part). Default: the surface's table method.",
 )
+@dpath_options
 @click.option("--drho-um", type=FINITE, help="Ring pitch Δρ [µm] (ring layout).")
 @click.option(
     "--dtheta-deg",
@@ -130,6 +142,11 @@ def predict(**opts: Any) -> None:
     chord within the budget of the compensated path, [4]); its feed is --feed-um, the
     cutting entry's, or the largest the residual budget --residual-um allows.
 
+    A D-path program (--layout dpath, [5]) cuts the off-axis part along straight lines
+    --spacing-um apart, --points-per-cut each, joined by quintic transitions outside it; give
+    a machine with X, Z and C limits and its cutting entry (e.g. --machine sts-xzc --cutting
+    dpath-finish). `ftsweep dpath` studies both transitions and the spiral beside it.
+
     \b
     Examples:
       ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5
@@ -140,6 +157,8 @@ def predict(**opts: Any) -> None:
           --cutting seed003 --machine sts-nanoform
       ftsweep predict --surface microprism --machine fts-5um --cutting microprism --points 250000 \\
           --aspect 1 --z-error-um 0.1
+      ftsweep predict --surface concave_sphere --layout dpath --spacing-um 20 \\
+          --machine sts-xzc --cutting dpath-finish
     """
     case = _build_case(opts)
     as_json = opts["as_json"]
@@ -169,28 +188,7 @@ def _build_case(opts: dict[str, Any]) -> Case:
     kind = layout or spec.layout
     own = _RING_PITCH if kind == "ring" else _MESH_PITCH
     given = {k: opts[k] for k in (*_RING_PITCH, *_MESH_PITCH)}
-    spiral_given = {k: opts[k] for k in SPIRAL_FIELDS if opts[k] is not None}
-    if kind == "spiral":
-        table_given = [
-            k for k, v in {**given, "points": opts["points"], "aspect": opts["aspect"]}.items() if v
-        ]
-        if table_given:
-            fail(
-                f"{flag(table_given[0])} belongs to tables; a spiral takes --points-per-rev, --arc-um "
-                "or --chord-um"
-            )
-        request: dict[str, Any] = {"kind": kind, **spiral_given}
-        pitch_given = False
-    else:
-        if spiral_given:
-            fail(f"{flag(next(iter(spiral_given)))} belongs to spiral programs (--layout spiral)")
-        pitch_given = _check_layout_options(kind, given, opts["points"], opts["aspect"])
-        request = {
-            "kind": kind,
-            "pitch": (given[own[0]], given[own[1]]) if pitch_given else None,
-            "points": opts["points"],
-            "aspect": opts["aspect"],
-        }
+    request, pitch_given = _request_of(kind, opts, given)
     try:
         # validated as part of the case, so that an error's location names the option
         case = Case(
@@ -216,6 +214,41 @@ def _build_case(opts: dict[str, Any]) -> Case:
         drho, dtheta = given[own[0]], _realisable_dtheta(given[own[1]])
         case = case.model_copy(update={"layout": case.layout.model_copy(update={"pitch": (drho, dtheta)})})
     return case
+
+
+def _request_of(kind: str, opts: dict[str, Any], given: dict[str, Any]) -> tuple[dict[str, Any], bool]:
+    """The program request of ``predict``'s options, refusing options of another kind; and
+    whether a table's pitches were given explicitly."""
+    own = _RING_PITCH if kind == "ring" else _MESH_PITCH
+    spiral_given = {k: opts[k] for k in SPIRAL_FIELDS if opts[k] is not None}
+    dpath_given = {k: v for k, v in dpath_request(opts).items() if v is not None}
+    table_given = [k for k, v in {**given, "points": opts["points"], "aspect": opts["aspect"]}.items() if v]
+    if kind != "dpath" and dpath_given:
+        first = next(k for k in DPATH_FLAGS if opts[k] is not None)
+        fail(f"{flag(first)} belongs to D-path programs (--layout dpath)")
+    if kind == "dpath":
+        other = table_given + list(spiral_given)
+        if other:
+            takes = ", ".join(flag(k) for k in DPATH_FLAGS)
+            fail(f"{flag(other[0])} does not belong to a D-path program; it takes {takes}")
+        return {"kind": kind, **dpath_given}, False
+    if kind == "spiral":
+        if table_given:
+            fail(
+                f"{flag(table_given[0])} belongs to tables; a spiral takes --points-per-rev, --arc-um "
+                "or --chord-um"
+            )
+        return {"kind": kind, **spiral_given}, False
+    if spiral_given:
+        fail(f"{flag(next(iter(spiral_given)))} belongs to spiral programs (--layout spiral)")
+    pitch_given = _check_layout_options(kind, given, opts["points"], opts["aspect"])
+    request = {
+        "kind": kind,
+        "pitch": (given[own[0]], given[own[1]]) if pitch_given else None,
+        "points": opts["points"],
+        "aspect": opts["aspect"],
+    }
+    return request, pitch_given
 
 
 def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
@@ -272,43 +305,10 @@ def _check_layout_options(kind: str, given: dict[str, Any], points: Any, aspect:
     return bool(pitch_given)
 
 
-def _program_lines(r: dict[str, Any]) -> list[str]:
-    """The summary lines that describe the program: its points and pitches (or steps)."""
-    if r["layout"] == "spiral":
-        rule = {
-            "angle": f"{r['points_per_rev']:g} points per revolution",
-            "arc": f"a point every {r['arc_um']:g} µm of path",
-            "chord": f"chord budget {r['chord_um']:g} µm (largest chord error {r['chord_error_nm']:.1f} nm)",
-        }[r["spiral_rule"]]
-        budget = (
-            f"from the residual budget {r['residual_um']:g} µm"
-            if math.isfinite(r["residual_um"])
-            else "given"
-        )
-        return [
-            f"program      spiral: {r['n_points']:,} points, {rule}",
-            f"steps        mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm along the path, "
-            f"{r['revolutions']:.4g} revolutions  (α = {r['aspect_actual']:.4g} µm/deg)",
-            f"feed         {r['feed_um']:.4g} µm/rev ({budget}); largest residual (cusp) "
-            f"{r['residual_error_nm']:.1f} nm from the section curvature",
-        ]
-    if r["layout"] == "ring":
-        pitches = (
-            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.7g}°  (α = {r['aspect_actual']:.4g} µm/deg)"
-        )
-    else:
-        pitches = f"Δx = {r['dx_um']:.4g} µm, Δy = {r['dy_um']:.4g} µm  (α = {r['aspect_actual']:.4g})"
-    shape = f"{r['table_rows']} × {r['table_cols']}"
-    return [
-        f"layout       {r['layout']}: {r['n_points']:,} control points ({shape})",
-        f"pitches      {pitches}",
-    ]
-
-
 def summary_text(r: dict[str, Any]) -> str:
     lines = [
         f"surface      {r['surface']}",
-        *_program_lines(r),
+        *kinds.kind(r["layout"]).describe(r),
         f"cutting      feed {r['feed_um']:g} µm/rev, nose radius {r['nose_radius_um']:g} µm, "
         f"compensation {r['compensation']}",
         f"resolution   {r['n_theta']:,} angles × {r['points_per_feed']} points/feed "
@@ -323,7 +323,7 @@ def summary_text(r: dict[str, Any]) -> str:
         else "interp. P-V  not simulated (--no-interp-error)",
         f"feed cusp    {r['cusp_nm']:.2f} nm   (F²/8Rc)",
     ]
-    if "stroke_um" in r:
+    if "w_freq_max_hz" in r:  # the W motion of a spindle program (a D path describes its own)
         verdict = "feasible" if r["feasible"] else f"INFEASIBLE: {r['infeasible_reason']}"
         lines.append(
             f"W motion     stroke {r['stroke_um']:.3g} µm, "

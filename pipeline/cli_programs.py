@@ -14,6 +14,8 @@ from ftsweep.cli_common import (
     FINITE,
     POSITIVE,
     FiniteRange,
+    dpath_options,
+    dpath_request,
     echo_json,
     one_line,
     progress_done,
@@ -32,28 +34,7 @@ from ftsweep.spec import Case, CaseError
 @click.option(
     "--cutting", default="dpath-finish", show_default=True, help="Cutting entry (nose radius, rpm)."
 )
-@click.option(
-    "--spacing-um",
-    type=POSITIVE,
-    help="Spacing h between cuts [µm]. Default: the cutting entry's feed.",
-)  # noqa: E501
-@click.option("--points-per-cut", type=click.IntRange(min=2), help="Points on every cut. Default: 201.")
-@click.option("--zones", type=click.Choice(["1", "2", "4"]), help="Cutting zones per revolution. Default: 1.")
-@click.option(
-    "--offaxis-mm",
-    type=POSITIVE,
-    help="Distance of the part's centre from the C axis [mm]. Default: 30.",
-)  # noqa: E501
-@click.option(
-    "--cut-angle-deg",
-    type=FINITE,
-    help="Direction of the cuts in the part's frame [deg from +x]. Default: 90 (along y).",
-)  # noqa: E501
-@click.option(
-    "--transition-step-deg",
-    type=POSITIVE,
-    help="Largest C step in a transition [deg]. Default: 1.",
-)  # noqa: E501
+@dpath_options
 @click.option(
     "--feed-mm-min",
     type=POSITIVE,
@@ -96,14 +77,7 @@ def dpath_command(**opts: Any) -> None:
     """
     from ftsweep import dstudy
 
-    options = {
-        "spacing_um": opts["spacing_um"],
-        "points_per_cut": opts["points_per_cut"],
-        "zones": int(opts["zones"]) if opts["zones"] else None,
-        "offaxis_um": opts["offaxis_mm"] * 1e3 if opts["offaxis_mm"] else None,
-        "cut_angle_deg": opts["cut_angle_deg"],
-        "transition_step_deg": opts["transition_step_deg"],
-    }
+    options = dpath_request(opts)
     _check_overwrite(opts["out"], opts["force"])
     progress = stderr_progress("dpath", opts["as_json"])
     try:

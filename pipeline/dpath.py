@@ -234,15 +234,17 @@ def simulate(
     z_prog: np.ndarray,
     progress: Optional[Callable[[int, int], None]] = None,
     seconds: Optional[dict[str, float]] = None,
+    emap: Any = None,
 ) -> tuple[dict[str, float], int, float]:
     """Form error of a D-path case (module docstring; model §5–§6): the metrics in nm, the
-    rays and the edge band [µm]."""
+    rays and the edge band [µm]; with ``emap`` (:class:`ftsweep.record.ErrorMap`), the
+    error map over the part too."""
     seconds = {} if seconds is None else seconds
     setup, rays = _setup(rcase)
     stats = metrics.empty_stats()
     batches = math.ceil(rays.size / RAYS_PER_BATCH)
     for b in range(batches):
-        _ray_batch(setup, z_prog, rays[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH], stats, seconds)
+        _ray_batch(setup, z_prog, rays[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH], stats, seconds, emap)
         if progress is not None:
             progress(b + 1, batches)
     errors = metrics.finalize(stats)
@@ -276,7 +278,12 @@ def _crossings(path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray) -> tupl
 
 
 def _ray_batch(
-    ctx: _Setup, z_prog: np.ndarray, theta: np.ndarray, stats: np.ndarray, seconds: dict[str, float]
+    ctx: _Setup,
+    z_prog: np.ndarray,
+    theta: np.ndarray,
+    stats: np.ndarray,
+    seconds: dict[str, float],
+    emap: Any = None,
 ) -> None:
     """One batch of rays through sampling, exact commands, the envelope of the passes'
     arcs and the metrics, accumulated into ``stats`` (model §5–§6)."""
@@ -313,6 +320,8 @@ def _ray_batch(
     t = _tick(seconds, "envelope", t)
     metrics.accumulate(z, z_exact, f, inside, np.hypot(px, py), ctx.zone_split, stats)
     _cusp_extrema(ctx, cusp_r, cusp_z, ct, st, stats)
+    if emap is not None:
+        emap.add_points(z, f, inside, px, py)
     _tick(seconds, "metrics", t)
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from ftsweep import catalogs
 from ftsweep import dpath as dpath_program
 from ftsweep.kinds import Planning, ProgramKind
-from ftsweep.record import Timer, non_finite, simulated, timed
+from ftsweep.record import ErrorMap, Timer, non_finite, simulated, timed
 from ftsweep.spec import Case, CaseError, LayoutRequest
 from ftsweep.stages import compensation
 
@@ -120,7 +120,9 @@ def _simulate(
     assert rcase.values is not None and rcase.gouge is not None
     z = rcase.values
     require_finite(z, "the D-path Z", lambda i: f"point {i} (C {math.degrees(path.phi[i]):.4f}°)")
-    errors, rays, band = dpath_program.simulate(rcase, z, progress, timer.seconds)
+    bins = case.resolution.error_map_bins
+    emap = ErrorMap.over(rcase.aperture, bins) if bins else None
+    errors, rays, band = dpath_program.simulate(rcase, z, progress, timer.seconds, emap)
     bad = non_finite(rcase, errors)
     if bad:
         raise CaseError(
@@ -133,6 +135,8 @@ def _simulate(
     record: dict[str, Any] = {"surface": case.surface, "layout": "dpath", "n_points": path.n_points}
     record.update(simulated(rcase, errors, rays, band, rcase.gouge))
     record.update(dpath_program.record_fields(rcase, summary, z))
+    if emap is not None:
+        record.update(emap.as_record())
     return timed(record, timer, t_start)
 
 
@@ -145,7 +149,24 @@ def _point(path: Any, flat: int) -> str:
     return f"D-path point {flat} (X = {x:.6g} µm, C = {c:.6g}°)"
 
 
+def _describe(r: dict[str, Any]) -> list[str]:
+    """The D path's cuts, transition and X motion at the spindle speed (``predict``)."""
+    verdict = "feasible" if r["feasible"] else f"INFEASIBLE: {r['infeasible_reason']}"
+    return [
+        f"program      D path: {r['n_points']:,} points, {r['n_cuts']:,} cuts of {r['points_per_cut']:,} "
+        f"points ({r['transition']} transitions, {r['zones']:g} zone(s) per revolution)",
+        f"zone         {r['cut_length_um'] / 1e3:.4g} × {r['cut_width_um'] / 1e3:.4g} mm, "
+        f"{r['offaxis_um'] / 1e3:.4g} mm off-axis; spacing {r['spacing_um']:.4g} µm, "
+        f"cut step {r['cut_step_um']:.4g} µm",
+        f"X motion     {r['x_min_um'] / 1e3:.4g} … {r['x_max_um'] / 1e3:.4g} mm, peak feed "
+        f"{r['x_feed_peak_mm_s']:.3g} mm/s, peak acceleration {r['x_accel_peak_m_s2']:.3g} m/s² "
+        f"(cuts {r['x_accel_cut_m_s2']:.3g}, transitions {r['x_accel_transition_m_s2']:.3g}); "
+        f"{r['machining_s']:.0f} s: {verdict}",
+    ]
+
+
 DPATH = ProgramKind(
     "dpath", "D-path program", AXES, _request_at, _feed, _plan, _record_fields, _cost, _simulate,
     _pitch, _point, None, lambda: LayoutRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
+    _describe,
 )  # fmt: skip

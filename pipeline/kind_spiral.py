@@ -205,7 +205,26 @@ def _cells(path: spiral.SpiralPath, rho0_um: float) -> float:
     return path.max_points_per_rev
 
 
+def _describe(r: dict[str, Any]) -> list[str]:
+    """The spiral's points by its rule, its steps and its feed (``predict``)."""
+    rule = {
+        "angle": f"{r['points_per_rev']:g} points per revolution",
+        "arc": f"a point every {r['arc_um']:g} µm of path",
+        "chord": f"chord budget {r['chord_um']:g} µm (largest chord error {r['chord_error_nm']:.1f} nm)",
+    }[r["spiral_rule"]]
+    budget = (
+        f"from the residual budget {r['residual_um']:g} µm" if math.isfinite(r["residual_um"]) else "given"
+    )
+    return [
+        f"program      spiral: {r['n_points']:,} points, {rule}",
+        f"steps        mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm along the path, "
+        f"{r['revolutions']:.4g} revolutions  (α = {r['aspect_actual']:.4g} µm/deg)",
+        f"feed         {r['feed_um']:.4g} µm/rev ({budget}); largest residual (cusp) "
+        f"{r['residual_error_nm']:.1f} nm from the section curvature",
+    ]
+
+
 SPIRAL = ProgramKind(
     "spiral", "spiral program", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
-    _pitch, _point, _cells, lambda: LayoutRequest(kind="spiral", points_per_rev=16),
+    _pitch, _point, _cells, lambda: LayoutRequest(kind="spiral", points_per_rev=16), _describe,
 )  # fmt: skip

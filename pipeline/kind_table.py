@@ -111,14 +111,29 @@ def _mesh_cells(layout: Layout, rho0_um: float) -> float:
     return math.ceil(2.0 * math.pi * rho0_um / max(layout.pitch))
 
 
+def _describe(r: dict[str, Any]) -> list[str]:
+    """The table's points, shape and pitches (``predict``)."""
+    if r["layout"] == "ring":
+        pitches = (
+            f"Δρ = {r['drho_um']:.4g} µm, Δθ = {r['dtheta_deg']:.7g}°  (α = {r['aspect_actual']:.4g} µm/deg)"
+        )
+    else:
+        pitches = f"Δx = {r['dx_um']:.4g} µm, Δy = {r['dy_um']:.4g} µm  (α = {r['aspect_actual']:.4g})"
+    shape = f"{r['table_rows']} × {r['table_cols']}"
+    return [
+        f"layout       {r['layout']}: {r['n_points']:,} control points ({shape})",
+        f"pitches      {pitches}",
+    ]
+
+
 AXES = ("points", "aspect")
 RING = ProgramKind(
     "ring", "ring layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
     _ring_pitch, _ring_point, _ring_cells, lambda: LayoutRequest(kind="ring", pitch=(50.0, 10.0)),
-    (0.3, 400.0), "um/deg",
+    _describe, (0.3, 400.0), "um/deg",
 )  # fmt: skip
 MESH = ProgramKind(
     "mesh", "mesh layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
     _mesh_pitch, _mesh_point, _mesh_cells, lambda: LayoutRequest(kind="mesh", pitch=(50.0, 50.0)),
-    (0.08, 16.0), "1",
+    _describe, (0.08, 16.0), "1",
 )  # fmt: skip

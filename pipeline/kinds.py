@@ -55,6 +55,7 @@ class ProgramKind:
     aspect_range : the aspect ratios [its units] a sweep or search may span, for kinds swept
         over aspect ratios (tables); None for path programs.
     aspect_units : units of its aspect ratio (model §2).
+    describe : ``(record) -> lines`` that describe a predicted program (``predict``).
     """
 
     name: str
@@ -70,6 +71,7 @@ class ProgramKind:
     point_text: Callable[[Any, int], str]
     angular_cells: Optional[Callable[[Any, float], float]]
     warm_request: Callable[[], Any]
+    describe: Callable[[dict[str, Any]], list[str]] = lambda r: []
     aspect_range: Optional[tuple[float, float]] = None
     aspect_units: str = "um/deg"
 

@@ -46,11 +46,20 @@ class ErrorMap:
             z, g, inside, node_r, ct, st, self.x0, self.y0, self.bin_um, self.total, self.count, self.peak
         )
 
+    def add_points(
+        self, z: np.ndarray, g: np.ndarray, inside: np.ndarray, x: np.ndarray, y: np.ndarray
+    ) -> None:
+        """Accumulate the errors z − g [µm] at points x, y [µm] of the part's frame
+        (:func:`ftsweep.stages.metrics.accumulate_map_xy`)."""
+        metrics.accumulate_map_xy(
+            z, g, inside, x, y, self.x0, self.y0, self.bin_um, self.total, self.count, self.peak
+        )
+
     def centres_um(self) -> np.ndarray:
         """Bin centres [µm] along x (and y)."""
         return self.x0 + (np.arange(self.bins) + 0.5) * self.bin_um
 
-    def asrecord_of(self) -> dict[str, Any]:
+    def as_record(self) -> dict[str, Any]:
         """Mean and peak error maps [nm] (NaN where no point fell) and bin centres [µm]."""
         with np.errstate(invalid="ignore", divide="ignore"):
             mean = np.where(self.count > 0, self.total / self.count, np.nan) * 1e3

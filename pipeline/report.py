@@ -146,7 +146,10 @@ def make_report(
     paths["error_map"] = _save(
         plot_map(record["error_map_x_um"], record["error_map_peak_nm"], shown, "peak"), out / "error_map.png"
     )
-    paths["w_spectrum"] = _save(plot_spectrum(record, layout, table, specs), out / "w_spectrum.png")
+    if kinds.kind(case.layout.kind).angular_cells is not None:
+        # the W spectrum of one revolution: programs about the spindle (tables, spirals); a D
+        # path's motion is in its record (X feed and accelerations) and `ftsweep dpath`'s plots
+        paths["w_spectrum"] = _save(plot_spectrum(record, layout, table, specs), out / "w_spectrum.png")
     paths["index"] = write_text_atomic(out / "index.html", _html(ds, chosen, record, paths))
     return paths
 
@@ -179,6 +182,8 @@ def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[s
         f"stroke {record['stroke_um']:.3g} µm, peak velocity {record['w_velocity_peak_mm_s']:.3g} mm/s, "
         f"peak acceleration {record['w_accel_peak_m_s2']:.3g} m/s², content up to "
         f"{record['w_freq_max_hz']:.0f} Hz"
+        if "w_freq_max_hz" in record
+        else "; ".join(line.split(None, 1)[1] for line in kinds.kind(record["layout"]).describe(record))
     )
     figs = "".join(
         f'<figure><img src="{html.escape(paths[k].name)}" alt="{html.escape(t)}"><figcaption>{html.escape(t)}'

@@ -168,6 +168,26 @@ def accumulate_map(
                     peak[iy, ix] = e
 
 
+@njit(nogil=True, cache=True)
+def accumulate_map_xy(z, g, inside, x, y, x0, y0, bin_um, total, count, peak):  # pragma: no cover - jit
+    """:func:`accumulate_map` of errors at points given by their x, y [µm] (the nodes of a D
+    path's rays, whose part frame is not centred on the spindle)."""
+    ny, nx = count.shape
+    for a in range(z.shape[0]):
+        for j in range(z.shape[1]):
+            zz = z[a, j]
+            if not inside[a, j] or math.isnan(zz):
+                continue
+            e = zz - g[a, j]
+            ix = int(math.floor((x[a, j] - x0) / bin_um))
+            iy = int(math.floor((y[a, j] - y0) / bin_um))
+            if 0 <= ix < nx and 0 <= iy < ny:
+                total[iy, ix] += e
+                count[iy, ix] += 1.0
+                if abs(e) > abs(peak[iy, ix]) or count[iy, ix] == 1.0:
+                    peak[iy, ix] = e
+
+
 def cusp_height_um(feed_um: float, nose_radius_um: float) -> float:
     """Feed cusp height of a flat surface, F²/(8·Rc) [µm] (model §6)."""
     return feed_um**2 / (8.0 * nose_radius_um)

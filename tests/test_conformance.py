@@ -81,6 +81,22 @@ class KindTests:
         assert record["layout"] == self.kind
         assert abs(record["pv_nm"] - record["predicted_pv_nm"]) <= record["pv_tolerance_nm"]
 
+    def test_select_and_report_read_its_cube(self, cube, tmp_path):
+        _, out, folder = cube
+        env = {"FTSWEEP_CATALOGS": str(folder)}
+        res = CliRunner().invoke(
+            main, ["select", str(out), "--budget-points", "100000000", "--json"], env=env
+        )
+        assert res.exit_code == 0, res.output
+        assert json.loads(res.stdout)["layout"] == self.kind
+        res = CliRunner().invoke(
+            main, ["report", str(out), "--out", str(tmp_path), "--map-bins", "16"], env=env
+        )
+        assert res.exit_code == 0, res.output
+        assert (tmp_path / "index.html").stat().st_size > 0 and (
+            tmp_path / "error_map.png"
+        ).stat().st_size > 0
+
     def test_a_finished_sweep_resumes_with_nothing_computed(self, cube):
         spec_path, out, folder = cube
         report = run_sweep(str(spec_path), out, scheduler="synchronous", catalog_folder=folder)

@@ -240,3 +240,25 @@ def test_dpath_cli_json_reports_the_ratio(tmp_path):
     assert out["spiral"]["pv_nm"] > 0.0
     for plot in out["plots"]:
         assert (tmp_path / plot.split("/")[-1]).stat().st_size > 0
+
+
+def test_predict_takes_a_d_path_and_refuses_the_options_of_other_kinds():
+    from click.testing import CliRunner
+
+    from ftsweep.cli import main
+
+    base = ["predict", "--surface", "concave_sphere", "--layout", "dpath", "--machine", "sts-xzc"]
+    args = [*base, "--cutting", "dpath-finish", "--spacing-um", "500", "--points-per-cut", "21"]
+    res = CliRunner().invoke(main, [*args, "--json"])
+    assert res.exit_code == 0, res.output
+    record = json.loads(res.stdout)
+    assert record["layout"] == "dpath" and record["n_cuts"] == 41 and record["pv_nm"] > 0
+    assert record == {**record, **{"spacing_um": 500.0, "points_per_cut": 21}}
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0 and "D path: 13,718 points, 41 cuts of 21 points" in res.output, res.output
+    res = CliRunner().invoke(main, [*args, "--points-per-rev", "100"])
+    assert res.exit_code != 0 and "--points-per-rev does not belong to a D-path program" in res.output
+    res = CliRunner().invoke(
+        main, ["predict", "--surface", "sinewave2d", "--spacing-um", "5", "--points", "1e4"]
+    )
+    assert res.exit_code != 0 and "--spacing-um belongs to D-path programs" in res.output

@@ -165,8 +165,17 @@ def _describe(r: dict[str, Any]) -> list[str]:
     ]
 
 
+def _check_sweep(spec: Any) -> None:
+    """An axis of its own; the spacing is its feed, so not both; the D-path options valid."""
+    if not any(getattr(spec.axes, n) is not None for n in AXES):
+        raise ValueError("a D-path sweep needs an axis: spacing_um and/or points_per_cut")
+    if spec.axes.spacing_um is not None and spec.axes.feed_um is not None:
+        raise ValueError("axes.spacing_um is the D path's feed: give it or axes.feed_um, not both")
+    LayoutRequest(kind="dpath", **(spec.dpath or {}))  # names a bad option
+
+
 DPATH = ProgramKind(
     "dpath", "D-path program", AXES, _request_at, _feed, _plan, _record_fields, _cost, _simulate,
     _pitch, _point, None, lambda: LayoutRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
-    _describe,
+    _describe, _check_sweep, "D-path sweeps",
 )  # fmt: skip

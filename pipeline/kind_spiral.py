@@ -224,7 +224,22 @@ def _describe(r: dict[str, Any]) -> list[str]:
     ]
 
 
+def _check_sweep(spec: Any) -> None:
+    """Exactly one rule axis; the residual budget sets the feed, so not both."""
+    rules = [n for n in AXES[:3] if getattr(spec.axes, n) is not None]
+    if len(rules) != 1:
+        raise ValueError(
+            "a spiral sweep needs exactly one rule axis: points_per_rev, arc_um or chord_um "
+            f"(got {', '.join(rules) or 'none'})"
+        )
+    if spec.axes.residual_um is not None and spec.axes.feed_um is not None:
+        raise ValueError("axes.residual_um sets the feed: give it or axes.feed_um, not both")
+    if spec.dpath:
+        raise ValueError("dpath belongs to D-path sweeps (layout: dpath), not to a spiral sweep")
+
+
 SPIRAL = ProgramKind(
     "spiral", "spiral program", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
     _pitch, _point, _cells, lambda: LayoutRequest(kind="spiral", points_per_rev=16), _describe,
+    _check_sweep, "spiral sweeps",
 )  # fmt: skip

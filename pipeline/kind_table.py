@@ -126,14 +126,22 @@ def _describe(r: dict[str, Any]) -> list[str]:
     ]
 
 
+def _check_sweep(spec: Any) -> None:
+    for name in AXES:
+        if getattr(spec.axes, name) is None:
+            raise ValueError(f"axes.{name}: required key is missing for a {spec.layout} sweep")
+    if spec.dpath:
+        raise ValueError(f"dpath belongs to D-path sweeps (layout: dpath), not to a {spec.layout} sweep")
+
+
 AXES = ("points", "aspect")
 RING = ProgramKind(
     "ring", "ring layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
     _ring_pitch, _ring_point, _ring_cells, lambda: LayoutRequest(kind="ring", pitch=(50.0, 10.0)),
-    _describe, (0.3, 400.0), "um/deg",
+    _describe, _check_sweep, "table sweeps", (0.3, 400.0), "um/deg",
 )  # fmt: skip
 MESH = ProgramKind(
     "mesh", "mesh layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
     _mesh_pitch, _mesh_point, _mesh_cells, lambda: LayoutRequest(kind="mesh", pitch=(50.0, 50.0)),
-    _describe, (0.08, 16.0), "1",
+    _describe, _check_sweep, "table sweeps", (0.08, 16.0), "1",
 )  # fmt: skip

@@ -56,6 +56,9 @@ class ProgramKind:
         over aspect ratios (tables); None for path programs.
     aspect_units : units of its aspect ratio (model §2).
     describe : ``(record) -> lines`` that describe a predicted program (``predict``).
+    check_sweep : ``(sweep spec) -> None``, raising ValueError naming the key, for the rules
+        of its sweep beyond "only its own axes" (one rule axis, a feed set twice, ...).
+    sweeps : how its sweeps are called in messages (``spiral sweeps``).
     """
 
     name: str
@@ -72,6 +75,8 @@ class ProgramKind:
     angular_cells: Optional[Callable[[Any, float], float]]
     warm_request: Callable[[], Any]
     describe: Callable[[dict[str, Any]], list[str]] = lambda r: []
+    check_sweep: Callable[[Any], None] = lambda spec: None
+    sweeps: str = "table sweeps"
     aspect_range: Optional[tuple[float, float]] = None
     aspect_units: str = "um/deg"
 
@@ -82,6 +87,17 @@ def registry() -> dict[str, ProgramKind]:
     from ftsweep import kind_dpath, kind_spiral, kind_table
 
     return {k.name: k for k in (kind_table.RING, kind_table.MESH, kind_spiral.SPIRAL, kind_dpath.DPATH)}
+
+
+def check_sweep_axes(spec: Any) -> None:
+    """A sweep spec's program axes belong to its kind, and its kind's own rules hold
+    (ValueError naming the key)."""
+    own = kind(spec.layout)
+    for other in registry().values():
+        foreign = [n for n in other.axes if n not in own.axes and getattr(spec.axes, n) is not None]
+        if foreign:
+            raise ValueError(f"axes.{foreign[0]} belongs to {other.sweeps}, not to a {own.name} sweep")
+    own.check_sweep(spec)
 
 
 def kind(name: str) -> ProgramKind:

@@ -28,7 +28,7 @@ from pydantic import (
 
 from ftsweep import catalogs, kinds
 from ftsweep.catalogs import CatalogError, Strict
-from ftsweep.spec import Case, LayoutRequest, Resolution
+from ftsweep.spec import Case, Resolution
 
 MAX_AXIS_VALUES = 100_000
 # every case costs seconds of a core: beyond this many cases a sweep is refused unless the
@@ -158,47 +158,10 @@ class SweepSpec(Strict):
 
     @model_validator(mode="after")
     def _axes_of_the_program(self) -> SweepSpec:
-        axes = self.axes
-        rules = [n for n in SPIRAL_RULE_AXES if getattr(axes, n) is not None]
-        table = [n for n in ("points", "aspect") if getattr(axes, n) is not None]
-        if self.layout == "dpath" or any(getattr(axes, n) is not None for n in DPATH_AXES) or self.dpath:
-            return self._dpath_axes()
-        if self.layout == "spiral":
-            if table:
-                raise ValueError(f"axes.{table[0]} belongs to tables; a spiral sweep has one rule axis")
-            if len(rules) != 1:
-                raise ValueError(
-                    "a spiral sweep needs exactly one rule axis: points_per_rev, arc_um or chord_um "
-                    f"(got {', '.join(rules) or 'none'})"
-                )
-            if axes.residual_um is not None and axes.feed_um is not None:
-                raise ValueError("axes.residual_um sets the feed: give it or axes.feed_um, not both")
-        elif self.layout is not None:
-            spiral = [n for n in SPIRAL_AXES if getattr(axes, n) is not None]
-            if spiral:
-                raise ValueError(f"axes.{spiral[0]} belongs to spiral sweeps (layout: spiral)")
-            for name in ("points", "aspect"):
-                if getattr(axes, name) is None:
-                    raise ValueError(f"axes.{name}: required key is missing for a {self.layout} sweep")
-        return self
-
-    def _dpath_axes(self) -> SweepSpec:
-        axes = self.axes
-        dpath_axes = [n for n in DPATH_AXES if getattr(axes, n) is not None]
-        if self.layout != "dpath":
-            name = "axes." + dpath_axes[0] if dpath_axes else "dpath"
-            raise ValueError(f"{name} belongs to D-path sweeps (layout: dpath)")
-        table = [n for n in ("points", "aspect") if getattr(axes, n) is not None]
-        other = table + [n for n in SPIRAL_AXES if getattr(axes, n) is not None]
-        if other:
-            raise ValueError(
-                f"axes.{other[0]} does not belong to a D-path sweep (spacing_um, points_per_cut)"
-            )
-        if not dpath_axes:
-            raise ValueError("a D-path sweep needs an axis: spacing_um and/or points_per_cut")
-        if axes.spacing_um is not None and axes.feed_um is not None:
-            raise ValueError("axes.spacing_um is the D path's feed: give it or axes.feed_um, not both")
-        LayoutRequest(kind="dpath", **(self.dpath or {}))  # names a bad option
+        if self.layout is not None:
+            kinds.check_sweep_axes(self)  # only its kind's axes, and its kind's rules
+        elif self.dpath:
+            raise ValueError("dpath belongs to D-path sweeps (layout: dpath)")
         return self
 
     @model_validator(mode="after")

@@ -118,6 +118,11 @@ def test_feed_for_cusp_inverts_cusp_for_feed(h, r, radius):
         return  # a concave section tighter than the arc: no feed (tested below)
     if abs(radius) < 1e-3:
         return
+    if radius < 0 and h >= -radius:
+        # a convex section of radius |R| ≤ h: the arcs' cusp above it stays below |R| however
+        # wide the feed, so no feed gives h (hypothesis found h = 5, R = −0.5 µm; the
+        # sections of a real part are millimetres to metres)
+        return
     f = spiral.feed_for_cusp(h, r, np.array([radius]), np.array([0.0]))
     assert f[0] > 0
     assert spiral.cusp_for_feed(float(f[0]), r, np.array([radius]), np.array([0.0]))[0] == pytest.approx(

@@ -232,8 +232,8 @@ def header_meta(
         "int_type": machine.table_int_type,
         "surface": case.surface,
         "compensation": case.compensation,
-        "feed_um": case.feed_um or cutting.feed_um,
-        "nose_radius_um": case.nose_radius_um or cutting.nose_radius_um,
+        "feed_um": case.feed_of(cutting),
+        "nose_radius_um": case.nose_radius_of(cutting),
         "spindle_rpm": cutting.spindle_rpm,
         "pv_nm": pv_nm,
     }
@@ -243,7 +243,7 @@ def planned_ints(case: Case, specs: tuple[Any, Any, Any], layout: Any) -> np.nda
     """The table [table units] a table case plans: compensated commands (model §4) quantised
     to the machine's fixed-point unit."""
     surface, machine, cutting = specs
-    table_um, _ = control_table(case, layout, surface, case.nose_radius_um or cutting.nose_radius_um)
+    table_um, _ = control_table(case, layout, surface, case.nose_radius_of(cutting))
     return quantise(table_um, machine.table_unit_nm, machine.table_int_type)
 
 

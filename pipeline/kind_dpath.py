@@ -76,7 +76,7 @@ def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, p
     the case's or the cutting entry's."""
     if program is not None:
         return float(program[0].geometry.spacing_um)
-    return float(case.layout.spacing_um or case.feed_um or cutting.feed_um)
+    return float(case.layout.spacing_um or case.feed_of(cutting))
 
 
 def _plan(p: Planning) -> tuple[Any, dict[str, Any]]:
@@ -103,7 +103,7 @@ def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
     """The evaluated nodes (rays × cuts × points per feed); its lines are its own."""
     cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
     ap = catalogs.aperture_of(surface)
-    spacing = case.layout.spacing_um or case.feed_um or cutting.feed_um
+    spacing = case.layout.spacing_um or case.feed_of(cutting)
     ppc = case.layout.points_per_cut or dpath_program.DEFAULTS["points_per_cut"]
     return 3.0 * ppc * 2.0 * ap.half_extent_um[0] / spacing * case.resolution.points_per_feed, None
 

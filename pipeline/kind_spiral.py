@@ -145,7 +145,7 @@ def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, p
             raise CaseError("give either a feed or a residual budget (which sets the feed), not both")
         sections = section_samples(surface_spec, folder)
         return residual_feed_um(sections, case.layout.residual_um, rc, case.surface)
-    return float(case.feed_um or cutting.feed_um)
+    return case.feed_of(cutting)
 
 
 def _plan(p: Planning) -> tuple[spiral.SpiralPath, dict[str, Any]]:
@@ -187,7 +187,7 @@ def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
     planned: its cost is its simulated nodes at the part's outer circumference, and its lines
     are its own."""
     rho0 = catalogs.aperture_of(surface).outer_radius_um
-    feed = case.feed_um or catalogs.entry("cutting", case.cutting, catalog_folder).feed_um
+    feed = case.feed_of(catalogs.entry("cutting", case.cutting, catalog_folder))
     return 3.0 * 2.0 * math.pi * rho0 * rho0 / feed, None
 
 

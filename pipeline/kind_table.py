@@ -42,7 +42,7 @@ def _request_at(spec: Any, value: dict[str, float]) -> LayoutRequest:
 
 
 def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
-    return float(case.feed_um or cutting.feed_um)
+    return case.feed_of(cutting)
 
 
 def _plan(p: Planning) -> tuple[Layout, dict[str, Any]]:
@@ -73,10 +73,10 @@ def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
         return 0.0, None
     rho0 = catalogs.aperture_of(surface).outer_radius_um
     cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
-    feed = case.feed_um or cutting.feed_um
+    feed = case.feed_of(cutting)
     n_theta = angular_samples(layout, rho0, case.resolution)
     nodes = n_theta * rho0 / feed * case.resolution.points_per_feed
-    return 8.0 * layout.n_points + nodes, (n_theta, feed, case.nose_radius_um or cutting.nose_radius_um)
+    return 8.0 * layout.n_points + nodes, (n_theta, feed, case.nose_radius_of(cutting))
 
 
 def _ring_pitch(r: dict[str, Any]) -> str:

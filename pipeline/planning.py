@@ -64,7 +64,7 @@ def resolve_case(
     ([5]); a given ``program`` (path, commands [µm]), e.g. read back from an exported file,
     is taken as it stands instead."""
     surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
-    rc = case.nose_radius_um or cutting.nose_radius_um
+    rc = case.nose_radius_of(cutting)
     kind = kinds.kind(case.layout.kind)
     feed = kind.feed(case, cutting, rc, surface_spec, catalog_folder, program)
     bound = _checked_bounds(case, surface_spec, catalog_folder, feed, rc)

@@ -67,7 +67,7 @@ def resimulate(
         return record, (case, layout, table, specs)
     layout = build_layout(specs[0], case.layout)
     # the table is compensated once, here, and handed to the run (which would redo it)
-    table, gouge = control_table(case, layout, specs[0], case.nose_radius_um or specs[2].nose_radius_um)
+    table, gouge = control_table(case, layout, specs[0], case.nose_radius_of(specs[2]))
     record = run_case(case, progress=progress, specs=specs, table=table)
     record["gouge_points"] = int(np.count_nonzero(gouge))
     return record, (case, layout, table, specs)

@@ -225,6 +225,15 @@ class Case(Strict):
         # keys of cases written before layered machining stay the same
         return catalogs.without_defaults(handler(self), {"layers": "auto", "z_error_um": None})
 
+    def feed_of(self, cutting: Any) -> float:
+        """The feed F given [µm/rev]: the case's, else its cutting entry's (a spiral's residual
+        budget or a D path's spacing may set another: its kind's ``feed``)."""
+        return float(self.feed_um or cutting.feed_um)
+
+    def nose_radius_of(self, cutting: Any) -> float:
+        """The nose radius Rc in force [µm]: the case's, else its cutting entry's."""
+        return float(self.nose_radius_um or cutting.nose_radius_um)
+
     def key(self) -> str:
         """Stable hash of the canonical JSON of the spec (16 hex digits)."""
         text = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))

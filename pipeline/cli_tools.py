@@ -12,6 +12,7 @@ from typing import Any, Optional
 import click
 import numpy as np
 
+from ftsweep import kinds
 from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import COUNT, FINITE, POSITIVE, echo_json, fail
 from ftsweep.cli_predict import summary_text
@@ -25,7 +26,12 @@ from ftsweep.cli_predict import summary_text
     metavar="NAME|PATH",
     help="Take surface, layout, machine, cutting and resolution from a sweep spec.",
 )
-@click.option("--layout", type=click.Choice(["ring", "mesh"]), help="Layout method. Default: the surface's.")
+@click.option(
+    "--layout",
+    type=click.Choice(["ring", "mesh", "spiral", "dpath"]),
+    help="Program kind. Default: the surface's table method. The search spans aspect ratios, so "
+    "it takes tables; a path program is refused saying so.",
+)
 @click.option("--tolerance-nm", type=POSITIVE, required=True, help="P-V the part must meet [nm].")
 @click.option(
     "--start-points",
@@ -204,7 +210,7 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
     if as_json:
         echo_json(out)
         return
-    _print_estimate(out, name, "µm/deg" if spec.layout == "ring" else "")
+    _print_estimate(out, name, kinds.kind(spec.layout).aspect_units.replace("um", "µm").replace("1", ""))
 
 
 def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:

@@ -348,6 +348,7 @@ def optimize(
         raise ValueError(f"unknown seed {seed!r}; expected 'scan' or 'estimate'")
     spec = catalogs.entry("surfaces", surface, catalog_folder)
     layout = layout or spec.layout
+    _aspect_range(layout)  # a path program has no aspect search: said before anything is written
     if not tolerance_nm > 0:
         raise ValueError(f"the tolerance must be positive, got {tolerance_nm}")
     out = Path(out) if out else Path("outputs") / f"optimize-{surface}-{layout}.zarr"

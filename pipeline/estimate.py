@@ -13,7 +13,7 @@ import xarray as xr
 
 from ftsweep import catalogs
 from ftsweep.cube import DONE
-from ftsweep.kind_table import build_layout
+from ftsweep.kinds.table import build_layout
 from ftsweep.spec import LayoutRequest
 from ftsweep.stages import estimate as est
 from ftsweep.sweep import SweepSpec, coordinates

@@ -35,7 +35,7 @@ from ftsweep.files import (
     sidecar_path,
 )
 from ftsweep.io import dumps_json, write_texts_atomic
-from ftsweep.kind_table import build_layout
+from ftsweep.kinds.table import build_layout
 from ftsweep.planning import control_table, resolve_case
 from ftsweep.spec import Case
 

@@ -25,7 +25,7 @@ from ftsweep.accessor import _axes, plot_map
 from ftsweep.case import run_case
 from ftsweep.catalogs import aperture_of
 from ftsweep.io import save_figure, write_text_atomic
-from ftsweep.kind_table import build_layout
+from ftsweep.kinds.table import build_layout
 from ftsweep.planning import control_table, resolve_case
 from ftsweep.select import SelectError, choose, describe, eligible, open_cube, recorded_case
 from ftsweep.stages import dynamics

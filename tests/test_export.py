@@ -17,7 +17,7 @@ from ftsweep.catalogs import entry
 from ftsweep.cli import main
 from ftsweep.export import ExportError, export, verify
 from ftsweep.header import c_identifier, c_string, read_header
-from ftsweep.kind_table import build_layout
+from ftsweep.kinds.table import build_layout
 from ftsweep.planning import control_table
 from ftsweep.run import run_sweep
 from ftsweep.select import SelectError, choose, open_cube

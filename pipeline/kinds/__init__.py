@@ -84,9 +84,9 @@ class ProgramKind:
 @functools.cache
 def registry() -> dict[str, ProgramKind]:
     """Every registered program kind by name."""
-    from ftsweep import kind_dpath, kind_spiral, kind_table
+    from ftsweep.kinds import dpath, spiral, table
 
-    return {k.name: k for k in (kind_table.RING, kind_table.MESH, kind_spiral.SPIRAL, kind_dpath.DPATH)}
+    return {k.name: k for k in (table.RING, table.MESH, spiral.SPIRAL, dpath.DPATH)}
 
 
 def check_sweep_axes(spec: Any) -> None:

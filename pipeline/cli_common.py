@@ -87,9 +87,6 @@ def flag(name: str) -> str:
     return "--" + name.replace("_", "-")
 
 
-DPATH_FLAGS = ("spacing_um", "points_per_cut", "zones", "offaxis_mm", "cut_angle_deg", "transition_step_deg")
-
-
 def dpath_options(f: Any) -> Any:
     """The options of a D-path program ([5]) shared by ``dpath`` and ``predict --layout dpath``."""
     options = [
@@ -121,15 +118,3 @@ def dpath_options(f: Any) -> Any:
     for option in reversed(options):
         f = option(f)
     return f
-
-
-def dpath_request(opts: dict[str, Any]) -> dict[str, Any]:
-    """The D-path request options given on the command line (mm and strings converted)."""
-    return {
-        "spacing_um": opts["spacing_um"],
-        "points_per_cut": opts["points_per_cut"],
-        "zones": int(opts["zones"]) if opts["zones"] else None,
-        "offaxis_um": opts["offaxis_mm"] * 1e3 if opts["offaxis_mm"] else None,
-        "cut_angle_deg": opts["cut_angle_deg"],
-        "transition_step_deg": opts["transition_step_deg"],
-    }

@@ -12,11 +12,9 @@ from ftsweep import catalogs, kinds, result
 from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import (
-    DPATH_FLAGS,
     FINITE,
     POSITIVE,
     dpath_options,
-    dpath_request,
     echo_json,
     fail,
     flag,
@@ -24,11 +22,8 @@ from ftsweep.cli_common import (
     stderr_progress,
 )
 from ftsweep.cost import MAX_NODES
-from ftsweep.spec import SPIRAL_FIELDS, Case, CaseError, Resolution
+from ftsweep.spec import Case, CaseError, Resolution
 from ftsweep.usersurfaces import SurfaceLoadError
-
-_RING_PITCH = result.pitch_names("ring")
-_MESH_PITCH = result.pitch_names("mesh")
 
 
 @click.command()
@@ -186,9 +181,11 @@ def _build_case(opts: dict[str, Any]) -> Case:
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
     kind = layout or spec.layout
-    own = _RING_PITCH if kind == "ring" else _MESH_PITCH
-    given = {k: opts[k] for k in (*_RING_PITCH, *_MESH_PITCH)}
-    request, pitch_given = _request_of(kind, opts, given)
+    try:
+        request, notices = kinds.request_from_options(kind, opts)
+    except ValueError as exc:
+        fail(str(exc))
+    own = result.pitch_names(kind) if kinds.kind(kind).aspect_range is not None else ()
     try:
         # validated as part of the case, so that an error's location names the option
         case = Case(
@@ -210,45 +207,9 @@ def _build_case(opts: dict[str, Any]) -> Case:
         )
     except ValidationError as exc:
         raise click.UsageError(_option_errors(exc, own)) from None
-    if kind == "ring" and pitch_given and not opts["strict"]:
-        drho, dtheta = given[own[0]], _realisable_dtheta(given[own[1]])
-        case = case.model_copy(update={"layout": case.layout.model_copy(update={"pitch": (drho, dtheta)})})
+    for notice in notices:
+        click.echo(notice, err=True)
     return case
-
-
-def _request_of(kind: str, opts: dict[str, Any], given: dict[str, Any]) -> tuple[dict[str, Any], bool]:
-    """The program request of ``predict``'s options, refusing options of another kind; and
-    whether a table's pitches were given explicitly."""
-    own = _RING_PITCH if kind == "ring" else _MESH_PITCH
-    spiral_given = {k: opts[k] for k in SPIRAL_FIELDS if opts[k] is not None}
-    dpath_given = {k: v for k, v in dpath_request(opts).items() if v is not None}
-    table_given = [k for k, v in {**given, "points": opts["points"], "aspect": opts["aspect"]}.items() if v]
-    if kind != "dpath" and dpath_given:
-        first = next(k for k in DPATH_FLAGS if opts[k] is not None)
-        fail(f"{flag(first)} belongs to D-path programs (--layout dpath)")
-    if kind == "dpath":
-        other = table_given + list(spiral_given)
-        if other:
-            takes = ", ".join(flag(k) for k in DPATH_FLAGS)
-            fail(f"{flag(other[0])} does not belong to a D-path program; it takes {takes}")
-        return {"kind": kind, **dpath_given}, False
-    if kind == "spiral":
-        if table_given:
-            fail(
-                f"{flag(table_given[0])} belongs to tables; a spiral takes --points-per-rev, --arc-um "
-                "or --chord-um"
-            )
-        return {"kind": kind, **spiral_given}, False
-    if spiral_given:
-        fail(f"{flag(next(iter(spiral_given)))} belongs to spiral programs (--layout spiral)")
-    pitch_given = _check_layout_options(kind, given, opts["points"], opts["aspect"])
-    request = {
-        "kind": kind,
-        "pitch": (given[own[0]], given[own[1]]) if pitch_given else None,
-        "points": opts["points"],
-        "aspect": opts["aspect"],
-    }
-    return request, pitch_given
 
 
 def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
@@ -266,43 +227,6 @@ def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
         text = f"{catalogs.error_text(e)} (got {catalogs.short_repr(e.get('input'))})"
         parts.append(f"{flag(name)}: {text}" if name else text)
     return "; ".join(dict.fromkeys(parts))
-
-
-def _realisable_dtheta(dtheta_deg: float) -> float:
-    """The nearest Δθ that divides 360° (a ring holds a whole number of points), with a notice
-    on stderr when it differs from the one asked for."""
-    from ftsweep.stages.layouts import nearest_ring_dtheta
-
-    realised, n_per_ring = nearest_ring_dtheta(dtheta_deg)
-    # the notice prints Δθ to 7 digits: that printed value, given back, is taken silently
-    if not math.isclose(realised, dtheta_deg, rel_tol=1e-6):
-        click.echo(
-            f"notice: Δθ = {dtheta_deg:g}° does not divide 360°; using the nearest realisable "
-            f"Δθ = {realised:.7g}° ({n_per_ring} points per ring; --strict refuses instead)",
-            err=True,
-        )
-    return realised
-
-
-def _check_layout_options(kind: str, given: dict[str, Any], points: Any, aspect: Any) -> bool:
-    """Refuse pitches of the other layout kind, pitches mixed with a target, one pitch alone,
-    or no layout at all; returns whether explicit pitches were given."""
-    own, other = (_RING_PITCH, _MESH_PITCH) if kind == "ring" else (_MESH_PITCH, _RING_PITCH)
-    wrong = [k for k in other if given[k] is not None]
-    if wrong:
-        fail(
-            f"{flag(wrong[0])} belongs to the {'mesh' if kind == 'ring' else 'ring'} layout; "
-            f"for a {kind} layout give {flag(own[0])} and {flag(own[1])}"
-        )
-    pitch_given = [k for k in own if given[k] is not None]
-    if pitch_given and (points is not None or aspect is not None):
-        fail("give either explicit pitches or --points with --aspect, not both")
-    if len(pitch_given) == 1:
-        missing = [k for k in own if given[k] is None][0]
-        fail(f"{flag(missing)} is missing: a {kind} layout needs both pitches")
-    if not pitch_given and (points is None or aspect is None):
-        fail(f"give the layout: {flag(own[0])} and {flag(own[1])}, or --points N with --aspect A")
-    return bool(pitch_given)
 
 
 def summary_text(r: dict[str, Any]) -> str:

@@ -15,12 +15,12 @@ from ftsweep.cli_common import (
     POSITIVE,
     FiniteRange,
     dpath_options,
-    dpath_request,
     echo_json,
     one_line,
     progress_done,
     stderr_progress,
 )
+from ftsweep.kinds import dpath as dpath_kind
 from ftsweep.spec import Case, CaseError
 
 
@@ -77,7 +77,7 @@ def dpath_command(**opts: Any) -> None:
     """
     from ftsweep import dstudy
 
-    options = dpath_request(opts)
+    options = dpath_kind.request_options(opts)
     _check_overwrite(opts["out"], opts["force"])
     progress = stderr_progress("dpath", opts["as_json"])
     try:

@@ -257,7 +257,10 @@ def test_predict_takes_a_d_path_and_refuses_the_options_of_other_kinds():
     res = CliRunner().invoke(main, args)
     assert res.exit_code == 0 and "D path: 13,718 points, 41 cuts of 21 points" in res.output, res.output
     res = CliRunner().invoke(main, [*args, "--points-per-rev", "100"])
-    assert res.exit_code != 0 and "--points-per-rev does not belong to a D-path program" in res.output
+    assert (
+        res.exit_code != 0
+        and "--points-per-rev belongs to spiral programs (--layout spiral), not to a D-path" in res.output
+    )
     res = CliRunner().invoke(
         main, ["predict", "--surface", "sinewave2d", "--spacing-um", "5", "--points", "1e4"]
     )

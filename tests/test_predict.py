@@ -149,7 +149,10 @@ def test_readable_summary_names_units():
         (["--surface", "sinewave2d", "--drho-um", "0.5", "--dtheta-deg", "0.1"], "over the capacity"),
         (["--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "1", "--points", "1000"], "not both"),
         (["--surface", "sinewave2d", "--points", "1000"], "--aspect"),
-        (["--surface", "sinewave2d", "--dx-um", "2", "--dy-um", "1"], "belongs to the mesh layout"),
+        (
+            ["--surface", "sinewave2d", "--dx-um", "2", "--dy-um", "1"],
+            "belongs to mesh layouts (--layout mesh), not to a ring layout",
+        ),
         (["--surface", "sinewave2d", "--drho-um", "2"], "--dtheta-deg is missing"),
         (["--strict", "--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "0.7"], "not divide 360"),
         (["--surface", "lens_array", "--points", "5000000", "--aspect", "1"], "over the capacity"),

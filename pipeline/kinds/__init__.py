@@ -59,6 +59,9 @@ class ProgramKind:
     check_sweep : ``(sweep spec) -> None``, raising ValueError naming the key, for the rules
         of its sweep beyond "only its own axes" (one rule axis, a feed set twice, ...).
     sweeps : how its sweeps are called in messages (``spiral sweeps``).
+    options : the command-line options (``predict``'s keys) that belong to it.
+    from_options : ``(options) -> (request fields, notices)`` of ``predict``'s options,
+        raising ValueError naming the option for a combination it refuses.
     """
 
     name: str
@@ -77,6 +80,8 @@ class ProgramKind:
     describe: Callable[[dict[str, Any]], list[str]] = lambda r: []
     check_sweep: Callable[[Any], None] = lambda spec: None
     sweeps: str = "table sweeps"
+    options: tuple[str, ...] = ()
+    from_options: Callable[[dict[str, Any]], tuple[dict[str, Any], list[str]]] = lambda o: ({}, [])
     aspect_range: Optional[tuple[float, float]] = None
     aspect_units: str = "um/deg"
 
@@ -98,6 +103,24 @@ def check_sweep_axes(spec: Any) -> None:
         if foreign:
             raise ValueError(f"axes.{foreign[0]} belongs to {other.sweeps}, not to a {own.name} sweep")
     own.check_sweep(spec)
+
+
+def flag(name: str) -> str:
+    """The command-line option of a field: ``drho_um`` → ``--drho-um``."""
+    return "--" + name.replace("_", "-")
+
+
+def request_from_options(name: str, options: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    """The request of kind ``name`` from command-line options (``predict``): options of another
+    kind are refused naming their kind, the rest is the kind's own (ValueError naming the
+    option); with the notices to show (e.g. a rounded pitch)."""
+    own = kind(name)
+    for key in (k for other in registry().values() for k in other.options):
+        if key not in own.options and options.get(key) is not None:
+            owners = [o for o in registry().values() if key in o.options]
+            where = " or ".join(f"{o.noun}s (--layout {o.name})" for o in owners)
+            raise ValueError(f"{flag(key)} belongs to {where}, not to a {own.noun}")
+    return own.from_options(options)
 
 
 def kind(name: str) -> ProgramKind:

@@ -174,8 +174,27 @@ def _check_sweep(spec: Any) -> None:
     LayoutRequest(kind="dpath", **(spec.dpath or {}))  # names a bad option
 
 
+# its command-line options: the request's fields, the off-axis distance in mm
+OPTIONS = ("spacing_um", "points_per_cut", "zones", "offaxis_mm", "cut_angle_deg", "transition_step_deg")
+
+
+def request_options(opts: dict[str, Any]) -> dict[str, Any]:
+    """The D-path request fields of command-line options (mm and choice strings converted;
+    options not given left out)."""
+    fields = {
+        "spacing_um": opts.get("spacing_um"),
+        "points_per_cut": opts.get("points_per_cut"),
+        "zones": int(opts["zones"]) if opts.get("zones") else None,
+        "offaxis_um": opts["offaxis_mm"] * 1e3 if opts.get("offaxis_mm") else None,
+        "cut_angle_deg": opts.get("cut_angle_deg"),
+        "transition_step_deg": opts.get("transition_step_deg"),
+    }
+    return {k: v for k, v in fields.items() if v is not None}
+
+
 DPATH = ProgramKind(
     "dpath", "D-path program", AXES, _request_at, _feed, _plan, _record_fields, _cost, _simulate,
     _pitch, _point, None, lambda: LayoutRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
-    _describe, _check_sweep, "D-path sweeps",
+    _describe, _check_sweep, "D-path sweeps", OPTIONS,
+    lambda o: ({"kind": "dpath", **request_options(o)}, []),
 )  # fmt: skip

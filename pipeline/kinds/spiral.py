@@ -241,5 +241,6 @@ def _check_sweep(spec: Any) -> None:
 SPIRAL = ProgramKind(
     "spiral", "spiral program", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
     _pitch, _point, _cells, lambda: LayoutRequest(kind="spiral", points_per_rev=16), _describe,
-    _check_sweep, "spiral sweeps",
+    _check_sweep, "spiral sweeps", AXES,
+    lambda o: ({"kind": "spiral", **{k: o[k] for k in AXES if o.get(k) is not None}}, []),
 )  # fmt: skip

@@ -11,7 +11,7 @@ import numpy as np
 
 from ftsweep import catalogs, result
 from ftsweep.cost import angular_samples
-from ftsweep.kinds import Planning, ProgramKind
+from ftsweep.kinds import Planning, ProgramKind, flag
 from ftsweep.spec import Case, CaseError, LayoutRequest
 from ftsweep.stages import layouts
 from ftsweep.stages.layouts import Layout
@@ -134,14 +134,42 @@ def _check_sweep(spec: Any) -> None:
         raise ValueError(f"dpath belongs to D-path sweeps (layout: dpath), not to a {spec.layout} sweep")
 
 
+def _table_options(kind: str, opts: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    own = result.pitch_names(kind)
+    given = [k for k in own if opts.get(k) is not None]
+    points, aspect = opts.get("points"), opts.get("aspect")
+    if given and (points is not None or aspect is not None):
+        raise ValueError("give either explicit pitches or --points with --aspect, not both")
+    if len(given) == 1:
+        missing = [k for k in own if opts.get(k) is None][0]
+        raise ValueError(f"{flag(missing)} is missing: a {kind} layout needs both pitches")
+    if not given and (points is None or aspect is None):
+        raise ValueError(f"give the layout: {flag(own[0])} and {flag(own[1])}, or --points N with --aspect A")
+    if not given:
+        return {"kind": kind, "points": points, "aspect": aspect}, []
+    first, second, notices = opts[own[0]], opts[own[1]], []
+    if kind == "ring" and not opts.get("strict") and math.isfinite(second) and second > 0:
+        realised, n_per_ring = layouts.nearest_ring_dtheta(second)
+        # the notice prints Δθ to 7 digits: that printed value, given back, is taken silently
+        if not math.isclose(realised, second, rel_tol=1e-6):
+            notices.append(
+                f"notice: Δθ = {second:g}° does not divide 360°; using the nearest realisable "
+                f"Δθ = {realised:.7g}° ({n_per_ring} points per ring; --strict refuses instead)"
+            )
+        second = realised
+    return {"kind": kind, "pitch": (first, second)}, notices
+
+
 AXES = ("points", "aspect")
 RING = ProgramKind(
     "ring", "ring layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
     _ring_pitch, _ring_point, _ring_cells, lambda: LayoutRequest(kind="ring", pitch=(50.0, 10.0)),
-    _describe, _check_sweep, "table sweeps", (0.3, 400.0), "um/deg",
+    _describe, _check_sweep, "table sweeps", ("drho_um", "dtheta_deg", "points", "aspect"),
+    lambda o: _table_options("ring", o), (0.3, 400.0), "um/deg",
 )  # fmt: skip
 MESH = ProgramKind(
     "mesh", "mesh layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
     _mesh_pitch, _mesh_point, _mesh_cells, lambda: LayoutRequest(kind="mesh", pitch=(50.0, 50.0)),
-    _describe, _check_sweep, "table sweeps", (0.08, 16.0), "1",
+    _describe, _check_sweep, "table sweeps", ("dx_um", "dy_um", "points", "aspect"),
+    lambda o: _table_options("mesh", o), (0.08, 16.0), "1",
 )  # fmt: skip

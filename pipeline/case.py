@@ -26,7 +26,6 @@ from ftsweep.result import STAGES
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers, metrics, spiral
 from ftsweep.stages.interpolation import Program
-from ftsweep.stages.layouts import Layout
 from ftsweep.stages.surfaces import radial_section
 
 
@@ -219,14 +218,13 @@ def _table_of(
     layout = rcase.layout
     if table is None and rcase.values is not None and rcase.gouge is not None:
         table, gouge = rcase.values, rcase.gouge
-    elif table is None:
-        assert isinstance(layout, Layout)
+    elif table is None:  # a table: compensated over its whole layout (model §4)
         table, gouge = control_table(
             rcase.case, layout, rcase.surface_spec, rcase.nose_radius_um, catalog_folder
         )
     else:
         table = np.asarray(table, dtype=np.float64)
-        shape = layout.shape if isinstance(layout, Layout) else (layout.n_points,)
+        shape = getattr(layout, "shape", (layout.n_points,))  # a table's (rows, cols), a path's points
         if table.shape != shape:
             raise CaseError(f"the given table has shape {table.shape}, the layout {shape}")
         gouge = np.zeros(shape, dtype=bool)

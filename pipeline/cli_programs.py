@@ -125,8 +125,9 @@ def _check_overwrite(out: Optional[Path], force: bool) -> None:
 
 def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool) -> dict[str, Any]:
     """Export the optimised program of ``dpath`` (refusing to replace files without --force)."""
-    from ftsweep import dstudy, program
+    from ftsweep import dstudy
     from ftsweep.files import ExportError, check_overwrite, sidecar_path
+    from ftsweep.kinds import path_programs as program
     from ftsweep.planning import resolve_specs
 
     side = sidecar_path(out)

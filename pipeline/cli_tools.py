@@ -177,9 +177,9 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
       ftsweep estimate lens-array-mesh --compare outputs/lens-array-mesh.zarr --json
     """
     from ftsweep.cube import CubeError
-    from ftsweep.estimate import agreement, best_aspect, estimate_sweep
     from ftsweep.select import open_cube
     from ftsweep.sweep import load_sweep
+    from ftsweep.table_estimate import agreement, best_aspect, estimate_sweep
 
     try:
         name, spec = load_sweep(sweep_name)

@@ -1,8 +1,8 @@
 """One export and one verify for every program kind: a table of file formats (flox's
 ``Aggregation`` table, xarray's backend entrypoints), each naming the kinds it writes, how to
 recognise its files, and its write, verify and report functions. Generic code asks the
-table; the formats live with their kinds (:mod:`ftsweep.header`, :mod:`ftsweep.program`,
-:mod:`ftsweep.fstudy`) and share :mod:`ftsweep.files`.
+table; the formats live with their kinds (:mod:`ftsweep.kinds.table_header`,
+:mod:`ftsweep.kinds.path_programs`, :mod:`ftsweep.fstudy`) and share :mod:`ftsweep.files`.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ class FileFormat:
 
 
 def _header_format() -> FileFormat:
-    from ftsweep import header
+    from ftsweep.kinds import table_header as header
 
     def exported(out: Path, meta: dict[str, Any]) -> list[str]:
         return [
@@ -110,7 +110,7 @@ def _fresnel_format() -> FileFormat:
 
 def formats() -> tuple[FileFormat, ...]:
     """Every registered file format; the first is the default (:data:`DEFAULT`)."""
-    from ftsweep import program
+    from ftsweep.kinds import path_programs as program
 
     return (
         _header_format(),

@@ -2,8 +2,9 @@
 and entries), the layer schedule a layered file carries, atomic writing with ``--force``, and
 for plain-text programs their CRC over every line, reading, and the line-by-line comparison
 with the program the recorded case plans again (:func:`check_document`). The formats
-themselves live with their kinds (:mod:`ftsweep.header`, :mod:`ftsweep.program`,
-:mod:`ftsweep.fstudy`); :mod:`ftsweep.export` dispatches between them.
+themselves live with their kinds (:mod:`ftsweep.kinds.table_header`,
+:mod:`ftsweep.kinds.path_programs`, :mod:`ftsweep.fstudy`); :mod:`ftsweep.export` dispatches
+between them.
 """
 
 from __future__ import annotations

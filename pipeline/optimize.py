@@ -302,13 +302,13 @@ def _seeded(
 ) -> tuple[float, float, Any]:
     """The point count, aspect ratio and record the point-count search starts from: a log scan
     of nine aspect ratios at ``start_points`` refined around the best (``scan``), or the
-    layout :func:`ftsweep.estimate.seed_layout` predicts for the tolerance, refined
+    layout :func:`ftsweep.table_estimate.seed_layout` predicts for the tolerance, refined
     (``estimate``)."""
     lo, hi = _aspect_range(opt.layout)
     cap = float(opt.capacity)
     if seed == "estimate":
-        from ftsweep.estimate import seed_layout
         from ftsweep.stages.estimate import cusp_nm
+        from ftsweep.table_estimate import seed_layout
 
         cut = catalogs.entry("cutting", opt.cutting, opt.folder)
         cusp = cusp_nm(cut.feed_um, cut.nose_radius_um)
@@ -341,7 +341,7 @@ def optimize(
     """Find the smallest layout meeting ``tolerance_nm``; returns the answer and the log.
 
     ``seed``: ``scan`` starts with a log scan of nine aspect ratios at ``start_points``;
-    ``estimate`` starts at the point count and aspect ratio :func:`ftsweep.estimate.seed_layout`
+    ``estimate`` starts at the point count and aspect ratio :func:`ftsweep.table_estimate.seed_layout`
     predicts for the tolerance (no simulation), refined from there.
     """
     if seed not in ("scan", "estimate"):

@@ -148,7 +148,7 @@ def run_sweep(
         address of a running dask scheduler (also read from ``DASK_SCHEDULER_ADDRESS``).
     retry_failed : also recompute cases recorded as failed.
     prune : leave out (status ``pruned``, not computed) every pending case whose estimated
-        P-V (:mod:`ftsweep.estimate`) exceeds ``prune`` times the best estimate among the
+        P-V (:mod:`ftsweep.table_estimate`) exceeds ``prune`` times the best estimate among the
         aspect ratios of its point count. A run without ``prune`` computes earlier pruned cases.
     line_cache_mb : memory [MiB] per worker for the lines that cases share (0: none); the
         results are the same either way.
@@ -246,7 +246,7 @@ def prune_cases(
 ) -> int:
     """Mark pending cases hopeless by the estimate as pruned (see :func:`run_sweep`); returns
     how many this call pruned."""
-    from ftsweep.estimate import estimate_sweep
+    from ftsweep.table_estimate import estimate_sweep
 
     if not factor > 1.0:
         raise CubeError(f"the prune factor must be above 1, got {factor:g}")

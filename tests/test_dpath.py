@@ -11,10 +11,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftsweep import dstudy, program
+from ftsweep import dstudy
 from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.export import ExportError, verify
+from ftsweep.kinds import path_programs as program
 from ftsweep.spec import Case, CaseError, LayoutRequest
 from ftsweep.stages import dpath
 

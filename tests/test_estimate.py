@@ -85,10 +85,10 @@ def test_cli_estimate_prints_the_optimum_per_point_count():
 def test_estimate_agrees_with_the_simulated_lens_array_sweep(tmp_path):
     """Issue 10, item 3, on the mesh reference sweep (about three minutes on two cores; the
     ring reference sweep is checked in the default suite, tests/test_reference_sweep.py)."""
-    from ftsweep.estimate import agreement, estimate_sweep
     from ftsweep.run import run_sweep
     from ftsweep.select import open_cube
     from ftsweep.sweep import load_sweep
+    from ftsweep.table_estimate import agreement, estimate_sweep
 
     out = tmp_path / "lens-array-mesh.zarr"
     report = run_sweep("lens-array-mesh", out, workers=2)

@@ -16,8 +16,8 @@ from ftsweep import cube
 from ftsweep.catalogs import entry
 from ftsweep.cli import main
 from ftsweep.export import ExportError, export, verify
-from ftsweep.header import c_identifier, c_string, read_header
 from ftsweep.kinds.table import build_layout
+from ftsweep.kinds.table_header import c_identifier, c_string, read_header
 from ftsweep.planning import control_table
 from ftsweep.run import run_sweep
 from ftsweep.select import SelectError, choose, open_cube
@@ -190,7 +190,7 @@ def test_failed_and_infeasible_cases_are_refused(tmp_path, catalog_dir, monkeypa
 
 
 def test_identifiers_are_valid_c_whatever_the_names(ring_cube, tmp_path):
-    from ftsweep.header import C_KEYWORDS
+    from ftsweep.kinds.table_header import C_KEYWORDS
 
     for raw in ("3d lens/array", "ü-mlaut x", "__", "if", "int"):
         ident = c_identifier(raw)

@@ -62,8 +62,8 @@ def test_cube_has_units_and_provenance(ring_cube):
 
 def test_estimate_agrees_with_the_simulated_reference_sweep(ring_cube):
     """Issue 10, item 3: the first-order estimate against the 84 simulated cases."""
-    from ftsweep.estimate import agreement, estimate_sweep
     from ftsweep.sweep import load_sweep
+    from ftsweep.table_estimate import agreement, estimate_sweep
 
     _, spec = load_sweep("sinewave-ring")
     found = agreement(estimate_sweep(spec), open_cube(ring_cube))

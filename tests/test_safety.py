@@ -23,7 +23,7 @@ from click.testing import CliRunner
 from ftsweep import cube
 from ftsweep.cli import main
 from ftsweep.export import ExportError, export, verify
-from ftsweep.header import CHECKSUM_MACRO, checksum, read_header
+from ftsweep.kinds.table_header import CHECKSUM_MACRO, checksum, read_header
 from ftsweep.lock import LockError, acquire, lock_path, release
 from ftsweep.run import run_sweep
 from ftsweep.select import SelectError, choose, open_cube
@@ -314,7 +314,7 @@ def test_nan_off_the_test_grid_fails_the_case_and_nothing_is_exported(tmp_path, 
 
 
 def test_quantisation_refuses_non_finite_values():
-    from ftsweep.header import quantise
+    from ftsweep.kinds.table_header import quantise
 
     with pytest.raises(ExportError, match="non-finite"):
         quantise(np.array([[1.0, np.nan]]), 1.0, "int32")

@@ -17,7 +17,7 @@ from click.testing import CliRunner
 
 from ftsweep.cli import main
 from ftsweep.files import CRC_LINE, sidecar_digest
-from ftsweep.header import CHECKSUM_MACRO, checksum, read_header
+from ftsweep.kinds.table_header import CHECKSUM_MACRO, checksum, read_header
 from ftsweep.run import run_sweep
 
 SPHERE_D = """

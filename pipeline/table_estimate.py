@@ -37,7 +37,7 @@ def pitches(surface_spec: Any, kind: str, points: float, aspect: float) -> tuple
         layout = build_layout(surface_spec, LayoutRequest(kind=kind, points=points, aspect=aspect))
     except ValueError:
         return math.nan, math.nan, 0
-    second = math.radians(layout.pitch[1]) if kind == "ring" else layout.pitch[1]
+    second = math.radians(layout.pitch[1]) if layout.periodic else layout.pitch[1]
     return layout.pitch[0], second, layout.n_points
 
 

@@ -133,43 +133,9 @@ class LayoutRequest(Strict):
 
     @model_validator(mode="after")
     def _one_way(self) -> LayoutRequest:
-        rules = [name for name in SPIRAL_RULES if getattr(self, name) is not None]
-        dpath_given = [n for n in DPATH_FIELDS if getattr(self, n) is not None]
-        if self.kind == "dpath":
-            other = [n for n in ("pitch", "points", "aspect", *SPIRAL_FIELDS) if getattr(self, n) is not None]
-            if other:
-                raise ValueError(
-                    f"a D-path program takes no {', '.join(other)}: give spacing_um, points_per_cut and "
-                    "its path options"
-                )
-            return self
-        if dpath_given:
-            raise ValueError(
-                f"{', '.join(dpath_given)} belong(s) to D-path programs, not to a {self.kind} program"
-            )
-        if self.kind == "spiral":
-            table = [n for n in ("pitch", "points", "aspect") if getattr(self, n) is not None]
-            if table:
-                raise ValueError(
-                    f"a spiral program takes no {', '.join(table)}: give one of points_per_rev, "
-                    "arc_um or chord_um"
-                )
-            if len(rules) != 1:
-                raise ValueError(
-                    "a spiral program needs exactly one sampling rule: points_per_rev, arc_um or "
-                    f"chord_um (got {', '.join(rules) or 'none'})"
-                )
-            return self
-        spiral = [n for n in SPIRAL_FIELDS if getattr(self, n) is not None]
-        if spiral:
-            raise ValueError(f"{', '.join(spiral)} belong(s) to spiral programs, not to a {self.kind} table")
-        target = self.points is not None or self.aspect is not None
-        if self.pitch is not None and target:
-            raise ValueError(
-                "give either explicit pitches or a target point count and aspect ratio, not both"
-            )
-        if self.pitch is None and (self.points is None or self.aspect is None):
-            raise ValueError("give explicit pitches, or both a target point count and an aspect ratio")
+        from ftsweep import kinds
+
+        kinds.check_request(self)  # only its kind's fields, and its kind's rules
         return self
 
     def target(self) -> tuple[float, float]:

@@ -16,7 +16,7 @@ from ftsweep import catalogs
 from ftsweep import dpath as dpath_program
 from ftsweep.kinds import Planning, ProgramKind
 from ftsweep.record import ErrorMap, Timer, non_finite, simulated, timed
-from ftsweep.spec import Case, CaseError, LayoutRequest
+from ftsweep.spec import DPATH_FIELDS, Case, CaseError, LayoutRequest
 from ftsweep.stages import compensation
 
 AXES = ("spacing_um", "points_per_cut")
@@ -197,4 +197,5 @@ DPATH = ProgramKind(
     _pitch, _point, None, lambda: LayoutRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
     _describe, _check_sweep, "D-path sweeps", OPTIONS,
     lambda o: ({"kind": "dpath", **request_options(o)}, []),
+    DPATH_FIELDS,
 )  # fmt: skip

@@ -238,9 +238,19 @@ def _check_sweep(spec: Any) -> None:
         raise ValueError("dpath belongs to D-path sweeps (layout: dpath), not to a spiral sweep")
 
 
+def _check_request(request: Any) -> None:
+    rules = [name for name in AXES[:3] if getattr(request, name) is not None]
+    if len(rules) != 1:
+        raise ValueError(
+            "a spiral program needs exactly one sampling rule: points_per_rev, arc_um or "
+            f"chord_um (got {', '.join(rules) or 'none'})"
+        )
+
+
 SPIRAL = ProgramKind(
     "spiral", "spiral program", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
     _pitch, _point, _cells, lambda: LayoutRequest(kind="spiral", points_per_rev=16), _describe,
     _check_sweep, "spiral sweeps", AXES,
     lambda o: ({"kind": "spiral", **{k: o[k] for k in AXES if o.get(k) is not None}}, []),
+    AXES, _check_request,
 )  # fmt: skip

@@ -489,11 +489,12 @@ def compare(cubes: tuple[Path, ...], out: Optional[Path], allow_different: bool,
         shown = "; ".join(f"{c} {cond[c]}" + (" (differs)" if c in differ else "") for c in CONDITIONS)
         click.echo(f"conditions   {label}: {shown}")
     head = f"  {'program':<40s} {'target':>10s} {'actual N':>10s} {'P-V nm':>9s} {'RMS nm':>8s}"
-    click.echo(head + f" {'interp nm':>9s}")
+    click.echo(head + f" {'interp nm':>9s} {'angles':>7s}")
     for r in rows:
         click.echo(
             f"  {r['program']:<40s} {r['target']:10,.4g} {r['n_points']:10,d} {r['pv_nm']:9.2f} "
-            f"{r['rms_nm']:8.2f} {r['pv_interp_nm']:9.2f}"
+            f"{r['rms_nm']:8.2f} {r['pv_interp_nm']:9.2f} "
+            + (f"{r['n_theta']:7,d}" if r["n_theta"] is not None else f"{'–':>7s}")
         )
     if out is not None:
         click.echo(f"plot         {out}")

@@ -27,7 +27,7 @@ def label_of(ds: Any, path: Path) -> str:
 
 # what must match for two cubes to be compared: the part, the tool, the feed, the machine and
 # the compensation (the spindle-angle sampling is the resolution's, recorded per case)
-CONDITIONS = ("surface", "nose_radius_um", "feed_um", "machine", "compensation")
+CONDITIONS = ("surface", "nose_radius_um", "feed_um", "machine", "compensation", "resolution")
 
 
 def _values_text(values: list[float]) -> str:
@@ -51,12 +51,15 @@ def conditions(ds: Any) -> dict[str, str]:
     radii = (
         axis_values(axes.nose_radius_um) if axes.nose_radius_um is not None else [cutting["nose_radius_um"]]
     )
+    res = spec.resolution
+    sampling = f"{res.samples_per_cell} samples per cell, {res.points_per_feed} points per feed"
     return {
         "surface": spec.surface,
         "nose_radius_um": _values_text(radii),
         "feed_um": feed,
         "machine": spec.machine,
         "compensation": spec.compensation,
+        "resolution": sampling + (f", {res.n_theta} angles" if res.n_theta else ""),
     }
 
 
@@ -90,6 +93,7 @@ def compare_rows(
                     "pv_nm": case["pv_nm"],
                     "rms_nm": case["rms_nm"],
                     "pv_interp_nm": case["pv_interp_nm"],
+                    "n_theta": int(ds["n_theta"].values.ravel()[flat]) if "n_theta" in ds else None,
                 }
             )
     differ = differing(per_cube)

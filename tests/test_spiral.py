@@ -294,6 +294,8 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     assert [r["pv_nm"] for r in spiral_rows] == [best_pv(a, 40), best_pv(a, 90)]
     assert png.stat().st_size > 0
     assert json.loads(res.stdout)["different"] == ["feed_um"]
+    # each row says on how many spindle angles it was simulated (tables and spirals differ)
+    assert all(r["n_theta"] > 0 for r in rows)
 
     # cubes made at different feeds are refused, naming the difference; --allow-different
     # lists them with the difference flagged

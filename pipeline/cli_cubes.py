@@ -448,7 +448,7 @@ def report(
     "--allow-different",
     is_flag=True,
     help="List cubes made under different conditions (surface, nose radius, feed, machine, "
-    "compensation) instead of refusing them; the differences are flagged.",
+    "compensation, resolution) instead of refusing them; the differences are flagged.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object (the rows) on stdout.")
 def compare(cubes: tuple[Path, ...], out: Optional[Path], allow_different: bool, as_json: bool) -> None:

@@ -7,6 +7,7 @@ table; the formats live with their kinds (:mod:`ftsweep.kinds.table_header`,
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,7 +24,8 @@ class FileFormat:
 
     kinds : the cube case kinds (``LayoutRequest.kind``) it exports; empty for a format
         written by its own command (Fresnel programs by ``ftsweep fresnel -o``).
-    magic : how its first line starts (None: the default format, :data:`DEFAULT`).
+    magic : how its first line starts (None: the default format, read when no other's
+        first line matches).
     export : ``(out, side, case, specs, chosen, extra, name) -> sidecar``.
     verify : ``(path, progress, pv_tolerance_nm, trust_plugins) -> record``.
     exported : the lines that say what ``export`` wrote (``(out, sidecar) -> lines``).
@@ -108,8 +110,9 @@ def _fresnel_format() -> FileFormat:
     return FileFormat("Fresnel program", (), fstudy.F_MAGIC, None, verify, lambda out, meta: [], verified)
 
 
+@functools.cache
 def formats() -> tuple[FileFormat, ...]:
-    """Every registered file format; the first is the default (:data:`DEFAULT`)."""
+    """Every registered file format (built once); the first is the default."""
     from ftsweep.kinds import path_programs as program
 
     return (

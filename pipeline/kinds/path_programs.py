@@ -206,12 +206,13 @@ def dpath_document(
     extra: dict[str, Any],
     created: str,
     generator: str,
+    rcase: Any = None,
 ) -> tuple[list[str], list[str], dict[str, Any]]:
     """The header lines, data lines and sidecar content of a D-path case ([5]), planned from
-    its spec and entries: export writes them and verify re-derives them."""
+    its spec and entries (or ``rcase``, resolved already): export writes, verify re-derives."""
     from ftsweep import dpath as dprog
 
-    rcase = resolve_case(case, specs=specs)
+    rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     path, z = rcase.layout, rcase.values
     if path.n_points != chosen["n_points"]:
         raise ProgramError(
@@ -298,12 +299,13 @@ def verify_dpath(
         raise ProgramError(
             f"{path}: a line leaves the axis limits of machine '{case.machine}': {reason}; do not run it"
         )
+    # planned once: its lines are compared, its cut geometry carries the file's points
+    rcase = resolve_case(case, specs=specs)
     planned = dpath_document(
-        case, specs, meta["selection"], recorded_extra(meta), meta["created"], meta["generator"]
+        case, specs, meta["selection"], recorded_extra(meta), meta["created"], meta["generator"], rcase
     )
     check_document(path, doc, planned, meta, D_COLUMNS)
     data = doc.data
-    rcase = resolve_case(case, specs=specs)
     # the path as the file gives it: its C and X, on the planned cuts' geometry
     given = rcase.layout._replace(phi=np.radians(data[:, 1]), rho=data[:, 2] * 1e3)
     record = run_case(case, specs=specs, progress=progress, program=(given, data[:, 3] * 1e3))

@@ -14,11 +14,12 @@ from typing import Any
 
 from ftsweep import __version__, catalogs
 from ftsweep.case import STAGE_TIMERS, LineCache, run_case
-from ftsweep.spec import Case, LayoutRequest, Resolution
+from ftsweep.kinds.requests import program_request
+from ftsweep.spec import Case, Resolution
 
 MILLION_CASES = {
-    "ring-1M-a8": ("sinewave2d", LayoutRequest(kind="ring", points=1_000_000, aspect=8.0)),
-    "mesh-1M-a1": ("lens_array", LayoutRequest(kind="mesh", points=1_000_000, aspect=1.0)),
+    "ring-1M-a8": ("sinewave2d", program_request(kind="ring", points=1_000_000, aspect=8.0)),
+    "mesh-1M-a1": ("lens_array", program_request(kind="mesh", points=1_000_000, aspect=1.0)),
 }
 
 
@@ -32,7 +33,7 @@ def bench_cases() -> dict[str, Case]:
     """The benchmarked cases: the six references plus two ~10⁶-point layouts, each also
     without the exact-command envelope and with its lines shared (:data:`SHARED_SUFFIX`)."""
     cases = {
-        name: Case(surface=ref.surface, layout=LayoutRequest(kind=ref.layout, pitch=ref.pitch))
+        name: Case(surface=ref.surface, layout=program_request(kind=ref.layout, pitch=ref.pitch))
         for name, ref in catalogs.entries("references").items()
     }
     for name, (surface, request) in MILLION_CASES.items():
@@ -54,7 +55,7 @@ def run_benchmark(names: list[str] | None = None, repeat: int = 1) -> dict[str, 
         raise ValueError(f"unknown benchmark case(s) {unknown}; known: {', '.join(cases)}")
     # warm-up: compile or load every kernel once, for both layout kinds
     for surface, kind, pitch in (("sinewave2d", "ring", (20.0, 10.0)), ("lens_array", "mesh", (50.0, 50.0))):
-        run_case(Case(surface=surface, layout=LayoutRequest(kind=kind, pitch=pitch)))
+        run_case(Case(surface=surface, layout=program_request(kind=kind, pitch=pitch)))
     rows = []
     for name in chosen:
         best: dict[str, Any] | None = None

@@ -149,9 +149,7 @@ def _report_problems(report: Any) -> None:
 
 
 def _case_label(row: dict[str, Any]) -> str:
-    if row.get("points") is None or row.get("aspect") is None:
-        return f"case {row['index']}"  # a spiral case: no target count and aspect
-    return f"case {row['index']} (N≈{row['points']:,.0f} α={row['aspect']:.3g})"
+    return f"case {row['index']} ({row['request']})" if row.get("request") else f"case {row['index']}"
 
 
 def _sweep_progress(started: float) -> Callable[[Any, list[dict]], None]:

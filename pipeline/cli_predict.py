@@ -218,6 +218,8 @@ def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
     parts = []
     for e in exc.errors():
         loc = [str(p) for p in e["loc"]]
+        if loc[:1] == ["layout"] and len(loc) > 1 and loc[1] in kinds.registry():
+            del loc[1]  # the request model's tag (its kind)
         if loc[:2] == ["layout", "pitch"] and len(loc) > 2:
             name = pitch_names[int(loc[2])]
         elif loc and loc[0] in ("layout", "resolution") and len(loc) > 1:

@@ -17,8 +17,9 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep.case import run_case
+from ftsweep.kinds.requests import program_request
 from ftsweep.planning import resolve_case
-from ftsweep.spec import Case, LayoutRequest, Resolution
+from ftsweep.spec import Case, Resolution
 from ftsweep.stages import dpath
 
 
@@ -32,7 +33,7 @@ def spiral_case(base: Case, record: dict[str, Any]) -> Case:
     point every cut step along the path ([4] constant-arc rule), same tool and entries."""
     return Case(
         surface=base.surface,
-        layout=LayoutRequest(kind="spiral", arc_um=float(record["cut_step_um"])),
+        layout=program_request(kind="spiral", arc_um=float(record["cut_step_um"])),
         machine=base.machine,
         cutting=base.cutting,
         feed_um=float(record["spacing_um"]),
@@ -241,5 +242,5 @@ def default_case(
     """The D-path case of the study (defaults: [5]'s example on its sphere)."""
     given = {k: v for k, v in (options or {}).items() if v is not None}
     return Case(
-        surface=surface, layout=LayoutRequest(kind="dpath", **given), machine=machine, cutting=cutting
+        surface=surface, layout=program_request(kind="dpath", **given), machine=machine, cutting=cutting
     )

@@ -94,8 +94,7 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
                     "index": index,
                     "status": "failed",
                     "message": message,
-                    "points": case.layout.points,
-                    "aspect": case.layout.aspect,
+                    "request": case.layout.label(),
                 }
             )
             continue
@@ -106,8 +105,7 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
                 "status": "done",
                 "pv_nm": record["pv_nm"],
                 "n_points": record["n_points"],
-                "points": case.layout.points,
-                "aspect": case.layout.aspect,
+                "request": case.layout.label(),
                 "seconds": record["seconds"],
                 "reused_batches": (cache.hits - hits) if cache is not None else 0,
             }
@@ -252,8 +250,7 @@ def task_failure(task: TaskSpec, indices: Iterable[int], exc: BaseException) -> 
             {
                 "index": i,
                 "status": "error",
-                "points": case.layout.points,
-                "aspect": case.layout.aspect,
+                "request": case.layout.label(),
                 "message": f"task error, case left pending: {text}",
             }
         )

@@ -22,7 +22,7 @@ Progress = Callable[[int, int], None] | None
 class FileFormat:
     """How one kind of exported file is written, recognised, verified and reported.
 
-    kinds : the cube case kinds (``LayoutRequest.kind``) it exports; empty for a format
+    kinds : the cube case kinds (a request's ``kind``) it exports; empty for a format
         written by its own command (Fresnel programs by ``ftsweep fresnel -o``).
     magic : how its first line starts (None: the default format, read when no other's
         first line matches).

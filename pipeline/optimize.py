@@ -31,8 +31,9 @@ import zarr
 from ftsweep import __version__, catalogs, cube, kinds
 from ftsweep.case import run_case
 from ftsweep.cube import SCHEMA_VERSION, CubeError, CubeWriter, git_revision
+from ftsweep.kinds.requests import program_request
 from ftsweep.lock import cube_lock
-from ftsweep.spec import Case, CaseError, LayoutRequest, Resolution
+from ftsweep.spec import Case, CaseError, Resolution
 from ftsweep.sweep import axis_attrs
 
 
@@ -172,7 +173,7 @@ class Optimizer:
             return self.cache[key]
         case = Case(
             surface=self.surface,
-            layout=LayoutRequest(kind=self.layout, points=points, aspect=aspect),
+            layout=program_request(kind=self.layout, points=points, aspect=aspect),
             machine=self.machine,
             cutting=self.cutting,
             compensation=self.compensation,

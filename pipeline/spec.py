@@ -1,7 +1,7 @@
 """The spec of one case: an immutable, validated value with a stable key (its canonical JSON's
-hash). A case names its surface, program request (a ring or mesh table, a spiral or a D
-path), machine, cutting conditions and resolution; every combination rule is checked here,
-once, when the spec is built (CLI options, sweep YAML and sidecars alike).
+hash). A case names its surface, program request (one model per kind,
+:mod:`ftsweep.kinds.requests`), machine, cutting conditions and resolution; every combination
+rule is checked once, when the spec is built (CLI options, sweep YAML and sidecars alike).
 """
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ import hashlib
 import json
 from typing import Any, Literal, Optional
 
-from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_serializer, model_validator
+from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_serializer
 
 from ftsweep import catalogs
 from ftsweep.catalogs import Strict
-from ftsweep.stages import spiral
+from ftsweep.kinds.requests import ProgramRequest
 
 
 class CaseError(ValueError):
@@ -84,93 +84,11 @@ class Resolution(Strict):
         return value
 
 
-class LayoutRequest(Strict):
-    """A program: a table (ring or mesh) with either explicit pitches or a target point count
-    and aspect ratio, or a spiral path program with one sampling rule ([4]).
-
-    pitch: (Δρ [µm], Δθ [deg]) for rings, (Δx [µm], Δy [µm]) for meshes.
-    points, aspect: target N and α (Δρ/Δθ [µm/deg] for rings, Δx/Δy for meshes).
-    points_per_rev, arc_um, chord_um: the spiral's rule (constant angle, constant arc length
-    [µm], chord-error budget [µm]); residual_um: the residual budget [µm] that sets the
-    spiral's feed ([4] eqs. 1–3) instead of the cutting entry's.
-    """
-
-    kind: Literal["ring", "mesh", "spiral", "dpath"]
-    pitch: Optional[tuple[PositiveFloat, PositiveFloat]] = None
-    points: Optional[PositiveFloat] = None
-    aspect: Optional[PositiveFloat] = None
-    points_per_rev: Optional[int] = Field(None, ge=3, description="spiral: points per revolution")
-    arc_um: Optional[PositiveFloat] = Field(None, description="spiral: path length between points [µm]")
-    chord_um: Optional[PositiveFloat] = Field(None, description="spiral: chord-error budget Δcho [µm]")
-    residual_um: Optional[PositiveFloat] = Field(
-        None, description="spiral: residual (cusp) budget Δres [µm] that sets the feed"
-    )
-    # D-shaped slow-tool-servo paths ([5]); unset: ftsweep.dpath.DEFAULTS
-    spacing_um: Optional[PositiveFloat] = Field(
-        None, description="dpath: spacing h between cuts [µm] (default: the feed)"
-    )
-    points_per_cut: Optional[int] = Field(None, ge=2, description="dpath: points on every cut (default 201)")
-    transition: Optional[Literal["traditional", "optimised"]] = Field(
-        None, description="dpath: turn-round between cuts, arc (traditional) or quintic (optimised, default)"
-    )
-    zones: Optional[Literal[1, 2, 4]] = Field(
-        None, description="dpath: cutting zones per revolution (default 1)"
-    )
-    offaxis_um: Optional[PositiveFloat] = Field(
-        None, description="dpath: distance of the part's centre from the C axis [µm] (default 30 mm)"
-    )
-    cut_angle_deg: Optional[float] = Field(
-        None, description="dpath: direction of the cuts in the part's frame [deg from +x] (default 90)"
-    )
-    transition_step_deg: Optional[PositiveFloat] = Field(
-        None, description="dpath: largest C step between transition points [deg] (default 1)"
-    )
-
-    @model_serializer(mode="wrap")
-    def _stable_dump(self, handler: Any) -> Any:
-        # table and spiral cases keep their keys
-        return catalogs.without_defaults(handler(self), dict.fromkeys((*SPIRAL_FIELDS, *DPATH_FIELDS)))
-
-    @model_validator(mode="after")
-    def _one_way(self) -> LayoutRequest:
-        from ftsweep import kinds
-
-        kinds.check_request(self)  # only its kind's fields, and its kind's rules
-        return self
-
-    def target(self) -> tuple[float, float]:
-        """(points, aspect) of a target-count request."""
-        if self.points is None or self.aspect is None:
-            raise ValueError("this layout request gives explicit pitches, not a target")
-        return self.points, self.aspect
-
-    def spiral_rule(self) -> tuple[str, float]:
-        """(rule, parameter) of a spiral request: ("angle", Np), ("arc", µm) or ("chord", µm)."""
-        for name, rule in zip(SPIRAL_RULES, spiral.RULES, strict=True):
-            value = getattr(self, name)
-            if value is not None:
-                return rule, float(value)
-        raise ValueError("this request is not a spiral program")
-
-
-SPIRAL_RULES = ("points_per_rev", "arc_um", "chord_um")
-SPIRAL_FIELDS = (*SPIRAL_RULES, "residual_um")
-DPATH_FIELDS = (
-    "spacing_um",
-    "points_per_cut",
-    "transition",
-    "zones",
-    "offaxis_um",
-    "cut_angle_deg",
-    "transition_step_deg",
-)
-
-
 class Case(Strict):
     """Everything that determines one prediction. ``key()`` is stable across processes."""
 
     surface: str
-    layout: LayoutRequest
+    layout: ProgramRequest
     machine: str = "fts-1m"
     cutting: str = "reference"
     feed_um: Optional[PositiveFloat] = Field(None, description="overrides the cutting entry [µm/rev]")

@@ -13,8 +13,8 @@ import xarray as xr
 
 from ftsweep import catalogs
 from ftsweep.cube import DONE
+from ftsweep.kinds.requests import program_request
 from ftsweep.kinds.table import build_layout
-from ftsweep.spec import LayoutRequest
 from ftsweep.stages import estimate as est
 from ftsweep.sweep import SweepSpec, coordinates
 
@@ -34,7 +34,7 @@ def pitches(surface_spec: Any, kind: str, points: float, aspect: float) -> tuple
     """(pitch 1, pitch 2, realised N) of the layout for target (N, α), in the estimate's
     coordinates: (Δρ µm, Δθ rad) for rings, (Δx, Δy) µm for meshes; NaN if it cannot be built."""
     try:
-        layout = build_layout(surface_spec, LayoutRequest(kind=kind, points=points, aspect=aspect))
+        layout = build_layout(surface_spec, program_request(kind=kind, points=points, aspect=aspect))
     except ValueError:
         return math.nan, math.nan, 0
     second = math.radians(layout.pitch[1]) if layout.periodic else layout.pitch[1]

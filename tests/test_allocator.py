@@ -9,7 +9,8 @@ import pytest
 
 from ftsweep import allocator
 from ftsweep.case import run_case
-from ftsweep.spec import Case, LayoutRequest
+from ftsweep.kinds.requests import program_request
+from ftsweep.spec import Case
 
 
 @pytest.mark.skipif(platform.system() != "Linux" or not ctypes.util.find_library("c"), reason="glibc only")
@@ -21,7 +22,7 @@ def test_tune_applies_on_glibc():
 
 
 def test_results_do_not_depend_on_the_allocator():
-    case = Case(surface="sinewave2d", layout=LayoutRequest(kind="ring", pitch=(20.0, 5.0)))
+    case = Case(surface="sinewave2d", layout=program_request(kind="ring", pitch=(20.0, 5.0)))
     before = run_case(case)
     allocator.tune()
     after = run_case(case)

@@ -10,7 +10,8 @@ import pytest
 
 from ftsweep import catalogs
 from ftsweep.case import run_case
-from ftsweep.spec import Case, LayoutRequest, Resolution
+from ftsweep.kinds.requests import program_request
+from ftsweep.spec import Case, Resolution
 
 REFERENCES = catalogs.entries("references")
 
@@ -19,7 +20,7 @@ REFERENCES = catalogs.entries("references")
 @pytest.mark.parametrize("name", list(REFERENCES))
 def test_default_resolution_is_converged(name):
     ref = REFERENCES[name]
-    layout = LayoutRequest(kind=ref.layout, pitch=ref.pitch)
+    layout = program_request(kind=ref.layout, pitch=ref.pitch)
     default = Resolution()
     fine = Resolution(
         samples_per_cell=4 * default.samples_per_cell, points_per_feed=2 * default.points_per_feed

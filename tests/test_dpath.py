@@ -16,7 +16,8 @@ from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.export import ExportError, verify
 from ftsweep.kinds import path_programs as program
-from ftsweep.spec import Case, CaseError, LayoutRequest
+from ftsweep.kinds.requests import program_request
+from ftsweep.spec import Case, CaseError
 from ftsweep.stages import dpath
 
 # [5]'s example: l = s = 20 mm, zone centre 30 mm from the C axis (outer edge 40 mm), 40 rpm
@@ -121,7 +122,7 @@ def test_transition_z_is_linear_between_cuts():
 def d_case(surface: str = "concave_sphere", **options) -> Case:
     return Case(
         surface=surface,
-        layout=LayoutRequest(kind="dpath", **options),
+        layout=program_request(kind="dpath", **options),
         machine="sts-xzc",
         cutting="dpath-finish",
     )
@@ -151,13 +152,13 @@ def test_cylinder_array_d_path_z_velocity_is_far_below_the_spiral():
 
 def test_layout_options_are_checked():
     with pytest.raises(ValueError, match="D-path"):
-        LayoutRequest(kind="spiral", arc_um=10.0, spacing_um=5.0)
+        program_request(kind="spiral", arc_um=10.0, spacing_um=5.0)
     with pytest.raises(ValueError, match="takes no"):
-        LayoutRequest(kind="dpath", points=1000.0)
+        program_request(kind="dpath", points=1000.0)
     with pytest.raises(CaseError, match="reaches the C axis"):
         run_case(d_case(offaxis_um=5000.0, spacing_um=500.0))
     with pytest.raises(CatalogError):
-        run_case(Case(surface="concave_sphere", layout=LayoutRequest(kind="dpath"), machine="nope"))
+        run_case(Case(surface="concave_sphere", layout=program_request(kind="dpath"), machine="nope"))
 
 
 def test_export_lines_stay_within_the_axis_limits_and_verify(tmp_path):

@@ -15,7 +15,8 @@ from ftsweep import catalogs
 from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError, SurfaceSpec, load_catalog
 from ftsweep.cli import main
-from ftsweep.spec import Case, LayoutRequest
+from ftsweep.kinds.requests import program_request
+from ftsweep.spec import Case
 from ftsweep.stages.surfaces import Aperture, noll_to_nm, radial_section, sinewave2d
 from ftsweep.usersurfaces import SurfaceLoadError, height_map_surface
 
@@ -108,7 +109,7 @@ sine_map:
   aperture: {{shape: circle, radius_um: 1000.0}}
   params: {{path: {tmp_path / "sine.npy"}, spacing_um: [0.5, 0.5], origin_um: [-1010.0, -1010.0]}}
 """)
-    layout = LayoutRequest(kind="ring", pitch=(2.0, 1.0))
+    layout = program_request(kind="ring", pitch=(2.0, 1.0))
     analytic = run_case(Case(surface="sinewave2d", layout=layout), catalog_dir)
     mapped = run_case(Case(surface="sine_map", layout=layout), catalog_dir)
     assert mapped["pv_nm"] == pytest.approx(analytic["pv_nm"], rel=0.05)

@@ -18,7 +18,8 @@ import pytest
 
 from ftsweep import catalogs, fstudy
 from ftsweep.case import run_case
-from ftsweep.spec import Case, LayoutRequest, Resolution
+from ftsweep.kinds.requests import program_request
+from ftsweep.spec import Case, Resolution
 
 GOLDEN = Path(__file__).parent / "data" / "golden_cases.json"
 # same code, same platform: identical bits; the bound admits libm/SIMD last digits elsewhere
@@ -27,7 +28,7 @@ COARSE = Resolution(n_theta=16)
 
 
 def _case(surface: str, layout: dict[str, Any], **kw: Any) -> Case:
-    return Case(surface=surface, layout=LayoutRequest(**layout), resolution=COARSE, **kw)
+    return Case(surface=surface, layout=program_request(**layout), resolution=COARSE, **kw)
 
 
 def _surface_cases() -> dict[str, Case]:

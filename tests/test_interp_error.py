@@ -13,8 +13,9 @@ from click.testing import CliRunner
 from ftsweep.case import run_case
 from ftsweep.cli import main
 from ftsweep.export import export, verify
+from ftsweep.kinds.requests import program_request
 from ftsweep.run import run_sweep
-from ftsweep.spec import Case, LayoutRequest, Resolution
+from ftsweep.spec import Case, Resolution
 
 SMALL = """
 surface: small_sine
@@ -24,11 +25,11 @@ axes: {points: [8000], aspect: [1.0, 4.0]}
 
 
 def test_without_the_exact_envelope_every_other_result_is_the_same():
-    on = run_case(Case(surface="sinewave2d", layout=LayoutRequest(kind="ring", pitch=(20.0, 5.0))))
+    on = run_case(Case(surface="sinewave2d", layout=program_request(kind="ring", pitch=(20.0, 5.0))))
     off = run_case(
         Case(
             surface="sinewave2d",
-            layout=LayoutRequest(kind="ring", pitch=(20.0, 5.0)),
+            layout=program_request(kind="ring", pitch=(20.0, 5.0)),
             resolution=Resolution(interp_error=False),
         )
     )
@@ -44,8 +45,8 @@ def test_the_default_keeps_hashes_and_round_trips():
     off = Resolution(interp_error=False)
     assert off.model_dump()["interp_error"] is False
     assert Resolution.model_validate_json(off.model_dump_json()) == off
-    a = Case(surface="s", layout=LayoutRequest(kind="ring", pitch=(1.0, 1.0)))
-    b = Case(surface="s", layout=LayoutRequest(kind="ring", pitch=(1.0, 1.0)), resolution=off)
+    a = Case(surface="s", layout=program_request(kind="ring", pitch=(1.0, 1.0)))
+    b = Case(surface="s", layout=program_request(kind="ring", pitch=(1.0, 1.0)), resolution=off)
     assert a.key() != b.key()
 
 

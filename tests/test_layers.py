@@ -14,10 +14,11 @@ from hypothesis import strategies as st
 from ftsweep.case import LinePlan, _line_data, _machined, _table_of, run_case
 from ftsweep.cli import main
 from ftsweep.export import export, verify
+from ftsweep.kinds.requests import program_request
 from ftsweep.planning import layer_plan, resolve_case
 from ftsweep.record import Timer
 from ftsweep.run import run_sweep
-from ftsweep.spec import Case, LayoutRequest
+from ftsweep.spec import Case
 from ftsweep.stages import dynamics, interpolation, layers
 from ftsweep.stages.surfaces import FAMILIES
 
@@ -25,7 +26,7 @@ PRISM = dict(surface="microprism", machine="fts-5um", cutting="microprism")
 
 
 def prism_case(**kw) -> Case:
-    return Case(**PRISM, layout=LayoutRequest(kind="mesh", points=40_000, aspect=1.0), **kw)
+    return Case(**PRISM, layout=program_request(kind="mesh", points=40_000, aspect=1.0), **kw)
 
 
 def zone_members(plan: layers.LayerPlan, phi: np.ndarray, k: int) -> np.ndarray:
@@ -155,7 +156,7 @@ def test_layered_prediction_equals_the_single_pass_on_a_sine_through_a_short_str
         case = Case(
             surface="small_sine",
             machine="short-fts",
-            layout=LayoutRequest(kind="ring", points=20_000, aspect=4.0),
+            layout=program_request(kind="ring", points=20_000, aspect=4.0),
             layers=mode,
         )
         return run_case(case, module_catalog_dir)

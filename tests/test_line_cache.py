@@ -13,8 +13,9 @@ from hypothesis import strategies as st
 from ftsweep.case import LineCache, run_case
 from ftsweep.cost import ladder_rung
 from ftsweep.cube import TIMING_VARS
+from ftsweep.kinds.requests import program_request
 from ftsweep.run import run_sweep
-from ftsweep.spec import Case, LayoutRequest, Resolution
+from ftsweep.spec import Case, Resolution
 from ftsweep.sweep import case_lines, load_sweep, plan_tasks
 
 
@@ -32,7 +33,7 @@ def _same(a: dict, b: dict) -> list[str]:
 def _case(pitch, n_theta=240, **kw):
     return Case(
         surface="small_sine",
-        layout=LayoutRequest(kind="ring", pitch=pitch),
+        layout=program_request(kind="ring", pitch=pitch),
         resolution=Resolution(n_theta=n_theta, **kw),
     )
 
@@ -101,7 +102,7 @@ def test_the_ladder_shares_samples_and_keeps_hashes(catalog_dir):
     spc = Resolution(angular_ladder=1.5)
 
     def run(aspect):
-        layout = LayoutRequest(kind="ring", points=8000, aspect=aspect)
+        layout = program_request(kind="ring", points=8000, aspect=aspect)
         return run_case(Case(surface="small_sine", layout=layout, resolution=spc), catalog_dir)
 
     ra, rb = run(1.0), run(1.2)

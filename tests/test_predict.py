@@ -17,7 +17,8 @@ from pydantic import ValidationError
 from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError
 from ftsweep.cli import main
-from ftsweep.spec import Case, CaseError, LayoutRequest, Resolution
+from ftsweep.kinds.requests import program_request
+from ftsweep.spec import Case, CaseError, Resolution
 from ftsweep.sweep import load_sweep
 
 REQUIRED = {"surface", "layout", "n_points", "pv_nm", "rms_nm", "pv_interp_nm", "seconds"}
@@ -27,7 +28,7 @@ def test_flat_surface_machines_to_feed_cusps(catalog_dir):
     for feed, rc in ((1.0, 83.0), (2.0, 50.0)):
         case = Case(
             surface="flat",
-            layout=LayoutRequest(kind="ring", pitch=(5.0, 2.0)),
+            layout=program_request(kind="ring", pitch=(5.0, 2.0)),
             feed_um=feed,
             nose_radius_um=rc,
         )
@@ -43,12 +44,12 @@ def test_flat_surface_machines_to_feed_cusps(catalog_dir):
 
 def test_ring_and_mesh_on_small_parts(catalog_dir):
     ring = run_case(
-        Case(surface="small_sine", layout=LayoutRequest(kind="ring", points=20000, aspect=4.0)), catalog_dir
+        Case(surface="small_sine", layout=program_request(kind="ring", points=20000, aspect=4.0)), catalog_dir
     )
     assert ring["n_points"] == pytest.approx(20000, abs=ring["table_cols"])
     assert ring["aspect_actual"] == pytest.approx(4.0, rel=0.1)
     mesh = run_case(
-        Case(surface="small_lens", layout=LayoutRequest(kind="mesh", pitch=(5.0, 5.0))), catalog_dir
+        Case(surface="small_lens", layout=program_request(kind="mesh", pitch=(5.0, 5.0))), catalog_dir
     )
     assert [mesh["table_rows"], mesh["table_cols"]] == [91, 91]
     for r in (ring, mesh):
@@ -60,7 +61,7 @@ def test_ring_and_mesh_on_small_parts(catalog_dir):
 def test_finer_layouts_are_more_accurate(catalog_dir):
     pvs = [
         run_case(
-            Case(surface="small_sine", layout=LayoutRequest(kind="ring", pitch=(2.0, dth))), catalog_dir
+            Case(surface="small_sine", layout=program_request(kind="ring", pitch=(2.0, dth))), catalog_dir
         )["pv_nm"]
         for dth in (2.0, 1.0, 0.5)
     ]
@@ -70,7 +71,7 @@ def test_finer_layouts_are_more_accurate(catalog_dir):
 
 
 def test_capacity_is_enforced(catalog_dir):
-    case = Case(surface="sinewave2d", layout=LayoutRequest(kind="ring", pitch=(0.5, 0.1)))
+    case = Case(surface="sinewave2d", layout=program_request(kind="ring", pitch=(0.5, 0.1)))
     with pytest.raises(CaseError, match="over the capacity"):
         run_case(case, catalog_dir)
 
@@ -88,9 +89,9 @@ def test_odd_points_per_feed_is_refused(tmp_path, catalog_dir):
 
 
 def test_case_key_is_stable_and_sensitive():
-    a = Case(surface="sinewave2d", layout=LayoutRequest(kind="ring", pitch=(2.0, 1.0)))
-    b = Case(surface="sinewave2d", layout=LayoutRequest(kind="ring", pitch=(2.0, 1.0)))
-    c = Case(surface="sinewave2d", layout=LayoutRequest(kind="ring", pitch=(2.0, 0.5)))
+    a = Case(surface="sinewave2d", layout=program_request(kind="ring", pitch=(2.0, 1.0)))
+    b = Case(surface="sinewave2d", layout=program_request(kind="ring", pitch=(2.0, 1.0)))
+    c = Case(surface="sinewave2d", layout=program_request(kind="ring", pitch=(2.0, 0.5)))
     assert a.key() == b.key() != c.key()
     assert len(a.key()) == 16
 

@@ -28,7 +28,8 @@ NEW_FAMILY = textwrap.dedent(
     from pydantic import TypeAdapter
     from ftsweep import catalogs
     from ftsweep.case import run_case
-    from ftsweep.spec import Case, LayoutRequest
+    from ftsweep.kinds.requests import program_request
+    from ftsweep.spec import Case
 
     entry = {"family": "tilted_plane", "layout": "mesh", "aperture": {"shape": "circle", "radius_um": 300.0},
              "params": {"slope_x": 0.0, "offset_um": 2.0}}
@@ -38,7 +39,7 @@ NEW_FAMILY = textwrap.dedent(
     except Exception as exc:
         print("refused:", "slope_x" in str(exc), "slope" in str(exc))
     machine, cutting = catalogs.entry("machines", "fts-1m"), catalogs.entry("cutting", "reference")
-    case = Case(surface="plane", layout=LayoutRequest(kind="mesh", pitch=(20.0, 20.0)))
+    case = Case(surface="plane", layout=program_request(kind="mesh", pitch=(20.0, 20.0)))
     record = run_case(case, specs=(spec, machine, cutting))
     print("pv", record["pv_outer_nm"], record["pv_interp_nm"], record["cusp_nm"])
     """

@@ -12,17 +12,20 @@ from click.testing import CliRunner
 from ftsweep import cube, result
 from ftsweep.case import run_case
 from ftsweep.cli import main
+from ftsweep.kinds.requests import program_request
 from ftsweep.query import describe
 from ftsweep.run import run_sweep
-from ftsweep.spec import Case, LayoutRequest
+from ftsweep.spec import Case
 
 KIND_CASES = {
-    "ring": Case(surface="small_sine", layout=LayoutRequest(kind="ring", pitch=(10.0, 4.0))),
-    "mesh": Case(surface="small_lens", layout=LayoutRequest(kind="mesh", pitch=(10.0, 10.0))),
-    "spiral": Case(surface="small_sine", layout=LayoutRequest(kind="spiral", points_per_rev=40), feed_um=4.0),
+    "ring": Case(surface="small_sine", layout=program_request(kind="ring", pitch=(10.0, 4.0))),
+    "mesh": Case(surface="small_lens", layout=program_request(kind="mesh", pitch=(10.0, 10.0))),
+    "spiral": Case(
+        surface="small_sine", layout=program_request(kind="spiral", points_per_rev=40), feed_um=4.0
+    ),
     "dpath": Case(
         surface="concave_sphere",
-        layout=LayoutRequest(kind="dpath", spacing_um=500.0, points_per_cut=21),
+        layout=program_request(kind="dpath", spacing_um=500.0, points_per_cut=21),
         machine="sts-xzc",
         cutting="dpath-finish",
     ),

@@ -481,7 +481,7 @@ def test_cube_deleted_mid_run_is_reported(tmp_path, catalog_dir):
         str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir, progress=delete_cube
     )
     errors = [r for r in report.rows if r["status"] == "error"]
-    assert len(errors) == 5 and all("points" in r and "task error" in r["message"] for r in errors)
+    assert len(errors) == 5 and all("request" in r and "task error" in r["message"] for r in errors)
 
 
 def test_unreachable_scheduler_is_reported_within_seconds(tmp_path, catalog_dir):

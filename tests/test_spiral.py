@@ -13,8 +13,9 @@ from hypothesis import strategies as st
 
 from ftsweep.case import run_case
 from ftsweep.catalogs import CatalogError
+from ftsweep.kinds.requests import program_request
 from ftsweep.planning import resolve_case
-from ftsweep.spec import Case, CaseError, LayoutRequest, Resolution
+from ftsweep.spec import Case, CaseError, Resolution
 from ftsweep.stages import interpolation, spiral
 from ftsweep.stages.interpolation import path_grid
 
@@ -160,7 +161,7 @@ def test_flat_part_machines_to_the_feed_cusp(catalog_dir):
     for feed, rc, n in ((4.0, 83.0, 36), (2.0, 50.0, 7)):
         case = Case(
             surface="flat",
-            layout=LayoutRequest(kind="spiral", points_per_rev=n),
+            layout=program_request(kind="spiral", points_per_rev=n),
             feed_um=feed,
             nose_radius_um=rc,
             resolution=Resolution(n_theta=8),
@@ -183,7 +184,7 @@ def test_the_seed_003_case_meets_its_budgets():
         surface="sinusoidal_mesh",
         machine="sts-nanoform",
         cutting="seed003",
-        layout=LayoutRequest(kind="spiral", chord_um=0.5, residual_um=0.5),
+        layout=program_request(kind="spiral", chord_um=0.5, residual_um=0.5),
     )
     rec = run_case(case)
     assert rec["feed_um"] == pytest.approx(40.2, rel=0.03)
@@ -195,19 +196,19 @@ def test_the_seed_003_case_meets_its_budgets():
 
 def test_spiral_requests_are_checked():
     with pytest.raises(ValueError, match="exactly one sampling rule"):
-        LayoutRequest(kind="spiral", chord_um=1.0, arc_um=2.0)
+        program_request(kind="spiral", chord_um=1.0, arc_um=2.0)
     with pytest.raises(ValueError, match="belong"):
-        LayoutRequest(kind="ring", points=1e5, aspect=1.0, chord_um=1.0)
+        program_request(kind="ring", points=1e5, aspect=1.0, chord_um=1.0)
     with pytest.raises(CaseError, match="not both"):
         resolve_case(
             Case(
                 surface="sinewave2d",
                 feed_um=1.0,
-                layout=LayoutRequest(kind="spiral", arc_um=5.0, residual_um=0.01),
+                layout=program_request(kind="spiral", arc_um=5.0, residual_um=0.01),
             )
         )
     # a table case's key does not change with the spiral's fields
-    case = Case(surface="sinewave2d", layout=LayoutRequest(kind="ring", pitch=(2.0, 1.0)))
+    case = Case(surface="sinewave2d", layout=program_request(kind="ring", pitch=(2.0, 1.0)))
     assert "chord_um" not in case.model_dump()["layout"]
 
 
@@ -320,7 +321,7 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
 
 
 def test_spiral_results_do_not_depend_on_the_batch_size(catalog_dir):
-    case = Case(surface="small_sine", layout=LayoutRequest(kind="spiral", arc_um=15.0), feed_um=3.0)
+    case = Case(surface="small_sine", layout=program_request(kind="spiral", arc_um=15.0), feed_um=3.0)
     small = run_case(case, catalog_dir, batch_nodes=3_000)
     large = run_case(case, catalog_dir, batch_nodes=2_000_000)
     for name in ("pv_nm", "rms_nm", "pv_interp_nm", "n_points", "w_accel_peak_m_s2"):

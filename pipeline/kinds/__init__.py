@@ -37,10 +37,12 @@ class Planning(NamedTuple):
 class ProgramKind:
     """One program kind.
 
-    name : the request's ``kind`` (``LayoutRequest.kind``), the record's ``layout``.
+    name : the request's ``kind``, the record's ``layout``.
     noun : what a program of it is called in messages (``ring layout``, ``spiral program``).
     axes : its own sweep axes (beside the feed and nose-radius axes every kind may sweep).
-    request_at : ``(sweep spec, {axis: value}) -> LayoutRequest`` of one sweep point.
+    request : its request model (:mod:`ftsweep.kinds.requests`), which validates its fields
+        and their combination rules once, when a request is built.
+    request_at : ``(sweep spec, {axis: value}) -> request`` of one sweep point.
     feed : ``(case, cutting, nose radius, surface spec, catalog folder, program) -> F [µm/rev]``.
     plan : ``(Planning) -> (program, extra fields of the resolved case)``.
     record_fields : ``(resolved case) -> its fields of the record`` (:mod:`ftsweep.result`).
@@ -62,13 +64,11 @@ class ProgramKind:
     options : the command-line options (``predict``'s keys) that belong to it.
     from_options : ``(options) -> (request fields, notices)`` of ``predict``'s options,
         raising ValueError naming the option for a combination it refuses.
-    fields : the fields of ``LayoutRequest`` that belong to it.
-    check_request : ``(request) -> None``, raising ValueError for a combination of its own
-        fields it refuses (checked once, when the request is built).
     """
 
     name: str
     noun: str
+    request: type
     axes: tuple[str, ...]
     request_at: Callable[[Any, dict[str, float]], Any]
     feed: Callable[..., float]
@@ -85,8 +85,6 @@ class ProgramKind:
     sweeps: str = "table sweeps"
     options: tuple[str, ...] = ()
     from_options: Callable[[dict[str, Any]], tuple[dict[str, Any], list[str]]] = lambda o: ({}, [])
-    fields: tuple[str, ...] = ()
-    check_request: Callable[[Any], None] = lambda request: None
     aspect_range: Optional[tuple[float, float]] = None
     aspect_units: str = "um/deg"
 
@@ -126,24 +124,6 @@ def request_from_options(name: str, options: dict[str, Any]) -> tuple[dict[str, 
             where = " or ".join(f"{o.noun}s (--layout {o.name})" for o in owners)
             raise ValueError(f"{flag(key)} belongs to {where}, not to a {own.noun}")
     return own.from_options(options)
-
-
-def check_request(request: Any) -> None:
-    """A program request holds only its kind's fields, and its kind's rules hold (ValueError
-    naming the fields)."""
-    own = kind(request.kind)
-    foreign = [
-        n
-        for n in dict.fromkeys(f for k in registry().values() for f in k.fields)
-        if n not in own.fields and getattr(request, n) is not None
-    ]
-    if foreign:
-        owners = [k for k in registry().values() if foreign[0] in k.fields]
-        raise ValueError(
-            f"a {own.noun} takes no {', '.join(foreign)}: {foreign[0]} belongs to "
-            + " or ".join(f"{k.noun}s" for k in owners)
-        )
-    own.check_request(request)
 
 
 def kind(name: str) -> ProgramKind:

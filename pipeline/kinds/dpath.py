@@ -15,8 +15,9 @@ import numpy as np
 from ftsweep import catalogs
 from ftsweep import dpath as dpath_program
 from ftsweep.kinds import Planning, ProgramKind
+from ftsweep.kinds.requests import DPathRequest
 from ftsweep.record import ErrorMap, Timer, non_finite, simulated, timed
-from ftsweep.spec import DPATH_FIELDS, Case, CaseError, LayoutRequest
+from ftsweep.spec import Case, CaseError
 from ftsweep.stages import compensation
 
 AXES = ("spacing_um", "points_per_cut")
@@ -63,8 +64,8 @@ def plan_dpath(
         raise CaseError(f"D path (machine '{case.machine}'): {exc}") from None
 
 
-def _request_at(spec: Any, value: dict[str, float]) -> LayoutRequest:
-    return LayoutRequest(
+def _request_at(spec: Any, value: dict[str, float]) -> DPathRequest:
+    return DPathRequest(
         kind="dpath",
         **(spec.dpath or {}),
         **{k: (int(round(v)) if k == "points_per_cut" else v) for k, v in value.items() if k in AXES},
@@ -171,7 +172,7 @@ def _check_sweep(spec: Any) -> None:
         raise ValueError("a D-path sweep needs an axis: spacing_um and/or points_per_cut")
     if spec.axes.spacing_um is not None and spec.axes.feed_um is not None:
         raise ValueError("axes.spacing_um is the D path's feed: give it or axes.feed_um, not both")
-    LayoutRequest(kind="dpath", **(spec.dpath or {}))  # names a bad option
+    DPathRequest(kind="dpath", **(spec.dpath or {}))  # names a bad option
 
 
 # its command-line options: the request's fields, the off-axis distance in mm
@@ -193,9 +194,8 @@ def request_options(opts: dict[str, Any]) -> dict[str, Any]:
 
 
 DPATH = ProgramKind(
-    "dpath", "D-path program", AXES, _request_at, _feed, _plan, _record_fields, _cost, _simulate,
-    _pitch, _point, None, lambda: LayoutRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
+    "dpath", "D-path program", DPathRequest, AXES, _request_at, _feed, _plan, _record_fields, _cost,
+    _simulate, _pitch, _point, None, lambda: DPathRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
     _describe, _check_sweep, "D-path sweeps", OPTIONS,
     lambda o: ({"kind": "dpath", **request_options(o)}, []),
-    DPATH_FIELDS,
 )  # fmt: skip

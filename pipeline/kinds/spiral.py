@@ -16,7 +16,8 @@ import numpy as np
 from ftsweep import catalogs
 from ftsweep.cost import check_capacity, spiral_points
 from ftsweep.kinds import Planning, ProgramKind
-from ftsweep.spec import Case, CaseError, LayoutRequest
+from ftsweep.kinds.requests import SpiralRequest
+from ftsweep.spec import Case, CaseError
 from ftsweep.stages import compensation, spiral
 
 AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")
@@ -128,8 +129,8 @@ def residual_error_um(sections: tuple[np.ndarray, ...], feed_um: float, rc: floa
     return float(np.nanmax(cusp)) if np.isfinite(cusp).any() else math.nan
 
 
-def _request_at(spec: Any, value: dict[str, float]) -> LayoutRequest:
-    return LayoutRequest(
+def _request_at(spec: Any, value: dict[str, float]) -> SpiralRequest:
+    return SpiralRequest(
         kind="spiral",
         **{k: (int(round(v)) if k == "points_per_rev" else v) for k, v in value.items() if k in AXES},
     )
@@ -238,19 +239,9 @@ def _check_sweep(spec: Any) -> None:
         raise ValueError("dpath belongs to D-path sweeps (layout: dpath), not to a spiral sweep")
 
 
-def _check_request(request: Any) -> None:
-    rules = [name for name in AXES[:3] if getattr(request, name) is not None]
-    if len(rules) != 1:
-        raise ValueError(
-            "a spiral program needs exactly one sampling rule: points_per_rev, arc_um or "
-            f"chord_um (got {', '.join(rules) or 'none'})"
-        )
-
-
 SPIRAL = ProgramKind(
-    "spiral", "spiral program", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
-    _pitch, _point, _cells, lambda: LayoutRequest(kind="spiral", points_per_rev=16), _describe,
+    "spiral", "spiral program", SpiralRequest, AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
+    _pitch, _point, _cells, lambda: SpiralRequest(kind="spiral", points_per_rev=16), _describe,
     _check_sweep, "spiral sweeps", AXES,
     lambda o: ({"kind": "spiral", **{k: o[k] for k in AXES if o.get(k) is not None}}, []),
-    AXES, _check_request,
 )  # fmt: skip

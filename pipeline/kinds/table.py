@@ -12,12 +12,13 @@ import numpy as np
 from ftsweep import catalogs, result
 from ftsweep.cost import angular_samples
 from ftsweep.kinds import Planning, ProgramKind, flag
-from ftsweep.spec import Case, CaseError, LayoutRequest
+from ftsweep.kinds.requests import TableRequest
+from ftsweep.spec import Case, CaseError
 from ftsweep.stages import layouts
 from ftsweep.stages.layouts import Layout
 
 
-def build_layout(surface: Any, request: LayoutRequest) -> Layout:
+def build_layout(surface: Any, request: Any) -> Layout:
     """The control-point table of ``request`` covering the surface's aperture (model §2).
 
     Rings cover the aperture's circumscribed radius; meshes its bounding box.
@@ -37,8 +38,8 @@ def build_layout(surface: Any, request: LayoutRequest) -> Layout:
     return layouts.mesh_layout_for(width, height, *request.target())
 
 
-def _request_at(spec: Any, value: dict[str, float]) -> LayoutRequest:
-    return LayoutRequest(kind=spec.layout, points=value["points"], aspect=value["aspect"])
+def _request_at(spec: Any, value: dict[str, float]) -> TableRequest:
+    return TableRequest(kind=spec.layout, points=value["points"], aspect=value["aspect"])
 
 
 def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
@@ -160,25 +161,16 @@ def _table_options(kind: str, opts: dict[str, Any]) -> tuple[dict[str, Any], lis
     return {"kind": kind, "pitch": (first, second)}, notices
 
 
-def _check_request(request: Any) -> None:
-    target = request.points is not None or request.aspect is not None
-    if request.pitch is not None and target:
-        raise ValueError("give either explicit pitches or a target point count and aspect ratio, not both")
-    if request.pitch is None and (request.points is None or request.aspect is None):
-        raise ValueError("give explicit pitches, or both a target point count and an aspect ratio")
-
-
-FIELDS = ("pitch", "points", "aspect")
 AXES = ("points", "aspect")
 RING = ProgramKind(
-    "ring", "ring layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
-    _ring_pitch, _ring_point, _ring_cells, lambda: LayoutRequest(kind="ring", pitch=(50.0, 10.0)),
+    "ring", "ring layout", TableRequest, AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
+    _ring_pitch, _ring_point, _ring_cells, lambda: TableRequest(kind="ring", pitch=(50.0, 10.0)),
     _describe, _check_sweep, "table sweeps", ("drho_um", "dtheta_deg", "points", "aspect"),
-    lambda o: _table_options("ring", o), FIELDS, _check_request, (0.3, 400.0), "um/deg",
+    lambda o: _table_options("ring", o), (0.3, 400.0), "um/deg",
 )  # fmt: skip
 MESH = ProgramKind(
-    "mesh", "mesh layout", AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
-    _mesh_pitch, _mesh_point, _mesh_cells, lambda: LayoutRequest(kind="mesh", pitch=(50.0, 50.0)),
+    "mesh", "mesh layout", TableRequest, AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
+    _mesh_pitch, _mesh_point, _mesh_cells, lambda: TableRequest(kind="mesh", pitch=(50.0, 50.0)),
     _describe, _check_sweep, "table sweeps", ("dx_um", "dy_um", "points", "aspect"),
-    lambda o: _table_options("mesh", o), FIELDS, _check_request, (0.08, 16.0), "1",
+    lambda o: _table_options("mesh", o), (0.08, 16.0), "1",
 )  # fmt: skip

@@ -13,8 +13,9 @@ import time
 from typing import Any
 
 from ftsweep import __version__, catalogs
-from ftsweep.case import STAGE_TIMERS, LineCache, run_case
+from ftsweep.case import STAGE_TIMERS, run_case
 from ftsweep.kinds.requests import program_request
+from ftsweep.lines import LineCache
 from ftsweep.spec import Case, Resolution
 
 MILLION_CASES = {
@@ -24,7 +25,7 @@ MILLION_CASES = {
 
 
 # "<case>-shared": the case run after another case computed its lines, as in a sweep whose
-# cases share their angular sampling (ftsweep.case.LineCache): the table's own work only
+# cases share their angular sampling (ftsweep.lines.LineCache): the table's own work only
 SHARED_SUFFIX = "-shared"
 SHARED_CACHE_BYTES = 8 * 2**30
 

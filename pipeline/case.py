@@ -1,32 +1,29 @@
-"""One case: an immutable spec with a stable key, and the runner that predicts its form error.
+"""The one simulator: any program kind's case through surface sampling, its program, the
+controller's interpolation along the tool's path, the arc envelope and the metrics, in the
+order of architecture.md, on batches of rays so memory stays bounded whatever the program.
 
-The runner is the one place that calls the stages, in the order of architecture.md:
-surface sampling → layout → compensation → interpolation along the spiral → envelope →
-metrics. The part is simulated on batches of feed-plane lines so memory stays bounded
-(a few MB per batch) whatever the layout and resolution.
+A kind says how its program is sampled (its :class:`ftsweep.kinds.Simulation`: the rays of
+a batch, the passes crossing them with their commands, the design they are judged by, and the
+record it adds); :func:`run_case` runs every kind's batches through the same accumulation of
+the metrics (model §6) and error maps.
 """
 
 from __future__ import annotations
 
 import math
-import threading
 import time
-from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
 from ftsweep import kinds
-from ftsweep.cost import MAX_NODES, angular_samples, check_cost, ray_nodes
-from ftsweep.planning import ResolvedCase, control_table, layer_plan, resolve_case, z_error_of
-from ftsweep.record import ErrorMap, Timer, record_of, timed
+from ftsweep.cost import MAX_NODES
+from ftsweep.planning import resolve_case
+from ftsweep.record import ErrorMap, Timer, timed
 from ftsweep.result import STAGES
 from ftsweep.spec import Case, CaseError
-from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers, metrics, spiral
-from ftsweep.stages.interpolation import Program
-from ftsweep.stages.surfaces import radial_section
+from ftsweep.stages import metrics
 
 
 def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -> None:
@@ -41,73 +38,27 @@ def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -
         )
 
 
-def _layout_point(layout: Program, flat: int) -> str:
-    return kinds.kind(layout.kind).point_text(layout, flat)
-
-
-def _xy(r: float, theta: float) -> str:
-    return f"x = {r * math.cos(theta):.6g} µm, y = {r * math.sin(theta):.6g} µm"
-
-
-def _node_point(node_r: np.ndarray, ray_theta: np.ndarray) -> Callable[[int], str]:
-    def where(flat: int) -> str:
-        a, n = np.unravel_index(flat, node_r.shape)
-        return _xy(float(node_r[a, n]), float(ray_theta[a, 0]))
-
-    return where
-
-
-def _pass_point(grid: Any, ray_theta: np.ndarray) -> Callable[[int], str]:
-    """Location of pass ``flat`` of a path grid's (ray, pass) arrays, for messages."""
-
-    def where(flat: int) -> str:
-        a, k = np.unravel_index(flat, grid.pass_rho.shape)
-        return "the pass at " + _xy(float(grid.pass_rho[a, k]), float(ray_theta[a, 0]))
-
-    return where
-
-
 STAGE_TIMERS = STAGES
 
 
-@dataclass(frozen=True)
-class LinePlan:
-    """How the part is sampled (model §5): ``n_theta`` spindle angles as feed-plane lines,
-    the simulated margin beyond the aperture [µm] (the arc's contact window plus two feeds),
-    and the lines simulated per batch so a batch holds about ``batch_nodes`` nodes."""
+class Machined(NamedTuple):
+    """One batch of rays machined (model §5) and what it is judged by (model §6), arrays of
+    (rays, nodes) in µm: the machined height ``z``, that of the exact commands ``z_exact``,
+    the design ``g``, the nodes ``inside`` the aperture, their distance ``r`` from the part's
+    centre (for the zones), their place ``x``, ``y`` in the part's frame (None when no error
+    map is asked); and the cusp peaks between passes: height, design, inside, distance."""
 
-    n_theta: int
-    lines: np.ndarray
-    window_um: float
-    margin_um: float
-    per_batch: int
-    zone_split_um: float
-
-    @classmethod
-    def of(cls, rcase: ResolvedCase, batch_nodes: int, max_nodes: float) -> LinePlan:
-        """The plan of a resolved case; refuses one too costly to run (:func:`check_cost`)."""
-        res = rcase.case.resolution
-        n_theta = angular_samples(rcase.layout, rcase.rho0_um, res)
-        window = compensation.contact_window_um(rcase.gradient_bound, rcase.nose_radius_um)
-        margin = window + 2.0 * rcase.feed_um
-        nodes_per_ray = ray_nodes(rcase.rho0_um, margin, res.points_per_feed, rcase.feed_um)
-        check_cost(nodes_per_ray, n_theta, max_nodes)
-        return cls(
-            n_theta=n_theta,
-            lines=interpolation.line_angles(n_theta),
-            window_um=window,
-            margin_um=margin,
-            per_batch=max(1, int(batch_nodes // (2.0 * nodes_per_ray))),
-            zone_split_um=res.zone_split * rcase.aperture.inner_radius_um,
-        )
-
-    @property
-    def n_batches(self) -> int:
-        return math.ceil(self.lines.size / self.per_batch)
-
-    def batch(self, b: int) -> np.ndarray:
-        """Line angles [rad] of batch ``b``."""
-        return self.lines[b * self.per_batch : (b + 1) * self.per_batch]
+    z: np.ndarray
+    z_exact: np.ndarray
+    g: np.ndarray
+    inside: np.ndarray
+    r: np.ndarray
+    x: Optional[np.ndarray]
+    y: Optional[np.ndarray]
+    cusp_z: np.ndarray
+    cusp_g: np.ndarray
+    cusp_inside: np.ndarray
+    cusp_r: np.ndarray
 
 
 def run_case(
@@ -118,292 +69,56 @@ def run_case(
     table: Optional[np.ndarray] = None,
     specs: Optional[tuple[Any, Any, Any]] = None,
     max_nodes: float = MAX_NODES,
-    lines: Optional[LineCache] = None,
-    program: Optional[tuple[spiral.SpiralPath, np.ndarray]] = None,
+    lines: Any = None,
+    program: Optional[tuple[Any, np.ndarray]] = None,
 ) -> dict[str, Any]:
-    """Predict the form error of one case (model §1–§6), a table or a spiral program.
+    """Predict the form error of one case of any program kind (model §1–§6).
 
     Returns a flat record whose fields :mod:`ftsweep.result` declares (names, units, order):
-    the resolved inputs (surface, layout, n_points, pitches, cutting conditions), the metrics
-    of :func:`ftsweep.stages.metrics.finalize` in nm, the control points flagged as gouging,
-    the feed cusp height, and wall seconds per stage (``seconds_<stage>``) and in total
-    (``seconds``); with ``resolution.error_map_bins``, the error maps. ``progress(done, total)`` is called
-    after each batch of lines. A given ``table`` [µm] (of the case's layout shape) replaces
-    the compensated one: the controller's table as stored, e.g. after quantisation.
-    ``specs`` = (surface, machine, cutting) entries replace the catalog look-up, e.g. the
-    entries a cube or header recorded. A case of more than ``max_nodes`` evaluation nodes, or
-    whose single line would not fit in memory, is refused before any work (:func:`check_cost`);
-    a non-finite height, slope, command or metric fails the case naming where it occurred.
-    With a ``lines`` cache, the layout-independent work on each batch of lines
-    (:class:`LineData`) is taken from it when an earlier case computed it, and kept for later
-    cases: the result is the same. A spiral case is planned by its rule unless ``program``
-    (path, commands [µm]) gives it as stored, e.g. read from an exported program.
+    the resolved inputs (surface, program, n_points, its pitches or steps, cutting
+    conditions), the metrics of :func:`ftsweep.stages.metrics.finalize` in nm, the points
+    flagged as gouging, the feed cusp height, the axis motion against the machine's limits,
+    and wall seconds per stage (``seconds_<stage>``) and in total (``seconds``); with
+    ``resolution.error_map_bins``, the error maps. ``progress(done, total)`` is called after
+    each batch. A given ``table`` [µm] (of the case's layout shape) replaces the compensated
+    one: the controller's table as stored, e.g. after quantisation. ``specs`` = (surface,
+    machine, cutting) entries replace the catalog look-up, e.g. the entries a cube or header
+    recorded. A case of more than ``max_nodes`` evaluation nodes, or whose single line would
+    not fit in memory, is refused before any work (:func:`ftsweep.cost.check_cost`); a
+    non-finite height, slope, command or metric fails the case naming where it occurred. With
+    a ``lines`` cache (:class:`ftsweep.lines.LineCache`), work that does not depend on the
+    program is shared between cases: the result is the same. A path program is planned by its
+    rule unless ``program`` (path, commands [µm]) gives it as stored, e.g. read from a file.
     """
     t_start = time.perf_counter()
     rcase = resolve_case(case, catalog_folder, specs, program)
     timer = Timer()
     timer.seconds["compensation"] = rcase.plan_seconds
-    kind = kinds.kind(case.layout.kind)
-    if kind.simulate is not None:
-        return kind.simulate(rcase, timer, progress, t_start)
-    t = time.perf_counter()
-    table, gouge = _table_of(rcase, table, catalog_folder)
-    timer.add("compensation", t)
-    plan = LinePlan.of(rcase, batch_nodes, max_nodes)
-    t = time.perf_counter()
-    layering = layer_plan(rcase, table)
-    timer.add("interpolation", t)
+    inputs = kinds.Simulating(rcase, table, catalog_folder, batch_nodes, max_nodes, lines)
+    sim = kinds.kind(case.layout.kind).simulation(inputs, timer)
     bins = case.resolution.error_map_bins
     emap = ErrorMap.over(rcase.aperture, bins) if bins else None
-    stats = _simulate_batches(rcase, plan, table, emap, timer, layering, lines, progress)
-    t = time.perf_counter()
-    dyn = _dynamics(rcase, table)
-    timer.add("dynamics", t)
+    stats = metrics.empty_stats()
+    for b in range(sim.n_batches):
+        _accumulate(sim.batch(b, timer), sim.zone_split_um, stats, emap, timer)
+        if progress is not None:
+            progress(b + 1, sim.n_batches)
     errors = metrics.finalize(stats)
     if not case.resolution.interp_error:
         errors["pv_interp_nm"] = math.nan  # not simulated: asked off
-    record = record_of(rcase, plan, errors, dyn, gouge, layering)
+    record = sim.record(errors, timer)
     if emap is not None:
         record.update(emap.as_record())
     return timed(record, timer, t_start)
 
 
-def _dynamics(rcase: ResolvedCase, table: np.ndarray) -> Any:
-    """The W command's motion over time at the spindle speed (model §6 dynamics)."""
-    machine, cutting = rcase.machine, rcase.cutting
-    return dynamics.analyse(
-        rcase.layout,
-        table,
-        rcase.rho0_um,
-        rcase.feed_um,
-        cutting.spindle_rpm,
-        machine.command_rate_hz,
-        machine.spectrum_threshold,
-    )
-
-
-def _simulate_batches(
-    rcase: ResolvedCase,
-    plan: LinePlan,
-    table: np.ndarray,
-    emap: Optional[ErrorMap],
-    timer: Timer,
-    layering: Optional[layers.LayerPlan],
-    lines: Optional[LineCache],
-    progress: Optional[Callable[[int, int], None]],
-) -> np.ndarray:
-    """Every batch of feed-plane lines of the plan through :func:`_simulate_lines`, the
-    layout-independent part taken from (and kept in) ``lines`` when given; the accumulated
-    metric statistics."""
-    stats = metrics.empty_stats()
-    key = line_key(rcase, plan) if lines is not None else None
-    for b in range(plan.n_batches):
-        data = lines.get((key, b)) if lines is not None else None
-        if data is None:
-            data = _line_data(rcase, plan, plan.batch(b), timer)
-            if lines is not None:
-                lines.put((key, b), data)
-        _simulate_lines(rcase, plan, table, stats, emap, timer, data, layering)
-        if progress is not None:
-            progress(b + 1, plan.n_batches)
-    return stats
-
-
-def _table_of(
-    rcase: ResolvedCase, table: Optional[np.ndarray], catalog_folder: Any
-) -> tuple[np.ndarray, np.ndarray]:
-    """The compensated control table [µm] and its gouge flags, or a given table checked
-    against the layout (no gouge flags: it is used as stored). A spiral program's commands
-    were planned with it (:func:`plan_spiral`)."""
-    layout = rcase.layout
-    if table is None and rcase.values is not None and rcase.gouge is not None:
-        table, gouge = rcase.values, rcase.gouge
-    elif table is None:  # a table: compensated over its whole layout (model §4)
-        table, gouge = control_table(
-            rcase.case, layout, rcase.surface_spec, rcase.nose_radius_um, catalog_folder
-        )
-    else:
-        table = np.asarray(table, dtype=np.float64)
-        shape = getattr(layout, "shape", (layout.n_points,))  # a table's (rows, cols), a path's points
-        if table.shape != shape:
-            raise CaseError(f"the given table has shape {table.shape}, the layout {shape}")
-        gouge = np.zeros(shape, dtype=bool)
-    require_finite(table, "the control table", lambda i: _layout_point(layout, i))
-    return table, gouge
-
-
-@dataclass(frozen=True)
-class LineData:
-    """What a batch of feed-plane lines gives independently of the table (model §3–§6): the
-    path grid, the ray directions, the design height ``g`` [µm] and radial slope ``gp`` on the
-    nodes, which nodes lie inside the aperture, and the envelope ``z_exact`` [µm] of the exact
-    commands (None when the case does not ask for it)."""
-
-    grid: Any
-    ct: np.ndarray
-    st: np.ndarray
-    g: np.ndarray
-    gp: np.ndarray
-    inside: np.ndarray
-    z_exact: Optional[np.ndarray]
-
-    @property
-    def nbytes(self) -> int:
-        arrays = [self.ct, self.st, self.g, self.gp, self.inside, self.grid.node_r]
-        arrays += [self.grid.ray_theta, self.grid.first_pass, self.grid.n_passes]
-        return sum(a.nbytes for a in arrays) + (0 if self.z_exact is None else self.z_exact.nbytes)
-
-
-# default memory [MiB] per sweep worker for shared lines: on this 24 GiB, 2-core machine a
-# twelfth of the memory per worker, the lines of a 250k-point ring case (about 0.2 GB) ten times over
-LINE_CACHE_MB = 2048.0
-
-
-class LineCache:
-    """The :class:`LineData` of batches of lines, kept within ``budget_bytes`` for the cases
-    that follow on the same lines (e.g. the cases of a sweep that share an angular sampling).
-
-    Entries are keyed by (everything the line data depend on (:func:`line_key`), batch), so a
-    cached batch is the very array a case would compute: results are identical with and
-    without the cache. To make room, the least recently used batches of other lines are
-    dropped first; lines larger than the whole budget keep their first batches. Safe to share
-    between threads (a Dask worker may run several tasks at once)."""
-
-    def __init__(self, budget_bytes: float) -> None:
-        self.budget_bytes = float(budget_bytes)
-        self.nbytes = 0
-        self.hits = 0
-        self.misses = 0
-        self._entries: OrderedDict[tuple[Any, ...], LineData] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get(self, key: tuple[Any, ...]) -> Optional[LineData]:
-        """The cached batch of ``key`` (None if not held)."""
-        with self._lock:
-            data = self._entries.get(key)
-            if data is None:
-                self.misses += 1
-                return None
-            self._entries.move_to_end(key)
-            self.hits += 1
-            return data
-
-    def put(self, key: tuple[Any, ...], data: LineData) -> None:
-        """Keep ``data`` under ``key``, dropping the least recently used to stay in budget."""
-        size = data.nbytes
-        with self._lock:
-            if size > self.budget_bytes or key in self._entries:
-                return
-            while self.nbytes + size > self.budget_bytes:
-                # never evict batches of the lines being filled: cases read their batches in
-                # order, so lines larger than the budget keep their first batches (which the
-                # next case reuses) instead of each batch evicting the one the next case reads first
-                older = next((k for k in self._entries if k[0] != key[0]), None)
-                if older is None:
-                    return
-                self.nbytes -= self._entries.pop(older).nbytes
-            self._entries[key] = data
-            self.nbytes += size
-
-
-def line_key(rcase: ResolvedCase, plan: LinePlan) -> tuple[Any, ...]:
-    """Everything the :class:`LineData` of a case's batches depend on: the surface entry, the
-    spiral (start radius, feed), the arc, the sampling (angles, nodes per feed, margin, batch
-    size) and, for the exact envelope, the compensation method."""
-    res = rcase.case.resolution
-    surface = rcase.surface_spec.model_dump_json()
-    mode = rcase.case.compensation if res.interp_error else None
-    return (
-        surface,
-        rcase.rho0_um,
-        rcase.feed_um,
-        rcase.nose_radius_um,
-        plan.n_theta,
-        res.points_per_feed,
-        plan.margin_um,
-        plan.window_um,
-        plan.per_batch,
-        mode,
-    )
-
-
-def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Timer) -> LineData:
-    """The layout-independent part of a batch of lines (model §3, §5, §6): surface samples,
-    the exact commands along the path and their envelope."""
-    res, rc = rcase.case.resolution, rcase.nose_radius_um
-    t = time.perf_counter()
-    grid = interpolation.path_grid(lines, rcase.rho0_um, rcase.feed_um, res.points_per_feed, plan.margin_um)
-    ray_theta = grid.ray_theta[:, None]
-    ct, st = np.cos(ray_theta), np.sin(ray_theta)
-    if rcase.lines is not None:
-        g, gp = rcase.lines(grid.first_pass, grid.spacing_um, grid.node_offset, grid.node_r.shape[1], ct, st)
-    else:
-        g, gp = radial_section(rcase.surface, grid.node_r, ct, st)
-    where = _node_point(grid.node_r, ray_theta)
-    require_finite(g, f"the surface '{rcase.case.surface}' height", where)
-    require_finite(gp, f"the surface '{rcase.case.surface}' slope", where)
-    inside = rcase.aperture.contains_polar(grid.node_r, ct, st)
-    t = timer.add("sampling", t)
-    if not res.interp_error:
-        return LineData(grid, ct, st, g, gp, inside, None)
-    mode = compensation.MODE_CODES[rcase.case.compensation]
-    w_exact = compensation.commands_on_rays(g, gp, grid.spacing_um, rc, grid.pass_nodes, grid.n_passes, mode)
-    t = timer.add("compensation", t)
-    passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
-    require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))
-    z_exact = _machined(grid, w_exact, plan, rc)[0]
-    timer.add("envelope", t)
-    return LineData(grid, ct, st, g, gp, inside, z_exact)
-
-
-def _machined(
-    grid: Any, pass_w: np.ndarray, plan: LinePlan, rc: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The envelope (model §5) of commands ``pass_w`` [µm] on ``grid``, evaluated over the
-    fully machined zone: machined height z and the cusp peaks (radius, height) [µm]."""
-    start = interpolation.first_machined_node(grid, plan.window_um)
-    return envelope.machined_lines(grid.node_r, pass_w, grid.n_passes, grid.node_offset, grid.ppf, start, rc)
-
-
-def _simulate_lines(
-    rcase: ResolvedCase,
-    plan: LinePlan,
-    table: np.ndarray,
-    stats: np.ndarray,
-    emap: Optional[ErrorMap],
-    timer: Timer,
-    data: LineData,
-    layering: Optional[layers.LayerPlan] = None,
+def _accumulate(
+    m: Machined, split_um: float, stats: np.ndarray, emap: Optional[ErrorMap], timer: Timer
 ) -> None:
-    """One batch of feed-plane lines through the stages that depend on the table (model
-    §3–§6): the controller's interpolation along the path (executed layer by layer when
-    ``layering`` is given, [3]), the arc envelope, and the metrics against the design and the
-    exact-command envelope of ``data``, accumulated into ``stats`` (and ``emap``)."""
-    rc, aperture, grid = rcase.nose_radius_um, rcase.aperture, data.grid
+    """A machined batch into the metric statistics (model §6) and the error map."""
     t = time.perf_counter()
-    w_interp = interpolation.pass_commands(rcase.layout, table, grid)
-    if layering is not None:
-        w_interp = layers.layered_pass_commands(
-            layering, grid.ray_theta, grid.n_passes, w_interp, z_error_of(rcase)
-        )
-        passes = np.arange(w_interp.shape[1])[None, :] < grid.n_passes[:, None]
-        require_finite(
-            np.where(passes, w_interp, 0.0),
-            "the layered W command (a pass no layer cuts)",
-            _pass_point(grid, grid.ray_theta[:, None]),
-        )
-    t = timer.add("interpolation", t)
-
-    z, cusp_r, cusp_z = _machined(grid, w_interp, plan, rc)
-    # without the exact commands, z stands in for z_exact: pv_interp_nm is then set NaN
-    z_exact = z if data.z_exact is None else data.z_exact
-    t = timer.add("envelope", t)
-
-    g, inside = data.g, data.inside
-    metrics.accumulate(z, z_exact, g, inside, grid.node_r, plan.zone_split_um, stats)
-    cusp_f = interpolation.sample_on_nodes(grid, g, data.gp, cusp_r)
-    cusp_inside = aperture.contains_polar(cusp_r, data.ct, data.st)
-    metrics.accumulate_extrema(cusp_z, cusp_f, cusp_inside, cusp_r, plan.zone_split_um, stats)
+    metrics.accumulate(m.z, m.z_exact, m.g, m.inside, m.r, split_um, stats)
+    metrics.accumulate_extrema(m.cusp_z, m.cusp_g, m.cusp_inside, m.cusp_r, split_um, stats)
     if emap is not None:
-        emap.add(z, g, inside, grid.node_r, data.ct, data.st)
+        emap.add_points(m.z, m.g, m.inside, m.x, m.y)
     timer.add("metrics", t)

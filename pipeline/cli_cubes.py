@@ -12,7 +12,6 @@ from typing import Any, Optional
 
 import click
 
-from ftsweep.case import LINE_CACHE_MB
 from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import (
     COUNT,
@@ -25,6 +24,7 @@ from ftsweep.cli_common import (
     progress_done,
     stderr_progress,
 )
+from ftsweep.lines import LINE_CACHE_MB
 from ftsweep.spec import CaseError
 from ftsweep.sweep import MAX_CASES
 

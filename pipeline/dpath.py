@@ -20,12 +20,15 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import Any, NamedTuple, Optional
+from typing import Any, Optional
 
 import numpy as np
 
 from ftsweep import catalogs
-from ftsweep.stages import compensation, dpath, envelope, metrics
+from ftsweep.case import Machined, require_finite
+from ftsweep.record import non_finite, simulated
+from ftsweep.spec import CaseError
+from ftsweep.stages import compensation, dpath, envelope
 
 DEFAULTS: dict[str, Any] = {
     "points_per_cut": 201,
@@ -190,78 +193,122 @@ def n_rays(path: dpath.DPath, resolution: Any) -> int:
     return int(resolution.samples_per_cell * (path.points_per_cut - 1))
 
 
-class _Setup(NamedTuple):
-    """What every batch of rays of one D-path simulation shares."""
+class DPathSimulation:
+    """The batches of rays of a D-path case (module docstring; model §5–§6), the simulation
+    of its kind (:class:`ftsweep.kinds.Simulation`): rays across the zone, on each the passes
+    of the program crossing it, the machined nodes between the cuts (``points_per_feed`` per
+    spacing) off an edge band of one spacing plus the nose's contact window, and the part's
+    surface in its frame."""
 
-    rcase: Any
-    path: dpath.DPath
-    surface: Callable[..., Any]
-    rotation: float
-    band: float
-    d_nodes: np.ndarray
-    machined: np.ndarray
-    curvature: Any
-    zone_split: float
+    def __init__(self, s: Any, timer: Any) -> None:
+        rcase = s.rcase
+        path: dpath.DPath = rcase.layout
+        g = path.geometry
+        request, res, rc = rcase.case.layout, rcase.case.resolution, rcase.nose_radius_um
+        assert rcase.values is not None and rcase.gouge is not None
+        self.z_prog = rcase.values
+        require_finite(
+            self.z_prog, "the D-path Z", lambda i: f"point {i} (C {math.degrees(path.phi[i]):.4f}°)"
+        )
+        self.rcase, self.path = rcase, path
+        self.band = g.spacing_um + compensation.contact_window_um(rcase.gradient_bound, rc)
+        ppf = res.points_per_feed
+        self.d_nodes = g.outer_um - np.arange((g.n_cycles - 1) * ppf + 1)[::-1] * (g.spacing_um / ppf)
+        self.machined = (self.d_nodes >= g.inner_um + self.band) & (self.d_nodes <= g.outer_um - self.band)
+        self.surface = part_surface(request, g, rcase.surface)
+        self.rotation = rotation_of(request)
+        self.curvature = catalogs.curvature_bound(rcase.surface_spec)
+        self.zone_split_um = res.zone_split * rcase.aperture.inner_radius_um
+        self.rays = ray_angles(g, n_rays(path, res))
+        self.n_batches = math.ceil(self.rays.size / RAYS_PER_BATCH)
 
+    def batch(self, b: int, timer: Any) -> Any:
+        """Batch ``b`` of rays through sampling, exact commands and the envelope of the
+        passes' arcs (model §5)."""
+        theta = self.rays[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH]
+        rcase, g = self.rcase, self.path.geometry
+        t = time.perf_counter()
+        pos, w, valid, on_cut = _crossings(self.path, self.z_prog, theta)
+        n_valid = valid.sum(axis=1).astype(np.int64)
+        ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
+        # the fully machined part: the edge band off the first and last cut and off the cuts'
+        # ends, where the turn-round's arcs overhang the part
+        side = np.abs(self.d_nodes[None, :] * (st / ct)) <= 0.5 * g.length_um - self.band
+        query = np.where(self.machined[None, :] & side, self.d_nodes[None, :] / ct, np.nan)
+        px, py = dpath.to_part(query * ct, query * st, g.centre_um, self.rotation)
+        inside = rcase.aperture.contains(px, py) & np.isfinite(query)
+        f = np.zeros(query.shape)
+        f[inside] = rcase.surface(px[inside], py[inside])[0]
+        t = timer.add("sampling", t)
+        w_exact = self._exact(pos, w, on_cut, theta)
+        t = timer.add("compensation", t)
+        rc = rcase.nose_radius_um
+        z, cusp_r, cusp_z = _envelope(pos, w, n_valid, rc, query)
+        z_exact = _envelope(pos, w_exact, n_valid, rc, query)[0] if w_exact is not None else z
+        t = timer.add("envelope", t)
+        cusp_f, cusp_in, cusp_dist = self._cusps(cusp_r, ct, st)
+        timer.add("metrics", t)
+        return Machined(z, z_exact, f, inside, np.hypot(px, py), px, py, cusp_z, cusp_f, cusp_in, cusp_dist)
 
-def _setup(rcase: Any) -> tuple[_Setup, np.ndarray]:
-    """The shared pieces and the rays of a D-path simulation: the machined nodes' distances d
-    [µm] along each ray (``points_per_feed`` per spacing), the fully machined ones (a band of
-    spacing + contact window off the first and last cut), the part's surface in its frame."""
-    path: dpath.DPath = rcase.layout
-    g = path.geometry
-    request, res, rc = rcase.case.layout, rcase.case.resolution, rcase.nose_radius_um
-    band = g.spacing_um + compensation.contact_window_um(rcase.gradient_bound, rc)
-    ppf = res.points_per_feed
-    d_nodes = g.outer_um - np.arange((g.n_cycles - 1) * ppf + 1)[::-1] * (g.spacing_um / ppf)
-    machined = (d_nodes >= g.inner_um + band) & (d_nodes <= g.outer_um - band)
-    setup = _Setup(
-        rcase,
-        path,
-        part_surface(request, g, rcase.surface),
-        rotation_of(request),
-        band,
-        d_nodes,
-        machined,
-        catalogs.curvature_bound(rcase.surface_spec),
-        res.zone_split * rcase.aperture.inner_radius_um,
-    )
-    return setup, ray_angles(g, n_rays(path, res))
+    def _exact(self, pos: np.ndarray, w: np.ndarray, on_cut: np.ndarray, theta: np.ndarray) -> Any:
+        """The exact commands of the passes on a cut (the transitions' own Z elsewhere), or
+        None when the case asks the exact envelope off."""
+        rcase = self.rcase
+        res = rcase.case.resolution
+        if not res.interp_error:
+            return None
+        w_exact = w.copy()
+        w_exact[on_cut], _ = compensation.compensate(
+            self.surface,
+            pos[on_cut],
+            np.broadcast_to(theta[:, None], pos.shape)[on_cut],
+            rcase.nose_radius_um,
+            rcase.case.compensation,
+            rcase.gradient_bound,
+            n_scan=res.compensation_scan,
+            curvature_bound=self.curvature,
+        )
+        return w_exact
 
+    def _cusps(self, cusp_r: np.ndarray, ct: np.ndarray, st: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The design at the cusp peaks between passes, which lie inside the fully machined
+        part, and their distance from the part's centre [µm]."""
+        rcase, g = self.rcase, self.path.geometry
+        cx, cy = dpath.to_part(cusp_r * ct, cusp_r * st, g.centre_um, self.rotation)
+        d_cusp = cusp_r * ct
+        cusp_in = (
+            rcase.aperture.contains(cx, cy)
+            & (d_cusp >= g.inner_um + self.band)
+            & (d_cusp <= g.outer_um - self.band)
+            & (np.abs(cusp_r * st) <= 0.5 * g.length_um - self.band)
+            & np.isfinite(cusp_r)
+        )
+        fc = np.full(cusp_r.shape, np.nan)
+        fc[cusp_in] = rcase.surface(cx[cusp_in], cy[cusp_in])[0]
+        return fc, cusp_in, np.hypot(cx, cy)
 
-def simulate(
-    rcase: Any,
-    z_prog: np.ndarray,
-    progress: Optional[Callable[[int, int], None]] = None,
-    seconds: Optional[dict[str, float]] = None,
-    emap: Any = None,
-) -> tuple[dict[str, float], int, float]:
-    """Form error of a D-path case (module docstring; model §5–§6): the metrics in nm, the
-    rays and the edge band [µm]; with ``emap`` (:class:`ftsweep.record.ErrorMap`), the
-    error map over the part too."""
-    seconds = {} if seconds is None else seconds
-    setup, rays = _setup(rcase)
-    stats = metrics.empty_stats()
-    batches = math.ceil(rays.size / RAYS_PER_BATCH)
-    for b in range(batches):
-        _ray_batch(setup, z_prog, rays[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH], stats, seconds, emap)
-        if progress is not None:
-            progress(b + 1, batches)
-    errors = metrics.finalize(stats)
-    if not rcase.case.resolution.interp_error:
-        errors["pv_interp_nm"] = math.nan
-    return errors, rays.size, setup.band
-
-
-def _tick(seconds: dict[str, float], name: str, start: float) -> float:
-    now = time.perf_counter()
-    seconds[name] = seconds.get(name, 0.0) + now - start
-    return now
+    def record(self, errors: dict[str, float], timer: Any) -> dict[str, Any]:
+        """The record: the shared fields, the D path's own and its axis motion against the
+        machine's limits (:func:`record_fields`)."""
+        rcase, path = self.rcase, self.path
+        bad = non_finite(rcase, errors)
+        if bad:
+            raise CaseError(
+                f"the metrics came out non-finite ({', '.join(bad)}): no evaluation point inside the "
+                "fully machined part; check the part against the spacing and the nose radius"
+            )
+        t = time.perf_counter()
+        summary = motion_summary(path, self.z_prog, rcase.cutting.spindle_rpm)
+        timer.add("dynamics", t)
+        record: dict[str, Any] = {"surface": rcase.case.surface, "layout": "dpath", "n_points": path.n_points}
+        record.update(simulated(rcase, errors, self.rays.size, self.band, rcase.gouge))
+        record.update(record_fields(rcase, summary, self.z_prog))
+        return record
 
 
 def _crossings(path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, ...]:
     """The passes crossing each ray, sorted by position: positions [µm], commands [µm],
-    segments, validity and whether each lies on a cut (both neighbouring points on it)."""
+    validity and whether each lies on a cut (both neighbouring points on it)."""
     pos, w, seg = dpath.crossings(path.phi, path.rho, z_prog, theta)
     order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
     pos = np.take_along_axis(pos, order, axis=1)
@@ -277,76 +324,11 @@ def _crossings(path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray) -> tupl
     return pos, w, valid, on_cut
 
 
-def _ray_batch(
-    ctx: _Setup,
-    z_prog: np.ndarray,
-    theta: np.ndarray,
-    stats: np.ndarray,
-    seconds: dict[str, float],
-    emap: Any = None,
-) -> None:
-    """One batch of rays through sampling, exact commands, the envelope of the passes'
-    arcs and the metrics, accumulated into ``stats`` (model §5–§6)."""
-    rcase, path = ctx.rcase, ctx.path
-    g, res, rc = path.geometry, rcase.case.resolution, rcase.nose_radius_um
-    t = time.perf_counter()
-    pos, w, valid, on_cut = _crossings(path, z_prog, theta)
-    n_valid = valid.sum(axis=1).astype(np.int64)
-    ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
-    # the fully machined part: the edge band off the first and last cut and off the cuts'
-    # ends, where the turn-round's arcs overhang the part
-    side = np.abs(ctx.d_nodes[None, :] * (st / ct)) <= 0.5 * g.length_um - ctx.band
-    query = np.where(ctx.machined[None, :] & side, ctx.d_nodes[None, :] / ct, np.nan)
-    px, py = dpath.to_part(query * ct, query * st, g.centre_um, ctx.rotation)
-    inside = rcase.aperture.contains(px, py) & np.isfinite(query)
-    f = np.zeros(query.shape)
-    f[inside] = rcase.surface(px[inside], py[inside])[0]
-    t = _tick(seconds, "sampling", t)
-    w_exact = w.copy()
-    if res.interp_error:
-        w_exact[on_cut], _ = compensation.compensate(
-            ctx.surface,
-            pos[on_cut],
-            np.broadcast_to(theta[:, None], pos.shape)[on_cut],
-            rc,
-            rcase.case.compensation,
-            rcase.gradient_bound,
-            n_scan=res.compensation_scan,
-            curvature_bound=ctx.curvature,
-        )
-    t = _tick(seconds, "compensation", t)
-    z, cusp_r, cusp_z = _envelope(pos, w, n_valid, rc, query)
-    z_exact = _envelope(pos, w_exact, n_valid, rc, query)[0] if res.interp_error else z
-    t = _tick(seconds, "envelope", t)
-    metrics.accumulate(z, z_exact, f, inside, np.hypot(px, py), ctx.zone_split, stats)
-    _cusp_extrema(ctx, cusp_r, cusp_z, ct, st, stats)
-    if emap is not None:
-        emap.add_points(z, f, inside, px, py)
-    _tick(seconds, "metrics", t)
-
-
-def _cusp_extrema(
-    ctx: _Setup, cusp_r: np.ndarray, cusp_z: np.ndarray, ct: np.ndarray, st: np.ndarray, stats: np.ndarray
-) -> None:
-    """The cusp peaks between passes inside the fully machined part into ``stats``."""
-    rcase, g = ctx.rcase, ctx.path.geometry
-    cx, cy = dpath.to_part(cusp_r * ct, cusp_r * st, g.centre_um, ctx.rotation)
-    d_cusp = cusp_r * ct
-    cusp_in = (
-        rcase.aperture.contains(cx, cy)
-        & (d_cusp >= g.inner_um + ctx.band)
-        & (d_cusp <= g.outer_um - ctx.band)
-        & (np.abs(cusp_r * st) <= 0.5 * g.length_um - ctx.band)
-        & np.isfinite(cusp_r)
-    )
-    fc = np.full(cusp_r.shape, np.nan)
-    fc[cusp_in] = rcase.surface(cx[cusp_in], cy[cusp_in])[0]
-    metrics.accumulate_extrema(cusp_z, fc, cusp_in, np.hypot(cx, cy), ctx.zone_split, stats)
-
-
 def _envelope(
     pos: np.ndarray, w: np.ndarray, n_valid: np.ndarray, rc: float, query: np.ndarray
-) -> tuple[np.ndarray, ...]:  # noqa: E501
+) -> tuple[np.ndarray, ...]:
+    """The envelope of the passes' arcs at ``query`` [µm] along each ray, and the cusp peaks
+    (:func:`ftsweep.stages.envelope.envelope_rows`, model §5)."""
     z = np.empty(query.shape)
     cusp_r = np.empty(pos.shape)
     cusp_z = np.empty(pos.shape)

@@ -21,8 +21,9 @@ from typing import Any, Optional
 import dask
 
 from ftsweep import allocator, kinds
-from ftsweep.case import LineCache, run_case
+from ftsweep.case import run_case
 from ftsweep.cube import CubeWriter
+from ftsweep.lines import LineCache
 from ftsweep.spec import Case
 from ftsweep.sweep import SweepSpec, case_at
 
@@ -36,7 +37,7 @@ class TaskSpec:
     catalog_folder : catalogs to read, or None for the default.
     run_id : identifier recorded with every case this run computes.
     line_cache_mb : memory [MiB] each worker may hold of the lines its cases share
-        (:class:`ftsweep.case.LineCache`); 0 computes every case on its own.
+        (:class:`ftsweep.lines.LineCache`); 0 computes every case on its own.
     """
 
     cube: str

@@ -136,7 +136,7 @@ def layer_record(
 
 def record_of(
     rcase: ResolvedCase,
-    plan: Any,  # case.LinePlan: its n_theta and window_um
+    plan: Any,  # lines.LinePlan: its n_theta and window_um
     errors: dict[str, float],
     dyn: Any,
     gouge: np.ndarray,

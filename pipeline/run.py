@@ -18,9 +18,9 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep import catalogs, cube, kinds
-from ftsweep.case import LINE_CACHE_MB
 from ftsweep.cube import CubeError
 from ftsweep.executor import TaskSpec, execute, run_task, warm_up
+from ftsweep.lines import LINE_CACHE_MB
 from ftsweep.lock import cube_lock
 from ftsweep.spec import CaseError
 from ftsweep.sweep import MAX_CASES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks

@@ -309,7 +309,7 @@ def n_cases(spec: SweepSpec) -> int:
 def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) -> tuple[float, Any]:
     """Relative cost of a case (control points plus simulated nodes, for load balancing) and
     the key of the lines it simulates: cases of one sweep with equal keys (angular samples,
-    feed, nose radius) share their layout-independent work (:class:`ftsweep.case.LineCache`).
+    feed, nose radius) share their layout-independent work (:class:`ftsweep.lines.LineCache`).
     A case whose layout cannot be built costs 0 and shares nothing (key None)."""
     case = case_at(spec, index)
     surface = catalogs.entry("surfaces", case.surface, catalog_folder)

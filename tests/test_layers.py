@@ -11,10 +11,11 @@ from click.testing import CliRunner
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.case import LinePlan, _line_data, _machined, _table_of, run_case
+from ftsweep.case import run_case
 from ftsweep.cli import main
 from ftsweep.export import export, verify
 from ftsweep.kinds.requests import program_request
+from ftsweep.lines import LinePlan, _line_data, _machined, _table_of
 from ftsweep.planning import layer_plan, resolve_case
 from ftsweep.record import Timer
 from ftsweep.run import run_sweep

@@ -10,10 +10,11 @@ import xarray as xr
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.case import LineCache, run_case
+from ftsweep.case import run_case
 from ftsweep.cost import ladder_rung
 from ftsweep.cube import TIMING_VARS
 from ftsweep.kinds.requests import program_request
+from ftsweep.lines import LineCache
 from ftsweep.run import run_sweep
 from ftsweep.spec import Case, Resolution
 from ftsweep.sweep import case_lines, load_sweep, plan_tasks

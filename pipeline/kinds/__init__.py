@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, NamedTuple, Optional
+from typing import Any, NamedTuple, Optional, Protocol
 
 
 class Planning(NamedTuple):
@@ -33,6 +33,33 @@ class Planning(NamedTuple):
     program: Optional[tuple[Any, Any]]
 
 
+class Simulating(NamedTuple):
+    """What a kind's ``simulation`` receives: the resolved case, a given table [µm] (the
+    controller's as stored) or None, the catalog folder, the nodes per batch, the largest
+    number of nodes a case may have, and a cache of shared work (or None)."""
+
+    rcase: Any
+    table: Any
+    catalog_folder: Any
+    batch_nodes: int
+    max_nodes: float
+    lines: Any
+
+
+class Simulation(Protocol):
+    """How the one simulator (:func:`ftsweep.case.run_case`) samples a kind's program: its
+    batches of rays, each machined into a :class:`ftsweep.case.Machined`, the inner/outer
+    zone boundary [µm], and the record of the finished case from its metrics (the kind's
+    fields, its axis motion against the machine's limits)."""
+
+    n_batches: int
+    zone_split_um: float
+
+    def batch(self, b: int, timer: Any) -> Any: ...
+
+    def record(self, errors: dict[str, float], timer: Any) -> dict[str, Any]: ...
+
+
 @dataclass(frozen=True)
 class ProgramKind:
     """One program kind.
@@ -47,8 +74,8 @@ class ProgramKind:
     plan : ``(Planning) -> (program, extra fields of the resolved case)``.
     record_fields : ``(resolved case) -> its fields of the record`` (:mod:`ftsweep.result`).
     cost : ``(case, surface spec, catalog folder) -> (relative cost, key of shared lines)``.
-    simulate : its own engine ``(resolved case, timer, progress, t_start) -> record``, or None
-        for the line engine of :func:`ftsweep.case.run_case`.
+    simulation : ``(Simulating, timer) -> Simulation``: how the one simulator samples its
+        program (:mod:`ftsweep.lines` for spindle programs, tables and spirals).
     pitch_text : ``(record) -> text`` of a program's pitches or mean steps, with units.
     point_text : ``(program, flat index) -> text`` naming where a point lies, for errors.
     angular_cells : ``(program, ρ0 [µm]) -> cells`` along the outer circumference that set
@@ -75,7 +102,7 @@ class ProgramKind:
     plan: Callable[[Planning], tuple[Any, dict[str, Any]]]
     record_fields: Callable[[Any], dict[str, Any]]
     cost: Callable[[Any, Any, Any], tuple[float, Any]]
-    simulate: Optional[Callable[..., dict[str, Any]]]
+    simulation: Callable[[Simulating, Any], Simulation]
     pitch_text: Callable[[dict[str, Any]], str]
     point_text: Callable[[Any, int], str]
     angular_cells: Optional[Callable[[Any, float], float]]

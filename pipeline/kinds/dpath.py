@@ -1,13 +1,12 @@
 """D-shaped slow-tool-servo programs ([5]): straight parallel cuts over an off-axis part, one
 per revolution, joined by transitions outside it; planned by :func:`ftsweep.dpath.plan`, the
-cut points compensated as a table's (model §4), and simulated by their own engine of path
-crossings (:func:`ftsweep.dpath.simulate`) with the one envelope and metrics."""
+cut points compensated as a table's (model §4), and simulated by the one simulator on rays
+across the zone that the path's passes cross (:class:`ftsweep.dpath.DPathSimulation`)."""
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 from typing import Any, Optional
 
 import numpy as np
@@ -16,7 +15,6 @@ from ftsweep import catalogs
 from ftsweep import dpath as dpath_program
 from ftsweep.kinds import Planning, ProgramKind
 from ftsweep.kinds.requests import DPathRequest
-from ftsweep.record import ErrorMap, Timer, non_finite, simulated, timed
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import compensation
 
@@ -109,38 +107,6 @@ def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
     return 3.0 * ppc * 2.0 * ap.half_extent_um[0] / spacing * case.resolution.points_per_feed, None
 
 
-def _simulate(
-    rcase: Any, timer: Timer, progress: Optional[Callable[[int, int], None]], t_start: float
-) -> dict[str, Any]:
-    """The form error of a D-path program ([5]) through the same envelope and metrics
-    (:func:`ftsweep.dpath.simulate`), its axis motion and the machine's axis limits
-    (:func:`ftsweep.dpath.record_fields`)."""
-    from ftsweep.case import require_finite
-
-    case, path = rcase.case, rcase.layout
-    assert rcase.values is not None and rcase.gouge is not None
-    z = rcase.values
-    require_finite(z, "the D-path Z", lambda i: f"point {i} (C {math.degrees(path.phi[i]):.4f}°)")
-    bins = case.resolution.error_map_bins
-    emap = ErrorMap.over(rcase.aperture, bins) if bins else None
-    errors, rays, band = dpath_program.simulate(rcase, z, progress, timer.seconds, emap)
-    bad = non_finite(rcase, errors)
-    if bad:
-        raise CaseError(
-            f"the metrics came out non-finite ({', '.join(bad)}): no evaluation point inside the fully "
-            "machined part; check the part against the spacing and the nose radius"
-        )
-    t = time.perf_counter()
-    summary = dpath_program.motion_summary(path, z, rcase.cutting.spindle_rpm)
-    timer.add("dynamics", t)
-    record: dict[str, Any] = {"surface": case.surface, "layout": "dpath", "n_points": path.n_points}
-    record.update(simulated(rcase, errors, rays, band, rcase.gouge))
-    record.update(dpath_program.record_fields(rcase, summary, z))
-    if emap is not None:
-        record.update(emap.as_record())
-    return timed(record, timer, t_start)
-
-
 def _pitch(r: dict[str, Any]) -> str:
     return f"mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
 
@@ -194,8 +160,23 @@ def request_options(opts: dict[str, Any]) -> dict[str, Any]:
 
 
 DPATH = ProgramKind(
-    "dpath", "D-path program", DPathRequest, AXES, _request_at, _feed, _plan, _record_fields, _cost,
-    _simulate, _pitch, _point, None, lambda: DPathRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
-    _describe, _check_sweep, "D-path sweeps", OPTIONS,
-    lambda o: ({"kind": "dpath", **request_options(o)}, []),
-)  # fmt: skip
+    name="dpath",
+    noun="D-path program",
+    request=DPathRequest,
+    axes=AXES,
+    request_at=_request_at,
+    feed=_feed,
+    plan=_plan,
+    record_fields=_record_fields,
+    cost=_cost,
+    simulation=dpath_program.DPathSimulation,
+    pitch_text=_pitch,
+    point_text=_point,
+    angular_cells=None,
+    warm_request=lambda: DPathRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
+    describe=_describe,
+    check_sweep=_check_sweep,
+    sweeps="D-path sweeps",
+    options=OPTIONS,
+    from_options=lambda o: ({"kind": "dpath", **request_options(o)}, []),
+)

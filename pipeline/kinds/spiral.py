@@ -17,6 +17,7 @@ from ftsweep import catalogs
 from ftsweep.cost import check_capacity, spiral_points
 from ftsweep.kinds import Planning, ProgramKind
 from ftsweep.kinds.requests import SpiralRequest
+from ftsweep.lines import LineSimulation
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import compensation, spiral
 
@@ -240,8 +241,23 @@ def _check_sweep(spec: Any) -> None:
 
 
 SPIRAL = ProgramKind(
-    "spiral", "spiral program", SpiralRequest, AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
-    _pitch, _point, _cells, lambda: SpiralRequest(kind="spiral", points_per_rev=16), _describe,
-    _check_sweep, "spiral sweeps", AXES,
-    lambda o: ({"kind": "spiral", **{k: o[k] for k in AXES if o.get(k) is not None}}, []),
-)  # fmt: skip
+    name="spiral",
+    noun="spiral program",
+    request=SpiralRequest,
+    axes=AXES,
+    request_at=_request_at,
+    feed=_feed,
+    plan=_plan,
+    record_fields=_record_fields,
+    cost=_cost,
+    simulation=LineSimulation,
+    pitch_text=_pitch,
+    point_text=_point,
+    angular_cells=_cells,
+    warm_request=lambda: SpiralRequest(kind="spiral", points_per_rev=16),
+    describe=_describe,
+    check_sweep=_check_sweep,
+    sweeps="spiral sweeps",
+    options=AXES,
+    from_options=lambda o: ({"kind": "spiral", **{k: o[k] for k in AXES if o.get(k) is not None}}, []),
+)

@@ -13,6 +13,7 @@ from ftsweep import catalogs, result
 from ftsweep.cost import angular_samples
 from ftsweep.kinds import Planning, ProgramKind, flag
 from ftsweep.kinds.requests import TableRequest
+from ftsweep.lines import LineSimulation
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import layouts
 from ftsweep.stages.layouts import Layout
@@ -66,7 +67,7 @@ def _record_fields(rcase: Any) -> dict[str, Any]:
 
 def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
     """Control points plus simulated nodes; cases of equal angular samples, feed and nose
-    radius simulate the same lines and share them (:class:`ftsweep.case.LineCache`). A case
+    radius simulate the same lines and share them (:class:`ftsweep.lines.LineCache`). A case
     whose layout cannot be built costs 0 and shares nothing."""
     try:
         layout = build_layout(surface, case.layout)
@@ -163,14 +164,48 @@ def _table_options(kind: str, opts: dict[str, Any]) -> tuple[dict[str, Any], lis
 
 AXES = ("points", "aspect")
 RING = ProgramKind(
-    "ring", "ring layout", TableRequest, AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
-    _ring_pitch, _ring_point, _ring_cells, lambda: TableRequest(kind="ring", pitch=(50.0, 10.0)),
-    _describe, _check_sweep, "table sweeps", ("drho_um", "dtheta_deg", "points", "aspect"),
-    lambda o: _table_options("ring", o), (0.3, 400.0), "um/deg",
-)  # fmt: skip
+    name="ring",
+    noun="ring layout",
+    request=TableRequest,
+    axes=AXES,
+    request_at=_request_at,
+    feed=_feed,
+    plan=_plan,
+    record_fields=_record_fields,
+    cost=_cost,
+    simulation=LineSimulation,
+    pitch_text=_ring_pitch,
+    point_text=_ring_point,
+    angular_cells=_ring_cells,
+    warm_request=lambda: TableRequest(kind="ring", pitch=(50.0, 10.0)),
+    describe=_describe,
+    check_sweep=_check_sweep,
+    sweeps="table sweeps",
+    options=("drho_um", "dtheta_deg", "points", "aspect"),
+    from_options=lambda o: _table_options("ring", o),
+    aspect_range=(0.3, 400.0),
+    aspect_units="um/deg",
+)
 MESH = ProgramKind(
-    "mesh", "mesh layout", TableRequest, AXES, _request_at, _feed, _plan, _record_fields, _cost, None,
-    _mesh_pitch, _mesh_point, _mesh_cells, lambda: TableRequest(kind="mesh", pitch=(50.0, 50.0)),
-    _describe, _check_sweep, "table sweeps", ("dx_um", "dy_um", "points", "aspect"),
-    lambda o: _table_options("mesh", o), (0.08, 16.0), "1",
-)  # fmt: skip
+    name="mesh",
+    noun="mesh layout",
+    request=TableRequest,
+    axes=AXES,
+    request_at=_request_at,
+    feed=_feed,
+    plan=_plan,
+    record_fields=_record_fields,
+    cost=_cost,
+    simulation=LineSimulation,
+    pitch_text=_mesh_pitch,
+    point_text=_mesh_point,
+    angular_cells=_mesh_cells,
+    warm_request=lambda: TableRequest(kind="mesh", pitch=(50.0, 50.0)),
+    describe=_describe,
+    check_sweep=_check_sweep,
+    sweeps="table sweeps",
+    options=("dx_um", "dy_um", "points", "aspect"),
+    from_options=lambda o: _table_options("mesh", o),
+    aspect_range=(0.08, 16.0),
+    aspect_units="1",
+)

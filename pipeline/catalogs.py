@@ -29,6 +29,7 @@ from pydantic import (
     model_validator,
 )
 
+from ftsweep.stages import kinematics
 from ftsweep.stages.surfaces import FAMILIES, Aperture, Family, SurfaceFn
 
 
@@ -330,6 +331,32 @@ class AxisLimits(Strict):
             if not lo < hi:
                 raise ValueError(f"{axis}_min_mm {lo:g} must be below {axis}_max_mm {hi:g}")
         return self
+
+    def limits(self, names: tuple[str, ...]) -> kinematics.Limits:
+        """The limits of the axes ``names`` (of C, X, Y, Z) in SI for the kinematics stage
+        (:mod:`ftsweep.stages.kinematics`); C's position is free, a limit not declared (C's
+        acceleration on an X-Z-C lathe) is not checked. ValueError for a Y axis not declared."""
+        if "Y" in names and self.y_min_mm is None:
+            raise ValueError("the machine declares no Y axis")
+        inf = math.inf
+        rows = {
+            "C": (-inf, inf, self.c_speed_rpm * 2.0 * math.pi / 60.0, self.c_accel_rad_s2 or inf),
+            "X": (self.x_min_mm * 1e-3, self.x_max_mm * 1e-3, self.x_feed_mm_s * 1e-3, self.x_accel_m_s2),
+            "Y": tuple(
+                inf if v is None else v * k
+                for v, k in (
+                    (self.y_min_mm, 1e-3),
+                    (self.y_max_mm, 1e-3),
+                    (self.y_feed_mm_s, 1e-3),
+                    (self.y_accel_m_s2, 1.0),
+                )
+            ),
+            "Z": (self.z_min_mm * 1e-3, self.z_max_mm * 1e-3, self.z_velocity_mm_s * 1e-3, self.z_accel_m_s2),
+        }
+        table = np.array([rows[n] for n in names], dtype=np.float64)
+        return kinematics.Limits(
+            tuple(names), tuple(n == "C" for n in names), table[:, 0], table[:, 1], table[:, 2], table[:, 3]
+        )
 
 
 class Machine(Strict):

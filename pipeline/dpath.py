@@ -28,7 +28,7 @@ from ftsweep import catalogs
 from ftsweep.case import Machined, require_finite
 from ftsweep.record import non_finite, simulated
 from ftsweep.spec import CaseError
-from ftsweep.stages import compensation, dpath, envelope
+from ftsweep.stages import compensation, dpath, envelope, kinematics
 
 DEFAULTS: dict[str, Any] = {
     "points_per_cut": 201,
@@ -114,13 +114,16 @@ def times(
     return dpath.point_times(path.phi, path.rho, z_um, mode, rpm, feed_mm_min)
 
 
+# the axes of a D-path program, in the order of the kinematics stage's columns
+AXES = ("C", "X", "Z")
+
+
 def motion_peaks(
     t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarray
 ) -> tuple[dict[str, float], dict[str, np.ndarray]]:
     """Ranges and peaks of the axis motion of points at times ``t`` [s] (C [rad], X, Z [µm]):
     X range, feed and acceleration, Z velocity and acceleration (peak and RMS), C speed —
-    what the machine's limits are checked against — and the motion itself
-    (:func:`ftsweep.stages.dpath.axis_motion`)."""
+    and the motion itself (:func:`ftsweep.stages.dpath.axis_motion`, the kinematics stage)."""
     m = dpath.axis_motion(t, phi, x_um, z_um)
     return {
         "x_min_um": float(x_um.min()),
@@ -135,9 +138,9 @@ def motion_peaks(
 
 
 def motion_summary(path: dpath.DPath, z_um: np.ndarray, rpm: float) -> dict[str, float]:
-    """:func:`motion_peaks` at constant spindle speed ([5] eqs. 5–6, finite differences over
-    the program's points), the X acceleration on the cuts and in the transitions, the largest
-    dρ/dθ jump at a junction and the machining time."""
+    """:func:`motion_peaks` at constant spindle speed ([5] eqs. 5–6, over the program's
+    points), the X acceleration on the cuts and in the transitions, the largest dρ/dθ jump at
+    a junction and the machining time."""
     t = times(path, z_um, rpm)
     peaks, motion = motion_peaks(t, path.phi, path.rho, z_um)
     ax = np.abs(motion["x_accel_m_s2"])
@@ -153,29 +156,17 @@ def motion_summary(path: dpath.DPath, z_um: np.ndarray, rpm: float) -> dict[str,
     }
 
 
-def limits_reason(machine: Any, summary: dict[str, float], z_um: np.ndarray, c_speed_rpm: float) -> str:
-    """The machine's X, Z and C limits the program exceeds ('' when it fits them); a
-    machine without axis limits cannot run a D path."""
-    lim = machine.axes
-    if lim is None:
+def limits_reason(
+    machine: Any, t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarray, slack: float = 1e-9
+) -> str:
+    """The machine's X, Z and C limits the program's points at times ``t`` [s] exceed, checked
+    by the kinematics stage on every point ('' when it fits them); a machine without axis
+    limits cannot run a D path. ``slack``: relative allowance (rounding of a spindle speed at
+    its limit; the printed digits of a program read back)."""
+    if machine.axes is None:
         return "the machine declares no X, Z, C axis limits (axes:) for a slow-tool-servo program"
-    out = []
-    checks = (
-        ("X", summary["x_min_um"] * 1e-3, ">=", lim.x_min_mm, "mm"),
-        ("X", summary["x_max_um"] * 1e-3, "<=", lim.x_max_mm, "mm"),
-        ("Z", float(np.min(z_um)) * 1e-3, ">=", lim.z_min_mm, "mm"),
-        ("Z", float(np.max(z_um)) * 1e-3, "<=", lim.z_max_mm, "mm"),
-        ("X feed", summary["x_feed_peak_mm_s"], "<=", lim.x_feed_mm_s, "mm/s"),
-        ("X acceleration", summary["x_accel_peak_m_s2"], "<=", lim.x_accel_m_s2, "m/s²"),
-        ("Z velocity", summary["z_velocity_peak_mm_s"], "<=", lim.z_velocity_mm_s, "mm/s"),
-        ("Z acceleration", summary["z_accel_peak_m_s2"], "<=", lim.z_accel_m_s2, "m/s²"),
-        ("C speed", c_speed_rpm, "<=", lim.c_speed_rpm, "rpm"),
-    )
-    for name, value, sense, bound, unit in checks:
-        ok = value >= bound if sense == ">=" else value <= bound
-        if not ok:
-            out.append(f"{name} {value:.6g} {unit} {'<' if sense == '>=' else '>'} limit {bound:g} {unit}")
-    return "; ".join(out)
+    q = np.column_stack([phi, x_um * 1e-6, z_um * 1e-6])
+    return kinematics.limits_reason(q, kinematics.motion(t, q), machine.axes.limits(AXES), slack)
 
 
 def ray_angles(geometry: dpath.DGeometry, n: int) -> np.ndarray:
@@ -350,7 +341,7 @@ def record_fields(rcase: Any, summary: dict[str, float], z_um: np.ndarray) -> di
     path: dpath.DPath = rcase.layout
     g, request = path.geometry, rcase.case.layout
     rpm = rcase.cutting.spindle_rpm
-    reason = limits_reason(rcase.machine, summary, z_um, rpm)
+    reason = limits_reason(rcase.machine, times(path, z_um, rpm), path.phi, path.rho, z_um)
     step = np.diff(path.phi)
     return {
         "spacing_um": g.spacing_um,

@@ -138,8 +138,11 @@ def plot_x_motion(
         m = dpath.axis_motion(t, path.phi, path.rho, z)
         sel = path.phi <= path.phi[0] + 2.0 * math.pi * cycles
         deg = np.degrees(path.phi[sel])
+        # velocities belong to the steps between points: drawn at the steps' middles
+        mid = np.degrees(0.5 * (path.phi[1:] + path.phi[:-1]))
+        steps = sel[1:]
         axes[0].plot(deg, path.rho[sel] * 1e-3, label=kind)
-        axes[1].plot(deg, m["x_feed_mm_s"][sel], label=kind)
+        axes[1].plot(mid[steps], m["x_feed_mm_s"][steps], label=kind)
         axes[2].plot(deg, m["x_accel_m_s2"][sel], label=kind)
     axes[0].set_ylabel("ρ = X [mm]")
     axes[1].set_ylabel("X feed [mm/s]")
@@ -177,8 +180,10 @@ def plot_z_motion(
     axes[0].plot(np.degrees(phi[sel] - phi[sel][0]), spiral["z"][sel], label="spiral")
     axes[0].plot(np.degrees(path.phi[dsel] - path.phi[dsel][0]), z[dsel], label="D path")
     axes[0].set_ylabel("Z [µm]")
-    axes[1].plot(np.degrees(phi[sel] - phi[sel][0]), spiral["z_velocity_mm_s"][sel], label="spiral")
-    axes[1].plot(np.degrees(path.phi[dsel] - path.phi[dsel][0]), m["z_velocity_mm_s"][dsel], label="D path")
+    # velocities belong to the steps between points (drawn from each step's start)
+    vs, vd = sel[:-1], dsel[:-1]
+    axes[1].plot(np.degrees(phi[:-1][vs] - phi[sel][0]), spiral["z_velocity_mm_s"][vs], label="spiral")
+    axes[1].plot(np.degrees(path.phi[:-1][vd] - path.phi[dsel][0]), m["z_velocity_mm_s"][vd], label="D path")
     axes[1].set_ylabel("Z velocity [mm/s]")
     axes[1].set_xlabel("C within one revolution [deg]")
     axes[0].set_title(

@@ -30,6 +30,8 @@ from typing import Any, NamedTuple, Optional
 import numpy as np
 
 from ftsweep.stages import fresnel as ff
+from ftsweep.stages import kinematics
+from ftsweep.stages.kinematics import Limits
 
 DEFAULTS: dict[str, Any] = {
     "facet_height_um": 10.0,
@@ -281,19 +283,12 @@ def plan(
 
 
 # --------------------------------------------------------------------------- timesteps
-class Limits(NamedTuple):
-    """Axis limits of a 4-axis lathe in SI, in the order C, X, Y, Z: accelerations (C in
-    rad/s², linear in m/s²), velocities (rad/s, m/s), position ranges (C free; m)."""
-
-    accel: np.ndarray
-    velocity: np.ndarray
-    low: np.ndarray
-    high: np.ndarray
 
 
 def limits_of(machine: Any, name: str = "machine") -> Limits:
-    """The 4-axis limits of a machine entry; raises ``FresnelError`` when it lacks a Y axis or
-    a C acceleration (a Fresnel program needs an X-Y-Z-C lathe, [2] §2.3)."""
+    """The 4-axis limits (C, X, Y, Z in SI, :mod:`ftsweep.stages.kinematics`) of a machine
+    entry; raises ``FresnelError`` when it lacks a Y axis or a C acceleration (a Fresnel
+    program needs an X-Y-Z-C lathe, [2] §2.3)."""
     ax = machine.axes
     missing = (
         []
@@ -308,27 +303,14 @@ def limits_of(machine: Any, name: str = "machine") -> Limits:
             f"machine '{name}' is not a 4-axis X-Y-Z-C lathe (no {what}); a Fresnel program needs "
             "all four axes' limits"
         )
-    return Limits(
-        accel=np.array([ax.c_accel_rad_s2, ax.x_accel_m_s2, ax.y_accel_m_s2, ax.z_accel_m_s2]),
-        velocity=np.array(
-            [
-                ax.c_speed_rpm * 2.0 * np.pi / 60.0,
-                ax.x_feed_mm_s * 1e-3,
-                ax.y_feed_mm_s * 1e-3,
-                ax.z_velocity_mm_s * 1e-3,
-            ]
-        ),
-        low=np.array([-np.inf, ax.x_min_mm * 1e-3, ax.y_min_mm * 1e-3, ax.z_min_mm * 1e-3]),
-        high=np.array([np.inf, ax.x_max_mm * 1e-3, ax.y_max_mm * 1e-3, ax.z_max_mm * 1e-3]),
-    )
+    return ax.limits(AXES)
 
 
 def relative_peaks(q: np.ndarray, steps: np.ndarray, limits: Limits) -> tuple[np.ndarray, np.ndarray]:
     """Relative accelerations |a|/a_lim at every point ([2] eq. 14) and relative velocities
-    |v|/v_lim over every step, (P, 4) and (P − 1, 4), of positions q (P, 4) in SI."""
-    acc = np.abs(ff.accelerations(q, steps)) / limits.accel
-    vel = np.abs(np.diff(q, axis=0)) / steps[:, None] / limits.velocity
-    return acc, vel
+    |v|/v_lim over every step, (P, 4) and (P − 1, 4), of positions q (P, 4) in SI (the
+    kinematics stage)."""
+    return kinematics.relative(kinematics.over_steps(q, steps), limits)
 
 
 def constant_step(q: np.ndarray, limits: Limits, safety: float) -> float:

@@ -17,6 +17,7 @@ from ftsweep import __version__, catalogs
 from ftsweep import fresnel as fp
 from ftsweep.io import save_figure
 from ftsweep.stages import fresnel as ff
+from ftsweep.stages import kinematics
 
 F_MAGIC = "# ftsweep Fresnel program"
 F_COLUMNS = "t_s C_deg X_mm Y_mm Z_mm"
@@ -148,7 +149,7 @@ def summary(inp: Inputs, fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: fp.
         "relative_accel_max": dict(zip(fp.AXES, (float(v) for v in acc.max(axis=0)), strict=True)),
         "relative_velocity_max": dict(zip(fp.AXES, (float(v) for v in vel.max(axis=0)), strict=True)),
         "limiting_axis_counts": _limiting_axes(acc, path.points_per_turn),
-        "within_limits": bool(acc.max() <= 1.0 and vel.max() <= 1.0 and not _position_reason(q, limits)),
+        "within_limits": not limits_reason(q, steps.steps, limits),
         "planning_s": fplan.planning_s,
         "timesteps_s": steps.seconds,
     }
@@ -161,29 +162,13 @@ def _limiting_axes(acc: np.ndarray, k: int) -> dict[str, int]:
     return {axis: int(np.sum(which == i)) for i, axis in enumerate(fp.AXES)}
 
 
-def _position_reason(q: np.ndarray, limits: fp.Limits) -> str:
-    """The axes whose position range the program leaves, or ''."""
-    low, high = q.min(axis=0), q.max(axis=0)
-    bad = [a for i, a in enumerate(fp.AXES) if low[i] < limits.low[i] or high[i] > limits.high[i]]
-    return f"positions out of range on {', '.join(bad)}" if bad else ""
-
-
 def limits_reason(q: np.ndarray, steps: np.ndarray, limits: fp.Limits, slack: float = 0.0) -> str:
-    """Which limit a program of positions q (P, 4) SI and timesteps (P − 1) [s] exceeds on
-    any step ([2] eq. 14 for accelerations, differences for velocities), or ''."""
+    """Which limits a program of positions q (P, 4) SI and timesteps (P − 1) [s] exceeds on
+    any line (the kinematics stage: [2] eq. 14 for accelerations, differences for
+    velocities), or ''."""
     if not np.all(steps > 0.0):
         return "time does not increase from line to line"
-    reason = _position_reason(q, limits)
-    if reason:
-        return reason
-    acc, vel = fp.relative_peaks(q, steps, limits)
-    for what, rel in (("acceleration", acc), ("velocity", vel)):
-        peak = rel.max(axis=0)
-        if np.any(peak > 1.0 + slack):
-            axis = int(np.argmax(peak))
-            line = int(np.argmax(rel[:, axis]))
-            return f"{fp.AXES[axis]} {what} {peak[axis]:.4g}× its limit at line {line + 1}"
-    return ""
+    return kinematics.limits_reason(q, kinematics.over_steps(q, steps), limits, slack)
 
 
 def public(s: dict[str, Any]) -> dict[str, Any]:

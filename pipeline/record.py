@@ -31,26 +31,11 @@ class ErrorMap:
         half = max(aperture.half_extent_um)
         return cls(-half, -half, 2.0 * half / bins, bins)
 
-    def add(
-        self,
-        z: np.ndarray,
-        g: np.ndarray,
-        inside: np.ndarray,
-        node_r: np.ndarray,
-        ct: np.ndarray,
-        st: np.ndarray,
-    ) -> None:
-        """Accumulate the errors z − g [µm] of a batch of node grids (rays at cos/sin ``ct``,
-        ``st``) into the bins (:func:`ftsweep.stages.metrics.accumulate_map`)."""
-        metrics.accumulate_map(
-            z, g, inside, node_r, ct, st, self.x0, self.y0, self.bin_um, self.total, self.count, self.peak
-        )
-
     def add_points(
         self, z: np.ndarray, g: np.ndarray, inside: np.ndarray, x: np.ndarray, y: np.ndarray
     ) -> None:
-        """Accumulate the errors z − g [µm] at points x, y [µm] of the part's frame
-        (:func:`ftsweep.stages.metrics.accumulate_map_xy`)."""
+        """Accumulate the errors z − g [µm] at points x, y [µm] of the part's frame, any
+        kind's nodes (:func:`ftsweep.stages.metrics.accumulate_map_xy`)."""
         metrics.accumulate_map_xy(
             z, g, inside, x, y, self.x0, self.y0, self.bin_um, self.total, self.count, self.peak
         )

@@ -39,6 +39,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from . import kinematics
+
 TRANSITIONS = ("traditional", "optimised")
 ZONE_COUNTS = (1, 2, 4)
 TIMINGS = ("spindle", "feed")
@@ -382,25 +384,19 @@ def point_times(
     return np.concatenate([[0.0], np.cumsum(dt)])
 
 
-def _derivative(t: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """dy/dt on a non-uniform grid: the three-point (second-order) formula inside, one-sided
-    at the ends."""
-    return np.gradient(y, t, edge_order=2) if t.size > 2 else np.gradient(y, t)
-
-
 def axis_motion(t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarray) -> dict[str, np.ndarray]:
-    """Velocities and accelerations of the X, Z and C axes along a program sampled at times
-    ``t`` [s]: ``x_feed_mm_s``, ``x_accel_m_s2``, ``z_velocity_mm_s``, ``z_accel_m_s2``,
-    ``c_speed_rpm`` (finite differences over the points, as the machine moves between them;
-    at a slope discontinuity the acceleration is the velocity jump over the local step)."""
-    vx = _derivative(t, x_um) * 1e-3
-    vz = _derivative(t, z_um) * 1e-3
+    """Velocities over the steps (P − 1) and accelerations at the points (P) of the X, Z and C
+    axes along a program sampled at times ``t`` [s] (:mod:`ftsweep.stages.kinematics`, the one
+    scheme of every kind): ``x_feed_mm_s``, ``x_accel_m_s2``, ``z_velocity_mm_s``,
+    ``z_accel_m_s2``, ``c_speed_rpm``, ``c_accel_rad_s2``."""
+    m = kinematics.motion(t, np.column_stack([phi, x_um * 1e-6, z_um * 1e-6]))
     return {
-        "x_feed_mm_s": vx,
-        "x_accel_m_s2": _derivative(t, vx) * 1e-3,
-        "z_velocity_mm_s": vz,
-        "z_accel_m_s2": _derivative(t, vz) * 1e-3,
-        "c_speed_rpm": _derivative(t, phi) * 60.0 / (2.0 * math.pi),
+        "x_feed_mm_s": m.velocity[:, 1] * 1e3,
+        "x_accel_m_s2": m.accel[:, 1],
+        "z_velocity_mm_s": m.velocity[:, 2] * 1e3,
+        "z_accel_m_s2": m.accel[:, 2],
+        "c_speed_rpm": m.velocity[:, 0] * 60.0 / (2.0 * math.pi),
+        "c_accel_rad_s2": m.accel[:, 0],
     }
 
 

@@ -4,8 +4,8 @@ The controller outputs one command per period 1/f_cmd while the spindle turns at
 K = f_cmd·60/n commands per revolution. The command stream is evaluated over whole
 revolutions at a few radii (the outer edge, where surface speed is highest, and inner
 radii that may hold other features). Velocity and acceleration are its first and second
-differences at the command period (the second-order difference of [2], with a uniform
-timestep); the spectrum is the FFT of each revolution with its linear trend removed.
+differences at the command period (the kinematics stage, :mod:`.kinematics`: [2] eq. 14
+on a uniform timestep); the spectrum is the FFT of each revolution with its linear trend removed.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import kinematics
 from .interpolation import Program, interpolate
 from .spiral import SpiralPath
 
@@ -109,8 +110,9 @@ def analyse(
             # a path program is only defined on its own spiral: start on its revolution nearest
             start = rho0_um - feed_um * round((rho0_um - start) / feed_um)
         w = revolution_commands(layout, table, start, feed_um, k, k + 2, first=-1)
-        v = np.diff(w) / dt * 1e-3  # µm/s → mm/s
-        a = np.diff(w, 2) / (dt * dt) * 1e-6  # µm/s² → m/s²
+        m = kinematics.over_steps(w[:, None] * 1e-6, np.full(w.size - 1, dt))
+        v = m.velocity[:, 0] * 1e3  # m/s → mm/s
+        a = m.accel[1:-1, 0]
         v_peak = max(v_peak, float(np.max(np.abs(v))))
         a_peak = max(a_peak, float(np.max(np.abs(a))))
         a_sq += float(np.sum(a * a))

@@ -333,19 +333,6 @@ def compensation_exact(
 
 # --------------------------------------------------------------------------- accelerations
 @njit(nogil=True, cache=True)
-def accelerations(q, steps):  # pragma: no cover - jit
-    """Second differences of positions q (P, A) over timesteps T (P − 1) [s]: a (P, A) in
-    q's unit per s² ([2] eq. 14); zero at the first and last point."""
-    n, m = q.shape
-    a = np.zeros((n, m))
-    for i in range(1, n - 1):
-        t0, t1 = steps[i - 1], steps[i]
-        for j in range(m):
-            a[i, j] = 2.0 * ((q[i + 1, j] - q[i, j]) / t1 - (q[i, j] - q[i - 1, j]) / t0) / (t0 + t1)
-    return a
-
-
-@njit(nogil=True, cache=True)
 def _turn_relative(steps, deltas, inv_limit, first):  # pragma: no cover - jit
     """Relative accelerations a/a_lim (K, A) over one turn (eq. 14) and their largest
     magnitude; arguments of :func:`turn_cost`."""

@@ -141,37 +141,14 @@ def accumulate_extrema(z, f, inside, r, zone_split_um, stats):  # pragma: no cov
 
 
 @njit(nogil=True, cache=True)
-def accumulate_map(
-    z, g, inside, node_r, cos_t, sin_t, x0, y0, bin_um, total, count, peak
-):  # pragma: no cover - jit
-    """Bin the form error e = z − g [µm] of a batch of node grids into a coarse (y, x) map.
+def accumulate_map_xy(z, g, inside, x, y, x0, y0, bin_um, total, count, peak):  # pragma: no cover - jit
+    """Bin the form error e = z − g [µm] at points x, y [µm] of the part's frame (a batch of
+    rays' nodes) into a coarse (y, x) map.
 
     Bin (iy, ix) covers x0 + ix·bin_um ≤ x < x0 + (ix+1)·bin_um (likewise y). ``total`` and
     ``count`` accumulate the sum and number of errors per bin (their ratio is the mean map);
     ``peak`` keeps the error of largest magnitude (signed), which shows where the P-V sits.
     """
-    ny, nx = count.shape
-    for a in range(z.shape[0]):
-        c = cos_t[a, 0]
-        s = sin_t[a, 0]
-        for j in range(z.shape[1]):
-            zz = z[a, j]
-            if not inside[a, j] or math.isnan(zz):
-                continue
-            e = zz - g[a, j]
-            ix = int(math.floor((node_r[a, j] * c - x0) / bin_um))
-            iy = int(math.floor((node_r[a, j] * s - y0) / bin_um))
-            if 0 <= ix < nx and 0 <= iy < ny:
-                total[iy, ix] += e
-                count[iy, ix] += 1.0
-                if abs(e) > abs(peak[iy, ix]) or count[iy, ix] == 1.0:
-                    peak[iy, ix] = e
-
-
-@njit(nogil=True, cache=True)
-def accumulate_map_xy(z, g, inside, x, y, x0, y0, bin_um, total, count, peak):  # pragma: no cover - jit
-    """:func:`accumulate_map` of errors at points given by their x, y [µm] (the nodes of a D
-    path's rays, whose part frame is not centred on the spindle)."""
     ny, nx = count.shape
     for a in range(z.shape[0]):
         for j in range(z.shape[1]):

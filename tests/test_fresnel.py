@@ -198,14 +198,6 @@ def test_compensation_on_the_chebyshev_example(cheb, coarse):
 
 
 # --------------------------------------------------------------------------- timesteps
-def test_accelerations_are_second_differences_over_uneven_steps():
-    t = np.cumsum(np.concatenate([[0.0], np.random.default_rng(1).uniform(0.5, 2.0, 20)]))
-    q = np.column_stack([3.0 * t * t, 5.0 * t])
-    a = ff.accelerations(q, np.diff(t))
-    np.testing.assert_allclose(a[1:-1, 0], 6.0, rtol=1e-9)
-    np.testing.assert_allclose(a[1:-1, 1], 0.0, atol=1e-9)
-
-
 def test_adaptive_timesteps_level_each_turn_and_beat_constant_steps(coarse):
     inp, s, folder = coarse
     steps = s["_steps"]

@@ -4,6 +4,7 @@ commands compensated over the whole table by the line engine (:mod:`ftsweep.case
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -186,24 +187,15 @@ RING = ProgramKind(
     aspect_range=(0.3, 400.0),
     aspect_units="um/deg",
 )
-MESH = ProgramKind(
+# a mesh is a ring's kind in Cartesian coordinates: its own names, points, cells and options
+MESH = dataclasses.replace(
+    RING,
     name="mesh",
     noun="mesh layout",
-    request=TableRequest,
-    axes=AXES,
-    request_at=_request_at,
-    feed=_feed,
-    plan=_plan,
-    record_fields=_record_fields,
-    cost=_cost,
-    simulation=LineSimulation,
     pitch_text=_mesh_pitch,
     point_text=_mesh_point,
     angular_cells=_mesh_cells,
     warm_request=lambda: TableRequest(kind="mesh", pitch=(50.0, 50.0)),
-    describe=_describe,
-    check_sweep=_check_sweep,
-    sweeps="table sweeps",
     options=("dx_um", "dy_um", "points", "aspect"),
     from_options=lambda o: _table_options("mesh", o),
     aspect_range=(0.08, 16.0),

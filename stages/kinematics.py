@@ -1,0 +1,124 @@
+"""Axis kinematics of any program and the machine's limits (model §6 "Dynamics"; [2] eq. 14).
+
+A program is its axes' positions q (P points × A axes, SI: C in rad, linear axes in m) at
+times t (P) [s]; the machine moves every axis linearly from point to point. One difference
+scheme serves every kind:
+
+- velocity over step i (between points i and i+1): v_i = (q_{i+1} − q_i)/T_i, what the axis
+  moves at along the step;
+- acceleration at point i: a_i = 2·(v_i − v_{i−1})/(T_{i−1} + T_i), the velocity change at the
+  point over the mean of its two steps ([2] eq. 14; on a uniform step T it is the second
+  difference (q_{i+1} − 2q_i + q_{i−1})/T², the scheme of the W command at the controller's
+  command period, :mod:`ftsweep.stages.dynamics`); zero at the first and last point.
+
+At a slope discontinuity (a junction of two curves), the acceleration is the velocity jump over
+the local step: it grows as the step shrinks, so it means something only at a step the machine
+sets (its command period, or the program's own step if the controller runs it point by point).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+# display units of each axis kind: (position, velocity, acceleration) names and factors from SI
+_LINEAR = (("mm", 1e3), ("mm/s", 1e3), ("m/s²", 1.0))
+_ROTARY = (("°", 180.0 / math.pi), ("rpm", 60.0 / (2.0 * math.pi)), ("rad/s²", 1.0))
+
+
+@njit(nogil=True, cache=True)
+def accelerations(q, steps):  # pragma: no cover - jit
+    """Accelerations a (P, A) [q's unit/s²] of positions q (P, A) over timesteps ``steps``
+    (P − 1) [s]: the velocity change at each point over the mean of its two steps ([2] eq. 14);
+    zero at the first and last point."""
+    n, m = q.shape
+    a = np.zeros((n, m))
+    for i in range(1, n - 1):
+        t0, t1 = steps[i - 1], steps[i]
+        for j in range(m):
+            a[i, j] = 2.0 * ((q[i + 1, j] - q[i, j]) / t1 - (q[i, j] - q[i - 1, j]) / t0) / (t0 + t1)
+    return a
+
+
+def velocities(q: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """Velocities (P − 1, A) [q's unit/s] over each step of positions q (P, A)."""
+    return np.diff(q, axis=0) / steps[:, None]
+
+
+class Motion(NamedTuple):
+    """The kinematics of a program: timesteps (P − 1) [s], velocities over the steps (P − 1, A)
+    and accelerations at the points (P, A), SI."""
+
+    steps: np.ndarray
+    velocity: np.ndarray
+    accel: np.ndarray
+
+
+def motion(t: np.ndarray, q: np.ndarray) -> Motion:
+    """The :class:`Motion` of positions q (P, A) SI at times t (P) [s], which must increase."""
+    steps = np.diff(np.asarray(t, dtype=np.float64))
+    if not np.all(steps > 0.0):
+        raise ValueError("time does not increase from point to point")
+    return over_steps(q, steps)
+
+
+def over_steps(q: np.ndarray, steps: np.ndarray) -> Motion:
+    """The :class:`Motion` of positions q (P, A) SI over timesteps ``steps`` (P − 1) [s]."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    steps = np.ascontiguousarray(steps, dtype=np.float64)
+    return Motion(steps, velocities(q, steps), accelerations(q, steps))
+
+
+class Limits(NamedTuple):
+    """A machine's limits on the axes ``names`` (e.g. ("C", "X", "Y", "Z")), SI: position
+    ranges ``low``/``high``, velocities and accelerations (magnitudes); inf where the machine
+    sets none. ``rotary`` marks the axes in rad."""
+
+    names: tuple[str, ...]
+    rotary: tuple[bool, ...]
+    low: np.ndarray
+    high: np.ndarray
+    velocity: np.ndarray
+    accel: np.ndarray
+
+
+def relative(m: Motion, limits: Limits) -> tuple[np.ndarray, np.ndarray]:
+    """Relative accelerations |a|/a_lim (P, A) and velocities |v|/v_lim (P − 1, A)."""
+    return np.abs(m.accel) / limits.accel, np.abs(m.velocity) / limits.velocity
+
+
+def _text(value: float, axis: int, limits: Limits, which: int) -> tuple[str, float]:
+    unit, factor = (_ROTARY if limits.rotary[axis] else _LINEAR)[which]
+    return unit, value * factor
+
+
+def limits_reason(q: np.ndarray, m: Motion, limits: Limits, slack: float = 0.0) -> str:
+    """Every limit positions q (P, A) SI with motion ``m`` exceed, '; '-joined, each with its
+    worst value, the limit and the line (1-based point; a velocity's step starts there) of that
+    value; '' when all hold.
+    ``slack`` is a relative allowance (e.g. for the printed digits of a program read back)."""
+    out = []
+    for j, name in enumerate(limits.names):
+        col = q[:, j]
+        checks = (
+            ("", col, limits.low[j], "<", 0),
+            ("", col, limits.high[j], ">", 0),
+            (" velocity", np.abs(m.velocity[:, j]), limits.velocity[j], ">", 1),
+            (" acceleration", np.abs(m.accel[:, j]), limits.accel[j], ">", 2),
+        )
+        for what, values, bound, sense, which in checks:
+            if not math.isfinite(bound) or values.size == 0:
+                continue
+            allowance = slack * abs(bound)
+            bad = values < bound - allowance if sense == "<" else values > bound + allowance
+            if not bad.any():
+                continue
+            line = int(np.argmin(values) if sense == "<" else np.argmax(values))
+            worst = float(values[line])
+            unit, shown = _text(worst, j, limits, which)
+            _, lim = _text(float(bound), j, limits, which)
+            out.append(f"{name}{what} {shown:.6g} {unit} {sense} limit {lim:g} {unit} (line {line + 1})")
+    return "; ".join(out)

@@ -1,0 +1,91 @@
+"""The one kinematics stage (issue 27): every kind's axis velocities and accelerations by one
+difference scheme ([2] eq. 14), checked against the machine's limits by one function."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ftsweep import catalogs
+from ftsweep.stages import dpath, dynamics, kinematics
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    a=st.floats(-50.0, 50.0),
+    b=st.floats(-5.0, 5.0),
+    seed=st.integers(0, 10_000),
+)
+def test_quadratic_motion_has_its_exact_acceleration_over_uneven_steps(a, b, seed):
+    steps = np.random.default_rng(seed).uniform(0.2, 3.0, 30)
+    t = np.concatenate([[0.0], np.cumsum(steps)])
+    q = np.column_stack([0.5 * a * t * t + b * t, b * t])
+    m = kinematics.motion(t, q)
+    np.testing.assert_allclose(m.accel[1:-1, 0], a, rtol=1e-7, atol=1e-7)
+    np.testing.assert_allclose(m.accel[1:-1, 1], 0.0, atol=1e-9)
+    assert np.all(m.accel[[0, -1]] == 0.0)
+    # the velocity over a step is the quadratic's at the step's middle
+    mid = 0.5 * (t[1:] + t[:-1])
+    np.testing.assert_allclose(m.velocity[:, 0], a * mid + b, rtol=1e-9, atol=1e-9)
+
+
+def test_uniform_steps_give_the_second_difference():
+    w = np.sin(np.linspace(0.0, 3.0, 101))[:, None]
+    m = kinematics.over_steps(w, np.full(100, 0.01))
+    np.testing.assert_allclose(m.accel[1:-1, 0], np.diff(w[:, 0], 2) / 1e-4, rtol=1e-9, atol=1e-12)
+
+
+def test_time_must_increase():
+    with pytest.raises(ValueError, match="time does not increase"):
+        kinematics.motion(np.array([0.0, 1.0, 1.0]), np.zeros((3, 1)))
+
+
+def _xzc() -> kinematics.Limits:
+    return catalogs.entry("machines", "sts-xzc").axes.limits(("C", "X", "Z"))
+
+
+def test_machine_limits_in_si():
+    lim = _xzc()
+    assert lim.names == ("C", "X", "Z") and lim.rotary == (True, False, False)
+    assert lim.high[1] == pytest.approx(0.150) and lim.velocity[1] == pytest.approx(0.250)
+    assert lim.velocity[0] == pytest.approx(100.0 * 2.0 * math.pi / 60.0)
+    assert math.isinf(lim.accel[0])  # an X-Z-C lathe sets no C acceleration
+    with pytest.raises(ValueError, match="no Y axis"):
+        catalogs.entry("machines", "sts-xzc").axes.limits(("C", "X", "Y", "Z"))
+
+
+def test_limits_reason_names_axis_value_limit_and_line():
+    lim = _xzc()
+    t = np.arange(5) * 0.1
+    q = np.zeros((5, 3))
+    assert kinematics.limits_reason(q, kinematics.motion(t, q), lim) == ""
+    q[3, 1] = 0.001  # X jumps 1 mm in 0.1 s and back: 10 mm/s, 0.1 m/s² → within the X limits
+    assert kinematics.limits_reason(q, kinematics.motion(t, q), lim) == ""
+    t = np.arange(5) * 0.125  # exact binary steps and positions: no ties broken by rounding
+    q[3:, 1] = (0.25, 0.5)  # X to 250 mm then 500 mm: out of range, 2 m/s, 16 m/s² at line 3
+    reason = kinematics.limits_reason(q, kinematics.motion(t, q), lim)
+    assert "X 500 mm > limit 150 mm (line 5)" in reason
+    assert "X velocity 2000 mm/s > limit 250 mm/s (line 3)" in reason
+    assert "X acceleration 16 m/s² > limit 10 m/s² (line 3)" in reason
+    assert "Z" not in reason and "C" not in reason
+    # a relative slack admits a value just over its limit (printed digits read back)
+    q = np.zeros((3, 3))
+    q[:, 0] = np.arange(3) * lim.velocity[0] * (1.0 + 1e-8) * 0.1
+    assert "C velocity" in kinematics.limits_reason(q, kinematics.motion(np.arange(3) * 0.1, q), lim)
+    assert kinematics.limits_reason(q, kinematics.motion(np.arange(3) * 0.1, q), lim, slack=1e-6) == ""
+
+
+def test_every_kind_forms_accelerations_by_the_same_scheme():
+    # the W command of a table (dynamics), a D path's axes (dpath) and a Fresnel program's
+    # (fresnel.relative_peaks) all go through kinematics.over_steps: the same numbers
+    t = np.linspace(0.0, 1.0, 41) ** 1.3
+    x = 1e3 * np.cos(3.0 * t)  # µm
+    m = dpath.axis_motion(t, np.zeros_like(t), x, x)
+    ref = kinematics.motion(t, (x * 1e-6)[:, None])
+    np.testing.assert_array_equal(m["x_accel_m_s2"], ref.accel[:, 0])
+    np.testing.assert_array_equal(m["z_velocity_mm_s"], ref.velocity[:, 0] * 1e3)
+    assert dynamics.kinematics is kinematics

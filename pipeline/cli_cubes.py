@@ -243,12 +243,14 @@ def _selection_text(chosen: dict[str, Any]) -> str:
         for name, value in chosen.items()
         if name.endswith("_target")
     )
+    aspect = chosen.get("aspect_actual", math.nan)
+    # path programs off the spindle's spiral (D paths, Fresnel) have no aspect ratio
+    alpha = f" (α = {aspect:.4g})" if math.isfinite(aspect) else ""
     return "\n".join(
         [
             f"rule         {chosen['rule']}",
             f"case         {chosen['index']} ({targets})",
-            f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch} "
-            f"(α = {chosen['aspect_actual']:.4g})",
+            f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch}{alpha}",
             f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, {interp})",
         ]
     )

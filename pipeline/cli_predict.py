@@ -18,6 +18,7 @@ from ftsweep.cli_common import (
     echo_json,
     fail,
     flag,
+    fresnel_options,
     progress_done,
     stderr_progress,
 )
@@ -30,13 +31,15 @@ from ftsweep.usersurfaces import SurfaceLoadError
 @click.option("--surface", required=True, metavar="NAME", help="Surface from catalogs/surfaces.yaml.")
 @click.option(
     "--layout",
-    type=click.Choice(["ring", "mesh", "spiral", "dpath"]),
+    type=click.Choice(["ring", "mesh", "spiral", "dpath", "fresnel"]),
     default=None,
     help="Program: a ring (polar grid) or mesh (Cartesian grid) table for an independent FTS "
-    "controller, a spiral path program (points along the tool path, linear between them), or a "
-    "D-path program ([5]: straight cuts over an off-axis part). Default: the surface's table method.",
+    "controller, a spiral path program (points along the tool path, linear between them), a "
+    "D-path program ([5]: straight cuts over an off-axis part) or a freeform Fresnel program "
+    "([2]: 4-axis, facets cut along a quasi-spiral). Default: the surface's table method.",
 )
 @dpath_options
+@fresnel_options
 @click.option("--drho-um", type=FINITE, help="Ring pitch Δρ [µm] (ring layout).")
 @click.option(
     "--dtheta-deg",
@@ -142,6 +145,12 @@ def predict(**opts: Any) -> None:
     a machine with X, Z and C limits and its cutting entry (e.g. --machine sts-xzc --cutting
     dpath-finish). `ftsweep dpath` studies both transitions and the spiral beside it.
 
+    A Fresnel program (--layout fresnel, [2]) slices the surface into facets --facet-height-um
+    high and cuts them along a quasi-spiral, --points-per-turn per turn, feed Δr per turn the
+    --feed-um; its timesteps are optimised for the machine's X, Y, Z, C limits (e.g. --machine
+    xyzc-nanoform --cutting fresnel-finish). P-V and RMS are the facets' (walls excluded);
+    --compensation selects [2]'s exact (eq. 10), slope (eq. 12) or none.
+
     \b
     Examples:
       ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5
@@ -154,6 +163,8 @@ def predict(**opts: Any) -> None:
           --aspect 1 --z-error-um 0.1
       ftsweep predict --surface concave_sphere --layout dpath --spacing-um 20 \\
           --machine sts-xzc --cutting dpath-finish
+      ftsweep predict --surface chebyshev_example --layout fresnel --facet-height-um 10 \\
+          --machine xyzc-nanoform --cutting fresnel-finish
     """
     case = _build_case(opts)
     as_json = opts["as_json"]

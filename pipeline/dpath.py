@@ -234,8 +234,8 @@ class DPathSimulation:
         w_exact = self._exact(pos, w, on_cut, theta)
         t = timer.add("compensation", t)
         rc = rcase.nose_radius_um
-        z, cusp_r, cusp_z = _envelope(pos, w, n_valid, rc, query)
-        z_exact = _envelope(pos, w_exact, n_valid, rc, query)[0] if w_exact is not None else z
+        z, cusp_r, cusp_z = envelope.machined_rows(pos, w, n_valid, rc, query)
+        z_exact = envelope.machined_rows(pos, w_exact, n_valid, rc, query)[0] if w_exact is not None else z
         t = timer.add("envelope", t)
         cusp_f, cusp_in, cusp_dist = self._cusps(cusp_r, ct, st)
         timer.add("metrics", t)
@@ -313,27 +313,6 @@ def _crossings(path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray) -> tupl
         valid & (path.cut[step] >= 0) & (path.cut[step] == path.cut[np.minimum(step + 1, path.n_points - 1)])
     )
     return pos, w, valid, on_cut
-
-
-def _envelope(
-    pos: np.ndarray, w: np.ndarray, n_valid: np.ndarray, rc: float, query: np.ndarray
-) -> tuple[np.ndarray, ...]:
-    """The envelope of the passes' arcs at ``query`` [µm] along each ray, and the cusp peaks
-    (:func:`ftsweep.stages.envelope.envelope_rows`, model §5)."""
-    z = np.empty(query.shape)
-    cusp_r = np.empty(pos.shape)
-    cusp_z = np.empty(pos.shape)
-    envelope.envelope_rows(
-        np.ascontiguousarray(pos),
-        np.ascontiguousarray(w),
-        n_valid,
-        rc,
-        np.ascontiguousarray(query),
-        z,
-        cusp_r,
-        cusp_z,
-    )
-    return z, cusp_r, cusp_z
 
 
 def record_fields(rcase: Any, summary: dict[str, float], z_um: np.ndarray) -> dict[str, Any]:

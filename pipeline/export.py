@@ -22,8 +22,8 @@ Progress = Callable[[int, int], None] | None
 class FileFormat:
     """How one kind of exported file is written, recognised, verified and reported.
 
-    kinds : the cube case kinds (a request's ``kind``) it exports; empty for a format
-        written by its own command (Fresnel programs by ``ftsweep fresnel -o``).
+    kinds : the cube case kinds (a request's ``kind``) it exports (a Fresnel program is also
+        written by its study, ``ftsweep fresnel -o``).
     magic : how its first line starts (None: the default format, read when no other's
         first line matches).
     export : ``(out, side, case, specs, chosen, extra, name) -> sidecar``.
@@ -97,17 +97,30 @@ def _program_format(title: str, kind: str, magic: str, columns: str, write: Any,
 def _fresnel_format() -> FileFormat:
     from ftsweep import fstudy
 
+    def export(*args: Any, name: str | None = None) -> dict[str, Any]:
+        return dict(fstudy.export_case(*args))
+
     def verify(path: Path, progress: Progress, pv_tolerance_nm: float | None, trust: bool) -> dict[str, Any]:
-        return fstudy.verify(path, trust, progress)
+        return fstudy.verify(path, trust, progress, pv_tolerance_nm)
+
+    def exported(out: Path, meta: dict[str, Any]) -> list[str]:
+        return [f"program      {out} ({meta['n_points']:,} lines t C X Y Z, CRC-32 0x{meta['crc32']:08x})"]
 
     def verified(record: dict[str, Any]) -> list[str]:
+        if "pv_nm" not in record:  # a study's program (ftsweep fresnel -o): no prediction recorded
+            return [
+                f"checksum     {record['checksum']} (every line) ok; sidecar and program hashes ok",
+                f"program      fresnel: {record['lines']:,} lines t C X Y Z, {record['machining_s']:.1f} s; "
+                "every line within the machine's limits and as re-planned (t, C, X, Y, Z)",
+            ]
         return [
-            f"checksum     {record['checksum']} (every line) ok; sidecar and program hashes ok",
-            f"program      fresnel: {record['lines']:,} lines t C X Y Z, {record['machining_s']:.1f} s; "
-            "every line within the machine's limits and as re-planned (t, C, X, Y, Z)",
+            f"checksum     {record['checksum']} (every line) ok; sidecar and file hashes ok",
+            f"program      fresnel: {record['n_points']:,} points, every line within the machine's limits "
+            "and as re-planned",
+            *_pv_lines(record, "the program's lines"),
         ]
 
-    return FileFormat("Fresnel program", (), fstudy.F_MAGIC, None, verify, lambda out, meta: [], verified)
+    return FileFormat("Fresnel program", ("fresnel",), fstudy.F_MAGIC, export, verify, exported, verified)
 
 
 @functools.cache

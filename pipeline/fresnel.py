@@ -313,6 +313,15 @@ def relative_peaks(q: np.ndarray, steps: np.ndarray, limits: Limits) -> tuple[np
     return kinematics.relative(kinematics.over_steps(q, steps), limits)
 
 
+def limits_reason(q: np.ndarray, steps: np.ndarray, limits: Limits, slack: float = 0.0) -> str:
+    """Which limits a program of positions q (P, 4) SI and timesteps (P − 1) [s] exceeds on
+    any line (the kinematics stage: [2] eq. 14 for accelerations, differences for
+    velocities), or ''."""
+    if not np.all(steps > 0.0):
+        return "time does not increase from line to line"
+    return kinematics.limits_reason(q, kinematics.over_steps(q, steps), limits, slack)
+
+
 def constant_step(q: np.ndarray, limits: Limits, safety: float) -> float:
     """The least constant timestep [s] at which no axis exceeds 1/K_s of its acceleration or
     velocity limit anywhere in the program (the reference of [2] §2.5)."""
@@ -440,3 +449,18 @@ def timesteps(
         scale,
         time.perf_counter() - start,
     )
+
+
+class FresnelProgram(NamedTuple):
+    """A timed Fresnel program, what the machine runs: its plan, its timesteps, and the path's
+    points (X, Y) [µm] in the part's frame the simulator takes (the plan's, or those a program
+    file's lines give back through eq. 9)."""
+
+    kind: str
+    plan: FresnelPlan
+    steps: Timesteps
+    xy: np.ndarray
+
+    @property
+    def n_points(self) -> int:
+        return int(self.xy.shape[0])

@@ -17,7 +17,6 @@ from ftsweep import __version__, catalogs
 from ftsweep import fresnel as fp
 from ftsweep.io import save_figure
 from ftsweep.stages import fresnel as ff
-from ftsweep.stages import kinematics
 
 F_MAGIC = "# ftsweep Fresnel program"
 F_COLUMNS = "t_s C_deg X_mm Y_mm Z_mm"
@@ -149,7 +148,7 @@ def summary(inp: Inputs, fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: fp.
         "relative_accel_max": dict(zip(fp.AXES, (float(v) for v in acc.max(axis=0)), strict=True)),
         "relative_velocity_max": dict(zip(fp.AXES, (float(v) for v in vel.max(axis=0)), strict=True)),
         "limiting_axis_counts": _limiting_axes(acc, path.points_per_turn),
-        "within_limits": not limits_reason(q, steps.steps, limits),
+        "within_limits": not fp.limits_reason(q, steps.steps, limits),
         "planning_s": fplan.planning_s,
         "timesteps_s": steps.seconds,
     }
@@ -160,15 +159,6 @@ def _limiting_axes(acc: np.ndarray, k: int) -> dict[str, int]:
     turns = (acc.shape[0] - 1) // k
     which = acc[: turns * k].reshape(turns, k, acc.shape[1]).max(axis=1).argmax(axis=1)
     return {axis: int(np.sum(which == i)) for i, axis in enumerate(fp.AXES)}
-
-
-def limits_reason(q: np.ndarray, steps: np.ndarray, limits: fp.Limits, slack: float = 0.0) -> str:
-    """Which limits a program of positions q (P, 4) SI and timesteps (P − 1) [s] exceeds on
-    any line (the kinematics stage: [2] eq. 14 for accelerations, differences for
-    velocities), or ''."""
-    if not np.all(steps > 0.0):
-        return "time does not increase from line to line"
-    return kinematics.limits_reason(q, kinematics.over_steps(q, steps), limits, slack)
 
 
 def public(s: dict[str, Any]) -> dict[str, Any]:
@@ -353,7 +343,7 @@ def lines_reason(data: np.ndarray, limits: fp.Limits) -> str:
     """The limit lines (t [s], C [deg], X, Y, Z [mm]) exceed, checked on every line, or ''."""
     q = np.column_stack([np.radians(data[:, 1]), data[:, 2:] * 1e-3])
     # printed digits (1 ns, 1 pm) move accelerations by far less than this slack
-    return limits_reason(q, np.diff(data[:, 0]), limits, slack=1e-6)
+    return fp.limits_reason(q, np.diff(data[:, 0]), limits, slack=1e-6)
 
 
 def recorded_inputs(meta: dict[str, Any], side: Path) -> Inputs:
@@ -369,7 +359,10 @@ def recorded_inputs(meta: dict[str, Any], side: Path) -> Inputs:
 
 
 def verify(
-    path: Path, trust_plugins: bool = False, progress: Optional[Callable[[int, int], None]] = None
+    path: Path,
+    trust_plugins: bool = False,
+    progress: Optional[Callable[[int, int], None]] = None,
+    pv_tolerance_nm: Optional[float] = None,
 ) -> dict[str, Any]:
     """Re-read a Fresnel program: CRC (every line) and sidecar, every line within the
     recorded machine's limits (positions, velocities, accelerations by eq. 14), and the
@@ -380,6 +373,8 @@ def verify(
 
     doc = files.read_program_file(path, F_MAGIC, F_COLUMNS)
     meta = files.checked_sidecar(path, doc.fields)
+    if "case" in meta:  # exported from a cube case
+        return verify_case(path, doc, meta, trust_plugins, progress, pv_tolerance_nm)
     side = files.sidecar_path(path)
     inp = recorded_inputs(meta, side)
     try:
@@ -407,3 +402,114 @@ def verify(
         "checksum": doc.crc,
         "within_limits": True,
     }
+
+
+# --------------------------------------------------------------------------- cube cases
+def case_document(
+    case: Any,
+    specs: tuple[Any, Any, Any],
+    chosen: dict[str, Any],
+    extra: dict[str, Any],
+    created: str,
+    generator: str,
+    rcase: Any = None,
+) -> tuple[list[str], list[str], dict[str, Any]]:
+    """The header lines, data lines and sidecar content of a Fresnel case of a cube, planned
+    and timed from its spec and entries (or ``rcase``, resolved already): export writes them,
+    verify re-derives them. The sidecar records the case (the kind's request) as for every
+    path program."""
+    from ftsweep.files import ProgramError, recorded_entries
+    from ftsweep.kinds.fresnel import record_fields
+    from ftsweep.planning import resolve_case
+
+    rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
+    prog = rcase.layout
+    if prog.n_points != chosen["n_points"]:
+        raise ProgramError(
+            f"the prediction says {chosen['n_points']} points but the spec plans {prog.n_points}"
+        )
+    fplan, steps = prog.plan, prog.steps
+    lines = _lines(fplan, steps)
+    fields = record_fields(rcase)
+    meta = {
+        "generator": generator,
+        "created": created,
+        "layout": "fresnel",
+        "n_points": prog.n_points,
+        "surface": case.surface,
+        "compensation": case.compensation,
+        "machining_s": fields["machining_s"],
+        "pv_nm": chosen["pv_nm"],
+        **extra,
+        "selection": {k: v for k, v in chosen.items() if not isinstance(v, (list, dict)) or k == "case"},
+        "case": case.model_dump(mode="json"),
+        "catalog_entries": recorded_entries(specs),
+    }
+    head = [
+        f"{F_MAGIC} (C, X, Y, Z move linearly in time between consecutive lines)",
+        f"# generator: {generator}; created {created}",
+        f"# surface: {case.surface}, Fresnel facets of {fplan.facet_height_um:g} um ({fplan.path.n_facets}); "
+        f"machine: {case.machine}",
+        f"# path: quasi-spiral, {fplan.path.n_turns} turns of {fplan.path.points_per_turn} points, feed "
+        f"{fplan.feed_um:g} um per turn; rake face {fields['deviation_deg']:g} deg from the cutting "
+        "direction",
+        f"# tool: nose radius {fplan.nose_radius_um:g} um; compensation {fplan.compensation}",
+        f"# timing: adaptive timesteps, {fields['machining_s']:.3f} s in all",
+        f"# predicted P-V: {chosen['pv_nm']:.6f} nm",
+        f"# points: {len(lines)}",
+        "# units: t [s] from the first line, C [deg] accumulated, X Y [mm] tool, Z [mm] tool tip",
+    ]
+    return head, lines, meta
+
+
+def _lines(fplan: fp.FresnelPlan, steps: fp.Timesteps) -> list[str]:
+    """The program's ``t C X Y Z`` lines."""
+    t = np.concatenate([[0.0], np.cumsum(steps.steps)])
+    cols = (t, np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um * 1e-3)
+    return [F_LINE.format(*row) for row in zip(*cols, strict=True)]
+
+
+def export_case(
+    out: Path,
+    side: Path,
+    case: Any,
+    specs: tuple[Any, Any, Any],
+    chosen: dict[str, Any],
+    extra: dict[str, Any],
+) -> dict[str, Any]:
+    """Plan and time the chosen Fresnel case of a cube again ([2]) and write it as ``t C X Y Z``
+    lines with its sidecar, atomically; refused if any line leaves the machine's limits."""
+    from ftsweep import files
+
+    head, lines, meta = case_document(case, specs, chosen, extra, files.now(), f"ftsweep {__version__}")
+    data = np.array([[float(v) for v in line.split()] for line in lines])
+    reason = lines_reason(data, fp.limits_of(specs[1], case.machine))
+    if reason:
+        raise files.ProgramError(f"the program leaves the limits of machine '{case.machine}': {reason}")
+    return files.write_program(out, side, head, F_COLUMNS, lines, meta)
+
+
+def verify_case(
+    path: Path, doc: Any, meta: dict[str, Any], trust_plugins: bool, progress: Any, pv_tolerance_nm: Any
+) -> dict[str, Any]:
+    """Check a Fresnel program exported from a cube case: every line within the machine's
+    limits, every header and data line as its recorded case plans and times it again, and the
+    part re-simulated from the lines' own C, X, Y and Z (eq. 9 back to the part's frame)."""
+    from ftsweep import files
+    from ftsweep.case import run_case
+    from ftsweep.planning import resolve_case
+
+    case, specs = files.recorded_case_of(meta, files.sidecar_path(path), trust_plugins)
+    reason = lines_reason(doc.data, fp.limits_of(specs[1], case.machine))
+    if reason:
+        raise files.ProgramError(f"{path}: a line leaves the machine's limits: {reason}; do not run it")
+    rcase = resolve_case(case, specs=specs)
+    planned = case_document(
+        case, specs, meta["selection"], files.recorded_extra(meta), meta["created"], meta["generator"], rcase
+    )
+    files.check_document(path, doc, planned, meta, F_COLUMNS)
+    data = doc.data
+    phi = np.radians(data[:, 1])
+    given = rcase.layout._replace(xy=ff.workpiece_of(phi, data[:, 2] * 1e3, data[:, 3] * 1e3))
+    record = run_case(case, specs=specs, progress=progress, program=(given, data[:, 4] * 1e3))
+    return files.checked_pv(path, meta, record, pv_tolerance_nm)

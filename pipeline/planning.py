@@ -69,7 +69,9 @@ def resolve_case(
     feed = kind.feed(case, cutting, rc, surface_spec, catalog_folder, program)
     bound = _checked_bounds(case, surface_spec, catalog_folder, feed, rc)
     surface = catalogs.surface_callable(surface_spec, catalog_folder)
-    planning = kinds.Planning(case, surface_spec, machine, surface, feed, rc, bound, catalog_folder, program)
+    planning = kinds.Planning(
+        case, surface_spec, machine, cutting, surface, feed, rc, bound, catalog_folder, program
+    )
     layout, extra = kind.plan(planning)
     check_capacity(case, kind.noun, layout.n_points, machine.capacity_points)
     return ResolvedCase(

@@ -12,11 +12,12 @@ from typing import Any, Optional
 
 import numpy as np
 
-KINDS = ("ring", "mesh", "spiral", "dpath")
+KINDS = ("ring", "mesh", "spiral", "dpath", "fresnel")
 TABLES = ("ring", "mesh")
 SPINDLE = ("ring", "mesh", "spiral")  # programs on the spiral about the spindle axis
-PATHS = ("spiral", "dpath")
+PATHS = ("spiral", "dpath", "fresnel")
 DPATH = ("dpath",)
+FRESNEL = ("fresnel",)
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ STAGES = ("sampling", "compensation", "interpolation", "envelope", "metrics", "d
 RESULT: tuple[Quantity, ...] = (
     # what was simulated
     _text("surface", "surface catalog entry"),
-    _text("layout", "program kind: ring or mesh table, spiral path or D path"),
+    _text("layout", "program kind: ring or mesh table, spiral path, D path or Fresnel program"),
     _text("compensation", "tool-nose compensation of the table: exact, slope or none"),
     _text("machine", "machine catalog entry"),
     _input("feed_um", "um", "feed per spindle revolution"),
@@ -110,6 +111,15 @@ RESULT: tuple[Quantity, ...] = (
     _f("cut_length_um", "um", "length l of the cuts (the zone along them)", DPATH),
     _f("cut_width_um", "um", "width s of the cutting zone across the cuts", DPATH),
     _f("cut_step_um", "um", "distance between consecutive points of a cut", DPATH),
+    # the freeform Fresnel program on an X-Y-Z-C lathe ([2]); its options are inputs
+    Quantity("facet_height_um", "height h of every Fresnel facet", "um", kinds=FRESNEL),
+    Quantity("points_per_turn", "control points K on every turn of the quasi-spiral", "1", kinds=FRESNEL),
+    Quantity("deviation_deg", "rake face turned from the cutting direction", "deg", kinds=FRESNEL),
+    _i("n_facets", "Fresnel facets the surface is sliced into", "int32", FRESNEL),
+    _f("ez_exact_max_nm", "nm", "largest tool-edge compensation by [2] eq. 10", FRESNEL),
+    _f("ez_straight_max_nm", "nm", "largest tool-edge compensation by [2] eq. 12", FRESNEL),
+    _f("time_constant_s", "s", "machining time at the least constant timestep within the limits", FRESNEL),
+    _f("speedup", "1", "machining time at the constant timestep over that of the adaptive ones", FRESNEL),
     # the form error (model §6)
     _f("pv_nm", "nm", "peak-to-valley form error"),
     _f("rms_nm", "nm", "RMS form error about its mean"),
@@ -187,6 +197,7 @@ PITCHES = {
     "mesh": ("dx_um", "dy_um"),
     "spiral": ("dphi_deg", "ds_um"),
     "dpath": ("dphi_deg", "ds_um"),
+    "fresnel": ("dphi_deg", "ds_um"),
 }
 
 

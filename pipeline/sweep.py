@@ -66,13 +66,17 @@ class SweepAxes(Strict):
     )
     spacing_um: Optional[AxisSpec] = Field(None, description="D path: spacing h between cuts [µm]")
     points_per_cut: Optional[AxisSpec] = Field(None, description="D path: points on every cut")
+    facet_height_um: Optional[AxisSpec] = Field(None, description="Fresnel: facet heights h [µm]")
+    points_per_turn: Optional[AxisSpec] = Field(None, description="Fresnel: control points K per turn")
     feed_um: Optional[AxisSpec] = Field(None, description="feeds per revolution [µm/rev]")
     nose_radius_um: Optional[AxisSpec] = Field(None, description="tool nose radii [µm]")
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
         # table and spiral sweep specs keep their hashes
-        return catalogs.without_defaults(handler(self), dict.fromkeys((*SPIRAL_AXES, *DPATH_AXES)))
+        return catalogs.without_defaults(
+            handler(self), dict.fromkeys((*SPIRAL_AXES, *DPATH_AXES, *FRESNEL_AXES))
+        )
 
 
 CATALOG_KIND = {"surface": "surfaces", "machine": "machines", "cutting": "cutting"}
@@ -98,7 +102,7 @@ class SweepSpec(Strict):
 
     description: str = ""
     surface: str
-    layout: Optional[Literal["ring", "mesh", "spiral", "dpath"]] = Field(
+    layout: Optional[Literal["ring", "mesh", "spiral", "dpath", "fresnel"]] = Field(
         None, description="default: the surface's"
     )
     dpath: Optional[dict[str, Any]] = Field(
@@ -183,7 +187,8 @@ class SweepSpec(Strict):
 SPIRAL_RULE_AXES = ("points_per_rev", "arc_um", "chord_um")
 SPIRAL_AXES = (*SPIRAL_RULE_AXES, "residual_um")
 DPATH_AXES = ("spacing_um", "points_per_cut")
-AXIS_ORDER = ("points", "aspect", *SPIRAL_AXES, *DPATH_AXES, "feed_um", "nose_radius_um")
+FRESNEL_AXES = ("facet_height_um", "points_per_turn")
+AXIS_ORDER = ("points", "aspect", *SPIRAL_AXES, *DPATH_AXES, *FRESNEL_AXES, "feed_um", "nose_radius_um")
 AXIS_ATTRS = {
     "points": {"units": "1", "long_name": "target number of control points"},
     "points_per_rev": {"units": "1", "long_name": "points per revolution of the spiral"},
@@ -192,6 +197,8 @@ AXIS_ATTRS = {
     "residual_um": {"units": "um", "long_name": "residual (cusp) budget that sets the feed"},
     "spacing_um": {"units": "um", "long_name": "spacing between the D path's cuts"},
     "points_per_cut": {"units": "1", "long_name": "points on every cut of the D path"},
+    "facet_height_um": {"units": "um", "long_name": "height of every Fresnel facet"},
+    "points_per_turn": {"units": "1", "long_name": "control points on every turn of the quasi-spiral"},
     "feed_um": {"units": "um", "long_name": "feed per spindle revolution"},
     "nose_radius_um": {"units": "um", "long_name": "tool nose radius"},
 }

@@ -217,3 +217,24 @@ def envelope_rows(pos, w, n_valid, rc, query, z, cusp_r, cusp_z):  # pragma: no 
             d = x - p[k]
             cusp_r[a, c - 1] = x
             cusp_z[a, c - 1] = ww[k] + rc - math.sqrt(max(rc * rc - d * d, 0.0))
+
+
+def machined_rows(
+    pos: np.ndarray, w: np.ndarray, n_valid: np.ndarray, rc: float, query: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`envelope_rows` with its outputs allocated: machined height z at ``query`` [µm]
+    along each ray, and the cusp peaks (radius, height) [µm] between the passes (§5)."""
+    z = np.empty(query.shape)
+    cusp_r = np.empty(pos.shape)
+    cusp_z = np.empty(pos.shape)
+    envelope_rows(
+        np.ascontiguousarray(pos, dtype=np.float64),
+        np.ascontiguousarray(w, dtype=np.float64),
+        np.ascontiguousarray(n_valid, dtype=np.int64),
+        float(rc),
+        np.ascontiguousarray(query, dtype=np.float64),
+        z,
+        cusp_r,
+        cusp_z,
+    )
+    return z, cusp_r, cusp_z

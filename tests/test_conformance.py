@@ -155,6 +155,14 @@ class TestDPath(KindTests):
     )
 
 
+class TestFresnel(KindTests):
+    kind = "fresnel"
+    sweep = (
+        "surface: chebyshev_example\nlayout: fresnel\nmachine: xyzc-nanoform\ncutting: fresnel-finish\n"
+        "axes: {facet_height_um: [10.0], points_per_turn: [60], feed_um: [8.0]}\n"
+    )
+
+
 def test_every_registered_kind_has_a_conformance_subclass():
     covered = {cls.kind for cls in KindTests.__subclasses__()}
     assert covered == set(kinds.registry())

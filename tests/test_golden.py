@@ -52,6 +52,14 @@ def _kind_cases() -> dict[str, Case]:
         "dpath": _case(
             "concave_sphere", {"kind": "dpath", "spacing_um": 500.0, "points_per_cut": 41}, **sphere
         ),
+        # added with the Fresnel kind (issue 27), after the refactor's other moves
+        "fresnel-case": _case(
+            "chebyshev_example",
+            {"kind": "fresnel", "points_per_turn": 60},
+            machine="xyzc-nanoform",
+            cutting="fresnel-finish",
+            feed_um=8.0,
+        ),
     }
 
 

@@ -29,6 +29,13 @@ KIND_CASES = {
         machine="sts-xzc",
         cutting="dpath-finish",
     ),
+    "fresnel": Case(
+        surface="chebyshev_example",
+        layout=program_request(kind="fresnel", points_per_turn=40),
+        machine="xyzc-nanoform",
+        cutting="fresnel-finish",
+        feed_um=8.0,
+    ),
 }
 
 

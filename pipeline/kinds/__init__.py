@@ -25,6 +25,7 @@ class Planning(NamedTuple):
     case: Any
     surface_spec: Any
     machine: Any
+    cutting: Any
     surface: Callable[..., Any]
     feed_um: float
     nose_radius_um: float
@@ -119,9 +120,9 @@ class ProgramKind:
 @functools.cache
 def registry() -> dict[str, ProgramKind]:
     """Every registered program kind by name."""
-    from ftsweep.kinds import dpath, spiral, table
+    from ftsweep.kinds import dpath, fresnel, spiral, table
 
-    return {k.name: k for k in (table.RING, table.MESH, spiral.SPIRAL, dpath.DPATH)}
+    return {k.name: k for k in (table.RING, table.MESH, spiral.SPIRAL, dpath.DPATH, fresnel.FRESNEL)}
 
 
 def check_sweep_axes(spec: Any) -> None:

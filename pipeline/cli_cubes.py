@@ -450,9 +450,17 @@ def report(
     help="List cubes made under different conditions (surface, nose radius, feed, machine, "
     "compensation, resolution) instead of refusing them; the differences are flagged.",
 )
+@click.option(
+    "--as-recorded",
+    is_flag=True,
+    help="Show the cubes' P-V as recorded, each kind on its own spindle-angle sampling, instead of "
+    "simulating the tables' and spirals' rows again on the finest sampling among them.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object (the rows) on stdout.")
-def compare(cubes: tuple[Path, ...], out: Optional[Path], allow_different: bool, as_json: bool) -> None:
-    """Compare program kinds on one part: tables (ring, mesh), spiral and D-path programs.
+def compare(
+    cubes: tuple[Path, ...], out: Optional[Path], allow_different: bool, as_recorded: bool, as_json: bool
+) -> None:
+    """Compare program kinds on one part: tables (ring, mesh), spiral, D-path and Fresnel programs.
 
     Give the cubes of sweeps on the same part under the same conditions, e.g. a ring sweep
     and a spiral sweep: cubes whose surface, nose radius, feed (a swept feed or D-path
@@ -462,38 +470,72 @@ def compare(cubes: tuple[Path, ...], out: Optional[Path], allow_different: bool,
     sweep) its best feasible case is listed with its realised N and P-V, one block per
     program; -o draws P-V against point count, one line per program.
 
+    A table's cases are simulated on spindle angles set by its cells, a spiral's by its
+    densest revolution: the rows of tables and spirals are simulated again on the finest
+    sampling among them (their cube's P-V shown as "recorded"; --as-recorded skips this).
+
     \b
     Example:
       ftsweep sweep sinewave-ring && ftsweep sweep sinewave-spiral
       ftsweep compare outputs/sinewave-ring.zarr outputs/sinewave-spiral.zarr -o outputs/compare.png
     """
-    from ftsweep.compare import CONDITIONS, compare_rows, differing, plot_compare
+    from ftsweep.compare import common_sampling, compare_rows, plot_compare
     from ftsweep.cube import CubeError
     from ftsweep.io import save_figure
     from ftsweep.select import SelectError
 
+    progress = stderr_progress("re-simulating", as_json)
     try:
         rows, per_cube = compare_rows(list(cubes), allow_different)
-    except (SelectError, CubeError) as exc:
+        n_theta = None if as_recorded else common_sampling(rows, progress=progress)
+    except (SelectError, CubeError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None
+    finally:
+        progress_done(progress)
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         save_figure(plot_compare(rows).figure, out)
+    _print_compare(rows, per_cube, n_theta, out, as_json)
+
+
+def _print_compare(
+    rows: list[dict[str, Any]],
+    per_cube: dict[str, Any],
+    n_theta: Optional[int],
+    out: Optional[Path],
+    as_json: bool,
+) -> None:
+    from ftsweep.compare import CONDITIONS, differing
+
     differ = differing(per_cube)
     if as_json:
         echo_json(
-            {"rows": rows, "conditions": per_cube, "different": differ, "plot": str(out) if out else None}
+            {
+                "rows": rows,
+                "conditions": per_cube,
+                "different": differ,
+                "common_n_theta": n_theta,
+                "plot": str(out) if out else None,
+            }
         )
         return
     for label, cond in per_cube.items():
         shown = "; ".join(f"{c} {cond[c]}" + (" (differs)" if c in differ else "") for c in CONDITIONS)
         click.echo(f"conditions   {label}: {shown}")
-    head = f"  {'program':<40s} {'target':>10s} {'actual N':>10s} {'P-V nm':>9s} {'RMS nm':>8s}"
+    if n_theta is not None:
+        click.echo(
+            f"sampling     tables and spirals simulated on {n_theta:,} spindle angles (the finest of theirs)"
+        )
+    head = (
+        f"  {'program':<40s} {'target':>10s} {'actual N':>10s} {'P-V nm':>9s} {'recorded':>9s} {'RMS nm':>8s}"
+    )
     click.echo(head + f" {'interp nm':>9s} {'angles':>7s}")
     for r in rows:
+        recorded = r.get("pv_recorded_nm")
         click.echo(
             f"  {r['program']:<40s} {r['target']:10,.4g} {r['n_points']:10,d} {r['pv_nm']:9.2f} "
-            f"{r['rms_nm']:8.2f} {r['pv_interp_nm']:9.2f} "
+            + (f"{recorded:9.2f} " if recorded is not None else f"{'–':>9s} ")
+            + f"{r['rms_nm']:8.2f} {r['pv_interp_nm']:9.2f} "
             + (f"{r['n_theta']:7,d}" if r["n_theta"] is not None else f"{'–':>7s}")
         )
     if out is not None:

@@ -5,16 +5,23 @@ Each cube contributes one line: for every value of its point axis (target N of a
 sweep, or the rule axis of a spiral sweep) its best eligible case, the one ``select`` would
 choose there (:func:`ftsweep.query.best_per_points`). The table lists them side by side and
 the plot draws P-V against the realised point count, one line per cube (program kind).
+
+Each kind's own rule sets the spindle angles it is simulated on (a table's by its cells, a
+spiral's by its densest revolution), which moves P-V by a few per cent; so the rows of
+spindle programs are simulated again on one sampling, the finest among them
+(:func:`common_sampling`), their cube's P-V kept beside. D paths and Fresnel programs are
+sampled on rays of their own geometry and keep theirs.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 from ftsweep import kinds, query
-from ftsweep.select import SelectError, open_cube
+from ftsweep.select import SelectError, open_cube, recorded_case
 
 
 def label_of(ds: Any, path: Path) -> str:
@@ -88,6 +95,9 @@ def compare_rows(
             rows.append(
                 {
                     "program": label,
+                    "kind": str(ds.attrs.get("layout_method")),
+                    "cube": str(path),
+                    "index": int(flat),
                     "target": target,
                     "n_points": case["n_points"],
                     "pv_nm": case["pv_nm"],
@@ -131,3 +141,34 @@ def plot_compare(rows: list[dict[str, Any]], title: str = "") -> Any:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     return ax
+
+
+def common_sampling(
+    rows: list[dict[str, Any]],
+    trust_plugins: bool = False,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> Optional[int]:
+    """Simulate the rows of spindle programs (kinds sampled by spindle angles) again on the
+    largest angle count among them, in place: ``pv_nm``, ``rms_nm``, ``pv_interp_nm`` and
+    ``n_theta`` then hold that sampling's, ``pv_recorded_nm`` the cube's. Returns the count
+    (None when fewer than two such rows). Each case is re-planned from its cube's recorded
+    spec and entries."""
+    from ftsweep.case import run_case
+
+    spindle = [r for r in rows if kinds.kind(r["kind"]).angular_cells is not None and r["n_theta"]]
+    if len(spindle) < 2:
+        return None
+    n_theta = max(int(r["n_theta"]) for r in spindle)
+    todo = [r for r in spindle if r["n_theta"] != n_theta]
+    for r in spindle:
+        r["pv_recorded_nm"] = r["pv_nm"]
+    opened: dict[str, Any] = {}
+    for i, r in enumerate(todo):
+        ds = opened.setdefault(r["cube"], open_cube(Path(r["cube"])))
+        case, specs = recorded_case(ds, r["index"], trust_plugins)
+        case = case.model_copy(update={"resolution": case.resolution.model_copy(update={"n_theta": n_theta})})
+        record = run_case(case, specs=specs)
+        r.update({k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "n_theta")})
+        if progress is not None:
+            progress(i + 1, len(todo))
+    return n_theta

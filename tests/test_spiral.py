@@ -289,14 +289,28 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
         env={"FTSWEEP_CATALOGS": str(catalog_dir)},
     )
     assert res.exit_code == 0, res.output
-    rows = json.loads(res.stdout)["rows"]
+    out = json.loads(res.stdout)
+    rows = out["rows"]
     assert {r["program"].split()[0] for r in rows} == {"ring", "spiral"} and len(rows) == 4
     spiral_rows = [r for r in rows if r["program"].startswith("spiral")]
-    assert [r["pv_nm"] for r in spiral_rows] == [best_pv(a, 40), best_pv(a, 90)]
+    # the cube's P-V is kept as recorded; every row is simulated again on one sampling, the
+    # finest among them (tables by their cells, spirals by their densest revolution)
+    assert [r["pv_recorded_nm"] for r in spiral_rows] == [best_pv(a, 40), best_pv(a, 90)]
     assert png.stat().st_size > 0
-    assert json.loads(res.stdout)["different"] == ["feed_um"]
-    # each row says on how many spindle angles it was simulated (tables and spirals differ)
-    assert all(r["n_theta"] > 0 for r in rows)
+    assert out["different"] == ["feed_um"]
+    common = out["common_n_theta"]
+    assert common > 0 and all(r["n_theta"] == common for r in rows)
+    recorded = CliRunner().invoke(
+        main,
+        ["compare", str(tmp_path / "r.zarr"), str(tmp_path / "a.zarr"), "--json", "--allow-different",
+         "--as-recorded"],
+        env={"FTSWEEP_CATALOGS": str(catalog_dir)},
+    )  # fmt: skip
+    as_recorded = json.loads(recorded.stdout)["rows"]
+    assert len({r["n_theta"] for r in as_recorded}) > 1  # each kind on its own sampling
+    for r, again in zip(as_recorded, rows, strict=True):
+        if r["n_theta"] == common:  # already on the common sampling: not simulated again
+            assert again["pv_nm"] == r["pv_nm"]
 
     # cubes made at different feeds are refused, naming the difference; --allow-different
     # lists them with the difference flagged

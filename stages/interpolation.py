@@ -102,7 +102,7 @@ def bilinear(table: np.ndarray, u: np.ndarray, v: np.ndarray, periodic: bool) ->
 
 def table_indices(layout: Layout, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Fractional table indices (u, v) of tool positions ρ [µm], θ [rad] (model §2–3)."""
-    if layout.kind == "ring":
+    if layout.periodic:  # rings: polar (ρ, θ) indices
         u = (rho - layout.origin[0]) / layout.pitch[0]
         v = (np.degrees(theta) - layout.origin[1]) / layout.pitch[1]
         return u, v
@@ -134,7 +134,7 @@ def pass_commands(layout: Program, table: np.ndarray, grid: PathGrid) -> np.ndar
         phi = 2.0 * math.pi * k[None, :] + grid.ray_theta[:, None]
         return spiral_commands(layout, np.asarray(table, dtype=np.float64), phi)
     theta = grid.ray_theta[:, None]
-    if layout.kind == "ring":
+    if layout.periodic:
         ray_a = ((np.degrees(theta) - layout.origin[1]) / layout.pitch[1]).ravel()
         ray_b = ray_a
     else:
@@ -142,7 +142,7 @@ def pass_commands(layout: Program, table: np.ndarray, grid: PathGrid) -> np.ndar
     out = np.empty((grid.ray_theta.size, int(grid.n_passes.max())))
     _pass_commands_kernel(
         np.ascontiguousarray(table, dtype=np.float64),
-        layout.kind == "ring",
+        bool(layout.periodic),
         float(layout.origin[0]),
         float(layout.origin[1]),
         float(layout.pitch[0]),

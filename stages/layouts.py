@@ -40,7 +40,7 @@ class Layout(NamedTuple):
 
     @property
     def periodic(self) -> bool:
-        """Whether the second index wraps around (θ for the ring method)."""
+        """Whether the table is polar, its second index θ wrapping around (the ring method)."""
         return self.kind == "ring"
 
 

@@ -16,6 +16,9 @@ import numpy as np
 from ftsweep import __version__, catalogs
 from ftsweep import fresnel as fp
 from ftsweep.io import save_figure
+from ftsweep.kinds.requests import FresnelRequest
+from ftsweep.planning import resolve_case
+from ftsweep.spec import Case, CaseError
 from ftsweep.stages import fresnel as ff
 
 F_MAGIC = "# ftsweep Fresnel program"
@@ -51,26 +54,28 @@ def _entries(inp: Inputs, folder: Optional[Path] = None) -> tuple[Any, Any, Any]
     )
 
 
-def plan_of(inp: Inputs, specs: tuple[Any, Any, Any], folder: Optional[Path] = None) -> fp.FresnelPlan:
-    """The planned program of ``inp`` from validated (surface, machine, cutting) specs."""
-    surface, _, cutting = specs
-    return fp.plan(
-        catalogs.base_callable(surface, folder),
-        catalogs.aperture_of(surface),
-        inp.facet_height_um,
-        cutting.feed_um,
-        cutting.nose_radius_um,
-        inp.points_per_turn,
-        inp.deviation_deg,
-        inp.compensation,
-        inp.scheme,
-        specs[1].capacity_points,
+# a study's compensation names [2]'s; a case's are the model's (kinds.fresnel.COMPENSATION)
+CASE_COMPENSATION = {"exact": "exact", "straight": "slope", "none": "none"}
+
+
+def case_of(inp: Inputs) -> Case:
+    """The case of a study's inputs: the Fresnel kind's request with the study's options, the
+    feed and nose radius of its cutting entry."""
+    request = FresnelRequest(
+        kind="fresnel",
+        facet_height_um=inp.facet_height_um,
+        points_per_turn=inp.points_per_turn,
+        deviation_deg=inp.deviation_deg,
+        safety=inp.safety,
+        control_points=inp.scheme,
     )
-
-
-def reference_step(inp: Inputs, cutting: Any) -> float:
-    """T0 [s]: one turn of K steps at the cutting entry's spindle speed."""
-    return 60.0 / (cutting.spindle_rpm * inp.points_per_turn)
+    return Case(
+        surface=inp.surface,
+        layout=request,
+        machine=inp.machine,
+        cutting=inp.cutting,
+        compensation=CASE_COMPENSATION.get(inp.compensation, inp.compensation),  # else named by Case
+    )
 
 
 def study(
@@ -79,13 +84,17 @@ def study(
     progress: Optional[Callable[[int, int], None]] = None,
     specs: Optional[tuple[Any, Any, Any]] = None,
 ) -> dict[str, Any]:
-    """Plan, time and summarise a Fresnel program; ``_plan`` and ``_steps`` hold the arrays.
-    ``specs`` (surface, machine, cutting) replace the catalog look-up of ``inp``'s names
-    (verify re-plans from the entries a sidecar recorded)."""
+    """Plan, time and summarise a Fresnel program through its kind (the case of ``inp``,
+    :func:`case_of`); ``_plan`` and ``_steps`` hold the arrays. ``specs`` (surface, machine,
+    cutting) replace the catalog look-up of ``inp``'s names (verify re-plans from the entries
+    a sidecar recorded)."""
     specs = specs or _entries(inp, folder)
     limits = fp.limits_of(specs[1], inp.machine)
-    fplan = plan_of(inp, specs, folder)
-    steps = fp.timesteps(fplan, limits, inp.safety, reference_step(inp, specs[2]), progress)
+    try:
+        rcase = resolve_case(case_of(inp), folder, specs, progress=progress)
+    except CaseError as exc:
+        raise ff.FresnelError(str(exc).removeprefix("Fresnel program: ")) from None
+    fplan, steps = rcase.layout.plan, rcase.layout.steps
     out = summary(inp, fplan, steps, limits)
     out.update(_plan=fplan, _steps=steps, _specs=specs)
     return out

@@ -7,6 +7,7 @@ plan of a program deeper than the stroke ([3]).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Optional
 
@@ -54,6 +55,7 @@ def resolve_case(
     catalog_folder: Any = None,
     specs: Optional[tuple[Any, Any, Any]] = None,
     program: Optional[tuple[Any, np.ndarray]] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
 ) -> ResolvedCase:
     """Look up a case's entries (or take ``specs``) and refuse what cannot be simulated: a
     feed not below 2·Rc (model §5), a layout the aperture or the
@@ -62,7 +64,8 @@ def resolve_case(
     The case's kind (:mod:`ftsweep.kinds`) sets its feed and plans its program: a table's
     layout, a spiral's points by its rule and their compensated commands ([4]), a D path
     ([5]); a given ``program`` (path, commands [µm]), e.g. read back from an exported file,
-    is taken as it stands instead."""
+    is taken as it stands instead. ``progress(done, total)`` follows a long planning (a
+    Fresnel program's timing)."""
     surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
     rc = case.nose_radius_of(cutting)
     kind = kinds.kind(case.layout.kind)
@@ -70,7 +73,7 @@ def resolve_case(
     bound = _checked_bounds(case, surface_spec, catalog_folder, feed, rc)
     surface = catalogs.surface_callable(surface_spec, catalog_folder)
     planning = kinds.Planning(
-        case, surface_spec, machine, cutting, surface, feed, rc, bound, catalog_folder, program
+        case, surface_spec, machine, cutting, surface, feed, rc, bound, catalog_folder, program, progress
     )
     layout, extra = kind.plan(planning)
     check_capacity(case, kind.noun, layout.n_points, machine.capacity_points)

@@ -19,8 +19,9 @@ from typing import Any, NamedTuple, Optional, Protocol
 
 class Planning(NamedTuple):
     """What a kind's ``plan`` receives: the case, its entries, the surface callable, the feed
-    [µm/rev] and nose radius [µm] in force, the slope bound, the catalog folder, and a given
-    program (path, commands [µm]) read back from a file, or None to plan one."""
+    [µm/rev] and nose radius [µm] in force, the slope bound, the catalog folder, a given
+    program (path, commands [µm]) read back from a file, or None to plan one, and a progress
+    callback ``(done, total)`` for a long planning (None: silent)."""
 
     case: Any
     surface_spec: Any
@@ -32,6 +33,7 @@ class Planning(NamedTuple):
     gradient_bound: float
     catalog_folder: Any
     program: Optional[tuple[Any, Any]]
+    progress: Optional[Callable[[int, int], None]] = None
 
 
 class Simulating(NamedTuple):

@@ -69,9 +69,8 @@ def _plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
             p.machine.capacity_points,
         )
         limits = fresnel.limits_of(p.machine, case.machine)
-        steps = fresnel.timesteps(
-            fplan, limits, float(option(req, "safety")), 60.0 / (p.cutting.spindle_rpm * k)
-        )
+        reference = 60.0 / (p.cutting.spindle_rpm * k)  # T0: one turn at the spindle speed
+        steps = fresnel.timesteps(fplan, limits, float(option(req, "safety")), reference, p.progress)
     except ValueError as exc:
         raise CaseError(f"Fresnel program: {exc}") from None
     prog = fresnel.FresnelProgram("fresnel", fplan, steps, fplan.path.xy)

@@ -51,6 +51,38 @@ def recorded_entries(specs: tuple[Any, Any, Any]) -> dict[str, Any]:
     return {key: spec.model_dump(mode="json") for key, spec in zip(keys, specs, strict=True)}
 
 
+def case_meta(
+    layout: str,
+    case: Case,
+    specs: tuple[Any, Any, Any],
+    chosen: dict[str, Any],
+    extra: dict[str, Any],
+    stamp: tuple[str, str],
+    n_points: int,
+    own: dict[str, Any],
+) -> dict[str, Any]:
+    """The sidecar content of a path program exported from a cube case: generator and time
+    (``stamp``), its kind, points, surface and compensation, its ``own`` fields, the predicted
+    P-V, the export's ``extra``, the selection, the case and the catalog entries. Refuses a
+    case that plans another number of points than the cube recorded."""
+    if n_points != chosen["n_points"]:
+        raise ProgramError(f"the cube says {chosen['n_points']} points but the spec plans {n_points}")
+    return {
+        "generator": stamp[1],
+        "created": stamp[0],
+        "layout": layout,
+        "n_points": n_points,
+        "surface": case.surface,
+        "compensation": case.compensation,
+        **own,
+        "pv_nm": chosen["pv_nm"],
+        **extra,
+        "selection": {k: v for k, v in chosen.items() if not isinstance(v, (list, dict)) or k == "case"},
+        "case": case.model_dump(mode="json"),
+        "catalog_entries": recorded_entries(specs),
+    }
+
+
 def recorded_case_of(
     meta: dict[str, Any], side: Path, trust_plugins: bool = False
 ) -> tuple[Case, tuple[Any, Any, Any]]:

@@ -306,9 +306,7 @@ def document(
     from ftsweep.files import recorded_entries
 
     fplan, steps, specs = s["_plan"], s["_steps"], s["_specs"]
-    t = np.concatenate([[0.0], np.cumsum(steps.steps)])
-    cols = (t, np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um * 1e-3)
-    lines = [F_LINE.format(*row) for row in zip(*cols, strict=True)]
+    lines = _lines(fplan, steps)
     meta = {
         "generator": generator,
         "created": created,
@@ -427,33 +425,16 @@ def case_document(
     and timed from its spec and entries (or ``rcase``, resolved already): export writes them,
     verify re-derives them. The sidecar records the case (the kind's request) as for every
     path program."""
-    from ftsweep.files import ProgramError, recorded_entries
+    from ftsweep.files import case_meta
     from ftsweep.kinds.fresnel import record_fields
-    from ftsweep.planning import resolve_case
 
     rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     prog = rcase.layout
-    if prog.n_points != chosen["n_points"]:
-        raise ProgramError(
-            f"the prediction says {chosen['n_points']} points but the spec plans {prog.n_points}"
-        )
     fplan, steps = prog.plan, prog.steps
     lines = _lines(fplan, steps)
     fields = record_fields(rcase)
-    meta = {
-        "generator": generator,
-        "created": created,
-        "layout": "fresnel",
-        "n_points": prog.n_points,
-        "surface": case.surface,
-        "compensation": case.compensation,
-        "machining_s": fields["machining_s"],
-        "pv_nm": chosen["pv_nm"],
-        **extra,
-        "selection": {k: v for k, v in chosen.items() if not isinstance(v, (list, dict)) or k == "case"},
-        "case": case.model_dump(mode="json"),
-        "catalog_entries": recorded_entries(specs),
-    }
+    own = {"machining_s": fields["machining_s"]}
+    meta = case_meta("fresnel", case, specs, chosen, extra, (created, generator), prog.n_points, own)
     head = [
         f"{F_MAGIC} (C, X, Y, Z move linearly in time between consecutive lines)",
         f"# generator: {generator}; created {created}",

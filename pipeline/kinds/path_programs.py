@@ -26,6 +26,7 @@ from ftsweep import __version__
 from ftsweep.case import run_case
 from ftsweep.files import (
     ProgramError,
+    case_meta,
     check_document,
     checked_pv,
     checked_sidecar,
@@ -214,23 +215,13 @@ def dpath_document(
 
     rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     path, z = rcase.layout, rcase.values
-    if path.n_points != chosen["n_points"]:
-        raise ProgramError(
-            f"the prediction says {chosen['n_points']} points but the spec plans {path.n_points}"
-        )
     rpm = specs[2].spindle_rpm
     t = dprog.times(path, z, rpm)
     lines = [
         D_LINE.format(*row) for row in zip(t, np.degrees(path.phi), path.rho * 1e-3, z * 1e-3, strict=True)
     ]
     g = path.geometry
-    meta = {
-        "generator": generator,
-        "created": created,
-        "layout": "dpath",
-        "n_points": path.n_points,
-        "surface": case.surface,
-        "compensation": case.compensation,
+    own = {
         "spacing_um": g.spacing_um,
         "points_per_cut": path.points_per_cut,
         "transition": g.transition,
@@ -238,12 +229,8 @@ def dpath_document(
         "nose_radius_um": rcase.nose_radius_um,
         "spindle_rpm": rpm,
         "machining_s": float(t[-1]),
-        "pv_nm": chosen["pv_nm"],
-        **extra,
-        "selection": {k: v for k, v in chosen.items() if not isinstance(v, (list, dict)) or k == "case"},
-        "case": case.model_dump(mode="json"),
-        "catalog_entries": recorded_entries(specs),
     }
+    meta = case_meta("dpath", case, specs, chosen, extra, (created, generator), path.n_points, own)
     head = [
         f"{D_MAGIC} (X, Z and C move linearly in time between consecutive lines)",
         f"# generator: {generator}; created {created}",

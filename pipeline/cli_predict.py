@@ -88,6 +88,12 @@ from ftsweep.usersurfaces import SurfaceLoadError
     "so later layers cut deeper). Default: the machine entry's.",
 )
 @click.option(
+    "--layer-change-s",
+    type=FINITE,
+    help="Time per layer segment to stop the spindle, move Z and restart [s] (layered machining). "
+    "Default: the machine entry's layer_change_s.",
+)
+@click.option(
     "--samples-per-cell",
     type=int,
     default=Resolution().samples_per_cell,
@@ -209,6 +215,7 @@ def _build_case(opts: dict[str, Any]) -> Case:
             compensation=opts["compensation"],
             layers=opts["layers"],
             z_error_um=opts["z_error_um"],
+            layer_change_s=opts["layer_change_s"],
             resolution=Resolution(
                 samples_per_cell=opts["samples_per_cell"],
                 points_per_feed=opts["points_per_feed"],
@@ -277,7 +284,8 @@ def summary_text(r: dict[str, Any]) -> str:
             f"{lay['z_error_um']:.3g} µm per retraction",
             f"             offsets {', '.join(f'{v:.4g}' for v in lay['offset_um'])} µm; "
             f"start radii {starts} µm",
-            f"machining    {r['machining_s']:.0f} s in layers, {r['single_pass_s']:.0f} s for one pass",
+            f"machining    {r['machining_s']:.0f} s in layers ({r['layer_change_share']:.0%} of it changing "
+            f"segments at {r['layer_change_s']:g} s each), {r['single_pass_s']:.0f} s for one pass",
         ]
     if r["gouge_points"]:
         lines.append(

@@ -119,6 +119,13 @@ def z_error_of(rcase: ResolvedCase) -> float:
     return float(rcase.machine.z_error_um if z_error is None else z_error)
 
 
+def layer_change_of(rcase: ResolvedCase) -> float:
+    """Time per layer segment to stop the spindle, move Z and restart [s]: the case's, else
+    the machine's (a stated machine property, [3] gives none)."""
+    change = rcase.case.layer_change_s
+    return float(rcase.machine.layer_change_s if change is None else change)
+
+
 def layer_plan(rcase: ResolvedCase, table: np.ndarray) -> Optional[layers.LayerPlan]:
     """The layered plan ([3], :mod:`ftsweep.stages.layers`) of a case whose commands span
     more than the machine's travel (the table's range bounds every interpolated command),

@@ -11,7 +11,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep import kinds, result
-from ftsweep.planning import ResolvedCase, z_error_of
+from ftsweep.planning import ResolvedCase, layer_change_of, z_error_of
 from ftsweep.result import STAGES
 from ftsweep.spec import CaseError
 from ftsweep.stages import dynamics, layers, metrics, spiral
@@ -82,9 +82,12 @@ def layer_record(
             z_error_um=z_error,
             machining_s=single_s,
             single_pass_s=single_s,
+            layer_change_s=layer_change_of(rcase),
+            layer_change_share=0.0,
             layers=None,
         )
-    times = layers.layer_times(layering, rcase.rho0_um, rcase.feed_um, rpm, machine.layer_change_s)
+    change_s = layer_change_of(rcase)
+    times = layers.layer_times(layering, rcase.rho0_um, rcase.feed_um, rpm, change_s)
     stroke = layering.stroke_used_um
     schedule = {
         "n_layers": layering.n_layers,
@@ -115,6 +118,8 @@ def layer_record(
         z_error_um=z_error,
         machining_s=float(times.time_s.sum()),
         single_pass_s=times.single_pass_s,
+        layer_change_s=change_s,
+        layer_change_share=change_s * layering.n_segments / float(times.time_s.sum()),
         layers=schedule,
     )
 

@@ -178,6 +178,10 @@ RESULT: tuple[Quantity, ...] = (
     ),
     _f("single_pass_s", "s", "machining time of one uninterrupted spiral", SPINDLE),
     Quantity(
+        "layer_change_s", "time per layer segment to stop the spindle, move Z and restart", "s", kinds=SPINDLE
+    ),
+    Quantity("layer_change_share", "share of the machining time spent changing segments", "1", kinds=SPINDLE),
+    Quantity(
         "layers", "layer schedule: offsets, start radii, strokes, lengths and times per layer", kinds=SPINDLE
     ),
     # wall times

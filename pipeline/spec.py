@@ -103,11 +103,19 @@ class Case(Strict):
     z_error_um: Optional[float] = Field(
         None, description="Z positioning error per retraction between layers [µm]; overrides the machine's"
     )
+    layer_change_s: Optional[float] = Field(
+        None,
+        ge=0.0,
+        description="time per layer segment to stop the spindle, move Z and restart [s]; overrides the "
+        "machine's",
+    )
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
         # keys of cases written before layered machining stay the same
-        return catalogs.without_defaults(handler(self), {"layers": "auto", "z_error_um": None})
+        return catalogs.without_defaults(
+            handler(self), {"layers": "auto", "z_error_um": None, "layer_change_s": None}
+        )
 
     def feed_of(self, cutting: Any) -> float:
         """The feed F given [µm/rev]: the case's, else its cutting entry's (a spiral's residual

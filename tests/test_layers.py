@@ -138,6 +138,23 @@ def test_microprism_on_a_5um_stroke_plans_six_layers_within_their_zones(prism_ru
         assert lay["start_radius_um"][j] == pytest.approx(rho[inside].max(), abs=step + 1e-9)
 
 
+def test_the_segment_change_time_is_the_machines_unless_the_case_overrides_it(prism_runs):
+    record = prism_runs["auto"]
+    segments = record["layer_segments"]
+    assert record["layer_change_s"] == 3.0  # fts-5um's stated layer_change_s
+    assert record["layer_change_share"] == pytest.approx(3.0 * segments / record["machining_s"])
+    quick = run_case(prism_case(layer_change_s=0.5))
+    # the spindle's part of the time is the same; only the changes' part moves
+    assert quick["machining_s"] == pytest.approx(record["machining_s"] - 2.5 * segments)
+    assert quick["layer_change_share"] == pytest.approx(0.5 * segments / quick["machining_s"])
+    assert quick["pv_nm"] == record["pv_nm"]
+    assert prism_runs["off"]["layer_change_share"] == 0.0
+    # unset, the key of a case is the one it had before the option existed
+    assert "layer_change_s" not in prism_case().model_dump()
+    with pytest.raises(ValueError, match="layer_change_s"):
+        prism_case(layer_change_s=-1.0)
+
+
 def test_layers_off_is_infeasible_naming_the_stroke(prism_runs):
     record = prism_runs["off"]
     assert not record["feasible"]

@@ -104,6 +104,19 @@ class FresnelPlan(NamedTuple):
         return np.column_stack([self.phi, self.x_um * 1e-6, self.y_um * 1e-6, self.tool_z_um * 1e-6])
 
 
+def ez_on_part(fplan: FresnelPlan, aperture: Any) -> dict[str, float]:
+    """The largest tool-edge compensations [nm] by eq. 10 and eq. 12 and their largest
+    difference over the path's points on the part (inside the aperture: the quasi-spiral's
+    outer turns run beyond it, where the slopes are largest and nothing is cut)."""
+    on = aperture.contains(fplan.path.xy[:, 0], fplan.path.xy[:, 1])
+    exact, straight = fplan.ez_exact_um[on], fplan.ez_straight_um[on]
+    return {
+        "ez_exact_max_nm": float(exact.max() * 1e3),
+        "ez_straight_max_nm": float(straight.max() * 1e3),
+        "ez_difference_max_nm": float(np.abs(exact - straight).max() * 1e3),
+    }
+
+
 # --------------------------------------------------------------------------- surface
 def surface_range(fn: Callable[..., Any], aperture: Any, samples: int = 241) -> dict[str, Any]:
     """The surface's lowest point inside the aperture (refined by scipy's bounded L-BFGS-B
@@ -433,7 +446,7 @@ def _smoothly_scaled(
     centres = np.arange(turns) * k + 0.5 * (k - 1)
     index = np.arange(unscaled.size)
     knots = knots.copy()
-    for _ in range(200):
+    for attempt in range(300):
         steps = np.interp(index, centres, knots) * unscaled
         acc, vel = relative_peaks(q, steps, limits)
         peak_a = acc[: turns * k].reshape(turns, -1).max(axis=1)
@@ -441,7 +454,14 @@ def _smoothly_scaled(
         need = np.maximum(np.sqrt(safety * peak_a), safety * peak_v)
         if np.all(need <= 1.0 + 1e-9):
             return steps, knots
-        knots *= np.maximum(need, 1.0) * (1.0 + 1e-6)
+        grow = np.maximum(need, 1.0)
+        if attempt >= 100:
+            # a step between two turns takes both turns' factors: where raising a turn's own
+            # has not settled it (it creeps up by 1e-6 an iteration), raise its neighbours too
+            own = grow.copy()
+            grow[1:] = np.maximum(grow[1:], own[:-1])
+            grow[:-1] = np.maximum(grow[:-1], own[1:])
+        knots *= grow * (1.0 + 1e-6)
     raise ff.FresnelError("the timesteps could not be brought within the axis limits")
 
 

@@ -28,7 +28,7 @@ import numpy as np
 from ftsweep import catalogs
 from ftsweep.case import Machined, require_finite
 from ftsweep.spec import CaseError
-from ftsweep.stages import dpath, envelope
+from ftsweep.stages import dpath, envelope, metrics
 from ftsweep.stages import fresnel as ff
 
 RAYS_PER_BATCH = 64
@@ -74,6 +74,8 @@ class FresnelSimulation:
         self.rays = (np.arange(n) + 0.5) * (2.0 * math.pi / n)
         self.n_batches = math.ceil(n / RAYS_PER_BATCH)
         self.zone_split_um = res.zone_split * rcase.aperture.inner_radius_um
+        # per facet level j: the statistics of its interior's nodes
+        self.facet_stats: dict[int, np.ndarray] = {}
 
     def _design(self, x: np.ndarray, y: np.ndarray, level: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """f_c [µm] and the facet level at part points x, y [µm] ([2] eq. 3)."""
@@ -110,9 +112,11 @@ class FresnelSimulation:
         cusp_in = finite & rcase.aperture.contains(cx, cy)
         cusp_in &= _one_facet(pos, lev, n_valid, np.where(finite, cusp_r, 0.0), cusp_level, self.band)
         timer.add("metrics", t)
-        return Machined(
-            z, z_exact, g, inside, np.hypot(x, y), x, y, cusp_z, cusp_g, cusp_in, np.hypot(cx, cy)
-        )
+        r = np.hypot(x, y)
+        for j in np.unique(level[inside]):
+            stats = self.facet_stats.setdefault(int(j), metrics.empty_stats())
+            metrics.accumulate(z, z_exact, g, inside & (level == j), r, self.zone_split_um, stats)
+        return Machined(z, z_exact, g, inside, r, x, y, cusp_z, cusp_g, cusp_in, np.hypot(cx, cy))
 
     def _crossings(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
         """The passes crossing each ray, sorted outwards: distance from the lowest point [µm],
@@ -163,7 +167,18 @@ class FresnelSimulation:
         record["n_points"] = rcase.layout.n_points
         record.update(simulated(rcase, errors, self.rays.size, self.band, rcase.gouge))
         record.update(fields)
+        record["facets"] = self._facets()
         return record
+
+    def _facets(self) -> list[dict[str, Any]]:
+        """P-V and RMS [nm] of every facet's interior on the evaluation nodes, outermost facet
+        first (facet n = N − 1 − j of level j, [2]'s numbering from outside)."""
+        top = self.fplan.path.n_facets - 1
+        out = []
+        for j in sorted(self.facet_stats, reverse=True):
+            m = metrics.finalize(self.facet_stats[j])
+            out.append({"facet": top - j, "pv_nm": m["pv_nm"], "rms_nm": m["rms_nm"], "n_eval": m["n_eval"]})
+        return out
 
 
 def _one_facet(

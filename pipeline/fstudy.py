@@ -95,7 +95,7 @@ def study(
     except CaseError as exc:
         raise ff.FresnelError(str(exc).removeprefix("Fresnel program: ")) from None
     fplan, steps = rcase.layout.plan, rcase.layout.steps
-    out = summary(inp, fplan, steps, limits)
+    out = summary(inp, fplan, steps, limits, catalogs.aperture_of(specs[0]))
     out.update(_plan=fplan, _steps=steps, _specs=specs)
     return out
 
@@ -108,14 +108,16 @@ def feed_per_turn(fplan: fp.FresnelPlan) -> float:
     return float(np.max(np.hypot(*(xy[k:] - xy[:-k]).T)))
 
 
-def summary(inp: Inputs, fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: fp.Limits) -> dict[str, Any]:
-    """The figures of one program (JSON-ready); units in the key names."""
+def summary(
+    inp: Inputs, fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: fp.Limits, aperture: Any
+) -> dict[str, Any]:
+    """The figures of one program (JSON-ready); units in the key names; the compensations over
+    the points on the part (inside ``aperture``)."""
     path = fplan.path
     q = fplan.axes_si()
     acc, vel = fp.relative_peaks(q, steps.steps, limits)
     n_steps = q.shape[0] - 1
     reduction = 1.0 - steps.peak_optimised / steps.peak_constant
-    diff = fplan.ez_exact_um - fplan.ez_straight_um
     time_constant = steps.constant * n_steps
     time_adaptive = float(steps.steps.sum())
     return {
@@ -139,9 +141,7 @@ def summary(inp: Inputs, fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: fp.
         "n_points": int(q.shape[0]),
         "feed_per_turn_max_um": feed_per_turn(fplan),
         "slope_max": float(fplan.slope.max()),
-        "ez_exact_max_nm": float(fplan.ez_exact_um.max() * 1e3),
-        "ez_straight_max_nm": float(fplan.ez_straight_um.max() * 1e3),
-        "ez_difference_max_nm": float(np.abs(diff).max() * 1e3),
+        **fp.ez_on_part(fplan, aperture),
         "x_range_mm": [float(fplan.x_um.min() * 1e-3), float(fplan.x_um.max() * 1e-3)],
         "y_range_mm": [float(fplan.y_um.min() * 1e-3), float(fplan.y_um.max() * 1e-3)],
         "reference_step_s": steps.reference,

@@ -116,8 +116,11 @@ RESULT: tuple[Quantity, ...] = (
     Quantity("points_per_turn", "control points K on every turn of the quasi-spiral", "1", kinds=FRESNEL),
     Quantity("deviation_deg", "rake face turned from the cutting direction", "deg", kinds=FRESNEL),
     _i("n_facets", "Fresnel facets the surface is sliced into", "int32", FRESNEL),
-    _f("ez_exact_max_nm", "nm", "largest tool-edge compensation by [2] eq. 10", FRESNEL),
-    _f("ez_straight_max_nm", "nm", "largest tool-edge compensation by [2] eq. 12", FRESNEL),
+    _f("ez_exact_max_nm", "nm", "largest tool-edge compensation by [2] eq. 10 on the part", FRESNEL),
+    _f("ez_straight_max_nm", "nm", "largest tool-edge compensation by [2] eq. 12 on the part", FRESNEL),
+    Quantity(
+        "facets", "P-V and RMS of every facet's interior, outermost first (predict, not cubes)", kinds=FRESNEL
+    ),
     _f("time_constant_s", "s", "machining time at the least constant timestep within the limits", FRESNEL),
     _f("speedup", "1", "machining time at the constant timestep over that of the adaptive ones", FRESNEL),
     # the form error (model §6)

@@ -18,12 +18,12 @@ from ftsweep.record import Timer
 from ftsweep.spec import Case
 
 # a coarse program of the example: K = 90 points a turn at 4 µm a turn (cusp 50 nm at Rc 40 µm)
-COARSE = dict(surface="chebyshev_example", machine="xyzc-nanoform", cutting="fresnel-finish", feed_um=4.0)
+COARSE = dict(surface="chebyshev_example", machine="xyzc-nanoform", cutting="fresnel-finish")
 
 
 def _case(**kw) -> Case:  # type: ignore[no-untyped-def]
     layout = {"kind": "fresnel", "points_per_turn": 90, **kw.pop("layout", {})}
-    return Case(**COARSE, layout=layout, **kw)
+    return Case(**COARSE, layout=layout, **{"feed_um": 4.0, **kw})
 
 
 def _worst_below_design(case: Case) -> float:
@@ -99,3 +99,25 @@ def test_fresnel_options_belong_to_fresnel_programs():
     assert res.exit_code != 0 and "--facet-height-um belongs to Fresnel programs" in res.output
     with pytest.raises(ValueError, match="facet_height_um belongs to Fresnel programs"):
         Case(surface="sinewave2d", layout={"kind": "spiral", "points_per_rev": 60, "facet_height_um": 5.0})
+
+
+def test_compensation_off_grows_the_pv_by_about_the_largest_e_z_on_the_part():
+    # [2]'s e_z is what the uncompensated arc's flank cuts: the error's low end drops by about
+    # its largest value on the part (within 20 %: the largest e_z may lie in a wall band, left
+    # out), and the P-V grows by that less what the feed's cusps already spanned
+    on = run_case(_case())
+    off = run_case(_case(compensation="none"))
+    drop = on["error_min_nm"] - off["error_min_nm"]
+    assert drop == pytest.approx(on["ez_exact_max_nm"], rel=0.2)
+    assert off["pv_nm"] > on["pv_nm"] + 0.5 * drop
+    # every facet's interior is reported, its P-V within the whole part's
+    facets = on["facets"]
+    assert [f["facet"] for f in facets] == list(range(on["n_facets"]))[-len(facets) :]
+    assert all(0.0 < f["pv_nm"] <= on["pv_nm"] + 1e-9 for f in facets)
+    assert sum(f["n_eval"] for f in facets) <= on["n_eval"]
+
+
+def test_the_example_at_120_points_per_turn_and_2_um_a_turn_is_timed_within_the_limits():
+    # the turn-boundary scaling used to creep by 1e-6 an iteration and gave up on this program
+    record = run_case(_case(layout={"points_per_turn": 120}, feed_um=None))
+    assert record["feasible"] == 1 and record["machining_s"] < record["time_constant_s"]

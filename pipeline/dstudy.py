@@ -91,6 +91,7 @@ def study(base: Case, feed_mm_min: float, with_spiral: bool = True, progress: An
     out["x_accel_max_on_cut"] = bool(opt["x_accel_cut_m_s2"] >= opt["x_accel_transition_m_s2"])
     path = programs["traditional"][0]
     out["traditional_step_deg"] = _junction_step_deg(path)
+    out["x_accel_by_step"] = accel_by_step(programs, out["traditional"]["spindle_rpm"])
     if with_spiral:
         scase = spiral_case(base, opt)
         srec = run_case(scase, progress=progress)
@@ -110,6 +111,40 @@ def study(base: Case, feed_mm_min: float, with_spiral: bool = True, progress: An
         out["_spiral_motion"] = motion
     out["_programs"] = programs
     return out
+
+
+# C steps [deg] the X accelerations are formed over in the ratio-versus-step table
+STEPS_DEG = (0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
+PAPER_RATIO = 0.16  # [5]: "16 % of that along the traditional D-shaped toolpath"
+
+
+def accel_by_step(programs: dict[str, Any], rpm: float) -> dict[str, Any]:
+    """Peak X acceleration [m/s²] of both transitions formed over each C step of
+    :data:`STEPS_DEG` on the planned curves (:func:`ftsweep.stages.dpath.x_accel_at_step`),
+    their ratio, and the step [deg] at which the ratio is [5]'s 0.16 (log-log interpolation)."""
+    rows = []
+    for deg in STEPS_DEG:
+        h = math.radians(deg)
+        trad, opt = (
+            float(np.abs(dpath.x_accel_at_step(programs[k][0], rpm, h)).max())
+            for k in ("traditional", "optimised")
+        )
+        rows.append({"step_deg": deg, "traditional_m_s2": trad, "optimised_m_s2": opt, "ratio": opt / trad})
+    ratio = np.array([r["ratio"] for r in rows])
+    at = float(np.exp(np.interp(math.log(PAPER_RATIO), np.log(ratio), np.log(STEPS_DEG))))
+    return {"rows": rows, "paper_ratio": PAPER_RATIO, "paper_ratio_step_deg": at}
+
+
+def _by_step_text(table: dict[str, Any]) -> str:
+    """The ratio-versus-step table as one line."""
+    cells = ", ".join(
+        f"{r['step_deg']:g}°: {r['traditional_m_s2']:.3g}/{r['optimised_m_s2']:.3g} = {r['ratio']:.3f}"
+        for r in table["rows"]
+    )
+    return (
+        f"  X acceleration over a C step h (traditional/optimised m/s² = ratio): {cells}; "
+        f"[5]'s {table['paper_ratio']:g} at h = {table['paper_ratio_step_deg']:.2f}°"
+    )
 
 
 def _junction_step_deg(path: dpath.DPath) -> float:
@@ -217,8 +252,9 @@ def text_lines(s: dict[str, Any]) -> list[str]:
         )
     lines.append(
         f"  X acceleration ratio optimised/traditional: {s['x_accel_ratio']:.3f} (traditional spike read over a "  # noqa: E501
-        f"{s['traditional_step_deg']:.3g}° C step; it scales as 1/step)"
+        f"{s['traditional_step_deg']:.3g}° C step; it scales as 1/step)",
     )
+    lines.append(_by_step_text(s["x_accel_by_step"]))
     lines.append(
         f"  junctions: traditional dρ/dθ jump {trad['slope_jump_um_rad'] / 1e3:.3f} mm/rad; optimised relative jumps "  # noqa: E501
         f"ρ {opt['rho_rel_jump']:.1e}, dρ/dθ {opt['d1_rel_jump']:.1e}, d²ρ/dθ² {opt['d2_rel_jump']:.1e}"

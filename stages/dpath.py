@@ -400,6 +400,22 @@ def axis_motion(t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarr
     }
 
 
+def x_accel_at_step(path: DPath, spindle_rpm: float, step_rad: float) -> np.ndarray:
+    """X accelerations [m/s²] at the program's points of the planned curve (:func:`evaluate`)
+    at constant spindle speed, formed over a C step h either side: ω²·(ρ(φ+h) − 2ρ(φ) +
+    ρ(φ−h))/h², the kinematics stage's scheme ([2] eq. 14) on the uniform step h. At a
+    traditional junction it reads the slope jump over h, ω²·Δ(dρ/dθ)/h; on smooth stretches
+    the curvature, ω²·d²ρ/dθ². Zero where φ ± h leaves the program."""
+    omega = spindle_rpm * 2.0 * math.pi / 60.0
+    phi = path.phi
+    out = np.zeros(phi.size)
+    ok = (phi - step_rad >= phi[0]) & (phi + step_rad <= phi[-1])
+    p = phi[ok]
+    mid, ahead, behind = (evaluate(path, p + d)[0] for d in (0.0, step_rad, -step_rad))
+    out[ok] = omega**2 * (ahead - 2.0 * mid + behind) / step_rad**2 * 1e-6
+    return out
+
+
 @njit(nogil=True, cache=True)
 def _crossings(phi, rho, z, ray_theta, n_rev, pos, w, seg):  # pragma: no cover - jit
     period = 2.0 * math.pi

@@ -238,6 +238,19 @@ def test_dpath_cli_json_reports_the_ratio(tmp_path):
     out = json.loads(res.output)
     assert 0.0 < out["x_accel_ratio"] <= 0.3
     assert out["x_accel_max_on_cut"] is True
+    # over a C step h on the planned curves: the traditional spike is the slope jump over h
+    # (h·peak constant within 5 % up to 1°, the cut's own curvature aside), the optimised peak
+    # the cuts' analytic ω²·d·sec·(tan² + sec²) within 2 %; [5]'s 0.16 needs h ≈ 2°
+    table = out["x_accel_by_step"]
+    small = [r for r in table["rows"] if r["step_deg"] <= 1.0]
+    spike = [r["traditional_m_s2"] * r["step_deg"] for r in small]
+    assert max(spike) <= 1.05 * min(spike)
+    omega = 40.0 * 2.0 * math.pi / 60.0
+    half = math.atan(10.0 / 40.0)
+    sec = 1.0 / math.cos(half)
+    cut_peak = omega**2 * 40000.0 * sec * (math.tan(half) ** 2 + sec**2) * 1e-6
+    assert all(r["optimised_m_s2"] == pytest.approx(cut_peak, rel=0.02) for r in small)
+    assert 1.5 <= table["paper_ratio_step_deg"] <= 3.0
     assert out["optimised"]["d2_rel_jump"] <= 1e-9
     assert out["traditional"]["slope_jump_um_rad"] > 0.0
     assert out["spiral"]["pv_nm"] > 0.0

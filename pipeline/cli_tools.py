@@ -28,7 +28,7 @@ from ftsweep.cli_predict import summary_text
 )
 @click.option(
     "--layout",
-    type=click.Choice(["ring", "mesh", "spiral", "dpath"]),
+    type=click.Choice(["ring", "mesh", "spiral", "dpath", "fresnel"]),
     help="Program kind. Default: the surface's table method. The search spans aspect ratios, so "
     "it takes tables; a path program is refused saying so.",
 )

@@ -103,7 +103,7 @@ def test_a_search_seeded_by_the_estimate_needs_fewer_evaluations(tmp_path, catal
         optimize(*args, tmp_path / "x.zarr", catalog_folder=catalog_dir, seed="guess")
 
 
-@pytest.mark.parametrize("kind", ["spiral", "dpath"])
+@pytest.mark.parametrize("kind", ["spiral", "dpath", "fresnel"])
 def test_a_path_program_is_refused_saying_why_before_anything_is_written(kind, tmp_path, catalog_dir):
     out = tmp_path / "search.zarr"
     with pytest.raises(ValueError, match=f"aspect ratios of tables .*a {kind} program has none"):

@@ -65,3 +65,15 @@ def test_every_registered_family_has_a_generated_catalog_model():
         assert set(params.model_fields) == set(FAMILIES[name].params), name
         for key, p in FAMILIES[name].params.items():
             assert params.model_fields[key].description == p.description
+
+
+def test_the_commands_offer_every_registered_kind():
+    # the --layout choices are spelled out (the CLI starts without importing the kinds); they
+    # must name every registered kind
+    from ftsweep import kinds
+    from ftsweep.cli_predict import predict
+    from ftsweep.cli_tools import optimize as optimize_command
+
+    for command in (predict, optimize_command):
+        layout = next(p for p in command.params if p.name == "layout")
+        assert set(layout.type.choices) == set(kinds.registry()), command.name

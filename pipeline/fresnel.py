@@ -378,6 +378,13 @@ def _turn_deltas(q: np.ndarray, k: int, turn: int) -> np.ndarray:
     return rows if lo > 0 else np.vstack([np.zeros((1, q.shape[1])), rows])
 
 
+def _softmax_steps(u: np.ndarray, total: float) -> np.ndarray:
+    """Timesteps T = total·softmax(u) [s] of a turn; no step shorter than e^-20 of the longest,
+    which keeps the optimiser's line search off T = 0."""
+    w = np.exp(np.maximum(u - u.max(), -20.0))
+    return np.asarray(total * w / w.sum())
+
+
 def _optimise_turn(
     u0: np.ndarray,
     t0: float,
@@ -394,13 +401,8 @@ def _optimise_turn(
     k = u0.size
     total = k * t0
 
-    def steps_of(u: np.ndarray) -> np.ndarray:
-        # no step shorter than e^-20 of the longest: keeps the line search off T = 0
-        w = np.exp(np.maximum(u - u.max(), -20.0))
-        return total * w / w.sum()
-
     def cost(v: np.ndarray, power: float) -> tuple[float, np.ndarray]:
-        t = steps_of(v)
+        t = _softmax_steps(v, total)
         val, grad = ff.turn_cost(t, deltas, inv, power, first)
         # chain rule through T = total·softmax(u)
         return val, t * (grad - float(np.dot(grad, t)) / total)
@@ -421,18 +423,19 @@ def _turn_steps(
     facet), also solved cold and by continuation from the warm result, the best kept. Returns
     (u, steps [s], peak)."""
 
-    def steps_of(v: np.ndarray) -> np.ndarray:
-        w = np.exp(np.maximum(v - v.max(), -20.0))
-        return np.asarray(v.size * t0 * w / w.sum())
+    total = u.size * t0
+
+    def peak_of(v: np.ndarray) -> float:
+        return float(ff.turn_peak(_softmax_steps(v, total), deltas, inv, first))
 
     tries = [_optimise_turn(u, t0, deltas, inv, first, COLD if first else WARM)]
-    peak = ff.turn_peak(steps_of(tries[0]), deltas, inv, first)
-    if not first and peak > 1.1 * previous:
+    peaks = [peak_of(tries[0])]
+    if not first and peaks[0] > 1.1 * previous:
         tries.append(_optimise_turn(np.zeros(u.size), t0, deltas, inv, first, COLD))
         tries.append(_optimise_turn(tries[0], t0, deltas, inv, first, COLD[1:]))
-    peaks = [ff.turn_peak(steps_of(v), deltas, inv, first) for v in tries]
+        peaks += [peak_of(v) for v in tries[1:]]
     best = int(np.argmin(peaks))
-    return tries[best], steps_of(tries[best]), float(peaks[best])
+    return tries[best], _softmax_steps(tries[best], total), peaks[best]
 
 
 def _smoothly_scaled(

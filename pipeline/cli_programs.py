@@ -90,7 +90,9 @@ def dpath_command(**opts: Any) -> None:
     rpm = summary["optimised"]["spindle_rpm"]
     folder = opts["plot_dir"]
     folder.mkdir(parents=True, exist_ok=True)
-    plots = [str(dstudy.plot_x_motion(summary["_programs"], rpm, folder / f"dpath-{base.surface}-x.png"))]
+    period = summary["accel_period_s"]
+    out_x = folder / f"dpath-{base.surface}-x.png"
+    plots = [str(dstudy.plot_x_motion(summary["_programs"], rpm, period, out_x))]
     if "_spiral_motion" in summary:
         out_z = folder / f"dpath-{base.surface}-z.png"
         plots.append(

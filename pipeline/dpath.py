@@ -118,55 +118,88 @@ def times(
 AXES = ("C", "X", "Z")
 
 
-def motion_peaks(
-    t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarray
-) -> tuple[dict[str, float], dict[str, np.ndarray]]:
-    """Ranges and peaks of the axis motion of points at times ``t`` [s] (C [rad], X, Z [µm]):
-    X range, feed and acceleration, Z velocity and acceleration (peak and RMS), C speed —
-    and the motion itself (:func:`ftsweep.stages.dpath.axis_motion`, the kinematics stage)."""
-    m = dpath.axis_motion(t, phi, x_um, z_um)
-    return {
-        "x_min_um": float(x_um.min()),
-        "x_max_um": float(x_um.max()),
-        "x_feed_peak_mm_s": float(np.abs(m["x_feed_mm_s"]).max()),
-        "x_accel_peak_m_s2": float(np.abs(m["x_accel_m_s2"]).max()),
-        "z_velocity_peak_mm_s": float(np.abs(m["z_velocity_mm_s"]).max()),
-        "z_accel_peak_m_s2": float(np.abs(m["z_accel_m_s2"]).max()),
-        "z_accel_rms_m_s2": float(np.sqrt(np.mean(m["z_accel_m_s2"] ** 2))),
-        "c_speed_peak_rpm": float(np.abs(m["c_speed_rpm"]).max()),
-    }, m
+def period_of(machine: Any) -> float:
+    """The controller's command period [s] (1/``command_rate_hz`` of the machine), the step in
+    time over which a D path's axis accelerations are formed (model §6)."""
+    return 1.0 / float(machine.command_rate_hz)
 
 
-def motion_summary(path: dpath.DPath, z_um: np.ndarray, rpm: float) -> dict[str, float]:
-    """:func:`motion_peaks` at constant spindle speed ([5] eqs. 5–6, over the program's
-    points), the X acceleration on the cuts and in the transitions, the largest dρ/dθ jump at
-    a junction and the machining time."""
-    t = times(path, z_um, rpm)
-    peaks, motion = motion_peaks(t, path.phi, path.rho, z_um)
-    ax = np.abs(motion["x_accel_m_s2"])
-    del peaks["c_speed_peak_rpm"]  # the spindle speed itself, checked as such
-    on = path.cut >= 0
-    jumps = dpath.junctions(path)
+def sampled_motion(
+    path: dpath.DPath, z_um: np.ndarray, t_points: np.ndarray, period_s: float, until_s: float = math.inf
+) -> tuple[dpath.Sampled, np.ndarray, kinematics.Motion]:
+    """The program's planned path sampled every controller period up to ``until_s`` [s]
+    (:func:`ftsweep.stages.dpath.at_period`), its axes q (C [rad], X, Z [m]) and their motion
+    by the kinematics stage."""
+    s = dpath.at_period(path, z_um, t_points, period_s, until_s)
+    q = np.column_stack([s.phi, s.rho * 1e-6, s.z * 1e-6])
+    return s, q, kinematics.motion(s.t, q)
+
+
+def motion_peaks(s: dpath.Sampled, m: kinematics.Motion) -> dict[str, float]:
+    """Ranges and peaks of sampled axis motion ``m`` of samples ``s``: X range, feed and
+    acceleration, Z velocity and acceleration (peak and RMS)."""
     return {
-        **peaks,
-        "x_accel_cut_m_s2": float(ax[on].max()),
-        "x_accel_transition_m_s2": float(ax[~on].max()) if np.any(~on) else 0.0,
-        "slope_jump_um_rad": float(np.abs(jumps["jump_d1"]).max()) if jumps["jump_d1"].size else 0.0,
-        "machining_s": float(t[-1]),
+        "x_min_um": float(s.rho.min()),
+        "x_max_um": float(s.rho.max()),
+        "x_feed_peak_mm_s": float(np.abs(m.velocity[:, 1]).max() * 1e3),
+        "x_accel_peak_m_s2": float(np.abs(m.accel[:, 1]).max()),
+        "z_velocity_peak_mm_s": float(np.abs(m.velocity[:, 2]).max() * 1e3),
+        "z_accel_peak_m_s2": float(np.abs(m.accel[:, 2]).max()),
+        "z_accel_rms_m_s2": float(np.sqrt(np.mean(m.accel[:, 2] ** 2))),
     }
 
 
+def motion_summary(
+    path: dpath.DPath, z_um: np.ndarray, rpm: float, machine: Any
+) -> tuple[dict[str, float], str]:
+    """:func:`motion_peaks` at constant spindle speed ([5] eqs. 5–6) on the planned path
+    sampled every controller period of ``machine`` (:func:`period_of`; the C step it makes is
+    ``accel_step_deg``), the X acceleration on the cuts and in the transitions, the largest
+    dρ/dθ jump at a junction and the machining time; and the machine's limits the motion
+    exceeds ('' when it fits them, :func:`limits_reason`)."""
+    t = times(path, z_um, rpm)
+    period = period_of(machine)
+    s, q, m = sampled_motion(path, z_um, t, period)
+    ax = np.abs(m.accel[:, 1])
+    jumps = dpath.junctions(path)
+    summary = {
+        **motion_peaks(s, m),
+        "x_accel_cut_m_s2": float(ax[s.on_cut].max()) if np.any(s.on_cut) else 0.0,
+        "x_accel_transition_m_s2": float(ax[~s.on_cut].max()) if np.any(~s.on_cut) else 0.0,
+        "slope_jump_um_rad": float(np.abs(jumps["jump_d1"]).max()) if jumps["jump_d1"].size else 0.0,
+        "machining_s": float(t[-1]),
+        "accel_period_s": period,
+        "accel_step_deg": math.degrees(rpm * 2.0 * math.pi / 60.0 * period),
+    }
+    return summary, limits_reason(machine, s, q, m)
+
+
+NO_AXES = "the machine declares no X, Z, C axis limits (axes:) for a slow-tool-servo program"
+
+
 def limits_reason(
-    machine: Any, t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarray, slack: float = 1e-9
+    machine: Any, s: dpath.Sampled, q: np.ndarray, m: kinematics.Motion, slack: float = 1e-9
 ) -> str:
-    """The machine's X, Z and C limits the program's points at times ``t`` [s] exceed, checked
-    by the kinematics stage on every point ('' when it fits them); a machine without axis
-    limits cannot run a D path. ``slack``: relative allowance (rounding of a spindle speed at
-    its limit; the printed digits of a program read back)."""
+    """The machine's X, Z and C limits the sampled motion ``m`` of samples ``s`` (axes q)
+    exceeds, checked by the kinematics stage on every sample and named by the program line
+    it follows ('' when it fits them); a machine without axis limits cannot run a D path.
+    ``slack``: relative allowance (rounding of a spindle speed at its limit; the printed
+    digits of a program read back)."""
     if machine.axes is None:
-        return "the machine declares no X, Z, C axis limits (axes:) for a slow-tool-servo program"
-    q = np.column_stack([phi, x_um * 1e-6, z_um * 1e-6])
-    return kinematics.limits_reason(q, kinematics.motion(t, q), machine.axes.limits(AXES), slack)
+        return NO_AXES
+
+    def where(i: int) -> str:
+        return f"line {int(s.line[i]) + 1}, t = {s.t[i]:.4f} s"
+
+    return kinematics.limits_reason(q, m, machine.axes.limits(AXES), slack, where)
+
+
+def program_limits(machine: Any, path: dpath.DPath, z_um: np.ndarray, t: np.ndarray, slack: float) -> str:
+    """:func:`limits_reason` of a program's points at times ``t`` [s] on its planned path
+    (export and verify check what the record reports)."""
+    if machine.axes is None:
+        return NO_AXES
+    return limits_reason(machine, *sampled_motion(path, z_um, t, period_of(machine)), slack=slack)
 
 
 def ray_angles(geometry: dpath.DGeometry, n: int) -> np.ndarray:
@@ -289,11 +322,11 @@ class DPathSimulation:
                 "fully machined part; check the part against the spacing and the nose radius"
             )
         t = time.perf_counter()
-        summary = motion_summary(path, self.z_prog, rcase.cutting.spindle_rpm)
+        summary, reason = motion_summary(path, self.z_prog, rcase.cutting.spindle_rpm, rcase.machine)
         timer.add("dynamics", t)
         record: dict[str, Any] = {"surface": rcase.case.surface, "layout": "dpath", "n_points": path.n_points}
         record.update(simulated(rcase, errors, self.rays.size, self.band, rcase.gouge))
-        record.update(record_fields(rcase, summary, self.z_prog))
+        record.update(record_fields(rcase, summary, self.z_prog, reason))
         return record
 
 
@@ -315,12 +348,11 @@ def _crossings(path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray) -> tupl
     return pos, w, valid, on_cut
 
 
-def record_fields(rcase: Any, summary: dict[str, float], z_um: np.ndarray) -> dict[str, Any]:
-    """The D-path fields of a case record ([5]; declared in :mod:`ftsweep.result`)."""
+def record_fields(rcase: Any, summary: dict[str, float], z_um: np.ndarray, reason: str) -> dict[str, Any]:
+    """The D-path fields of a case record ([5]; declared in :mod:`ftsweep.result`); ``reason``:
+    the limits the motion exceeds (:func:`motion_summary`)."""
     path: dpath.DPath = rcase.layout
     g, request = path.geometry, rcase.case.layout
-    rpm = rcase.cutting.spindle_rpm
-    reason = limits_reason(rcase.machine, times(path, z_um, rpm), path.phi, path.rho, z_um)
     step = np.diff(path.phi)
     return {
         "spacing_um": g.spacing_um,

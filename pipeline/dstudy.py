@@ -16,6 +16,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from ftsweep import dpath as dprog
 from ftsweep.case import run_case
 from ftsweep.kinds.requests import program_request
 from ftsweep.planning import resolve_case
@@ -54,11 +55,24 @@ def spiral_motion(case: Case) -> dict[str, Any]:
     return {"t": t, "phi": path.phi, "x": path.rho, "z": rcase.values, **motion}
 
 
-def feed_mode(path: dpath.DPath, z: np.ndarray, rpm: float, feed_mm_min: float) -> dict[str, float]:
-    """The constant-feed XZC interpolation of a program: time and C speed range."""
-    t = dpath.point_times(path.phi, path.rho, z, "feed", rpm, feed_mm_min)
-    c = dpath.axis_motion(t, path.phi, path.rho, z)["c_speed_rpm"]
-    return {"time_s": float(t[-1]), "c_speed_min_rpm": float(c.min()), "c_speed_max_rpm": float(c.max())}
+def feed_mode(
+    path: dpath.DPath, z: np.ndarray, rpm: float, feed_mm_min: float, cuts_only: bool = False
+) -> dict[str, float]:
+    """The constant-feed XZC interpolation of a program: time, C speed range overall and on
+    the cuts, and the C speed's largest jump between steps [rpm]. The feed holds along the
+    whole path, or with ``cuts_only`` on the cuts alone, the transitions at the C cap ``rpm``
+    (README, "D paths": [5]'s DIFFSYS figures)."""
+    on = (path.cut[1:] >= 0) & (path.cut[1:] == path.cut[:-1])
+    t = dpath.point_times(path.phi, path.rho, z, "feed", rpm, feed_mm_min, on if cuts_only else None)
+    c = np.diff(path.phi) / np.diff(t) * 60.0 / (2.0 * math.pi)
+    return {
+        "time_s": float(t[-1]),
+        "c_speed_min_rpm": float(c.min()),
+        "c_speed_max_rpm": float(c.max()),
+        "c_speed_cut_min_rpm": float(c[on].min()),
+        "c_speed_cut_max_rpm": float(c[on].max()),
+        "c_speed_jump_rpm": float(np.abs(np.diff(c)).max()),
+    }
 
 
 def continuity(path: dpath.DPath) -> dict[str, float]:
@@ -84,14 +98,19 @@ def study(base: Case, feed_mm_min: float, with_spiral: bool = True, progress: An
         programs[kind] = (rcase.layout, rcase.values)
         keep = {k: v for k, v in record.items() if not k.startswith("seconds") and k != "layers"}
         keep.update(continuity(rcase.layout))
-        keep["feed_mode"] = feed_mode(rcase.layout, rcase.values, rcase.cutting.spindle_rpm, feed_mm_min)
+        for name, cuts_only in (("feed_mode", False), ("feed_mode_cuts", True)):
+            keep[name] = feed_mode(
+                rcase.layout, rcase.values, rcase.cutting.spindle_rpm, feed_mm_min, cuts_only
+            )
         out[kind] = keep
     trad, opt = out["traditional"], out["optimised"]
     out["x_accel_ratio"] = opt["x_accel_peak_m_s2"] / trad["x_accel_peak_m_s2"]
-    out["x_accel_max_on_cut"] = bool(opt["x_accel_cut_m_s2"] >= opt["x_accel_transition_m_s2"])
-    path = programs["traditional"][0]
-    out["traditional_step_deg"] = _junction_step_deg(path)
-    out["x_accel_by_step"] = accel_by_step(programs, out["traditional"]["spindle_rpm"])
+    # [5]: the peak lies at the cuts' ends; d²ρ/dθ² is continuous there, so the samples either
+    # side of a junction read it alike (within 0.5 %)
+    out["x_accel_max_on_cut"] = bool(opt["x_accel_cut_m_s2"] >= 0.995 * opt["x_accel_peak_m_s2"])
+    out["accel_period_s"] = trad["accel_period_s"]
+    out["accel_step_deg"] = trad["accel_step_deg"]
+    out["x_accel_by_step"] = accel_by_step(programs, trad["spindle_rpm"], trad["accel_step_deg"])
     if with_spiral:
         scase = spiral_case(base, opt)
         srec = run_case(scase, progress=progress)
@@ -118,27 +137,38 @@ STEPS_DEG = (0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
 PAPER_RATIO = 0.16  # [5]: "16 % of that along the traditional D-shaped toolpath"
 
 
-def accel_by_step(programs: dict[str, Any], rpm: float) -> dict[str, Any]:
+def accel_by_step(programs: dict[str, Any], rpm: float, machine_step_deg: float) -> dict[str, Any]:
     """Peak X acceleration [m/s²] of both transitions formed over each C step of
-    :data:`STEPS_DEG` on the planned curves (:func:`ftsweep.stages.dpath.x_accel_at_step`),
+    :data:`STEPS_DEG` and the machine's own (one controller period at the spindle speed,
+    marked ``machine``) on the planned curves (:func:`ftsweep.stages.dpath.x_accel_at_step`),
     their ratio, and the step [deg] at which the ratio is [5]'s 0.16 (log-log interpolation)."""
     rows = []
-    for deg in STEPS_DEG:
+    for deg in sorted({*STEPS_DEG, machine_step_deg}):
         h = math.radians(deg)
         trad, opt = (
             float(np.abs(dpath.x_accel_at_step(programs[k][0], rpm, h)).max())
             for k in ("traditional", "optimised")
         )
-        rows.append({"step_deg": deg, "traditional_m_s2": trad, "optimised_m_s2": opt, "ratio": opt / trad})
+        rows.append(
+            {
+                "step_deg": deg,
+                "traditional_m_s2": trad,
+                "optimised_m_s2": opt,
+                "ratio": opt / trad,
+                "machine": deg == machine_step_deg,
+            }
+        )
     ratio = np.array([r["ratio"] for r in rows])
-    at = float(np.exp(np.interp(math.log(PAPER_RATIO), np.log(ratio), np.log(STEPS_DEG))))
+    steps = np.array([r["step_deg"] for r in rows])
+    at = float(np.exp(np.interp(math.log(PAPER_RATIO), np.log(ratio), np.log(steps))))
     return {"rows": rows, "paper_ratio": PAPER_RATIO, "paper_ratio_step_deg": at}
 
 
 def _by_step_text(table: dict[str, Any]) -> str:
     """The ratio-versus-step table as one line."""
     cells = ", ".join(
-        f"{r['step_deg']:g}°: {r['traditional_m_s2']:.3g}/{r['optimised_m_s2']:.3g} = {r['ratio']:.3f}"
+        f"{r['step_deg']:.3g}°{' (machine)' if r['machine'] else ''}: "
+        f"{r['traditional_m_s2']:.3g}/{r['optimised_m_s2']:.3g} = {r['ratio']:.3f}"
         for r in table["rows"]
     )
     return (
@@ -147,19 +177,17 @@ def _by_step_text(table: dict[str, Any]) -> str:
     )
 
 
-def _junction_step_deg(path: dpath.DPath) -> float:
-    """Mean of the C steps on both sides of the first cut's end [deg] (the step the
-    traditional path's acceleration spike is read over)."""
-    end = int(np.flatnonzero(path.cut == 0)[-1])
-    return float(np.degrees(0.5 * (path.phi[end + 1] - path.phi[end - 1])))
-
-
 def plot_x_motion(
-    programs: dict[str, tuple[dpath.DPath, np.ndarray]], rpm: float, out: Path, cycles: int = 2
+    programs: dict[str, tuple[dpath.DPath, np.ndarray]],
+    rpm: float,
+    period_s: float,
+    out: Path,
+    cycles: int = 2,
 ) -> Path:  # noqa: E501
     """[5] fig. 3: ρ, X feed-rate and X acceleration against the polar angle over the first
-    ``cycles`` revolutions, traditional against optimised (analytic path at constant spindle
-    speed, eqs. 3–6; the traditional acceleration is a spike over one command step)."""
+    ``cycles`` revolutions, traditional against optimised (the planned path at constant
+    spindle speed sampled every controller period ``period_s`` [s], eqs. 3–6; the
+    traditional acceleration is a spike over one period)."""
     from ftsweep.accessor import _axes
     from ftsweep.report import _save
 
@@ -170,15 +198,13 @@ def plot_x_motion(
     omega = rpm * 2.0 * math.pi / 60.0
     for kind, (path, z) in programs.items():
         t = dpath.point_times(path.phi, path.rho, z, "spindle", rpm)
-        m = dpath.axis_motion(t, path.phi, path.rho, z)
-        sel = path.phi <= path.phi[0] + 2.0 * math.pi * cycles
-        deg = np.degrees(path.phi[sel])
-        # velocities belong to the steps between points: drawn at the steps' middles
-        mid = np.degrees(0.5 * (path.phi[1:] + path.phi[:-1]))
-        steps = sel[1:]
-        axes[0].plot(deg, path.rho[sel] * 1e-3, label=kind)
-        axes[1].plot(mid[steps], m["x_feed_mm_s"][steps], label=kind)
-        axes[2].plot(deg, m["x_accel_m_s2"][sel], label=kind)
+        s, _, m = dprog.sampled_motion(path, z, t, period_s, until_s=cycles * 60.0 / rpm)
+        deg = np.degrees(s.phi)
+        # velocities belong to the steps between samples: drawn at the steps' middles
+        mid = np.degrees(0.5 * (s.phi[1:] + s.phi[:-1]))
+        axes[0].plot(deg, s.rho * 1e-3, label=kind)
+        axes[1].plot(mid, m.velocity[:, 1] * 1e3, label=kind)
+        axes[2].plot(deg, m.accel[:, 1], label=kind)
     axes[0].set_ylabel("ρ = X [mm]")
     axes[1].set_ylabel("X feed [mm/s]")
     axes[2].set_ylabel("X acceleration [m/s²]")
@@ -251,8 +277,9 @@ def text_lines(s: dict[str, Any]) -> list[str]:
             f"{r['machining_s']:.0f} s; {'feasible' if r['feasible'] else 'INFEASIBLE: ' + r['infeasible_reason']}"  # noqa: E501
         )
     lines.append(
-        f"  X acceleration ratio optimised/traditional: {s['x_accel_ratio']:.3f} (traditional spike read over a "  # noqa: E501
-        f"{s['traditional_step_deg']:.3g}° C step; it scales as 1/step)",
+        f"  X acceleration ratio optimised/traditional: {s['x_accel_ratio']:.3f}, formed over the "
+        f"controller's period {s['accel_period_s'] * 1e3:.3g} ms (a {s['accel_step_deg']:.3g}° C step; "
+        "the traditional spike scales as 1/step)",
     )
     lines.append(_by_step_text(s["x_accel_by_step"]))
     lines.append(
@@ -260,10 +287,14 @@ def text_lines(s: dict[str, Any]) -> list[str]:
         f"ρ {opt['rho_rel_jump']:.1e}, dρ/dθ {opt['d1_rel_jump']:.1e}, d²ρ/dθ² {opt['d2_rel_jump']:.1e}"
     )
     for name in ("traditional", "optimised"):
-        f = s[name]["feed_mode"]
-        lines.append(
-            f"  constant feed ({name}): {f['time_s']:.0f} s, C {f['c_speed_min_rpm']:.1f}..{f['c_speed_max_rpm']:.1f} rpm"  # noqa: E501
-        )
+        for mode, where in (("feed_mode", "whole path"), ("feed_mode_cuts", "cuts only")):
+            f = s[name][mode]
+            c_all = f"{f['c_speed_min_rpm']:.1f}..{f['c_speed_max_rpm']:.1f}"
+            cuts = f"{f['c_speed_cut_min_rpm']:.1f}..{f['c_speed_cut_max_rpm']:.1f}"
+            lines.append(
+                f"  constant feed on the {where} ({name}): {f['time_s']:.0f} s, C {c_all} rpm (cuts {cuts}), "
+                f"largest C jump {f['c_speed_jump_rpm']:.1f} rpm"
+            )
     if "spiral" in s:
         sp = s["spiral"]
         lines.append(

@@ -146,7 +146,14 @@ RESULT: tuple[Quantity, ...] = (
     _f("x_min_um", "um", "smallest X (polar radius) of the path", DPATH),
     _f("x_max_um", "um", "largest X (polar radius) of the path, transitions included", DPATH),
     _f("x_feed_peak_mm_s", "mm/s", "peak X feed-rate at the spindle speed", DPATH),
-    _f("x_accel_peak_m_s2", "m/s^2", "peak X acceleration at the spindle speed (over the points)", DPATH),
+    _f(
+        "x_accel_peak_m_s2",
+        "m/s^2",
+        "peak X acceleration at the spindle speed, formed over the controller's command period",
+        DPATH,
+    ),
+    _f("accel_period_s", "s", "controller command period the D path's accelerations are formed over", DPATH),
+    _f("accel_step_deg", "deg", "C step of one command period at the spindle speed", DPATH),
     _f("x_accel_cut_m_s2", "m/s^2", "peak X acceleration on the cuts", DPATH),
     _f("x_accel_transition_m_s2", "m/s^2", "peak X acceleration in the transitions", DPATH),
     _f(

@@ -364,12 +364,14 @@ def point_times(
     mode: str,
     spindle_rpm: float,
     feed_mm_min: float = math.nan,
+    fed: np.ndarray | None = None,
 ) -> np.ndarray:
     """Time [s] of every point of a program (φ [rad], ρ and Z [µm]) from the first.
 
     ``spindle``: constant spindle speed, t = (φ − φ0)/ω. ``feed``: the XZC interpolation at
     a constant feed ``feed_mm_min`` along the tool's path over the part (step length
-    sqrt(Δρ² + (ρ̄·Δφ)² + ΔZ²)), the C speed capped at ``spindle_rpm``."""
+    sqrt(Δρ² + (ρ̄·Δφ)² + ΔZ²)), the C speed capped at ``spindle_rpm``; ``fed`` (P − 1
+    bools) limits the feed to those steps (e.g. the cuts), the others run at the cap."""
     if mode not in TIMINGS:
         raise ValueError(f"timing mode must be one of {', '.join(TIMINGS)}, got {mode!r}")
     omega = spindle_rpm * 2.0 * math.pi / 60.0
@@ -380,7 +382,8 @@ def point_times(
             raise ValueError(f"the constant-feed mode needs a positive feed [mm/min], got {feed_mm_min!r}")
         mean_rho = 0.5 * (rho[1:] + rho[:-1])
         step_um = np.sqrt(np.diff(rho) ** 2 + (mean_rho * dphi) ** 2 + np.diff(z) ** 2)
-        dt = np.maximum(dt, step_um / (feed_mm_min * 1000.0 / 60.0))
+        at_feed = np.maximum(dt, step_um / (feed_mm_min * 1000.0 / 60.0))
+        dt = at_feed if fed is None else np.where(fed, at_feed, dt)
     return np.concatenate([[0.0], np.cumsum(dt)])
 
 
@@ -414,6 +417,68 @@ def x_accel_at_step(path: DPath, spindle_rpm: float, step_rad: float) -> np.ndar
     mid, ahead, behind = (evaluate(path, p + d)[0] for d in (0.0, step_rad, -step_rad))
     out[ok] = omega**2 * (ahead - 2.0 * mid + behind) / step_rad**2 * 1e-6
     return out
+
+
+def planned_z(path: DPath, z_um: np.ndarray, phi: np.ndarray, on_cut: np.ndarray | None = None) -> np.ndarray:
+    """Z [µm] of the planned path at accumulated angles ``phi`` [rad] given Z at its points
+    ``z_um``: on a cut the cubic Hermite curve through the cut's points in the distance u along
+    it (slopes by second-order differences, so it is exact for Z quadratic in u and its second
+    derivative converges to the surface's); across a transition linear in θ ([5] eq. 14), as
+    the points there are. ``on_cut``: :func:`evaluate`'s flags of ``phi``, if known."""
+    phi = np.asarray(phi, dtype=np.float64)
+    z = np.interp(phi, path.phi, z_um)
+    on_cut = evaluate(path, phi)[3] if on_cut is None else on_cut
+    if not np.any(on_cut):
+        return z
+    n, p = path.n_cuts, path.points_per_cut
+    zc = z_um[path.cut >= 0].reshape(n, p)
+    du = path.cut_step_um
+    slope = np.empty_like(zc)
+    slope[:, 1:-1] = (zc[:, 2:] - zc[:, :-2]) / (2.0 * du)
+    slope[:, 0] = (-3.0 * zc[:, 0] + 4.0 * zc[:, 1] - zc[:, 2]) / (2.0 * du) if p > 2 else zc[:, 1] - zc[:, 0]
+    slope[:, -1] = (3.0 * zc[:, -1] - 4.0 * zc[:, -2] + zc[:, -3]) / (2.0 * du) if p > 2 else slope[:, 0]
+    seg = np.clip(np.searchsorted(path.bounds, phi[on_cut], side="right") - 1, 0, path.bounds.size - 1)
+    i = np.minimum(seg // 2, n - 1)
+    u = path.cut_d[i] * np.tan(phi[on_cut] - path.cut_centre[i]) + 0.5 * path.geometry.length_um
+    j = np.clip(np.floor(u / du).astype(np.int64), 0, p - 2)
+    s = u / du - j
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    z[on_cut] = h00 * zc[i, j] + h10 * du * slope[i, j] + h01 * zc[i, j + 1] + h11 * du * slope[i, j + 1]
+    return z
+
+
+class Sampled(NamedTuple):
+    """A D-path program's motion sampled on its planned path every controller period:
+    times t [s], C φ [rad], X = ρ and Z [µm], whether each sample lies on a cut, and the
+    program line (0-based point) each sample follows."""
+
+    t: np.ndarray
+    phi: np.ndarray
+    rho: np.ndarray
+    z: np.ndarray
+    on_cut: np.ndarray
+    line: np.ndarray
+
+
+def at_period(
+    path: DPath, z_um: np.ndarray, t_points: np.ndarray, period_s: float, until_s: float = math.inf
+) -> Sampled:
+    """The program's planned path (:func:`evaluate`, :func:`planned_z`) at uniform times at
+    most ``period_s`` [s] apart over the program's points at times ``t_points`` [s] (up to
+    ``until_s``), C taken linear in time between points (exact at constant spindle speed).
+    Accelerations formed on these samples by the kinematics stage are those the machine's
+    controller forms over its command period: a slope jump reads ω·Δ(dρ/dθ)/T, a smooth
+    stretch ω²·d²ρ/dθ² (model §6)."""
+    if not (math.isfinite(period_s) and period_s > 0.0):
+        raise ValueError(f"the controller period must be positive, got {period_s!r} s")
+    end = min(float(t_points[-1]), until_s)
+    n = int(math.ceil((end - float(t_points[0])) / period_s)) + 1
+    t = np.linspace(float(t_points[0]), end, max(n, 3))
+    phi = np.interp(t, t_points, path.phi)
+    rho, _, _, on_cut = evaluate(path, phi)
+    line = np.clip(np.searchsorted(t_points, t, side="right") - 1, 0, path.n_points - 1)
+    return Sampled(t, phi, rho, planned_z(path, z_um, phi, on_cut), on_cut, line)
 
 
 @njit(nogil=True, cache=True)

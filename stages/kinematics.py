@@ -19,6 +19,7 @@ sets (its command period, or the program's own step if the controller runs it po
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -95,11 +96,14 @@ def _text(value: float, axis: int, limits: Limits, which: int) -> tuple[str, flo
     return unit, value * factor
 
 
-def limits_reason(q: np.ndarray, m: Motion, limits: Limits, slack: float = 0.0) -> str:
+def limits_reason(
+    q: np.ndarray, m: Motion, limits: Limits, slack: float = 0.0, where: Callable[[int], str] | None = None
+) -> str:
     """Every limit positions q (P, A) SI with motion ``m`` exceed, '; '-joined, each with its
-    worst value, the limit and the line (1-based point; a velocity's step starts there) of that
-    value; '' when all hold.
+    worst value, the limit and where that value is: ``where(i)`` of its point i (a velocity's
+    step starts there), by default the line (1-based point); '' when all hold.
     ``slack`` is a relative allowance (e.g. for the printed digits of a program read back)."""
+    at = where if where is not None else (lambda i: f"line {i + 1}")
     out = []
     for j, name in enumerate(limits.names):
         col = q[:, j]
@@ -120,5 +124,5 @@ def limits_reason(q: np.ndarray, m: Motion, limits: Limits, slack: float = 0.0) 
             worst = float(values[line])
             unit, shown = _text(worst, j, limits, which)
             _, lim = _text(float(bound), j, limits, which)
-            out.append(f"{name}{what} {shown:.6g} {unit} {sense} limit {lim:g} {unit} (line {line + 1})")
+            out.append(f"{name}{what} {shown:.6g} {unit} {sense} limit {lim:g} {unit} ({at(line)})")
     return "; ".join(out)

@@ -58,6 +58,59 @@ def test_seed_example_optimised_acceleration_is_a_fraction_of_the_traditional_an
     assert a_opt.max() <= cut_peak * 1.01
 
 
+@settings(max_examples=30, deadline=None)
+@given(
+    a=st.floats(-50.0, 50.0),
+    b=st.floats(-1e-2, 1e-2),
+    c=st.floats(-1e-6, 1e-6),
+    transition=st.sampled_from(dpath.TRANSITIONS),
+    ppc=st.integers(3, 30),
+)
+def test_planned_z_is_exact_for_z_quadratic_along_the_cuts(a, b, c, transition, ppc):
+    # Z = a + b·u + c·u² on every cut (u along it), linear in θ across the transitions ([5]
+    # eq. 14): the planned path between the points is that quadratic and that line
+    path = seed_path(transition, spacing_um=2000.0, ppc=ppc)
+    on = path.cut >= 0
+    i = path.cut[on]
+    u = path.cut_d[i] * np.tan(path.phi[on] - path.cut_centre[i])
+    z = dpath.transition_z(path, a + b * u + c * u**2)
+    phi = np.linspace(path.phi[0], path.phi[-1], 5001)
+    rho, _, _, on_cut = dpath.evaluate(path, phi)
+    got = dpath.planned_z(path, z, phi)
+    seg = np.clip(np.searchsorted(path.bounds, phi[on_cut], side="right") - 1, 0, path.bounds.size - 1)
+    k = np.minimum(seg // 2, path.n_cuts - 1)
+    uu = path.cut_d[k] * np.tan(phi[on_cut] - path.cut_centre[k])
+    assert np.allclose(got[on_cut], a + b * uu + c * uu**2, rtol=0.0, atol=1e-9)
+    assert np.allclose(got[~on_cut], np.interp(phi[~on_cut], path.phi, z), rtol=0.0, atol=1e-12)
+
+
+def test_motion_at_the_controller_period_samples_the_planned_path():
+    # at constant spindle speed the samples are a period apart in time and ω·T in C, on the
+    # analytic path; smooth stretches read ω²·d²ρ/dθ², not the polyline's kinks
+    path = seed_path("optimised", spacing_um=500.0, ppc=21)
+    z = np.zeros(path.n_points)
+    omega = 40.0 * 2.0 * math.pi / 60.0
+    t = dpath.point_times(path.phi, path.rho, z, "spindle", 40.0)
+    s = dpath.at_period(path, z, t, 1e-3)
+    assert np.diff(s.t).max() <= 1e-3 + 1e-12
+    assert np.allclose(np.diff(s.phi), omega * np.diff(s.t), rtol=1e-9)
+    assert np.allclose(s.rho, dpath.evaluate(path, s.phi)[0])
+    from ftsweep import dpath as dprog
+
+    _, _, m = dprog.sampled_motion(path, z, t, 1e-3)
+    d2 = dpath.evaluate(path, s.phi)[2]
+    inner = slice(1, -1)
+    # within 2e-3 m/s² (0.25 % of the peak): the third derivative jumps at the junctions
+    assert np.allclose(m.accel[inner, 1], omega**2 * d2[inner] * 1e-6, rtol=0.0, atol=2e-3)
+    # why the planned path: the polyline of 21 points a cut, sampled a period apart, reads its
+    # kinks (the slope change at a point over one period), several times the curve's value
+    from ftsweep.stages import kinematics
+
+    poly = np.interp(s.phi, path.phi, path.rho) * 1e-6
+    a_poly = kinematics.motion(s.t, np.column_stack([s.phi, poly, s.z]))[2][:, 1]
+    assert np.abs(a_poly).max() > 2.0 * np.abs(m.accel[:, 1]).max()
+
+
 @settings(max_examples=25, deadline=None)
 @given(
     length=st.floats(2000.0, 30000.0),
@@ -197,6 +250,17 @@ def test_export_refuses_a_program_beyond_the_machine(tmp_path):
             tmp_path / "p.txt", tmp_path / "p.json", case, (surface, tight, cutting), record, {}
         )
     assert not (tmp_path / "p.txt").exists()
+    # accelerations: the record's figure, on the planned path every controller period
+    slow = machine.model_copy(update={"axes": machine.axes.model_copy(update={"x_accel_m_s2": 0.5})})
+    assert record["x_accel_peak_m_s2"] > 0.5
+    with pytest.raises(ExportError, match=r"X acceleration ([0-9.]+) m/s² > limit 0.5 m/s² \(line \d+, t = "):
+        program.export_dpath(
+            tmp_path / "p.txt", tmp_path / "p.json", case, (surface, slow, cutting), record, {}
+        )
+    loose = machine.model_copy(
+        update={"axes": machine.axes.model_copy(update={"x_accel_m_s2": 1.001 * record["x_accel_peak_m_s2"]})}
+    )
+    program.export_dpath(tmp_path / "p.txt", tmp_path / "p.json", case, (surface, loose, cutting), record, {})
 
 
 def test_dpath_sweep_is_scheduler_independent_and_compares(tmp_path):
@@ -251,9 +315,31 @@ def test_dpath_cli_json_reports_the_ratio(tmp_path):
     cut_peak = omega**2 * 40000.0 * sec * (math.tan(half) ** 2 + sec**2) * 1e-6
     assert all(r["optimised_m_s2"] == pytest.approx(cut_peak, rel=0.02) for r in small)
     assert 1.5 <= table["paper_ratio_step_deg"] <= 3.0
+    # the record's figures are formed over the machine's own step: one controller period
+    # (sts-xzc: 1 kHz) at 40 rpm, 0.24°, a row of the table
+    assert out["accel_period_s"] == pytest.approx(1e-3)
+    assert out["accel_step_deg"] == pytest.approx(math.degrees(omega * 1e-3))
+    machine_row = [r for r in table["rows"] if r["machine"]]
+    assert len(machine_row) == 1 and machine_row[0]["step_deg"] == pytest.approx(out["accel_step_deg"])
+    assert out["optimised"]["x_accel_peak_m_s2"] == pytest.approx(cut_peak, rel=0.02)
+    # the spike read on samples a period apart: the junction falls between two samples, so
+    # between half and all of the slope jump over the step
+    spike_h = machine_row[0]["traditional_m_s2"]
+    assert 0.5 * spike_h <= out["traditional"]["x_accel_peak_m_s2"] <= 1.001 * spike_h
     assert out["optimised"]["d2_rel_jump"] <= 1e-9
     assert out["traditional"]["slope_jump_um_rad"] > 0.0
     assert out["spiral"]["pv_nm"] > 0.0
+    # constant feed (README, DIFFSYS): along the whole path the optimised C speed changes
+    # smoothly, the traditional jumps at the junctions; on the cuts only, the transitions run
+    # at the C cap (40 rpm) and both paths take the same time
+    whole = {k: out[k]["feed_mode"] for k in ("traditional", "optimised")}
+    cuts = {k: out[k]["feed_mode_cuts"] for k in ("traditional", "optimised")}
+    assert whole["optimised"]["c_speed_jump_rpm"] < 0.5 * whole["traditional"]["c_speed_jump_rpm"]
+    assert whole["optimised"]["time_s"] > whole["traditional"]["time_s"]
+    for f in cuts.values():
+        assert f["c_speed_max_rpm"] == pytest.approx(40.0)
+        assert f["c_speed_cut_max_rpm"] < 40.0
+    assert cuts["optimised"]["time_s"] == pytest.approx(cuts["traditional"]["time_s"], rel=0.01)
     for plot in out["plots"]:
         assert (tmp_path / plot.split("/")[-1]).stat().st_size > 0
 

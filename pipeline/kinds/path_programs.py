@@ -16,6 +16,7 @@ column, the sidecar's claims with the re-derived ones.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -187,17 +188,17 @@ D_COLUMNS = "t_s C_deg X_mm Z_mm"
 D_LINE = "{:.9f} {:.9f} {:.9f} {:.9f}"
 
 
-def _limits_of_lines(machine: Any, data: np.ndarray) -> str:
-    """The axis limits the lines (t [s], C [deg], X [mm], Z [mm]) exceed, checked on every
-    line by the kinematics stage: positions directly, feeds and accelerations by differences
-    between lines."""
+def _limits_of_lines(machine: Any, path: Any, data: np.ndarray) -> str:
+    """The axis limits a D-path program's lines (t [s], C [deg], X [mm], Z [mm]) exceed on the
+    planned path ``path`` they were checked against, sampled every controller period with the
+    lines' times and Z (:func:`ftsweep.dpath.program_limits`: what the case record reports)."""
     from ftsweep import dpath as dprog
 
-    t, phi, x_um, z_um = data[:, 0], np.radians(data[:, 1]), data[:, 2] * 1e3, data[:, 3] * 1e3
+    t = data[:, 0]
     if not np.all(np.diff(t) > 0.0):
         return "time does not increase from line to line"
     # the printed digits (1 ns, 1e-9°, 1 nm) move speeds and accelerations by far less
-    return dprog.limits_reason(machine, t, phi, x_um, z_um, slack=1e-6)
+    return dprog.program_limits(machine, path, data[:, 3] * 1e3, t, slack=1e-6)
 
 
 def dpath_document(
@@ -217,6 +218,7 @@ def dpath_document(
     path, z = rcase.layout, rcase.values
     rpm = specs[2].spindle_rpm
     t = dprog.times(path, z, rpm)
+    period = dprog.period_of(specs[1])
     lines = [
         D_LINE.format(*row) for row in zip(t, np.degrees(path.phi), path.rho * 1e-3, z * 1e-3, strict=True)
     ]
@@ -241,6 +243,8 @@ def dpath_document(
         f"transition {g.transition}",
         f"# tool: nose radius {rcase.nose_radius_um:.6g} um; spindle {rpm:g} rpm (constant)",
         f"# timing: {float(t[-1]):.3f} s in all",
+        f"# axis limits checked on the planned path through the lines every controller period "
+        f"({period * 1e3:.6g} ms, a {math.degrees(period * rpm * math.pi / 30.0):.4g} deg C step)",
         f"# predicted P-V: {chosen['pv_nm']:.6f} nm",
         f"# points: {path.n_points}",
         "# units: t [s] from the first line, C [deg] accumulated, X [mm] tool radius, Z [mm] tool tip",
@@ -259,9 +263,10 @@ def export_dpath(
     """Plan the chosen D-path case again ([5]) and write it as position-time lines
     (t [s] at constant spindle speed, accumulated C [deg], X [mm], Z [mm]) with its sidecar,
     atomically; refused if any line leaves the machine's axis limits."""
-    head, lines, meta = dpath_document(case, specs, chosen, extra, now(), f"ftsweep {__version__}")
+    rcase = resolve_case(case, specs=specs)
+    head, lines, meta = dpath_document(case, specs, chosen, extra, now(), f"ftsweep {__version__}", rcase)
     data = np.array([[float(v) for v in line.split()] for line in lines])
-    reason = _limits_of_lines(specs[1], data)
+    reason = _limits_of_lines(specs[1], rcase.layout, data)
     if reason:
         raise ProgramError(
             f"the program leaves the axis limits of machine '{case.machine}': {reason}; nothing exported"
@@ -281,17 +286,17 @@ def verify_dpath(
     doc = read_program_file(path, D_MAGIC, D_COLUMNS)
     meta = checked_sidecar(path, doc.fields)
     case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
-    reason = _limits_of_lines(specs[1], doc.data)
-    if reason:
-        raise ProgramError(
-            f"{path}: a line leaves the axis limits of machine '{case.machine}': {reason}; do not run it"
-        )
     # planned once: its lines are compared, its cut geometry carries the file's points
     rcase = resolve_case(case, specs=specs)
     planned = dpath_document(
         case, specs, meta["selection"], recorded_extra(meta), meta["created"], meta["generator"], rcase
     )
     check_document(path, doc, planned, meta, D_COLUMNS)
+    reason = _limits_of_lines(specs[1], rcase.layout, doc.data)
+    if reason:
+        raise ProgramError(
+            f"{path}: a line leaves the axis limits of machine '{case.machine}': {reason}; do not run it"
+        )
     data = doc.data
     # the path as the file gives it: its C and X, on the planned cuts' geometry
     given = rcase.layout._replace(phi=np.radians(data[:, 1]), rho=data[:, 2] * 1e3)

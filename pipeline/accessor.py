@@ -42,6 +42,11 @@ def aspect_label(ds: xr.Dataset) -> str:
     return f"aspect ratio α = Δ{_greek(first)}/Δ{_greek(second)} [{units}]"
 
 
+def _shown(value: Any) -> str:
+    """A coordinate value for a label: a number to 3 digits, a name (the compensation) as it is."""
+    return value if isinstance(value, str) else f"{value:.3g}"
+
+
 def _greek(name: str) -> str:
     return {"rho": "ρ", "theta": "θ"}.get(name, name)
 
@@ -103,7 +108,9 @@ class FtsweepAccessor:
             counts = n.stack(line=lines) if lines else n.expand_dims(line=[0])
             cmap = _cmap(stacked.sizes["line"])
             for i in range(stacked.sizes["line"]):
-                label = ", ".join(f"{d} = {stacked['line'].values[i][j]:.3g}" for j, d in enumerate(lines))
+                label = ", ".join(
+                    f"{d} = {_shown(stacked['line'].values[i][j])}" for j, d in enumerate(lines)
+                )
                 order = np.argsort(counts.isel(line=i).values)
                 ax.plot(
                     counts.isel(line=i).values[order],

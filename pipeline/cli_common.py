@@ -21,6 +21,12 @@ class FiniteRange(click.FloatRange):
             self.fail(f"{number} is not a finite number", param, ctx)
         return number
 
+    def _describe_range(self) -> str:
+        # click prints "x<=None" for a range without bounds
+        if self.min is None and self.max is None:
+            return "finite"
+        return str(super()._describe_range())
+
 
 FINITE = FiniteRange()
 POSITIVE = FiniteRange(min=0.0, min_open=True)

@@ -224,8 +224,11 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
     return counts
 
 
-def _target_text(value: float) -> str:
-    """A sweep axis value: whole counts with thousands separators, others to 4 digits."""
+def _target_text(value: float | str) -> str:
+    """A sweep axis value: whole counts with thousands separators, others to 4 digits, names
+    (the compensation) as they are."""
+    if isinstance(value, str):
+        return value
     return f"{value:,.0f}" if value == round(value) and abs(value) >= 1000 else f"{value:.4g}"
 
 

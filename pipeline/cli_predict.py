@@ -70,8 +70,16 @@ from ftsweep.usersurfaces import SurfaceLoadError
     show_default=True,
     help="Tool-nose compensation of the table: exact arc contact, the slope approximation, or none.",
 )
-@click.option("--machine", default="fts-1m", show_default=True, help="Machine from catalogs/machines.yaml.")
-@click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
+@click.option(
+    "--machine",
+    help="Machine from catalogs/machines.yaml. Default: the program kind's (tables and spirals fts-1m, "
+    "D paths sts-xzc, Fresnel xyzc-nanoform).",
+)
+@click.option(
+    "--cutting",
+    help="Entry of catalogs/cutting.yaml. Default: the program kind's (tables and spirals reference, "
+    "D paths dpath-finish, Fresnel fresnel-finish).",
+)
 @click.option(
     "--layers",
     type=click.Choice(["auto", "off"]),
@@ -190,14 +198,16 @@ def predict(**opts: Any) -> None:
 def _build_case(opts: dict[str, Any]) -> Case:
     """The case of ``predict``'s options. The option combinations are checked here; every
     value is validated by the spec models, whose errors are reported by option name."""
-    surface, layout, machine, cutting = opts["surface"], opts["layout"], opts["machine"], opts["cutting"]
+    surface, layout = opts["surface"], opts["layout"]
     try:
         spec = catalogs.entry("surfaces", surface)
+        kind = layout or spec.layout
+        machine = opts["machine"] or kinds.kind(kind).machine
+        cutting = opts["cutting"] or kinds.kind(kind).cutting
         catalogs.entry("machines", machine)
         catalogs.entry("cutting", cutting)
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
-    kind = layout or spec.layout
     try:
         request, notices = kinds.request_from_options(kind, opts)
     except ValueError as exc:

@@ -65,7 +65,7 @@ def conditions(ds: Any) -> dict[str, str]:
         "nose_radius_um": _values_text(radii),
         "feed_um": feed,
         "machine": spec.machine,
-        "compensation": spec.compensation,
+        "compensation": ", ".join(axes.compensation) if axes.compensation else spec.compensation,
         "resolution": sampling + (f", {res.n_theta} angles" if res.n_theta else ""),
     }
 

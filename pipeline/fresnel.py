@@ -63,7 +63,8 @@ class FresnelPlan(NamedTuple):
     path : the quasi-spiral (:class:`ftsweep.stages.fresnel.QuasiSpiral`).
     f_ref_um, max_um : the surface's lowest point in the aperture and its highest [µm].
     apex_um : (X, Y) of the lowest point [µm].
-    z_um : Z of the sliced surface at every point [µm] ([2] eq. 8).
+    z_um : Z of the sliced surface at every point [µm] ([2] eq. 8), each entry onto a new
+        facet ramped over its first turn (:func:`ftsweep.stages.fresnel.entry_offset`).
     ez_exact_um, ez_straight_um : tool-edge compensation by [2] eq. 10 and eq. 12 [µm].
     ez_um : the compensation applied (``compensation``), z = Z + e_z ([2] eq. 13).
     phi, x_um, y_um : spindle angle [rad] and the tool's global X, Y [µm] ([2] eq. 9).
@@ -221,10 +222,11 @@ def _facets(
 def _commands(
     fn: Callable[..., Any], path: Any, f_ref_um: float, h: float, rc: float
 ) -> tuple[np.ndarray, ...]:
-    """At the path's points: the facet heights f_c [µm] ([2] eq. 3), the exact (eq. 10) and
-    straight-line (eq. 12) compensations e_z [µm], and the slopes ∂f/∂x, ∂f/∂y."""
+    """At the path's points: the facet heights f_c [µm] ([2] eq. 3) with the entries onto new
+    facets ramped over their first turn (:func:`ftsweep.stages.fresnel.entry_offset`), the exact
+    (eq. 10) and straight-line (eq. 12) compensations e_z [µm], and the slopes ∂f/∂x, ∂f/∂y."""
     f, gx, gy = fn(path.xy[:, 0], path.xy[:, 1])
-    z = ff.sliced(f, f_ref_um, h, path.level)[0]
+    z = ff.sliced(f, f_ref_um, h, path.level)[0] + ff.entry_offset(path.facet, path.points_per_turn, h)
     exact = ff.compensation_exact(fn, path.xy[:, 0], path.xy[:, 1], rc)
     return z, exact, ff.compensation_straight(gx, gy, rc), gx, gy
 

@@ -73,12 +73,18 @@ def best_pv_over_aspect(ds: xr.Dataset) -> xr.DataArray:
     return pv.min(other) if other else pv
 
 
+def _plain(value: Any) -> Any:
+    """A coordinate value as a Python float, or as str for a name."""
+    return str(value) if isinstance(value, str) else float(value)
+
+
 def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
     """The coordinates (``<axis>_target``) and key results of the case at flat index ``flat``."""
     pos = position(ds, flat)
     point = ds.isel(pos)
     out: dict[str, Any] = {"index": int(flat)}
-    out.update({f"{d}_target": float(ds[d].values[i]) for d, i in pos.items()})
+    # a named axis (the compensation) keeps its names
+    out.update({f"{d}_target": _plain(ds[d].values[i]) for d, i in pos.items()})
     layout = ds.attrs.get("layout_method", "")
     names = result.pitch_names(layout)
     out["layout"] = layout

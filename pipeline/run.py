@@ -320,5 +320,8 @@ def axis_summary(spec: SweepSpec) -> str:
     """One line per axis: its length and range, for the start of a run."""
     parts = []
     for axis, values in coordinates(spec).items():
-        parts.append(f"{axis} ×{values.size} [{values.min():.4g} … {values.max():.4g}]")
+        if values.dtype == object:  # a named axis (the compensation)
+            parts.append(f"{axis} ×{values.size} [{', '.join(map(str, values))}]")
+        else:
+            parts.append(f"{axis} ×{values.size} [{values.min():.4g} … {values.max():.4g}]")
     return ", ".join(parts)

@@ -68,14 +68,20 @@ class SweepAxes(Strict):
     points_per_cut: Optional[AxisSpec] = Field(None, description="D path: points on every cut")
     facet_height_um: Optional[AxisSpec] = Field(None, description="Fresnel: facet heights h [µm]")
     points_per_turn: Optional[AxisSpec] = Field(None, description="Fresnel: control points K per turn")
+    deviation_deg: Optional[Annotated[list[float], Field(min_length=1)]] = Field(
+        None, description="Fresnel: rake-face deviations Δφ from the cutting direction [deg], a list"
+    )
     feed_um: Optional[AxisSpec] = Field(None, description="feeds per revolution [µm/rev]")
     nose_radius_um: Optional[AxisSpec] = Field(None, description="tool nose radii [µm]")
+    compensation: Optional[Annotated[list[Literal["exact", "slope", "none"]], Field(min_length=1)]] = Field(
+        None, description="tool-nose compensations, a list of exact, slope, none (instead of the sweep's one)"
+    )
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
-        # table and spiral sweep specs keep their hashes
+        # table, spiral and D-path sweep specs keep their hashes
         return catalogs.without_defaults(
-            handler(self), dict.fromkeys((*SPIRAL_AXES, *DPATH_AXES, *FRESNEL_AXES))
+            handler(self), dict.fromkeys((*SPIRAL_AXES, *DPATH_AXES, *FRESNEL_AXES, "compensation"))
         )
 
 
@@ -109,6 +115,9 @@ class SweepSpec(Strict):
         None,
         description="D path options for every case (transition, zones, offaxis_um, cut_angle_deg, "
         "transition_step_deg)",
+    )
+    fresnel: Optional[dict[str, Any]] = Field(
+        None, description="Fresnel options for every case (deviation_deg, safety, control_points)"
     )
     machine: str = "fts-1m"
     cutting: str = "reference"
@@ -164,8 +173,8 @@ class SweepSpec(Strict):
     def _axes_of_the_program(self) -> SweepSpec:
         if self.layout is not None:
             kinds.check_sweep_axes(self)  # only its kind's axes, and its kind's rules
-        elif self.dpath:
-            raise ValueError("dpath belongs to D-path sweeps (layout: dpath)")
+        else:
+            kinds.check_options_keys(self)
         return self
 
     @model_validator(mode="after")
@@ -187,8 +196,19 @@ class SweepSpec(Strict):
 SPIRAL_RULE_AXES = ("points_per_rev", "arc_um", "chord_um")
 SPIRAL_AXES = (*SPIRAL_RULE_AXES, "residual_um")
 DPATH_AXES = ("spacing_um", "points_per_cut")
-FRESNEL_AXES = ("facet_height_um", "points_per_turn")
-AXIS_ORDER = ("points", "aspect", *SPIRAL_AXES, *DPATH_AXES, *FRESNEL_AXES, "feed_um", "nose_radius_um")
+FRESNEL_AXES = ("facet_height_um", "points_per_turn", "deviation_deg")
+AXIS_ORDER = (
+    "points",
+    "aspect",
+    *SPIRAL_AXES,
+    *DPATH_AXES,
+    *FRESNEL_AXES,
+    "feed_um",
+    "nose_radius_um",
+    "compensation",
+)
+# axes whose values are names, not numbers (a cube's coordinate of strings, without units)
+NAMED_AXES = ("compensation",)
 AXIS_ATTRS = {
     "points": {"units": "1", "long_name": "target number of control points"},
     "points_per_rev": {"units": "1", "long_name": "points per revolution of the spiral"},
@@ -199,6 +219,8 @@ AXIS_ATTRS = {
     "points_per_cut": {"units": "1", "long_name": "points on every cut of the D path"},
     "facet_height_um": {"units": "um", "long_name": "height of every Fresnel facet"},
     "points_per_turn": {"units": "1", "long_name": "control points on every turn of the quasi-spiral"},
+    "deviation_deg": {"units": "deg", "long_name": "rake face turned from the cutting direction"},
+    "compensation": {"long_name": "tool-nose compensation: exact, slope or none"},
     "feed_um": {"units": "um", "long_name": "feed per spindle revolution"},
     "nose_radius_um": {"units": "um", "long_name": "tool nose radius"},
 }
@@ -214,11 +236,14 @@ def axis_attrs(axis: str, kind: str) -> dict[str, str]:
 
 
 def axis_values(spec: Any) -> np.ndarray:
-    """The values of one axis spec (a list or an :class:`AxisRange`)."""
+    """The values of one axis spec (a list or an :class:`AxisRange`); names (the
+    compensations) as an array of str objects."""
     if isinstance(spec, AxisRange):
         if spec.scale == "log":
             return np.geomspace(spec.start, spec.stop, spec.num)
         return np.linspace(spec.start, spec.stop, spec.num)
+    if spec and isinstance(spec[0], str):
+        return np.array(spec, dtype=object)
     return np.asarray(spec, dtype=np.float64)
 
 
@@ -293,7 +318,7 @@ def case_at(spec: SweepSpec, index: int) -> Case:
     coords = coordinates(spec)
     shape = tuple(v.size for v in coords.values())
     pos = dict(zip(coords, np.unravel_index(index, shape), strict=True))
-    value = {name: float(coords[name][pos[name]]) for name in coords}
+    value = {name: float(coords[name][pos[name]]) for name in coords if name not in NAMED_AXES}
     assert spec.layout is not None
     request = kinds.kind(spec.layout).request_at(spec, value)
     return Case(
@@ -303,7 +328,9 @@ def case_at(spec: SweepSpec, index: int) -> Case:
         cutting=spec.cutting,
         feed_um=value.get("feed_um"),
         nose_radius_um=value.get("nose_radius_um"),
-        compensation=spec.compensation,
+        compensation=str(coords["compensation"][pos["compensation"]])
+        if "compensation" in coords
+        else spec.compensation,
         resolution=spec.resolution,
     )
 

@@ -27,7 +27,9 @@ compensated surface along the cuts and is interpolated linearly in θ across eac
 transition between the end of one cut and the start of the next ([5] eq. 14).
 
 A program is a list of points (accumulated C angle φ [rad], X = ρ [µm], Z [µm]); the
-machine moves every axis linearly in time between them. Lengths µm, angles rad.
+machine moves every axis linearly in time between them. Its axis accelerations are formed on
+the planned path sampled every controller period (:func:`at_period`), the step the machine
+sets, not the planner's point spacing (model §6). Lengths µm, angles rad.
 """
 
 from __future__ import annotations

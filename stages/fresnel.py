@@ -20,7 +20,9 @@ point on edge n to the one on edge n + 1 (eq. 8, read as the continuous paramete
 s = (m·K + k)/(M_n·K), m = 0..M_n − 1, k = 0..K − 1: [2]'s printed m(k − 1)/(M_n·K) is not
 continuous between turns). M_n is the least integer keeping that step ≤ Δr, the feed per
 turn (the purpose of eq. 7; eq. 7's estimate from the smallest slope on the edge is reported
-beside it). The innermost facet closes on the surface's lowest point. Z = f_c of the facet.
+beside it). The innermost facet closes on the surface's lowest point. Z = f_c of the facet,
+except on the first turn onto a facet, where Z climbs the step of h across the edge along the
+turn (:func:`entry_offset`) instead of between two points.
 
 *Adaptive tool pose* ([2] §2.3, eq. 9). The spindle angle φ and the tool's global (x, y)
 follow from R(φ)·(x, y) = (X, Y) and R(φ)·(−cos Δφ, sin Δφ) = ∇f/|∇f| with
@@ -270,6 +272,24 @@ def interpolate(edges: np.ndarray, turns: np.ndarray) -> tuple[np.ndarray, np.nd
     parts.append(edges[-1][:1])
     facet.append(np.array([len(turns) - 1]))
     return np.concatenate(parts), np.concatenate(facet)
+
+
+def entry_offset(facet: np.ndarray, count: int, h: float) -> np.ndarray:
+    """The Z offsets [µm] that spread every entry onto a new facet over the facet's first
+    turn: Z = f_c rises by h across the edge ([2] eq. 3), and instead of that step between two
+    points the tool climbs it along the first turn by a half-cosine, −h·(1 + cos(π·k/K))/2 at
+    point k of the turn (K = ``count``), continuous with the last turn of the facet before and
+    with zero slope at both ends; 0 elsewhere. The first turn runs within one feed Δr of the
+    edge, so the ramp cuts only inside the band the nose forms the wall in anyway
+    (sqrt(2·Rc·h) + Δr, left out of the form error); a step of h in one timestep would set the
+    Z acceleration of the whole program (README, "Fresnel")."""
+    out = np.zeros(facet.size)
+    starts = np.flatnonzero(np.diff(facet) != 0) + 1
+    k = np.arange(count)
+    for first in starts:
+        span = k[: out.size - first]
+        out[first : first + span.size] = -h * 0.5 * (1.0 + np.cos(np.pi * span / count))
+    return out
 
 
 # --------------------------------------------------------------------------- tool pose

@@ -94,6 +94,10 @@ class ProgramKind:
     options : the command-line options (``predict``'s keys) that belong to it.
     from_options : ``(options) -> (request fields, notices)`` of ``predict``'s options,
         raising ValueError naming the option for a combination it refuses.
+    machine, cutting : the catalog entries ``predict`` takes when none is given: a machine
+        that can run the kind (a Fresnel program needs X, Y, Z, C limits) and its cutting.
+    options_key : the sweep spec's key of options for every case of its sweeps (``dpath:``),
+        if it has one.
     """
 
     name: str
@@ -117,6 +121,9 @@ class ProgramKind:
     from_options: Callable[[dict[str, Any]], tuple[dict[str, Any], list[str]]] = lambda o: ({}, [])
     aspect_range: Optional[tuple[float, float]] = None
     aspect_units: str = "um/deg"
+    machine: str = "fts-1m"
+    cutting: str = "reference"
+    options_key: Optional[str] = None
 
 
 @functools.cache
@@ -135,7 +142,19 @@ def check_sweep_axes(spec: Any) -> None:
         foreign = [n for n in other.axes if n not in own.axes and getattr(spec.axes, n) is not None]
         if foreign:
             raise ValueError(f"axes.{foreign[0]} belongs to {other.sweeps}, not to a {own.name} sweep")
+        key = other.options_key
+        if key is not None and key != own.options_key and getattr(spec, key, None):
+            raise ValueError(
+                f"{key} belongs to {other.sweeps} (layout: {other.name}), not to a {own.name} sweep"
+            )
     own.check_sweep(spec)
+
+
+def check_options_keys(spec: Any) -> None:
+    """A sweep spec without a layout holds no kind's options key (ValueError naming it)."""
+    for other in registry().values():
+        if other.options_key is not None and getattr(spec, other.options_key, None):
+            raise ValueError(f"{other.options_key} belongs to {other.sweeps} (layout: {other.name})")
 
 
 def flag(name: str) -> str:

@@ -179,4 +179,7 @@ DPATH = ProgramKind(
     sweeps="D-path sweeps",
     options=OPTIONS,
     from_options=lambda o: ({"kind": "dpath", **request_options(o)}, []),
+    machine="sts-xzc",
+    cutting="dpath-finish",
+    options_key="dpath",
 )

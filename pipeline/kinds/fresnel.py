@@ -20,7 +20,7 @@ from ftsweep.kinds.requests import FRESNEL_FIELDS, FresnelRequest
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import kinematics
 
-AXES = ("facet_height_um", "points_per_turn")
+AXES = ("facet_height_um", "points_per_turn", "deviation_deg")
 # the request's fields → the planner's option names (ftsweep.fresnel.DEFAULTS)
 OPTION = {"control_points": "scheme"}
 
@@ -34,7 +34,10 @@ def option(request: Any, name: str) -> Any:
 def _request_at(spec: Any, value: dict[str, float]) -> FresnelRequest:
     return FresnelRequest(
         kind="fresnel",
-        **{k: (int(round(v)) if k == "points_per_turn" else v) for k, v in value.items() if k in AXES},
+        **{
+            **(spec.fresnel or {}),
+            **{k: (int(round(v)) if k == "points_per_turn" else v) for k, v in value.items() if k in AXES},
+        },
     )
 
 
@@ -149,10 +152,19 @@ def _describe(r: dict[str, Any]) -> list[str]:
 
 
 def _check_sweep(spec: Any) -> None:
-    if not any(getattr(spec.axes, n) is not None for n in AXES):
-        raise ValueError("a Fresnel sweep needs an axis: facet_height_um and/or points_per_turn")
-    if spec.dpath:
-        raise ValueError("dpath belongs to D-path sweeps (layout: dpath), not to a Fresnel sweep")
+    """An axis of its own or of the compensation; the Fresnel options valid and not swept too."""
+    if not any(getattr(spec.axes, n) is not None for n in (*AXES, "compensation")):
+        raise ValueError(
+            "a Fresnel sweep needs an axis: facet_height_um, points_per_turn, deviation_deg and/or "
+            "compensation"
+        )
+    given = spec.fresnel or {}
+    for name in AXES:
+        if name in given and getattr(spec.axes, name) is not None:
+            raise ValueError(f"fresnel.{name} is also a sweep axis (axes.{name}): give one of them")
+    for value in spec.axes.deviation_deg or []:
+        FresnelRequest(kind="fresnel", deviation_deg=value)  # names a deviation out of range
+    FresnelRequest(kind="fresnel", **given)  # names a bad option
 
 
 FRESNEL = ProgramKind(
@@ -178,4 +190,7 @@ FRESNEL = ProgramKind(
         {"kind": "fresnel", **{k: o[k] for k in FRESNEL_FIELDS if o.get(k) is not None}},
         [],
     ),
+    machine="xyzc-nanoform",
+    cutting="fresnel-finish",
+    options_key="fresnel",
 )

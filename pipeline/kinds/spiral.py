@@ -236,8 +236,6 @@ def _check_sweep(spec: Any) -> None:
         )
     if spec.axes.residual_um is not None and spec.axes.feed_um is not None:
         raise ValueError("axes.residual_um sets the feed: give it or axes.feed_um, not both")
-    if spec.dpath:
-        raise ValueError("dpath belongs to D-path sweeps (layout: dpath), not to a spiral sweep")
 
 
 SPIRAL = ProgramKind(

@@ -133,8 +133,6 @@ def _check_sweep(spec: Any) -> None:
     for name in AXES:
         if getattr(spec.axes, name) is None:
             raise ValueError(f"axes.{name}: required key is missing for a {spec.layout} sweep")
-    if spec.dpath:
-        raise ValueError(f"dpath belongs to D-path sweeps (layout: dpath), not to a {spec.layout} sweep")
 
 
 def _table_options(kind: str, opts: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:

@@ -18,8 +18,6 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-from ftsweep import cube, query
-
 
 def _axes(ax: Any = None, size: tuple[float, float] = (7.0, 4.6)) -> Any:
     import matplotlib
@@ -62,11 +60,15 @@ class FtsweepAccessor:
     def done(self) -> xr.Dataset:
         """The cube's numeric variables with not-done cases masked (NaN)."""
         numeric = [v for v in self._ds.data_vars if self._ds[v].dtype.kind in "fiub"]
+        from ftsweep import cube
+
         return self._ds[numeric].where(self._ds["status"] == cube.DONE)
 
     def pv(self) -> xr.DataArray:
         """P-V [nm] of the eligible cases (done, feasible, within capacity: those ``select``
         may choose) over (points, aspect), other axes reduced by their minimum."""
+        from ftsweep import query
+
         return query.best_pv_over_aspect(self._ds)
 
     def best(
@@ -205,6 +207,8 @@ class FtsweepAccessor:
             )
         if index is None:
             index = self.best(budget_points=int(self._ds["n_points"].max()))["index"]
+        from ftsweep import query
+
         emap = self._ds[var].isel(query.position(self._ds, index))
         return plot_map(emap["map_x"].values, emap.values, query.describe(self._ds, index), kind, ax)
 

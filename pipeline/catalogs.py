@@ -62,7 +62,8 @@ def read_yaml_file(path: Path) -> Any:
     except OSError as exc:
         raise CatalogError(f"{path}: cannot be read ({exc.strerror})") from None
     try:
-        return yaml.safe_load(text)
+        # libyaml's parser when PyYAML was built with it: the same documents, 8× faster
+        return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     except yaml.YAMLError as exc:
         raise CatalogError(f"{path}: not valid YAML: {' '.join(str(exc).split())[:300]}") from None
     except RecursionError:

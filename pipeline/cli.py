@@ -3,19 +3,92 @@ the other commands live in ``cli_*`` modules by family and are registered here."
 
 from __future__ import annotations
 
+import ast
+import importlib
+import importlib.util
 import os
 import sys
-from typing import Any
+from typing import Any, Optional
 
 import click
 
-from ftsweep import __version__, catalogs
+from ftsweep import __version__
 from ftsweep.cli_common import MESSAGE_LIMIT, USER_ERRORS, echo_json, one_line
+
+# every command but `catalogs`: its module and function, imported only when the command runs or
+# shows its own help, so that `ftsweep --help` need not load numba, xarray or zarr; the group's
+# help reads their one-line summaries from the modules' source
+COMMANDS = {
+    "predict": ("ftsweep.cli_predict", "predict"),
+    "sweep": ("ftsweep.cli_cubes", "sweep"),
+    "select": ("ftsweep.cli_cubes", "select"),
+    "export": ("ftsweep.cli_cubes", "export"),
+    "verify": ("ftsweep.cli_cubes", "verify"),
+    "optimize": ("ftsweep.cli_tools", "optimize"),
+    "report": ("ftsweep.cli_cubes", "report"),
+    "estimate": ("ftsweep.cli_tools", "estimate"),
+    "bench": ("ftsweep.cli_tools", "bench"),
+    "compare": ("ftsweep.cli_cubes", "compare"),
+    "dpath": ("ftsweep.cli_programs", "dpath_command"),
+    "fresnel": ("ftsweep.cli_programs", "fresnel_command"),
+}
+
+
+def short_help(name: str, limit: int = 45) -> str:
+    """The one-line summary of command ``name`` as click makes it from the command's docstring,
+    read from its module's source without importing the module."""
+    module, function = COMMANDS[name]
+    spec = importlib.util.find_spec(module)
+    assert spec is not None and spec.origin is not None
+    with open(spec.origin, encoding="utf-8") as f:
+        tree = ast.parse(f.read())
+    doc = next(
+        ast.get_docstring(node, clean=False) or ""
+        for node in tree.body
+        if isinstance(node, ast.FunctionDef) and node.name == function
+    )
+    # a bare command with the same help text makes the summary exactly as click does
+    return click.Command(name, help=doc).get_short_help_str(limit)
 
 
 class _Group(click.Group):
     """Turns every error into a one-line message and a non-zero exit (no traceback); set
-    FTSWEEP_DEBUG=1 to see the traceback of an unexpected one."""
+    FTSWEEP_DEBUG=1 to see the traceback of an unexpected one. Its commands are loaded when
+    first asked for (:data:`COMMANDS`)."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        """Run as the console script (no arguments: ``sys.argv``) and leave at once: after
+        the command, the exit handlers run (clusters, zarr's event loop, logging) and the
+        streams are flushed, but the interpreter's teardown, which frees numba's and
+        llvmlite's objects one by one for nothing (0.15 s), is skipped. Called with arguments
+        (tests, other programs), it behaves as any click group."""
+        if args or kwargs:
+            return super().__call__(*args, **kwargs)
+        try:
+            super().__call__()
+            code: Any = 0
+        except SystemExit as exc:
+            code = exc.code
+        _leave(code)
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted({*self.commands, *COMMANDS})
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> Optional[click.Command]:
+        if cmd_name in COMMANDS and cmd_name not in self.commands:
+            module, function = COMMANDS[cmd_name]
+            self.add_command(getattr(importlib.import_module(module), function), cmd_name)
+        return super().get_command(ctx, cmd_name)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        names = self.list_commands(ctx)
+        limit = formatter.width - 6 - max(len(n) for n in names)
+        rows = [
+            (n, self.commands[n].get_short_help_str(limit) if n in self.commands else short_help(n, limit))
+            for n in names
+        ]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
@@ -37,6 +110,23 @@ class _Group(click.Group):
             hint = "" if known else " (an unexpected error: set FTSWEEP_DEBUG=1 for the traceback)"
             text = str(exc) if known and str(exc) else f"{type(exc).__name__}: {exc}"
             raise click.ClickException(one_line(text, MESSAGE_LIMIT - len(hint)) + hint) from None
+
+
+def _leave(code: Any) -> None:
+    """Exit with ``code`` (a SystemExit's: None, a number or a message) without the
+    interpreter's teardown, once the exit handlers have run and the streams are flushed."""
+    import atexit
+
+    if code is not None and not isinstance(code, int):
+        sys.stderr.write(f"{code}\n")
+        code = 1
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: nothing more can be said on it
+            pass
+    os._exit(code or 0)
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -70,6 +160,7 @@ def list_catalogs(as_json: bool) -> None:
     import shutil
     import textwrap
 
+    from ftsweep import catalogs
     from ftsweep.sweep import sweep_dir
 
     kinds = ("surfaces", "machines", "cutting")
@@ -102,30 +193,6 @@ def list_catalogs(as_json: bool) -> None:
     click.echo(f"sweeps ({sweep_dir()}):")
     for name in sweeps:
         click.echo(f"  {name}")
-
-
-def _register() -> None:
-    """Add every command to the group (each lives in the module of its family)."""
-    from ftsweep import cli_cubes, cli_predict, cli_programs, cli_tools
-
-    for command in (
-        cli_predict.predict,
-        cli_cubes.sweep,
-        cli_cubes.select,
-        cli_cubes.export,
-        cli_cubes.verify,
-        cli_tools.optimize,
-        cli_cubes.report,
-        cli_tools.estimate,
-        cli_tools.bench,
-        cli_cubes.compare,
-        cli_programs.dpath_command,
-        cli_programs.fresnel_command,
-    ):
-        main.add_command(command)
-
-
-_register()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -12,7 +12,6 @@ from typing import Any, Optional
 
 import click
 
-from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import (
     COUNT,
     NON_NEGATIVE,
@@ -24,9 +23,7 @@ from ftsweep.cli_common import (
     progress_done,
     stderr_progress,
 )
-from ftsweep.lines import LINE_CACHE_MB
-from ftsweep.spec import CaseError
-from ftsweep.sweep import MAX_CASES
+from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES
 
 
 @click.command()
@@ -100,7 +97,7 @@ def sweep(
       ftsweep sweep my-sweep.yaml --out outputs/my.zarr --workers 2
       ftsweep sweep lens-array-mesh --scheduler tcp://127.0.0.1:8786
     """
-    from ftsweep.cube import CubeError
+    from ftsweep.catalogs import CatalogError
     from ftsweep.executor import ExecutorError
     from ftsweep.lock import LockError
     from ftsweep.run import axis_summary, run_sweep
@@ -126,7 +123,7 @@ def sweep(
             prune=prune,
             line_cache_mb=line_cache_mb,
         )
-    except (CatalogError, CubeError, CaseError, LockError, ExecutorError) as exc:
+    except (ValueError, LockError, ExecutorError) as exc:  # catalog, cube and case errors are ValueErrors
         raise click.ClickException(str(exc)) from None
     _report_problems(report)
     counts = _print_sweep_summary(report)
@@ -371,6 +368,8 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, 
     plug-in surface they name runs only if the local catalog declares it (--trust-plugins).
     """
     from ftsweep import export as exp
+    from ftsweep.catalogs import CatalogError
+    from ftsweep.spec import CaseError
 
     progress = stderr_progress("re-simulating", as_json)
     try:
@@ -420,6 +419,7 @@ def report(
     from ftsweep.cube import CubeError
     from ftsweep.report import make_report
     from ftsweep.select import SelectError
+    from ftsweep.spec import CaseError
 
     progress = stderr_progress("error map")
     click.echo("plotting the cube; re-simulating the chosen case for its error map ...", err=True)
@@ -486,6 +486,7 @@ def compare(
     from ftsweep.cube import CubeError
     from ftsweep.io import save_figure
     from ftsweep.select import SelectError
+    from ftsweep.spec import CaseError
 
     progress = stderr_progress("re-simulating", as_json)
     try:

@@ -3,14 +3,10 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
-from pydantic import ValidationError
 
-from ftsweep import catalogs, kinds, result
-from ftsweep.case import run_case
-from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import (
     FINITE,
     POSITIVE,
@@ -22,9 +18,12 @@ from ftsweep.cli_common import (
     progress_done,
     stderr_progress,
 )
-from ftsweep.cost import MAX_NODES
-from ftsweep.spec import Case, CaseError, Resolution
-from ftsweep.usersurfaces import SurfaceLoadError
+from ftsweep.defaults import MAX_NODES, POINTS_PER_FEED, SAMPLES_PER_CELL
+
+if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
+    from pydantic import ValidationError
+
+    from ftsweep.spec import Case
 
 
 @click.command()
@@ -104,14 +103,14 @@ from ftsweep.usersurfaces import SurfaceLoadError
 @click.option(
     "--samples-per-cell",
     type=int,
-    default=Resolution().samples_per_cell,
+    default=SAMPLES_PER_CELL,
     show_default=True,
     help="Spindle angles simulated per table cell along the outer circumference.",
 )
 @click.option(
     "--points-per-feed",
     type=int,
-    default=Resolution().points_per_feed,
+    default=POINTS_PER_FEED,
     show_default=True,
     help="Evaluation points per feed along each simulated angle (even).",
 )
@@ -180,6 +179,11 @@ def predict(**opts: Any) -> None:
       ftsweep predict --surface chebyshev_example --layout fresnel --facet-height-um 10 \\
           --machine xyzc-nanoform --cutting fresnel-finish
     """
+    from ftsweep.case import run_case
+    from ftsweep.catalogs import CatalogError
+    from ftsweep.spec import CaseError
+    from ftsweep.usersurfaces import SurfaceLoadError
+
     case = _build_case(opts)
     as_json = opts["as_json"]
     progress = stderr_progress("simulating", as_json)
@@ -198,6 +202,12 @@ def predict(**opts: Any) -> None:
 def _build_case(opts: dict[str, Any]) -> Case:
     """The case of ``predict``'s options. The option combinations are checked here; every
     value is validated by the spec models, whose errors are reported by option name."""
+    from pydantic import ValidationError
+
+    from ftsweep import catalogs, kinds, result
+    from ftsweep.catalogs import CatalogError
+    from ftsweep.spec import Case, Resolution
+
     surface, layout = opts["surface"], opts["layout"]
     try:
         spec = catalogs.entry("surfaces", surface)
@@ -243,6 +253,8 @@ def _build_case(opts: dict[str, Any]) -> Case:
 def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
     """A spec model's validation errors, each named by the option that gave the value
     (``layout.pitch.0`` is the first pitch option, ``resolution.n_theta`` is --n-theta)."""
+    from ftsweep import catalogs, kinds
+
     parts = []
     for e in exc.errors():
         loc = [str(p) for p in e["loc"]]
@@ -260,6 +272,8 @@ def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
 
 
 def summary_text(r: dict[str, Any]) -> str:
+    from ftsweep import kinds
+
     lines = [
         f"surface      {r['surface']}",
         *kinds.kind(r["layout"]).describe(r),

@@ -4,12 +4,10 @@ and ``fresnel`` (freeform Fresnel optics on a 4-axis lathe, [2])."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import click
-from pydantic import ValidationError
 
-from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import (
     FINITE,
     POSITIVE,
@@ -20,8 +18,9 @@ from ftsweep.cli_common import (
     progress_done,
     stderr_progress,
 )
-from ftsweep.kinds import dpath as dpath_kind
-from ftsweep.spec import Case, CaseError
+
+if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
+    from ftsweep.spec import Case
 
 
 @click.command("dpath")
@@ -75,7 +74,12 @@ def dpath_command(**opts: Any) -> None:
       ftsweep dpath --surface integral_mirror --json
       ftsweep dpath --spacing-um 20 -o outputs/sphere-dpath.txt --force
     """
+    from pydantic import ValidationError
+
     from ftsweep import dstudy
+    from ftsweep.catalogs import CatalogError
+    from ftsweep.kinds import dpath as dpath_kind
+    from ftsweep.spec import CaseError
 
     options = dpath_kind.request_options(opts)
     _check_overwrite(opts["out"], opts["force"])
@@ -131,6 +135,7 @@ def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool) ->
     from ftsweep.files import ExportError, check_overwrite, sidecar_path
     from ftsweep.kinds import path_programs as program
     from ftsweep.planning import resolve_specs
+    from ftsweep.spec import CaseError
 
     side = sidecar_path(out)
     try:
@@ -212,7 +217,10 @@ def fresnel_command(**opts: Any) -> None:
       ftsweep fresnel --surface chebyshev_example --facet-height-um 10 --json
       ftsweep fresnel -o outputs/fresnel.txt --force
     """
+    from pydantic import ValidationError
+
     from ftsweep import fstudy
+    from ftsweep.catalogs import CatalogError
     from ftsweep.files import ExportError, sidecar_path
 
     keys = ("facet_height_um", "points_per_turn", "deviation_deg", "compensation", "scheme", "safety")

@@ -10,12 +10,8 @@ from pathlib import Path
 from typing import Any, Optional
 
 import click
-import numpy as np
 
-from ftsweep import kinds
-from ftsweep.catalogs import CatalogError
 from ftsweep.cli_common import COUNT, FINITE, POSITIVE, echo_json, fail
-from ftsweep.cli_predict import summary_text
 
 
 @click.command()
@@ -88,7 +84,6 @@ def optimize(
       ftsweep optimize sinewave2d --layout ring --tolerance-nm 20
       ftsweep optimize --sweep lens-array-mesh --tolerance-nm 30
     """
-    from ftsweep.cube import CubeError
     from ftsweep.optimize import optimize as run_optimize
 
     resolution = None
@@ -114,7 +109,7 @@ def optimize(
             on_eval=functools.partial(_print_evaluation, tolerance_nm),
             seed=seed,
         )
-    except (CatalogError, CubeError, ValueError) as exc:
+    except ValueError as exc:  # catalog and cube errors are ValueErrors
         raise click.ClickException(str(exc)) from None
     if as_json:
         echo_json(result)
@@ -144,6 +139,8 @@ def _print_evaluation(tolerance_nm: float, rec: dict[str, Any]) -> None:
 
 def _print_optimum(result: dict[str, Any], tolerance_nm: float) -> None:
     """The loop's verdict and the layout it found."""
+    from ftsweep.cli_predict import summary_text
+
     verdict = "met" if result["met"] else "NOT met (best found below)"
     click.echo(
         f"tolerance    {tolerance_nm:g} nm: {verdict}; {result['evaluations']} evaluations "
@@ -176,6 +173,10 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
       ftsweep estimate sinewave-ring
       ftsweep estimate lens-array-mesh --compare outputs/lens-array-mesh.zarr --json
     """
+    import numpy as np
+
+    from ftsweep import kinds
+    from ftsweep.catalogs import CatalogError
     from ftsweep.cube import CubeError
     from ftsweep.select import open_cube
     from ftsweep.sweep import load_sweep
@@ -254,18 +255,29 @@ def bench(
 ) -> None:
     """Time the case runner on the published reference cases and two 10⁶-point layouts.
 
-    Prints the seconds per case split into compensation, surface sampling, interpolation,
-    envelope and metrics, after a warm-up that pays numba's compile cost. Kernels are
+    Prints the seconds of whole commands, each run as its own process (start-up, imports,
+    kernel loading and exit included: what a user waits for), then the seconds per case split
+    into compensation, surface sampling, interpolation, envelope and metrics, after a warm-up
+    that pays numba's compile cost. Kernels are
     single-threaded, so the figures are for one core. With --sweep, also the throughput of a
     whole sweep on --workers processes. Nothing is asserted about time.
     """
-    from ftsweep.bench import format_table, run_benchmark, sweep_throughput
+    from ftsweep.bench import (
+        format_table,
+        format_whole_process,
+        run_benchmark,
+        sweep_throughput,
+        whole_process,
+    )
     from ftsweep.io import write_json_atomic
 
     try:
         result = run_benchmark(list(names) or None, repeat=repeat)
+        result["whole_process"] = whole_process(max(repeat, 3)) if not names else []
     except ValueError as exc:
         raise click.ClickException(str(exc)) from None
+    if result["whole_process"]:
+        click.echo(format_whole_process(result["whole_process"]))
     click.echo(format_table(result))
     if sweep_name is not None:
         click.echo(f"running sweep {sweep_name} on {workers} worker(s) ...", err=True)

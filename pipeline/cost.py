@@ -10,6 +10,7 @@ import math
 from typing import Any
 
 from ftsweep import catalogs, kinds
+from ftsweep.defaults import MAX_NODES
 from ftsweep.spec import Case, CaseError, Resolution
 from ftsweep.stages import spiral
 from ftsweep.stages.interpolation import Program
@@ -48,7 +49,6 @@ def ladder_rung(n: int, ratio: float) -> int:
 # simulation, and bytes held per evaluation node of one line by the batch arrays
 NODES_PER_SECOND = 3.0e6
 BYTES_PER_NODE = 160
-MAX_NODES = 2.0e10  # about two hours of one core
 MAX_LINE_BYTES = 4 * 2**30
 
 

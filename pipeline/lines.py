@@ -155,11 +155,6 @@ class LineData:
         return sum(a.nbytes for a in arrays) + (0 if self.z_exact is None else self.z_exact.nbytes)
 
 
-# default memory [MiB] per sweep worker for shared lines: on this 24 GiB, 2-core machine a
-# twelfth of the memory per worker, the lines of a 250k-point ring case (about 0.2 GB) ten times over
-LINE_CACHE_MB = 2048.0
-
-
 class LineCache:
     """The :class:`LineData` of batches of lines, kept within ``budget_bytes`` for the cases
     that follow on the same lines (e.g. the cases of a sweep that share an angular sampling).

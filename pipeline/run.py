@@ -19,11 +19,11 @@ import numpy as np
 
 from ftsweep import catalogs, cube, kinds
 from ftsweep.cube import CubeError
+from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES
 from ftsweep.executor import TaskSpec, execute, run_task, warm_up
-from ftsweep.lines import LINE_CACHE_MB
 from ftsweep.lock import cube_lock
 from ftsweep.spec import CaseError
-from ftsweep.sweep import MAX_CASES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
+from ftsweep.sweep import SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
 
 
 def default_cube_path(name: str) -> Path:

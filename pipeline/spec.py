@@ -14,6 +14,7 @@ from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_s
 
 from ftsweep import catalogs
 from ftsweep.catalogs import Strict
+from ftsweep.defaults import POINTS_PER_FEED, SAMPLES_PER_CELL
 from ftsweep.kinds.requests import ProgramRequest
 
 
@@ -26,12 +27,12 @@ class Resolution(Strict):
     than 3 % when the angular samples are quadrupled and the points per feed doubled."""
 
     samples_per_cell: PositiveInt = Field(
-        3,
+        SAMPLES_PER_CELL,
         description="spindle angles sampled per table cell at the outer radius; an odd number puts "
         "one sample on each ring cell's angular midpoint, where bilinear error peaks",
     )
     points_per_feed: PositiveInt = Field(
-        2,
+        POINTS_PER_FEED,
         description="evaluation points per feed along each angle; even, so the cusp midway "
         "between passes is a node",
     )

@@ -31,9 +31,6 @@ from ftsweep.catalogs import CatalogError, Strict
 from ftsweep.spec import Case, Resolution
 
 MAX_AXIS_VALUES = 100_000
-# every case costs seconds of a core: beyond this many cases a sweep is refused unless the
-# caller raises the limit (CLI: --max-cases)
-MAX_CASES = 100_000
 
 
 class AxisRange(Strict):

@@ -1,0 +1,16 @@
+"""Defaults and limits the command line shows in its help, in a module that imports nothing,
+so that ``ftsweep --help`` and every command's ``--help`` answer at once; the modules that
+apply them (:mod:`ftsweep.cost`, :mod:`ftsweep.lines`, :mod:`ftsweep.sweep`,
+:mod:`ftsweep.spec`) take them from here."""
+
+# the largest simulation a case may cost, in evaluation nodes: about two hours of one core
+MAX_NODES = 2.0e10
+# default memory [MiB] per sweep worker for shared lines: on this 24 GiB, 2-core machine a
+# twelfth of the memory per worker, the lines of a 250k-point ring case (about 0.2 GB) ten times over
+LINE_CACHE_MB = 2048.0
+# every case costs seconds of a core: beyond this many cases a sweep is refused unless the
+# caller raises the limit (CLI: --max-cases)
+MAX_CASES = 100_000
+# the simulation's resolution (model §5; converged, see ftsweep.spec.Resolution)
+SAMPLES_PER_CELL = 3
+POINTS_PER_FEED = 2

@@ -1,0 +1,70 @@
+"""Commands that answer at once (issue 29, item 1): ``ftsweep --help`` and every command's
+``--help`` load no numba, xarray or zarr; ``import ftsweep`` stays light and still gives the
+``ds.ftsweep`` accessor whichever of ftsweep and xarray is imported first. Timings are printed
+by ``ftsweep bench``, never asserted here."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import click
+import pytest
+
+from ftsweep.cli import COMMANDS, main, short_help
+
+HEAVY = ("numba", "xarray", "zarr", "pandas", "dask", "distributed", "scipy", "matplotlib")
+
+
+def _modules_after(code: str) -> set[str]:
+    """The top-level modules loaded by ``code`` in a fresh interpreter."""
+    probe = code + "\nimport json, sys\nprint(json.dumps(sorted({m.split('.')[0] for m in sys.modules})))"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    return set(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+@pytest.mark.parametrize(
+    "argv", [["--help"], *[[name, "--help"] for name in COMMANDS], ["catalogs", "--help"]]
+)
+def test_help_loads_no_heavy_library(argv):
+    code = f"import sys\nfrom ftsweep.cli import main\ntry:\n    main({argv!r})\nexcept SystemExit:\n    pass"
+    loaded = _modules_after(code)
+    assert not loaded & set(HEAVY), sorted(loaded & set(HEAVY))
+
+
+def test_import_ftsweep_is_light_and_the_accessor_comes_with_xarray_in_either_order():
+    assert not _modules_after("import ftsweep") & set(HEAVY)
+    for code in ("import ftsweep, xarray as xr", "import xarray as xr, ftsweep"):
+        check = code + "\nassert hasattr(xr.Dataset(), 'ftsweep'), 'no accessor'"
+        subprocess.run([sys.executable, "-c", check], check=True)
+
+
+def test_group_help_lists_every_command_with_its_own_summary():
+    ctx = click.Context(main)
+    for name in COMMANDS:
+        command = main.get_command(ctx, name)
+        assert command is not None
+        # the summary read from the source is the one click makes from the loaded command
+        for limit in (40, 45, 80):
+            assert short_help(name, limit) == command.get_short_help_str(limit)
+    text = main.get_help(ctx)
+    for name in (*COMMANDS, "catalogs"):
+        assert f"  {name} " in text
+
+
+@pytest.mark.parametrize(
+    ("argv", "code", "stream", "text"),
+    [
+        (["catalogs", "--json"], 0, "stdout", '"surfaces"'),
+        (["predict", "--surface", "nope"], 1, "stderr", "unknown surface 'nope'"),
+        (["predict", "--bogus"], 2, "stderr", "No such option"),
+    ],
+)
+def test_console_script_exit_codes_and_output_survive_the_fast_exit(argv, code, stream, text):
+    # as the console script runs it: main() with no arguments reads sys.argv and leaves by
+    # os._exit after the exit handlers and a flush (ftsweep.cli._Group.__call__)
+    run = f"import sys\nfrom ftsweep.cli import main\nsys.argv = ['ftsweep', *{argv!r}]\nmain()"
+    done = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True)
+    assert done.returncode == code, done.stderr
+    assert text in getattr(done, stream)

@@ -149,13 +149,23 @@ def _case_label(row: dict[str, Any]) -> str:
     return f"case {row['index']} ({row['request']})" if row.get("request") else f"case {row['index']}"
 
 
+# progress lines come as cases finish, at most one a second (a failure or the last case at once)
+PROGRESS_EVERY_S = 1.0
+
+
 def _sweep_progress(started: float) -> Callable[[Any, list[dict]], None]:
-    """A progress line on stderr per finished task: cases done, failures, time, ETA, last case."""
+    """A progress line on stderr as cases finish (the first at once, then at most one per
+    :data:`PROGRESS_EVERY_S`): cases done, failures, time, ETA, last case."""
+    shown = [-math.inf]
 
     def progress(report: Any, rows: list[dict]) -> None:
         total_now = report.queued
         done = len(report.rows)
         elapsed = time.perf_counter() - started
+        failed_now = any(r["status"] != "done" for r in rows)
+        if elapsed - shown[0] < PROGRESS_EVERY_S and done < total_now and not failed_now:
+            return
+        shown[0] = elapsed
         eta = _eta_text(report, rows_all=report.rows, remaining=total_now - done)
         last = rows[-1]
         what = f"{_case_label(last)}: " + (

@@ -5,12 +5,16 @@ existing ``dask.distributed`` scheduler, running the same task function.
 a run shares), the groups of case indices, the task function (:func:`run_task` for sweeps:
 compute the cases and write each into the cube as soon as it finishes), an optional warm-up
 run once per worker, and what to report when a task breaks outside any case. Each task
-returns one small summary dict per case, which the driver streams into ``on_result``.
+returns one small summary dict per case; :func:`run_task` also publishes each as soon as its
+case is written (a distributed event on the run's topic, :func:`publish`), so the driver
+streams every case into ``on_result`` once, when it finishes, not when its task does.
 """
 
 from __future__ import annotations
 
 import logging
+import queue
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterable
@@ -62,10 +66,68 @@ def line_cache(task: TaskSpec) -> Optional[LineCache]:
     return cache
 
 
+# where a task publishes its cases when it runs in this process (the synchronous scheduler)
+_LOCAL = threading.local()
+
+
+def progress_topic(run_id: str) -> str:
+    """The distributed event topic a run's cases are published on."""
+    return f"ftsweep-case-{run_id}"
+
+
+def publish(task: TaskSpec, row: dict) -> None:
+    """Tell the driver that a case is written, now: an event on the run's topic on a
+    distributed worker, or the in-process sink of the synchronous scheduler; nothing if
+    neither listens (the task's return value carries the row anyway)."""
+    sink = getattr(_LOCAL, "sink", None)
+    if sink is not None:
+        sink(row)
+        return
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):  # not on a distributed worker
+        return
+    worker.log_event(progress_topic(task.run_id), row)
+
+
+class Deliveries:
+    """Hands every case's row to ``on_result`` exactly once, whichever comes first: its
+    published event or its task's return value (which also carries the rows of a task that
+    broke, or of a task function that publishes nothing). Thread-safe: events arrive on the
+    client's event-loop thread and are delivered from the driver's."""
+
+    def __init__(self, on_result: Callable[[list[dict]], None]) -> None:
+        self.on_result = on_result
+        self.seen: set[int] = set()
+        self.events: queue.SimpleQueue[dict] = queue.SimpleQueue()
+
+    def event(self, row: dict) -> None:
+        self.events.put(row)
+
+    def drain(self) -> None:
+        rows = []
+        while True:
+            try:
+                rows.append(self.events.get_nowait())
+            except queue.Empty:
+                break
+        self.deliver(rows)
+
+    def deliver(self, rows: list[dict]) -> None:
+        fresh = [r for r in rows if r.get("index") not in self.seen]
+        self.seen.update(int(r["index"]) for r in fresh if r.get("index") is not None)
+        if fresh:
+            self.on_result(fresh)
+
+
 TaskFn = Callable[[TaskSpec, list[int]], list[dict]]
 ErrorFn = Callable[[TaskSpec, list[int], BaseException], list[dict]]
 
 SYNCHRONOUS = "synchronous"
+# how often the driver looks for published cases while no task finishes [s]
+EVENT_POLL_S = 0.25
 # a scheduler that does not answer within this many seconds is reported, not waited for
 CONNECT_TIMEOUT_S = 5
 
@@ -98,6 +160,7 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
                     "request": case.layout.label(),
                 }
             )
+            publish(task, out[-1])
             continue
         writer.write_done(index, record, run_id)
         out.append(
@@ -111,6 +174,7 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
                 "reused_batches": (cache.hits - hits) if cache is not None else 0,
             }
         )
+        publish(task, out[-1])
     return out
 
 
@@ -206,20 +270,33 @@ def _run_distributed(
     on_error: ErrorFn,
     on_result: Callable[[list[dict]], None],
 ) -> None:
-    from distributed import as_completed
+    from distributed import wait
 
+    deliveries = Deliveries(on_result)
+    topic = progress_topic(spec.run_id)
+    client.subscribe_topic(topic, lambda event: deliveries.event(event[1]))
     futures = [
         client.submit(task, spec, group, pure=False, key=f"ftsweep-task-{i}-{spec.run_id}")
         for i, group in enumerate(groups)
     ]
     lookup = {f.key: group for f, group in zip(futures, groups, strict=True)}
-    for future in as_completed(futures):
-        try:
-            rows = future.result()
-        except Exception as exc:  # the task itself broke (not a case): its cases stay pending
-            rows = on_error(spec, lookup[future.key], exc)
-        on_result(rows)
-        future.release()
+    pending = set(futures)
+    try:
+        while pending:
+            try:
+                done, pending = wait(pending, timeout=EVENT_POLL_S, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                done = set()
+            deliveries.drain()
+            for future in done:
+                try:
+                    rows = future.result()
+                except Exception as exc:  # the task itself broke (not a case): its cases stay pending
+                    rows = on_error(spec, lookup[future.key], exc)
+                deliveries.deliver(rows)
+                future.release()
+    finally:
+        client.unsubscribe_topic(topic)
 
 
 def _close_quietly(client: Any, cluster: Any) -> None:
@@ -266,10 +343,15 @@ def _run_synchronous(
     on_result: Callable[[list[dict]], None],
 ) -> None:
     # one compute per task, so a task that breaks is reported like on a cluster and the rest run on
-    for group in groups:
-        delayed = dask.delayed(task, pure=False)(spec, group)
-        try:
-            (rows,) = dask.compute(delayed, scheduler=SYNCHRONOUS)
-        except Exception as exc:
-            rows = on_error(spec, group, exc)
-        on_result(rows)
+    deliveries = Deliveries(on_result)
+    _LOCAL.sink = lambda row: deliveries.deliver([row])
+    try:
+        for group in groups:
+            delayed = dask.delayed(task, pure=False)(spec, group)
+            try:
+                (rows,) = dask.compute(delayed, scheduler=SYNCHRONOUS)
+            except Exception as exc:
+                rows = on_error(spec, group, exc)
+            deliveries.deliver(rows)
+    finally:
+        _LOCAL.sink = None

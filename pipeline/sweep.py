@@ -350,7 +350,8 @@ def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) 
 def plan_tasks(
     spec: SweepSpec, indices: list[int], workers: int, catalog_folder: Path | None = None
 ) -> list[list[int]]:
-    """Group case indices into tasks, the costliest first (longest-processing-time order).
+    """Group case indices into tasks, the costliest first (longest-processing-time order),
+    each task's cases cheapest first.
 
     Cases that simulate the same lines (:func:`case_lines`) form one task, so a worker
     computes their shared work once. The other cases are packed ``cases_per_task`` to a task,
@@ -371,4 +372,6 @@ def plan_tasks(
     cap = spec.cases_per_task or len(indices)
     tasks = [g[j : j + cap] for g in groups if len(g) > 1 for j in range(0, len(g), cap)]
     tasks += [alone[j : j + per_task] for j in range(0, len(alone), per_task)]
-    return sorted(tasks, key=lambda t: -sum(cost[i] for i in t))
+    # within a task the cheapest case runs first: it reports soonest (the first case of a
+    # group computes the shared lines whichever it is), so progress starts early
+    return [sorted(t, key=lambda i: cost[i]) for t in sorted(tasks, key=lambda t: -sum(cost[i] for i in t))]

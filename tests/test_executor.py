@@ -66,3 +66,49 @@ def test_local_cluster_gives_the_synchronous_summaries():
     assert _collect(None, fail_on_two, on_error=as_error) == _collect(
         SYNCHRONOUS, fail_on_two, on_error=as_error
     )
+
+
+def publish_then_wait(task: TaskSpec, group: list[int]) -> list[dict]:
+    """A task whose first case is published at once and whose second takes 1.5 s."""
+    import time
+
+    from ftsweep.executor import publish
+
+    rows = square(task, group)
+    publish(task, rows[0])
+    time.sleep(1.5)
+    return rows
+
+
+@pytest.mark.parametrize("scheduler", [SYNCHRONOUS, None])
+def test_a_case_is_reported_when_it_is_written_and_only_once(scheduler):
+    # issue 29: progress as cases finish, not as tasks do (run_task publishes each case)
+    import time
+
+    arrivals: list[tuple[float, list[int]]] = []
+    start = time.perf_counter()
+    execute(
+        [[0, 1]],
+        SPEC,
+        scheduler,
+        1,
+        lambda rows: arrivals.append((time.perf_counter() - start, [r["index"] for r in rows])),
+        task=publish_then_wait,
+    )
+    assert [i for _, rows in arrivals for i in rows] == [0, 1]  # each case once, in order
+    (first, _), (second, _) = arrivals
+    assert second - first >= 1.0
+
+
+def test_deliveries_hand_on_each_case_once_whatever_comes_first():
+    from ftsweep.executor import Deliveries
+
+    got: list[list[int]] = []
+    d = Deliveries(lambda rows: got.append([r["index"] for r in rows]))
+    d.event({"index": 3})
+    d.drain()
+    d.deliver([{"index": 3}, {"index": 4}])
+    d.event({"index": 4})
+    d.drain()
+    d.deliver([{"index": 5}])
+    assert got == [[3], [4], [5]]

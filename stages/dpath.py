@@ -308,21 +308,59 @@ def plan(
 def evaluate(path: DPath, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The analytic path at accumulated angles ``phi`` [rad] within the program: ρ [µm],
     dρ/dθ [µm/rad], d²ρ/dθ² [µm/rad²] and whether each angle lies on a cut (bool). At a
-    junction the cut's value is taken."""
-    phi = np.asarray(phi, dtype=np.float64)
-    seg = np.clip(np.searchsorted(path.bounds, phi, side="right") - 1, 0, path.bounds.size - 1)
-    on_cut = (seg % 2 == 0) | np.isin(phi, path.bounds)
-    i = seg // 2
-    rho, d1, d2 = cut_radius(
-        path.cut_d[np.minimum(i, path.n_cuts - 1)], phi - path.cut_centre[np.minimum(i, path.n_cuts - 1)]
-    )  # noqa: E501
-    t = ~on_cut
-    if np.any(t):
-        j = np.minimum(i[t], path.coeffs.shape[0] - 1)
-        a = path.bounds[1:-1:2][j]
-        span = path.bounds[2::2][j] - a
-        rho[t], d1[t], d2[t] = _poly(path.coeffs[j], (phi[t] - a) / span, span)
+    junction the cut's value is taken. One pass of :func:`_evaluate_kernel` (fastest on
+    increasing angles, which it walks along the junctions instead of searching them)."""
+    phi = np.ascontiguousarray(phi, dtype=np.float64)
+    rho, d1, d2 = np.empty(phi.shape), np.empty(phi.shape), np.empty(phi.shape)
+    on_cut = np.empty(phi.shape, dtype=np.bool_)
+    _evaluate_kernel(
+        phi.reshape(-1),
+        path.bounds,
+        path.cut_d,
+        path.cut_centre,
+        np.ascontiguousarray(path.coeffs),
+        rho.reshape(-1),
+        d1.reshape(-1),
+        d2.reshape(-1),
+        on_cut.reshape(-1),
+    )
     return rho, d1, d2, on_cut
+
+
+@njit(nogil=True, cache=True)
+def _evaluate_kernel(phi, bounds, cut_d, cut_centre, coeffs, rho, d1, d2, on_cut):  # pragma: no cover - jit
+    """:func:`evaluate` point by point: the segment of each angle (cut 2i or transition 2i + 1
+    between ``bounds``), then [5] eq. 3 on a cut or the transition's polynomial in τ."""
+    nb, ncut, nt = bounds.size, cut_d.size, coeffs.shape[0]
+    seg = 0
+    for k in range(phi.size):
+        p = phi[k]
+        if p < bounds[seg]:  # not increasing: search afresh
+            seg = max(np.searchsorted(bounds, p, side="right") - 1, 0)
+        while seg + 1 < nb and bounds[seg + 1] <= p:
+            seg += 1
+        on = seg % 2 == 0 or bounds[seg] == p
+        on_cut[k] = on
+        i = min(seg // 2, ncut - 1)
+        if on or nt == 0:
+            x = p - cut_centre[i]
+            sec, tan = 1.0 / math.cos(x), math.tan(x)
+            rho[k] = cut_d[i] * sec
+            d1[k] = cut_d[i] * sec * tan
+            d2[k] = cut_d[i] * sec * (tan * tan + sec * sec)
+            continue
+        j = min(i, nt - 1)
+        a = bounds[1 + 2 * j]
+        span = bounds[2 + 2 * j] - a
+        tau = (p - a) / span
+        v, dv, ddv = 0.0, 0.0, 0.0
+        for m in range(5, -1, -1):
+            ddv = ddv * tau + 2.0 * dv
+            dv = dv * tau + v
+            v = v * tau + coeffs[j, m]
+        rho[k] = v
+        d1[k] = dv / span
+        d2[k] = ddv / (span * span)
 
 
 def junctions(path: DPath) -> dict[str, np.ndarray]:

@@ -367,3 +367,20 @@ def test_predict_takes_a_d_path_and_refuses_the_options_of_other_kinds():
         main, ["predict", "--surface", "sinewave2d", "--spacing-um", "5", "--points", "1e4"]
     )
     assert res.exit_code != 0 and "--spacing-um belongs to D-path programs" in res.output
+
+
+def test_evaluate_walks_increasing_angles_and_searches_others_alike():
+    # the kernel walks increasing angles along the junctions and searches the others afresh
+    path = seed_path("optimised", spacing_um=500.0, ppc=21)
+    phi = np.random.default_rng(0).uniform(path.phi[0], path.phi[-1], 2000)
+    order = np.argsort(phi)
+    walked, searched = dpath.evaluate(path, phi[order]), dpath.evaluate(path, phi)
+    for w, s in zip(walked, searched, strict=True):
+        assert np.array_equal(w, s[order])
+    # at a junction (a bound exactly) the cut's value: [5] eq. 3 at the cut's end angle
+    rho, d1, _, on_cut = dpath.evaluate(path, path.bounds)
+    assert on_cut.all()
+    cut = np.repeat(np.arange(path.n_cuts), 2)
+    x = path.bounds - path.cut_centre[cut]
+    assert np.allclose(rho, path.cut_d[cut] / np.cos(x), rtol=1e-14)
+    assert np.allclose(d1, path.cut_d[cut] * np.tan(x) / np.cos(x), rtol=1e-12)

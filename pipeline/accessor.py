@@ -20,9 +20,8 @@ import xarray as xr
 
 
 def _axes(ax: Any = None, size: tuple[float, float] = (7.0, 4.6)) -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
+    """``ax``, or the axes of a new figure on pyplot's backend as the caller has it (a
+    notebook's inline one stays; the command line sets Agg for itself, ``ftsweep.cli``)."""
     import matplotlib.pyplot as plt
 
     if ax is None:

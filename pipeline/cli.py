@@ -146,6 +146,9 @@ def main() -> None:
     """
     from ftsweep import allocator
 
+    # figures go to files here: pyplot's file backend unless the user chose one; the library
+    # itself never switches a caller's backend (a notebook's plots would stop showing)
+    os.environ.setdefault("MPLBACKEND", "Agg")
     allocator.tune()  # large batch temporaries reused, not page-faulted afresh (see the module)
 
 

@@ -271,10 +271,6 @@ def plot(s: dict[str, Any], folder: Path) -> list[Path]:
     the part with the quasi-spiral, every 20th turn), ``-axes.png`` (C, X, Y, Z over the
     first turns) and ``-timesteps.png`` (the first turn's optimised timesteps, and the mean
     timestep of every turn against the constant one)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-
     folder.mkdir(parents=True, exist_ok=True)
     stem = folder / f"fresnel-{s['surface']}"
     out = []

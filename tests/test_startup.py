@@ -68,3 +68,14 @@ def test_console_script_exit_codes_and_output_survive_the_fast_exit(argv, code, 
     done = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True)
     assert done.returncode == code, done.stderr
     assert text in getattr(done, stream)
+
+
+def test_plots_leave_the_callers_matplotlib_backend_alone():
+    # issue 30, item 7: a notebook's ds.ftsweep.plot_* switched pyplot to Agg, and every later
+    # plot of the session showed nothing
+    code = (
+        "import matplotlib\nmatplotlib.use('svg')\n"
+        "from ftsweep.accessor import _axes\nax = _axes()\n"
+        "assert matplotlib.get_backend() == 'svg', matplotlib.get_backend()"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -20,7 +20,6 @@ from ftsweep.catalogs import CatalogError
 from ftsweep.cli import main
 from ftsweep.compare import conditions
 from ftsweep.export import verify
-from ftsweep.kinds.requests import program_request
 from ftsweep.run import run_sweep
 from ftsweep.spec import Case
 from ftsweep.stages import fresnel as ff
@@ -198,4 +197,3 @@ def test_predict_takes_the_kinds_machine_and_cutting():
     assert res.exit_code == 0, res.output
     record = json.loads(res.stdout)
     assert record["machine"] == "xyzc-nanoform" and math.isfinite(record["pv_nm"])
-    assert program_request(kind="fresnel").kind == "fresnel"

@@ -7,6 +7,7 @@ or cache-load cost, and prints a table. It measures; it asserts nothing about ti
 
 from __future__ import annotations
 
+import math
 import os
 import platform
 import time
@@ -132,8 +133,8 @@ def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[
     from pathlib import Path
 
     script = Path(sys.executable).with_name("ftsweep")
-    head = [str(script)] if script.exists() else [shutil.which("ftsweep") or "", "-m", "ftsweep.cli"]
-    head = head if head[0] else [sys.executable, "-m", "ftsweep.cli"]
+    found = str(script) if script.exists() else shutil.which("ftsweep")
+    head = [found] if found else [sys.executable, "-m", "ftsweep.cli"]
     rows = []
     for name in names or list(WHOLE_PROCESS):
         best, inside = float("inf"), float("nan")
@@ -156,7 +157,7 @@ def format_whole_process(rows: list[dict[str, Any]]) -> str:
     head = f"{'whole process (best of runs)':32s} {'seconds':>8s} {'case s':>8s}"
     lines = [head, "-" * len(head)]
     for r in rows:
-        case = "" if r["case_seconds"] != r["case_seconds"] else f"{r['case_seconds']:8.2f}"
+        case = "" if math.isnan(r["case_seconds"]) else f"{r['case_seconds']:8.2f}"
         lines.append(f"{r['command']:32s} {r['seconds']:8.2f} {case:>8s}")
     return "\n".join(lines)
 

@@ -496,7 +496,7 @@ def timesteps(
         first = m == 0
         peak_c[m] = ff.turn_peak(const, deltas, inv, first)
         # a turn onto a new facet changes course (Z steps by h): solved cold too
-        onto = bool(m) and fplan.path.facet[m * k] != fplan.path.facet[(m - 1) * k]
+        onto = fplan.path.enters_facet(m)
         previous = peak_o[m - 1] / peak_c[m - 1] if m and not onto else 0.0
         u, t, peak_o[m] = _turn_steps(u, reference_s, deltas, inv, first, previous * peak_c[m])
         if peak_o[m] > peak_c[m]:  # the fallback: never worse than constant steps

@@ -185,9 +185,8 @@ def speedup_account(
     acc = fp.relative_peaks(q, np.ones(n_steps), limits)[0]
     point, axis = divmod(int(np.argmax(acc)), acc.shape[1])
     turn = min(point // k, steps.peak_constant.size - 1)
-    facet = fplan.path.facet
     plunged = q.copy()
-    plunged[:, 3] -= ff.entry_offset(facet, k, fplan.facet_height_um) * 1e-6
+    plunged[:, 3] -= ff.entry_offset(fplan.path.facet, k, fplan.facet_height_um) * 1e-6
     step_plunging = fp.constant_step(plunged, limits, safety)
 
     def turnwise(peaks: np.ndarray) -> float:
@@ -200,7 +199,7 @@ def speedup_account(
             "axis": fp.AXES[axis],
             "turn": turn,
             "point": point,
-            "enters_facet": bool(turn > 0 and facet[turn * k] != facet[turn * k - 1]),
+            "enters_facet": fplan.path.enters_facet(turn),
         },
         "plunging": {
             "constant_step_s": step_plunging,

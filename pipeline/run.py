@@ -23,7 +23,7 @@ from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES
 from ftsweep.executor import TaskSpec, execute, run_task, warm_up
 from ftsweep.lock import cube_lock
 from ftsweep.spec import CaseError
-from ftsweep.sweep import SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
+from ftsweep.sweep import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
 
 
 def default_cube_path(name: str) -> Path:
@@ -320,7 +320,7 @@ def axis_summary(spec: SweepSpec) -> str:
     """One line per axis: its length and range, for the start of a run."""
     parts = []
     for axis, values in coordinates(spec).items():
-        if values.dtype == object:  # a named axis (the compensation)
+        if axis in NAMED_AXES:
             parts.append(f"{axis} ×{values.size} [{', '.join(map(str, values))}]")
         else:
             parts.append(f"{axis} ×{values.size} [{values.min():.4g} … {values.max():.4g}]")

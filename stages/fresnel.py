@@ -251,6 +251,12 @@ class QuasiSpiral(NamedTuple):
     def n_turns(self) -> int:
         return int(self.turns.sum())
 
+    def enters_facet(self, turn: int) -> bool:
+        """Whether ``turn`` is the first turn on its facet after another (every facet holds
+        whole turns of K points)."""
+        k = self.points_per_turn
+        return bool(turn > 0 and self.facet[turn * k] != self.facet[turn * k - 1])
+
 
 def turns_needed(outer: np.ndarray, inner: np.ndarray, feed: float) -> int:
     """M_n: the least number of turns keeping every control point's step per turn between

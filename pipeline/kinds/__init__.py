@@ -142,19 +142,18 @@ def check_sweep_axes(spec: Any) -> None:
         foreign = [n for n in other.axes if n not in own.axes and getattr(spec.axes, n) is not None]
         if foreign:
             raise ValueError(f"axes.{foreign[0]} belongs to {other.sweeps}, not to a {own.name} sweep")
-        key = other.options_key
-        if key is not None and key != own.options_key and getattr(spec, key, None):
-            raise ValueError(
-                f"{key} belongs to {other.sweeps} (layout: {other.name}), not to a {own.name} sweep"
-            )
+    check_options_keys(spec, own)
     own.check_sweep(spec)
 
 
-def check_options_keys(spec: Any) -> None:
-    """A sweep spec without a layout holds no kind's options key (ValueError naming it)."""
+def check_options_keys(spec: Any, own: Optional[ProgramKind] = None) -> None:
+    """A sweep spec holds no options key of a kind other than ``own`` (its layout's; None for
+    a spec without one): ValueError naming the key and its kind."""
     for other in registry().values():
-        if other.options_key is not None and getattr(spec, other.options_key, None):
-            raise ValueError(f"{other.options_key} belongs to {other.sweeps} (layout: {other.name})")
+        key = other.options_key
+        if key is not None and other is not own and getattr(spec, key, None):
+            where = f", not to a {own.name} sweep" if own is not None else ""
+            raise ValueError(f"{key} belongs to {other.sweeps} (layout: {other.name}){where}")
 
 
 def flag(name: str) -> str:

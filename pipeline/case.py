@@ -12,7 +12,11 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections import deque
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any, NamedTuple, Optional
 
 import numpy as np
@@ -39,6 +43,23 @@ def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -
 
 
 STAGE_TIMERS = STAGES
+
+# threads of every case run in this context that does not give its own (``run_case(threads=)``):
+# the commands that simulate one case at a time (predict, verify, dpath, fresnel) set it, a
+# sweep's workers leave it at one (they run cases side by side instead)
+THREADS: ContextVar[int] = ContextVar("ftsweep_case_threads", default=1)
+
+
+@contextmanager
+def using_threads(threads: int) -> Iterator[None]:
+    """Run the cases simulated inside the ``with`` block on ``threads`` threads each."""
+    if threads < 1:
+        raise ValueError(f"threads must be at least 1, got {threads}")
+    token = THREADS.set(threads)
+    try:
+        yield
+    finally:
+        THREADS.reset(token)
 
 
 class Machined(NamedTuple):
@@ -71,6 +92,7 @@ def run_case(
     max_nodes: float = MAX_NODES,
     lines: Any = None,
     program: Optional[tuple[Any, np.ndarray]] = None,
+    threads: Optional[int] = None,
 ) -> dict[str, Any]:
     """Predict the form error of one case of any program kind (model §1–§6).
 
@@ -89,18 +111,25 @@ def run_case(
     a ``lines`` cache (:class:`ftsweep.lines.LineCache`), work that does not depend on the
     program is shared between cases: the result is the same. A path program is planned by its
     rule unless ``program`` (path, commands [µm]) gives it as stored, e.g. read from a file.
+    With ``threads`` > 1 the batches (and a table's compensation) run on that many threads
+    (the numba kernels release the GIL); the metrics still take the batches in order, so the
+    record is the same, value for value, whatever the number of threads. None: the number
+    set by :func:`using_threads` around the call (one unless set).
     """
+    threads = THREADS.get() if threads is None else threads
+    if threads < 1:
+        raise ValueError(f"threads must be at least 1, got {threads}")
     t_start = time.perf_counter()
     rcase = resolve_case(case, catalog_folder, specs, program)
     timer = Timer()
     timer.seconds["compensation"] = rcase.plan_seconds
-    inputs = kinds.Simulating(rcase, table, catalog_folder, batch_nodes, max_nodes, lines)
+    inputs = kinds.Simulating(rcase, table, catalog_folder, batch_nodes, max_nodes, lines, threads)
     sim = kinds.kind(case.layout.kind).simulation(inputs, timer)
     bins = case.resolution.error_map_bins
     emap = ErrorMap.over(rcase.aperture, bins) if bins else None
     stats = metrics.empty_stats()
-    for b in range(sim.n_batches):
-        _accumulate(sim.batch(b, timer), sim.zone_split_um, stats, emap, timer)
+    for b, machined in enumerate(_batches(sim, timer, threads)):
+        _accumulate(machined, sim.zone_split_um, stats, emap, timer)
         if progress is not None:
             progress(b + 1, sim.n_batches)
     errors = metrics.finalize(stats)
@@ -110,6 +139,27 @@ def run_case(
     if emap is not None:
         record.update(emap.as_record())
     return timed(record, timer, t_start)
+
+
+def _batches(sim: kinds.Simulation, timer: Timer, threads: int) -> Iterator[Machined]:
+    """The machined batches of ``sim`` in order, computed on ``threads`` threads with at most
+    two batches per thread in flight, so memory stays a few batches whatever the case."""
+    if threads == 1 or sim.n_batches < 2:
+        for b in range(sim.n_batches):
+            yield sim.batch(b, timer)
+        return
+    with ThreadPoolExecutor(threads, thread_name_prefix="ftsweep-case") as pool:
+        pending: deque[Future[Machined]] = deque()
+        try:
+            for b in range(sim.n_batches):
+                pending.append(pool.submit(sim.batch, b, timer))
+                if len(pending) >= 2 * threads:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
+        finally:
+            for f in pending:  # a failed batch or an abandoned case: start no more
+                f.cancel()
 
 
 def _accumulate(

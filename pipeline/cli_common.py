@@ -4,6 +4,7 @@ parse time, the one-line error format, strict JSON on stdout, progress on stderr
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, Optional
 
@@ -40,6 +41,27 @@ TRUST_PLUGINS = click.option(
     help="Run a plug-in surface the file names even if the local catalog does not declare it "
     "(plug-ins are code: only for files you trust; README 'Trust').",
 )
+
+
+def threads_option(command: Any) -> Any:
+    """Add ``--threads N`` to a command that simulates one case at a time: its cases run on N
+    threads each (:func:`ftsweep.case.using_threads`), by default on every usable core."""
+
+    @functools.wraps(command)
+    def run(*args: Any, threads: Optional[int] = None, **kwargs: Any) -> Any:
+        from ftsweep.case import using_threads
+        from ftsweep.defaults import usable_cores
+
+        with using_threads(threads or usable_cores()):
+            return command(*args, **kwargs)
+
+    return click.option(
+        "--threads",
+        type=COUNT,
+        help="Threads per simulated case: its batches of lines and its table's compensation run "
+        "in parallel (the kernels release the GIL); results are the same for any number. "
+        "Default: every core this process may use.",
+    )(run)
 
 
 def fail(message: str) -> None:

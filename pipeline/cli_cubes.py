@@ -22,6 +22,7 @@ from ftsweep.cli_common import (
     one_line,
     progress_done,
     stderr_progress,
+    threads_option,
 )
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES
 
@@ -357,6 +358,7 @@ def export(
     "quantisation bound) + 0.1 % of the P-V; a program's 0.01 nm + 0.1 %.",
 )
 @TRUST_PLUGINS
+@threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, as_json: bool) -> None:
     """Check an exported file as the machine will read it, against the program its sidecar's

@@ -17,6 +17,7 @@ from ftsweep.cli_common import (
     fresnel_options,
     progress_done,
     stderr_progress,
+    threads_option,
 )
 from ftsweep.defaults import MAX_NODES, POINTS_PER_FEED, SAMPLES_PER_CELL
 
@@ -136,6 +137,7 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
     show_default=True,
     help="Refuse cases of more evaluation nodes than this (about 3·10⁶ nodes a second on one core).",
 )
+@threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def predict(**opts: Any) -> None:
     """Predict the form error one program leaves on the machined surface.

@@ -17,6 +17,7 @@ from ftsweep.cli_common import (
     one_line,
     progress_done,
     stderr_progress,
+    threads_option,
 )
 
 if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
@@ -57,6 +58,7 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
     help="Export the optimised program here (t C X Z lines + FILE.json sidecar).",
 )  # noqa: E501
 @click.option("--force", is_flag=True, help="Replace an existing program.")
+@threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def dpath_command(**opts: Any) -> None:
     """Plan, predict, plot and export D-shaped slow-tool-servo paths ([5]) for an off-axis part.
@@ -198,6 +200,7 @@ def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool) ->
     help="Export the program (t C X Y Z lines).",
 )
 @click.option("--force", is_flag=True, help="Replace an existing program.")
+@threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def fresnel_command(**opts: Any) -> None:
     """Plan a freeform Fresnel program for an X-Y-Z-C lathe ([2]) and time it adaptively.

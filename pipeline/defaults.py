@@ -14,3 +14,14 @@ MAX_CASES = 100_000
 # the simulation's resolution (model §5; converged, see ftsweep.spec.Resolution)
 SAMPLES_PER_CELL = 3
 POINTS_PER_FEED = 2
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the system reports one, else
+    the machine's count): the default threads of a case and workers of a sweep."""
+    import os
+
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on every platform
+        return max(1, os.cpu_count() or 1)

@@ -74,8 +74,9 @@ class FresnelSimulation:
         self.rays = (np.arange(n) + 0.5) * (2.0 * math.pi / n)
         self.n_batches = math.ceil(n / RAYS_PER_BATCH)
         self.zone_split_um = res.zone_split * rcase.aperture.inner_radius_um
-        # per facet level j: the statistics of its interior's nodes
-        self.facet_stats: dict[int, np.ndarray] = {}
+        # per batch, per facet level j: the statistics of its interior's nodes (merged in
+        # batch order by the record, so they do not depend on how many threads ran batches)
+        self.facet_stats: dict[int, dict[int, np.ndarray]] = {}
 
     def _design(self, x: np.ndarray, y: np.ndarray, level: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """f_c [µm] and the facet level at part points x, y [µm] ([2] eq. 3)."""
@@ -113,9 +114,11 @@ class FresnelSimulation:
         cusp_in &= _one_facet(pos, lev, n_valid, np.where(finite, cusp_r, 0.0), cusp_level, self.band)
         timer.add("metrics", t)
         r = np.hypot(x, y)
+        facets = {}
         for j in np.unique(level[inside]):
-            stats = self.facet_stats.setdefault(int(j), metrics.empty_stats())
+            facets[int(j)] = stats = metrics.empty_stats()
             metrics.accumulate(z, z_exact, g, inside & (level == j), r, self.zone_split_um, stats)
+        self.facet_stats[b] = facets
         return Machined(z, z_exact, g, inside, r, x, y, cusp_z, cusp_g, cusp_in, np.hypot(cx, cy))
 
     def _crossings(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -174,9 +177,13 @@ class FresnelSimulation:
         """P-V and RMS [nm] of every facet's interior on the evaluation nodes, outermost facet
         first (facet n = N − 1 − j of level j, [2]'s numbering from outside)."""
         top = self.fplan.path.n_facets - 1
+        merged: dict[int, np.ndarray] = {}
+        for b in sorted(self.facet_stats):
+            for j, stats in self.facet_stats[b].items():
+                merged[j] = metrics.merge_stats(merged.get(j, metrics.empty_stats()), stats)
         out = []
-        for j in sorted(self.facet_stats, reverse=True):
-            m = metrics.finalize(self.facet_stats[j])
+        for j in sorted(merged, reverse=True):
+            m = metrics.finalize(merged[j])
             out.append({"facet": top - j, "pv_nm": m["pv_nm"], "rms_nm": m["rms_nm"], "n_eval": m["n_eval"]})
         return out
 

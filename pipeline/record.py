@@ -5,6 +5,7 @@ resolved case, its metrics, dynamics, layers and error maps, with the wall time 
 from __future__ import annotations
 
 import math
+import threading
 import time
 from typing import Any, Optional
 
@@ -53,14 +54,17 @@ class ErrorMap:
 
 
 class Timer:
-    """Accumulates wall time per named stage."""
+    """Accumulates wall time per named stage; safe to share between the threads of a case
+    (their stage times add up, so with N threads a stage may total more than the wall time)."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
+        self._lock = threading.Lock()
 
     def add(self, name: str, start: float) -> float:
         now = time.perf_counter()
-        self.seconds[name] = self.seconds.get(name, 0.0) + now - start
+        with self._lock:
+            self.seconds[name] = self.seconds.get(name, 0.0) + now - start
         return now
 
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from ftsweep import catalogs, cube, kinds
 from ftsweep.cube import CubeError
-from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES
+from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, usable_cores
 from ftsweep.executor import TaskSpec, execute, run_task, warm_up
 from ftsweep.lock import cube_lock
 from ftsweep.spec import CaseError
@@ -61,8 +61,8 @@ def check_sweep_size(spec: SweepSpec, max_cases: int = MAX_CASES) -> None:
 
 
 def default_workers() -> int:
-    """One worker process per core."""
-    return max(1, os.cpu_count() or 1)
+    """One worker process per core this process may use."""
+    return usable_cores()
 
 
 @dataclass

@@ -14,6 +14,7 @@ import xarray as xr
 from click.testing import CliRunner
 
 from ftsweep import kinds, result
+from ftsweep.case import run_case
 from ftsweep.cli import main
 from ftsweep.export import format_of_kind
 from ftsweep.run import run_sweep
@@ -96,6 +97,21 @@ class KindTests:
         assert (tmp_path / "index.html").stat().st_size > 0 and (
             tmp_path / "error_map.png"
         ).stat().st_size > 0
+
+    def test_threads_give_the_same_record(self, cube):
+        """A case on several threads (batches in parallel, a table compensated in parts) is
+        the same case: every field equal, value for value, to the one-thread record."""
+        spec_path, _, folder = cube
+        _, spec = load_sweep(str(spec_path), folder)
+        case = case_at(spec, 0)
+        totals = []
+        one = run_case(case, folder, batch_nodes=20_000)
+        many = run_case(case, folder, batch_nodes=20_000, threads=3, progress=lambda d, t: totals.append(t))
+        assert totals and totals[-1] >= 2  # batches did run side by side
+        values = {k for k in one if not k.startswith("seconds")}
+        assert values == {k for k in many if not k.startswith("seconds")}
+        differ = [k for k in values if json.dumps(one[k], default=str) != json.dumps(many[k], default=str)]
+        assert not differ, differ
 
     def test_a_finished_sweep_resumes_with_nothing_computed(self, cube):
         spec_path, out, folder = cube

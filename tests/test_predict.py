@@ -108,6 +108,14 @@ def test_json_output_is_one_object_with_the_documented_keys():
     assert data["drho_um"] == 4.0 and data["dtheta_deg"] == 2.0
 
 
+def test_threads_option_gives_the_same_prediction():
+    args = ("predict", "--surface", "sinewave2d", "--drho-um", "4", "--dtheta-deg", "2", "--json")
+    one, two = invoke(*args, "--threads", "1"), invoke(*args, "--threads", "2")
+    assert one.exit_code == 0 and two.exit_code == 0, one.output + two.output
+    a, b = json.loads(one.stdout), json.loads(two.stdout)
+    assert a["pv_nm"] == b["pv_nm"] and a["rms_nm"] == b["rms_nm"] and a["n_eval"] == b["n_eval"]
+
+
 def test_readable_summary_names_units():
     r = invoke("predict", "--surface", "lens_array", "--dx-um", "16", "--dy-um", "16")
     assert r.exit_code == 0, r.output
@@ -191,6 +199,7 @@ def test_console_script_is_installed():
     "args, option",
     [
         (["sweep", "sinewave-ring", "--workers", "0"], "--workers"),
+        (["predict", "--surface", "sinewave2d", "--threads", "0"], "--threads"),
         (["sweep", "sinewave-ring", "--max-cases", "-3"], "--max-cases"),
         (["sweep", "sinewave-ring", "--prune", "1"], "--prune"),
         (["select", "outputs/none.zarr", "--tolerance-nm", "nan"], "--tolerance-nm"),

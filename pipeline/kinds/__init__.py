@@ -39,7 +39,9 @@ class Planning(NamedTuple):
 class Simulating(NamedTuple):
     """What a kind's ``simulation`` receives: the resolved case, a given table [µm] (the
     controller's as stored) or None, the catalog folder, the nodes per batch, the largest
-    number of nodes a case may have, and a cache of shared work (or None)."""
+    number of nodes a case may have, a cache of shared work (or None), and the threads the
+    case may use for work before its batches (e.g. compensating a table in parts; the
+    batches themselves are spread by :func:`ftsweep.case.run_case`)."""
 
     rcase: Any
     table: Any
@@ -47,13 +49,16 @@ class Simulating(NamedTuple):
     batch_nodes: int
     max_nodes: float
     lines: Any
+    threads: int = 1
 
 
 class Simulation(Protocol):
     """How the one simulator (:func:`ftsweep.case.run_case`) samples a kind's program: its
     batches of rays, each machined into a :class:`ftsweep.case.Machined`, the inner/outer
     zone boundary [µm], and the record of the finished case from its metrics (the kind's
-    fields, its axis motion against the machine's limits)."""
+    fields, its axis motion against the machine's limits). ``batch`` may run on several
+    threads at once (``run_case(threads=N)``): it must not change shared state, or only in
+    a way ``record`` reads back in batch order, so results do not depend on N."""
 
     n_batches: int
     zone_split_um: float

@@ -443,18 +443,22 @@ def axis_motion(t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarr
     }
 
 
-def x_accel_at_step(path: DPath, spindle_rpm: float, step_rad: float) -> np.ndarray:
+def x_accel_at_step(
+    path: DPath, spindle_rpm: float, step_rad: float, rho_um: np.ndarray | None = None
+) -> np.ndarray:
     """X accelerations [m/s²] at the program's points of the planned curve (:func:`evaluate`)
     at constant spindle speed, formed over a C step h either side: ω²·(ρ(φ+h) − 2ρ(φ) +
     ρ(φ−h))/h², the kinematics stage's scheme ([2] eq. 14) on the uniform step h. At a
     traditional junction it reads the slope jump over h, ω²·Δ(dρ/dθ)/h; on smooth stretches
-    the curvature, ω²·d²ρ/dθ². Zero where φ ± h leaves the program."""
+    the curvature, ω²·d²ρ/dθ². Zero where φ ± h leaves the program. ``rho_um``: the curve at
+    the points, ``evaluate(path, path.phi)[0]``, if already known (several steps)."""
     omega = spindle_rpm * 2.0 * math.pi / 60.0
     phi = path.phi
     out = np.zeros(phi.size)
     ok = (phi - step_rad >= phi[0]) & (phi + step_rad <= phi[-1])
     p = phi[ok]
-    mid, ahead, behind = (evaluate(path, p + d)[0] for d in (0.0, step_rad, -step_rad))
+    mid = (evaluate(path, phi)[0] if rho_um is None else rho_um)[ok]
+    ahead, behind = (evaluate(path, p + d)[0] for d in (step_rad, -step_rad))
     out[ok] = omega**2 * (ahead - 2.0 * mid + behind) / step_rad**2 * 1e-6
     return out
 
@@ -534,9 +538,9 @@ def _crossings(phi, rho, z, ray_theta, n_rev, pos, w, seg):  # pragma: no cover 
                 w[a, c] = math.nan
                 seg[a, c] = -1
                 continue
-            # revolutions come in increasing φ: the search resumes where the last ended
-            while j < phi.size - 2 and phi[j + 1] < q:
-                j += 1
+            # revolutions come in increasing φ: the search resumes where the last ended, by
+            # bisection (a walk point by point cost O(rays × points))
+            j = min(j + np.searchsorted(phi[j + 1 :], q), phi.size - 2)
             s = (q - phi[j]) / (phi[j + 1] - phi[j])
             seg[a, c] = j
             pos[a, c] = rho[j] + s * (rho[j + 1] - rho[j])

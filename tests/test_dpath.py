@@ -384,3 +384,29 @@ def test_evaluate_walks_increasing_angles_and_searches_others_alike():
     x = path.bounds - path.cut_centre[cut]
     assert np.allclose(rho, path.cut_d[cut] / np.cos(x), rtol=1e-14)
     assert np.allclose(d1, path.cut_d[cut] * np.tan(x) / np.cos(x), rtol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    steps=st.lists(st.floats(0.01, 3.0), min_size=3, max_size=60),
+    start=st.floats(-20.0, 20.0),
+    rays=st.lists(st.floats(0.0, 2.0 * math.pi, exclude_max=True), min_size=1, max_size=6),
+)
+def test_crossings_are_where_the_path_passes_each_ray(steps, start, rays):
+    """The bisecting search finds, for every ray and revolution, the program step that holds
+    the crossing angle, and interpolates the path linearly there (a brute-force check)."""
+    phi = start + np.concatenate([[0.0], np.cumsum(steps)])
+    rho = 1000.0 + 10.0 * np.sin(phi)
+    z = np.cos(3.0 * phi)
+    pos, w, seg = dpath.crossings(phi, rho, z, np.sort(np.array(rays)))
+    base = math.floor(phi[0] / (2.0 * math.pi)) * 2.0 * math.pi
+    for a, theta in enumerate(np.sort(np.array(rays))):
+        for c in range(pos.shape[1]):
+            q = theta + base + 2.0 * math.pi * c
+            if q < phi[0] or q > phi[-1]:
+                assert seg[a, c] == -1 and math.isnan(pos[a, c])
+                continue
+            j = seg[a, c]
+            assert phi[j] <= q <= phi[j + 1] and (j == 0 or phi[j] < q)
+            assert pos[a, c] == pytest.approx(np.interp(q, phi, rho), rel=1e-12, abs=1e-9)
+            assert w[a, c] == pytest.approx(np.interp(q, phi, z), rel=1e-12, abs=1e-9)

@@ -18,15 +18,7 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-
-def _axes(ax: Any = None, size: tuple[float, float] = (7.0, 4.6)) -> Any:
-    """``ax``, or the axes of a new figure on pyplot's backend as the caller has it (a
-    notebook's inline one stays; the command line sets Agg for itself, ``ftsweep.cli``)."""
-    import matplotlib.pyplot as plt
-
-    if ax is None:
-        _, ax = plt.subplots(figsize=size, layout="constrained")
-    return ax
+from ftsweep.io import new_axes as _axes
 
 
 def aspect_label(ds: xr.Dataset) -> str:

@@ -15,19 +15,19 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
-from contextlib import contextmanager
-from contextvars import ContextVar
 from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
 from ftsweep import kinds
 from ftsweep.cost import MAX_NODES
-from ftsweep.planning import resolve_case
+from ftsweep.planning import ResolvedCase, resolve_case
 from ftsweep.record import ErrorMap, Timer, timed
 from ftsweep.result import STAGES
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import metrics
+from ftsweep.threads import current as current_threads
+from ftsweep.threads import using_threads
 
 
 def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -> None:
@@ -43,23 +43,6 @@ def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -
 
 
 STAGE_TIMERS = STAGES
-
-# threads of every case run in this context that does not give its own (``run_case(threads=)``):
-# the commands that simulate one case at a time (predict, verify, dpath, fresnel) set it, a
-# sweep's workers leave it at one (they run cases side by side instead)
-THREADS: ContextVar[int] = ContextVar("ftsweep_case_threads", default=1)
-
-
-@contextmanager
-def using_threads(threads: int) -> Iterator[None]:
-    """Run the cases simulated inside the ``with`` block on ``threads`` threads each."""
-    if threads < 1:
-        raise ValueError(f"threads must be at least 1, got {threads}")
-    token = THREADS.set(threads)
-    try:
-        yield
-    finally:
-        THREADS.reset(token)
 
 
 class Machined(NamedTuple):
@@ -93,6 +76,7 @@ def run_case(
     lines: Any = None,
     program: Optional[tuple[Any, np.ndarray]] = None,
     threads: Optional[int] = None,
+    resolved: Optional[ResolvedCase] = None,
 ) -> dict[str, Any]:
     """Predict the form error of one case of any program kind (model §1–§6).
 
@@ -114,17 +98,18 @@ def run_case(
     With ``threads`` > 1 the batches (and a table's compensation) run on that many threads
     (the numba kernels release the GIL); the metrics still take the batches in order, so the
     record is the same, value for value, whatever the number of threads. None: the number
-    set by :func:`using_threads` around the call (one unless set).
+    set by :func:`ftsweep.threads.using_threads` around the call (one unless set).
+    ``resolved``: the case as :func:`ftsweep.planning.resolve_case` already resolved it (its
+    program planned), simulated as it is instead of planned again.
     """
-    threads = THREADS.get() if threads is None else threads
-    if threads < 1:
-        raise ValueError(f"threads must be at least 1, got {threads}")
+    threads = current_threads(threads)
     t_start = time.perf_counter()
-    rcase = resolve_case(case, catalog_folder, specs, program)
     timer = Timer()
-    timer.seconds["compensation"] = rcase.plan_seconds
-    inputs = kinds.Simulating(rcase, table, catalog_folder, batch_nodes, max_nodes, lines, threads)
-    sim = kinds.kind(case.layout.kind).simulation(inputs, timer)
+    with using_threads(threads):  # planning and a table's compensation split their work too
+        rcase = resolved or resolve_case(case, catalog_folder, specs, program)
+        timer.seconds["compensation"] = rcase.plan_seconds
+        inputs = kinds.Simulating(rcase, table, catalog_folder, batch_nodes, max_nodes, lines)
+        sim = kinds.kind(case.layout.kind).simulation(inputs, timer)
     bins = case.resolution.error_map_bins
     emap = ErrorMap.over(rcase.aperture, bins) if bins else None
     stats = metrics.empty_stats()

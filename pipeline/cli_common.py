@@ -45,12 +45,12 @@ TRUST_PLUGINS = click.option(
 
 def threads_option(command: Any) -> Any:
     """Add ``--threads N`` to a command that simulates one case at a time: its cases run on N
-    threads each (:func:`ftsweep.case.using_threads`), by default on every usable core."""
+    threads each (:func:`ftsweep.threads.using_threads`), by default on every usable core."""
 
     @functools.wraps(command)
     def run(*args: Any, threads: Optional[int] = None, **kwargs: Any) -> Any:
-        from ftsweep.case import using_threads
         from ftsweep.defaults import usable_cores
+        from ftsweep.threads import using_threads
 
         with using_threads(threads or usable_cores()):
             return command(*args, **kwargs)

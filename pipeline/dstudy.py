@@ -93,8 +93,8 @@ def study(base: Case, feed_mm_min: float, with_spiral: bool = True, progress: An
     programs = {}
     for kind in ("traditional", "optimised"):
         case = d_case(base, kind)
-        record = run_case(case, progress=progress)
         rcase = resolve_case(case)
+        record = run_case(case, progress=progress, resolved=rcase)
         programs[kind] = (rcase.layout, rcase.values)
         keep = {k: v for k, v in record.items() if not k.startswith("seconds") and k != "layers"}
         keep.update(continuity(rcase.layout))
@@ -189,8 +189,8 @@ def plot_x_motion(
     ``cycles`` revolutions, traditional against optimised (the planned path at constant
     spindle speed sampled every controller period ``period_s`` [s], eqs. 3–6; the
     traditional acceleration is a spike over one period)."""
-    from ftsweep.accessor import _axes
-    from ftsweep.report import _save
+    from ftsweep.io import new_axes as _axes
+    from ftsweep.io import save_figure
 
     ax = _axes(None, (8.0, 7.5))
     fig = ax.figure
@@ -216,7 +216,7 @@ def plot_x_motion(
     for a in axes:
         a.grid(True, alpha=0.3)
         a.legend(fontsize=7)
-    return _save(axes[0], out)
+    return save_figure(axes[0].figure, out)
 
 
 def plot_z_motion(
@@ -224,8 +224,8 @@ def plot_z_motion(
 ) -> Path:
     """[5] fig. 7: Z over one revolution of the spiral (mid-radius) and over one cycle of the
     D path, with their Z velocities."""
-    from ftsweep.accessor import _axes
-    from ftsweep.report import _save
+    from ftsweep.io import new_axes as _axes
+    from ftsweep.io import save_figure
 
     ax = _axes(None, (8.0, 6.0))
     fig = ax.figure
@@ -254,7 +254,7 @@ def plot_z_motion(
     for a in axes:
         a.grid(True, alpha=0.3)
         a.legend(fontsize=7)
-    return _save(axes[0], out)
+    return save_figure(axes[0].figure, out)
 
 
 def public(summary: dict[str, Any]) -> dict[str, Any]:

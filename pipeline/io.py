@@ -90,6 +90,17 @@ def write_json_atomic(path: str | os.PathLike[str], data: Any) -> Path:
     return write_text_atomic(path, dumps_json(data, indent=2) + "\n")
 
 
+def new_axes(ax: Any = None, size: tuple[float, float] = (7.0, 4.6)) -> Any:
+    """``ax``, or the axes of a new figure on pyplot's backend as the caller has it (a
+    notebook's inline one stays; the command line sets Agg for itself, ``ftsweep.cli``).
+    Here, not beside the plots of cubes, so that plotting a study imports no xarray."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=size, layout="constrained")
+    return ax
+
+
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     """Save a matplotlib figure to ``path`` through a temporary file and a rename (no
     half-written PNG), with the permissions the umask gives a plain ``open``; closes it."""

@@ -111,7 +111,7 @@ def _dynamics(rcase: ResolvedCase, table: np.ndarray) -> Any:
 
 
 def _table_of(
-    rcase: ResolvedCase, table: Optional[np.ndarray], catalog_folder: Any, threads: int = 1
+    rcase: ResolvedCase, table: Optional[np.ndarray], catalog_folder: Any
 ) -> tuple[np.ndarray, np.ndarray]:
     """The compensated control table [µm] and its gouge flags, or a given table checked
     against the layout (no gouge flags: it is used as stored). A spiral program's commands
@@ -121,7 +121,7 @@ def _table_of(
         table, gouge = rcase.values, rcase.gouge
     elif table is None:  # a table: compensated over its whole layout (model §4)
         table, gouge = control_table(
-            rcase.case, layout, rcase.surface_spec, rcase.nose_radius_um, catalog_folder, threads
+            rcase.case, layout, rcase.surface_spec, rcase.nose_radius_um, catalog_folder
         )
     else:
         table = np.asarray(table, dtype=np.float64)
@@ -271,7 +271,7 @@ class LineSimulation:
         rcase = s.rcase
         t = time.perf_counter()
         self.rcase = rcase
-        self.table, self.gouge = _table_of(rcase, s.table, s.catalog_folder, s.threads)
+        self.table, self.gouge = _table_of(rcase, s.table, s.catalog_folder)
         timer.add("compensation", t)
         self.plan = LinePlan.of(rcase, s.batch_nodes, s.max_nodes)
         t = time.perf_counter()

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Optional
 
@@ -19,6 +18,7 @@ from ftsweep.cost import check_capacity, check_cost, ray_nodes
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import compensation, dynamics, layers, layouts, spiral
 from ftsweep.stages.layouts import Layout
+from ftsweep.threads import compensate_in_parts
 
 
 @dataclass(frozen=True)
@@ -163,16 +163,15 @@ def control_table(
     surface_spec: Any,
     nose_radius_um: float,
     catalog_folder: Any = None,
-    threads: int = 1,
+    threads: Optional[int] = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The compensated control table [µm] of ``layout`` and its gouge flags (model §4), in
-    parts on ``threads`` threads when asked (each entry is compensated on its own, so the
-    table is the same bit for bit)."""
+    parts on ``threads`` threads (None: the context's, :mod:`ftsweep.threads`)."""
     node_rho, node_theta = layouts.layout_nodes(layout)
     surface = catalogs.surface_callable(surface_spec, catalog_folder)
     bounds = catalogs.gradient_bound(surface_spec, catalog_folder), catalogs.curvature_bound(surface_spec)
 
-    def part(rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def solve(rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return compensation.compensate(
             surface,
             rho,
@@ -184,17 +183,4 @@ def control_table(
             curvature_bound=bounds[1],
         )
 
-    n_parts = min(4 * threads, node_rho.size // TABLE_PART_POINTS) if threads > 1 else 1
-    if n_parts < 2:
-        return part(node_rho, node_theta)
-    rho_parts = np.array_split(node_rho.ravel(), n_parts)
-    theta_parts = np.array_split(node_theta.ravel(), n_parts)
-    with ThreadPoolExecutor(threads, thread_name_prefix="ftsweep-table") as pool:
-        done = list(pool.map(part, rho_parts, theta_parts))
-    w = np.concatenate([d[0] for d in done]).reshape(node_rho.shape)
-    return w, np.concatenate([d[1] for d in done]).reshape(node_rho.shape)
-
-
-# fewest table entries per part when a table is compensated on threads: smaller parts would
-# spend more on numpy's per-call overhead than they gain
-TABLE_PART_POINTS = 50_000
+    return compensate_in_parts(solve, node_rho, node_theta, threads)

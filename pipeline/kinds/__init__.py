@@ -39,9 +39,10 @@ class Planning(NamedTuple):
 class Simulating(NamedTuple):
     """What a kind's ``simulation`` receives: the resolved case, a given table [µm] (the
     controller's as stored) or None, the catalog folder, the nodes per batch, the largest
-    number of nodes a case may have, a cache of shared work (or None), and the threads the
-    case may use for work before its batches (e.g. compensating a table in parts; the
-    batches themselves are spread by :func:`ftsweep.case.run_case`)."""
+    number of nodes a case may have, and a cache of shared work (or None). It is made in
+    the case's thread context (:mod:`ftsweep.threads`): work it does up front, such as
+    compensating a table, may split over the threads; :func:`ftsweep.case.run_case` spreads
+    the batches."""
 
     rcase: Any
     table: Any
@@ -49,7 +50,6 @@ class Simulating(NamedTuple):
     batch_nodes: int
     max_nodes: float
     lines: Any
-    threads: int = 1
 
 
 class Simulation(Protocol):

@@ -20,6 +20,7 @@ from ftsweep.kinds.requests import SpiralRequest
 from ftsweep.lines import LineSimulation
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import compensation, spiral
+from ftsweep.threads import compensate_in_parts
 
 AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")
 
@@ -42,16 +43,21 @@ def plan_spiral(
         values = np.asarray(values, dtype=np.float64)
         return path, {"values": values, "gouge": np.zeros(values.shape, dtype=bool)}
 
-    def compensated(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def solve(rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return compensation.compensate(
             surface,
-            spiral.spiral_radius(phi, rho0, feed_um),
-            np.mod(phi, 2.0 * math.pi),
+            rho,
+            theta,
             rc,
             case.compensation,
             bound,
             n_scan=case.resolution.compensation_scan,
             curvature_bound=catalogs.curvature_bound(surface_spec),
+        )
+
+    def compensated(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return compensate_in_parts(
+            solve, spiral.spiral_radius(phi, rho0, feed_um), np.mod(phi, 2.0 * math.pi)
         )
 
     rule, value = case.layout.spiral_rule()

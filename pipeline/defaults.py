@@ -5,9 +5,12 @@ apply them (:mod:`ftsweep.cost`, :mod:`ftsweep.lines`, :mod:`ftsweep.sweep`,
 
 # the largest simulation a case may cost, in evaluation nodes: about two hours of one core
 MAX_NODES = 2.0e10
-# default memory [MiB] per sweep worker for shared lines: on this 24 GiB, 2-core machine a
-# twelfth of the memory per worker, the lines of a 250k-point ring case (about 0.2 GB) ten times over
-LINE_CACHE_MB = 2048.0
+# default memory [MiB] per sweep worker for shared lines: every kept batch is fresh memory the
+# kernel must fault in (~10 µs per 4 KiB page with zeroing), about what computing it costs, so
+# a cache pays only for lines read again soon. Measured on 2 workers (README "Work shared
+# across cases"): 512 MiB is as fast as 2048 where most cases share lines (the angular ladder)
+# and 4 s faster where few do (the reference sweep); it holds a 650k-point ring case's lines
+LINE_CACHE_MB = 512.0
 # every case costs seconds of a core: beyond this many cases a sweep is refused unless the
 # caller raises the limit (CLI: --max-cases)
 MAX_CASES = 100_000

@@ -147,3 +147,27 @@ def test_a_sweep_with_shared_lines_equals_the_sweep_case_by_case(tmp_path, catal
             assert np.array_equal(var.values, b[name].values), name
         compared += 1
     assert compared > 10
+
+
+def test_a_task_keeps_only_lines_another_of_its_cases_reads(tmp_path, catalog_dir):
+    """Kept lines cost fresh memory per batch: a case whose lines no other case of its task
+    simulates runs without the cache (nothing kept), the sharing cases through it."""
+    from ftsweep.executor import _LINE_CACHES, TaskSpec, run_task
+    from ftsweep.run import prepare_cube
+
+    spec = tmp_path / "ladder.yaml"
+    spec.write_text(SPEC)
+    name, sweep = load_sweep(str(spec), catalog_dir)
+    keys = [case_lines(sweep, i, catalog_dir)[1] for i in range(8)]
+    shared = next(k for k in keys if keys.count(k) > 1)
+    pair = [i for i in range(8) if keys[i] == shared][:2]
+    lone = [i for i in range(8) if keys.count(keys[i]) == 1]
+    assert lone, "the spec should have a case sharing its lines with none"
+    out = tmp_path / "c.zarr"
+    prepare_cube(name, sweep, out, False, catalog_dir)
+    task = TaskSpec(str(out), sweep.model_dump_json(), str(catalog_dir), "run-lone", 512.0)
+    run_task(task, lone[:1])
+    assert _LINE_CACHES["run-lone"].nbytes == 0 and _LINE_CACHES["run-lone"].misses == 0
+    task = TaskSpec(str(out), sweep.model_dump_json(), str(catalog_dir), "run-pair", 512.0)
+    rows = run_task(task, pair)
+    assert _LINE_CACHES["run-pair"].nbytes > 0 and rows[1]["reused_batches"] > 0

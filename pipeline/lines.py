@@ -223,16 +223,34 @@ def line_key(rcase: ResolvedCase, plan: LinePlan) -> tuple[Any, ...]:
     )
 
 
+def _reach_um(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray) -> float:
+    """Radius [µm] beyond which no pass can shape the aperture along ``lines`` (model §5):
+    the aperture's farthest extent along them, plus the nose radius (the farthest an arc
+    reaches) and the plan's margin (contact window and two feeds). The evaluated zone, one
+    feed and a contact window inside the first pass held, still covers the aperture there.
+    Passes beyond it are left out: a rectangle's rays stop near its edge instead of at its
+    circumscribed circle (a circle's reach lies past the spiral's start: nothing is left out)."""
+    extent = rcase.aperture.extent_along_um(np.cos(lines), np.sin(lines))
+    return float(extent.max()) + rcase.nose_radius_um + plan.margin_um
+
+
 def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Timer) -> LineData:
     """The layout-independent part of a batch of lines (model §3, §5, §6): surface samples,
     the exact commands along the path and their envelope."""
     res, rc = rcase.case.resolution, rcase.nose_radius_um
     t = time.perf_counter()
-    grid = interpolation.path_grid(lines, rcase.rho0_um, rcase.feed_um, res.points_per_feed, plan.margin_um)
+    grid = interpolation.path_grid(
+        lines,
+        rcase.rho0_um,
+        rcase.feed_um,
+        res.points_per_feed,
+        plan.margin_um,
+        _reach_um(rcase, plan, lines),
+    )
     ray_theta = grid.ray_theta[:, None]
     ct, st = np.cos(ray_theta), np.sin(ray_theta)
     if rcase.lines is not None:
-        g, gp = rcase.lines(grid.first_pass, grid.spacing_um, grid.node_offset, grid.node_r.shape[1], ct, st)
+        g, gp = rcase.lines(grid.first_pass, grid.spacing_um, grid.origin_node, grid.node_r.shape[1], ct, st)
     else:
         g, gp = radial_section(rcase.surface, grid.node_r, ct, st)
     where = _node_point(grid.node_r, ray_theta)
@@ -298,7 +316,12 @@ class LineSimulation:
         w_interp = interpolation.pass_commands(rcase.layout, self.table, grid)
         if self.layering is not None:
             w_interp = layers.layered_pass_commands(
-                self.layering, grid.ray_theta, grid.n_passes, w_interp, z_error_of(rcase)
+                self.layering,
+                grid.ray_theta,
+                grid.n_passes,
+                w_interp,
+                z_error_of(rcase),
+                grid.first_revolution,
             )
             passes = np.arange(w_interp.shape[1])[None, :] < grid.n_passes[:, None]
             require_finite(

@@ -144,6 +144,15 @@ class Aperture(NamedTuple):
             return out
         return (np.abs(r * cos_t) <= hw) & (np.abs(r * sin_t) <= hh)
 
+    def extent_along_um(self, cos_t: np.ndarray, sin_t: np.ndarray) -> np.ndarray:
+        """Farthest radius [µm] of the aperture along each direction θ (cos, sin) from its
+        centre (the same along θ + π): where a ray leaves it."""
+        c, s = np.abs(np.asarray(cos_t, dtype=np.float64)), np.abs(np.asarray(sin_t, dtype=np.float64))
+        if self.shape == "circle":
+            return np.full(np.broadcast(c, s).shape, float(self.radius_um))
+        with np.errstate(divide="ignore"):
+            return np.minimum(0.5 * self.width_um / c, 0.5 * self.height_um / s)
+
     @property
     def half_extent_um(self) -> tuple[float, float]:
         """Half width and half height [µm] of the aperture's bounding box."""

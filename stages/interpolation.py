@@ -66,13 +66,13 @@ def _bilinear_kernel(table, u, v, periodic, out):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _pass_commands_kernel(table, polar, o0, o1, p0, p1, periodic, first, step, ray_a, ray_b, out):  # noqa: E501  # pragma: no cover - jit
+def _pass_commands_kernel(table, polar, o0, o1, p0, p1, periodic, first, k0, step, ray_a, ray_b, out):  # noqa: E501  # pragma: no cover - jit
     # the tool positions ρ_k = max(first − k·step, 0) and their table indices are formed here,
     # pass by pass, instead of as (rays × passes) arrays; the arithmetic is that of
     # pass_rho and table_indices, so the commands are the same to the last bit
     for a in range(out.shape[0]):
         for k in range(out.shape[1]):
-            rho = max(first[a] - k * step, 0.0)
+            rho = max(first[a] - (k + k0) * step, 0.0)
             if polar:
                 u = (rho - o0) / p0
                 v = ray_a[a]
@@ -130,7 +130,7 @@ def pass_commands(layout: Program, table: np.ndarray, grid: PathGrid) -> np.ndar
     the tool at accumulated angle φ = 2πk + θ, where the controller interpolates linearly
     between the points around φ."""
     if isinstance(layout, SpiralPath):
-        k = np.arange(int(grid.n_passes.max()))
+        k = np.arange(int(grid.n_passes.max())) + grid.first_revolution
         phi = 2.0 * math.pi * k[None, :] + grid.ray_theta[:, None]
         return spiral_commands(layout, np.asarray(table, dtype=np.float64), phi)
     theta = grid.ray_theta[:, None]
@@ -149,6 +149,7 @@ def pass_commands(layout: Program, table: np.ndarray, grid: PathGrid) -> np.ndar
         float(layout.pitch[1]),
         bool(layout.periodic),
         grid.first_pass,
+        int(grid.first_revolution),
         grid.spacing_um * grid.ppf,
         ray_a,
         ray_b,
@@ -161,13 +162,16 @@ class PathGrid(NamedTuple):
     """Sampling of a batch of feed-plane lines (see module docstring). Lengths in µm.
 
     ray_theta : (R,) angle [rad] of each ray; rays 2l and 2l+1 form line l (θ and θ + π).
-    first_pass : (R,) radius of pass k = 0 on each ray, ρ0 − F·θ/2π [µm].
-    n_passes : (R,) passes with ρ_k ≥ 0 on each ray.
-    node_offset : index of node n = 0 (the first pass) in the node arrays; nodes before it
-        lie outside the first pass, so exact compensation sees the section beyond the edge.
+    first_pass : (R,) radius of the spiral's pass 0 on each ray, ρ0 − F·θ/2π [µm].
+    n_passes : (R,) passes held on each ray: those with ρ_k ≥ 0 from pass
+        ``first_revolution`` on (column k of pass arrays is the spiral's pass k + k0).
+    node_offset : index of the first pass held in the node arrays; nodes before it lie
+        outside it, so exact compensation sees the section beyond it.
     spacing_um : node spacing F/ppf [µm].
     ppf : evaluation nodes per feed.
     node_r : (R, G) radius of every node [µm] (negative past the axis).
+    first_revolution : k0, the spiral's passes left out before the first one held (they lie
+        beyond the reach of everything simulated, see :func:`path_grid`).
     """
 
     ray_theta: np.ndarray
@@ -177,6 +181,13 @@ class PathGrid(NamedTuple):
     spacing_um: float
     ppf: int
     node_r: np.ndarray
+    first_revolution: int = 0
+
+    @property
+    def origin_node(self) -> int:
+        """Index of the spiral's pass 0 in the node arrays (negative when passes are left
+        out): node j lies at first_pass − (j − origin_node)·spacing."""
+        return self.node_offset - self.first_revolution * self.ppf
 
     @property
     def pass_nodes(self) -> np.ndarray:
@@ -187,7 +198,7 @@ class PathGrid(NamedTuple):
     @property
     def pass_rho(self) -> np.ndarray:
         """(R, Kmax) radius ρ_k of each pass [µm] (meaningless for k ≥ n_passes)."""
-        k = np.arange(int(self.n_passes.max()))
+        k = np.arange(int(self.n_passes.max())) + self.first_revolution
         return self.first_pass[:, None] - k[None, :] * (self.spacing_um * self.ppf)
 
 
@@ -220,7 +231,7 @@ def sample_on_nodes(grid: PathGrid, g: np.ndarray, gp: np.ndarray, r: np.ndarray
     picometre at the default spacing) and O(spacing^2 · jump of curvature) at seams.
     """
     out = np.empty(r.shape)
-    _hermite_kernel(g, gp, grid.first_pass, grid.node_offset, grid.spacing_um, r, out)
+    _hermite_kernel(g, gp, grid.first_pass, grid.origin_node, grid.spacing_um, r, out)
     return out
 
 
@@ -245,7 +256,14 @@ def line_angles(n_theta: int) -> np.ndarray:
     return (np.arange(n_theta // 2) + 0.5) * (2.0 * math.pi / n_theta)
 
 
-def path_grid(line_theta: np.ndarray, rho0_um: float, feed_um: float, ppf: int, margin_um: float) -> PathGrid:
+def path_grid(
+    line_theta: np.ndarray,
+    rho0_um: float,
+    feed_um: float,
+    ppf: int,
+    margin_um: float,
+    reach_um: float = math.inf,
+) -> PathGrid:
     """Pass positions and node grids for feed-plane lines at ``line_theta`` [rad] (§1, §5).
 
     Parameters
@@ -254,8 +272,12 @@ def path_grid(line_theta: np.ndarray, rho0_um: float, feed_um: float, ppf: int, 
     rho0_um : radius where the spiral starts [µm].
     feed_um : feed per revolution F [µm/rev].
     ppf : evaluation nodes per feed (≥ 1).
-    margin_um : how far the node grid extends beyond the first pass and past the axis
+    margin_um : how far the node grid extends beyond the first pass held and past the axis
         [µm]; at least the contact window of the compensation.
+    reach_um : the leading revolutions whose passes lie beyond this radius [µm] on every
+        ray are left out (with their nodes): the caller's bound beyond which no pass can
+        touch what it evaluates. Nodes and passes held are those of the whole spiral, to the
+        last bit.
     """
     if ppf < 1:
         raise ValueError(f"points per feed must be ≥ 1, got {ppf}")
@@ -264,8 +286,11 @@ def path_grid(line_theta: np.ndarray, rho0_um: float, feed_um: float, ppf: int, 
     ray_theta[1::2] = line_theta + math.pi
     first = rho0_um - feed_um * ray_theta / (2.0 * math.pi)
     n_passes = np.floor(first / feed_um + 1e-9).astype(np.int64) + 1
+    # pass k lies beyond the reach on every ray when min(first) − k·F > reach
+    beyond = (float(first.min()) - reach_um) / feed_um if math.isfinite(reach_um) else 0.0
+    k0 = min(max(int(math.ceil(beyond)), 0), int(n_passes.min()) - 1)
     spacing = feed_um / ppf
     offset = int(math.ceil(margin_um / spacing))
-    n_nodes = offset + int(math.ceil((rho0_um + margin_um) / spacing)) + 1
-    node_r = first[:, None] - (np.arange(n_nodes)[None, :] - offset) * spacing
-    return PathGrid(ray_theta, first, n_passes, offset, spacing, ppf, node_r)
+    n_nodes = offset + int(math.ceil((rho0_um + margin_um) / spacing)) + 1 - k0 * ppf
+    node_r = first[:, None] - (np.arange(n_nodes)[None, :] + (k0 * ppf - offset)) * spacing
+    return PathGrid(ray_theta, first, n_passes - k0, offset, spacing, ppf, node_r, k0)

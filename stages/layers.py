@@ -319,13 +319,13 @@ def command_stream(
 
 
 @njit(nogil=True, cache=True)
-def _cut_kernel(theta, n_passes, w, ptr, seg_a, seg_b, offsets, shifts, travel, phi_end, out):  # noqa: E501  # pragma: no cover - jit
+def _cut_kernel(theta, k0, n_passes, w, ptr, seg_a, seg_b, offsets, shifts, travel, phi_end, out):  # noqa: E501  # pragma: no cover - jit
     two_pi = 2.0 * math.pi
     n_layers = offsets.size
     for r in range(w.shape[0]):
         for k in range(n_passes[r]):
             # the last pass may sit a rounding error past the centre
-            phi = min(two_pi * k + theta[r], phi_end)
+            phi = min(two_pi * (k + k0) + theta[r], phi_end)
             best = math.inf
             for layer in range(n_layers):
                 lo, hi = ptr[layer], ptr[layer + 1]
@@ -344,18 +344,25 @@ def _cut_kernel(theta, n_passes, w, ptr, seg_a, seg_b, offsets, shifts, travel, 
 
 
 def layered_pass_commands(
-    plan: LayerPlan, ray_theta: np.ndarray, n_passes: np.ndarray, w: np.ndarray, z_error_um: float = 0.0
+    plan: LayerPlan,
+    ray_theta: np.ndarray,
+    n_passes: np.ndarray,
+    w: np.ndarray,
+    z_error_um: float = 0.0,
+    first_revolution: int = 0,
 ) -> np.ndarray:
     """Height [µm] of the tool's lowest point on every pass (R, Kmax) of a layered program:
     the passes ``w`` [µm] of the single spiral (pass k of the ray at θ is the tool at
     φ = 2πk + θ, model §5), each executed by every layer whose segments hold it at that
     layer's offset with W clipped to the travel, shifted by −j·``z_error_um`` for layer j,
     and the lowest kept (the lower envelope over the layers' passes). A pass no layer cuts
-    is +inf. Entries k ≥ n_passes are left undefined."""
+    is +inf. Entries k ≥ n_passes are left undefined. Column k is the spiral's pass k + k0,
+    k0 = ``first_revolution`` (see :func:`ftsweep.stages.interpolation.path_grid`)."""
     out = np.full(w.shape, np.inf)
     shifts = -z_error_um * np.arange(plan.n_layers, dtype=np.float64)
     _cut_kernel(
         np.ascontiguousarray(ray_theta, dtype=np.float64),
+        int(first_revolution),
         np.ascontiguousarray(n_passes, dtype=np.int64),
         np.ascontiguousarray(w, dtype=np.float64),
         plan.seg_ptr,

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.stages import interpolation, layouts
+from ftsweep.stages import interpolation, layouts, spiral
 
 coef = st.floats(-10.0, 10.0)
 
@@ -143,3 +143,29 @@ def test_pass_commands_are_the_lookup_at_the_pass_positions_bit_for_bit(kind):
     want = interpolation.interpolate(lay, table, np.maximum(grid.pass_rho, 0.0), grid.ray_theta[:, None])
     got = interpolation.pass_commands(lay, table, grid)
     np.testing.assert_array_equal(got, want)
+
+
+@given(st.floats(100.0, 2000.0), st.floats(0.2, 5.0), st.integers(1, 8), st.floats(0.05, 1.2))
+def test_a_grid_left_out_beyond_a_reach_is_the_tail_of_the_whole_grid(rho0, feed, ppf, frac):
+    """Passes beyond ``reach_um`` on every ray are left out with their nodes; what is held
+    is the whole spiral's grid to the last bit, and every pass within the reach is held."""
+    lines = interpolation.line_angles(16)[3:7]
+    whole = interpolation.path_grid(lines, rho0, feed, ppf, margin_um=3.0)
+    reach = frac * rho0
+    part = interpolation.path_grid(lines, rho0, feed, ppf, margin_um=3.0, reach_um=reach)
+    k0, j0 = part.first_revolution, part.first_revolution * ppf
+    assert part.node_offset == whole.node_offset and part.origin_node == whole.node_offset - j0
+    np.testing.assert_array_equal(part.node_r, whole.node_r[:, j0:])
+    np.testing.assert_array_equal(part.n_passes, whole.n_passes - k0)
+    np.testing.assert_array_equal(part.pass_rho, whole.pass_rho[:, k0 : k0 + part.pass_rho.shape[1]])
+    # pass k0 − 1, the last one left out, lies beyond the reach on every ray
+    if k0 > 0:
+        assert np.all(whole.pass_rho[:, k0 - 1] > reach)
+    assert np.all(part.pass_rho[:, 0] <= reach + feed) or k0 == 0
+    table = np.random.default_rng(1).normal(size=50)
+    path = spiral.constant_angle(rho0, feed, 50)
+    values = np.interp(np.arange(path.phi.size), np.arange(50) * path.phi.size / 50, table)
+    got = interpolation.pass_commands(path, values, part)
+    want = interpolation.pass_commands(path, values, whole)[:, k0 : k0 + got.shape[1]]
+    held = np.arange(got.shape[1])[None, :] < part.n_passes[:, None]
+    np.testing.assert_array_equal(got[held], want[held])

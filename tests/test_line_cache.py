@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import xarray as xr
 from hypothesis import given
 from hypothesis import strategies as st
@@ -171,3 +172,68 @@ def test_a_task_keeps_only_lines_another_of_its_cases_reads(tmp_path, catalog_di
     task = TaskSpec(str(out), sweep.model_dump_json(), str(catalog_dir), "run-pair", 512.0)
     rows = run_task(task, pair)
     assert _LINE_CACHES["run-pair"].nbytes > 0 and rows[1]["reused_batches"] > 0
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        Case(surface="lens_array", layout=program_request(kind="mesh", pitch=(16.0, 16.0))),
+        # layered (2 layers on a 5 µm stroke): column k of the passes is the spiral's pass k + k0
+        Case(
+            surface="lens_array", machine="fts-5um", layout=program_request(kind="mesh", pitch=(16.0, 16.0))
+        ),
+        Case(surface="lens_array", layout=program_request(kind="spiral", points_per_rev=200)),
+    ],
+    ids=["mesh", "layered-mesh", "spiral"],
+)
+def test_passes_left_out_beyond_a_rectangle_change_nothing(case, catalog_dir, monkeypatch):
+    """A rectangle's rays stop at its edge plus the arc's reach (``lines._reach_um``): the
+    record equals the one simulated out to the circumscribed circle, value for value."""
+    from ftsweep import lines
+    from ftsweep.stages import interpolation
+
+    held = []
+    grid = interpolation.path_grid
+
+    def spy(*args, **kw):
+        g = grid(*args, **kw)
+        held.append(g.first_revolution)
+        return g
+
+    monkeypatch.setattr(interpolation, "path_grid", spy)
+    trimmed = run_case(case, catalog_dir)
+    assert max(held) > 0  # passes were left out
+    monkeypatch.setattr(lines, "_reach_um", lambda *a: math.inf)
+    held.clear()
+    whole = run_case(case, catalog_dir)
+    assert max(held) == 0
+    assert _same(trimmed, whole) == []
+    assert trimmed["seconds_envelope"] > 0 and trimmed["pv_nm"] > 0
+    assert case.machine != "fts-5um" or trimmed["n_layers"] > 1
+
+
+def test_layered_passes_of_a_grid_left_out_are_those_of_the_whole_grid(catalog_dir):
+    from ftsweep.planning import control_table, layer_plan, resolve_case
+    from ftsweep.stages import interpolation, layers
+
+    case = Case(
+        surface="lens_array", machine="fts-5um", layout=program_request(kind="mesh", pitch=(16.0, 16.0))
+    )
+    rcase = resolve_case(case, catalog_dir)
+    table, _ = control_table(case, rcase.layout, rcase.surface_spec, rcase.nose_radius_um, catalog_dir)
+    plan = layer_plan(rcase, table)
+    assert plan is not None and plan.n_layers > 1
+    lines = interpolation.line_angles(64)[5:9]
+    args = (lines, rcase.rho0_um, rcase.feed_um, 2, 30.0)
+    whole, part = interpolation.path_grid(*args), interpolation.path_grid(*args, reach_um=0.6 * rcase.rho0_um)
+    k0 = part.first_revolution
+    assert k0 > 0
+    w = np.random.default_rng(3).uniform(
+        table.min(), table.max(), (whole.ray_theta.size, int(whole.n_passes.max()))
+    )
+    want = layers.layered_pass_commands(plan, whole.ray_theta, whole.n_passes, w)[:, k0:]
+    got = layers.layered_pass_commands(plan, part.ray_theta, part.n_passes, w[:, k0:].copy(), 0.0, k0)
+    held = np.arange(got.shape[1])[None, :] < part.n_passes[:, None]
+    assert np.array_equal(got[held], want[:, : got.shape[1]][held])
+    wrong = layers.layered_pass_commands(plan, part.ray_theta, part.n_passes, w[:, k0:].copy())
+    assert not np.array_equal(wrong[held], want[:, : got.shape[1]][held])  # the test can tell

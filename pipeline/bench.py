@@ -29,6 +29,9 @@ MILLION_CASES = {
 # cases share their angular sampling (ftsweep.lines.LineCache): the table's own work only
 SHARED_SUFFIX = "-shared"
 SHARED_CACHE_BYTES = 8 * 2**30
+# "<case>-threads": the case on the threads asked of the benchmark (predict's --threads), its
+# batches and table compensation in parallel: the same record, less wall time
+THREADS_SUFFIX = "-threads"
 
 
 def bench_cases() -> dict[str, Case]:
@@ -45,44 +48,51 @@ def bench_cases() -> dict[str, Case]:
             surface=surface, layout=request, resolution=Resolution(interp_error=False)
         )
         cases[f"{name}{SHARED_SUFFIX}"] = cases[name]
+        cases[f"{name}{THREADS_SUFFIX}"] = cases[name]
     return cases
 
 
-def run_benchmark(names: list[str] | None = None, repeat: int = 1) -> dict[str, Any]:
-    """Run the benchmark; returns machine info and one row per case (best of ``repeat``)."""
+def run_benchmark(names: list[str] | None = None, repeat: int = 1, threads: int = 1) -> dict[str, Any]:
+    """Run the benchmark; returns machine info and one row per case (best of ``repeat``), the
+    ``-threads`` cases on ``threads`` threads (left out when it is one)."""
     cases = bench_cases()
-    chosen = names or list(cases)
+    chosen = names or [n for n in cases if threads > 1 or not n.endswith(THREADS_SUFFIX)]
     unknown = [n for n in chosen if n not in cases]
     if unknown:
         raise ValueError(f"unknown benchmark case(s) {unknown}; known: {', '.join(cases)}")
     # warm-up: compile or load every kernel once, for both layout kinds
     for surface, kind, pitch in (("sinewave2d", "ring", (20.0, 10.0)), ("lens_array", "mesh", (50.0, 50.0))):
         run_case(Case(surface=surface, layout=program_request(kind=kind, pitch=pitch)))
-    rows = []
-    for name in chosen:
-        best: dict[str, Any] | None = None
-        cache = None
-        if name.endswith(SHARED_SUFFIX):
-            cache = LineCache(SHARED_CACHE_BYTES)
-            run_case(cases[name], lines=cache)  # the earlier case that computes the lines
-        for _ in range(repeat):
-            record = run_case(cases[name], lines=cache)
-            if best is None or record["seconds"] < best["seconds"]:
-                best = record
-        assert best is not None
-        row = {"case": name, "n_points": best["n_points"], "pv_nm": best["pv_nm"], "seconds": best["seconds"]}
-        row.update({f"seconds_{s}": best[f"seconds_{s}"] for s in STAGE_TIMERS})
-        row["n_eval"] = best["n_eval"]
-        rows.append(row)
+    rows = [_row(name, cases[name], repeat, threads) for name in chosen]
     return {
         "version": __version__,
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "machine": platform.machine(),
         "processor": platform.processor() or platform.machine(),
         "cpu_count": os.cpu_count(),
-        "threads": os.environ.get("NUMBA_NUM_THREADS", "kernels are single-threaded"),
+        "threads": threads,
         "rows": rows,
     }
+
+
+def _row(name: str, case: Case, repeat: int, threads: int) -> dict[str, Any]:
+    """One benchmark row: the best of ``repeat`` runs of ``case``."""
+    best: dict[str, Any] | None = None
+    cache = None
+    if name.endswith(SHARED_SUFFIX):
+        cache = LineCache(SHARED_CACHE_BYTES)
+        run_case(case, lines=cache)  # the earlier case that computes the lines
+    n = threads if name.endswith(THREADS_SUFFIX) else 1
+    for _ in range(repeat):
+        record = run_case(case, lines=cache, threads=n)
+        if best is None or record["seconds"] < best["seconds"]:
+            best = record
+    assert best is not None
+    label = f"{name[: -len(THREADS_SUFFIX)]} ×{n}" if name.endswith(THREADS_SUFFIX) else name
+    row = {"case": label, "n_points": best["n_points"], "pv_nm": best["pv_nm"], "seconds": best["seconds"]}
+    row.update({f"seconds_{s}": best[f"seconds_{s}"] for s in STAGE_TIMERS})
+    row["n_eval"] = best["n_eval"]
+    return row
 
 
 def format_table(result: dict[str, Any]) -> str:
@@ -103,68 +113,119 @@ def format_table(result: dict[str, Any]) -> str:
     lines.append(
         "compensation: control table + exact commands along the path; sampling: design surface on the "
         "evaluation grid; compile time excluded (warm-up case first); -shared: the lines (sampling, exact "
-        "commands and their envelope) computed by an earlier case, as in a sweep whose cases share them."
+        "commands and their envelope) computed by an earlier case, as in a sweep whose cases share them; "
+        "×N: on N threads (stage seconds are summed over the threads)."
     )
     return "\n".join(lines)
 
 
-# whole-process figures (issue 29): what a user waits for, start-up and exit included
-WHOLE_PROCESS = {
-    "ftsweep --help": ["--help"],
-    "ftsweep predict --help": ["predict", "--help"],
-    "predict 5k-point ring": [
-        "predict", "--surface", "sinewave2d", "--points", "5000", "--aspect", "8", "--json",
-    ],
-    "predict 950k-point ring": [
-        "predict", "--surface", "sinewave2d", "--drho-um", "3.04", "--dtheta-deg", "0.125", "--json",
-    ],
+# whole-process figures (issue 29): what a user waits for, start-up and exit included. Each
+# entry: the command's arguments ("{dir}": a scratch folder, "{header}": an exported header of
+# the 950k-point ring case, made first) and its most runs (the slow ones run once)
+_RING_5K = ["--surface", "sinewave2d", "--points", "5000", "--aspect", "8"]
+_RING_950K = ["--surface", "sinewave2d", "--drho-um", "3.04", "--dtheta-deg", "0.125"]
+_CHORD_1M = ["--surface", "sinewave2d", "--layout", "spiral", "--chord-um", "0.0013"]
+WHOLE_PROCESS: dict[str, tuple[list[str], int]] = {
+    "ftsweep --help": (["--help"], 3),
+    "ftsweep predict --help": (["predict", "--help"], 3),
+    "predict 5k-point ring": (["predict", *_RING_5K, "--json"], 3),
+    "predict 950k-point ring, 1 thread": (["predict", *_RING_950K, "--json", "--threads", "1"], 3),
+    "predict 950k-point ring, all cores": (["predict", *_RING_950K, "--json"], 3),
+    "predict 990k-point chord spiral, 1 thread": (["predict", *_CHORD_1M, "--json", "--threads", "1"], 1),
+    "predict 990k-point chord spiral, all cores": (["predict", *_CHORD_1M, "--json"], 1),
+    "verify 950k-point ring header": (["verify", "{header}", "--json"], 3),
+    "ftsweep dpath (seed example)": (["dpath", "--json", "--plots", "{dir}"], 1),
+    "ftsweep fresnel (chebyshev_example)": (["fresnel", "--json", "--plots", "{dir}"], 1),
 }  # fmt: skip
 
+# the one-case sweep whose exported header the verify row checks
+_HEADER_SWEEP = """surface: sinewave2d
+layout: ring
+axes: {points: [950000], aspect: [16.0]}
+"""
 
-def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[str, Any]]:
-    """Seconds of each :data:`WHOLE_PROCESS` command run as its own process (the console
-    script beside this interpreter, else ``python -m ftsweep.cli``), best of ``repeat``; with
-    the case's own seconds for a predict (the rest is start-up, imports, kernel loading and
-    exit)."""
-    import json
+
+def _command() -> list[str]:
+    """The console script beside this interpreter, else ``python -m ftsweep.cli``."""
     import shutil
-    import subprocess
     import sys
     from pathlib import Path
 
     script = Path(sys.executable).with_name("ftsweep")
     found = str(script) if script.exists() else shutil.which("ftsweep")
-    head = [found] if found else [sys.executable, "-m", "ftsweep.cli"]
+    return [found] if found else [sys.executable, "-m", "ftsweep.cli"]
+
+
+def _exported_header(head: list[str], folder: str) -> str:
+    """Sweep the 950k-point ring case (synchronously) and export its header into ``folder``."""
+    import subprocess
+    from pathlib import Path
+
+    spec = Path(folder) / "one.yaml"
+    spec.write_text(_HEADER_SWEEP)
+    cube, header = Path(folder) / "one.zarr", Path(folder) / "ring.h"
+    for args in (
+        ["sweep", str(spec), "--out", str(cube), "--scheduler", "synchronous"],
+        ["export", str(cube), "--case", "0", "-o", str(header)],
+    ):
+        done = subprocess.run([*head, *args], capture_output=True, text=True)
+        if done.returncode != 0:
+            raise ValueError(f"preparing the verify row failed: {done.stderr.strip()[-300:]}")
+    return str(header)
+
+
+def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[str, Any]]:
+    """Seconds of each :data:`WHOLE_PROCESS` command run as its own process, best of
+    ``repeat`` (at most its own count), with the seconds of the case it simulates where its
+    JSON reports them (a predict's case, verify's re-simulation; the rest is start-up,
+    imports, kernel loading, checks and exit)."""
+    import json
+    import subprocess
+    import tempfile
+
+    head = _command()
     rows = []
-    for name in names or list(WHOLE_PROCESS):
-        best, inside = float("inf"), float("nan")
-        for _ in range(repeat):
-            started = time.perf_counter()
-            done = subprocess.run([*head, *WHOLE_PROCESS[name]], capture_output=True, text=True)
-            took = time.perf_counter() - started
-            if done.returncode != 0:
-                raise ValueError(f"{name} failed: {done.stderr.strip()[-300:]}")
-            if took < best:
-                best = took
-                if "--json" in WHOLE_PROCESS[name]:
-                    inside = float(json.loads(done.stdout)["seconds"])
-        rows.append({"command": name, "seconds": best, "case_seconds": inside})
+    with tempfile.TemporaryDirectory(prefix="ftsweep-bench-") as folder:
+        header = None
+        for name in names or list(WHOLE_PROCESS):
+            args, most = WHOLE_PROCESS[name]
+            if "{header}" in args and header is None:
+                header = _exported_header(head, folder)
+            args = [a.replace("{dir}", folder).replace("{header}", header or "") for a in args]
+            best, inside = float("inf"), float("nan")
+            for _ in range(max(1, min(repeat, most))):
+                started = time.perf_counter()
+                done = subprocess.run([*head, *args], capture_output=True, text=True)
+                took = time.perf_counter() - started
+                if done.returncode != 0:
+                    raise ValueError(f"{name} failed: {done.stderr.strip()[-300:]}")
+                if took < best:
+                    best = took
+                    if "--json" in args:
+                        inside = float(json.loads(done.stdout).get("seconds", math.nan))
+            rows.append({"command": name, "seconds": best, "case_seconds": inside})
     return rows
 
 
 def format_whole_process(rows: list[dict[str, Any]]) -> str:
-    """The whole-process table: seconds per command, and for a predict its case's own."""
-    head = f"{'whole process (best of runs)':32s} {'seconds':>8s} {'case s':>8s}"
+    """The whole-process table: seconds per command, and the seconds of the case it simulates."""
+    head = f"{'whole process (best of runs)':44s} {'seconds':>8s} {'case s':>8s}"
     lines = [head, "-" * len(head)]
     for r in rows:
         case = "" if math.isnan(r["case_seconds"]) else f"{r['case_seconds']:8.2f}"
-        lines.append(f"{r['command']:32s} {r['seconds']:8.2f} {case:>8s}")
+        lines.append(f"{r['command']:44s} {r['seconds']:8.2f} {case:>8s}")
+    lines.append(
+        "case s: the simulated case's own seconds (verify: its re-simulation); all cores: --threads default"
+    )
     return "\n".join(lines)
 
 
-def sweep_throughput(name: str, workers: int) -> dict[str, Any]:
-    """Run sweep ``name`` on a LocalCluster of ``workers`` processes into a temporary cube and
-    return its wall time, summed case time and cases per second (the cube is discarded)."""
+def sweep_throughput(name: str, workers: int, scheduler: str | None = None) -> dict[str, Any]:
+    """Run sweep ``name`` on ``workers`` local worker processes (or on the cluster of the
+    ``scheduler`` address, its workers as it reports them) into a temporary cube and return
+    the wall time, summed case time, cases per second and the efficiency: summed case time
+    over wall time × workers (1: every worker computing cases all the time). The cube is
+    discarded."""
     import tempfile
     from pathlib import Path
 
@@ -172,15 +233,29 @@ def sweep_throughput(name: str, workers: int) -> dict[str, Any]:
 
     with tempfile.TemporaryDirectory(prefix="ftsweep-bench-") as folder:
         started = time.perf_counter()
-        report = run_sweep(name, Path(folder) / f"{name}.zarr", workers=workers)
-        wall = time.perf_counter() - started
+        report = run_sweep(name, Path(folder) / f"{name}.zarr", workers=workers, scheduler=scheduler)
+        whole = time.perf_counter() - started
     summed = float(sum(row.get("seconds", 0.0) for row in report.rows))
+    wall = report.wall_s
     return {
         "sweep": name,
-        "workers": workers,
+        "scheduler": scheduler or "local cluster",
+        "workers": report.workers,
         "cases": len(report.rows),
         "failed": report.failed,
         "wall_s": wall,
+        "whole_s": whole,
         "summed_case_s": summed,
         "cases_per_s": len(report.rows) / wall if wall > 0 else float("nan"),
+        "efficiency": summed / (wall * report.workers) if wall > 0 else float("nan"),
     }
+
+
+def format_sweep(sweep: dict[str, Any]) -> str:
+    """One line of a :func:`sweep_throughput` result."""
+    return (
+        f"sweep {sweep['sweep']} on {sweep['workers']} worker(s) ({sweep['scheduler']}): {sweep['cases']} "
+        f"cases in {sweep['wall_s']:.1f} s wall ({sweep['whole_s']:.1f} s with the cube's set-up): "
+        f"{sweep['cases_per_s']:.2f} cases/s, summed case time {sweep['summed_case_s']:.1f} s, "
+        f"efficiency {sweep['efficiency']:.2f}"
+    )

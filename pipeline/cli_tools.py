@@ -247,32 +247,62 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
     "--sweep",
     "sweep_name",
     metavar="SWEEP",
-    help="Also run this sweep on a local cluster (e.g. sinewave-ring, ~4 min) and report cases/s.",
+    help="Also run this sweep (e.g. sinewave-ring, ~40 s on 2 workers) and report cases/s and the "
+    "efficiency (summed case time over wall time × workers).",
 )
-@click.option("--workers", type=COUNT, default=2, show_default=True, help="Worker processes for --sweep.")
+@click.option(
+    "--workers",
+    type=COUNT,
+    multiple=True,
+    help="Worker processes for --sweep on a local cluster; repeat for one run each "
+    "(e.g. --workers 1 --workers 2). Default: 2.",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDRESS",
+    help="Also run --sweep on the cluster of this Dask scheduler (e.g. tcp://127.0.0.1:8786), "
+    "with the workers it has.",
+)
+@click.option(
+    "--threads",
+    type=COUNT,
+    help="Threads for the '×N' rows of the 10⁶-point cases (a single case on N threads, as "
+    "`predict --threads N`). Default: every usable core; 1 leaves those rows out.",
+)
 def bench(
-    names: tuple[str, ...], repeat: int, json_path: str, sweep_name: Optional[str], workers: int
+    names: tuple[str, ...],
+    repeat: int,
+    json_path: str,
+    sweep_name: Optional[str],
+    workers: tuple[int, ...],
+    scheduler: Optional[str],
+    threads: Optional[int],
 ) -> None:
-    """Time the case runner on the published reference cases and two 10⁶-point layouts.
+    """Time whole commands, the case runner per stage, and optionally a sweep.
 
     Prints the seconds of whole commands, each run as its own process (start-up, imports,
-    kernel loading and exit included: what a user waits for), then the seconds per case split
-    into compensation, surface sampling, interpolation, envelope and metrics, after a warm-up
-    that pays numba's compile cost. Kernels are
-    single-threaded, so the figures are for one core. With --sweep, also the throughput of a
-    whole sweep on --workers processes. Nothing is asserted about time.
+    kernel loading and exit included: what a user waits for): help, predict on a small and
+    the 950k-point ring case and on a 990k-point chord spiral (one thread and all cores),
+    verify of an exported header, the dpath and fresnel studies. Then the seconds per case
+    of the published reference cases and two 10⁶-point layouts split into compensation,
+    surface sampling, interpolation, envelope and metrics, after a warm-up that pays
+    numba's compile cost, on one thread (and the 10⁶-point ones on --threads). With
+    --sweep, the throughput of a whole sweep on each --workers count and on --scheduler.
+    Nothing is asserted about time (about 3 minutes without --sweep).
     """
     from ftsweep.bench import (
+        format_sweep,
         format_table,
         format_whole_process,
         run_benchmark,
         sweep_throughput,
         whole_process,
     )
+    from ftsweep.defaults import usable_cores
     from ftsweep.io import write_json_atomic
 
     try:
-        result = run_benchmark(list(names) or None, repeat=repeat)
+        result = run_benchmark(list(names) or None, repeat=repeat, threads=threads or usable_cores())
         result["whole_process"] = whole_process(max(repeat, 3)) if not names else []
     except ValueError as exc:
         raise click.ClickException(str(exc)) from None
@@ -280,13 +310,11 @@ def bench(
         click.echo(format_whole_process(result["whole_process"]))
     click.echo(format_table(result))
     if sweep_name is not None:
-        click.echo(f"running sweep {sweep_name} on {workers} worker(s) ...", err=True)
-        sweep = sweep_throughput(sweep_name, workers)
-        result["sweep"] = sweep
-        click.echo(
-            f"sweep {sweep['sweep']}: {sweep['cases']} cases in {sweep['wall_s']:.1f} s wall on "
-            f"{sweep['workers']} worker(s): {sweep['cases_per_s']:.3f} cases/s "
-            f"(summed case time {sweep['summed_case_s']:.1f} s)"
-        )
+        runs = [(n, None) for n in (workers or (2,))] + ([(0, scheduler)] if scheduler else [])
+        result["sweeps"] = []
+        for n, address in runs:
+            click.echo(f"running sweep {sweep_name} on {address or f'{n} local worker(s)'} ...", err=True)
+            result["sweeps"].append(sweep_throughput(sweep_name, n, address))
+            click.echo(format_sweep(result["sweeps"][-1]))
     write_json_atomic(json_path, result)
     click.echo(f"wrote {json_path}")

@@ -1,0 +1,44 @@
+"""``ftsweep bench`` prints its tables and writes its JSON; it measures and asserts nothing
+about time (these tests check the rows exist and hold real figures)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from ftsweep.bench import WHOLE_PROCESS, format_whole_process, whole_process
+from ftsweep.cli import main
+
+
+def test_bench_prints_a_row_per_case_and_writes_json(tmp_path):
+    out = tmp_path / "bench.json"
+    r = CliRunner().invoke(
+        main, ["bench", "--case", "sinewave-ring-1.00deg", "--case", "lens-mesh-8um", "--json", str(out)]
+    )
+    assert r.exit_code == 0, r.output
+    assert "sinewave-ring-1.00deg" in r.output and "lens-mesh-8um" in r.output
+    data = json.loads(out.read_text())
+    assert [row["case"] for row in data["rows"]] == ["sinewave-ring-1.00deg", "lens-mesh-8um"]
+    assert all(row["seconds"] > 0 and row["pv_nm"] > 0 for row in data["rows"])
+
+
+def test_an_unknown_case_is_named():
+    r = CliRunner().invoke(main, ["bench", "--case", "nope"])
+    assert r.exit_code != 0 and "unknown benchmark case(s) ['nope']" in r.output
+
+
+def test_whole_process_rows_time_real_commands():
+    rows = whole_process(1, ["ftsweep --help", "predict 5k-point ring"])
+    assert [r["command"] for r in rows] == ["ftsweep --help", "predict 5k-point ring"]
+    assert all(r["seconds"] > 0 for r in rows)
+    assert rows[1]["case_seconds"] > 0  # a predict reports its case's own seconds
+    assert "predict 5k-point ring" in format_whole_process(rows)
+
+
+@pytest.mark.slow
+def test_the_verify_row_checks_an_exported_header():
+    name = next(n for n, (args, _) in WHOLE_PROCESS.items() if args[0] == "verify")
+    (row,) = whole_process(1, [name])
+    assert row["seconds"] > row["case_seconds"] > 0  # verify re-simulated the case

@@ -7,7 +7,7 @@ import pytest
 
 from ftsweep import catalogs
 from ftsweep.stages import compensation
-from ftsweep.threads import PART_POINTS, THREADS, compensate_in_parts, current, using_threads
+from ftsweep.threads import MAX_PART_POINTS, PART_POINTS, THREADS, compensate_in_parts, current, using_threads
 
 
 def test_a_table_compensated_in_parts_equals_one_call_bit_for_bit():
@@ -23,11 +23,14 @@ def test_a_table_compensated_in_parts_equals_one_call_bit_for_bit():
         calls.append(r.size)
         return compensation.compensate(surface, r, t, 83.0, "exact", catalogs.gradient_bound(spec))
 
-    one = compensate_in_parts(solve, rho, theta, threads=1)
-    parts = compensate_in_parts(solve, rho, theta, threads=3)
-    assert calls[0] == n and len(calls) > 2 and sum(calls[1:]) == n  # it did split
-    assert parts[0].shape == rho.shape and np.array_equal(one[0], parts[0])
-    assert np.array_equal(one[1], parts[1])
+    one = solve(rho, theta)
+    assert calls == [n]
+    for threads in (1, 3):  # parts of at most MAX_PART_POINTS, on one thread or several
+        calls.clear()
+        parts = compensate_in_parts(solve, rho, theta, threads=threads)
+        assert len(calls) > 2 and sum(calls) == n and max(calls) <= MAX_PART_POINTS  # it did split
+        assert parts[0].shape == rho.shape and np.array_equal(one[0], parts[0])
+        assert np.array_equal(one[1], parts[1])
 
 
 def test_the_context_sets_the_threads_and_restores_them():

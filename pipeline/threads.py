@@ -29,6 +29,11 @@ PART_POINTS = 50_000
 # each) then stay in cache instead of streaming through memory. One thread, measured: ring-1M's
 # table 0.27 -> 0.22 s; the 990k-point chord spiral's 28 M dense points 20.6 -> 13.5 s
 MAX_PART_POINTS = 65_536
+# most points per part when threads share the work: with parts of MAX_PART_POINTS each thread
+# runs Python between numpy calls so often that the threads queue for the GIL (the 990k-point
+# chord spiral's 28 M dense points on 2 threads: 10.1 s in all in parts of 65,536; its
+# compensation 2.7-3.0 s in parts of 1 M, against 4.1 s on one thread)
+THREAD_PART_POINTS = 1_048_576
 
 
 def current(threads: Optional[int] = None) -> int:
@@ -56,20 +61,28 @@ def compensate_in_parts(
     threads: Optional[int] = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``solve(rho, theta) -> (w, gouge)`` (a compensation, model §4, whose points are each
-    solved on their own) over equal-shape arrays, in parts of at most
-    :data:`MAX_PART_POINTS` on the context's threads; the same arrays as one call, bit for
-    bit."""
+    solved on their own) over equal-shape arrays: one share per thread of the context
+    (shares of at least :data:`PART_POINTS`), each solved in parts of at most
+    :data:`THREAD_PART_POINTS` (one thread: :data:`MAX_PART_POINTS`); the same arrays as one
+    call, bit for bit."""
     n = current(threads)
-    n_parts = min(4 * n, rho.size // PART_POINTS) if n > 1 else 1
-    n_parts = max(n_parts, -(-rho.size // MAX_PART_POINTS))
-    if n_parts < 2:
+    shares = max(1, min(n, rho.size // PART_POINTS))
+    flat_rho, flat_theta = np.ravel(rho), np.ravel(theta)
+    if shares == 1 and rho.size <= MAX_PART_POINTS:
         return solve(rho, theta)
-    rho_parts = np.array_split(np.ravel(rho), n_parts)
-    theta_parts = np.array_split(np.ravel(theta), n_parts)
-    if n == 1:
-        done = [solve(r, t) for r, t in zip(rho_parts, theta_parts, strict=True)]
+    largest = MAX_PART_POINTS if shares == 1 else THREAD_PART_POINTS
+
+    def share(bounds: tuple[int, int]) -> list[tuple[np.ndarray, np.ndarray]]:
+        lo, hi = bounds
+        cuts = np.linspace(lo, hi, -(-(hi - lo) // largest) + 1).astype(np.int64)
+        return [solve(flat_rho[a:b], flat_theta[a:b]) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+
+    edges = np.linspace(0, rho.size, shares + 1).astype(np.int64)
+    spans = list(zip(edges[:-1], edges[1:], strict=True))
+    if shares == 1:
+        done = share(spans[0])
     else:
-        with ThreadPoolExecutor(n, thread_name_prefix="ftsweep-compensate") as pool:
-            done = list(pool.map(solve, rho_parts, theta_parts))
+        with ThreadPoolExecutor(shares, thread_name_prefix="ftsweep-compensate") as pool:
+            done = [part for parts in pool.map(share, spans) for part in parts]
     w = np.concatenate([d[0] for d in done]).reshape(np.shape(rho))
     return w, np.concatenate([d[1] for d in done]).reshape(np.shape(rho))

@@ -7,7 +7,15 @@ import pytest
 
 from ftsweep import catalogs
 from ftsweep.stages import compensation
-from ftsweep.threads import MAX_PART_POINTS, PART_POINTS, THREADS, compensate_in_parts, current, using_threads
+from ftsweep.threads import (
+    MAX_PART_POINTS,
+    PART_POINTS,
+    THREAD_PART_POINTS,
+    THREADS,
+    compensate_in_parts,
+    current,
+    using_threads,
+)
 
 
 def test_a_table_compensated_in_parts_equals_one_call_bit_for_bit():
@@ -25,10 +33,10 @@ def test_a_table_compensated_in_parts_equals_one_call_bit_for_bit():
 
     one = solve(rho, theta)
     assert calls == [n]
-    for threads in (1, 3):  # parts of at most MAX_PART_POINTS, on one thread or several
+    for threads, largest in ((1, MAX_PART_POINTS), (3, THREAD_PART_POINTS)):
         calls.clear()
         parts = compensate_in_parts(solve, rho, theta, threads=threads)
-        assert len(calls) > 2 and sum(calls) == n and max(calls) <= MAX_PART_POINTS  # it did split
+        assert len(calls) >= 3 and sum(calls) == n and max(calls) <= largest  # it did split
         assert parts[0].shape == rho.shape and np.array_equal(one[0], parts[0])
         assert np.array_equal(one[1], parts[1])
 

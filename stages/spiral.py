@@ -149,13 +149,37 @@ def _close(phi: np.ndarray, end: float) -> np.ndarray:
 
 def _cap_steps(phi: np.ndarray, max_step: float) -> np.ndarray:
     """``phi`` with every gap wider than ``max_step`` [rad] split into equal steps."""
-    gaps = np.diff(phi)
-    pieces = np.maximum(np.ceil(gaps / max_step - 1e-9), 1).astype(np.int64)
-    if (pieces == 1).all():
+    pieces = np.empty(phi.size - 1, dtype=np.int64)
+    total = _count_pieces(phi, max_step, pieces)
+    if total == pieces.size:
         return phi
-    starts = np.repeat(phi[:-1], pieces)
-    within = np.arange(pieces.sum()) - np.repeat(np.cumsum(pieces) - pieces, pieces)
-    return np.append(starts + within * np.repeat(gaps / pieces, pieces), phi[-1])
+    out = np.empty(total + 1)
+    _split_gaps(phi, pieces, out)
+    return out
+
+
+@njit(nogil=True, cache=True)
+def _count_pieces(phi, max_step, pieces):  # pragma: no cover - jit
+    """Equal steps each gap of ``phi`` is split into (at least one, none above ``max_step``),
+    into ``pieces``; returns their sum."""
+    total = 0
+    for i in range(pieces.size):
+        gap = phi[i + 1] - phi[i]
+        pieces[i] = max(math.ceil(gap / max_step - 1e-9), 1)
+        total += pieces[i]
+    return total
+
+
+@njit(nogil=True, cache=True)
+def _split_gaps(phi, pieces, out):  # pragma: no cover - jit
+    """φ_i + j·(gap_i / pieces_i) for j < pieces_i, then the last φ, into ``out``."""
+    n = 0
+    for i in range(pieces.size):
+        step = (phi[i + 1] - phi[i]) / pieces[i]
+        for j in range(pieces[i]):
+            out[n] = phi[i] + j * step
+            n += 1
+    out[n] = phi[-1]
 
 
 def constant_angle(rho0_um: float, feed_um: float, points_per_rev: int) -> SpiralPath:
@@ -167,6 +191,44 @@ def constant_angle(rho0_um: float, feed_um: float, points_per_rev: int) -> Spira
     n = int(points_per_rev)
     phi = np.arange(int(math.ceil(end * n / (2.0 * math.pi) - 1e-9)) + 1) * (2.0 * math.pi / n)
     return SpiralPath("spiral", _close(phi, end), rho0_um, feed_um, "angle", float(n))
+
+
+# points per part of the Newton solve of :func:`_radius_at_length`: its temporaries stay in cache
+ARC_PART = 65_536
+
+
+def _radius_at_length(target: np.ndarray, b: float, rho0_um: float, iterations: int = 60) -> np.ndarray:
+    """Radius [µm] where the spiral ρ = b·ψ has run ``target`` [µm] from the centre, by Newton
+    on the closed-form length (monotone and convex in ρ, so Newton from the small-ρ limit
+    s ≈ ρ²/(2b) converges), until every step is below 1e-9·ρ0.
+
+    Solved in parts of :data:`ARC_PART` points, each as many iterations as the whole array
+    would take (the first at which every part's steps are below the bound), so the radii
+    are those of one solve over the whole array, bit for bit, without its temporaries
+    streaming through memory (28 M dense points of a chord budget: 6 s)."""
+    tol = 1e-9 * max(rho0_um, 1.0)
+    rho = np.minimum(np.sqrt(2.0 * b * target), rho0_um)
+    bounds = list(range(0, target.size, ARC_PART)) + [target.size]
+    done = []
+
+    def iterate(lo: int, hi: int, count: int, check: bool) -> int:
+        r, t = rho[lo:hi], target[lo:hi]
+        for k in range(count):
+            step = (_arc_from_centre(r, b) - t) * b / np.sqrt(r * r + b * b)
+            r = np.clip(r - step, 0.0, rho0_um)
+            if check and np.max(np.abs(step)) < tol:
+                rho[lo:hi] = r
+                return k + 1
+        rho[lo:hi] = r
+        return count
+
+    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+        done.append(iterate(lo, hi, iterations, True))
+    most = max(done, default=0)
+    for (lo, hi), n in zip(zip(bounds[:-1], bounds[1:], strict=True), done, strict=True):
+        if n < most:
+            iterate(lo, hi, most - n, False)
+    return rho
 
 
 def constant_arc(
@@ -182,13 +244,7 @@ def constant_arc(
     # length (monotone and convex in ρ, so Newton from the linear guess converges)
     target = total - np.arange(int(math.ceil(total / arc_um - 1e-9)) + 1) * arc_um
     target = np.maximum(target, 0.0)
-    rho = np.sqrt(2.0 * b * target)  # the small-ρ limit s ≈ ρ²/(2b) as a start
-    rho = np.minimum(rho, rho0_um)
-    for _ in range(60):
-        step = (_arc_from_centre(rho, b) - target) * b / np.sqrt(rho * rho + b * b)
-        rho = np.clip(rho - step, 0.0, rho0_um)
-        if np.max(np.abs(step)) < 1e-9 * max(rho0_um, 1.0):
-            break
+    rho = _radius_at_length(target, b, rho0_um)
     phi = np.sort((rho0_um - rho) / b)
     phi = _cap_steps(_close(phi, end), 2.0 * math.pi / min_points_per_rev)
     return SpiralPath("spiral", phi, rho0_um, feed_um, "arc", float(arc_um))

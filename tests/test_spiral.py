@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from ftsweep.case import run_case
@@ -364,3 +364,35 @@ def test_spiral_sweep_axes_are_checked(tmp_path, catalog_dir):
         path.write_text(text)
         with pytest.raises(CatalogError, match=message):
             load_sweep(str(path), catalog_dir)
+
+
+@settings(max_examples=25, deadline=None)
+@example(rho0=1000.0, feed=1.0, arc=1.5, floor=128)  # 2.1 M points: 32 parts
+@given(
+    rho0=st.floats(50.0, 3000.0),
+    feed=st.floats(0.3, 20.0),
+    arc=st.floats(0.05, 5.0),
+    floor=st.integers(3, 300),
+)
+def test_constant_arc_in_parts_is_the_whole_array_solve(rho0, feed, arc, floor):
+    """The Newton solve in parts (and the gaps split by a kernel) give the points of one
+    solve over the whole array, bit for bit (a plain numpy reference)."""
+    b = feed / (2.0 * math.pi)
+    total = spiral.path_length_um(rho0, feed)
+    if total / arc > 3e6:
+        return
+    target = np.maximum(total - np.arange(int(math.ceil(total / arc - 1e-9)) + 1) * arc, 0.0)
+    rho = np.minimum(np.sqrt(2.0 * b * target), rho0)
+    for _ in range(60):
+        step = (spiral._arc_from_centre(rho, b) - target) * b / np.sqrt(rho * rho + b * b)
+        rho = np.clip(rho - step, 0.0, rho0)
+        if np.max(np.abs(step)) < 1e-9 * max(rho0, 1.0):
+            break
+    phi = spiral._close(np.sort((rho0 - rho) / b), spiral.spiral_end_rad(rho0, feed))
+    gaps = np.diff(phi)
+    pieces = np.maximum(np.ceil(gaps / (2.0 * math.pi / floor) - 1e-9), 1).astype(np.int64)
+    starts = np.repeat(phi[:-1], pieces)
+    within = np.arange(pieces.sum()) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    want = np.append(starts + within * np.repeat(gaps / pieces, pieces), phi[-1])
+    got = spiral.constant_arc(rho0, feed, arc, floor).phi
+    assert np.array_equal(got, want)

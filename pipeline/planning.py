@@ -157,6 +157,31 @@ def resolve_specs(case: Case, catalog_folder: Any = None) -> tuple[Any, Any, Any
     )
 
 
+Solver = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def compensator(case: Case, surface_spec: Any, surface: Any, nose_radius_um: float, bound: float) -> Solver:
+    """``solve(rho, theta) -> (w, gouge)``: the case's compensation (model §4) of ``surface``
+    (a callable, e.g. a part as mounted) at radial positions ρ [µm] on sections θ [rad], with
+    the slope bound ``bound`` and the surface entry's curvature bound; to be run in parts
+    (:func:`ftsweep.threads.compensate_in_parts`)."""
+    curvature = catalogs.curvature_bound(surface_spec)
+
+    def solve(rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return compensation.compensate(
+            surface,
+            rho,
+            theta,
+            nose_radius_um,
+            case.compensation,
+            bound,
+            n_scan=case.resolution.compensation_scan,
+            curvature_bound=curvature,
+        )
+
+    return solve
+
+
 def control_table(
     case: Case,
     layout: Layout,
@@ -169,18 +194,6 @@ def control_table(
     parts on ``threads`` threads (None: the context's, :mod:`ftsweep.threads`)."""
     node_rho, node_theta = layouts.layout_nodes(layout)
     surface = catalogs.surface_callable(surface_spec, catalog_folder)
-    bounds = catalogs.gradient_bound(surface_spec, catalog_folder), catalogs.curvature_bound(surface_spec)
-
-    def solve(rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return compensation.compensate(
-            surface,
-            rho,
-            theta,
-            nose_radius_um,
-            case.compensation,
-            bounds[0],
-            n_scan=case.resolution.compensation_scan,
-            curvature_bound=bounds[1],
-        )
-
+    bound = catalogs.gradient_bound(surface_spec, catalog_folder)
+    solve = compensator(case, surface_spec, surface, nose_radius_um, bound)
     return compensate_in_parts(solve, node_rho, node_theta, threads)

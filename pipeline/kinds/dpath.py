@@ -15,8 +15,8 @@ from ftsweep import catalogs
 from ftsweep import dpath as dpath_program
 from ftsweep.kinds import Planning, ProgramKind
 from ftsweep.kinds.requests import DPathRequest
+from ftsweep.planning import compensator
 from ftsweep.spec import Case, CaseError
-from ftsweep.stages import compensation
 from ftsweep.threads import compensate_in_parts
 
 AXES = ("spacing_um", "points_per_cut")
@@ -37,19 +37,7 @@ def plan_dpath(
     more than ``max_points`` points is refused before it is made."""
 
     def compensated(part: Any, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        def solve(r: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return compensation.compensate(
-                part,
-                r,
-                t,
-                rc,
-                case.compensation,
-                bound,
-                n_scan=case.resolution.compensation_scan,
-                curvature_bound=catalogs.curvature_bound(surface_spec),
-            )
-
-        return compensate_in_parts(solve, rho, theta)
+        return compensate_in_parts(compensator(case, surface_spec, part, rc, bound), rho, theta)
 
     try:
         return dpath_program.plan(

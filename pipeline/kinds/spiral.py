@@ -18,8 +18,9 @@ from ftsweep.cost import check_capacity, spiral_points
 from ftsweep.kinds import Planning, ProgramKind
 from ftsweep.kinds.requests import SpiralRequest
 from ftsweep.lines import LineSimulation
+from ftsweep.planning import compensator
 from ftsweep.spec import Case, CaseError
-from ftsweep.stages import compensation, spiral
+from ftsweep.stages import spiral
 from ftsweep.threads import compensate_in_parts
 
 AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")
@@ -43,17 +44,7 @@ def plan_spiral(
         values = np.asarray(values, dtype=np.float64)
         return path, {"values": values, "gouge": np.zeros(values.shape, dtype=bool)}
 
-    def solve(rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return compensation.compensate(
-            surface,
-            rho,
-            theta,
-            rc,
-            case.compensation,
-            bound,
-            n_scan=case.resolution.compensation_scan,
-            curvature_bound=catalogs.curvature_bound(surface_spec),
-        )
+    solve = compensator(case, surface_spec, surface, rc, bound)
 
     def compensated(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return compensate_in_parts(

@@ -112,3 +112,16 @@ def test_deliveries_hand_on_each_case_once_whatever_comes_first():
     d.drain()
     d.deliver([{"index": 5}])
     assert got == [[3], [4], [5]]
+
+
+def profiler_state(task: TaskSpec, group: list[int]) -> list[dict]:
+    """A task reporting whether its worker runs Dask's statistical profiler."""
+    import dask
+
+    return [{"index": i, "profile": dask.config.get("distributed.worker.profile.enabled")} for i in group]
+
+
+def test_local_workers_run_without_the_statistical_profiler():
+    # its thread takes the GIL every 10 ms; our tasks are kernels, nobody reads the profile
+    rows = _collect(None, profiler_state)
+    assert rows and all(r["profile"] is False for r in rows)

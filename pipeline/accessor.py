@@ -80,11 +80,13 @@ class FtsweepAccessor:
 
     def optimum(self) -> xr.DataArray:
         """Best aspect ratio per target point count among the eligible cases (the sweep
-        summary's and ``select``'s best; NaN where none is eligible)."""
+        summary's and ``select``'s best; NaN where none is eligible), named and with the
+        units of the cube's ``aspect`` coordinate (not the P-V's it is chosen by)."""
         self._need_aspect("optimum")
         pv = self.pv()
         found = pv.notnull().any("aspect")
-        return pv.fillna(np.inf).idxmin("aspect").where(found)
+        best = pv.fillna(np.inf).idxmin("aspect").where(found)
+        return best.rename("aspect").assign_attrs(self._ds["aspect"].attrs)
 
     # ------------------------------------------------------------------ plots
     def plot_pv(self, ax: Any = None) -> Any:

@@ -74,6 +74,9 @@ def test_summary_optimum_and_select_agree(mixed_cube):
     ds = open_cube(mixed_cube)
     summary = best_per_point_count(mixed_cube)
     optimum = ds.ftsweep.optimum()
+    # an aspect ratio: the coordinate's units (issue 30: it carried the P-V's "nm")
+    assert optimum.name == "aspect" and optimum.attrs == ds["aspect"].attrs
+    assert optimum.attrs["units"] != "nm"
     for i, row in enumerate(summary):
         sub = ds.isel(points=[i])
         if row["index"] is None:

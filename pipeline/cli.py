@@ -8,6 +8,7 @@ import importlib
 import importlib.util
 import os
 import sys
+import warnings
 from typing import Any, Optional
 
 import click
@@ -150,6 +151,13 @@ def main() -> None:
     # itself never switches a caller's backend (a notebook's plots would stop showing)
     os.environ.setdefault("MPLBACKEND", "Agg")
     allocator.tune()  # large batch temporaries reused, not page-faulted afresh (see the module)
+    # a library warning (e.g. resuming a cube another code revision started) is one line on
+    # stderr, not a file path, a line number and the source line that raised it
+    warnings.formatwarning = _one_line_warning
+
+
+def _one_line_warning(message: Any, category: Any, *_: Any, **__: Any) -> str:
+    return f"Warning: {message}\n"
 
 
 @main.command("catalogs")

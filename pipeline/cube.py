@@ -20,7 +20,7 @@ import subprocess
 import time
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 import xarray as xr
@@ -61,17 +61,17 @@ class CubeError(ValueError):
     """A cube cannot be used as asked; the message says what to do."""
 
 
-def git_revision() -> str:
-    """The repository's git revision, or ``unknown``."""
+def git_revision(source: Optional[Path] = None) -> str:
+    """The git revision of ftsweep's own source checkout, or ``unknown``: only when this very
+    file (or ``source``) is tracked by the repository around it (an editable install of
+    ftsweep). An installed copy inside a user's project (a virtual environment in its
+    folder) would otherwise record the user's revision as ftsweep's."""
+    here = Path(source or __file__).resolve()
     try:
-        out = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=Path(__file__).resolve().parent,
-            capture_output=True,
-            text=True,
-            timeout=5,
-            check=True,
-        )
+        for args in (["ls-files", "--error-unmatch", here.name], ["rev-parse", "HEAD"]):
+            out = subprocess.run(
+                ["git", *args], cwd=here.parent, capture_output=True, text=True, timeout=5, check=True
+            )
         return out.stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return "unknown"

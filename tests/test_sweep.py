@@ -362,3 +362,53 @@ def test_cube_opens_in_a_plain_python_session_with_coordinates_and_units(referen
     assert "small_sine" in entries["surface"] and "fts-1m" in entries["machine"]
     assert set(ds["status"].values.ravel()) == {cube.DONE}
     assert np.all(ds["pv_nm"].values > 0)
+
+
+def test_provenance_is_ftsweeps_own_revision_not_the_callers(tmp_path):
+    """A copy of ftsweep installed inside a user's git project (its virtual environment in
+    the project's folder, untracked) records no revision rather than the project's."""
+    import shutil
+    import subprocess
+
+    from ftsweep import cube
+
+    def git(*args):
+        return subprocess.run(["git", *args], cwd=tmp_path, capture_output=True, text=True, check=True)
+
+    git("init", "-q")
+    (tmp_path / "notes.txt").write_text("a user's project\n")
+    git("add", "notes.txt")
+    git("-c", "user.name=u", "-c", "user.email=u@x", "commit", "-q", "-m", "user")
+    installed = tmp_path / ".venv" / "lib" / "ftsweep"
+    installed.mkdir(parents=True)
+    copy = Path(shutil.copy(cube.__file__, installed / "cube.py"))
+    assert cube.git_revision(copy) == "unknown"
+    git("add", "-f", str(copy))  # tracked by that repository: a checkout of its own
+    git("-c", "user.name=u", "-c", "user.email=u@x", "commit", "-q", "-m", "vendored")
+    assert cube.git_revision(copy) == git("rev-parse", "HEAD").stdout.strip()
+
+
+def test_resuming_another_revisions_cube_warns_in_one_line(tmp_path, catalog_dir):
+    """The command line prints the warning as one line (pytest would capture it in process)."""
+    import zarr
+
+    spec, out = write_spec(tmp_path), tmp_path / "c.zarr"
+    args = [
+        sys.executable,
+        "-m",
+        "ftsweep.cli",
+        "sweep",
+        str(spec),
+        "--out",
+        str(out),
+        "--scheduler",
+        "synchronous",
+    ]
+    env = {**os.environ, "FTSWEEP_CATALOGS": str(catalog_dir)}
+    assert subprocess.run(args, env=env, capture_output=True, text=True).returncode == 0
+    zarr.open_group(str(out), mode="r+").attrs["git_revision"] = "0123456789abcdef"
+    r = subprocess.run(args, env=env, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if "code revision" in ln]
+    assert len(lines) == 1 and lines[0].startswith("Warning: ") and "0123456789" in lines[0], r.stderr
+    assert "UserWarning" not in r.stderr and "warnings.warn(" not in r.stderr

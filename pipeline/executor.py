@@ -269,7 +269,8 @@ def _connect(scheduler: Optional[str], workers: int) -> tuple[Any, Any]:
         n_workers=workers,
         threads_per_worker=1,
         processes=True,
-        dashboard_address=":0",
+        # a free port on this machine only: on ":0" it listened on every interface
+        dashboard_address="127.0.0.1:0",
         silence_logs=logging.CRITICAL,  # task errors reach us through the futures
         config=LOCAL_WORKER_CONFIG,
     )

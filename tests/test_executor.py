@@ -125,3 +125,16 @@ def test_local_workers_run_without_the_statistical_profiler():
     # its thread takes the GIL every 10 ms; our tasks are kernels, nobody reads the profile
     rows = _collect(None, profiler_state)
     assert rows and all(r["profile"] is False for r in rows)
+
+
+def test_the_local_dashboard_listens_on_loopback_only():
+    from ftsweep.executor import _close_quietly, _connect
+
+    client, cluster = _connect(None, 1)
+    try:
+        link = cluster.dashboard_link
+        assert link.startswith("http://127.0.0.1:"), link
+        hosts = {sock.getsockname()[0] for sock in cluster.scheduler.http_server._sockets.values()}
+        assert hosts == {"127.0.0.1"}, hosts
+    finally:
+        _close_quietly(client, cluster)

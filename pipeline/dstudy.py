@@ -143,12 +143,12 @@ def accel_by_step(programs: dict[str, Any], rpm: float, machine_step_deg: float)
     marked ``machine``) on the planned curves (:func:`ftsweep.stages.dpath.x_accel_at_step`),
     their ratio, and the step [deg] at which the ratio is [5]'s 0.16 (log-log interpolation)."""
     rows = []
-    kinds = ("traditional", "optimised")
-    curve = {k: dpath.evaluate(programs[k][0], programs[k][0].phi)[0] for k in kinds}
+    both = ("traditional", "optimised")
+    curve = {k: dpath.evaluate(programs[k][0], programs[k][0].phi)[0] for k in both}
     for deg in sorted({*STEPS_DEG, machine_step_deg}):
         h = math.radians(deg)
         trad, opt = (
-            float(np.abs(dpath.x_accel_at_step(programs[k][0], rpm, h, curve[k])).max()) for k in kinds
+            float(np.abs(dpath.x_accel_at_step(programs[k][0], rpm, h, curve[k])).max()) for k in both
         )
         rows.append(
             {

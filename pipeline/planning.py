@@ -188,12 +188,11 @@ def control_table(
     surface_spec: Any,
     nose_radius_um: float,
     catalog_folder: Any = None,
-    threads: Optional[int] = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The compensated control table [µm] of ``layout`` and its gouge flags (model §4), in
-    parts on ``threads`` threads (None: the context's, :mod:`ftsweep.threads`)."""
+    parts on the context's threads (:mod:`ftsweep.threads`)."""
     node_rho, node_theta = layouts.layout_nodes(layout)
     surface = catalogs.surface_callable(surface_spec, catalog_folder)
     bound = catalogs.gradient_bound(surface_spec, catalog_folder)
     solve = compensator(case, surface_spec, surface, nose_radius_um, bound)
-    return compensate_in_parts(solve, node_rho, node_theta, threads)
+    return compensate_in_parts(solve, node_rho, node_theta)

@@ -67,7 +67,8 @@ def _bilinear_kernel(table, u, v, periodic, out):  # pragma: no cover - jit
 
 @njit(nogil=True, cache=True)
 def _pass_commands_kernel(table, polar, o0, o1, p0, p1, periodic, first, k0, step, ray_a, ray_b, out):  # noqa: E501  # pragma: no cover - jit
-    # the tool positions ρ_k = max(first − k·step, 0) and their table indices are formed here,
+    # the tool positions ρ_k = max(first − (k + k0)·step, 0) (column k is the spiral's pass
+    # k + k0, see path_grid) and their table indices are formed here,
     # pass by pass, instead of as (rays × passes) arrays; the arithmetic is that of
     # pass_rho and table_indices, so the commands are the same to the last bit
     for a in range(out.shape[0]):

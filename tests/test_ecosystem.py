@@ -63,6 +63,38 @@ def test_cube_quantifies_with_pint_and_converts(cubes, kind):
     np.testing.assert_allclose(ds["aspect_actual"], ds[names[0]] / ds[names[1]], rtol=1e-12)
 
 
+@pytest.mark.parametrize("kind", ["ring", "mesh"])
+def test_every_accessor_result_carries_units_pint_reads(cubes, kind):
+    """Issue 30, item 7: what ``ds.ftsweep`` returns quantifies with the units of what it is."""
+    pytest.importorskip("pint_xarray")
+    import pint
+
+    ds = xr.open_zarr(cubes[kind])
+    done = ds.ftsweep.done()
+    quantified = done.pint.quantify()
+    for name in done.data_vars:
+        # masking keeps every variable's units (a flag keeps none)
+        assert done[name].attrs.get("units") == ds[name].attrs.get("units"), name
+        if "units" in ds[name].attrs:
+            assert quantified[name].pint.units == pint.Unit(ds[name].attrs["units"]), name
+    assert done.pint.quantify()["pv_nm"].pint.units == pint.Unit("nm")
+    assert ds.ftsweep.pv().pint.quantify().pint.units == pint.Unit("nm")
+    optimum = ds.ftsweep.optimum().pint.quantify()
+    assert optimum.pint.units == pint.Unit(ds["aspect"].attrs["units"])
+    assert optimum.pint.units == pint.Unit("um/deg" if kind == "ring" else "1")
+    # best() is a plain dict (JSON like `ftsweep select --json`): a value named after a cube
+    # variable is that variable's value, so the name's unit suffix must be the variable's unit
+    best = ds.ftsweep.best(budget_points=20000)
+    suffixes = {"nm": "nm", "um": "um", "deg": "deg"}
+    checked = 0
+    for key in best:
+        suffix = key.rsplit("_", 1)[-1]
+        if key in ds and suffix in suffixes:
+            assert pint.Unit(ds[key].attrs["units"]) == pint.Unit(suffixes[suffix]), key
+            checked += 1
+    assert checked >= 6
+
+
 def test_import_ftsweep_registers_the_accessor(cubes):
     code = (
         "import sys, xarray as xr, ftsweep; ds = xr.open_zarr(sys.argv[1]); "
@@ -147,6 +179,12 @@ def test_wheel_installs_one_package_named_ftsweep(tmp_path):
 
     tops = {name.split("/")[0] for name in zipfile.ZipFile(wheel).namelist()}
     assert {t for t in tops if not t.endswith(".dist-info")} == {"ftsweep"}
+    # issue 30, item 7: the license as a PEP 639 expression (a TOML table stops building in 2027)
+    with zipfile.ZipFile(wheel) as zf:
+        meta = zf.read(next(n for n in zf.namelist() if n.endswith(".dist-info/METADATA"))).decode()
+    assert "License-Expression: BSD-3-Clause" in meta.splitlines()
+    assert "License-File: LICENSE" in meta.splitlines()
+    assert "project.license` as a TOML table is deprecated" not in build.stderr
     venv = tmp_path / "fresh"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
     py = venv / "bin" / "python"

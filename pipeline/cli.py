@@ -21,7 +21,7 @@ from ftsweep.cli_common import MESSAGE_LIMIT, USER_ERRORS, echo_json, one_line
 # help reads their one-line summaries from the modules' source
 COMMANDS = {
     "predict": ("ftsweep.cli_predict", "predict"),
-    "sweep": ("ftsweep.cli_cubes", "sweep"),
+    "sweep": ("ftsweep.cli_sweep", "sweep"),
     "select": ("ftsweep.cli_cubes", "select"),
     "export": ("ftsweep.cli_cubes", "export"),
     "verify": ("ftsweep.cli_cubes", "verify"),

@@ -28,3 +28,8 @@ def usable_cores() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on every platform
         return max(1, os.cpu_count() or 1)
+
+
+# how long a sweep waits for a worker [s]: for the first to join an external scheduler, and
+# for one to come back after every worker left (``ftsweep sweep --worker-wait``)
+WORKER_WAIT_S = 60.0

@@ -25,9 +25,10 @@ from typing import Any, Optional
 
 import dask
 
-from ftsweep import allocator, kinds
+from ftsweep import __version__, allocator, kinds
 from ftsweep.case import run_case
 from ftsweep.cube import CubeWriter
+from ftsweep.defaults import WORKER_WAIT_S
 from ftsweep.lines import LineCache
 from ftsweep.spec import Case
 from ftsweep.sweep import SweepSpec, case_at, case_lines
@@ -209,8 +210,21 @@ def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> fl
     return time.perf_counter() - t
 
 
+@dataclass(frozen=True)
+class Cluster:
+    """The cluster a run got: its workers and threads (tasks are planned for the threads) and
+    the dashboard's address (None for the synchronous scheduler or without a dashboard)."""
+
+    workers: int
+    threads: int
+    dashboard: Optional[str] = None
+
+
+Plan = list[list[int]] | Callable[[int], list[list[int]]]
+
+
 def execute(
-    groups: list[list[int]],
+    plan: Plan,
     spec: TaskSpec,
     scheduler: Optional[str],
     workers: int,
@@ -218,11 +232,14 @@ def execute(
     task: TaskFn = run_task,
     warm: Optional[Callable[[], Any]] = None,
     on_error: Optional[ErrorFn] = None,
-    on_workers: Optional[Callable[[int], None]] = None,
+    on_cluster: Optional[Callable[[Cluster], None]] = None,
+    worker_wait_s: float = WORKER_WAIT_S,
 ) -> None:
     """Run ``task(spec, group)`` for every group of case indices and call ``on_result`` with
     each task's summaries as it finishes.
 
+    plan : the groups, or a function of the cluster's thread count that makes them (asked
+        once connected: an external cluster's, not this machine's); no groups start nothing.
     scheduler : ``"synchronous"`` for dask's synchronous scheduler in this process, an
         address (``tcp://host:port``) of a running ``dask scheduler``, or None for a
         ``LocalCluster`` with ``workers`` single-threaded worker processes.
@@ -230,26 +247,71 @@ def execute(
         task, e.g. to pay numba's compile cost outside the timed cases.
     on_error : the summaries of a task that raised (default :func:`task_failure`); the
         other tasks run on.
-    on_workers : told how many workers the cluster has once connected (an external
-        scheduler's count, not the ``workers`` asked for).
+    on_cluster : told the cluster's workers, threads and dashboard once connected.
+    worker_wait_s : seconds to wait for a first worker, and for one to come back once every
+        worker left; then :class:`ExecutorError` (finished cases are written already).
     """
-    if not groups:
-        return
     on_error = on_error or task_failure
     if scheduler == SYNCHRONOUS:
+        groups = plan(1) if callable(plan) else plan
+        if not groups:
+            return
+        if on_cluster is not None:
+            on_cluster(Cluster(workers=1, threads=1))
         if warm is not None:
             warm()
         _run_synchronous(groups, spec, task, on_error, on_result)
         return
+    if not callable(plan) and not plan:
+        return
     client, cluster = _connect(scheduler, workers)
     try:
-        if on_workers is not None:
-            on_workers(len(client.scheduler_info().get("workers", {})))
+        got = _cluster_of(client, scheduler, worker_wait_s)
+        groups = plan(got.threads) if callable(plan) else plan
+        if not groups:
+            return
+        if on_cluster is not None:
+            on_cluster(got)
         if warm is not None:
             client.run(warm)
-        _run_distributed(client, groups, spec, task, on_error, on_result)
+        _run_distributed(client, groups, spec, (task, on_error), on_result, worker_wait_s)
     finally:
         _close_quietly(client, cluster)
+
+
+def _cluster_of(client: Any, scheduler: Optional[str], wait_s: float) -> Cluster:
+    """The connected cluster, once a worker joined (within ``wait_s``) and every worker can
+    import ftsweep (a worker that cannot is named, not left to fail each task obscurely)."""
+    where = scheduler or "the local cluster"
+    try:
+        client.wait_for_workers(1, timeout=wait_s)
+    except TimeoutError:
+        raise ExecutorError(
+            f"no worker joined the scheduler at {where} within {wait_s:g} s; start workers "
+            "(dask worker ADDRESS) and run again"
+        ) from None
+    # exec is a builtin: it reaches a worker that has no ftsweep, which then says so
+    answers = client.run(exec, "import ftsweep", on_error="return")
+    lacking = {w: a for w, a in answers.items() if isinstance(a, BaseException)}
+    if lacking:
+        names = ", ".join(sorted(lacking)[:5])
+        first = next(iter(lacking.values()))
+        raise ExecutorError(
+            f"{len(lacking)} worker(s) of {where} cannot import ftsweep ({names}: "
+            f"{type(first).__name__}: {str(first)[:200]}); install ftsweep {__version__} in every "
+            "worker's environment"
+        )
+    threads = client.nthreads()
+    return Cluster(workers=len(threads), threads=sum(threads.values()), dashboard=_dashboard(client))
+
+
+def _dashboard(client: Any) -> Optional[str]:
+    """The dashboard's address, or None when the scheduler runs none (bokeh not installed)."""
+    try:
+        link = client.dashboard_link
+    except (KeyError, AttributeError):  # no "dashboard" among the scheduler's services
+        return None
+    return str(link) if link else None
 
 
 def _connect(scheduler: Optional[str], workers: int) -> tuple[Any, Any]:
@@ -287,12 +349,13 @@ def _run_distributed(
     client: Any,
     groups: list[list[int]],
     spec: TaskSpec,
-    task: TaskFn,
-    on_error: ErrorFn,
+    fns: tuple[TaskFn, ErrorFn],
     on_result: Callable[[list[dict]], None],
+    worker_wait_s: float,
 ) -> None:
     from distributed import wait
 
+    task, on_error = fns
     deliveries = Deliveries(on_result)
     topic = progress_topic(spec.run_id)
     client.subscribe_topic(topic, lambda event: deliveries.event(event[1]))
@@ -302,6 +365,7 @@ def _run_distributed(
     ]
     lookup = {f.key: group for f, group in zip(futures, groups, strict=True)}
     pending = set(futures)
+    watch = WorkerWatch(client, worker_wait_s)
     try:
         while pending:
             try:
@@ -316,8 +380,40 @@ def _run_distributed(
                     rows = on_error(spec, lookup[future.key], exc)
                 deliveries.deliver(rows)
                 future.release()
+            if pending:
+                watch.check(len(deliveries.seen))
     finally:
         client.unsubscribe_topic(topic)
+
+
+class WorkerWatch:
+    """Ends a run whose cluster has had no worker for ``wait_s`` seconds: its tasks would
+    wait for one forever, silently (a batch system took back every node, say)."""
+
+    # asking the scheduler for its workers costs a round trip: not at every poll
+    EVERY_S = 1.0
+
+    def __init__(self, client: Any, wait_s: float) -> None:
+        self.client = client
+        self.wait_s = wait_s
+        self.asked = time.monotonic()
+        self.none_since: Optional[float] = None
+
+    def check(self, finished: int) -> None:
+        now = time.monotonic()
+        if now - self.asked < self.EVERY_S:
+            return
+        self.asked = now
+        if self.client.nthreads():
+            self.none_since = None
+            return
+        self.none_since = self.none_since or now
+        if now - self.none_since >= self.wait_s:
+            raise ExecutorError(
+                f"every worker of the cluster left and none came back within {self.wait_s:g} s; "
+                f"the {finished} case(s) finished this run are in the cube, the others stay pending: "
+                "start workers and run the same command again to go on"
+            )
 
 
 def _close_quietly(client: Any, cluster: Any) -> None:

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import socket
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -123,9 +125,32 @@ def release(path: Path) -> None:
 
 @contextmanager
 def cube_lock(cube: Path, command: str = "") -> Iterator[Path]:
-    """Hold the writer's lock of ``cube`` for the ``with`` block (released on any exit)."""
+    """Hold the writer's lock of ``cube`` for the ``with`` block (released on any exit, and on
+    SIGTERM, which batch schedulers send to end a job: :func:`terminate_as_exit`)."""
     path = acquire(cube, command)
     try:
-        yield path
+        with terminate_as_exit():
+            yield path
     finally:
         release(path)
+
+
+@contextmanager
+def terminate_as_exit() -> Iterator[None]:
+    """Within the block, SIGTERM (and SIGHUP) raise :class:`SystemExit` with status 128 + the
+    signal, as SIGINT raises KeyboardInterrupt, so that every ``finally`` runs: the lock is
+    released and the cluster closed. Python's default ends the process at once, leaving the
+    lock behind. Only in the main thread (where Python delivers signals); elsewhere a no-op."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def leave(signum: int, frame: Any) -> None:
+        raise SystemExit(128 + signum)
+
+    previous = {sig: signal.signal(sig, leave) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

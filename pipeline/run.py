@@ -19,8 +19,8 @@ import numpy as np
 
 from ftsweep import catalogs, cube, kinds
 from ftsweep.cube import CubeError
-from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, usable_cores
-from ftsweep.executor import TaskSpec, execute, run_task, warm_up
+from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
+from ftsweep.executor import Cluster, TaskSpec, execute, run_task, warm_up
 from ftsweep.lock import cube_lock
 from ftsweep.spec import CaseError
 from ftsweep.sweep import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
@@ -75,6 +75,9 @@ class SweepReport:
     rows: list[dict] = field(default_factory=list)
     wall_s: float = 0.0
     workers: int = 1
+    threads: int = 1  # the cluster's, which tasks are planned for
+    dashboard: Optional[str] = None
+    tasks: int = 0
     damaged: dict[int, str] = field(default_factory=dict)
     pruned: int = 0  # cases left out by --prune (this run's and earlier ones kept)
     queued: int = 0  # cases this run computes
@@ -86,6 +89,21 @@ class SweepReport:
     @property
     def failed(self) -> int:
         return sum(r["status"] != "done" for r in self.rows)
+
+
+# what a run tells as it goes: each finished case (progress), the cluster once connected (announce)
+Watchers = tuple[Optional[Callable[[SweepReport, list[dict]], None]], Optional[Callable[[SweepReport], None]]]
+
+
+@dataclass(frozen=True)
+class Where:
+    """Where a sweep's cases run: the scheduler (None: a local cluster of ``workers``), the
+    line cache per worker [MiB] and the wait for workers [s] (:func:`run_sweep`)."""
+
+    scheduler: Optional[str]
+    workers: int
+    line_cache_mb: float
+    worker_wait_s: float
 
 
 def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
@@ -137,6 +155,8 @@ def run_sweep(
     max_cases: int = MAX_CASES,
     prune: Optional[float] = None,
     line_cache_mb: float = LINE_CACHE_MB,
+    announce: Optional[Callable[[SweepReport], None]] = None,
+    worker_wait_s: float = WORKER_WAIT_S,
 ) -> SweepReport:
     """Run (or resume) a sweep; cases already done in the cube are skipped.
 
@@ -152,6 +172,10 @@ def run_sweep(
         aspect ratios of its point count. A run without ``prune`` computes earlier pruned cases.
     line_cache_mb : memory [MiB] per worker for the lines that cases share (0: none); the
         results are the same either way.
+    announce : told the report once the cluster is connected (its workers, threads and
+        dashboard), before any case runs.
+    worker_wait_s : seconds to wait for a first worker of an external scheduler, and for one
+        to come back after every worker left; then :class:`~ftsweep.executor.ExecutorError`.
     """
     name, spec = load_sweep(name_or_path, catalog_folder)
     check_sweep_size(spec, max_cases)
@@ -164,11 +188,11 @@ def run_sweep(
             name,
             spec,
             out,
-            (scheduler, workers, line_cache_mb),
+            Where(scheduler, workers, line_cache_mb, worker_wait_s),
             restart,
             (retry_failed, prune),
             catalog_folder,
-            progress,
+            (progress, announce),
         )
 
 
@@ -183,23 +207,16 @@ def _undamaged_status(out: Path, already: int) -> tuple[np.ndarray, dict[int, st
     return status, damaged
 
 
-def _run_locked(
-    name: str,
+def _wanted_cases(
     spec: SweepSpec,
     out: Path,
-    where: tuple[Optional[str], int, float],
-    restart: bool,
+    status: np.ndarray,
     rerun: tuple[bool, Optional[float]],
+    run_id: str,
     catalog_folder: Optional[Path],
-    progress: Optional[Callable[[SweepReport, list[dict]], None]],
-) -> SweepReport:
-    cube.remove_stale_temporaries(out)
-    already = prepare_cube(name, spec, out, restart, catalog_folder)
-    status, damaged = _undamaged_status(out, already)
-    already -= len(damaged)
+) -> tuple[list[int], np.ndarray]:
+    """The cases this run computes (after pruning, if asked) and the cube's status then."""
     retry_failed, prune = rerun
-    scheduler, workers, line_cache_mb = where
-    run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
     if prune is not None:
         if kinds.kind(spec.layout).aspect_range is None:
             raise CaseError(
@@ -212,11 +229,21 @@ def _run_locked(
         | (retry_failed & (status == cube.FAILED))
         | ((prune is None) & (status == cube.PRUNED))
     )
-    pending = [int(i) for i in np.flatnonzero(wanted)]
-    report = SweepReport(cube=out, total=n_cases(spec), skipped=already, workers=workers, damaged=damaged)
-    report.pruned = int(np.sum(status == cube.PRUNED)) if prune is not None else 0
-    report.queued = len(pending)
-    tasks = plan_tasks(spec, pending, workers, catalog_folder)
+    return [int(i) for i in np.flatnonzero(wanted)], status
+
+
+def _compute(
+    report: SweepReport,
+    spec: SweepSpec,
+    pending: list[int],
+    where: Where,
+    run_id: str,
+    catalog_folder: Optional[Path],
+    watchers: Watchers,
+) -> None:
+    """Run ``pending`` on the cluster ``where`` says, each case written as it finishes; the
+    tasks are planned for the threads of the cluster the run got."""
+    progress, announce = watchers
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
 
     def on_result(rows: list[dict]) -> None:
@@ -224,19 +251,53 @@ def _run_locked(
         if progress is not None:
             progress(report, rows)
 
-    start = time.perf_counter()
+    def plan(threads: int) -> list[list[int]]:
+        tasks = plan_tasks(spec, pending, threads, catalog_folder)
+        report.tasks = len(tasks)
+        return tasks
+
+    def on_cluster(got: Cluster) -> None:
+        report.workers, report.threads, report.dashboard = got.workers, got.threads, got.dashboard
+        if announce is not None:
+            announce(report)
+
     assert spec.layout is not None
-    task_spec = TaskSpec(str(out), spec.model_dump_json(), folder, run_id, line_cache_mb)
     execute(
-        tasks,
-        task_spec,
-        scheduler,
-        workers,
+        plan,
+        TaskSpec(str(report.cube), spec.model_dump_json(), folder, run_id, where.line_cache_mb),
+        where.scheduler,
+        where.workers,
         on_result,
         task=run_task,
         warm=functools.partial(warm_up, spec.surface, spec.layout, folder),
-        on_workers=lambda n: setattr(report, "workers", n),
+        on_cluster=on_cluster,
+        worker_wait_s=where.worker_wait_s,
     )
+
+
+def _run_locked(
+    name: str,
+    spec: SweepSpec,
+    out: Path,
+    where: Where,
+    restart: bool,
+    rerun: tuple[bool, Optional[float]],
+    catalog_folder: Optional[Path],
+    watchers: Watchers,
+) -> SweepReport:
+    cube.remove_stale_temporaries(out)
+    already = prepare_cube(name, spec, out, restart, catalog_folder)
+    status, damaged = _undamaged_status(out, already)
+    already -= len(damaged)
+    run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
+    pending, status = _wanted_cases(spec, out, status, rerun, run_id, catalog_folder)
+    report = SweepReport(
+        cube=out, total=n_cases(spec), skipped=already, workers=where.workers, damaged=damaged
+    )
+    report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
+    report.queued = len(pending)
+    start = time.perf_counter()
+    _compute(report, spec, pending, where, run_id, catalog_folder, watchers)
     report.wall_s = time.perf_counter() - start
     return report
 

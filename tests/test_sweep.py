@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from clusters import external_cluster
 
 from ftsweep import cube
 from ftsweep.catalogs import CatalogError
@@ -128,56 +129,11 @@ def test_external_dask_scheduler_and_workers_give_the_same_cube(tmp_path, catalo
     worker_dir, client_dir = tmp_path / "workers", tmp_path / "client"
     worker_dir.mkdir()
     client_dir.mkdir()
-    sched_file = tmp_path / "scheduler.json"
-    procs = [
-        subprocess.Popen(
-            [
-                str(BIN / "dask"),
-                "scheduler",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                "0",
-                "--no-dashboard",
-                "--scheduler-file",
-                str(sched_file),
-            ],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            env=env,
-            start_new_session=True,
-        )
-    ]
-    try:
-        deadline = time.time() + 60
-        while not sched_file.exists() and time.time() < deadline:
-            time.sleep(0.2)
-        address = json.loads(sched_file.read_text())["address"]
-        assert address.startswith("tcp://127.0.0.1:")
+    with external_cluster(tmp_path, env) as cluster:
+        assert cluster.address.startswith("tcp://127.0.0.1:")
         for _ in range(2):
-            procs.append(
-                subprocess.Popen(
-                    [
-                        str(BIN / "dask"),
-                        "worker",
-                        address,
-                        "--nthreads",
-                        "1",
-                        "--no-dashboard",
-                        "--host",
-                        "127.0.0.1",
-                    ],
-                    stdout=subprocess.DEVNULL,
-                    stderr=subprocess.DEVNULL,
-                    env=env,
-                    cwd=worker_dir,
-                    start_new_session=True,
-                )
-            )
-        from distributed import Client
-
-        with Client(address, timeout="30s") as client:
-            client.wait_for_workers(2, timeout=60)
+            cluster.add_worker(cwd=worker_dir)
+        cluster.wait_for_workers(2)
         result = subprocess.run(
             [
                 str(BIN / "ftsweep"),
@@ -186,7 +142,7 @@ def test_external_dask_scheduler_and_workers_give_the_same_cube(tmp_path, catalo
                 "--out",
                 "outputs/remote.zarr",
                 "--scheduler",
-                address,
+                cluster.address,
             ],
             capture_output=True,
             text=True,
@@ -194,17 +150,11 @@ def test_external_dask_scheduler_and_workers_give_the_same_cube(tmp_path, catalo
             cwd=client_dir,
             timeout=300,
         )
-        assert result.returncode == 0, result.stderr
-        assert not (worker_dir / "outputs").exists()
-        xr.testing.assert_equal(data_of(client_dir / "outputs" / "remote.zarr"), data_of(reference_cube))
-    finally:
-        for p in reversed(procs):
-            os.killpg(p.pid, signal.SIGTERM)
-        for p in procs:
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
+    assert result.returncode == 0, result.stderr
+    assert not (worker_dir / "outputs").exists()
+    xr.testing.assert_equal(data_of(client_dir / "outputs" / "remote.zarr"), data_of(reference_cube))
+    # the summary counts the cluster's workers, not this machine's cores
+    assert "2 worker(s), 2 thread(s)" in result.stderr and "with 2 worker(s)" in result.stdout
 
 
 # ----------------------------------------------------------------------------- crash safety

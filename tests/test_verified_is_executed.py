@@ -467,7 +467,7 @@ def test_progress_in_a_log_is_plain_periodic_lines():
 def test_eta_comes_from_measured_case_times_once_two_finished():
     from types import SimpleNamespace
 
-    from ftsweep.cli_cubes import _eta_text
+    from ftsweep.cli_sweep import _eta_text
 
     report = SimpleNamespace(workers=2)
     assert _eta_text(report, [{"seconds": 5.0}], remaining=10) == "ETA –"

@@ -1,0 +1,198 @@
+"""Clusters as they are (issue 30, item 6): tasks planned for the cluster's threads and the
+summary counting its workers; a run whose workers all left ends with a message; a worker
+without ftsweep is named; SIGTERM releases the cube's lock; the local dashboard's address."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from clusters import BIN, external_cluster
+
+from ftsweep import cube
+from ftsweep.lock import lock_path
+from ftsweep.run import run_sweep
+from ftsweep.sweep import load_sweep, n_cases, plan_tasks
+
+# 18 cases: 8 tasks on one thread, 9 on two (this machine's cores)
+SPEC = """
+surface: small_sine
+layout: ring
+axes:
+  points: [6000, 8000, 10000, 12000, 16000, 20000]
+  aspect: [1.5, 3.0, 6.0]
+"""
+# one case a task, so a killed worker leaves most of them pending
+SLOW = """
+surface: small_sine
+layout: ring
+axes:
+  points: [6000, 9000, 12000, 16000, 20000, 25000, 30000, 36000]
+  aspect: [2.0, 8.0]
+cases_per_task: 1
+"""
+
+
+def _spec(folder: Path, text: str) -> Path:
+    path = folder / "c.yaml"
+    path.write_text(text)
+    return path
+
+
+def _env(catalog_dir: Path) -> dict[str, str]:
+    return dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))
+
+
+def _done(out: Path) -> int:
+    try:
+        return int(np.sum(cube.read_status(out) == cube.DONE))
+    except Exception:  # the template is not in place yet
+        return 0
+
+
+def test_tasks_are_planned_for_the_clusters_threads(tmp_path, catalog_dir):
+    spec_path = _spec(tmp_path, SPEC)
+    _, spec = load_sweep(str(spec_path), catalog_dir)
+    everything = list(range(n_cases(spec)))
+    one, two = (len(plan_tasks(spec, everything, w, catalog_dir)) for w in (1, 2))
+    assert one != two  # otherwise this test could not tell them apart
+    with external_cluster(tmp_path, _env(catalog_dir)) as cluster:
+        cluster.add_worker(cwd=tmp_path)
+        cluster.wait_for_workers(1)
+        seen = []
+        report = run_sweep(
+            str(spec_path),
+            tmp_path / "one.zarr",
+            scheduler=cluster.address,
+            workers=2,  # what this machine would ask for: the cluster's count wins
+            catalog_folder=catalog_dir,
+            announce=lambda r: seen.append((r.workers, r.threads, r.tasks)),
+        )
+    assert report.done == len(everything)
+    assert (report.workers, report.threads, report.tasks) == (1, 1, one)
+    assert seen == [(1, 1, one)]  # announced before the cases ran
+
+
+def test_a_run_whose_workers_all_left_ends_with_a_message(tmp_path, catalog_dir):
+    env = _env(catalog_dir)
+    out = tmp_path / "lost.zarr"
+    with external_cluster(tmp_path, env) as cluster:
+        cluster.add_worker(cwd=tmp_path)
+        cluster.wait_for_workers(1)
+        cmd = [str(BIN / "ftsweep"), "sweep", str(_spec(tmp_path, SLOW)), "--out", str(out)]
+        run = subprocess.Popen(
+            [*cmd, "--scheduler", cluster.address, "--worker-wait", "3"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        deadline = time.time() + 240
+        while _done(out) < 2 and time.time() < deadline and run.poll() is None:
+            time.sleep(0.05)
+        assert _done(out) >= 2, "the sweep did not get going"
+        cluster.kill_workers()
+        killed = time.monotonic()
+        _, stderr = run.communicate(timeout=120)
+        took = time.monotonic() - killed
+    assert run.returncode == 1
+    assert "every worker of the cluster left and none came back within 3 s" in stderr
+    assert "run the same command again" in stderr
+    assert took < 60, took  # 3 s of waiting, the rest closing the client
+    assert not lock_path(out).exists()
+    kept = _done(out)
+    assert 2 <= kept < 16
+    # the finished cases are kept and a run on a local cluster completes the rest
+    report = run_sweep(str(tmp_path / "c.yaml"), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert report.skipped == kept and report.done == 16 - kept
+
+
+BLOCK_FTSWEEP = '''
+"""A worker's environment without ftsweep (a preload run before the worker takes tasks)."""
+import sys
+
+
+class NoFtsweep:
+    def find_spec(self, name, path=None, target=None):
+        if name == "ftsweep" or name.startswith("ftsweep."):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return None
+
+
+sys.meta_path.insert(0, NoFtsweep())
+'''
+
+
+def test_a_worker_without_ftsweep_is_named(tmp_path, catalog_dir):
+    env = _env(catalog_dir)
+    preload = tmp_path / "no_ftsweep.py"
+    preload.write_text(BLOCK_FTSWEEP)
+    out = tmp_path / "bare.zarr"
+    with external_cluster(tmp_path, env) as cluster:
+        cluster.add_worker(cwd=tmp_path, preload=preload)
+        cluster.wait_for_workers(1)
+        r = subprocess.run(
+            [str(BIN / "ftsweep"), "sweep", str(_spec(tmp_path, SPEC)), "--out", str(out)]
+            + ["--scheduler", cluster.address],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=120,
+        )
+    assert r.returncode == 1
+    assert "1 worker(s) of tcp://127.0.0.1:" in r.stderr and "cannot import ftsweep" in r.stderr
+    assert "tcp://127.0.0.1:" in r.stderr.split("cannot import ftsweep (")[1]  # the worker's address
+    assert "No module named 'ftsweep'" in r.stderr and "install ftsweep" in r.stderr
+    assert len(r.stderr.strip().splitlines()) <= 3  # a message, not a traceback
+    assert _done(out) == 0 and not lock_path(out).exists()
+
+
+def test_no_worker_joining_is_reported_after_the_wait(tmp_path, catalog_dir):
+    env = _env(catalog_dir)
+    with external_cluster(tmp_path, env) as cluster:
+        start = time.monotonic()
+        r = subprocess.run(
+            [str(BIN / "ftsweep"), "sweep", str(_spec(tmp_path, SPEC)), "--out", str(tmp_path / "w.zarr")]
+            + ["--scheduler", cluster.address, "--worker-wait", "2"],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=120,
+        )
+        took = time.monotonic() - start
+    assert r.returncode == 1 and "no worker joined the scheduler" in r.stderr and "within 2 s" in r.stderr
+    assert took < 30
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_a_terminated_sweep_releases_its_lock_and_resumes(tmp_path, catalog_dir, sig):
+    env = _env(catalog_dir)
+    out = tmp_path / "term.zarr"
+    cmd = [str(BIN / "ftsweep"), "sweep", str(_spec(tmp_path, SLOW)), "--out", str(out), "--workers", "1"]
+    run = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True
+    )
+    try:
+        deadline = time.time() + 240
+        while _done(out) < 2 and time.time() < deadline and run.poll() is None:
+            time.sleep(0.05)
+        assert _done(out) >= 2, "the sweep did not get going"
+        assert lock_path(out).exists()
+        run.send_signal(sig)  # the driver only, as a batch system's job stop does
+        _, stderr = run.communicate(timeout=120)
+    finally:
+        if run.poll() is None:
+            os.killpg(run.pid, signal.SIGKILL)
+    assert run.returncode == 128 + sig, stderr
+    assert "terminated by a signal" in stderr
+    assert "dashboard http://127.0.0.1:" in stderr  # the local cluster's, on loopback
+    assert not lock_path(out).exists()
+    kept = _done(out)
+    rerun = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert rerun.returncode == 0, rerun.stderr
+    assert f"{kept} were done already" in rerun.stdout

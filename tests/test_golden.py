@@ -24,6 +24,11 @@ from ftsweep.spec import Case, Resolution
 GOLDEN = Path(__file__).parent / "data" / "golden_cases.json"
 # same code, same platform: identical bits; the bound admits libm/SIMD last digits elsewhere
 RTOL = 1e-9
+# values an iterative optimiser ends on: scipy's L-BFGS-B (eq. 15, turn by turn) takes other
+# iterates in other scipy releases. Measured: 79.967 s as recorded, 79.805 s (-0.20 %) with
+# scipy 1.17.1 as a fresh install gets it on 2026-11-24, the same code. 1 % holds them; the
+# optimiser's own accuracy is tested against a direct SLSQP minimax (tests/test_fresnel.py).
+OPTIMISED_RTOL = {("fresnel", "time_adaptive_s"): 0.01}
 COARSE = Resolution(n_theta=16)
 
 
@@ -99,7 +104,8 @@ def test_every_golden_case_keeps_its_key_and_values(fresh):
             if isinstance(value, str) or isinstance(value, int):
                 assert got[field] == value, (name, field)
             else:
-                assert math.isclose(got[field], value, rel_tol=RTOL), (name, field, got[field], value)
+                rtol = OPTIMISED_RTOL.get((name, field), RTOL)
+                assert math.isclose(got[field], value, rel_tol=rtol), (name, field, got[field], value)
 
 
 def test_golden_values_are_real_results():

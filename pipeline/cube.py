@@ -1,32 +1,40 @@
-"""Zarr result cubes: one dimension per sweep axis, one chunk per case.
+"""Zarr result cubes: one dimension per sweep axis, cases stored in blocks.
+
+A cube lives in a local folder or at any fsspec URL (:mod:`ftsweep.storage`). Its arrays are
+chunked in blocks of up to :data:`BLOCK_CASES` cases (error maps: up to
+:data:`BLOCK_BYTES` a chunk), so a cube holds a few objects per variable, not one per case:
+the 84-case reference sweep ~100 objects instead of 3,300, a 10⁵-case sweep ~1,200.
 
 Write protocol (crash safety):
 
 1. The template (every variable at its fill value, status ``pending``, coordinates, units
-   and provenance) is written to a hidden temporary folder beside the target and renamed
-   into place, so a cube either exists with a complete template or not at all.
-2. Each case is written by the task that computed it, right after it finishes, into its
-   own chunk of every variable; ``status`` is written last. A case whose status is not
-   ``done`` is recomputed on the next run, so a kill mid-write loses at most the cases in
-   flight, and an unreadable (torn) status chunk reads as ``pending``.
+   and provenance) is written with its consolidated metadata last: a cube without it is an
+   unfinished template (its writer was killed), which the next sweep replaces and readers
+   refuse.
+2. A worker logs each case as soon as it finishes (:mod:`ftsweep.caselog`): one object per
+   task, replaced whole after every case, so a kill loses at most the cases in flight.
+3. The sweep's driver, the one writer (it holds the lock), merges the logs into the blocks
+   (every variable, ``status`` last) every few seconds, at the end and at the start of the
+   next run, and deletes a log only once merged: a kill mid-merge merges it again.
+   A case whose status is not ``done`` is recomputed on the next run; a block that cannot
+   be read counts as pending.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import shutil
 import subprocess
 import time
 import warnings
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Literal, Optional
 
 import numpy as np
 import xarray as xr
 import zarr
 
 from ftsweep import __version__, result
+from ftsweep.storage import PathLike, Place, place
 from ftsweep.sweep import SweepSpec, axis_attrs, coordinates
 
 PENDING, DONE, FAILED, PRUNED = 0, 1, 2, 3
@@ -145,50 +153,105 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
     return ds
 
 
-def create(path: Path, ds: xr.Dataset) -> None:
-    """Write the template to ``path`` atomically (temporary folder + rename)."""
-    path = Path(path)
-    if path.exists():
-        raise CubeError(f"{path} exists already; refusing to overwrite it")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
-    # one chunk per case; map variables keep each case's whole map in its chunk
-    encoding = {
-        v: {"chunks": tuple(1 if d not in ("map_x", "map_y") else ds.sizes[d] for d in ds[v].dims)}
-        for v in ds.data_vars
-    }
+# cases per chunk of a per-case variable, and bytes per chunk of an error map
+BLOCK_CASES = 4096
+BLOCK_BYTES = 4 * 2**20
+
+
+def case_chunks(case_shape: tuple[int, ...], per_case_values: int = 1) -> tuple[int, ...]:
+    """Chunk shape over the case dimensions: the last dimensions whole, as many as fit in
+    :data:`BLOCK_CASES` cases (and :data:`BLOCK_BYTES` of 8-byte values), the next one in
+    part, the rest one at a time."""
+    room = max(1, min(BLOCK_CASES, BLOCK_BYTES // (8 * max(per_case_values, 1))))
+    chunks = []
+    for size in reversed(case_shape):
+        take = max(1, min(size, room))
+        chunks.append(take)
+        room = room // size if take == size else 1
+    return tuple(reversed(chunks))
+
+
+def _encoding(ds: xr.Dataset) -> dict[str, Any]:
+    case_dims = tuple(d for d in ds["status"].dims)
+    shape = tuple(ds.sizes[d] for d in case_dims)
+    encoding: dict[str, Any] = {}
+    for v in ds.data_vars:
+        extra = [d for d in ds[v].dims if d not in case_dims]
+        per_case = int(np.prod([ds.sizes[d] for d in extra])) if extra else 1
+        encoding[str(v)] = {"chunks": (*case_chunks(shape, per_case), *(ds.sizes[d] for d in extra))}
+    return encoding
+
+
+def create(where: PathLike, ds: xr.Dataset) -> None:
+    """Write the template to ``where`` (a path or URL), its consolidated metadata last: until
+    then it is an unfinished template (:func:`unfinished`), never a cube."""
+    at = place(where)
+    if at.exists():
+        raise CubeError(f"{at} exists already; refusing to overwrite it")
     with warnings.catch_warnings():
         # consolidated metadata is a zarr-python extension in format 3; readers here use it
         warnings.filterwarnings("ignore", message="Consolidated metadata", category=UserWarning)
-        ds.to_zarr(tmp, zarr_format=3, encoding=encoding, consolidated=True, mode="w-")
-    os.replace(tmp, path)
+        ds.to_zarr(at.zarr_store(), zarr_format=3, encoding=_encoding(ds), consolidated=True, mode="w-")
 
 
-def read_attrs(path: Path, check_schema: bool = True) -> dict[str, Any]:
-    """The cube's attributes, or a :class:`CubeError` if ``path`` is not a cube, or (with
-    ``check_schema``) is one of an older layout that this version does not read."""
+def open_group(where: PathLike, mode: Literal["r", "r+"] = "r") -> zarr.Group:
+    """The cube's zarr group (its consolidated metadata when only reading)."""
+    at = place(where)
+    reading = mode == "r"
+    return zarr.open_group(at.zarr_store(read_only=reading), mode=mode, use_consolidated=reading or None)
+
+
+def open_dataset(where: PathLike) -> xr.Dataset:
+    """The cube as a lazy :class:`xarray.Dataset` (a path or URL, with its storage options)."""
+    return xr.open_zarr(place(where).zarr_store(read_only=True), consolidated=True)
+
+
+def unfinished(where: PathLike) -> bool:
+    """An ftsweep template whose writer was killed before its consolidated metadata."""
+    at = place(where)
     try:
-        group = zarr.open_group(str(path), mode="r")
+        zarr.open_group(at.zarr_store(read_only=True), mode="r", use_consolidated=True)
+        return False
+    except ValueError:
+        try:
+            attrs = zarr.open_group(at.zarr_store(read_only=True), mode="r", use_consolidated=False).attrs
+        except Exception:  # noqa: BLE001 - not a zarr group at all
+            return False
+        return "sweep_spec_hash" in attrs or "optimize_spec_hash" in attrs
+    except Exception:  # noqa: BLE001 - not a zarr group at all
+        return False
+
+
+def read_attrs(where: PathLike, check_schema: bool = True) -> dict[str, Any]:
+    """The cube's attributes, or a :class:`CubeError` if ``where`` is not a cube, or (with
+    ``check_schema``) is one of an older layout that this version does not read."""
+    at = place(where)
+    if unfinished(at):
+        raise CubeError(
+            f"{at} is an unfinished cube template (its sweep was killed while creating it); run the "
+            "sweep again, which replaces it"
+        )
+    try:
+        group = open_group(at)
     except Exception as exc:  # zarr raises several types for "not a group"
         raise CubeError(
-            f"{path} exists but is not a Zarr cube ({str(exc)[:200]}); choose another --out"
+            f"{at} exists but is not a Zarr cube ({str(exc)[:200]}); choose another --out"
         ) from None
     attrs = dict(group.attrs)
     if "sweep_spec_hash" not in attrs:
-        raise CubeError(f"{path} is a Zarr store but not an ftsweep cube; choose another --out")
+        raise CubeError(f"{at} is a Zarr store but not an ftsweep cube; choose another --out")
     if check_schema and attrs.get("ftsweep_cube_schema", 1) != SCHEMA_VERSION:
         raise CubeError(
-            f"{path} was written by an older ftsweep (pitch_0/pitch_1 variables, units that no units "
+            f"{at} was written by an older ftsweep (pitch_0/pitch_1 variables, units that no units "
             f"library parses); recompute it with: ftsweep sweep {attrs.get('sweep_name', 'NAME')} "
-            f"--out {path} --restart"
+            f"--out {at} --restart"
         )
     return attrs
 
 
-def read_status(path: Path) -> np.ndarray:
-    """Status of every case; a chunk that cannot be read (torn by a kill) counts as pending."""
-    values, _ = _read_array(Path(path), "status", PENDING)
+def read_status(where: PathLike) -> np.ndarray:
+    """Status of every case; a chunk that cannot be read (damaged) counts as pending."""
+    values, _ = _read_array(place(where), "status", PENDING)
     return values.astype(np.int8)
 
 
@@ -200,72 +263,97 @@ def metric_values(record: dict[str, Any]) -> dict[str, Any]:
     return values
 
 
-class CubeWriter:
-    """Writes finished cases into their own chunks of an existing cube (worker side)."""
+# a case's values as the store protocol writes them: variable -> value (a map: its array)
+Values = dict[str, Any]
 
-    def __init__(self, path: Path) -> None:
-        self.group = zarr.open_group(str(path), mode="r+")
+
+def done_values(record: dict[str, Any], run_id: str) -> Values:
+    """Every stored variable of a finished case's record, ``status`` done (written last)."""
+    values: Values = dict(metric_values(record))
+    values["infeasible_reason"] = record["infeasible_reason"]
+    for var in MAP_VARS:
+        if var in record:
+            values[var] = np.asarray(record[var])
+    values.update(message="", run_id=run_id, status=DONE)
+    return values
+
+
+def ended_values(status: int, message: str, run_id: str) -> Values:
+    """A case that failed, or that ``--prune`` left out, with its message."""
+    return {"message": message[:2000], "run_id": run_id, "status": status}
+
+
+class CubeWriter:
+    """Writes cases into an existing cube's blocks: the one writer of a cube (the sweep's
+    driver, which merges its workers' logs, or ``optimize``). Every variable first,
+    ``status`` last, so a case counts as done only once all else is written."""
+
+    def __init__(self, where: PathLike) -> None:
+        self.group = open_group(where, mode="r+")
         self.shape = self._array("status").shape
 
     def _array(self, name: str) -> zarr.Array:
         array = self.group[name]
         if not isinstance(array, zarr.Array):
             raise CubeError(f"{name} in the cube is not an array")
-        # a chunk equal to the fill value (a NaN a kind legitimately leaves, e.g. a spiral's
-        # chord error under the angle rule) is still written: a finished case's chunk then
+        # a block equal to the fill value (NaNs a kind legitimately leaves, e.g. a spiral's
+        # chord error under the angle rule) is still written: a block holding a finished case
         # always exists, and a missing one means damage (:func:`damaged_cases`)
         return array.with_config({"write_empty_chunks": True})
-
-    def _set(self, name: str, idx: tuple[Any, ...], value: Any) -> None:
-        self._array(name)[idx] = value
 
     def _index(self, flat: int) -> tuple[int, ...]:
         return tuple(int(i) for i in np.unravel_index(flat, self.shape))
 
+    def write(self, cases: list[tuple[int, Values]]) -> None:
+        """Write ``(flat index, values)`` of many cases: one pass per variable, ``status``
+        last. Writing the same values again changes nothing (a merge may be repeated)."""
+        columns: dict[str, tuple[list[int], list[Any]]] = {}
+        for flat, values in cases:
+            for var, value in values.items():
+                idx, vals = columns.setdefault(var, ([], []))
+                idx.append(flat)
+                vals.append(value)
+        for var in sorted(columns, key=lambda v: v == "status"):
+            if var not in self.group:
+                continue  # an error map the cube was made without
+            flats, vals = columns[var]
+            array = self._array(var)
+            coords = np.unravel_index(np.asarray(flats, dtype=np.int64), self.shape)
+            if array.ndim > len(self.shape):  # error maps: each case's whole map
+                for flat, value in zip(flats, vals, strict=True):
+                    array[(*self._index(flat), slice(None), slice(None))] = value  # type: ignore[index]
+                continue
+            data = np.asarray(vals, dtype=object if array.dtype.kind not in "biuf" else array.dtype)
+            array.vindex[coords] = data
+
     def write_done(self, flat: int, record: dict[str, Any], run_id: str) -> None:
         """Write a finished case's record, then mark it done."""
-        idx = self._index(flat)
-        for var, value in metric_values(record).items():
-            self._set(var, idx, value)
-        self._set("infeasible_reason", idx, record["infeasible_reason"])
-        for var in MAP_VARS:
-            if var in record and var in self.group:
-                self._set(var, (*idx, slice(None), slice(None)), record[var])
-        self._set("message", idx, "")
-        self._set("run_id", idx, run_id)
-        self._set("status", idx, DONE)  # last: the case counts only once all else is written
+        self.write([(flat, done_values(record, run_id))])
 
     def write_values(self, flat: int, values: dict[str, Any]) -> None:
         """Write further per-case variables (before :meth:`write_done`, which marks it done)."""
-        idx = self._index(flat)
-        for var, value in values.items():
-            self._set(var, idx, value)
+        self.write([(flat, values)])
 
     def write_pruned(self, flat: int, message: str, run_id: str) -> None:
         """Record a case left out by ``--prune`` (not computed), saying why."""
-        idx = self._index(flat)
-        self._set("message", idx, message[:2000])
-        self._set("run_id", idx, run_id)
-        self._set("status", idx, PRUNED)
+        self.write([(flat, ended_values(PRUNED, message, run_id))])
 
     def write_failed(self, flat: int, message: str, run_id: str) -> None:
         """Record a case that raised, with its message."""
-        idx = self._index(flat)
-        self._set("message", idx, message[:2000])
-        self._set("run_id", idx, run_id)
-        self._set("status", idx, FAILED)
+        self.write([(flat, ended_values(FAILED, message, run_id))])
 
 
 # ----------------------------------------------------------------------------- integrity
-def chunk_path(path: Path, var: str, idx: tuple[int, ...]) -> Path:
-    """File of the chunk ``idx`` of variable ``var`` (zarr v3's default ``c/i/j`` keys)."""
-    return Path(path) / var / "c" / Path(*(str(i) for i in idx))
+def chunk_path(where: PathLike, var: str, idx: tuple[int, ...]) -> str:
+    """Where the chunk ``idx`` of variable ``var`` is (zarr v3's default ``c/i/j`` keys)."""
+    return f"{place(where)}/{var}/c/{'/'.join(str(i) for i in idx)}"
 
 
-def _read_array(path: Path, var: str, fill: Any = None) -> tuple[np.ndarray, dict[tuple[int, ...], str]]:
+def _read_array(where: Place, var: str, fill: Any = None) -> tuple[np.ndarray, dict[tuple[int, ...], str]]:
     """The whole array of ``var`` and its unreadable chunks (chunk index → error); the
     elements of an unreadable chunk read as ``fill`` (default: the array's fill value)."""
-    array = zarr.open_array(str(path), path=var, mode="r")
+    array = open_group(where)[var]
+    assert isinstance(array, zarr.Array)
     try:
         return np.asarray(array[...]), {}
     except Exception:  # a torn or corrupt chunk; codecs raise many types
@@ -288,63 +376,88 @@ def _read_array(path: Path, var: str, fill: Any = None) -> tuple[np.ndarray, dic
     return values, bad
 
 
-def damaged_cases(path: Path, status: np.ndarray) -> dict[int, str]:
-    """Done cases whose data cannot be trusted: a metric chunk that is missing (the writer
-    writes every chunk of a finished case, fill values included) or any chunk that is
-    unreadable. Returns flat index → reason naming the variable's chunk file."""
-    path = Path(path)
-    group = zarr.open_group(str(path), mode="r")
-    shape = read_status_shape(path)
-    done = [int(f) for f in np.flatnonzero(np.asarray(status).ravel() == DONE)]
-    damaged: dict[int, str] = {}
+def _stored_chunks(where: Place, var: str) -> set[tuple[int, ...]]:
+    """The chunk indices of ``var`` that exist in the store."""
+    found = set()
+    for key in where.listing(f"{var}/c"):
+        parts = key.split("/")[2:]
+        if all(p.isdigit() for p in parts):
+            found.add(tuple(int(p) for p in parts))
+    return found
+
+
+def repair(where: PathLike) -> dict[int, str]:
+    """Make a damaged cube writable again and say which cases lost data: every chunk that
+    cannot be read is deleted (its elements read as fill values, a status chunk as pending),
+    and every done case with an unreadable block, or a metric block that is missing (the
+    writer writes every block of a finished case, fill values included), is marked pending
+    so the next run recomputes it. Returns flat index → reason naming the chunk. The caller
+    holds the cube's lock."""
+    at = place(where)
+    group = open_group(at)
+    status, status_bad = _read_array(at, "status", PENDING)
+    shape = status.shape
     metrics = metrics_for(str(group.attrs.get("layout_method")))
-    for var in (*metrics, *MAP_VARS, *TEXT):
-        if var not in group or not done:
+    damaged: dict[int, str] = {}
+    for var in ("status", *metrics, *MAP_VARS, *TEXT):
+        if var not in group:
             continue
-        values, bad = _read_array(path, var)
-        fill = metrics[var][3] if var in metrics else None
-        for flat in done:
-            if flat in damaged:
-                continue
-            idx = tuple(int(i) for i in np.unravel_index(flat, shape))
-            chunk = idx + (0,) * (values.ndim - len(idx))  # a case's map is one chunk (case, 0, 0)
-            if chunk in bad:
-                damaged[flat] = f"{chunk_path(path, var, chunk)} is unreadable ({bad[chunk]})"
-            elif fill is not None and not chunk_path(path, var, idx).exists():
-                damaged[flat] = f"{chunk_path(path, var, idx)} is missing"
+        array = group[var]
+        assert isinstance(array, zarr.Array)
+        bad = status_bad if var == "status" else _read_array(at, var)[1]
+        # a case's map lies in one chunk: its block is the case block followed by zeros
+        found = {block[: len(shape)]: f"is unreadable ({why})" for block, why in bad.items()}
+        if var in metrics:
+            stored = _stored_chunks(at, var)
+            grid = tuple(-(-s // c) for s, c in zip(shape, array.chunks, strict=False))
+            found.update(
+                {
+                    b: "is missing"
+                    for b in np.ndindex(grid)
+                    if b + (0,) * (array.ndim - len(shape)) not in stored
+                }
+            )
+        if not found:
+            continue
+        blocks = _case_block_ids(shape, array.chunks)
+        grid = tuple(-(-s // c) for s, c in zip(shape, array.chunks, strict=False))
+        ids = {int(np.ravel_multi_index(b, grid)): b for b in found}
+        hit = np.isin(blocks, list(ids)) & ((status.ravel() == DONE) | (var == "status"))
+        for flat in np.flatnonzero(hit):
+            block = ids[int(blocks[flat])]
+            full = block + (0,) * (array.ndim - len(shape))
+            damaged.setdefault(int(flat), f"{chunk_path(at, var, full)} {found[block]}")
+        for block in bad:
+            at.remove(f"{var}/c/{'/'.join(map(str, block))}")
+    if damaged:
+        CubeWriter(at).write([(flat, {"status": PENDING}) for flat in damaged])
     return damaged
 
 
-def read_status_shape(path: Path) -> tuple[int, ...]:
+def _case_block_ids(shape: tuple[int, ...], chunks: tuple[int, ...]) -> np.ndarray:
+    """The flat chunk index, over the case dimensions, of every case (flat order)."""
+    idx = np.unravel_index(np.arange(int(np.prod(shape))), shape)
+    grid = tuple(-(-s // c) for s, c in zip(shape, chunks, strict=False))
+    return np.ravel_multi_index(tuple(i // c for i, c in zip(idx, chunks, strict=False)), grid)
+
+
+def read_status_shape(where: PathLike) -> tuple[int, ...]:
     """Shape of the cube's case grid."""
-    return tuple(zarr.open_array(str(path), path="status", mode="r").shape)
+    status = open_group(where)["status"]
+    assert isinstance(status, zarr.Array)
+    return tuple(status.shape)
 
 
-def reset_cases(path: Path, flats: list[int]) -> None:
-    """Mark cases pending again so the next run recomputes them."""
-    array = zarr.open_array(str(path), path="status", mode="r+")
-    for flat in flats:
-        array[tuple(int(i) for i in np.unravel_index(flat, array.shape))] = PENDING
-
-
-def check_readable(path: Path) -> None:
-    """Raise :class:`CubeError` naming every unreadable chunk file of the cube (at most five)."""
-    group = zarr.open_group(str(path), mode="r")
+def check_readable(where: PathLike) -> None:
+    """Raise :class:`CubeError` naming every unreadable chunk of the cube (at most five)."""
+    at = place(where)
     found: list[str] = []
-    for name, _ in group.arrays():
-        _, bad = _read_array(Path(path), name)
-        found.extend(f"{chunk_path(path, name, idx)} ({err})" for idx, err in bad.items())
+    for name, _ in open_group(at).arrays():
+        _, bad = _read_array(at, name)
+        found.extend(f"{chunk_path(at, name, idx)} ({err})" for idx, err in bad.items())
     if found:
         more = f" and {len(found) - 5} more" if len(found) > 5 else ""
         raise CubeError(
-            f"{path} has unreadable chunks: {'; '.join(found[:5])}{more}. Re-run the sweep on it to "
+            f"{at} has unreadable chunks: {'; '.join(found[:5])}{more}. Re-run the sweep on it to "
             "recompute those cases, or delete the damaged files first"
         )
-
-
-def remove_stale_temporaries(path: Path) -> None:
-    """Delete template folders (``.NAME.zarr.tmp-PID``) left by writers that were killed
-    mid-create; call only while holding the cube's lock."""
-    path = Path(path)
-    for tmp in path.parent.glob(f".{path.name}.tmp-*"):
-        shutil.rmtree(tmp, ignore_errors=True)

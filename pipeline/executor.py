@@ -27,10 +27,11 @@ import dask
 
 from ftsweep import __version__, allocator, kinds
 from ftsweep.case import run_case
-from ftsweep.cube import CubeWriter
+from ftsweep.caselog import CaseLog
 from ftsweep.defaults import WORKER_WAIT_S
 from ftsweep.lines import LineCache
 from ftsweep.spec import Case
+from ftsweep.storage import Place
 from ftsweep.sweep import SweepSpec, case_at, case_lines
 
 
@@ -44,6 +45,7 @@ class TaskSpec:
     run_id : identifier recorded with every case this run computes.
     line_cache_mb : memory [MiB] each worker may hold of the lines its cases share
         (:class:`ftsweep.lines.LineCache`); 0 computes every case on its own.
+    storage_options : the cube's explicit storage options (JSON; :mod:`ftsweep.storage`).
     """
 
     cube: str
@@ -51,6 +53,7 @@ class TaskSpec:
     catalog_folder: Optional[str]
     run_id: str
     line_cache_mb: float = 0.0
+    storage_options: str = "{}"
 
 
 # the cache of the run this worker process serves (a new run releases the previous run's)
@@ -153,7 +156,8 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
     """Compute the cases ``indices`` of a sweep and write each into the cube (worker side)."""
     spec = SweepSpec.model_validate_json(task.spec_json)
     folder = Path(task.catalog_folder) if task.catalog_folder else None
-    writer = CubeWriter(Path(task.cube))
+    # each task logs its cases; the driver merges them into the cube's blocks (ftsweep.caselog)
+    writer = CaseLog(Place(task.cube, task.storage_options), task.run_id)
     run_id = task.run_id
     cache = line_cache(task)
     sharing = _sharing(spec, indices, folder) if cache is not None else set()

@@ -1,11 +1,21 @@
 """A writer's lock beside a cube: one process writes a cube at a time.
 
-The lock is a small JSON file ``NAME.zarr.lock`` next to the cube, created atomically
-(``O_CREAT | O_EXCL``) with the holder's pid, host and start time. It is removed when the
-writer finishes or raises. A lock left by a killed writer is stale: when its host is this
-machine and its pid no longer runs, the next writer removes it and goes on. A lock held by a
-live process, or by another host (whose processes cannot be seen from here), refuses the
-second writer with a message naming the holder.
+On a local file system the lock is a small JSON file ``NAME.zarr.lock`` next to the cube,
+created atomically (``O_CREAT | O_EXCL``) with the holder's pid, host and start time. It is
+removed when the writer finishes or raises. A lock left by a killed writer is stale: when its
+host is this machine and its pid no longer runs, the next writer removes it and goes on. A
+lock held by a live process, or by another host (whose processes cannot be seen from here),
+refuses the second writer with a message naming the holder.
+
+On object storage (``s3://``; ``memory://`` in one process) no pid can be checked, so the lock
+object ``NAME.zarr.lock`` is a lease: created with a conditional write (If-None-Match: only
+if absent), it names its owner and holds until ``lease_until``; the holder renews it every
+:data:`LEASE_S`/3 seconds by compare-and-swap (If-Match on the tag it wrote). A second
+writer is refused while the lease runs; once it expired (its holder was killed, or lost its
+network for :data:`LEASE_S`), the next writer takes it over by the same compare-and-swap,
+so of two that saw it expire exactly one wins. A holder whose renewal finds the lease taken
+stops before it writes again (:class:`LockError`). Stores without such conditional writes
+(``gs://``, ``abfs://`` through fsspec today) are refused for writing, naming why.
 """
 
 from __future__ import annotations
@@ -16,20 +26,23 @@ import signal
 import socket
 import threading
 import time
+import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
+
+from ftsweep.storage import PathLike, Place, place
 
 
 class LockError(RuntimeError):
     """Another live process writes the cube; the message names it."""
 
 
-def lock_path(cube: Path) -> Path:
-    """``NAME.zarr.lock`` beside ``NAME.zarr``."""
-    cube = Path(cube)
-    return cube.with_name(cube.name + ".lock")
+def lock_path(cube: PathLike) -> Path:
+    """``NAME.zarr.lock`` beside a local ``NAME.zarr``."""
+    at = place(cube)
+    return at.path.with_name(at.path.name + ".lock")
 
 
 def _pid_alive(pid: int) -> bool:
@@ -76,8 +89,9 @@ def _describe(holder: dict[str, Any] | None) -> str:
     )
 
 
-def acquire(cube: Path, command: str = "") -> Path:
-    """Create the lock of ``cube`` or raise :class:`LockError`; a stale lock is replaced."""
+def acquire(cube: PathLike, command: str = "") -> Path:
+    """Create the lock of a local ``cube`` or raise :class:`LockError`; a stale lock is
+    replaced."""
     path = lock_path(cube)
     path.parent.mkdir(parents=True, exist_ok=True)
     record = {
@@ -123,16 +137,134 @@ def release(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
+# how long a lease on object storage holds without renewal [s]
+LEASE_S = 60.0
+
+
+class Lease:
+    """The writer's lease on a cube in object storage (see the module's description)."""
+
+    def __init__(self, cube: PathLike, command: str = "", lease_s: float = LEASE_S) -> None:
+        self.cube = place(cube)
+        self.lock = self.cube.sibling(".lock")
+        if self.lock.protocol not in Place.CONDITIONAL:
+            raise LockError(
+                f"ftsweep cannot lock a cube on {self.lock.protocol}:// (its fsspec driver offers no "
+                "conditional writes to build a writer's lock on); write the cube to a local or shared "
+                "folder or to s3://, then copy it"
+            )
+        self.lease_s = lease_s
+        self.token = uuid.uuid4().hex
+        self.command = command
+        self.tag = ""
+        self.lost: Optional[str] = None
+        self._stop = threading.Event()
+        self._renewer: Optional[threading.Thread] = None
+
+    def _record(self) -> bytes:
+        return json.dumps(
+            {
+                "owner": self.token,
+                "pid": os.getpid(),
+                "host": socket.gethostname(),
+                "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+                "command": self.command,
+                "lease_until": time.time() + self.lease_s,
+            }
+        ).encode()
+
+    def acquire(self) -> None:
+        """Take the lease, or raise :class:`LockError` naming the holder of a running one."""
+        for _ in range(3):
+            try:
+                self.tag = self.lock.create("", self._record())
+                break
+            except FileExistsError:
+                pass
+            try:
+                data, tag = self.lock.read_tagged("")
+            except FileNotFoundError:
+                continue  # released in between: try again
+            holder = _parse(data)
+            until = float(holder.get("lease_until", 0)) if holder else 0.0
+            if until > time.time():
+                raise LockError(
+                    f"{self.cube} is being written by {_describe(holder)} (lease until "
+                    f"{time.strftime('%H:%M:%S', time.localtime(until))}); wait for it to finish, or, "
+                    f"if that run is gone, for its lease to expire (at most {self.lease_s:g} s)"
+                )
+            try:
+                self.tag = self.lock.replace_if("", self._record(), tag)
+                break
+            except FileExistsError:
+                continue  # another writer took the expired lease first
+        else:
+            raise LockError(f"could not take the lock {self.lock}: it keeps changing hands")
+        self._renewer = threading.Thread(target=self._renew, name="ftsweep-lease", daemon=True)
+        self._renewer.start()
+
+    def _renew(self) -> None:
+        while not self._stop.wait(self.lease_s / 3.0):
+            try:
+                self.tag = self.lock.replace_if("", self._record(), self.tag)
+            except FileExistsError:
+                self.lost = f"the lease on {self.cube} was taken over by another writer"
+                return
+            except Exception as exc:  # noqa: BLE001 - a network error: try again next period
+                self.lost = None if time.time() < self._deadline() else f"cannot renew the lease: {exc}"
+
+    def _deadline(self) -> float:
+        return time.time() + self.lease_s  # renewal keeps trying while the lease may still hold
+
+    def check(self) -> None:
+        """Raise :class:`LockError` if this writer no longer holds the lease."""
+        if self.lost:
+            raise LockError(f"{self.lost}; this run stops (its finished cases are in the cube)")
+
+    def release(self) -> None:
+        """Stop renewing and delete the lease if it is still this writer's."""
+        self._stop.set()
+        if self._renewer is not None:
+            self._renewer.join(timeout=10)
+        try:
+            data, _ = self.lock.read_tagged("")
+        except FileNotFoundError:
+            return
+        holder = _parse(data)
+        if holder is not None and holder.get("owner") == self.token:
+            self.lock.remove("")
+
+
+def _parse(data: bytes) -> Optional[dict[str, Any]]:
+    try:
+        holder = json.loads(data)
+    except ValueError:
+        return None
+    return holder if isinstance(holder, dict) else None
+
+
 @contextmanager
-def cube_lock(cube: Path, command: str = "") -> Iterator[Path]:
-    """Hold the writer's lock of ``cube`` for the ``with`` block (released on any exit, and on
-    SIGTERM, which batch schedulers send to end a job: :func:`terminate_as_exit`)."""
-    path = acquire(cube, command)
+def cube_lock(cube: PathLike, command: str = "") -> Iterator[Optional[Lease]]:
+    """Hold the writer's lock of ``cube`` (a local folder: a lock file; object storage: a
+    :class:`Lease`, yielded so the writer can :meth:`Lease.check` it) for the ``with`` block,
+    released on any exit, and on SIGTERM, which batch schedulers send to end a job
+    (:func:`terminate_as_exit`)."""
+    at = place(cube)
+    if at.local:
+        path = acquire(at.path, command)
+        try:
+            with terminate_as_exit():
+                yield None
+        finally:
+            release(path)
+        return
+    lease = Lease(at, command)
+    lease.acquire()
     try:
         with terminate_as_exit():
-            yield path
+            yield lease
     finally:
-        release(path)
+        lease.release()
 
 
 @contextmanager

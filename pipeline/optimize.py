@@ -17,7 +17,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import shutil
 import time
 import uuid
 from collections.abc import Callable
@@ -26,7 +25,6 @@ from typing import Any, Optional
 
 import numpy as np
 import xarray as xr
-import zarr
 
 from ftsweep import __version__, catalogs, cube, kinds
 from ftsweep.case import run_case
@@ -34,6 +32,7 @@ from ftsweep.cube import SCHEMA_VERSION, CubeError, CubeWriter, git_revision
 from ftsweep.kinds.requests import program_request
 from ftsweep.lock import cube_lock
 from ftsweep.spec import Case, CaseError, Resolution
+from ftsweep.storage import PathLike, Place, place
 from ftsweep.sweep import axis_attrs
 
 
@@ -51,10 +50,10 @@ def _key(points: float, aspect: float) -> tuple[int, float]:
     return int(points), round(float(aspect), 9)
 
 
-def _optimize_attrs(path: Path, any_version: bool = False) -> dict[str, Any]:
+def _optimize_attrs(path: PathLike, any_version: bool = False) -> dict[str, Any]:
     """Attributes of an existing evaluation cube; anything else at ``path`` is never replaced."""
     try:
-        attrs = dict(zarr.open_group(str(path), mode="r").attrs)
+        attrs = dict(cube.open_group(path).attrs)
     except Exception:  # zarr raises several types for "not a group"
         attrs = {}
     if attrs.get("kind") != "optimize":
@@ -83,7 +82,7 @@ class Optimizer:
         surface: str,
         layout: str,
         tolerance_nm: float,
-        out: Path,
+        out: Place,
         machine: str,
         cutting: str,
         compensation: str,
@@ -106,10 +105,12 @@ class Optimizer:
         finished evaluations fill the cache and the record. Returns how many were reused."""
         spec_json = json.dumps(spec, sort_keys=True)
         spec_hash = hashlib.sha256(spec_json.encode()).hexdigest()[:16]
+        if cube.unfinished(self.out):  # its writer was killed while creating it
+            self.out.remove_all()
         if self.out.exists():
             attrs = _optimize_attrs(self.out, any_version=restart)
             if restart:
-                shutil.rmtree(self.out)
+                self.out.remove_all()
             elif attrs.get("optimize_spec_hash") != spec_hash:
                 changed = _changed(attrs.get("optimize_spec"), spec)
                 raise CubeError(
@@ -160,7 +161,7 @@ class Optimizer:
 
     def _load_finished(self) -> int:
         status = cube.read_status(self.out)
-        texts = np.asarray(zarr.open_array(str(self.out), path="record_json", mode="r")[...])
+        texts = np.asarray(cube.open_group(self.out)["record_json"][...])  # type: ignore[index]
         for i in np.flatnonzero(status != cube.PENDING):
             rec = json.loads(str(texts[i]))
             self.cache[_key(rec["points_target"], rec["aspect_target"])] = rec
@@ -327,7 +328,7 @@ def optimize(
     surface: str,
     layout: Optional[str],
     tolerance_nm: float,
-    out: Optional[Path] = None,
+    out: Optional[PathLike] = None,
     start_points: float = 50_000,
     machine: str = "fts-1m",
     cutting: str = "reference",
@@ -352,8 +353,7 @@ def optimize(
     _aspect_range(layout)  # a path program has no aspect search: said before anything is written
     if not tolerance_nm > 0:
         raise ValueError(f"the tolerance must be positive, got {tolerance_nm}")
-    out = Path(out) if out else Path("outputs") / f"optimize-{surface}-{layout}.zarr"
-    out = out.absolute()
+    out = place(out if out else Path("outputs") / f"optimize-{surface}-{layout}.zarr")
     with cube_lock(out, f"ftsweep optimize {surface}"):
         opt = Optimizer(
             surface,

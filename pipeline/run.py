@@ -6,7 +6,6 @@ import functools
 import json
 import math
 import os
-import shutil
 import time
 import uuid
 import warnings
@@ -17,18 +16,24 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import catalogs, cube, kinds
+from ftsweep import caselog, catalogs, cube, kinds
 from ftsweep.cube import CubeError
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
 from ftsweep.executor import Cluster, TaskSpec, execute, run_task, warm_up
 from ftsweep.lock import cube_lock
 from ftsweep.spec import CaseError
+from ftsweep.storage import PathLike, Place, place
 from ftsweep.sweep import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
 
 
 def default_cube_path(name: str) -> Path:
     """``outputs/<sweep>.zarr`` in the current folder."""
     return Path("outputs") / f"{name}.zarr"
+
+
+# the driver merges its workers' case logs into the cube at most this often [s] (and at the
+# end): readers of a running sweep's cube see its cases this late at most
+MERGE_EVERY_S = 5.0
 
 
 # a cube's template is built in memory: beyond this it would not fit
@@ -69,7 +74,7 @@ def default_workers() -> int:
 class SweepReport:
     """What a sweep run did; ``rows`` are the per-case summaries of this run."""
 
-    cube: Path
+    cube: Place
     total: int
     skipped: int
     rows: list[dict] = field(default_factory=list)
@@ -112,16 +117,22 @@ def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
     return sorted(k for k in set(old) | set(now) if old.get(k) != now.get(k))
 
 
-def prepare_cube(name: str, spec: SweepSpec, out: Path, restart: bool, catalog_folder: Optional[Path]) -> int:
-    """Create the cube, or check an existing one belongs to ``spec``; returns cases already done.
+def prepare_cube(
+    name: str, spec: SweepSpec, out: Place, restart: bool, catalog_folder: Optional[Path]
+) -> int:
+    """Create the cube, or check an existing one belongs to ``spec`` and merge the case logs
+    a killed run left; returns cases already done. The caller holds the cube's lock.
 
     An existing cube from another spec is refused unless ``restart``, which discards any
-    existing cube and starts over.
+    existing cube and starts over. An unfinished template (a run killed while creating it)
+    is replaced.
     """
+    if cube.unfinished(out):
+        out.remove_all()
     if out.exists():
         attrs = cube.read_attrs(out, check_schema=not restart)
         if restart:
-            shutil.rmtree(out)
+            out.remove_all()
         elif attrs["sweep_spec_hash"] != spec.spec_hash():
             changed = ", ".join(_changed_keys(attrs["sweep_spec"], spec)) or "the spec"
             raise CubeError(
@@ -137,6 +148,7 @@ def prepare_cube(name: str, spec: SweepSpec, out: Path, restart: bool, catalog_f
                     f"{now[:10]}; resuming mixes their results (use --restart to recompute all)",
                     stacklevel=2,
                 )
+            caselog.merge_logs(out)
             return int(np.count_nonzero(cube.read_status(out) == cube.DONE))
     entries = catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, catalog_folder)
     cube.create(out, cube.template(spec, name, entries))
@@ -145,7 +157,7 @@ def prepare_cube(name: str, spec: SweepSpec, out: Path, restart: bool, catalog_f
 
 def run_sweep(
     name_or_path: str,
-    out: Optional[Path] = None,
+    out: Optional[PathLike] = None,
     scheduler: Optional[str] = None,
     workers: Optional[int] = None,
     restart: bool = False,
@@ -157,6 +169,7 @@ def run_sweep(
     line_cache_mb: float = LINE_CACHE_MB,
     announce: Optional[Callable[[SweepReport], None]] = None,
     worker_wait_s: float = WORKER_WAIT_S,
+    storage_options: Optional[dict[str, Any]] = None,
 ) -> SweepReport:
     """Run (or resume) a sweep; cases already done in the cube are skipped.
 
@@ -176,11 +189,13 @@ def run_sweep(
         dashboard), before any case runs.
     worker_wait_s : seconds to wait for a first worker of an external scheduler, and for one
         to come back after every worker left; then :class:`~ftsweep.executor.ExecutorError`.
+    out : a local folder or an fsspec URL (:mod:`ftsweep.storage`), with ``storage_options``
+        for it beyond fsspec's configuration (they travel to the workers).
     """
     name, spec = load_sweep(name_or_path, catalog_folder)
     check_sweep_size(spec, max_cases)
     # workers may run in another folder (an external scheduler's): they get absolute paths
-    out = (Path(out) if out is not None else default_cube_path(name)).absolute()
+    out = place(out if out is not None else default_cube_path(name), storage_options)
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
     workers = 1 if scheduler == "synchronous" else (workers or default_workers())
     with cube_lock(out, command=f"ftsweep sweep {name_or_path}"):
@@ -196,20 +211,17 @@ def run_sweep(
         )
 
 
-def _undamaged_status(out: Path, already: int) -> tuple[np.ndarray, dict[int, str]]:
-    """The cube's case status with every done case whose chunks are missing or unreadable
-    reset to pending (they are recomputed), and those cases with the reason."""
-    status = cube.read_status(out).ravel()
-    damaged = cube.damaged_cases(out, status) if already else {}
-    if damaged:
-        cube.reset_cases(out, list(damaged))
-        status = cube.read_status(out).ravel()
-    return status, damaged
+def _undamaged_status(out: Place) -> tuple[np.ndarray, dict[int, str]]:
+    """The cube's case status after :func:`ftsweep.cube.repair` (unreadable chunks deleted,
+    done cases with missing or unreadable data pending again), and those cases with the
+    reason."""
+    damaged = cube.repair(out)
+    return cube.read_status(out).ravel(), damaged
 
 
 def _wanted_cases(
     spec: SweepSpec,
-    out: Path,
+    out: Place,
     status: np.ndarray,
     rerun: tuple[bool, Optional[float]],
     run_id: str,
@@ -246,8 +258,13 @@ def _compute(
     progress, announce = watchers
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
 
+    merged = [time.monotonic()]
+
     def on_result(rows: list[dict]) -> None:
         report.rows.extend(rows)
+        if time.monotonic() - merged[0] >= MERGE_EVERY_S:
+            caselog.merge_logs(report.cube)
+            merged[0] = time.monotonic()
         if progress is not None:
             progress(report, rows)
 
@@ -264,7 +281,14 @@ def _compute(
     assert spec.layout is not None
     execute(
         plan,
-        TaskSpec(str(report.cube), spec.model_dump_json(), folder, run_id, where.line_cache_mb),
+        TaskSpec(
+            report.cube.url,
+            spec.model_dump_json(),
+            folder,
+            run_id,
+            where.line_cache_mb,
+            report.cube.options_json,
+        ),
         where.scheduler,
         where.workers,
         on_result,
@@ -278,17 +302,16 @@ def _compute(
 def _run_locked(
     name: str,
     spec: SweepSpec,
-    out: Path,
+    out: Place,
     where: Where,
     restart: bool,
     rerun: tuple[bool, Optional[float]],
     catalog_folder: Optional[Path],
     watchers: Watchers,
 ) -> SweepReport:
-    cube.remove_stale_temporaries(out)
     already = prepare_cube(name, spec, out, restart, catalog_folder)
-    status, damaged = _undamaged_status(out, already)
-    already -= len(damaged)
+    status, damaged = _undamaged_status(out)
+    already = int(np.count_nonzero(status == cube.DONE))
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
     pending, status = _wanted_cases(spec, out, status, rerun, run_id, catalog_folder)
     report = SweepReport(
@@ -297,13 +320,22 @@ def _run_locked(
     report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
     report.queued = len(pending)
     start = time.perf_counter()
-    _compute(report, spec, pending, where, run_id, catalog_folder, watchers)
+    try:
+        _compute(report, spec, pending, where, run_id, catalog_folder, watchers)
+    finally:
+        # also on an error or a signal: what the workers finished goes into the blocks now
+        caselog.merge_logs(out)
     report.wall_s = time.perf_counter() - start
     return report
 
 
 def prune_cases(
-    spec: SweepSpec, out: Path, status: np.ndarray, factor: float, run_id: str, catalog_folder: Optional[Path]
+    spec: SweepSpec,
+    out: Place,
+    status: np.ndarray,
+    factor: float,
+    run_id: str,
+    catalog_folder: Optional[Path],
 ) -> int:
     """Mark pending cases hopeless by the estimate as pruned (see :func:`run_sweep`); returns
     how many this call pruned."""
@@ -329,14 +361,13 @@ def prune_cases(
     return int(targets.size)
 
 
-def best_per_point_count(path: Path) -> list[dict[str, Any]]:
+def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
     """For each target point count: its best eligible case (:mod:`ftsweep.query`), the one
     ``select`` and ``ds.ftsweep.optimum()`` name too (None where no case is eligible)."""
-    import xarray as xr
 
     from ftsweep import query
 
-    ds = xr.open_zarr(path).load()
+    ds = cube.open_dataset(path).load()
     rows = []
     for target, flat in query.best_per_points(ds):
         if flat is None:
@@ -366,7 +397,7 @@ def best_per_point_count(path: Path) -> list[dict[str, Any]]:
     return rows
 
 
-def cube_counts(path: Path) -> dict[str, int]:
+def cube_counts(path: PathLike) -> dict[str, int]:
     """Cases pending, done, failed and pruned in a cube."""
     status = cube.read_status(path)
     return {

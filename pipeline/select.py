@@ -7,7 +7,6 @@ dynamics, and within the controller's capacity.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
@@ -15,20 +14,24 @@ import xarray as xr
 
 from ftsweep import cube
 from ftsweep.query import best_flat, capacity_of, describe, eligible, position
+from ftsweep.storage import PathLike, place
 
 
 class SelectError(ValueError):
     """Nothing can be selected as asked; the message says why."""
 
 
-def open_cube(path: Path) -> xr.Dataset:
-    """Open a cube for reading and load it: checks it is an ftsweep cube and that every chunk
-    can be read, naming the chunk files that cannot (a cube is small: a few MB)."""
-    cube.read_attrs(Path(path))
+def open_cube(path: PathLike) -> xr.Dataset:
+    """Open a cube (a path or URL) for reading and load it: checks it is an ftsweep cube and
+    that every chunk can be read, naming the chunks that cannot (a cube is small: a few MB)."""
+    at = place(path)
+    if not at.exists():
+        raise cube.CubeError(f"no cube at {at}")
+    cube.read_attrs(at)
     try:
-        return xr.open_zarr(path).load()
+        return cube.open_dataset(at).load()
     except Exception:  # codecs raise many types for a damaged chunk: name the files instead
-        cube.check_readable(Path(path))
+        cube.check_readable(at)
         raise
 
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from clusters import BIN, external_cluster
 
-from ftsweep import cube
+from ftsweep import caselog, cube
 from ftsweep.lock import lock_path
 from ftsweep.run import run_sweep
 from ftsweep.sweep import load_sweep, n_cases, plan_tasks
@@ -50,7 +50,7 @@ def _env(catalog_dir: Path) -> dict[str, str]:
 
 def _done(out: Path) -> int:
     try:
-        return int(np.sum(cube.read_status(out) == cube.DONE))
+        return int(np.sum(caselog.current_status(out) == cube.DONE))
     except Exception:  # the template is not in place yet
         return 0
 

@@ -25,7 +25,10 @@ def _images(cell) -> int:
     return sum(1 for out in cell.get("outputs", []) if "image/png" in out.get("data", {}))
 
 
-def test_every_plot_shows_inline_and_later_matplotlib_cells_still_show(tmp_path, catalog_dir):
+def test_every_plot_shows_inline_and_later_matplotlib_cells_still_show(tmp_path, catalog_dir, monkeypatch):
+    # the kernel inherits this process's environment: a CLI test run before sets MPLBACKEND=Agg
+    # here (the command line's own choice), which a user's Jupyter does not have
+    monkeypatch.delenv("MPLBACKEND", raising=False)
     spec = tmp_path / "nb.yaml"
     spec.write_text(SPEC)
     cube = tmp_path / "nb.zarr"

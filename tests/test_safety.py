@@ -20,7 +20,7 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
-from ftsweep import cube
+from ftsweep import caselog, cube
 from ftsweep.cli import main
 from ftsweep.export import ExportError, export, verify
 from ftsweep.kinds.table_header import CHECKSUM_MACRO, checksum, read_header
@@ -439,8 +439,18 @@ def six_cube(tmp_path, catalog_dir):
     return spec, out
 
 
-def test_missing_and_corrupt_chunks_of_done_cases_are_recomputed(six_cube, tmp_path, catalog_dir):
-    spec, out = six_cube
+@pytest.fixture()
+def six_case_blocks(tmp_path, catalog_dir, monkeypatch):
+    """The six cases in blocks of one case each (cubes block 4,096), to damage one at a time."""
+    monkeypatch.setattr(cube, "BLOCK_CASES", 1)
+    spec = write(tmp_path, "six.yaml", SIX_CASES)
+    out = tmp_path / "six.zarr"
+    run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    return spec, out
+
+
+def test_missing_and_corrupt_chunks_of_done_cases_are_recomputed(six_case_blocks, tmp_path, catalog_dir):
+    spec, out = six_case_blocks
     before = data_of(out)
     (out / "pv_nm" / "c" / "0" / "1").unlink()  # a deleted data chunk
     corrupt = out / "rms_nm" / "c" / "1" / "2"
@@ -463,7 +473,7 @@ def test_task_failure_names_the_case_and_cause(tmp_path, catalog_dir, monkeypatc
     def full_disk(self, flat, record, run_id):  # type: ignore[no-untyped-def]
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(cube.CubeWriter, "write_done", full_disk)
+    monkeypatch.setattr(caselog.CaseLog, "write_done", full_disk)
     out = tmp_path / "full.zarr"
     r = cli(["sweep", str(spec), "--out", str(out), "--scheduler", "synchronous"], catalog_dir)
     assert_one_line_error(r, "No space left on device")

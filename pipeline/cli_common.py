@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import math
+from pathlib import Path
 from typing import Any, Optional
 
 import click
@@ -41,6 +42,64 @@ TRUST_PLUGINS = click.option(
     help="Run a plug-in surface the file names even if the local catalog does not declare it "
     "(plug-ins are code: only for files you trust; README 'Trust').",
 )
+
+
+class CubeLocation(click.ParamType):
+    """A cube: a local folder (which must exist) or an fsspec URL (``s3://bucket/c.zarr``, checked
+    when opened); the value stays text so a URL is not mangled into a path."""
+
+    name = "cube"
+
+    def convert(self, value: Any, param: Optional[click.Parameter], ctx: Optional[click.Context]) -> str:
+        text = str(value)
+        if "://" in text and not text.startswith("file://"):
+            return text
+        path = Path(text.removeprefix("file://"))
+        if not path.exists():
+            self.fail(f"{text!r} does not exist", param, ctx)
+        if not path.is_dir():
+            self.fail(f"{text!r} is a file, not a cube (a Zarr folder)", param, ctx)
+        return text
+
+
+CUBE = CubeLocation()
+
+# storage options of a cube given as a URL; the usual places come first (fsspec's configuration)
+STORAGE_OPTIONS = click.option(
+    "--storage-option",
+    "storage_options",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="An fsspec storage option for a cube given as a URL (repeat for more; VALUE is JSON when it "
+    "parses), e.g. --storage-option endpoint_url=http://127.0.0.1:9000. Options also come from "
+    "fsspec's configuration (FSSPEC_S3_ENDPOINT_URL=..., ~/.config/fsspec) and the store's own "
+    "(AWS_* variables, ~/.aws).",
+)
+
+
+def cube_place(text: str, storage_options: tuple[str, ...]) -> Any:
+    """The :class:`~ftsweep.storage.Place` of a CUBE argument or ``--out`` with its options;
+    a malformed option is a usage error."""
+    from ftsweep.storage import StorageError, parse_options, place
+
+    try:
+        return place(text, parse_options(storage_options))
+    except StorageError as exc:
+        raise click.BadParameter(str(exc), param_hint="--storage-option") from None
+
+
+def local_output(text: Optional[str], what: str) -> Optional[Path]:
+    """A local path for a file or folder ftsweep writes; a URL is refused (a header goes to the
+    controller from a disk, a report is opened in a browser), saying how to get it there."""
+    if text is None:
+        return None
+    if "://" in text and not text.startswith("file://"):
+        raise click.BadParameter(
+            f"{what} is written to a local path, not {text}; write it here and copy it with your "
+            "storage's tools (aws s3 cp, gsutil cp, ...)",
+            param_hint="-o/--out",
+        )
+    return Path(text.removeprefix("file://"))
 
 
 def threads_option(command: Any) -> Any:

@@ -12,10 +12,14 @@ import click
 
 from ftsweep.cli_common import (
     COUNT,
+    CUBE,
     NON_NEGATIVE,
     POSITIVE,
+    STORAGE_OPTIONS,
     TRUST_PLUGINS,
+    cube_place,
     echo_json,
+    local_output,
     progress_done,
     stderr_progress,
     threads_option,
@@ -58,14 +62,19 @@ def _selection_text(chosen: dict[str, Any]) -> str:
 
 
 @click.command()
-@click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.argument("cube_path", metavar="CUBE", type=CUBE)
 @click.option("--budget-points", type=COUNT, help="Best aspect ratio at or under this many points.")
 @click.option("--tolerance-nm", type=POSITIVE, help="Fewest points whose P-V meets this tolerance [nm].")
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+@STORAGE_OPTIONS
 def select(
-    cube_path: Path, budget_points: Optional[int], tolerance_nm: Optional[float], as_json: bool
+    cube_path: str,
+    budget_points: Optional[int],
+    tolerance_nm: Optional[float],
+    as_json: bool,
+    storage_options: tuple[str, ...],
 ) -> None:
-    """Choose the layout for production from a sweep's cube.
+    """Choose the layout for production from a sweep's cube (a folder or a URL).
 
     Only computed, feasible cases within the controller's capacity are ever chosen. With
     --budget-points: the lowest P-V at or under that many points. With --tolerance-nm: the
@@ -75,7 +84,7 @@ def select(
     from ftsweep.select import SelectError, choose, open_cube
 
     try:
-        chosen = choose(open_cube(cube_path), budget_points, tolerance_nm)
+        chosen = choose(open_cube(cube_place(cube_path, storage_options)), budget_points, tolerance_nm)
     except (SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     if as_json:
@@ -88,7 +97,7 @@ def select(
 
 
 @click.command()
-@click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.argument("cube_path", metavar="CUBE", type=CUBE)
 @click.option("--budget-points", type=COUNT, help="Export the best layout at or under this many points.")
 @click.option("--tolerance-nm", type=POSITIVE, help="Export the smallest layout meeting this P-V [nm].")
 @click.option("--case", "index", type=int, help="Export the case at this flat index of the cube.")
@@ -97,21 +106,23 @@ def select(
     "--output",
     "out",
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Header file to write (FILE.h); the sidecar FILE.json is written beside it.",
+    type=click.Path(dir_okay=False),
+    help="Header file to write (FILE.h, a local path); the sidecar FILE.json is written beside it.",
 )
 @click.option("--name", help="Prefix of the C identifiers. Default: the file name.")
 @click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
 @TRUST_PLUGINS
+@STORAGE_OPTIONS
 def export(
-    cube_path: Path,
+    cube_path: str,
     budget_points: Optional[int],
     tolerance_nm: Optional[float],
     index: Optional[int],
-    out: Path,
+    out: str,
     name: Optional[str],
     force: bool,
     trust_plugins: bool,
+    storage_options: tuple[str, ...],
 ) -> None:
     """Export the chosen case of a cube: a ring or mesh table (layered or not) as a C header
     for the FTS controller (-o FILE.h), a spiral program (layered or not) as plain-text lines
@@ -129,14 +140,17 @@ def export(
     from ftsweep.cube import CubeError
     from ftsweep.select import SelectError
 
+    target = local_output(out, "the exported program")
+    assert target is not None
+    cube = cube_place(cube_path, storage_options)
     try:
-        meta = exp.export(cube_path, out, budget_points, tolerance_nm, index, force, name, trust_plugins)
+        meta = exp.export(cube, target, budget_points, tolerance_nm, index, force, name, trust_plugins)
     except (exp.ExportError, SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(_selection_text(meta["selection"]))
-    for line in exp.format_of_file(out).exported(out, meta):
+    for line in exp.format_of_file(target).exported(target, meta):
         click.echo(line)
-    click.echo(f"sidecar      {exp.sidecar_path(out)}")
+    click.echo(f"sidecar      {exp.sidecar_path(target)}")
 
 
 @click.command()
@@ -188,12 +202,13 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, 
 
 
 @click.command()
-@click.argument("cube_path", metavar="CUBE", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.argument("cube_path", metavar="CUBE", type=CUBE)
 @click.option(
     "--out",
     "out_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    help="Folder for the figures and index.html. Default: <cube>-report beside the cube.",
+    type=click.Path(file_okay=False),
+    help="Folder for the figures and index.html. Default: <cube>-report beside a local cube, "
+    "outputs/<cube>-report for a URL.",
 )
 @click.option(
     "--case",
@@ -209,8 +224,14 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, 
     help="Bins per side of the error map.",
 )
 @TRUST_PLUGINS
+@STORAGE_OPTIONS
 def report(
-    cube_path: Path, out_dir: Optional[Path], index: Optional[int], map_bins: int, trust_plugins: bool
+    cube_path: str,
+    out_dir: Optional[str],
+    index: Optional[int],
+    map_bins: int,
+    trust_plugins: bool,
+    storage_options: tuple[str, ...],
 ) -> None:
     """Figures of a sweep's cube and one HTML page that shows them with its metadata.
 
@@ -226,7 +247,14 @@ def report(
     progress = stderr_progress("error map")
     click.echo("plotting the cube; re-simulating the chosen case for its error map ...", err=True)
     try:
-        paths = make_report(cube_path, out_dir, index, map_bins, progress, trust_plugins)
+        paths = make_report(
+            cube_place(cube_path, storage_options),
+            local_output(out_dir, "the report"),
+            index,
+            map_bins,
+            progress,
+            trust_plugins,
+        )
     except (CubeError, SelectError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None
     finally:
@@ -241,7 +269,7 @@ def report(
     nargs=-1,
     required=True,
     metavar="CUBE...",
-    type=click.Path(exists=True, file_okay=False, path_type=Path),
+    type=CUBE,
 )
 @click.option(
     "-o",
@@ -262,8 +290,14 @@ def report(
     "simulating the tables' and spirals' rows again on the finest sampling among them.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object (the rows) on stdout.")
+@STORAGE_OPTIONS
 def compare(
-    cubes: tuple[Path, ...], out: Optional[Path], allow_different: bool, as_recorded: bool, as_json: bool
+    cubes: tuple[str, ...],
+    out: Optional[Path],
+    allow_different: bool,
+    as_recorded: bool,
+    as_json: bool,
+    storage_options: tuple[str, ...],
 ) -> None:
     """Compare program kinds on one part: tables (ring, mesh), spiral, D-path and Fresnel programs.
 
@@ -292,7 +326,7 @@ def compare(
 
     progress = stderr_progress("re-simulating", as_json)
     try:
-        rows, per_cube = compare_rows(list(cubes), allow_different)
+        rows, per_cube = compare_rows([cube_place(c, storage_options) for c in cubes], allow_different)
         n_theta = None if as_recorded else common_sampling(rows, progress=progress)
     except (SelectError, CubeError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None

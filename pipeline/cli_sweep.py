@@ -8,12 +8,11 @@ import signal
 import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, Optional
 
 import click
 
-from ftsweep.cli_common import COUNT, NON_NEGATIVE, FiniteRange, one_line
+from ftsweep.cli_common import COUNT, NON_NEGATIVE, STORAGE_OPTIONS, FiniteRange, cube_place, one_line
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S
 
 
@@ -21,8 +20,9 @@ from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S
 @click.argument("sweep_name", metavar="NAME|PATH")
 @click.option(
     "--out",
-    type=click.Path(file_okay=False, path_type=Path),
-    help="Cube to write (a Zarr folder). Default: outputs/<sweep>.zarr.",
+    metavar="PATH|URL",
+    help="Cube to write: a Zarr folder, or an fsspec URL (s3://bucket/c.zarr, gs://, abfs://, "
+    "memory://) that every worker reaches. Default: outputs/<sweep>.zarr.",
 )
 @click.option(
     "--scheduler",
@@ -70,9 +70,10 @@ from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S
     help="How long to wait for a first worker of --scheduler, and for one to come back after "
     "every worker left; then the run ends with exit status 1 (finished cases are in the cube).",
 )
+@STORAGE_OPTIONS
 def sweep(
     sweep_name: str,
-    out: Optional[Path],
+    out: Optional[str],
     scheduler: Optional[str],
     workers: Optional[int],
     restart: bool,
@@ -81,6 +82,7 @@ def sweep(
     prune: Optional[float],
     line_cache_mb: float,
     worker_wait: float,
+    storage_options: tuple[str, ...],
 ) -> None:
     """Run a sweep of point counts and aspect ratios into a Zarr result cube.
 
@@ -109,7 +111,7 @@ def sweep(
     click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
     report = _run(
         sweep_name,
-        out,
+        None if out is None else cube_place(out, storage_options),
         scheduler,
         workers,
         restart,

@@ -40,8 +40,9 @@ from ftsweep.cli_common import COUNT, FINITE, POSITIVE, echo_json, fail
 @click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
 @click.option(
     "--out",
-    type=click.Path(file_okay=False, path_type=Path),
-    help="Cube recording every evaluation. Default: outputs/optimize-<surface>-<layout>.zarr.",
+    type=click.Path(file_okay=False),
+    help="Cube recording every evaluation (a folder, or an fsspec URL with storage options from "
+    "fsspec's configuration). Default: outputs/optimize-<surface>-<layout>.zarr.",
 )
 @click.option(
     "--restart",
@@ -66,7 +67,7 @@ def optimize(
     start_points: float,
     machine: str,
     cutting: str,
-    out: Optional[Path],
+    out: Optional[str],
     restart: bool,
     seed: str,
     as_json: bool,

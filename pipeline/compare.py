@@ -17,20 +17,24 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, Optional
 
 from ftsweep import kinds, query
 from ftsweep.select import SelectError, open_cube, recorded_case
+from ftsweep.storage import PathLike, Place, place
 
 
-def label_of(ds: Any, path: Path) -> str:
+def label_of(ds: Any, path: PathLike) -> str:
     """``kind: rule`` of a cube, e.g. ``ring table`` or ``spiral (chord_um)``."""
     kind = ds.attrs.get("layout_method", "?")
+    stem = place(path).name.removesuffix(".zarr")
     if kinds.kind(kind).aspect_range is None:  # a path program: its rule or spacing axis
-        return f"{kind} ({ds['status'].dims[0]}) {path.stem}"
-    return f"{kind} table {path.stem}"
+        return f"{kind} ({ds['status'].dims[0]}) {stem}"
+    return f"{kind} table {stem}"
 
+
+# each compared cube's place, with the storage options it was given (rows hold its text)
+_OPENED_AT: dict[str, Place] = {}
 
 # what must match for two cubes to be compared: the part, the tool, the feed, the machine and
 # the compensation (the spindle-angle sampling is the resolution's, recorded per case)
@@ -76,7 +80,7 @@ def differing(per_cube: dict[str, dict[str, str]]) -> list[str]:
 
 
 def compare_rows(
-    paths: list[Path], allow_different: bool = False
+    paths: list[PathLike], allow_different: bool = False
 ) -> tuple[list[dict[str, Any]], dict[str, dict[str, str]]]:
     """One row per (cube, point-axis value) with a chosen case: cube label, the axis value,
     realised N and the case's P-V, RMS and interpolation-only P-V [nm]; and each cube's
@@ -86,7 +90,8 @@ def compare_rows(
     per_cube: dict[str, dict[str, str]] = {}
     for path in paths:
         ds = open_cube(path).load()
-        label = label_of(ds, Path(path))
+        label = label_of(ds, path)
+        _OPENED_AT[str(place(path))] = place(path)
         per_cube[label] = conditions(ds)
         for target, flat in query.best_per_points(ds):
             if flat is None:
@@ -96,7 +101,7 @@ def compare_rows(
                 {
                     "program": label,
                     "kind": str(ds.attrs.get("layout_method")),
-                    "cube": str(path),
+                    "cube": str(place(path)),
                     "index": int(flat),
                     "target": target,
                     "n_points": case["n_points"],
@@ -164,7 +169,7 @@ def common_sampling(
         r["pv_recorded_nm"] = r["pv_nm"]
     opened: dict[str, Any] = {}
     for i, r in enumerate(todo):
-        ds = opened.setdefault(r["cube"], open_cube(Path(r["cube"])))
+        ds = opened.setdefault(r["cube"], open_cube(_OPENED_AT.get(r["cube"], r["cube"])))
         case, specs = recorded_case(ds, r["index"], trust_plugins)
         case = case.model_copy(update={"resolution": case.resolution.model_copy(update={"n_theta": n_theta})})
         record = run_case(case, specs=specs)

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ftsweep.files import ExportError, check_overwrite, sidecar_path
+from ftsweep.storage import PathLike
 
 Progress = Callable[[int, int], None] | None
 
@@ -158,7 +159,7 @@ def format_of_file(path: Path) -> FileFormat:
 
 
 def export(
-    cube_path: Path,
+    cube_path: PathLike,
     out: Path,
     budget_points: int | None = None,
     tolerance_nm: float | None = None,
@@ -167,7 +168,7 @@ def export(
     name: str | None = None,
     trust_plugins: bool = False,
 ) -> dict[str, Any]:
-    """Choose a case of a cube (``select``'s rules), plan it again from the cube's recorded
+    """Choose a case of a cube (a path or URL; ``select``'s rules), plan it again from the cube's recorded
     spec and catalog entries and write it in its kind's format with its sidecar, atomically
     (a table as a C header, a spiral or D-path program as plain-text lines). Returns the
     sidecar's content. A plug-in surface the cube names must be in the local catalog unless

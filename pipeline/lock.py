@@ -137,14 +137,29 @@ def release(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-# how long a lease on object storage holds without renewal [s]
+# how long a lease on object storage holds without renewal [s]; FTSWEEP_LOCK_LEASE_S sets
+# another (shorter: a killed run's cube is free sooner; longer: slow networks)
 LEASE_S = 60.0
+
+
+def lease_seconds() -> float:
+    """The lease: ``FTSWEEP_LOCK_LEASE_S`` if set (a positive number of seconds), else :data:`LEASE_S`."""
+    text = os.environ.get("FTSWEEP_LOCK_LEASE_S")
+    if text is None:
+        return LEASE_S
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or value == float("inf"):
+        raise LockError(f"FTSWEEP_LOCK_LEASE_S must be a positive number of seconds, got {text!r}")
+    return value
 
 
 class Lease:
     """The writer's lease on a cube in object storage (see the module's description)."""
 
-    def __init__(self, cube: PathLike, command: str = "", lease_s: float = LEASE_S) -> None:
+    def __init__(self, cube: PathLike, command: str = "", lease_s: Optional[float] = None) -> None:
         self.cube = place(cube)
         self.lock = self.cube.sibling(".lock")
         if self.lock.protocol not in Place.CONDITIONAL:
@@ -153,7 +168,7 @@ class Lease:
                 "conditional writes to build a writer's lock on); write the cube to a local or shared "
                 "folder or to s3://, then copy it"
             )
-        self.lease_s = lease_s
+        self.lease_s = lease_s or lease_seconds()
         self.token = uuid.uuid4().hex
         self.command = command
         self.tag = ""
@@ -204,17 +219,20 @@ class Lease:
         self._renewer.start()
 
     def _renew(self) -> None:
+        renewed = time.time()
         while not self._stop.wait(self.lease_s / 3.0):
             try:
                 self.tag = self.lock.replace_if("", self._record(), self.tag)
+                renewed = time.time()
             except FileExistsError:
                 self.lost = f"the lease on {self.cube} was taken over by another writer"
                 return
             except Exception as exc:  # noqa: BLE001 - a network error: try again next period
-                self.lost = None if time.time() < self._deadline() else f"cannot renew the lease: {exc}"
-
-    def _deadline(self) -> float:
-        return time.time() + self.lease_s  # renewal keeps trying while the lease may still hold
+                if time.time() - renewed >= self.lease_s:  # it may have expired: stop writing
+                    self.lost = (
+                        f"the lease on {self.cube} could not be renewed for {self.lease_s:g} s ({exc})"
+                    )
+                    return
 
     def check(self) -> None:
         """Raise :class:`LockError` if this writer no longer holds the lease."""

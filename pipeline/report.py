@@ -29,6 +29,7 @@ from ftsweep.kinds.table import build_layout
 from ftsweep.planning import control_table, resolve_case
 from ftsweep.select import SelectError, choose, describe, eligible, open_cube, recorded_case
 from ftsweep.stages import dynamics
+from ftsweep.storage import PathLike, place
 
 FIGURES = {
     "pv_vs_points": "P-V against point count, one line per aspect ratio",
@@ -45,7 +46,7 @@ def _save(ax: Any, path: Path) -> Path:
 
 
 def resimulate(
-    cube_path: Path,
+    cube_path: PathLike,
     index: int,
     map_bins: int,
     progress: Optional[Callable[[int, int], None]] = None,
@@ -111,7 +112,7 @@ def plot_spectrum(record: dict[str, Any], layout: Any, table: np.ndarray, specs:
 
 
 def make_report(
-    cube_path: Path,
+    cube_path: PathLike,
     out_dir: Optional[Path] = None,
     index: Optional[int] = None,
     map_bins: int = 160,
@@ -119,14 +120,15 @@ def make_report(
     trust_plugins: bool = False,
 ) -> dict[str, Path]:
     """Write the figures and ``index.html`` into ``out_dir``; returns their paths."""
-    cube_path = Path(cube_path)
-    ds = open_cube(cube_path)
+    at = place(cube_path)
+    ds = open_cube(at)
     if not bool(eligible(ds).any()):
         raise SelectError(
-            f"{cube_path} has no computed, feasible case to report on yet; run the sweep first "
-            f"(ftsweep sweep ... --out {cube_path})"
+            f"{at} has no computed, feasible case to report on yet; run the sweep first "
+            f"(ftsweep sweep ... --out {at})"
         )
-    out = Path(out_dir) if out_dir else cube_path.with_name(cube_path.stem + "-report")
+    stem = at.name.removesuffix(".zarr") + "-report"
+    out = Path(out_dir) if out_dir else (at.path.with_name(stem) if at.local else Path("outputs") / stem)
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
     paths["pv_vs_points"] = _save(ds.ftsweep.plot_pv(), out / "pv_vs_points.png")
@@ -140,7 +142,7 @@ def make_report(
     else:
         chosen = choose(ds, index=index)
     record, (case, layout, table, specs) = resimulate(
-        cube_path, int(chosen["index"]), map_bins, progress, trust_plugins
+        at, int(chosen["index"]), map_bins, progress, trust_plugins
     )
     shown = dict(describe(ds, int(chosen["index"])), pv_nm=record["pv_nm"])
     paths["error_map"] = _save(

@@ -20,7 +20,7 @@ from ftsweep import caselog, catalogs, cube, kinds
 from ftsweep.cube import CubeError
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
 from ftsweep.executor import Cluster, TaskSpec, execute, run_task, warm_up
-from ftsweep.lock import cube_lock
+from ftsweep.lock import LockError, cube_lock
 from ftsweep.spec import CaseError
 from ftsweep.storage import PathLike, Place, place
 from ftsweep.sweep import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
@@ -96,8 +96,13 @@ class SweepReport:
         return sum(r["status"] != "done" for r in self.rows)
 
 
-# what a run tells as it goes: each finished case (progress), the cluster once connected (announce)
-Watchers = tuple[Optional[Callable[[SweepReport, list[dict]], None]], Optional[Callable[[SweepReport], None]]]
+# what a run tells as it goes: each finished case (progress), the cluster once connected
+# (announce); and what it asks: whether it still holds the cube's lease (raises if not)
+Watchers = tuple[
+    Optional[Callable[[SweepReport, list[dict]], None]],
+    Optional[Callable[[SweepReport], None]],
+    Optional[Callable[[], None]],
+]
 
 
 @dataclass(frozen=True)
@@ -198,7 +203,7 @@ def run_sweep(
     out = place(out if out is not None else default_cube_path(name), storage_options)
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
     workers = 1 if scheduler == "synchronous" else (workers or default_workers())
-    with cube_lock(out, command=f"ftsweep sweep {name_or_path}"):
+    with cube_lock(out, command=f"ftsweep sweep {name_or_path}") as lease:
         return _run_locked(
             name,
             spec,
@@ -207,7 +212,7 @@ def run_sweep(
             restart,
             (retry_failed, prune),
             catalog_folder,
-            (progress, announce),
+            (progress, announce, lease.check if lease is not None else None),
         )
 
 
@@ -255,7 +260,7 @@ def _compute(
 ) -> None:
     """Run ``pending`` on the cluster ``where`` says, each case written as it finishes; the
     tasks are planned for the threads of the cluster the run got."""
-    progress, announce = watchers
+    progress, announce, still_held = watchers
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
 
     merged = [time.monotonic()]
@@ -263,6 +268,8 @@ def _compute(
     def on_result(rows: list[dict]) -> None:
         report.rows.extend(rows)
         if time.monotonic() - merged[0] >= MERGE_EVERY_S:
+            if still_held is not None:
+                still_held()  # a writer whose lease was taken over must not merge
             caselog.merge_logs(report.cube)
             merged[0] = time.monotonic()
         if progress is not None:
@@ -299,6 +306,15 @@ def _compute(
     )
 
 
+def _still_holds(check: Optional[Callable[[], None]]) -> bool:
+    try:
+        if check is not None:
+            check()
+    except LockError:
+        return False
+    return True
+
+
 def _run_locked(
     name: str,
     spec: SweepSpec,
@@ -323,8 +339,10 @@ def _run_locked(
     try:
         _compute(report, spec, pending, where, run_id, catalog_folder, watchers)
     finally:
-        # also on an error or a signal: what the workers finished goes into the blocks now
-        caselog.merge_logs(out)
+        # also on an error or a signal: what the workers finished goes into the blocks now,
+        # unless another writer took over the lease (its next run merges these logs)
+        if _still_holds(watchers[2]):
+            caselog.merge_logs(out)
     report.wall_s = time.perf_counter() - start
     return report
 

@@ -102,15 +102,13 @@ class Place:
 
         if self.local:
             return LocalStore(self.url, read_only=read_only)
-        fs, root = self.fs()
-        if not fs.async_impl:
-            from fsspec.implementations.asyn_wrapper import AsyncFileSystemWrapper
-
-            fs = AsyncFileSystemWrapper(fs)
-        return FsspecStore(fs, path=root, read_only=read_only)
+        # zarr runs its own event loop: it gets its own (asynchronous) filesystem instance,
+        # never the one :meth:`fs` serves synchronous calls from
+        return FsspecStore.from_url(self.url, storage_options=self.options, read_only=read_only)
 
     def exists(self, key: str = "") -> bool:
         fs, _ = self.fs()
+        fs.invalidate_cache(self.key(key))  # another process may have written or deleted it
         return bool(fs.exists(self.key(key)))
 
     def read(self, key: str = "") -> bytes:
@@ -205,6 +203,9 @@ class Place:
         """Keys (relative to this place) of every object under ``prefix``."""
         fs, root = self.fs()
         base = self.key(prefix)
+        # object stores' drivers cache listings (of every folder a find passed through):
+        # other processes (workers) write here
+        fs.invalidate_cache()
         try:
             found = fs.find(base)
         except FileNotFoundError:

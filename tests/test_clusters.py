@@ -196,3 +196,40 @@ def test_a_terminated_sweep_releases_its_lock_and_resumes(tmp_path, catalog_dir,
     rerun = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert rerun.returncode == 0, rerun.stderr
     assert f"{kept} were done already" in rerun.stdout
+
+
+def test_a_sweep_survives_losing_one_of_two_external_workers(tmp_path, catalog_dir):
+    """Issue 30, item 5: kill one worker of an external 2-worker cluster mid-sweep; the other
+    finishes (Dask reruns the lost worker's task there) and the cube equals a local run."""
+    env = _env(catalog_dir)
+    out = tmp_path / "survive.zarr"
+    spec = _spec(tmp_path, SLOW)
+    with external_cluster(tmp_path, env) as cluster:
+        for _ in range(2):
+            cluster.add_worker(cwd=tmp_path)
+        cluster.wait_for_workers(2)
+        run = subprocess.Popen(
+            [str(BIN / "ftsweep"), "sweep", str(spec), "--out", str(out), "--scheduler", cluster.address],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        deadline = time.time() + 240
+        while _done(out) < 2 and time.time() < deadline and run.poll() is None:
+            time.sleep(0.05)
+        assert _done(out) >= 2 and run.poll() is None, "the sweep did not get going, or ended"
+        from clusters import kill_group
+
+        kill_group(cluster.workers[0], signal.SIGKILL)
+        stdout, stderr = run.communicate(timeout=300)
+    assert run.returncode == 0, stderr
+    assert "16 done" in stdout
+    local = tmp_path / "local.zarr"
+    run_sweep(str(spec), local, scheduler="synchronous", catalog_folder=catalog_dir)
+    import xarray as xr
+
+    def data(path: Path) -> xr.Dataset:
+        return xr.open_zarr(path).drop_vars(list(cube.TIMING_VARS)).load()
+
+    xr.testing.assert_equal(data(out), data(local))

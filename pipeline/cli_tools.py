@@ -270,6 +270,12 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
     help="Threads for the '×N' rows of the 10⁶-point cases (a single case on N threads, as "
     "`predict --threads N`). Default: every usable core; 1 leaves those rows out.",
 )
+@click.option(
+    "--cube-cases",
+    type=COUNT,
+    help="Also build a synthetic cube of this many cases (e.g. 100000: ~10 s) in a temporary "
+    "folder and report its objects, and the seconds to open it and to select from it.",
+)
 def bench(
     names: tuple[str, ...],
     repeat: int,
@@ -278,6 +284,7 @@ def bench(
     workers: tuple[int, ...],
     scheduler: Optional[str],
     threads: Optional[int],
+    cube_cases: Optional[int],
 ) -> None:
     """Time whole commands, the case runner per stage, and optionally a sweep.
 
@@ -288,8 +295,9 @@ def bench(
     of the published reference cases and two 10⁶-point layouts split into compensation,
     surface sampling, interpolation, envelope and metrics, after a warm-up that pays
     numba's compile cost, on one thread (and the 10⁶-point ones on --threads). With
-    --sweep, the throughput of a whole sweep on each --workers count and on --scheduler.
-    Nothing is asserted about time (about 3 minutes without --sweep).
+    --sweep, the throughput of a whole sweep on each --workers count and on --scheduler; with
+    --cube-cases, a synthetic cube's object count and open and select times. Nothing is
+    asserted about time (about 3 minutes without --sweep).
     """
     from ftsweep.bench import (
         format_sweep,
@@ -317,5 +325,10 @@ def bench(
             click.echo(f"running sweep {sweep_name} on {address or f'{n} local worker(s)'} ...", err=True)
             result["sweeps"].append(sweep_throughput(sweep_name, n, address))
             click.echo(format_sweep(result["sweeps"][-1]))
+    if cube_cases:
+        from ftsweep.cubescale import cube_scale, format_cube_scale
+
+        result["cube_scale"] = cube_scale(cube_cases)
+        click.echo(format_cube_scale(result["cube_scale"]))
     write_json_atomic(json_path, result)
     click.echo(f"wrote {json_path}")

@@ -42,3 +42,23 @@ def test_the_verify_row_checks_an_exported_header():
     name = next(n for n, (args, _) in WHOLE_PROCESS.items() if args[0] == "verify")
     (row,) = whole_process(1, [name])
     assert row["seconds"] > row["case_seconds"] > 0  # verify re-simulated the case
+
+
+def test_cube_scale_counts_objects_and_times_open_and_select(tmp_path):
+    """Issue 30, item 3: a synthetic cube in blocks holds a few objects per variable, and its
+    every case reads back as written (select picks one of them)."""
+    from ftsweep import cube
+    from ftsweep.cubescale import build, measure, synthetic_spec
+
+    where = tmp_path / "synthetic.zarr"
+    made = build(where, 5000)
+    assert made["cases"] == 5000
+    status = cube.read_status(where)
+    assert status.shape == (50, 100) and (status == cube.DONE).all()
+    row = measure(where)
+    variables = len(list(cube.open_group(where).arrays()))
+    # one chunk of metadata and at most two blocks per array (5,000 cases, blocks of 4,096)
+    assert variables < row["objects"] <= 3 * variables + 2
+    assert row["open_s"] > 0 and row["select_s"] >= 0 and row["select_command_s"] > row["open_s"]
+    assert 0 <= row["index"] < 5000
+    assert synthetic_spec(100_000).axes.aspect is not None

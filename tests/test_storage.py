@@ -1,0 +1,97 @@
+"""Where cubes live (issue 30, items 1-3) without a server: memory:// in this process, the
+lease lock's rules, and what a store without conditional writes gets."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from ftsweep import caselog, cube
+from ftsweep.lock import Lease, LockError
+from ftsweep.run import run_sweep
+from ftsweep.storage import StorageError, parse_options, place
+
+SPEC = """
+surface: small_sine
+layout: ring
+axes: {points: [8000, 16000], aspect: [1.0, 4.0]}
+"""
+
+
+def test_a_sweep_into_memory_reads_back_like_a_local_one(tmp_path, catalog_dir):
+    spec = tmp_path / "m.yaml"
+    spec.write_text(SPEC)
+    url = f"memory://ftsweep-tests/{tmp_path.name}/c.zarr"
+    report = run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert report.done == 4 and str(report.cube) == url
+    again = run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert again.queued == 0 and again.skipped == 4
+    local = tmp_path / "c.zarr"
+    run_sweep(str(spec), local, scheduler="synchronous", catalog_folder=catalog_dir)
+
+    def data(where):  # type: ignore[no-untyped-def]
+        return cube.open_dataset(where).drop_vars(list(cube.TIMING_VARS)).load()
+
+    xr.testing.assert_equal(data(url), data(local))
+    assert not place(url).listing(caselog.LOG) and not place(url + ".lock").exists()
+
+
+def test_a_lease_refuses_a_second_writer_and_is_taken_over_once_expired():
+    url = "memory://ftsweep-tests/lease/c.zarr"
+    first = Lease(url, "first", lease_s=0.6)
+    first.acquire()
+    try:
+        with pytest.raises(LockError, match="is being written by pid .*lease until"):
+            Lease(url, "second", lease_s=0.6).acquire()
+        time.sleep(0.5)  # renewed every 0.2 s: still held past its first 0.6 s
+        with pytest.raises(LockError):
+            Lease(url, "third", lease_s=0.6).acquire()
+        first.check()
+    finally:
+        first._stop.set()  # the holder dies without releasing: its lease runs out
+        first._renewer.join()  # type: ignore[union-attr]
+    time.sleep(0.7)
+    taker = Lease(url, "after", lease_s=0.6)
+    taker.acquire()
+    time.sleep(0.3)
+    with pytest.raises(FileExistsError):  # the old holder's compare-and-swap now fails
+        place(url + ".lock").replace_if("", b"{}", first.tag)
+    taker.release()
+    assert not place(url + ".lock").exists()
+
+
+def test_stores_without_conditional_writes_are_refused_for_writing():
+    with pytest.raises(LockError, match="cannot lock a cube on gs://"):
+        Lease("gs://bucket/c.zarr")
+
+
+def test_storage_options_parse_json_values_and_refuse_malformed_pairs():
+    assert parse_options(("endpoint_url=http://127.0.0.1:9000", "anon=true", "n=3")) == {
+        "endpoint_url": "http://127.0.0.1:9000",
+        "anon": True,
+        "n": 3,
+    }
+    with pytest.raises(StorageError, match="KEY=VALUE"):
+        parse_options(("endpoint_url",))
+
+
+def test_case_logs_are_merged_once_and_later_runs_win(tmp_path, catalog_dir):
+    spec = tmp_path / "m.yaml"
+    spec.write_text(SPEC)
+    out = tmp_path / "logs.zarr"
+    run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    early, late = caselog.CaseLog(out, "20260101T000000-a"), caselog.CaseLog(out, "20260102T000000-b")
+    late.write_failed(1, "late", "20260102T000000-b")
+    early.write_failed(1, "early", "20260101T000000-a")
+    early.write_failed(2, "early", "20260101T000000-a")
+    status = caselog.current_status(out).ravel()
+    assert status[1] == cube.FAILED and status[2] == cube.FAILED and status[0] == cube.DONE
+    assert cube.read_status(out).ravel()[1] == cube.DONE  # nothing merged yet
+    assert caselog.merge_logs(out) == 2
+    ds = cube.open_dataset(out).load()
+    assert ds["message"].values.ravel()[1] == "late" and ds["message"].values.ravel()[2] == "early"
+    assert caselog.merge_logs(out) == 0 and not (out / caselog.LOG).exists()
+    assert np.sum(cube.read_status(out) == cube.FAILED) == 2

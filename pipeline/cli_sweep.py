@@ -15,6 +15,11 @@ import click
 from ftsweep.cli_common import COUNT, NON_NEGATIVE, STORAGE_OPTIONS, FiniteRange, cube_place, one_line
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S
 
+# exit statuses a scheduler can act on: 0 every case done; 1 cases failed or are pending, or
+# the run could not go on (the message says why: re-run, or --retry-failed); 2 a usage error;
+# 75 (EX_TEMPFAIL) another run holds the cube's lock: try again later
+EXIT_DONE, EXIT_INCOMPLETE, EXIT_LOCKED = 0, 1, 75
+
 
 @click.command()
 @click.argument("sweep_name", metavar="NAME|PATH")
@@ -87,12 +92,18 @@ def sweep(
     """Run a sweep of point counts and aspect ratios into a Zarr result cube.
 
     NAME is a spec in catalogs/sweeps/ (e.g. sinewave-ring, lens-array-mesh), or give a
-    path to a YAML file. Every case is written into its own region of the cube as soon as
-    it finishes. Re-running the same command computes only what is missing, so an
+    path to a YAML file. Every case is logged as soon as it finishes and merged into the
+    cube within seconds. Re-running the same command computes only what is missing, so an
     interrupted or killed run loses nothing already written; done cases whose data files are
     missing or unreadable are recomputed. A cube made from a different spec is refused unless
-    --restart, which discards the cube and starts over. One process writes a cube at a time:
-    a second sweep on the same cube (also with --restart) is refused while the first runs.
+    --restart, which discards the cube and starts over — except a spec that only adds values to
+    its axes: the cube grows and only the new cases are computed. One process writes a cube at
+    a time: a second sweep on the same cube (also with --restart) is refused while the first
+    runs.
+
+    \b
+    Exit status: 0 every case done; 1 cases failed or pending, or the run could not go on (the
+    message says why); 2 a usage error; 75 another run holds the cube's lock (try later).
 
     \b
     Examples:
@@ -124,7 +135,7 @@ def sweep(
     _report_problems(report)
     counts = _print_sweep_summary(report)
     if counts["pending"] or counts["failed"]:
-        sys.exit(1)
+        sys.exit(EXIT_INCOMPLETE)
 
 
 def _run(*args: Any, **kwargs: Any) -> Any:
@@ -138,7 +149,10 @@ def _run(*args: Any, **kwargs: Any) -> Any:
         return run_sweep(
             *args, progress=_sweep_progress(time.perf_counter()), announce=_announce_cluster, **kwargs
         )
-    except (ValueError, LockError, ExecutorError) as exc:  # catalog, cube and case errors are ValueErrors
+    except LockError as exc:  # another run writes the cube: a scheduler should try again later
+        click.echo(f"Error: {exc}", err=True)
+        sys.exit(EXIT_LOCKED)
+    except (ValueError, ExecutorError) as exc:  # catalog, cube and case errors are ValueErrors
         raise click.ClickException(str(exc)) from None
     except SystemExit as exc:
         if exc.code in (128 + signal.SIGTERM, 128 + signal.SIGHUP):
@@ -226,6 +240,8 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
 
     counts = cube_counts(report.cube)
     click.echo(f"cube         {report.cube}")
+    if report.note:
+        click.echo(f"spec         {report.note}")
     click.echo(
         f"cases        {report.total} in all: {counts['done']} done, {counts['failed']} failed, "
         f"{counts['pending']} pending, {counts['pruned']} pruned ({report.skipped} were done already, "

@@ -16,7 +16,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import caselog, catalogs, cube, kinds
+from ftsweep import caselog, catalogs, cube, grow, kinds
 from ftsweep.cube import CubeError
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
 from ftsweep.executor import Cluster, TaskSpec, execute, run_task, warm_up
@@ -86,6 +86,7 @@ class SweepReport:
     damaged: dict[int, str] = field(default_factory=dict)
     pruned: int = 0  # cases left out by --prune (this run's and earlier ones kept)
     queued: int = 0  # cases this run computes
+    note: str = ""  # what the run changed in the cube beyond its cases (it grew)
 
     @property
     def done(self) -> int:
@@ -123,41 +124,59 @@ def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
 
 
 def prepare_cube(
-    name: str, spec: SweepSpec, out: Place, restart: bool, catalog_folder: Optional[Path]
-) -> int:
-    """Create the cube, or check an existing one belongs to ``spec`` and merge the case logs
-    a killed run left; returns cases already done. The caller holds the cube's lock.
+    name: str, spec: SweepSpec, where: PathLike, restart: bool, catalog_folder: Optional[Path]
+) -> tuple[int, str]:
+    """Create the cube, or check an existing one belongs to ``spec`` (or grows into it,
+    :mod:`ftsweep.grow`) and merge the case logs a killed run left; returns the cases already
+    done and a note on what changed (empty if nothing). The caller holds the cube's lock.
 
     An existing cube from another spec is refused unless ``restart``, which discards any
     existing cube and starts over. An unfinished template (a run killed while creating it)
     is replaced.
     """
+    out = place(where)
+    grow.finish_interrupted(out)
     if cube.unfinished(out):
         out.remove_all()
+    note = ""
     if out.exists():
         attrs = cube.read_attrs(out, check_schema=not restart)
         if restart:
             out.remove_all()
-        elif attrs["sweep_spec_hash"] != spec.spec_hash():
-            changed = ", ".join(_changed_keys(attrs["sweep_spec"], spec)) or "the spec"
-            raise CubeError(
-                f"{out} was created from a different spec of sweep '{attrs.get('sweep_name')}' "
-                f"(changed: {changed}). Re-run with --restart to discard it and start over, or "
-                "give another --out."
-            )
         else:
-            now = cube.git_revision()
-            if attrs.get("git_revision") not in (now, "unknown") and now != "unknown":
-                warnings.warn(
-                    f"{out} was started by code revision {str(attrs.get('git_revision'))[:10]}, this is "
-                    f"{now[:10]}; resuming mixes their results (use --restart to recompute all)",
-                    stacklevel=2,
-                )
             caselog.merge_logs(out)
-            return int(np.count_nonzero(cube.read_status(out) == cube.DONE))
+            if attrs["sweep_spec_hash"] != spec.spec_hash():
+                note = _grow_or_refuse(name, spec, out, attrs)
+            _warn_other_revision(out, attrs)
+            return int(np.count_nonzero(cube.read_status(out) == cube.DONE)), note
     entries = catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, catalog_folder)
     cube.create(out, cube.template(spec, name, entries))
-    return 0
+    return 0, note
+
+
+def _grow_or_refuse(name: str, spec: SweepSpec, out: Place, attrs: dict[str, Any]) -> str:
+    """Extend the cube when ``spec`` only adds axis values; refuse any other change."""
+    plan = grow.growth(attrs["sweep_spec"], spec)
+    if plan is None:
+        changed = ", ".join(_changed_keys(attrs["sweep_spec"], spec)) or "the spec"
+        raise CubeError(
+            f"{out} was created from a different spec of sweep '{attrs.get('sweep_name')}' "
+            f"(changed: {changed}; a spec may only add values to its axes). Re-run with --restart "
+            "to discard it and start over, or give another --out."
+        )
+    before = int(np.prod([len(p) for p in plan["positions"].values()]))
+    grow.grow(out, spec, name, plan)
+    return f"grown: {grow.describe(plan)} values; {n_cases(spec) - before} new case(s), {before} kept"
+
+
+def _warn_other_revision(out: Place, attrs: dict[str, Any]) -> None:
+    now = cube.git_revision()
+    if attrs.get("git_revision") not in (now, "unknown") and now != "unknown":
+        warnings.warn(
+            f"{out} was started by code revision {str(attrs.get('git_revision'))[:10]}, this is "
+            f"{now[:10]}; resuming mixes their results (use --restart to recompute all)",
+            stacklevel=3,
+        )
 
 
 def run_sweep(
@@ -325,7 +344,7 @@ def _run_locked(
     catalog_folder: Optional[Path],
     watchers: Watchers,
 ) -> SweepReport:
-    already = prepare_cube(name, spec, out, restart, catalog_folder)
+    _, note = prepare_cube(name, spec, out, restart, catalog_folder)
     status, damaged = _undamaged_status(out)
     already = int(np.count_nonzero(status == cube.DONE))
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
@@ -335,6 +354,7 @@ def _run_locked(
     )
     report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
     report.queued = len(pending)
+    report.note = note
     start = time.perf_counter()
     try:
         _compute(report, spec, pending, where, run_id, catalog_folder, watchers)

@@ -202,7 +202,7 @@ def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refuse
         while not place(f"{url}.lock").exists() and time.time() < deadline and first.poll() is None:
             time.sleep(0.1)
         second = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
-        assert second.returncode == 1, "the first run ended too early to test a second writer"
+        assert second.returncode == 75, "the first run ended too early to test a second writer"
         assert "is being written by pid" in second.stderr and "lease until" in second.stderr
         while _done(url) < 2 and time.time() < deadline and first.poll() is None:
             time.sleep(0.1)
@@ -214,7 +214,7 @@ def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refuse
     logged = _done(url)
     assert 2 <= logged < 48, "the kill came too late to test a resume"
     refused = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
-    assert refused.returncode == 1 and "lease" in refused.stderr  # the killed run's lease still runs
+    assert refused.returncode == 75 and "lease" in refused.stderr  # the killed run's lease still runs
     time.sleep(4.5)
     resumed = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert resumed.returncode == 0, resumed.stderr

@@ -95,3 +95,16 @@ def test_case_logs_are_merged_once_and_later_runs_win(tmp_path, catalog_dir):
     assert ds["message"].values.ravel()[1] == "late" and ds["message"].values.ravel()[2] == "early"
     assert caselog.merge_logs(out) == 0 and not (out / caselog.LOG).exists()
     assert np.sum(cube.read_status(out) == cube.FAILED) == 2
+
+
+def test_a_cube_in_object_storage_grows_by_copy(tmp_path, catalog_dir):
+    """No rename on object storage: the grown cube is copied in, its root metadata last."""
+    spec = tmp_path / "m.yaml"
+    spec.write_text(SPEC)
+    url = f"memory://ftsweep-tests/{tmp_path.name}/grow.zarr"
+    run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog_dir)
+    spec.write_text(SPEC.replace("[8000, 16000]", "[8000, 12000, 16000]"))
+    report = run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert report.skipped == 4 and report.done == 2 and "points +1" in report.note
+    assert not place(url + ".grow").exists()
+    assert (cube.read_status(url) == cube.DONE).all()

@@ -1,0 +1,135 @@
+"""Sweeps that grow (issue 30, item 4): values added to a sweep axis extend the cube and only
+the new cases are computed; removing values or changing anything else is still refused;
+a growth killed midway finishes on the next run; exit statuses a scheduler can act on."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+
+import numpy as np
+import pytest
+import xarray as xr
+from click.testing import CliRunner
+from clusters import BIN
+
+from ftsweep import cube, grow
+from ftsweep.cli import main
+from ftsweep.cube import CubeError
+from ftsweep.run import run_sweep
+from ftsweep.storage import place
+
+BASE = """
+surface: small_sine
+layout: ring
+axes: {{points: {points}, aspect: {aspect}}}
+"""
+
+
+def _spec(folder, points="[8000, 20000]", aspect="[2.0, 8.0]"):  # type: ignore[no-untyped-def]
+    path = folder / "grow.yaml"
+    path.write_text(BASE.format(points=points, aspect=aspect))
+    return path
+
+
+def _data(path):  # type: ignore[no-untyped-def]
+    return xr.open_zarr(path).drop_vars(list(cube.TIMING_VARS)).load()
+
+
+def test_added_point_counts_and_aspects_compute_only_the_new_cases(tmp_path, catalog_dir):
+    out = tmp_path / "g.zarr"
+    first = run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert first.done == 4
+    before = _data(out)
+    ids_before = xr.open_zarr(out)["run_id"].values
+    # a point count between the old ones, one beyond, and an aspect ratio in front
+    spec = _spec(tmp_path, "[8000, 12000, 20000, 30000]", "[1.0, 2.0, 8.0]")
+    grown = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert grown.skipped == 4 and grown.queued == 8 and grown.done == 8
+    assert "points +2, aspect +1" in grown.note and "8 new case(s), 4 kept" in grown.note
+    after = _data(out)
+    # the old cases kept their values and run ids, at their new places
+    xr.testing.assert_equal(after.sel(points=before["points"], aspect=before["aspect"]), before)
+    ids = xr.open_zarr(out)["run_id"].sel(points=before["points"], aspect=before["aspect"]).values
+    assert (ids == ids_before).all() and len(set(xr.open_zarr(out)["run_id"].values.ravel())) == 2
+    # and the whole equals a sweep of the grown spec from scratch
+    clean = tmp_path / "clean.zarr"
+    run_sweep(str(spec), clean, scheduler="synchronous", catalog_folder=catalog_dir)
+    xr.testing.assert_equal(_data(out), _data(clean))
+    assert xr.open_zarr(out).attrs["sweep_spec_hash"] == xr.open_zarr(clean).attrs["sweep_spec_hash"]
+    again = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert again.queued == 0 and again.note == ""
+
+
+@pytest.mark.parametrize(
+    ("points", "aspect", "changed"),
+    [
+        ("[8000]", "[2.0, 8.0]", "may only add values"),  # a value removed
+        ("[8000, 20001]", "[2.0, 8.0]", "may only add values"),  # a value moved
+    ],
+)
+def test_anything_but_added_values_is_refused(tmp_path, catalog_dir, points, aspect, changed):
+    out = tmp_path / "r.zarr"
+    run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    with pytest.raises(CubeError, match=changed):
+        run_sweep(
+            str(_spec(tmp_path, points, aspect)), out, scheduler="synchronous", catalog_folder=catalog_dir
+        )
+
+
+def test_another_change_with_added_values_is_refused(tmp_path, catalog_dir):
+    out = tmp_path / "m.zarr"
+    run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    spec = _spec(tmp_path, "[8000, 12000, 20000]")
+    spec.write_text(spec.read_text() + "machine: sluggish-fts\n")
+    with pytest.raises(CubeError, match="changed: .*machine"):
+        run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+
+
+def test_a_growth_killed_midway_is_finished_by_the_next_run(tmp_path, catalog_dir, monkeypatch):
+    out = tmp_path / "k.zarr"
+    run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    before = _data(out)
+
+    def killed(staging, target):  # type: ignore[no-untyped-def]
+        target.remove_all()  # the old cube deleted, the new one not yet moved in
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(grow, "_move_in", killed)
+    spec = _spec(tmp_path, "[8000, 12000, 20000]")
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert not out.exists() and place(str(out) + grow.STAGING).exists()
+    monkeypatch.undo()
+    report = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert report.skipped == 4 and report.done == 2
+    xr.testing.assert_equal(_data(out).sel(points=before["points"]), before)
+    assert not place(str(out) + grow.STAGING).exists()
+
+
+def test_a_scheduled_run_whose_spec_grows_and_its_exit_statuses(tmp_path, catalog_dir):
+    """The README's cron example: the same command every night; the spec gains a point count."""
+    env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))
+    out = tmp_path / "nightly.zarr"
+    spec = _spec(tmp_path)
+    cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", str(out), "--scheduler", "synchronous"]
+    night1 = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert night1.returncode == 0, night1.stderr
+    _spec(tmp_path, "[8000, 20000, 40000]")
+    night2 = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert night2.returncode == 0, night2.stderr
+    assert "grown: points +1, aspect +0 values; 2 new case(s), 4 kept" in night2.stdout
+    assert "(4 were done already, 2 run now)" in night2.stdout
+    # another run holds the lock: 75, try later
+    from ftsweep.lock import cube_lock
+
+    with cube_lock(out, "a long run"):
+        locked = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert locked.returncode == 75 and "is being written by" in locked.stderr
+    # failures: 1 (a point count over the machine's capacity fails its cases)
+    _spec(tmp_path, "[8000, 20000, 40000, 3000000]")
+    failing = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert failing.returncode == 1 and "2 failed" in failing.stdout
+    r = CliRunner().invoke(main, ["sweep", str(spec), "--out", str(out), "--workers", "0"], env=env)
+    assert r.exit_code == 2  # a usage error
+    assert np.sum(cube.read_status(out) == cube.DONE) == 6

@@ -92,3 +92,25 @@ def external_cluster(folder: Path, env: dict[str, str]) -> Iterator[ExternalClus
         yield cluster
     finally:
         cluster.stop()
+
+
+def done_count(where: object) -> int:
+    """Cases done in a cube so far, the ones its workers logged included (0 before it exists)."""
+    import numpy as np
+
+    from ftsweep import caselog, cube
+
+    try:
+        return int(np.sum(caselog.current_status(where) == cube.DONE))  # type: ignore[arg-type]
+    except Exception:  # noqa: BLE001 - the template is not in place yet
+        return 0
+
+
+def start_sweep(cmd: list[str], env: dict[str, str], out: object, at_least: int = 2) -> subprocess.Popen:
+    """Start ``ftsweep sweep`` and return once ``at_least`` of its cases are done."""
+    run = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.time() + 240
+    while done_count(out) < at_least and time.time() < deadline and run.poll() is None:
+        time.sleep(0.05)
+    assert done_count(out) >= at_least and run.poll() is None, "the sweep did not get going, or ended"
+    return run

@@ -10,11 +10,10 @@ import subprocess
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
-from clusters import BIN, external_cluster
+from clusters import BIN, done_count, external_cluster, kill_group, start_sweep
 
-from ftsweep import caselog, cube
+from ftsweep import cube
 from ftsweep.lock import lock_path
 from ftsweep.run import run_sweep
 from ftsweep.sweep import load_sweep, n_cases, plan_tasks
@@ -48,13 +47,6 @@ def _env(catalog_dir: Path) -> dict[str, str]:
     return dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))
 
 
-def _done(out: Path) -> int:
-    try:
-        return int(np.sum(caselog.current_status(out) == cube.DONE))
-    except Exception:  # the template is not in place yet
-        return 0
-
-
 def test_tasks_are_planned_for_the_clusters_threads(tmp_path, catalog_dir):
     spec_path = _spec(tmp_path, SPEC)
     _, spec = load_sweep(str(spec_path), catalog_dir)
@@ -85,17 +77,7 @@ def test_a_run_whose_workers_all_left_ends_with_a_message(tmp_path, catalog_dir)
         cluster.add_worker(cwd=tmp_path)
         cluster.wait_for_workers(1)
         cmd = [str(BIN / "ftsweep"), "sweep", str(_spec(tmp_path, SLOW)), "--out", str(out)]
-        run = subprocess.Popen(
-            [*cmd, "--scheduler", cluster.address, "--worker-wait", "3"],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env,
-        )
-        deadline = time.time() + 240
-        while _done(out) < 2 and time.time() < deadline and run.poll() is None:
-            time.sleep(0.05)
-        assert _done(out) >= 2, "the sweep did not get going"
+        run = start_sweep([*cmd, "--scheduler", cluster.address, "--worker-wait", "3"], env, out)
         cluster.kill_workers()
         killed = time.monotonic()
         _, stderr = run.communicate(timeout=120)
@@ -105,7 +87,7 @@ def test_a_run_whose_workers_all_left_ends_with_a_message(tmp_path, catalog_dir)
     assert "run the same command again" in stderr
     assert took < 60, took  # 3 s of waiting, the rest closing the client
     assert not lock_path(out).exists()
-    kept = _done(out)
+    kept = done_count(out)
     assert 2 <= kept < 16
     # the finished cases are kept and a run on a local cluster completes the rest
     report = run_sweep(str(tmp_path / "c.yaml"), out, scheduler="synchronous", catalog_folder=catalog_dir)
@@ -149,7 +131,7 @@ def test_a_worker_without_ftsweep_is_named(tmp_path, catalog_dir):
     assert "tcp://127.0.0.1:" in r.stderr.split("cannot import ftsweep (")[1]  # the worker's address
     assert "No module named 'ftsweep'" in r.stderr and "install ftsweep" in r.stderr
     assert len(r.stderr.strip().splitlines()) <= 3  # a message, not a traceback
-    assert _done(out) == 0 and not lock_path(out).exists()
+    assert done_count(out) == 0 and not lock_path(out).exists()
 
 
 def test_no_worker_joining_is_reported_after_the_wait(tmp_path, catalog_dir):
@@ -179,9 +161,9 @@ def test_a_terminated_sweep_releases_its_lock_and_resumes(tmp_path, catalog_dir,
     )
     try:
         deadline = time.time() + 240
-        while _done(out) < 2 and time.time() < deadline and run.poll() is None:
+        while done_count(out) < 2 and time.time() < deadline and run.poll() is None:
             time.sleep(0.05)
-        assert _done(out) >= 2, "the sweep did not get going"
+        assert done_count(out) >= 2, "the sweep did not get going"
         assert lock_path(out).exists()
         run.send_signal(sig)  # the driver only, as a batch system's job stop does
         _, stderr = run.communicate(timeout=120)
@@ -192,7 +174,7 @@ def test_a_terminated_sweep_releases_its_lock_and_resumes(tmp_path, catalog_dir,
     assert "terminated by a signal" in stderr
     assert "dashboard http://127.0.0.1:" in stderr  # the local cluster's, on loopback
     assert not lock_path(out).exists()
-    kept = _done(out)
+    kept = done_count(out)
     rerun = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert rerun.returncode == 0, rerun.stderr
     assert f"{kept} were done already" in rerun.stdout
@@ -208,19 +190,8 @@ def test_a_sweep_survives_losing_one_of_two_external_workers(tmp_path, catalog_d
         for _ in range(2):
             cluster.add_worker(cwd=tmp_path)
         cluster.wait_for_workers(2)
-        run = subprocess.Popen(
-            [str(BIN / "ftsweep"), "sweep", str(spec), "--out", str(out), "--scheduler", cluster.address],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env,
-        )
-        deadline = time.time() + 240
-        while _done(out) < 2 and time.time() < deadline and run.poll() is None:
-            time.sleep(0.05)
-        assert _done(out) >= 2 and run.poll() is None, "the sweep did not get going, or ended"
-        from clusters import kill_group
-
+        cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", str(out), "--scheduler", cluster.address]
+        run = start_sweep(cmd, env, out)
         kill_group(cluster.workers[0], signal.SIGKILL)
         stdout, stderr = run.communicate(timeout=300)
     assert run.returncode == 0, stderr

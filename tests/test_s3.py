@@ -14,13 +14,12 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 import xarray as xr
 from click.testing import CliRunner
-from clusters import BIN
+from clusters import BIN, done_count
 
-from ftsweep import caselog, cube
+from ftsweep import cube
 from ftsweep.cli import main
 from ftsweep.run import run_sweep
 from ftsweep.storage import place
@@ -180,13 +179,6 @@ def _wait_gone(group: int) -> None:
     raise AssertionError(f"processes of group {group} outlived SIGKILL")
 
 
-def _done(url: str) -> int:
-    try:
-        return int(np.sum(caselog.current_status(url) == cube.DONE))
-    except Exception:  # the template is not in place yet
-        return 0
-
-
 def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refused(
     s3, s3_env, tmp_path, catalog_dir
 ):
@@ -204,14 +196,14 @@ def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refuse
         second = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
         assert second.returncode == 75, "the first run ended too early to test a second writer"
         assert "is being written by pid" in second.stderr and "lease until" in second.stderr
-        while _done(url) < 2 and time.time() < deadline and first.poll() is None:
+        while done_count(url) < 2 and time.time() < deadline and first.poll() is None:
             time.sleep(0.1)
-        assert _done(url) >= 2, "the sweep did not get going"
+        assert done_count(url) >= 2, "the sweep did not get going"
     finally:
         os.killpg(first.pid, signal.SIGKILL)  # the driver and its worker: no lock released
         first.wait()
     _wait_gone(first.pid)  # a worker finishing its case after the kill would log it late
-    logged = _done(url)
+    logged = done_count(url)
     assert 2 <= logged < 48, "the kill came too late to test a resume"
     refused = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
     assert refused.returncode == 75 and "lease" in refused.stderr  # the killed run's lease still runs

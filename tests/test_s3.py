@@ -6,6 +6,7 @@ second writer is refused while the first runs; the cube equals a local run's."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -179,12 +180,23 @@ def _wait_gone(group: int) -> None:
     raise AssertionError(f"processes of group {group} outlived SIGKILL")
 
 
+# Long enough that the killed run's lease still holds after the kill, the wait for its processes
+# and a refused run's start on a loaded CI machine (4 s was not: the lease ran out first).
+LEASE_S = 20
+
+
+def _wait_lease_out(lock_url: str) -> None:
+    """Sleep until the lease the lock object records has expired (its own ``lease_until``)."""
+    until = json.loads(place(lock_url).read())["lease_until"]
+    time.sleep(max(0.0, until - time.time()) + 0.5)
+
+
 def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refused(
     s3, s3_env, tmp_path, catalog_dir
 ):
     spec = _spec(tmp_path, SLOW)
     url = f"{s3}/kill.zarr"
-    env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir), FTSWEEP_LOCK_LEASE_S="4", **s3_env)
+    env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir), FTSWEEP_LOCK_LEASE_S=str(LEASE_S), **s3_env)
     cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", url, "--workers", "1"]
     first = subprocess.Popen(
         cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, start_new_session=True
@@ -207,7 +219,7 @@ def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refuse
     assert 2 <= logged < 48, "the kill came too late to test a resume"
     refused = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
     assert refused.returncode == 75 and "lease" in refused.stderr  # the killed run's lease still runs
-    time.sleep(4.5)
+    _wait_lease_out(f"{url}.lock")
     resumed = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
     # every case the killed run logged was kept (merged first), none computed twice

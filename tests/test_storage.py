@@ -40,23 +40,24 @@ def test_a_sweep_into_memory_reads_back_like_a_local_one(tmp_path, catalog_dir):
 
 
 def test_a_lease_refuses_a_second_writer_and_is_taken_over_once_expired():
+    # 1.5 s leases renewed every 0.5 s: slack for a loaded 2-core CI machine (0.6 s was tight)
     url = "memory://ftsweep-tests/lease/c.zarr"
-    first = Lease(url, "first", lease_s=0.6)
+    lease = 1.5
+    first = Lease(url, "first", lease_s=lease)
     first.acquire()
     try:
         with pytest.raises(LockError, match="is being written by pid .*lease until"):
-            Lease(url, "second", lease_s=0.6).acquire()
-        time.sleep(0.5)  # renewed every 0.2 s: still held past its first 0.6 s
+            Lease(url, "second", lease_s=lease).acquire()
+        time.sleep(lease + 0.5)  # past its first lease: held only because it was renewed
         with pytest.raises(LockError):
-            Lease(url, "third", lease_s=0.6).acquire()
+            Lease(url, "third", lease_s=lease).acquire()
         first.check()
     finally:
         first._stop.set()  # the holder dies without releasing: its lease runs out
         first._renewer.join()  # type: ignore[union-attr]
-    time.sleep(0.7)
-    taker = Lease(url, "after", lease_s=0.6)
+    time.sleep(lease + 0.2)
+    taker = Lease(url, "after", lease_s=lease)
     taker.acquire()
-    time.sleep(0.3)
     with pytest.raises(FileExistsError):  # the old holder's compare-and-swap now fails
         place(url + ".lock").replace_if("", b"{}", first.tag)
     taker.release()

@@ -7,17 +7,19 @@ the time between consecutive points is free. Per turn of the path (K steps) the 
 minimise the largest relative acceleration max |a/a_lim| over the four axes with their
 mean held at T0 (eq. 15), warm-started from the previous turn's solution; the step into a
 turn is taken at the turn's own last timestep (adjacent turns are nearly periodic, [2]
-§2.5); the max is replaced by a p-norm so that scipy's L-BFGS-B can follow its gradient,
-and the timesteps are parametrised as K·T0·softmax(u) so the mean constraint always holds.
+§2.5); the max is replaced by a p-norm so that a quasi-Newton method can follow its gradient
+(L-BFGS, compiled whole: :mod:`ftsweep.stages.turnopt`), and the timesteps are parametrised
+as K·T0·softmax(u) so the mean constraint always holds.
 The first turn starts cold (uniform steps) and is solved by continuation, p = 64 then 512,
 up to 2,000 iterations each; later turns start from the previous one's steps, p = 64, 200
 iterations: every turn comes within 3 % of a direct minimax solution of the same turn
 (SLSQP on the epigraph form, tests/test_fresnel.py), where a single p = 32 stage stopped 3×
 above it on the first turn. A turn the optimiser would leave worse than constant steps
 keeps constant steps (the fallback). Each turn is then scaled so that its largest relative
-acceleration is 1/K_s (eq. 16) and no axis exceeds 1/K_s of its velocity limit; the factor is interpolated
-between turn centres so consecutive turns meet without a jump in timestep, and raised
-where a step between turns would still exceed a bound: every step of the final program is
+acceleration is 1/K_s (eq. 16) and no axis exceeds 1/K_s of its velocity limit; the factor
+is interpolated between turn centres so consecutive turns meet without a jump in timestep,
+and raised for the turns where a step between turns would still exceed a bound (only
+those turns' neighbourhoods are measured again): every step of the final program is
 within 1/K_s of every limit. The reference program runs at one constant timestep, the
 least for which the whole program meets the same bounds ([2]: "a constant timestep
 determined by the global maximum acceleration").
@@ -35,7 +37,7 @@ from typing import Any, NamedTuple, Optional
 import numpy as np
 
 from ftsweep.stages import fresnel as ff
-from ftsweep.stages import kinematics
+from ftsweep.stages import kinematics, turnopt
 from ftsweep.stages.kinematics import Limits
 
 DEFAULTS: dict[str, Any] = {
@@ -55,6 +57,10 @@ MAX_ITERATIONS = 200
 # the optimiser's stages (p, iterations): a cold first turn by continuation, later turns warm
 COLD = ((POWER, 2000), (512.0, 2000))
 WARM = ((POWER, MAX_ITERATIONS),)
+# an iteration lowering the cost by at most FTOL (relative) ends a stage, as does a gradient
+# whose largest component is at most GTOL (SciPy's L-BFGS-B defaults as this module used them)
+FTOL = 1e-7
+GTOL = 1e-5
 
 
 class FresnelPlan(NamedTuple):
@@ -380,13 +386,6 @@ def _turn_deltas(q: np.ndarray, k: int, turn: int) -> np.ndarray:
     return rows if lo > 0 else np.vstack([np.zeros((1, q.shape[1])), rows])
 
 
-def _softmax_steps(u: np.ndarray, total: float) -> np.ndarray:
-    """Timesteps T = total·softmax(u) [s] of a turn; no step shorter than e^-20 of the longest,
-    which keeps the optimiser's line search off T = 0."""
-    w = np.exp(np.maximum(u - u.max(), -20.0))
-    return np.asarray(total * w / w.sum())
-
-
 def _optimise_turn(
     u0: np.ndarray,
     t0: float,
@@ -396,23 +395,14 @@ def _optimise_turn(
     stages: tuple[tuple[float, int], ...] = WARM,
 ) -> np.ndarray:
     """Minimise the turn's largest relative acceleration at mean timestep T0 (eq. 15):
-    L-BFGS-B on the p-norm, in softmax coordinates u, for each (p, iterations) of ``stages``
-    in turn (continuation: each stage starts where the last ended)."""
-    from scipy.optimize import minimize
-
-    k = u0.size
-    total = k * t0
-
-    def cost(v: np.ndarray, power: float) -> tuple[float, np.ndarray]:
-        t = _softmax_steps(v, total)
-        val, grad = ff.turn_cost(t, deltas, inv, power, first)
-        # chain rule through T = total·softmax(u)
-        return val, t * (grad - float(np.dot(grad, t)) / total)
-
-    u = u0
+    L-BFGS on the p-norm, in softmax coordinates u (:func:`ftsweep.stages.turnopt.minimise_turn`),
+    for each (p, iterations) of ``stages`` in turn (continuation: each stage starts where the
+    last ended)."""
+    total = u0.size * t0
+    u = np.ascontiguousarray(u0, dtype=np.float64)
+    deltas = np.ascontiguousarray(deltas)
     for power, iterations in stages:
-        opts = {"maxiter": iterations, "ftol": 1e-7}
-        u = minimize(cost, u, args=(power,), jac=True, method="L-BFGS-B", options=opts).x
+        u = turnopt.minimise_turn(u, total, deltas, inv, first, power, iterations, FTOL, GTOL)[0]
     return np.asarray(u - u.mean())
 
 
@@ -428,7 +418,7 @@ def _turn_steps(
     total = u.size * t0
 
     def peak_of(v: np.ndarray) -> float:
-        return float(ff.turn_peak(_softmax_steps(v, total), deltas, inv, first))
+        return float(ff.turn_peak(turnopt.softmax_steps(v, total), deltas, inv, first))
 
     tries = [_optimise_turn(u, t0, deltas, inv, first, COLD if first else WARM)]
     peaks = [peak_of(tries[0])]
@@ -437,7 +427,7 @@ def _turn_steps(
         tries.append(_optimise_turn(tries[0], t0, deltas, inv, first, COLD[1:]))
         peaks += [peak_of(v) for v in tries[1:]]
     best = int(np.argmin(peaks))
-    return tries[best], _softmax_steps(tries[best], total), peaks[best]
+    return tries[best], turnopt.softmax_steps(tries[best], total), peaks[best]
 
 
 def _smoothly_scaled(
@@ -451,23 +441,38 @@ def _smoothly_scaled(
     centres = np.arange(turns) * k + 0.5 * (k - 1)
     index = np.arange(unscaled.size)
     knots = knots.copy()
+    q = np.ascontiguousarray(q)
+    steps = np.interp(index, centres, knots) * unscaled
+    peak_a, peak_v = np.empty(turns), np.empty(turns)
+    dirty = np.arange(turns)
     for attempt in range(300):
-        steps = np.interp(index, centres, knots) * unscaled
-        acc, vel = relative_peaks(q, steps, limits)
-        peak_a = acc[: turns * k].reshape(turns, -1).max(axis=1)
-        peak_v = vel.reshape(turns, -1).max(axis=1)
+        # a knot moves the steps between its neighbours' centres: only turns within two of a
+        # raised knot are measured again (the same values a whole-program pass gives)
+        kinematics.turn_peaks(q, steps, limits.accel, limits.velocity, k, dirty, peak_a, peak_v)
         need = np.maximum(np.sqrt(safety * peak_a), safety * peak_v)
         if np.all(need <= 1.0 + 1e-9):
             return steps, knots
-        grow = np.maximum(need, 1.0)
+        grow = np.where(need > 1.0 + 1e-9, need, 1.0)
         if attempt >= 100:
             # a step between two turns takes both turns' factors: where raising a turn's own
             # has not settled it (it creeps up by 1e-6 an iteration), raise its neighbours too
             own = grow.copy()
             grow[1:] = np.maximum(grow[1:], own[:-1])
             grow[:-1] = np.maximum(grow[:-1], own[1:])
-        knots *= grow * (1.0 + 1e-6)
+        raised = np.flatnonzero(grow > 1.0)
+        knots[raised] *= grow[raised] * (1.0 + 1e-6)
+        dirty = _near(raised, turns)
+        lo, hi = dirty[0] * k, min((dirty[-1] + 1) * k, steps.size)
+        steps[lo:hi] = np.interp(index[lo:hi], centres, knots) * unscaled[lo:hi]
     raise ff.FresnelError("the timesteps could not be brought within the axis limits")
+
+
+def _near(turns: np.ndarray, count: int) -> np.ndarray:
+    """The turns within two of any of ``turns`` (sorted), among ``count``."""
+    mark = np.zeros(count + 4, dtype=bool)
+    for shift in range(5):
+        mark[turns + shift] = True
+    return np.flatnonzero(mark[2 : count + 2])
 
 
 def timesteps(

@@ -359,65 +359,38 @@ def compensation_exact(
 
 # --------------------------------------------------------------------------- accelerations
 @njit(nogil=True, cache=True)
-def _turn_relative(steps, deltas, inv_limit, first):  # pragma: no cover - jit
-    """Relative accelerations a/a_lim (K, A) over one turn (eq. 14) and their largest
-    magnitude; arguments of :func:`turn_cost`."""
+def _turn_relative_into(steps, deltas, inv_limit, first, rel):  # pragma: no cover - jit
+    """Relative accelerations a/a_lim over one turn (eq. 14) into ``rel[:K]`` (K, A) and their
+    largest magnitude; the other arguments as :func:`ftsweep.stages.turnopt.turn_cost_into`'s."""
     k_n = steps.size
-    rel = np.zeros((k_n, deltas.shape[1]))
     big = 0.0
     for k in range(k_n):
         if first and k == 0:
+            rel[k, :] = 0.0
             continue
         t0 = steps[k - 1] if k > 0 else steps[k_n - 1]
         t1 = steps[k]
+        # divisions per step, not per axis (the optimiser evaluates this ~10^5 times a program)
+        inv_t0, inv_t1, c = 1.0 / t0, 1.0 / t1, 2.0 / (t0 + t1)
         for j in range(deltas.shape[1]):
-            a = 2.0 * (deltas[k + 1, j] / t1 - deltas[k, j] / t0) / (t0 + t1)
+            a = (deltas[k + 1, j] * inv_t1 - deltas[k, j] * inv_t0) * c
             rel[k, j] = a * inv_limit[j]
             big = max(big, abs(rel[k, j]))
-    return rel, big
+    return big
 
 
 @njit(nogil=True, cache=True)
-def turn_cost(steps, deltas, inv_limit, power, first):  # pragma: no cover - jit
-    """Smooth maximum of the relative accelerations |a/a_lim| over one turn and its gradient
-    with respect to the turn's K timesteps ([2] eq. 15, the max replaced by a p-norm).
-
-    steps : (K,) T_k [s], the step from point k to k + 1. deltas : (K + 1, A) position
-    differences, row 0 the step into the turn's first point, taken with the turn's own last
-    timestep (adjacent turns are nearly periodic, [2] §2.5). inv_limit : (A,) 1/a_lim.
-    first : the program's first turn (its first point has no acceleration).
-    Returns (log of the p-norm, gradient (K,))."""
-    k_n = steps.size
-    m = deltas.shape[1]
-    rel, big = _turn_relative(steps, deltas, inv_limit, first)
-    grad = np.zeros(k_n)
-    if big == 0.0:
-        return 0.0, grad
-    total = 0.0
-    for k in range(k_n):
-        for j in range(m):
-            total += (abs(rel[k, j]) / big) ** power
-    for k in range(k_n):
-        if first and k == 0:
-            continue
-        before = k - 1 if k > 0 else k_n - 1
-        t0 = steps[before]
-        t1 = steps[k]
-        s = t0 + t1
-        for j in range(m):
-            r = rel[k, j]
-            if r == 0.0:
-                continue
-            w = math.copysign((abs(r) / big) ** (power - 1.0), r) / (big * total)
-            a = r / inv_limit[j]
-            grad[k] += w * inv_limit[j] * (-2.0 * deltas[k + 1, j] / (t1 * t1) - a) / s
-            grad[before] += w * inv_limit[j] * (2.0 * deltas[k, j] / (t0 * t0) - a) / s
-    return math.log(big) + math.log(total) / power, grad
+def _turn_relative(steps, deltas, inv_limit, first):  # pragma: no cover - jit
+    """Relative accelerations a/a_lim (K, A) over one turn (eq. 14) and their largest
+    magnitude."""
+    rel = np.zeros((steps.size, deltas.shape[1]))
+    return rel, _turn_relative_into(steps, deltas, inv_limit, first, rel)
 
 
 @njit(nogil=True, cache=True)
 def turn_peak(steps, deltas, inv_limit, first):  # pragma: no cover - jit
-    """Largest relative acceleration max |a/a_lim| over one turn (arguments of turn_cost)."""
+    """Largest relative acceleration max |a/a_lim| over one turn (arguments of
+    :func:`ftsweep.stages.turnopt.turn_cost_into`)."""
     return _turn_relative(steps, deltas, inv_limit, first)[1]
 
 

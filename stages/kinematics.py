@@ -44,6 +44,28 @@ def accelerations(q, steps):  # pragma: no cover - jit
     return a
 
 
+@njit(nogil=True, cache=True)
+def turn_peaks(q, steps, accel_limit, velocity_limit, k, which, peak_a, peak_v):  # pragma: no cover - jit
+    """Largest relative acceleration |a|/a_lim over the points of each turn in ``which`` (K
+    points from turn·K on; eq. 14 as :func:`accelerations`, the same arithmetic) and largest
+    relative velocity |v|/v_lim over its K steps, into ``peak_a`` and ``peak_v`` at the turn's
+    index: the turns whose timesteps changed, without the whole program's arrays."""
+    n, m = q.shape
+    for turn in which:
+        big_a = 0.0
+        big_v = 0.0
+        for i in range(turn * k, (turn + 1) * k):
+            t1 = steps[i]
+            for j in range(m):
+                big_v = max(big_v, abs((q[i + 1, j] - q[i, j]) / t1) / velocity_limit[j])
+                if 0 < i < n - 1:
+                    t0 = steps[i - 1]
+                    a = 2.0 * ((q[i + 1, j] - q[i, j]) / t1 - (q[i, j] - q[i - 1, j]) / t0) / (t0 + t1)
+                    big_a = max(big_a, abs(a) / accel_limit[j])
+        peak_a[turn] = big_a
+        peak_v[turn] = big_v
+
+
 def velocities(q: np.ndarray, steps: np.ndarray) -> np.ndarray:
     """Velocities (P − 1, A) [q's unit/s] over each step of positions q (P, A)."""
     return np.diff(q, axis=0) / steps[:, None]

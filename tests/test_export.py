@@ -161,6 +161,19 @@ def test_corrupted_header_fails_verify_on_its_checksum(ring_cube, tmp_path):
     assert r.exit_code != 0 and "checksum mismatch" in r.output
 
 
+def test_a_table_value_that_is_not_an_integer_is_named(ring_cube, tmp_path):
+    header = tmp_path / "t.h"
+    export(ring_cube, header, index=0)
+    text = header.read_text()
+    first_row = text.index("{", text.index("_table["))
+    start = first_row + text[first_row:].index("{", 1) + 1
+    end = text.index(",", start)
+    for bad in ("1.5", "12x", "0x1F"):  # each read as integers once (a regex took their digits)
+        header.write_text(text[:start] + bad + text[end:])
+        with pytest.raises(ExportError, match="not an integer"):
+            read_header(header)
+
+
 def test_existing_header_needs_force(ring_cube, tmp_path):
     header = tmp_path / "t.h"
     export(ring_cube, header, index=0)

@@ -289,7 +289,8 @@ def export_header(
 
 # ----------------------------------------------------------------------------- verify
 _DEFINE = re.compile(r"^#define\s+(\w+)\s+(.*?)\s*(?:/\*.*\*/)?\s*$")
-_NUMBER = re.compile(r"-?\d+")
+# what separates the table's values: braces of rows, commas, white space
+_SEPARATORS = str.maketrans("{},", "   ")
 # a header holds at most a controller's table: this bounds what verify reads
 MAX_HEADER_BYTES = 200 * 2**20
 
@@ -331,7 +332,11 @@ def read_header(path: Path) -> tuple[list[tuple[str, str]], np.ndarray]:
         rows, cols = int(found["ROWS"]), int(found["COLS"])
     except ValueError:
         raise ExportError(f"{path}: ROWS and COLS must be integers") from None
-    ints = np.array([int(v) for v in _NUMBER.findall(body.group(1))], dtype=np.int64)
+    try:
+        # numpy parses the tokens in C (a Python int per value took 0.33 s for 950k values)
+        ints = np.array(body.group(1).translate(_SEPARATORS).split(), dtype=np.int64)
+    except (ValueError, OverflowError) as exc:
+        raise ExportError(f"{path}: the table holds a value that is not an integer ({exc})") from None
     if ints.size != rows * cols:
         raise ExportError(
             f"{path}: the table holds {ints.size} values, the macros say {rows} × {cols}; do not load it"

@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from .layouts import Layout
-from .spiral import SpiralPath, phi_on_path, spiral_commands
+from .spiral import SpiralPath, pass_commands_kernel, phi_on_path, spiral_commands
 
 # a program the controller executes: a table (bilinear, model §3) or a spiral path (linear
 # in the spindle angle between consecutive points, [4])
@@ -131,9 +131,15 @@ def pass_commands(layout: Program, table: np.ndarray, grid: PathGrid) -> np.ndar
     the tool at accumulated angle φ = 2πk + θ, where the controller interpolates linearly
     between the points around φ."""
     if isinstance(layout, SpiralPath):
-        k = np.arange(int(grid.n_passes.max())) + grid.first_revolution
-        phi = 2.0 * math.pi * k[None, :] + grid.ray_theta[:, None]
-        return spiral_commands(layout, np.asarray(table, dtype=np.float64), phi)
+        out = np.empty((grid.ray_theta.size, int(grid.n_passes.max())))
+        pass_commands_kernel(
+            np.ascontiguousarray(layout.phi, dtype=np.float64),
+            np.ascontiguousarray(table, dtype=np.float64),
+            np.ascontiguousarray(grid.ray_theta, dtype=np.float64),
+            int(grid.first_revolution),
+            out,
+        )
+        return out
     theta = grid.ray_theta[:, None]
     if layout.periodic:
         ray_a = ((np.degrees(theta) - layout.origin[1]) / layout.pitch[1]).ravel()

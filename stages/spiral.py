@@ -147,41 +147,6 @@ def _close(phi: np.ndarray, end: float) -> np.ndarray:
     return np.append(phi, end)
 
 
-def _cap_steps(phi: np.ndarray, max_step: float) -> np.ndarray:
-    """``phi`` with every gap wider than ``max_step`` [rad] split into equal steps."""
-    pieces = np.empty(phi.size - 1, dtype=np.int64)
-    total = _count_pieces(phi, max_step, pieces)
-    if total == pieces.size:
-        return phi
-    out = np.empty(total + 1)
-    _split_gaps(phi, pieces, out)
-    return out
-
-
-@njit(nogil=True, cache=True)
-def _count_pieces(phi, max_step, pieces):  # pragma: no cover - jit
-    """Equal steps each gap of ``phi`` is split into (at least one, none above ``max_step``),
-    into ``pieces``; returns their sum."""
-    total = 0
-    for i in range(pieces.size):
-        gap = phi[i + 1] - phi[i]
-        pieces[i] = max(math.ceil(gap / max_step - 1e-9), 1)
-        total += pieces[i]
-    return total
-
-
-@njit(nogil=True, cache=True)
-def _split_gaps(phi, pieces, out):  # pragma: no cover - jit
-    """φ_i + j·(gap_i / pieces_i) for j < pieces_i, then the last φ, into ``out``."""
-    n = 0
-    for i in range(pieces.size):
-        step = (phi[i + 1] - phi[i]) / pieces[i]
-        for j in range(pieces[i]):
-            out[n] = phi[i] + j * step
-            n += 1
-    out[n] = phi[-1]
-
-
 def constant_angle(rho0_um: float, feed_um: float, points_per_rev: int) -> SpiralPath:
     """Points at a constant spindle-angle step 2π/Np from the outer edge to the centre."""
     _check("points_per_rev", points_per_rev)
@@ -193,42 +158,75 @@ def constant_angle(rho0_um: float, feed_um: float, points_per_rev: int) -> Spira
     return SpiralPath("spiral", _close(phi, end), rho0_um, feed_um, "angle", float(n))
 
 
-# points per part of the Newton solve of :func:`_radius_at_length`: its temporaries stay in cache
-ARC_PART = 65_536
+@njit(nogil=True, cache=True, inline="always")
+def _newton_step(r, t, b, rho0_um):  # pragma: no cover - jit
+    """One Newton step on the length from the centre, (b/2)·(u·sqrt(1+u²) + asinh u) with
+    u = r/b, towards the length ``t``: (the new radius, the step)."""
+    u = r / b
+    length = 0.5 * b * (u * math.sqrt(1.0 + u * u) + math.asinh(u))
+    step = (length - t) * b / math.sqrt(r * r + b * b)
+    return min(max(r - step, 0.0), rho0_um), step
 
 
-def _radius_at_length(target: np.ndarray, b: float, rho0_um: float, iterations: int = 60) -> np.ndarray:
-    """Radius [µm] where the spiral ρ = b·ψ has run ``target`` [µm] from the centre, by Newton
-    on the closed-form length (monotone and convex in ρ, so Newton from the small-ρ limit
-    s ≈ ρ²/(2b) converges), until every step is below 1e-9·ρ0.
+@njit(nogil=True, cache=True)
+def _arc_angles(total, arc_um, b, rho0_um, iterations, tol, phi):  # pragma: no cover - jit
+    """Angles φ = (ρ0 − ρ)/b [rad] where the spiral has run j·``arc_um`` [µm] from the edge
+    (``total`` [µm] long), into ``phi[:n]`` (n = phi.size − 1; the last slot is left for the
+    end): each ρ by Newton on the length from the centre until a step is below ``tol`` [µm]
+    (the length is convex in ρ: after at most one overshoot it converges monotonically,
+    quadratically), from the large-ρ expansion t = (b/2)·(u² + ½ + ln 2u), u = ρ/b, where it
+    holds (u > 2), else from t = ρ²/(2b); two or three steps a point."""
+    for j in range(phi.size - 1):
+        t = max(total - j * arc_um, 0.0)
+        u0 = math.sqrt(2.0 * t / b)
+        u2 = 2.0 * t / b - 0.5 - math.log(2.0 * u0) if u0 > 2.0 else -1.0
+        r = min(b * math.sqrt(u2) if u2 > 0.0 else b * u0, rho0_um)
+        for _ in range(iterations):
+            r, step = _newton_step(r, t, b, rho0_um)
+            if abs(step) < tol:
+                break
+        phi[j] = (rho0_um - r) / b
 
-    Solved in parts of :data:`ARC_PART` points, each as many iterations as the whole array
-    would take (the first at which every part's steps are below the bound), so the radii
-    are those of one solve over the whole array, bit for bit, without its temporaries
-    streaming through memory (28 M dense points of a chord budget: 6 s)."""
-    tol = 1e-9 * max(rho0_um, 1.0)
-    rho = np.minimum(np.sqrt(2.0 * b * target), rho0_um)
-    bounds = list(range(0, target.size, ARC_PART)) + [target.size]
-    done = []
 
-    def iterate(lo: int, hi: int, count: int, check: bool) -> int:
-        r, t = rho[lo:hi], target[lo:hi]
-        for k in range(count):
-            step = (_arc_from_centre(r, b) - t) * b / np.sqrt(r * r + b * b)
-            r = np.clip(r - step, 0.0, rho0_um)
-            if check and np.max(np.abs(step)) < tol:
-                rho[lo:hi] = r
-                return k + 1
-        rho[lo:hi] = r
-        return count
-
-    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
-        done.append(iterate(lo, hi, iterations, True))
-    most = max(done, default=0)
-    for (lo, hi), n in zip(zip(bounds[:-1], bounds[1:], strict=True), done, strict=True):
-        if n < most:
-            iterate(lo, hi, most - n, False)
-    return rho
+@njit(nogil=True, cache=True)
+def _close_and_cap(phi, n, end, max_step):  # pragma: no cover - jit
+    """The ascending angles ``phi[:n]`` [rad] with those within 1e-12 of the end Φ dropped,
+    Φ appended and every gap wider than ``max_step`` split into equal steps, written in place
+    into ``phi[:count]`` from the back (an angle only moves up the array, past the ones not
+    yet read), which needs ``phi.size`` ≥ count. Returns the count; −1, with ``phi``
+    untouched, when the angles do not ascend (rounding; the caller sorts) or ``phi`` is too
+    short (the caller gives more room)."""
+    limit = end - 1e-12 * max(end, 1.0)
+    kept = n
+    while kept > 0 and phi[kept - 1] >= limit:
+        kept -= 1
+    count = 1
+    nxt = end
+    for j in range(kept - 1, -1, -1):
+        p = phi[j]
+        if p > nxt:
+            return -1
+        if nxt - p > max_step:
+            count += max(math.ceil((nxt - p) / max_step - 1e-9), 1) - 1
+        count += 1
+        nxt = p
+    if count > phi.size:
+        return -1
+    pos = count - 1
+    phi[pos] = end
+    nxt = end
+    for j in range(kept - 1, -1, -1):
+        p = phi[j]
+        if nxt - p > max_step:
+            pieces = max(math.ceil((nxt - p) / max_step - 1e-9), 1)
+            step = (nxt - p) / pieces
+            for i in range(pieces - 1, 0, -1):
+                pos -= 1
+                phi[pos] = p + i * step
+        pos -= 1
+        phi[pos] = p
+        nxt = p
+    return count
 
 
 def constant_arc(
@@ -240,13 +238,17 @@ def constant_arc(
     b = feed_um / (2.0 * math.pi)
     end = spiral_end_rad(rho0_um, feed_um)
     total = path_length_um(rho0_um, feed_um)
-    # the radius where the path has run s_j = j·Δs from the edge, by Newton on the closed-form
-    # length (monotone and convex in ρ, so Newton from the linear guess converges)
-    target = total - np.arange(int(math.ceil(total / arc_um - 1e-9)) + 1) * arc_um
-    target = np.maximum(target, 0.0)
-    rho = _radius_at_length(target, b, rho0_um)
-    phi = np.sort((rho0_um - rho) / b)
-    phi = _cap_steps(_close(phi, end), 2.0 * math.pi / min_points_per_rev)
+    n = int(math.ceil(total / arc_um - 1e-9)) + 1
+    max_step = 2.0 * math.pi / min_points_per_rev
+    # room for the steps the angular floor adds (at most Φ/max_step); pages never written
+    # take no memory, and the angles are split in place, without a second array to fault in
+    phi = np.empty(n + 2 + int(math.ceil(end / max_step)))
+    _arc_angles(total, float(arc_um), b, float(rho0_um), 60, 1e-9 * max(rho0_um, 1.0), phi[: n + 1])
+    count = _close_and_cap(phi, n, end, max_step)
+    if count < 0:  # not ascending after rounding (never seen): sorted first
+        phi[:n] = np.sort(phi[:n])
+        count = _close_and_cap(phi, n, end, max_step)
+    phi = phi[:count]
     return SpiralPath("spiral", phi, rho0_um, feed_um, "arc", float(arc_um))
 
 
@@ -311,6 +313,78 @@ def _chord_errors(phi, w, keep_idx, out):  # pragma: no cover - jit
         out[s] = worst
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _cubic(phi, w, a, x):  # pragma: no cover - jit
+    """The cubic through (phi[a + k], w[a + k]), k = 0..3, at ``x`` (Lagrange form)."""
+    x0, x1, x2, x3 = phi[a], phi[a + 1], phi[a + 2], phi[a + 3]
+    return (
+        w[a] * (x - x1) * (x - x2) * (x - x3) / ((x0 - x1) * (x0 - x2) * (x0 - x3))
+        + w[a + 1] * (x - x0) * (x - x2) * (x - x3) / ((x1 - x0) * (x1 - x2) * (x1 - x3))
+        + w[a + 2] * (x - x0) * (x - x1) * (x - x3) / ((x2 - x0) * (x2 - x1) * (x2 - x3))
+        + w[a + 3] * (x - x0) * (x - x1) * (x - x2) / ((x3 - x0) * (x3 - x1) * (x3 - x2))
+    )
+
+
+@njit(nogil=True, cache=True)
+def _interval_smooth(phi, w, i, tol):  # pragma: no cover - jit
+    """Whether the centred cubic through samples i − 1 … i + 2 reproduces the path within
+    ``tol`` [µm] on [φ_i, φ_i+1]: at the interval's middle it must agree within ``tol`` with
+    the cubics shifted one sample either way. For a smooth path (uniform step h, fourth
+    derivative w⁽⁴⁾) those differences are 0.0625·h⁴·|w⁽⁴⁾| there, the centred cubic's own
+    largest error on the interval 0.0234·h⁴·|w⁽⁴⁾| (the Lagrange remainder): a pass bounds
+    that error by tol/2.7. A kink or a jump within the stencils fails."""
+    if i < 2 or i + 3 >= phi.size:
+        return False
+    mid = 0.5 * (phi[i] + phi[i + 1])
+    centred = _cubic(phi, w, i - 1, mid)
+    worst = max(abs(_cubic(phi, w, i - 2, mid) - centred), abs(_cubic(phi, w, i, mid) - centred))
+    return worst <= tol  # NaN fails
+
+
+@njit(nogil=True, cache=True)
+def _interpolate_dense(phi_c, w_c, phi, tol, w, exact):  # pragma: no cover - jit
+    """Commands at the dense angles ``phi`` (ascending, within the coarse ones) by the centred
+    cubic through the exact coarse samples (phi_c, w_c), into ``w``; where an interval fails
+    :func:`_interval_smooth` (and at the ends) ``exact`` is set instead. Returns how many."""
+    n = phi_c.size
+    i = 0
+    current = -1
+    smooth = False
+    count = 0
+    for q in range(phi.size):
+        x = phi[q]
+        while i < n - 2 and phi_c[i + 1] <= x:
+            i += 1
+        if i != current:
+            current = i
+            smooth = _interval_smooth(phi_c, w_c, i, tol)
+        if smooth:
+            w[q] = _cubic(phi_c, w_c, i - 1, x)
+        else:
+            exact[q] = True
+            count += 1
+    return count
+
+
+def dense_commands(
+    phi: np.ndarray,
+    coarse: tuple[np.ndarray, np.ndarray],
+    commands: Callable[[np.ndarray], np.ndarray],
+    tol_um: float,
+) -> tuple[np.ndarray, int]:
+    """Commands w [µm] at the dense angles ``phi`` [rad]: the centred cubic through the
+    exactly compensated ``coarse`` samples (φ, w) where it is proven within ``tol_um`` [µm]
+    (:func:`_interval_smooth`), ``commands(phi)`` (exact, model §4) elsewhere. Returns w and
+    the number of samples computed exactly."""
+    w = np.empty(phi.size)
+    exact = np.zeros(phi.size, dtype=np.bool_)
+    count = _interpolate_dense(coarse[0], coarse[1], phi, float(tol_um), w, exact)
+    if count:
+        where = np.flatnonzero(exact)
+        w[where] = np.asarray(commands(phi[where]), dtype=np.float64)
+    return w, int(count)
+
+
 # dense samples the chord rule wants in every kept segment: with d dense intervals per segment the
 # chord's deviation between dense samples exceeds the largest sampled one by about Δ/d² of
 # the budget on a segment of uniform curvature, which the rule's margin (DENSE_MARGIN) covers
@@ -318,6 +392,9 @@ DENSE_PER_SEGMENT = 8
 # dense samples of the chord rule: ~80 bytes each with the compensation's temporaries (2.4 GB)
 MAX_DENSE_SAMPLES = 30_000_000
 DENSE_MARGIN = 1.0 / 16.0
+# refined dense samples are interpolated from the first sampling where the interpolation is
+# proven within this fraction of the chord budget (:func:`_interval_smooth`), else compensated
+INTERP_TOL = 1e-3
 
 
 def chord_budget(
@@ -338,9 +415,13 @@ def chord_budget(
     point whose chord stays within (1 − 1/16)·Δcho of every dense sample in between, and
     the dense spacing is refined (up to ``max_refine`` times) until every kept segment
     spans at least 8 dense intervals, where the chord's deviation between dense samples is
-    within the margin. Returns the path, the commands at its points [µm] and the largest
-    sampled chord deviation of each segment [µm]. A dense sampling of more than
-    ``max_samples`` points is refused (ValueError) before it is allocated.
+    within the margin. The first dense sampling is compensated exactly; a refined one takes
+    the cubic through it wherever that is proven within 1e-3·Δcho (:func:`dense_commands`:
+    on a smooth path all but a few samples, 28 M exact compensations cut to 3 M), 1/60 of
+    the margin the rule keeps. Returns the path, the commands at its points as sampled [µm]
+    (within 1e-3·Δcho of ``commands``) and the largest sampled chord deviation of each
+    segment [µm]. A dense sampling of more than ``max_samples`` points is refused
+    (ValueError) before it is allocated.
     """
     _check("chord_um", chord_um)
     step = dense_um if dense_um is not None else feed_um
@@ -348,6 +429,7 @@ def chord_budget(
     budget = chord_um * (1.0 - DENSE_MARGIN)
     max_step = 2.0 * math.pi / min_points_per_rev
     length = path_length_um(rho0_um, feed_um)
+    coarse = None
     for attempt in range(max_refine + 1):
         needed = length / step + DENSE_PER_SEGMENT * min_points_per_rev * spiral_end_rad(rho0_um, feed_um) / (
             2.0 * math.pi
@@ -359,7 +441,12 @@ def chord_budget(
             )
         # the dense angular floor leaves the rule's widest steps their DENSE_PER_SEGMENT samples
         dense = constant_arc(rho0_um, feed_um, step, DENSE_PER_SEGMENT * min_points_per_rev).phi
-        w = np.ascontiguousarray(commands(dense), dtype=np.float64)
+        if coarse is None:
+            # the first sampling is computed exactly; refinements interpolate it where smooth
+            w = np.ascontiguousarray(commands(dense), dtype=np.float64)
+            coarse = (dense, w)
+        else:
+            w = dense_commands(dense, coarse, commands, INTERP_TOL * chord_um)[0]
         keep = np.zeros(dense.size, dtype=np.bool_)
         _greedy_chords(dense, w, budget, max_step, keep)
         idx = np.flatnonzero(keep)
@@ -379,6 +466,72 @@ def spiral_commands(path: SpiralPath, values: np.ndarray, phi: np.ndarray) -> np
     """The controller's command w [µm] at accumulated spindle angles ``phi`` [rad]: linear
     interpolation in φ between consecutive control points, the end values held outside."""
     return np.interp(phi, path.phi, values)
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _interval_from(xp, x, j, jump):  # pragma: no cover - jit
+    """The largest j with xp[j] ≤ x (xp ascending, xp[0] ≤ x ≤ xp[-1]), searched from the
+    guess ``j + jump`` outwards by doubling steps, then by bisection."""
+    n = xp.size
+    g = min(max(j + jump, 0), n - 1)
+    if xp[g] <= x:
+        lo, step = g, 1
+        hi = min(g + step, n - 1)
+        while hi < n - 1 and xp[hi] <= x:
+            lo = hi
+            step *= 2
+            hi = min(hi + step, n - 1)
+        if xp[hi] <= x:
+            return hi
+    else:
+        hi, step = g, 1
+        lo = max(g - step, 0)
+        while lo > 0 and xp[lo] > x:
+            hi = lo
+            step *= 2
+            lo = max(lo - step, 0)
+    while hi - lo > 1:  # xp[lo] ≤ x < xp[hi]
+        mid = (lo + hi) // 2
+        if xp[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@njit(nogil=True, cache=True)
+def pass_commands_kernel(xp, fp, ray_theta, first_revolution, out):  # pragma: no cover - jit
+    """:func:`spiral_commands` at the passes φ = 2π·(k + ``first_revolution``) + θ of each ray
+    (row of ``out``, one column a pass), value for value what ``np.interp`` gives (its
+    interval, slope and end rules). Passes of a ray are a revolution apart, so each search
+    starts a revolution's worth of points on from the last (O(1) a pass where a bisection
+    over the whole path takes ~20 cache-missing steps)."""
+    n = xp.size
+    for a in range(out.shape[0]):
+        j = 0
+        jump = 0
+        for k in range(out.shape[1]):
+            x = 2.0 * math.pi * (k + first_revolution) + ray_theta[a]
+            if x != x:
+                out[a, k] = x
+            elif x < xp[0]:
+                out[a, k] = fp[0]
+            elif x >= xp[n - 1]:
+                out[a, k] = fp[n - 1]
+            else:
+                found = _interval_from(xp, x, j, jump)
+                jump = found - j if k > 0 else 0
+                j = found
+                if xp[j] == x:
+                    out[a, k] = fp[j]
+                else:
+                    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+                    value = slope * (x - xp[j]) + fp[j]
+                    if value != value:
+                        value = slope * (x - xp[j + 1]) + fp[j + 1]
+                        if value != value and fp[j] == fp[j + 1]:
+                            value = fp[j]
+                    out[a, k] = value
 
 
 def phi_on_path(path: SpiralPath, rho: np.ndarray, theta: np.ndarray) -> np.ndarray:

@@ -342,47 +342,62 @@ def _interval_smooth(phi, w, i, tol):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _interpolate_dense(phi_c, w_c, phi, tol, w, exact):  # pragma: no cover - jit
-    """Commands at the dense angles ``phi`` (ascending, within the coarse ones) by the centred
-    cubic through the exact coarse samples (phi_c, w_c), into ``w``; where an interval fails
-    :func:`_interval_smooth` (and at the ends) ``exact`` is set instead. Returns how many."""
-    n = phi_c.size
-    i = 0
-    current = -1
-    smooth = False
-    count = 0
-    for q in range(phi.size):
-        x = phi[q]
-        while i < n - 2 and phi_c[i + 1] <= x:
-            i += 1
-        if i != current:
-            current = i
-            smooth = _interval_smooth(phi_c, w_c, i, tol)
-        if smooth:
-            w[q] = _cubic(phi_c, w_c, i - 1, x)
-        else:
-            exact[q] = True
-            count += 1
-    return count
+def _smooth_intervals(phi, w, tol, out):  # pragma: no cover - jit
+    """:func:`_interval_smooth` of every interval of (phi, w) into ``out``; returns how many
+    are not."""
+    rough = 0
+    for i in range(out.size):
+        out[i] = _interval_smooth(phi, w, i, tol)
+        rough += not out[i]
+    return rough
 
 
-def dense_commands(
-    phi: np.ndarray,
+@njit(nogil=True, cache=True)
+def _subdivide(phi_c, w_c, smooth, m, phi, w, exact):  # pragma: no cover - jit
+    """Every interval of the coarse samples (phi_c, w_c) split into ``m`` equal steps in φ,
+    into ``phi`` ((n − 1)·m + 1): the coarse samples keep their values, the others take the
+    centred cubic where the interval is ``smooth``; the indices of the rest go into
+    ``exact`` (sized for them) for the caller to compute."""
+    e = 0
+    for i in range(phi_c.size - 1):
+        step = (phi_c[i + 1] - phi_c[i]) / m
+        base = i * m
+        phi[base] = phi_c[i]
+        w[base] = w_c[i]
+        for k in range(1, m):
+            x = phi_c[i] + k * step
+            phi[base + k] = x
+            if smooth[i]:
+                w[base + k] = _cubic(phi_c, w_c, i - 1, x)
+            else:
+                exact[e] = base + k
+                e += 1
+    last = phi_c.size - 1
+    phi[last * m] = phi_c[last]
+    w[last * m] = w_c[last]
+
+
+def subdivided(
     coarse: tuple[np.ndarray, np.ndarray],
+    m: int,
     commands: Callable[[np.ndarray], np.ndarray],
     tol_um: float,
-) -> tuple[np.ndarray, int]:
-    """Commands w [µm] at the dense angles ``phi`` [rad]: the centred cubic through the
-    exactly compensated ``coarse`` samples (φ, w) where it is proven within ``tol_um`` [µm]
-    (:func:`_interval_smooth`), ``commands(phi)`` (exact, model §4) elsewhere. Returns w and
-    the number of samples computed exactly."""
-    w = np.empty(phi.size)
-    exact = np.zeros(phi.size, dtype=np.bool_)
-    count = _interpolate_dense(coarse[0], coarse[1], phi, float(tol_um), w, exact)
-    if count:
-        where = np.flatnonzero(exact)
-        w[where] = np.asarray(commands(phi[where]), dtype=np.float64)
-    return w, int(count)
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """The ``coarse`` samples (φ [rad], exactly compensated w [µm], model §4) with every
+    interval split into ``m`` equal steps in φ: the new samples take the centred cubic
+    through the coarse ones where it is proven within ``tol_um`` [µm]
+    (:func:`_interval_smooth`), ``commands(φ)`` elsewhere. Returns φ, w and how many samples
+    were computed exactly."""
+    phi_c, w_c = coarse
+    smooth = np.empty(phi_c.size - 1, dtype=np.bool_)
+    rough = _smooth_intervals(phi_c, w_c, float(tol_um), smooth)
+    size = (phi_c.size - 1) * m + 1
+    phi, w = np.empty(size), np.empty(size)
+    exact = np.empty(rough * (m - 1), dtype=np.int64)
+    _subdivide(phi_c, w_c, smooth, int(m), phi, w, exact)
+    if exact.size:
+        w[exact] = np.asarray(commands(phi[exact]), dtype=np.float64)
+    return phi, w, int(exact.size)
 
 
 # dense samples the chord rule wants in every kept segment: with d dense intervals per segment the
@@ -413,40 +428,41 @@ def chord_budget(
     [rad] (model §4). The path is sampled densely at constant arc length (``dense_um``,
     default the feed), the greedy walk of :func:`_greedy_chords` keeps the farthest next
     point whose chord stays within (1 − 1/16)·Δcho of every dense sample in between, and
-    the dense spacing is refined (up to ``max_refine`` times) until every kept segment
+    the dense sampling is refined (up to ``max_refine`` times) until every kept segment
     spans at least 8 dense intervals, where the chord's deviation between dense samples is
-    within the margin. The first dense sampling is compensated exactly; a refined one takes
-    the cubic through it wherever that is proven within 1e-3·Δcho (:func:`dense_commands`:
-    on a smooth path all but a few samples, 28 M exact compensations cut to 3 M), 1/60 of
-    the margin the rule keeps. Returns the path, the commands at its points as sampled [µm]
-    (within 1e-3·Δcho of ``commands``) and the largest sampled chord deviation of each
-    segment [µm]. A dense sampling of more than ``max_samples`` points is refused
-    (ValueError) before it is allocated.
+    within the margin. The first sampling is compensated exactly; a refinement splits each
+    of its intervals into equal steps in φ, whose samples take the cubic through the first
+    sampling wherever that is proven within 1e-3·Δcho (:func:`subdivided`: on a smooth path
+    all but a few; 28 M exact compensations cut to 3 M), 1/60 of the margin the rule keeps.
+    Returns the path, the commands at its points as sampled [µm] (within 1e-3·Δcho of
+    ``commands``) and the largest sampled chord deviation of each segment [µm]. A dense
+    sampling of more than ``max_samples`` points is refused (ValueError) before it is
+    allocated.
     """
     _check("chord_um", chord_um)
     step = dense_um if dense_um is not None else feed_um
     _check("dense_um", step)
     budget = chord_um * (1.0 - DENSE_MARGIN)
     max_step = 2.0 * math.pi / min_points_per_rev
-    length = path_length_um(rho0_um, feed_um)
-    coarse = None
+    # the dense angular floor leaves the rule's widest steps their DENSE_PER_SEGMENT samples
+    floor = DENSE_PER_SEGMENT * min_points_per_rev
+    revolutions = spiral_end_rad(rho0_um, feed_um) / (2.0 * math.pi)
+    first = path_length_um(rho0_um, feed_um) / step + floor * revolutions
+    coarse: tuple[np.ndarray, np.ndarray] | None = None
+    m = 1
     for attempt in range(max_refine + 1):
-        needed = length / step + DENSE_PER_SEGMENT * min_points_per_rev * spiral_end_rad(rho0_um, feed_um) / (
-            2.0 * math.pi
-        )
+        needed = first * m
         if needed > max_samples:
             raise ValueError(
                 f"the chord budget {chord_um:g} µm needs a dense sampling of about {needed:.3g} points "
-                f"(at {step:.3g} µm), more than {max_samples:,}: use a larger chord budget"
+                f"(at {step / m:.3g} µm), more than {max_samples:,}: use a larger chord budget"
             )
-        # the dense angular floor leaves the rule's widest steps their DENSE_PER_SEGMENT samples
-        dense = constant_arc(rho0_um, feed_um, step, DENSE_PER_SEGMENT * min_points_per_rev).phi
         if coarse is None:
-            # the first sampling is computed exactly; refinements interpolate it where smooth
+            dense = constant_arc(rho0_um, feed_um, step, floor).phi
             w = np.ascontiguousarray(commands(dense), dtype=np.float64)
             coarse = (dense, w)
         else:
-            w = dense_commands(dense, coarse, commands, INTERP_TOL * chord_um)[0]
+            dense, w, _ = subdivided(coarse, m, commands, INTERP_TOL * chord_um)
         keep = np.zeros(dense.size, dtype=np.bool_)
         _greedy_chords(dense, w, budget, max_step, keep)
         idx = np.flatnonzero(keep)
@@ -455,7 +471,7 @@ def chord_budget(
         if per_segment >= DENSE_PER_SEGMENT or attempt == max_refine:
             break
         # segments scale little with the dense step, so one refinement usually suffices
-        step *= 0.9 * per_segment / DENSE_PER_SEGMENT
+        m = int(math.ceil(m * DENSE_PER_SEGMENT / (0.9 * per_segment)))
     errors = np.empty(idx.size - 1)
     _chord_errors(dense, w, idx, errors)
     path = SpiralPath("spiral", dense[idx], rho0_um, feed_um, "chord", float(chord_um))

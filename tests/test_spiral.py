@@ -428,7 +428,7 @@ def test_spiral_pass_kernel_is_np_interp_value_for_value(n, seed, rays, revs, fi
 
 
 @pytest.mark.parametrize("kinked", [False, True])
-def test_dense_commands_interpolate_only_where_proven(kinked):
+def test_subdivided_samples_are_interpolated_only_where_proven(kinked):
     # a smooth path is interpolated almost everywhere; across a kink (|sin|) the cubic would
     # miss by far more than the tolerance, so the samples there are computed exactly
     def commands(phi):
@@ -436,12 +436,13 @@ def test_dense_commands_interpolate_only_where_proven(kinked):
         return 0.5 * (np.abs(wave) if kinked else wave)
 
     coarse_phi = np.linspace(0.0, 20.0, 4001)
-    fine = np.linspace(0.0, 20.0, 40_001)
     tol = 1e-6
-    w, exact = spiral.dense_commands(fine, (coarse_phi, commands(coarse_phi)), commands, tol)
-    assert np.abs(w - commands(fine)).max() <= tol
-    assert exact >= 20  # the ends are always computed
+    phi, w, exact = spiral.subdivided((coarse_phi, commands(coarse_phi)), 10, commands, tol)
+    np.testing.assert_allclose(phi, np.linspace(0.0, 20.0, 40_001), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(w[::10], commands(coarse_phi))  # the coarse samples kept
+    assert np.abs(w - commands(phi)).max() <= tol
+    assert exact >= 4 * 9  # the two intervals at either end are always computed
     if kinked:
-        assert exact >= 19 * 10  # 19 kinks, each interval around one is computed exactly
+        assert exact >= 19 * 9  # 19 kinks: the interval around each is computed exactly
     else:
         assert exact < 100

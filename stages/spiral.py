@@ -364,11 +364,20 @@ def _subdivide(phi_c, w_c, smooth, m, phi, w, exact):  # pragma: no cover - jit
         base = i * m
         phi[base] = phi_c[i]
         w[base] = w_c[i]
+        if smooth[i]:
+            # the cubic's Lagrange weights w_a/Π(x_a − x_b), once an interval (no division
+            # per sample)
+            x0, x1, x2, x3 = phi_c[i - 1], phi_c[i], phi_c[i + 1], phi_c[i + 2]
+            c0 = w_c[i - 1] / ((x0 - x1) * (x0 - x2) * (x0 - x3))
+            c1 = w_c[i] / ((x1 - x0) * (x1 - x2) * (x1 - x3))
+            c2 = w_c[i + 1] / ((x2 - x0) * (x2 - x1) * (x2 - x3))
+            c3 = w_c[i + 2] / ((x3 - x0) * (x3 - x1) * (x3 - x2))
         for k in range(1, m):
             x = phi_c[i] + k * step
             phi[base + k] = x
             if smooth[i]:
-                w[base + k] = _cubic(phi_c, w_c, i - 1, x)
+                d0, d1, d2, d3 = x - x0, x - x1, x - x2, x - x3
+                w[base + k] = c0 * d1 * d2 * d3 + c1 * d0 * d2 * d3 + c2 * d0 * d1 * d3 + c3 * d0 * d1 * d2
             else:
                 exact[e] = base + k
                 e += 1

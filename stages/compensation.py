@@ -351,27 +351,22 @@ def _on_ray(g, gp, spacing_um, rc, nodes, mode, lift, out):  # pragma: no cover 
         jhi = min(jmax, n_nodes - 1 - n)
         j = min(max(j, jlo), jhi)
         hj = g[n + j] - lift[abs(j)]
+        # the neighbours' h at the final j are what the climb compared last: kept for the
+        # parabola instead of evaluated again
         while True:
-            moved = False
-            if j + 1 <= jhi:
-                hn = g[n + j + 1] - lift[abs(j + 1)]
-                if hn > hj:
-                    j += 1
-                    hj = hn
-                    moved = True
-                    continue
-            if j - 1 >= jlo:
-                hn = g[n + j - 1] - lift[abs(j - 1)]
-                if hn > hj:
-                    j -= 1
-                    hj = hn
-                    moved = True
-            if not moved:
-                break
+            hp = g[n + j + 1] - lift[abs(j + 1)] if j + 1 <= jhi else -math.inf
+            if hp > hj:
+                j += 1
+                hj = hp
+                continue
+            hm = g[n + j - 1] - lift[abs(j - 1)] if j - 1 >= jlo else -math.inf
+            if hm > hj:
+                j -= 1
+                hj = hm
+                continue
+            break
         best = hj
         if jlo < j < jhi:
-            hp = g[n + j + 1] - lift[abs(j + 1)]
-            hm = g[n + j - 1] - lift[abs(j - 1)]
             curv = hm - 2.0 * hj + hp
             if curv < 0.0:
                 best = hj - (hp - hm) * (hp - hm) / (8.0 * curv)

@@ -66,9 +66,21 @@ def turn_peaks(q, steps, accel_limit, velocity_limit, k, which, peak_a, peak_v):
         peak_v[turn] = big_v
 
 
+@njit(nogil=True, cache=True)
+def _velocities(q, steps, out):  # pragma: no cover - jit
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            out[i, j] = (q[i + 1, j] - q[i, j]) / steps[i]
+
+
 def velocities(q: np.ndarray, steps: np.ndarray) -> np.ndarray:
-    """Velocities (P − 1, A) [q's unit/s] over each step of positions q (P, A)."""
-    return np.diff(q, axis=0) / steps[:, None]
+    """Velocities (P − 1, A) [q's unit/s] over each step of positions q (P, A): the
+    difference over the step, in one pass (np.diff then a division made two over 10⁶-sample
+    programs; the same values)."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    out = np.empty((max(q.shape[0] - 1, 0), q.shape[1]))
+    _velocities(q, np.ascontiguousarray(steps, dtype=np.float64), out)
+    return out
 
 
 class Motion(NamedTuple):

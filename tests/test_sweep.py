@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
-from clusters import external_cluster
+from clusters import done_count, external_cluster
 
 from ftsweep import caselog, cube
 from ftsweep.catalogs import CatalogError
@@ -180,10 +180,10 @@ def test_killed_sweep_loses_nothing_and_resumes(tmp_path, catalog_dir):
         deadline = time.time() + 240
         done_before = 0
         while time.time() < deadline:
-            if out.exists() and not cube.unfinished(out):
-                done_before = int(np.sum(caselog.current_status(out) == cube.DONE))
-                if done_before >= 3:
-                    break
+            # the template may be half-written while polling: done_count reads it as 0 until then
+            done_before = done_count(out)
+            if done_before >= 3:
+                break
             time.sleep(0.05)
         assert done_before >= 3, "the sweep did not get going"
     finally:

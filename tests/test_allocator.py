@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import ctypes.util
+import os
 import platform
+import subprocess
+import sys
 
 import pytest
 
@@ -28,3 +31,33 @@ def test_results_do_not_depend_on_the_allocator():
     after = run_case(case)
     for key in ("pv_nm", "rms_nm", "pv_interp_nm", "error_min_nm", "error_max_nm"):
         assert before[key] == after[key], key
+
+
+def _advice_in_fresh_process(numpy_first: bool, env: dict[str, str]) -> str:
+    """numpy's huge-page advice after ``allocator.tune()`` in a fresh interpreter, numpy
+    imported before tune (a worker's warm-up) or after it (the command line)."""
+    code = "\n".join(
+        [
+            "import numpy" if numpy_first else "",
+            "from ftsweep import allocator",
+            "allocator.tune()",
+            "import numpy",
+            "print(numpy._core.multiarray._get_madvise_hugepage())",
+        ]
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip()
+
+
+@pytest.mark.parametrize("numpy_first", [True, False])
+def test_tune_stops_numpys_hugepage_advice(numpy_first):
+    # see allocator.HUGEPAGE_ENV: first touch of fresh arrays ~5x slower with the advice here
+    env = {k: v for k, v in os.environ.items() if k != allocator.HUGEPAGE_ENV}
+    assert _advice_in_fresh_process(numpy_first, env) == "False"
+
+
+@pytest.mark.parametrize("numpy_first", [True, False])
+def test_a_users_hugepage_setting_wins(numpy_first):
+    env = dict(os.environ, **{allocator.HUGEPAGE_ENV: "1"})
+    assert _advice_in_fresh_process(numpy_first, env) == "True"

@@ -128,59 +128,65 @@ def sampled_motion(
     path: dpath.DPath, z_um: np.ndarray, t_points: np.ndarray, period_s: float, until_s: float = math.inf
 ) -> tuple[dpath.Sampled, np.ndarray, kinematics.Motion]:
     """The program's planned path sampled every controller period up to ``until_s`` [s]
-    (:func:`ftsweep.stages.dpath.at_period`), its axes q (C [rad], X, Z [m]) and their motion
+    (:func:`ftsweep.stages.dpath.at_period`), its axes q (:func:`axes_of`) and their motion
     by the kinematics stage."""
     s = dpath.at_period(path, z_um, t_points, period_s, until_s)
-    q = np.column_stack([s.phi, s.rho * 1e-6, s.z * 1e-6])
+    q = axes_of(s)
     return s, q, kinematics.motion(s.t, q)
 
 
-def motion_peaks(s: dpath.Sampled, m: kinematics.Motion) -> dict[str, float]:
-    """Ranges and peaks of sampled axis motion ``m`` of samples ``s``: X range, feed and
-    acceleration, Z velocity and acceleration (peak and RMS)."""
-    return {
-        "x_min_um": float(s.rho.min()),
-        "x_max_um": float(s.rho.max()),
-        "x_feed_peak_mm_s": float(np.abs(m.velocity[:, 1]).max() * 1e3),
-        "x_accel_peak_m_s2": float(np.abs(m.accel[:, 1]).max()),
-        "z_velocity_peak_mm_s": float(np.abs(m.velocity[:, 2]).max() * 1e3),
-        "z_accel_peak_m_s2": float(np.abs(m.accel[:, 2]).max()),
-        "z_accel_rms_m_s2": float(np.sqrt(np.mean(m.accel[:, 2] ** 2))),
-    }
+def axes_of(s: dpath.Sampled) -> np.ndarray:
+    """The axes q (C [rad], X, Z [m]) of samples ``s``, the columns of :data:`AXES`."""
+    return np.column_stack([s.phi, s.rho * 1e-6, s.z * 1e-6])
+
+
+def sampled_extremes(
+    path: dpath.DPath, z_um: np.ndarray, t_points: np.ndarray, period_s: float
+) -> tuple[dpath.Sampled, kinematics.Extremes]:
+    """The program's planned path sampled every controller period (as :func:`sampled_motion`)
+    and the extremes of its motion, the samples on a cut in group 1 and the rest in group 0
+    (:func:`ftsweep.stages.kinematics.extremes`: one pass, no velocity or acceleration
+    arrays of its millions of samples)."""
+    s = dpath.at_period(path, z_um, t_points, period_s)
+    return s, kinematics.extremes(axes_of(s), kinematics.steps_of(s.t), s.on_cut, 2)
 
 
 def motion_summary(
     path: dpath.DPath, z_um: np.ndarray, rpm: float, machine: Any
 ) -> tuple[dict[str, float], str]:
-    """:func:`motion_peaks` at constant spindle speed ([5] eqs. 5–6) on the planned path
-    sampled every controller period of ``machine`` (:func:`period_of`; the C step it makes is
-    ``accel_step_deg``), the X acceleration on the cuts and in the transitions, the largest
-    dρ/dθ jump at a junction and the machining time; and the machine's limits the motion
-    exceeds ('' when it fits them, :func:`limits_reason`)."""
+    """Ranges and peaks of the motion at constant spindle speed ([5] eqs. 5–6) on the planned
+    path sampled every controller period of ``machine`` (:func:`period_of`; the C step it
+    makes is ``accel_step_deg``): X range, feed and acceleration (overall, on the cuts and in
+    the transitions), Z velocity and acceleration (peak and RMS), the largest dρ/dθ jump at a
+    junction and the machining time; and the machine's limits the motion exceeds ('' when it
+    fits them, :func:`limits_reason`)."""
     t = times(path, z_um, rpm)
     period = period_of(machine)
-    s, q, m = sampled_motion(path, z_um, t, period)
-    ax = np.abs(m.accel[:, 1])
+    s, e = sampled_extremes(path, z_um, t, period)
     jumps = dpath.junctions(path)
     summary = {
-        **motion_peaks(s, m),
-        "x_accel_cut_m_s2": float(ax[s.on_cut].max()) if np.any(s.on_cut) else 0.0,
-        "x_accel_transition_m_s2": float(ax[~s.on_cut].max()) if np.any(~s.on_cut) else 0.0,
+        "x_min_um": float(s.rho.min()),
+        "x_max_um": float(s.rho.max()),
+        "x_feed_peak_mm_s": float(e.speed[1] * 1e3),
+        "x_accel_peak_m_s2": float(e.accel[1]),
+        "z_velocity_peak_mm_s": float(e.speed[2] * 1e3),
+        "z_accel_peak_m_s2": float(e.accel[2]),
+        "z_accel_rms_m_s2": math.sqrt(float(e.accel_sq[2]) / s.t.size),
+        "x_accel_cut_m_s2": float(e.accel_group[1, 1]),
+        "x_accel_transition_m_s2": float(e.accel_group[0, 1]),
         "slope_jump_um_rad": float(np.abs(jumps["jump_d1"]).max()) if jumps["jump_d1"].size else 0.0,
         "machining_s": float(t[-1]),
         "accel_period_s": period,
         "accel_step_deg": math.degrees(rpm * 2.0 * math.pi / 60.0 * period),
     }
-    return summary, limits_reason(machine, s, q, m)
+    return summary, limits_reason(machine, s, e)
 
 
 NO_AXES = "the machine declares no X, Z, C axis limits (axes:) for a slow-tool-servo program"
 
 
-def limits_reason(
-    machine: Any, s: dpath.Sampled, q: np.ndarray, m: kinematics.Motion, slack: float = 1e-9
-) -> str:
-    """The machine's X, Z and C limits the sampled motion ``m`` of samples ``s`` (axes q)
+def limits_reason(machine: Any, s: dpath.Sampled, e: kinematics.Extremes, slack: float = 1e-9) -> str:
+    """The machine's X, Z and C limits the sampled motion of samples ``s`` (extremes ``e``)
     exceeds, checked by the kinematics stage on every sample and named by the program line
     it follows ('' when it fits them); a machine without axis limits cannot run a D path.
     ``slack``: relative allowance (rounding of a spindle speed at its limit; the printed
@@ -189,9 +195,9 @@ def limits_reason(
         return NO_AXES
 
     def where(i: int) -> str:
-        return f"line {int(s.line[i]) + 1}, t = {s.t[i]:.4f} s"
+        return f"line {s.line(i) + 1}, t = {s.t[i]:.4f} s"
 
-    return kinematics.limits_reason(q, m, machine.axes.limits(AXES), slack, where)
+    return kinematics.extremes_reason(e, machine.axes.limits(AXES), slack, where)
 
 
 def program_limits(machine: Any, path: dpath.DPath, z_um: np.ndarray, t: np.ndarray, slack: float) -> str:
@@ -199,7 +205,7 @@ def program_limits(machine: Any, path: dpath.DPath, z_um: np.ndarray, t: np.ndar
     (export and verify check what the record reports)."""
     if machine.axes is None:
         return NO_AXES
-    return limits_reason(machine, *sampled_motion(path, z_um, t, period_of(machine)), slack=slack)
+    return limits_reason(machine, *sampled_extremes(path, z_um, t, period_of(machine)), slack=slack)
 
 
 def ray_angles(geometry: dpath.DGeometry, n: int) -> np.ndarray:

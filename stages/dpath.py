@@ -495,14 +495,20 @@ def planned_z(path: DPath, z_um: np.ndarray, phi: np.ndarray, on_cut: np.ndarray
 class Sampled(NamedTuple):
     """A D-path program's motion sampled on its planned path every controller period:
     times t [s], C φ [rad], X = ρ and Z [µm], whether each sample lies on a cut, and the
-    program line (0-based point) each sample follows."""
+    times of the program's points [s] (:meth:`line`)."""
 
     t: np.ndarray
     phi: np.ndarray
     rho: np.ndarray
     z: np.ndarray
     on_cut: np.ndarray
-    line: np.ndarray
+    t_points: np.ndarray
+
+    def line(self, i: int) -> int:
+        """The program line (0-based point) sample ``i`` follows: found for the few samples a
+        message names, not for millions of samples that no one reads."""
+        found = int(np.searchsorted(self.t_points, self.t[i], side="right")) - 1
+        return min(max(found, 0), self.t_points.size - 1)
 
 
 def at_period(
@@ -521,8 +527,7 @@ def at_period(
     t = np.linspace(float(t_points[0]), end, max(n, 3))
     phi = np.interp(t, t_points, path.phi)
     rho, _, _, on_cut = evaluate(path, phi)
-    line = np.clip(np.searchsorted(t_points, t, side="right") - 1, 0, path.n_points - 1)
-    return Sampled(t, phi, rho, planned_z(path, z_um, phi, on_cut), on_cut, line)
+    return Sampled(t, phi, rho, planned_z(path, z_um, phi, on_cut), on_cut, np.asarray(t_points))
 
 
 @njit(nogil=True, cache=True)

@@ -92,12 +92,17 @@ class Motion(NamedTuple):
     accel: np.ndarray
 
 
-def motion(t: np.ndarray, q: np.ndarray) -> Motion:
-    """The :class:`Motion` of positions q (P, A) SI at times t (P) [s], which must increase."""
+def steps_of(t: np.ndarray) -> np.ndarray:
+    """The timesteps (P − 1) [s] of times t (P) [s]; raises ValueError unless t increases."""
     steps = np.diff(np.asarray(t, dtype=np.float64))
     if not np.all(steps > 0.0):
         raise ValueError("time does not increase from point to point")
-    return over_steps(q, steps)
+    return steps
+
+
+def motion(t: np.ndarray, q: np.ndarray) -> Motion:
+    """The :class:`Motion` of positions q (P, A) SI at times t (P) [s], which must increase."""
+    return over_steps(q, steps_of(t))
 
 
 def over_steps(q: np.ndarray, steps: np.ndarray) -> Motion:
@@ -120,6 +125,84 @@ class Limits(NamedTuple):
     accel: np.ndarray
 
 
+class Extremes(NamedTuple):
+    """What a program's limits and peaks need of its motion, per axis (A,), SI: the lowest and
+    highest position and the first point of each, the largest |velocity| and the first step
+    it occurs over, the largest |acceleration| and its first point, the largest |acceleration|
+    over the points of each group (G, A), and the sum of the squared accelerations."""
+
+    low: np.ndarray
+    low_at: np.ndarray
+    high: np.ndarray
+    high_at: np.ndarray
+    speed: np.ndarray
+    speed_at: np.ndarray
+    accel: np.ndarray
+    accel_at: np.ndarray
+    accel_group: np.ndarray
+    accel_sq: np.ndarray
+
+
+@njit(nogil=True, cache=True)
+def _extremes(
+    q, steps, group, low, low_at, high, high_at, speed, speed_at, accel, accel_at, accel_group, accel_sq
+):  # pragma: no cover - jit
+    n, m = q.shape
+    for j in range(m):
+        low[j] = high[j] = q[0, j]
+        low_at[j] = high_at[j] = speed_at[j] = accel_at[j] = 0
+        speed[j] = -1.0
+        accel[j] = accel_sq[j] = 0.0  # the end points' accelerations are zero
+    accel_group[:, :] = 0.0
+    for i in range(n):
+        for j in range(m):
+            x = q[i, j]
+            if x < low[j]:
+                low[j] = x
+                low_at[j] = i
+            if x > high[j]:
+                high[j] = x
+                high_at[j] = i
+            if i < n - 1:
+                # the arithmetic of _velocities and accelerations, so the same values
+                v = abs((q[i + 1, j] - x) / steps[i])
+                if v > speed[j]:
+                    speed[j] = v
+                    speed_at[j] = i
+            if 0 < i < n - 1:
+                t0, t1 = steps[i - 1], steps[i]
+                a = 2.0 * ((q[i + 1, j] - x) / t1 - (x - q[i - 1, j]) / t0) / (t0 + t1)
+                accel_sq[j] += a * a
+                a = abs(a)
+                if a > accel[j]:
+                    accel[j] = a
+                    accel_at[j] = i
+                g = group[i]
+                if a > accel_group[g, j]:
+                    accel_group[g, j] = a
+
+
+def extremes(q: np.ndarray, steps: np.ndarray, group: np.ndarray | None = None, groups: int = 1) -> Extremes:
+    """The :class:`Extremes` of positions q (P, A) SI over timesteps ``steps`` (P − 1) [s]
+    in one compiled pass: the values :class:`Motion`'s arrays hold (the same arithmetic),
+    without forming them (a D path sampled every controller period has millions of points).
+    ``group`` (P) numbers each point's group, 0 … ``groups`` − 1 (e.g. on a cut or not)."""
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    n, m = q.shape
+    if group is None:
+        group = np.zeros(n, dtype=np.int64)
+    value, at = np.empty, lambda size: np.empty(size, dtype=np.int64)
+    out = Extremes(
+        value(m), at(m), value(m), at(m), value(m), at(m), value(m), at(m), value((groups, m)), value(m)
+    )
+    if n > 0:
+        _extremes(q, np.ascontiguousarray(steps, dtype=np.float64), np.asarray(group, dtype=np.int64), *out)
+    else:  # no point: nothing to exceed
+        out.low[:], out.high[:], out.speed[:], out.accel[:] = math.inf, -math.inf, -1.0, -1.0
+        out.accel_group[:], out.accel_sq[:] = 0.0, 0.0
+    return out
+
+
 def relative(m: Motion, limits: Limits) -> tuple[np.ndarray, np.ndarray]:
     """Relative accelerations |a|/a_lim (P, A) and velocities |v|/v_lim (P − 1, A)."""
     return np.abs(m.accel) / limits.accel, np.abs(m.velocity) / limits.velocity
@@ -133,30 +216,34 @@ def _text(value: float, axis: int, limits: Limits, which: int) -> tuple[str, flo
 def limits_reason(
     q: np.ndarray, m: Motion, limits: Limits, slack: float = 0.0, where: Callable[[int], str] | None = None
 ) -> str:
-    """Every limit positions q (P, A) SI with motion ``m`` exceed, '; '-joined, each with its
-    worst value, the limit and where that value is: ``where(i)`` of its point i (a velocity's
-    step starts there), by default the line (1-based point); '' when all hold.
-    ``slack`` is a relative allowance (e.g. for the printed digits of a program read back)."""
+    """Every limit positions q (P, A) SI with motion ``m`` exceed (:func:`extremes_reason`
+    of their :func:`extremes`)."""
+    return extremes_reason(extremes(q, m.steps), limits, slack, where)
+
+
+def extremes_reason(
+    e: Extremes, limits: Limits, slack: float = 0.0, where: Callable[[int], str] | None = None
+) -> str:
+    """Every limit a motion with extremes ``e`` exceeds, '; '-joined, each with its worst
+    value, the limit and where that value is: ``where(i)`` of its point i (a velocity's step
+    starts there), by default the line (1-based point); '' when all hold. ``slack`` is a
+    relative allowance (e.g. for the printed digits of a program read back)."""
     at = where if where is not None else (lambda i: f"line {i + 1}")
     out = []
     for j, name in enumerate(limits.names):
-        col = q[:, j]
         checks = (
-            ("", col, limits.low[j], "<", 0),
-            ("", col, limits.high[j], ">", 0),
-            (" velocity", np.abs(m.velocity[:, j]), limits.velocity[j], ">", 1),
-            (" acceleration", np.abs(m.accel[:, j]), limits.accel[j], ">", 2),
+            ("", e.low[j], e.low_at[j], limits.low[j], "<", 0),
+            ("", e.high[j], e.high_at[j], limits.high[j], ">", 0),
+            (" velocity", e.speed[j], e.speed_at[j], limits.velocity[j], ">", 1),
+            (" acceleration", e.accel[j], e.accel_at[j], limits.accel[j], ">", 2),
         )
-        for what, values, bound, sense, which in checks:
-            if not math.isfinite(bound) or values.size == 0:
+        for what, worst, line, bound, sense, which in checks:
+            if not math.isfinite(bound) or (which == 1 and worst < 0.0):  # no step: no velocity
                 continue
             allowance = slack * abs(bound)
-            bad = values < bound - allowance if sense == "<" else values > bound + allowance
-            if not bad.any():
+            if not (worst < bound - allowance if sense == "<" else worst > bound + allowance):
                 continue
-            line = int(np.argmin(values) if sense == "<" else np.argmax(values))
-            worst = float(values[line])
-            unit, shown = _text(worst, j, limits, which)
+            unit, shown = _text(float(worst), j, limits, which)
             _, lim = _text(float(bound), j, limits, which)
-            out.append(f"{name}{what} {shown:.6g} {unit} {sense} limit {lim:g} {unit} ({at(line)})")
+            out.append(f"{name}{what} {shown:.6g} {unit} {sense} limit {lim:g} {unit} ({at(int(line))})")
     return "; ".join(out)

@@ -89,3 +89,39 @@ def test_every_kind_forms_accelerations_by_the_same_scheme():
     np.testing.assert_array_equal(m["x_accel_m_s2"], ref.accel[:, 0])
     np.testing.assert_array_equal(m["z_velocity_mm_s"], ref.velocity[:, 0] * 1e3)
     assert dynamics.kinematics is kinematics
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(0, 40),
+    axes=st.integers(1, 3),
+    seed=st.integers(0, 10_000),
+    ties=st.booleans(),
+)
+def test_extremes_in_one_pass_are_the_motion_arrays_own(n, axes, seed, ties):
+    # the values, and the first point of each, that argmin/argmax of Motion's arrays give
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(n, axes))
+    if ties:  # repeated values: the first occurrence must win, as argmax's
+        q = np.round(q)
+    steps = rng.uniform(0.1, 2.0, max(n - 1, 0))
+    group = rng.integers(0, 3, n)
+    e = kinematics.extremes(q, steps, group, 3)
+    if n == 0:
+        assert np.all(np.isinf(e.low)) and np.all(e.speed < 0.0)
+        return
+    m = kinematics.over_steps(q, steps)
+    speed, accel = np.abs(m.velocity), np.abs(m.accel)
+    np.testing.assert_array_equal(e.low, q.min(axis=0))
+    np.testing.assert_array_equal(e.low_at, q.argmin(axis=0))
+    np.testing.assert_array_equal(e.high, q.max(axis=0))
+    np.testing.assert_array_equal(e.high_at, q.argmax(axis=0))
+    if n > 1:
+        np.testing.assert_array_equal(e.speed, speed.max(axis=0))
+        np.testing.assert_array_equal(e.speed_at, speed.argmax(axis=0))
+    np.testing.assert_array_equal(e.accel, accel.max(axis=0))
+    np.testing.assert_array_equal(e.accel_at, accel.argmax(axis=0))
+    for g in range(3):
+        own = accel[group == g]
+        np.testing.assert_array_equal(e.accel_group[g], own.max(axis=0) if own.size else 0.0)
+    np.testing.assert_allclose(e.accel_sq, np.sum(m.accel**2, axis=0), rtol=1e-12)

@@ -311,8 +311,12 @@ def bench(
     from ftsweep.io import write_json_atomic
 
     try:
+        # whole processes first, while this one is small: once the in-process cases have run it
+        # keeps ~1 GB (ftsweep.allocator), and on this VM a child's fresh pages then came ~30 %
+        # slower (the 990k-point chord spiral 3.0 -> 3.9-4.2 s, measured both ways)
+        rows = whole_process(max(repeat, 3)) if not names else []
         result = run_benchmark(list(names) or None, repeat=repeat, threads=threads or usable_cores())
-        result["whole_process"] = whole_process(max(repeat, 3)) if not names else []
+        result["whole_process"] = rows
     except ValueError as exc:
         raise click.ClickException(str(exc)) from None
     if result["whole_process"]:

@@ -348,7 +348,7 @@ def limits_reason(q: np.ndarray, steps: np.ndarray, limits: Limits, slack: float
     velocities), or ''."""
     if not np.all(steps > 0.0):
         return "time does not increase from line to line"
-    return kinematics.limits_reason(q, kinematics.over_steps(q, steps), limits, slack)
+    return kinematics.limits_reason(q, steps, limits, slack)
 
 
 def constant_step(q: np.ndarray, limits: Limits, safety: float) -> float:

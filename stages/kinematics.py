@@ -189,14 +189,15 @@ def extremes(q: np.ndarray, steps: np.ndarray, group: np.ndarray | None = None, 
     ``group`` (P) numbers each point's group, 0 … ``groups`` − 1 (e.g. on a cut or not)."""
     q = np.ascontiguousarray(q, dtype=np.float64)
     n, m = q.shape
-    if group is None:
-        group = np.zeros(n, dtype=np.int64)
+    group = np.zeros(n, dtype=np.int64) if group is None else np.asarray(group, dtype=np.int64)
+    if group.shape != (n,) or (n and not 0 <= group.min() <= group.max() < groups):
+        raise ValueError(f"a group for each of the {n} points, numbered 0 to {groups - 1}, is needed")
     value, at = np.empty, lambda size: np.empty(size, dtype=np.int64)
     out = Extremes(
         value(m), at(m), value(m), at(m), value(m), at(m), value(m), at(m), value((groups, m)), value(m)
     )
     if n > 0:
-        _extremes(q, np.ascontiguousarray(steps, dtype=np.float64), np.asarray(group, dtype=np.int64), *out)
+        _extremes(q, np.ascontiguousarray(steps, dtype=np.float64), group, *out)
     else:  # no point: nothing to exceed
         out.low[:], out.high[:], out.speed[:], out.accel[:] = math.inf, -math.inf, -1.0, -1.0
         out.accel_group[:], out.accel_sq[:] = 0.0, 0.0
@@ -214,11 +215,15 @@ def _text(value: float, axis: int, limits: Limits, which: int) -> tuple[str, flo
 
 
 def limits_reason(
-    q: np.ndarray, m: Motion, limits: Limits, slack: float = 0.0, where: Callable[[int], str] | None = None
+    q: np.ndarray,
+    steps: np.ndarray,
+    limits: Limits,
+    slack: float = 0.0,
+    where: Callable[[int], str] | None = None,
 ) -> str:
-    """Every limit positions q (P, A) SI with motion ``m`` exceed (:func:`extremes_reason`
-    of their :func:`extremes`)."""
-    return extremes_reason(extremes(q, m.steps), limits, slack, where)
+    """Every limit positions q (P, A) SI over timesteps ``steps`` (P − 1) [s] exceed
+    (:func:`extremes_reason` of their :func:`extremes`)."""
+    return extremes_reason(extremes(q, steps), limits, slack, where)
 
 
 def extremes_reason(

@@ -62,12 +62,12 @@ def test_limits_reason_names_axis_value_limit_and_line():
     lim = _xzc()
     t = np.arange(5) * 0.1
     q = np.zeros((5, 3))
-    assert kinematics.limits_reason(q, kinematics.motion(t, q), lim) == ""
+    assert kinematics.limits_reason(q, kinematics.steps_of(t), lim) == ""
     q[3, 1] = 0.001  # X jumps 1 mm in 0.1 s and back: 10 mm/s, 0.1 m/s² → within the X limits
-    assert kinematics.limits_reason(q, kinematics.motion(t, q), lim) == ""
+    assert kinematics.limits_reason(q, kinematics.steps_of(t), lim) == ""
     t = np.arange(5) * 0.125  # exact binary steps and positions: no ties broken by rounding
     q[3:, 1] = (0.25, 0.5)  # X to 250 mm then 500 mm: out of range, 2 m/s, 16 m/s² at line 3
-    reason = kinematics.limits_reason(q, kinematics.motion(t, q), lim)
+    reason = kinematics.limits_reason(q, kinematics.steps_of(t), lim)
     assert "X 500 mm > limit 150 mm (line 5)" in reason
     assert "X velocity 2000 mm/s > limit 250 mm/s (line 3)" in reason
     assert "X acceleration 16 m/s² > limit 10 m/s² (line 3)" in reason
@@ -75,8 +75,8 @@ def test_limits_reason_names_axis_value_limit_and_line():
     # a relative slack admits a value just over its limit (printed digits read back)
     q = np.zeros((3, 3))
     q[:, 0] = np.arange(3) * lim.velocity[0] * (1.0 + 1e-8) * 0.1
-    assert "C velocity" in kinematics.limits_reason(q, kinematics.motion(np.arange(3) * 0.1, q), lim)
-    assert kinematics.limits_reason(q, kinematics.motion(np.arange(3) * 0.1, q), lim, slack=1e-6) == ""
+    assert "C velocity" in kinematics.limits_reason(q, kinematics.steps_of(np.arange(3) * 0.1), lim)
+    assert kinematics.limits_reason(q, kinematics.steps_of(np.arange(3) * 0.1), lim, slack=1e-6) == ""
 
 
 def test_every_kind_forms_accelerations_by_the_same_scheme():
@@ -125,3 +125,12 @@ def test_extremes_in_one_pass_are_the_motion_arrays_own(n, axes, seed, ties):
         own = accel[group == g]
         np.testing.assert_array_equal(e.accel_group[g], own.max(axis=0) if own.size else 0.0)
     np.testing.assert_allclose(e.accel_sq, np.sum(m.accel**2, axis=0), rtol=1e-12)
+
+
+def test_extremes_refuses_groups_it_has_no_room_for():
+    # the compiled pass indexes its per-group peaks by the group: one out of range is refused
+    q, steps = np.zeros((4, 2)), np.ones(3)
+    with pytest.raises(ValueError, match="numbered 0 to 1"):
+        kinematics.extremes(q, steps, np.array([0, 1, 2, 0]), 2)
+    with pytest.raises(ValueError, match="a group for each of the 4 points"):
+        kinematics.extremes(q, steps, np.array([0, 1]), 2)

@@ -89,7 +89,7 @@ def record_fields(rcase: Any) -> dict[str, Any]:
     fplan, steps = prog.plan, prog.steps
     q = fplan.axes_si()
     m = kinematics.over_steps(q, steps.steps)  # the optimiser's steps are all positive
-    reason = kinematics.limits_reason(q, m, fresnel.limits_of(rcase.machine, rcase.case.machine))
+    reason = kinematics.limits_reason(q, steps.steps, fresnel.limits_of(rcase.machine, rcase.case.machine))
     z_acc = m.accel[:, 3]
     time_adaptive = float(steps.steps.sum())
     time_constant = steps.constant * (q.shape[0] - 1)

@@ -145,12 +145,13 @@ def main() -> None:
     Catalogs (surfaces, machines, cutting conditions) are YAML files in catalogs/ or in
     the folder named by $FTSWEEP_CATALOGS; `ftsweep catalogs` lists them.
     """
-    from ftsweep import allocator
+    from ftsweep import allocator, startup
 
     # figures go to files here: pyplot's file backend unless the user chose one; the library
     # itself never switches a caller's backend (a notebook's plots would stop showing)
     os.environ.setdefault("MPLBACKEND", "Agg")
     allocator.tune()  # large batch temporaries reused, not page-faulted afresh (see the module)
+    startup.install()  # numba's set-up imports no scipy.linalg (see the module)
     # a library warning (e.g. resuming a cube another code revision started) is one line on
     # stderr, not a file path, a line number and the source line that raised it
     warnings.formatwarning = _one_line_warning

@@ -25,7 +25,7 @@ from typing import Any, Optional
 
 import dask
 
-from ftsweep import __version__, allocator, kinds
+from ftsweep import __version__, allocator, kinds, startup
 from ftsweep.case import run_case
 from ftsweep.caselog import CaseLog
 from ftsweep.defaults import WORKER_WAIT_S
@@ -202,6 +202,7 @@ def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> fl
     every batch page-fault its arrays afresh); returns seconds."""
     t = time.perf_counter()
     allocator.tune()
+    startup.install()  # numba's set-up imports no scipy.linalg (ftsweep.startup)
     try:
         run_case(
             Case(surface=surface, layout=kinds.kind(kind).warm_request()),

@@ -1,0 +1,101 @@
+"""Start-up cost of the compiled kernels: numba's BLAS probe.
+
+The first kernel a process calls, even one loaded from numba's cache, sets up numba's CPU
+target, and that set-up asks whether a BLAS is present by importing
+``scipy.linalg.cython_blas`` (``numba.np.linalg.ensure_blas``, run when ``numba.np.arraymath``
+is imported). Python imports the parent package first, and ``scipy.linalg``'s ``__init__``
+pulls in most of scipy's linear algebra and its array-API layer (``numpy.f2py`` among it):
+0.11–0.12 s of every command and every sweep worker here, for a yes/no answer no ftsweep
+kernel needs (none calls BLAS). :func:`preload_blas_probe` gives the probe the one extension
+module it asks for, loaded on its own (2 ms), so the package is imported only by code that
+uses it (a user's height-map splines, the Fresnel timestep optimiser). :func:`install` does it
+at the moment numba's set-up imports the probing module, so a command that runs no kernel
+(``--help``, ``catalogs``, ``select``) imports no scipy at all.
+
+Measured on this project's 2-core VM (first call of a cached kernel after ``import numba``,
+fresh interpreters, 3 runs each): 0.248–0.264 s without, 0.135–0.142 s with the preload.
+"""
+
+from __future__ import annotations
+
+import importlib.abc
+import importlib.machinery
+import importlib.util
+import os
+import sys
+
+PROBED = "scipy.linalg.cython_blas"
+# numba's modules whose import runs the probe (numba.np.arraymath calls ensure_blas at import)
+PROBING = frozenset({"numba.np.arraymath", "numba.np.linalg"})
+
+
+def preload_blas_probe() -> bool:
+    """Register scipy's ``cython_blas`` extension module under its own name, loaded from its
+    file without running ``scipy.linalg``'s package ``__init__``, so numba's BLAS probe finds it
+    in ``sys.modules``. True if it is registered (now or before); False where scipy or the
+    file is missing or it cannot load (numba's own probe then runs as it would have).
+
+    The module is the one ``scipy.linalg`` would load: importing ``scipy.linalg`` later runs
+    its ``__init__`` as usual and ``from scipy.linalg import cython_blas`` gives this module;
+    only the attribute ``scipy.linalg.cython_blas`` stays unset until something imports it
+    through the package."""
+    if PROBED in sys.modules or "scipy.linalg" in sys.modules:
+        return PROBED in sys.modules
+    try:
+        scipy_spec = importlib.util.find_spec("scipy")
+    except (ImportError, ValueError):
+        return False
+    if scipy_spec is None or not scipy_spec.submodule_search_locations:
+        return False
+    folder = os.path.join(next(iter(scipy_spec.submodule_search_locations)), "linalg")
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        file = os.path.join(folder, "cython_blas" + suffix)
+        if os.path.isfile(file):
+            break
+    else:
+        return False
+    try:
+        import scipy  # noqa: F401  (the package the module's name lives under)
+
+        spec = importlib.util.spec_from_file_location(PROBED, file)
+        if spec is None or spec.loader is None:
+            return False
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[PROBED] = module
+        spec.loader.exec_module(module)
+    except Exception:  # noqa: BLE001
+        # whatever went wrong, leave no half-made module behind: numba then probes as usual
+        sys.modules.pop(PROBED, None)
+        return False
+    return True
+
+
+class _BeforeProbe(importlib.abc.MetaPathFinder):
+    """An import hook that finds nothing itself: at the first import of a module of
+    :data:`PROBING` it removes itself and runs :func:`preload_blas_probe` (numba, hence scipy's
+    package, is imported by then), then lets the import proceed as usual."""
+
+    def find_spec(self, fullname: str, path: object = None, target: object = None) -> None:
+        if fullname in PROBING:
+            uninstall()
+            preload_blas_probe()
+        return None
+
+
+_HOOK = _BeforeProbe()
+
+
+def install() -> None:
+    """Preload the probed module when numba's CPU target is first set up in this process
+    (:func:`preload_blas_probe`), or now if that happened already (then it changes nothing).
+    Idempotent; called by the command line and by every sweep worker's warm-up."""
+    if any(name in sys.modules for name in PROBING):
+        return  # numba has probed already: nothing left to save
+    if _HOOK not in sys.meta_path:
+        sys.meta_path.insert(0, _HOOK)
+
+
+def uninstall() -> None:
+    """Remove the hook of :func:`install` (if present)."""
+    while _HOOK in sys.meta_path:
+        sys.meta_path.remove(_HOOK)

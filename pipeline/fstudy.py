@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, NamedTuple, Optional
+from typing import TYPE_CHECKING, Any, NamedTuple, Optional
 
 import numpy as np
 
@@ -21,9 +21,11 @@ from ftsweep.planning import resolve_case
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import fresnel as ff
 
+if TYPE_CHECKING:
+    from ftsweep.files import DataLines
+
 F_MAGIC = "# ftsweep Fresnel program"
 F_COLUMNS = "t_s C_deg X_mm Y_mm Z_mm"
-F_LINE = "{:.9f} {:.9f} {:.9f} {:.9f} {:.9f}"
 
 
 class Inputs(NamedTuple):
@@ -353,7 +355,7 @@ WALL_TIMES = ("planning_s", "timesteps_s")
 
 def document(
     s: dict[str, Any], inp: Inputs, created: str, generator: str
-) -> tuple[list[str], list[str], dict[str, Any]]:
+) -> tuple[list[str], DataLines, dict[str, Any]]:
     """The header lines, data lines and sidecar content of a studied Fresnel program: export
     writes them and verify re-derives them from the recorded inputs and entries."""
     from ftsweep.files import recorded_entries
@@ -392,7 +394,7 @@ def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, A
 
     created = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     head, lines, meta = document(s, inp, created, f"ftsweep {__version__}")
-    data = np.array([[float(v) for v in line.split()] for line in lines])
+    data = lines.printed  # as the machine reads the lines
     reason = lines_reason(data, fp.limits_of(s["_specs"][1], inp.machine))
     if reason:
         raise files.ProgramError(f"the program leaves the limits of machine '{inp.machine}': {reason}")
@@ -473,7 +475,7 @@ def case_document(
     created: str,
     generator: str,
     rcase: Any = None,
-) -> tuple[list[str], list[str], dict[str, Any]]:
+) -> tuple[list[str], DataLines, dict[str, Any]]:
     """The header lines, data lines and sidecar content of a Fresnel case of a cube, planned
     and timed from its spec and entries (or ``rcase``, resolved already): export writes them,
     verify re-derives them. The sidecar records the case (the kind's request) as for every
@@ -505,11 +507,13 @@ def case_document(
     return head, lines, meta
 
 
-def _lines(fplan: fp.FresnelPlan, steps: fp.Timesteps) -> list[str]:
-    """The program's ``t C X Y Z`` lines."""
+def _lines(fplan: fp.FresnelPlan, steps: fp.Timesteps) -> DataLines:
+    """The program's ``t C X Y Z`` lines (:class:`ftsweep.files.DataLines`)."""
+    from ftsweep.files import DataLines
+
     t = np.concatenate([[0.0], np.cumsum(steps.steps)])
-    cols = (t, np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um * 1e-3)
-    return [F_LINE.format(*row) for row in zip(*cols, strict=True)]
+    xyz = (fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um * 1e-3)
+    return DataLines.of(t, np.degrees(fplan.phi), *xyz)
 
 
 def export_case(
@@ -525,7 +529,7 @@ def export_case(
     from ftsweep import files
 
     head, lines, meta = case_document(case, specs, chosen, extra, files.now(), f"ftsweep {__version__}")
-    data = np.array([[float(v) for v in line.split()] for line in lines])
+    data = lines.printed  # as the machine reads the lines
     reason = lines_reason(data, fp.limits_of(specs[1], case.machine))
     if reason:
         raise files.ProgramError(f"the program leaves the limits of machine '{case.machine}': {reason}")

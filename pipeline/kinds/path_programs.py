@@ -26,6 +26,7 @@ import numpy as np
 from ftsweep import __version__
 from ftsweep.case import run_case
 from ftsweep.files import (
+    DataLines,
     ProgramError,
     case_meta,
     check_document,
@@ -45,16 +46,11 @@ from ftsweep.spec import Case
 from ftsweep.stages.spiral import SpiralPath
 
 MAGIC = "# ftsweep spiral program"
-COLUMNS = "C_deg X_mm Z_mm"
-# printed digits: 1e-9 mm = 1 pm in X and Z, 1e-9 deg in C
-LINE = "{:.9f} {:.9f} {:.9f}"
+COLUMNS = "C_deg X_mm Z_mm"  # printed with 9 decimals (files.DECIMALS): 1 pm in X and Z, 1e-9 deg in C
 
 
-def _data_lines(path: SpiralPath, values_um: np.ndarray) -> list[str]:
-    c_deg = np.degrees(path.phi)
-    x_mm = path.rho * 1e-3
-    z_mm = np.asarray(values_um) * 1e-3
-    return [LINE.format(c, x, z) for c, x, z in zip(c_deg, x_mm, z_mm, strict=True)]
+def _data_lines(path: SpiralPath, values_um: np.ndarray) -> DataLines:
+    return DataLines.of(np.degrees(path.phi), path.rho * 1e-3, np.asarray(values_um) * 1e-3)
 
 
 def spiral_document(
@@ -64,7 +60,7 @@ def spiral_document(
     extra: dict[str, Any],
     created: str,
     generator: str,
-) -> tuple[list[str], list[str], dict[str, Any]]:
+) -> tuple[list[str], DataLines, dict[str, Any]]:
     """The header lines, data lines and sidecar content of a spiral case ([4]), planned from
     its spec and entries: export writes them and verify re-derives them."""
     rcase = resolve_case(case, specs=specs)
@@ -74,7 +70,7 @@ def spiral_document(
         raise ProgramError(f"the cube says {chosen['n_points']} points but the spec plans {path.n_points}")
     lines = _data_lines(path, rcase.values)
     # planned from Z as printed, as the controller executes it
-    schedule = layer_schedule(rcase, _values_of(lines))
+    schedule = layer_schedule(rcase, lines.printed[:, 2] * 1e3)
     rule, value = case.layout.spiral_rule()
     residual = case.layout.residual_um
     meta = {
@@ -129,10 +125,6 @@ def export_program(
     return write_program(out, side, head, COLUMNS, lines, meta)
 
 
-def _values_of(lines: list[str]) -> np.ndarray:
-    return np.array([float(line.split()[2]) for line in lines]) * 1e3
-
-
 def _layer_lines(schedule: dict[str, Any] | None) -> list[str]:
     """Header lines of a layered program ([3]): the Z offset of each layer (Z to execute =
     the line's Z − the offset) and each segment: the C range a layer cuts."""
@@ -185,7 +177,6 @@ def verify_program(
 # --------------------------------------------------------------------------- D paths ([5])
 D_MAGIC = "# ftsweep D-path program"
 D_COLUMNS = "t_s C_deg X_mm Z_mm"
-D_LINE = "{:.9f} {:.9f} {:.9f} {:.9f}"
 
 
 def _limits_of_lines(machine: Any, path: Any, data: np.ndarray) -> str:
@@ -209,7 +200,7 @@ def dpath_document(
     created: str,
     generator: str,
     rcase: Any = None,
-) -> tuple[list[str], list[str], dict[str, Any]]:
+) -> tuple[list[str], DataLines, dict[str, Any]]:
     """The header lines, data lines and sidecar content of a D-path case ([5]), planned from
     its spec and entries (or ``rcase``, resolved already): export writes, verify re-derives."""
     from ftsweep import dpath as dprog
@@ -219,9 +210,7 @@ def dpath_document(
     rpm = specs[2].spindle_rpm
     t = dprog.times(path, z, rpm)
     period = dprog.period_of(specs[1])
-    lines = [
-        D_LINE.format(*row) for row in zip(t, np.degrees(path.phi), path.rho * 1e-3, z * 1e-3, strict=True)
-    ]
+    lines = DataLines.of(t, np.degrees(path.phi), path.rho * 1e-3, z * 1e-3)
     g = path.geometry
     own = {
         "spacing_um": g.spacing_um,
@@ -265,8 +254,7 @@ def export_dpath(
     atomically; refused if any line leaves the machine's axis limits."""
     rcase = resolve_case(case, specs=specs)
     head, lines, meta = dpath_document(case, specs, chosen, extra, now(), f"ftsweep {__version__}", rcase)
-    data = np.array([[float(v) for v in line.split()] for line in lines])
-    reason = _limits_of_lines(specs[1], rcase.layout, data)
+    reason = _limits_of_lines(specs[1], rcase.layout, lines.printed)
     if reason:
         raise ProgramError(
             f"the program leaves the axis limits of machine '{case.machine}': {reason}; nothing exported"

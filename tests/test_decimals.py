@@ -1,0 +1,93 @@
+"""Fixed-point text of program lines (ftsweep.stages.decimals, issue 29): digit for digit what
+Python's ``format(v, ".9f")`` prints, and the numbers read back from it, on random, tied
+(dyadic halves of the last decimal) and extreme values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ftsweep.files import DataLines
+from ftsweep.stages import decimals
+
+
+def _python(values: np.ndarray, d: int) -> str:
+    return "\n".join(" ".join(format(v, f".{d}f") for v in row) for row in values.tolist())
+
+
+def _read(values: np.ndarray, d: int) -> np.ndarray:
+    return np.array([[float(format(v, f".{d}f")) for v in row] for row in values.tolist()]).reshape(
+        values.shape
+    )
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    return bool(np.array_equal(a, b) and np.array_equal(np.signbit(a), np.signbit(b)))
+
+
+_finite = st.floats(allow_nan=False, allow_infinity=False, min_value=-4.0e9, max_value=4.0e9)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(_finite, _finite, _finite), min_size=1, max_size=20), st.integers(1, 9))
+def test_text_and_read_back_are_pythons(rows, d):
+    values = np.array(rows, dtype=np.float64)
+    values = np.where(np.abs(values) * 10**d < decimals.LIMIT, values, 0.0)
+    assert decimals.rows_text(values, d) == _python(values, d)
+    assert _same(decimals.printed(values, d), _read(values, d))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(-(2**40), 2**40), st.integers(0, 45), st.integers(1, 9))
+def test_ties_round_half_to_even(k, shift, d):
+    # k/2^shift are the doubles whose scaled value can end exactly in a half unit (e.g.
+    # 1/1024 = 0.0009765625: 976562.5 units of 1e-9, printed ...562)
+    values = np.array([[k / 2.0**shift, -k / 2.0**shift]])
+    values = np.where(np.abs(values) * 10**d < decimals.LIMIT, values, 0.0)
+    assert decimals.rows_text(values, d) == _python(values, d)
+    assert _same(decimals.printed(values, d), _read(values, d))
+
+
+def test_extreme_and_signed_values():
+    values = np.array(
+        [
+            [0.0, -0.0, 1 / 1024, -1 / 1024],
+            [0.5e-9, -0.5e-9, 1.5e-9, 2.5e-9],
+            [5e-324, -1e-300, 9.007e6, 123456789.123456789],
+            [4.6e9, -4.6e9, 2.0**53 / 1e9, -(2.0**53 + 2.0) / 1e9],
+        ]
+    )
+    assert decimals.rows_text(values, 9) == _python(values, 9)
+    assert _same(decimals.printed(values, 9), _read(values, 9))
+
+
+def test_many_values_as_in_a_program():
+    rng = np.random.default_rng(7)
+    n = 20_000
+    values = np.column_stack(
+        [
+            np.cumsum(rng.random(n)) * 1e-3,
+            np.cumsum(rng.random(n)) * 37.0,
+            rng.random(n) * 30.0,
+            rng.normal(0, 1e-3, n),
+        ]
+    )
+    assert decimals.rows_text(values, 9) == _python(values, 9)
+    assert _same(decimals.printed(values, 9), _read(values, 9))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, 5.0e9])
+def test_unwritable_values_are_named(bad):
+    values = np.array([[1.0, 2.0], [3.0, bad]])
+    with pytest.raises(ValueError, match=r"row 1, column 1: .* cannot be written with 9 decimals"):
+        decimals.rows_text(values, 9)
+
+
+def test_data_lines_text_is_the_joined_lines():
+    values = np.array([[1.0, -2.5, 3.25e-10], [4.0, 5.0, -6.0]])
+    lines = DataLines(values)
+    assert len(lines) == 2
+    assert lines.text == "1.000000000 -2.500000000 0.000000000\n4.000000000 5.000000000 -6.000000000"
+    assert DataLines(np.empty((0, 3))).text == ""

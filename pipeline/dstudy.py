@@ -18,8 +18,9 @@ import numpy as np
 
 from ftsweep import dpath as dprog
 from ftsweep.case import run_case
+from ftsweep.kinds import dpath as dpath_kind
 from ftsweep.kinds.requests import program_request
-from ftsweep.planning import resolve_case
+from ftsweep.planning import ResolvedCase, resolve_case
 from ftsweep.spec import Case, Resolution
 from ftsweep.stages import dpath
 
@@ -44,10 +45,10 @@ def spiral_case(base: Case, record: dict[str, Any]) -> Case:
     )
 
 
-def spiral_motion(case: Case) -> dict[str, Any]:
+def spiral_motion(case: Case, resolved: Optional[ResolvedCase] = None) -> dict[str, Any]:
     """The spiral program's axis motion at constant spindle speed: t [s], C [rad], X, Z [µm]
-    and :func:`ftsweep.stages.dpath.axis_motion`."""
-    rcase = resolve_case(case)
+    and :func:`ftsweep.stages.dpath.axis_motion` (``resolved``: the case planned already)."""
+    rcase = resolved or resolve_case(case)
     path = rcase.layout
     rpm = rcase.cutting.spindle_rpm
     t = dpath.point_times(path.phi, path.rho, rcase.values, "spindle", rpm)
@@ -87,15 +88,19 @@ def continuity(path: dpath.DPath) -> dict[str, float]:
     return out
 
 
+TRANSITIONS = ("traditional", "optimised")
+
+
 def study(base: Case, feed_mm_min: float, with_spiral: bool = True, progress: Any = None) -> dict[str, Any]:
-    """Both transitions of ``base`` and (optionally) the spiral: one JSON-ready summary."""
+    """Both transitions of ``base`` and (optionally) the spiral: one JSON-ready summary. Every
+    program is planned once; the two D paths share their compensated cuts
+    (:func:`ftsweep.kinds.dpath.shared_cuts`)."""
     out: dict[str, Any] = {"surface": base.surface, "machine": base.machine, "cutting": base.cutting}
-    programs = {}
-    for kind in ("traditional", "optimised"):
-        case = d_case(base, kind)
-        rcase = resolve_case(case)
-        record = run_case(case, progress=progress, resolved=rcase)
-        programs[kind] = (rcase.layout, rcase.values)
+    with dpath_kind.shared_cuts():
+        resolved = {kind: resolve_case(d_case(base, kind)) for kind in TRANSITIONS}
+    programs = {kind: (r.layout, r.values) for kind, r in resolved.items()}
+    for kind, rcase in resolved.items():
+        record = run_case(rcase.case, progress=progress, resolved=rcase)
         keep = {k: v for k, v in record.items() if not k.startswith("seconds") and k != "layers"}
         keep.update(continuity(rcase.layout))
         for name, cuts_only in (("feed_mode", False), ("feed_mode_cuts", True)):
@@ -113,8 +118,9 @@ def study(base: Case, feed_mm_min: float, with_spiral: bool = True, progress: An
     out["x_accel_by_step"] = accel_by_step(programs, trad["spindle_rpm"], trad["accel_step_deg"])
     if with_spiral:
         scase = spiral_case(base, opt)
-        srec = run_case(scase, progress=progress)
-        motion = spiral_motion(scase)
+        srcase = resolve_case(scase)
+        srec = run_case(scase, progress=progress, resolved=srcase)
+        motion = spiral_motion(scase, srcase)
         out["spiral"] = {
             "n_points": srec["n_points"],
             "pv_nm": srec["pv_nm"],
@@ -143,7 +149,7 @@ def accel_by_step(programs: dict[str, Any], rpm: float, machine_step_deg: float)
     marked ``machine``) on the planned curves (:func:`ftsweep.stages.dpath.x_accel_at_step`),
     their ratio, and the step [deg] at which the ratio is [5]'s 0.16 (log-log interpolation)."""
     rows = []
-    both = ("traditional", "optimised")
+    both = TRANSITIONS
     curve = {k: dpath.evaluate(programs[k][0], programs[k][0].phi)[0] for k in both}
     for deg in sorted({*STEPS_DEG, machine_step_deg}):
         h = math.radians(deg)

@@ -182,6 +182,30 @@ def d_case(surface: str = "concave_sphere", **options) -> Case:
     )
 
 
+def test_both_transitions_share_their_compensated_cuts_and_nothing_else(monkeypatch):
+    # the D-path study plans both transitions in shared_cuts: one compensation of the common
+    # cuts, values bit for bit those of plans made apart; another part is solved anew
+    from ftsweep.kinds import dpath as dpath_kind
+    from ftsweep.planning import resolve_case
+
+    apart = {t: resolve_case(d_case(spacing_um=100.0, transition=t)) for t in dstudy.TRANSITIONS}
+    calls = []
+    solve = dpath_kind.compensate_in_parts
+    monkeypatch.setattr(dpath_kind, "compensate_in_parts", lambda *a: calls.append(1) or solve(*a))
+    with dpath_kind.shared_cuts():
+        shared = {t: resolve_case(d_case(spacing_um=100.0, transition=t)) for t in dstudy.TRANSITIONS}
+        assert len(calls) == 1
+        resolve_case(d_case(spacing_um=100.0, transition="optimised", offaxis_um=31000.0))
+        assert len(calls) == 2  # other cuts: compensated on their own
+    resolve_case(d_case(spacing_um=100.0, transition="optimised"))
+    assert len(calls) == 3  # outside the block nothing is kept
+    for t in dstudy.TRANSITIONS:
+        assert np.array_equal(shared[t].values, apart[t].values)
+        assert np.array_equal(shared[t].gouge, apart[t].gouge)
+    # the paths differ (in their transitions' radii) where their commands need not
+    assert not np.array_equal(shared["traditional"].layout.rho, shared["optimised"].layout.rho)
+
+
 def test_sphere_form_error_matches_the_spiral_within_the_cusp_and_never_cuts_below():
     spacing = 20.0
     record = run_case(d_case(spacing_um=spacing))

@@ -5,8 +5,12 @@ across the zone that the path's passes cross (:class:`ftsweep.dpath.DPathSimulat
 
 from __future__ import annotations
 
+import hashlib
 import math
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any, Optional
 
 import numpy as np
@@ -20,6 +24,44 @@ from ftsweep.spec import Case, CaseError
 from ftsweep.threads import compensate_in_parts
 
 AXES = ("spacing_um", "points_per_cut")
+
+
+# compensated cut points kept for the plans made inside :func:`shared_cuts` (None: not kept)
+_SHARED_CUTS: ContextVar[Optional[dict[tuple[Any, ...], tuple[np.ndarray, np.ndarray]]]] = ContextVar(
+    "dpath_shared_cuts", default=None
+)
+
+
+@contextmanager
+def shared_cuts() -> Iterator[None]:
+    """Within the block, D-path plans whose cut points are the same points of the same part,
+    compensated the same way, compensate them once: the traditional and the optimised path of
+    one part differ only in their transitions (a D-path study plans both; [5]). The values are
+    those a plan computes on its own; they are dropped when the block ends."""
+    token = _SHARED_CUTS.set({})
+    try:
+        yield
+    finally:
+        _SHARED_CUTS.reset(token)
+
+
+def _cuts_key(
+    case: Case, surface_spec: Any, rc: float, bound: float, rho: np.ndarray, theta: np.ndarray
+) -> tuple[Any, ...]:
+    """Everything the compensated cut points depend on but the transition: the case (its
+    request without the transition: the part's placement), the surface entry, the arc, the
+    gradient bound and the points themselves (their bytes' digest)."""
+    layout = case.layout.model_copy(update={"transition": None})
+    points = hashlib.blake2b(np.ascontiguousarray(rho).tobytes(), digest_size=16)
+    points.update(np.ascontiguousarray(theta).tobytes())
+    return (
+        case.model_copy(update={"layout": layout}).model_dump_json(),
+        surface_spec.model_dump_json(),
+        rc,
+        bound,
+        rho.size,
+        points.hexdigest(),
+    )
 
 
 def plan_dpath(
@@ -37,7 +79,17 @@ def plan_dpath(
     more than ``max_points`` points is refused before it is made."""
 
     def compensated(part: Any, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return compensate_in_parts(compensator(case, surface_spec, part, rc, bound), rho, theta)
+        def solve() -> tuple[np.ndarray, np.ndarray]:
+            return compensate_in_parts(compensator(case, surface_spec, part, rc, bound), rho, theta)
+
+        kept = _SHARED_CUTS.get()
+        if kept is None:
+            return solve()
+        key = _cuts_key(case, surface_spec, rc, bound, rho, theta)
+        if key not in kept:
+            kept[key] = solve()
+        z, gouge = kept[key]
+        return z.copy(), gouge.copy()
 
     try:
         return dpath_program.plan(

@@ -124,6 +124,7 @@ def format_table(result: dict[str, Any]) -> str:
 # the 950k-point ring case, made first) and its most runs (the slow ones run once)
 _RING_5K = ["--surface", "sinewave2d", "--points", "5000", "--aspect", "8"]
 _RING_950K = ["--surface", "sinewave2d", "--drho-um", "3.04", "--dtheta-deg", "0.125"]
+_DPATH_OUT = ["--json", "--plots", "{dir}", "-o", "{dir}/d.txt", "--force"]
 _CHORD_1M = ["--surface", "sinewave2d", "--layout", "spiral", "--chord-um", "0.0013"]
 WHOLE_PROCESS: dict[str, tuple[list[str], int]] = {
     "ftsweep --help": (["--help"], 3),
@@ -135,6 +136,8 @@ WHOLE_PROCESS: dict[str, tuple[list[str], int]] = {
     "predict 990k-point chord spiral, all cores": (["predict", *_CHORD_1M, "--json"], 1),
     "verify 950k-point ring header": (["verify", "{header}", "--json"], 3),
     "ftsweep dpath (seed example)": (["dpath", "--json", "--plots", "{dir}"], 1),
+    "ftsweep dpath -o (+ its 1M-line program)": (["dpath", *_DPATH_OUT], 1),
+    "verify 1M-line D-path program": (["verify", "{dprogram}", "--json"], 3),
     "ftsweep fresnel (chebyshev_example)": (["fresnel", "--json", "--plots", "{dir}"], 1),
 }  # fmt: skip
 
@@ -174,6 +177,19 @@ def _exported_header(head: list[str], folder: str) -> str:
     return str(header)
 
 
+def _exported_dpath(head: list[str], folder: str) -> str:
+    """Export the seed example's optimised D-path program ([5], ~1M lines) into ``folder``."""
+    import subprocess
+    from pathlib import Path
+
+    program = Path(folder) / "dpath-program.txt"
+    args = ["dpath", "--json", "--plots", folder, "-o", str(program), "--force"]
+    done = subprocess.run([*head, *args], capture_output=True, text=True)
+    if done.returncode != 0:
+        raise ValueError(f"preparing the D-path verify row failed: {done.stderr.strip()[-300:]}")
+    return str(program)
+
+
 def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[str, Any]]:
     """Seconds of each :data:`WHOLE_PROCESS` command run as its own process, best of
     ``repeat`` (at most its own count), with the seconds of the case it simulates where its
@@ -186,12 +202,14 @@ def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[
     head = _command()
     rows = []
     with tempfile.TemporaryDirectory(prefix="ftsweep-bench-") as folder:
-        header = None
+        made: dict[str, str] = {}
         for name in names or list(WHOLE_PROCESS):
             args, most = WHOLE_PROCESS[name]
-            if "{header}" in args and header is None:
-                header = _exported_header(head, folder)
-            args = [a.replace("{dir}", folder).replace("{header}", header or "") for a in args]
+            for field, make in (("{header}", _exported_header), ("{dprogram}", _exported_dpath)):
+                if field in args and field not in made:
+                    made[field] = make(head, folder)
+            args = [a.replace("{dir}", folder) for a in args]
+            args = [made.get(a, a) for a in args]
             best, inside = float("inf"), float("nan")
             for _ in range(max(1, min(repeat, most))):
                 started = time.perf_counter()

@@ -291,7 +291,8 @@ def bench(
     Prints the seconds of whole commands, each run as its own process (start-up, imports,
     kernel loading and exit included: what a user waits for): help, predict on a small and
     the 950k-point ring case and on a 990k-point chord spiral (one thread and all cores),
-    verify of an exported header, the dpath and fresnel studies. Then the seconds per case
+    verify of an exported header, the dpath study (and its export of a 1M-line program, and
+    the verify of that program) and the fresnel study. Then the seconds per case
     of the published reference cases and two 10⁶-point layouts split into compensation,
     surface sampling, interpolation, envelope and metrics, after a warm-up that pays
     numba's compile cost, on one thread (and the 10⁶-point ones on --threads). With

@@ -44,6 +44,12 @@ def test_the_verify_row_checks_an_exported_header():
     assert row["seconds"] > row["case_seconds"] > 0  # verify re-simulated the case
 
 
+@pytest.mark.slow
+def test_the_dpath_verify_row_checks_an_exported_program():
+    (row,) = whole_process(1, ["verify 1M-line D-path program"])
+    assert row["seconds"] > row["case_seconds"] > 0  # verify re-simulated the program's part
+
+
 def test_cube_scale_counts_objects_and_times_open_and_select(tmp_path):
     """Issue 30, item 3: a synthetic cube in blocks holds a few objects per variable, and its
     every case reads back as written (select picks one of them)."""

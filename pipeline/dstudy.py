@@ -150,7 +150,7 @@ def accel_by_step(programs: dict[str, Any], rpm: float, machine_step_deg: float)
     their ratio, and the step [deg] at which the ratio is [5]'s 0.16 (log-log interpolation)."""
     rows = []
     both = TRANSITIONS
-    curve = {k: dpath.evaluate(programs[k][0], programs[k][0].phi)[0] for k in both}
+    curve = {k: dpath.radius_at(programs[k][0], programs[k][0].phi)[0] for k in both}
     for deg in sorted({*STEPS_DEG, machine_step_deg}):
         h = math.radians(deg)
         trad, opt = (

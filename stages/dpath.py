@@ -310,8 +310,23 @@ def evaluate(path: DPath, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     dρ/dθ [µm/rad], d²ρ/dθ² [µm/rad²] and whether each angle lies on a cut (bool). At a
     junction the cut's value is taken. One pass of :func:`_evaluate_kernel` (fastest on
     increasing angles, which it walks along the junctions instead of searching them)."""
+    return _evaluated(path, phi, True)
+
+
+def radius_at(path: DPath, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """ρ [µm] of the analytic path at angles ``phi`` [rad] and whether each lies on a cut:
+    :func:`evaluate`'s first and last, the same values, without forming the derivatives
+    (a cut's tangent costs about as much as the rest of its point)."""
+    rho, _, _, on_cut = _evaluated(path, phi, False)
+    return rho, on_cut
+
+
+def _evaluated(
+    path: DPath, phi: np.ndarray, derivatives: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     phi = np.ascontiguousarray(phi, dtype=np.float64)
-    rho, d1, d2 = np.empty(phi.shape), np.empty(phi.shape), np.empty(phi.shape)
+    rho = np.empty(phi.shape)
+    d1, d2 = (np.empty(phi.shape), np.empty(phi.shape)) if derivatives else (np.empty(0), np.empty(0))
     on_cut = np.empty(phi.shape, dtype=np.bool_)
     _evaluate_kernel(
         phi.reshape(-1),
@@ -323,14 +338,16 @@ def evaluate(path: DPath, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
         d1.reshape(-1),
         d2.reshape(-1),
         on_cut.reshape(-1),
+        derivatives,
     )
     return rho, d1, d2, on_cut
 
 
 @njit(nogil=True, cache=True)
-def _evaluate_kernel(phi, bounds, cut_d, cut_centre, coeffs, rho, d1, d2, on_cut):  # pragma: no cover - jit
+def _evaluate_kernel(phi, bounds, cut_d, cut_centre, coeffs, rho, d1, d2, on_cut, derivatives):  # noqa: E501  # pragma: no cover - jit
     """:func:`evaluate` point by point: the segment of each angle (cut 2i or transition 2i + 1
-    between ``bounds``), then [5] eq. 3 on a cut or the transition's polynomial in τ."""
+    between ``bounds``), then [5] eq. 3 on a cut or the transition's polynomial in τ; ρ only
+    (``d1``, ``d2`` untouched) unless ``derivatives``."""
     nb, ncut, nt = bounds.size, cut_d.size, coeffs.shape[0]
     seg = 0
     for k in range(phi.size):
@@ -344,15 +361,23 @@ def _evaluate_kernel(phi, bounds, cut_d, cut_centre, coeffs, rho, d1, d2, on_cut
         i = min(seg // 2, ncut - 1)
         if on or nt == 0:
             x = p - cut_centre[i]
-            sec, tan = 1.0 / math.cos(x), math.tan(x)
+            sec = 1.0 / math.cos(x)
             rho[k] = cut_d[i] * sec
-            d1[k] = cut_d[i] * sec * tan
-            d2[k] = cut_d[i] * sec * (tan * tan + sec * sec)
+            if derivatives:
+                tan = math.tan(x)
+                d1[k] = cut_d[i] * sec * tan
+                d2[k] = cut_d[i] * sec * (tan * tan + sec * sec)
             continue
         j = min(i, nt - 1)
         a = bounds[1 + 2 * j]
         span = bounds[2 + 2 * j] - a
         tau = (p - a) / span
+        if not derivatives:
+            v = 0.0
+            for m in range(5, -1, -1):
+                v = v * tau + coeffs[j, m]
+            rho[k] = v
+            continue
         v, dv, ddv = 0.0, 0.0, 0.0
         for m in range(5, -1, -1):
             ddv = ddv * tau + 2.0 * dv
@@ -451,14 +476,14 @@ def x_accel_at_step(
     ρ(φ−h))/h², the kinematics stage's scheme ([2] eq. 14) on the uniform step h. At a
     traditional junction it reads the slope jump over h, ω²·Δ(dρ/dθ)/h; on smooth stretches
     the curvature, ω²·d²ρ/dθ². Zero where φ ± h leaves the program. ``rho_um``: the curve at
-    the points, ``evaluate(path, path.phi)[0]``, if already known (several steps)."""
+    the points, ``radius_at(path, path.phi)[0]``, if already known (several steps)."""
     omega = spindle_rpm * 2.0 * math.pi / 60.0
     phi = path.phi
     out = np.zeros(phi.size)
     ok = (phi - step_rad >= phi[0]) & (phi + step_rad <= phi[-1])
     p = phi[ok]
-    mid = (evaluate(path, phi)[0] if rho_um is None else rho_um)[ok]
-    ahead, behind = (evaluate(path, p + d)[0] for d in (step_rad, -step_rad))
+    mid = (radius_at(path, phi)[0] if rho_um is None else rho_um)[ok]
+    ahead, behind = (radius_at(path, p + d)[0] for d in (step_rad, -step_rad))
     out[ok] = omega**2 * (ahead - 2.0 * mid + behind) / step_rad**2 * 1e-6
     return out
 
@@ -471,7 +496,7 @@ def planned_z(path: DPath, z_um: np.ndarray, phi: np.ndarray, on_cut: np.ndarray
     the points there are. ``on_cut``: :func:`evaluate`'s flags of ``phi``, if known."""
     phi = np.asarray(phi, dtype=np.float64)
     z = np.interp(phi, path.phi, z_um)
-    on_cut = evaluate(path, phi)[3] if on_cut is None else on_cut
+    on_cut = radius_at(path, phi)[1] if on_cut is None else on_cut
     if not np.any(on_cut):
         return z
     n, p = path.n_cuts, path.points_per_cut
@@ -526,7 +551,7 @@ def at_period(
     n = int(math.ceil((end - float(t_points[0])) / period_s)) + 1
     t = np.linspace(float(t_points[0]), end, max(n, 3))
     phi = np.interp(t, t_points, path.phi)
-    rho, _, _, on_cut = evaluate(path, phi)
+    rho, on_cut = radius_at(path, phi)
     return Sampled(t, phi, rho, planned_z(path, z_um, phi, on_cut), on_cut, np.asarray(t_points))
 
 

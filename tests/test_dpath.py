@@ -410,6 +410,18 @@ def test_evaluate_walks_increasing_angles_and_searches_others_alike():
     assert np.allclose(d1, path.cut_d[cut] * np.tan(x) / np.cos(x), rtol=1e-12)
 
 
+@pytest.mark.parametrize("transition", ["traditional", "optimised"])
+def test_radius_at_is_evaluates_radius_and_cut_flags_bit_for_bit(transition):
+    # the motion checks take ρ without the derivatives: the same values, to the last bit
+    path = seed_path(transition, spacing_um=500.0, ppc=21)
+    phi = np.concatenate(
+        [np.random.default_rng(1).uniform(path.phi[0], path.phi[-1], 3000), path.bounds, path.phi]
+    )
+    rho, _, _, on_cut = dpath.evaluate(path, phi)
+    fast_rho, fast_on = dpath.radius_at(path, phi)
+    assert np.array_equal(fast_rho, rho) and np.array_equal(fast_on, on_cut)
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     steps=st.lists(st.floats(0.01, 3.0), min_size=3, max_size=60),

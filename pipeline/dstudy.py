@@ -11,6 +11,9 @@ spacing, a point every cut step of path, the same tool and spindle speed
 from __future__ import annotations
 
 import math
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, Optional
 
@@ -23,6 +26,7 @@ from ftsweep.kinds.requests import program_request
 from ftsweep.planning import ResolvedCase, resolve_case
 from ftsweep.spec import Case, Resolution
 from ftsweep.stages import dpath
+from ftsweep.threads import current as current_threads
 
 
 def d_case(base: Case, transition: str) -> Case:
@@ -91,49 +95,102 @@ def continuity(path: dpath.DPath) -> dict[str, float]:
 TRANSITIONS = ("traditional", "optimised")
 
 
-def study(base: Case, feed_mm_min: float, with_spiral: bool = True, progress: Any = None) -> dict[str, Any]:
-    """Both transitions of ``base`` and (optionally) the spiral: one JSON-ready summary. Every
-    program is planned once; the two D paths share their compensated cuts
-    (:func:`ftsweep.kinds.dpath.shared_cuts`)."""
+class _Progress:
+    """One progress report over the batches of cases run side by side: each case's
+    ``(done, total)`` summed under a lock, the totals as far as they are known."""
+
+    def __init__(self, report: Any, cases: int) -> None:
+        self.report, self.lock = report, threading.Lock()
+        self.done, self.total = [0] * cases, [0] * cases
+
+    def of(self, case: int) -> Optional[Callable[[int, int], None]]:
+        if self.report is None:
+            return None
+
+        def update(done: int, total: int) -> None:
+            with self.lock:
+                self.done[case], self.total[case] = done, total
+                self.report(sum(self.done), sum(self.total))
+
+        return update
+
+
+def _transition(rcase: ResolvedCase, feed_mm_min: float, progress: Any) -> dict[str, Any]:
+    """One D path's summary: its case record (one thread), junction continuity and the two
+    constant-feed modes."""
+    record = run_case(rcase.case, progress=progress, resolved=rcase, threads=1)
+    keep = {k: v for k, v in record.items() if not k.startswith("seconds") and k != "layers"}
+    keep.update(continuity(rcase.layout))
+    for name, cuts_only in (("feed_mode", False), ("feed_mode_cuts", True)):
+        keep[name] = feed_mode(rcase.layout, rcase.values, rcase.cutting.spindle_rpm, feed_mm_min, cuts_only)
+    return keep
+
+
+def _spiral(base: Case, path: dpath.DPath, progress: Any) -> dict[str, Any]:
+    """The spiral on the same part (:func:`spiral_case` of the optimised path's spacing and
+    cut step): its record's figures (one thread) and its axis motion (``motion``)."""
+    scase = spiral_case(base, {"cut_step_um": path.cut_step_um, "spacing_um": path.geometry.spacing_um})
+    srcase = resolve_case(scase)
+    srec = run_case(scase, progress=progress, resolved=srcase, threads=1)
+    motion = spiral_motion(scase, srcase)
+    return {
+        "n_points": srec["n_points"],
+        "pv_nm": srec["pv_nm"],
+        "rms_nm": srec["rms_nm"],
+        "cusp_nm": srec["cusp_nm"],
+        "machining_s": srec["machining_s"],
+        "z_velocity_peak_mm_s": float(np.abs(motion["z_velocity_mm_s"]).max()),
+        "z_accel_peak_m_s2": float(np.abs(motion["z_accel_m_s2"]).max()),
+        "x_accel_peak_m_s2": float(np.abs(motion["x_accel_m_s2"]).max()),
+        "motion": motion,
+    }
+
+
+def study(
+    base: Case,
+    feed_mm_min: float,
+    with_spiral: bool = True,
+    progress: Any = None,
+    threads: Optional[int] = None,
+) -> dict[str, Any]:
+    """Both transitions of ``base`` and (optionally) the spiral: one JSON-ready summary.
+
+    Every program is planned once (the two D paths share their compensated cuts,
+    :func:`ftsweep.kinds.dpath.shared_cuts`); then the parts that do not depend on each other
+    (each transition's case, the spiral's, the ratio table) run side by side on ``threads``
+    threads (the context's, :func:`ftsweep.threads.using_threads`, when None), each case on
+    one: the kernels release the GIL. The summary is the same whatever the number."""
     out: dict[str, Any] = {"surface": base.surface, "machine": base.machine, "cutting": base.cutting}
     with dpath_kind.shared_cuts():
         resolved = {kind: resolve_case(d_case(base, kind)) for kind in TRANSITIONS}
     programs = {kind: (r.layout, r.values) for kind, r in resolved.items()}
-    for kind, rcase in resolved.items():
-        record = run_case(rcase.case, progress=progress, resolved=rcase)
-        keep = {k: v for k, v in record.items() if not k.startswith("seconds") and k != "layers"}
-        keep.update(continuity(rcase.layout))
-        for name, cuts_only in (("feed_mode", False), ("feed_mode_cuts", True)):
-            keep[name] = feed_mode(
-                rcase.layout, rcase.values, rcase.cutting.spindle_rpm, feed_mm_min, cuts_only
-            )
-        out[kind] = keep
-    trad, opt = out["traditional"], out["optimised"]
-    out["x_accel_ratio"] = opt["x_accel_peak_m_s2"] / trad["x_accel_peak_m_s2"]
-    # [5]: the peak lies at the cuts' ends; d²ρ/dθ² is continuous there, so the samples either
-    # side of a junction read it alike (within 0.5 %)
-    out["x_accel_max_on_cut"] = bool(opt["x_accel_cut_m_s2"] >= 0.995 * opt["x_accel_peak_m_s2"])
-    out["accel_period_s"] = trad["accel_period_s"]
-    out["accel_step_deg"] = trad["accel_step_deg"]
-    out["x_accel_by_step"] = accel_by_step(programs, trad["spindle_rpm"], trad["accel_step_deg"])
-    if with_spiral:
-        scase = spiral_case(base, opt)
-        srcase = resolve_case(scase)
-        srec = run_case(scase, progress=progress, resolved=srcase)
-        motion = spiral_motion(scase, srcase)
-        out["spiral"] = {
-            "n_points": srec["n_points"],
-            "pv_nm": srec["pv_nm"],
-            "rms_nm": srec["rms_nm"],
-            "cusp_nm": srec["cusp_nm"],
-            "machining_s": srec["machining_s"],
-            "z_velocity_peak_mm_s": float(np.abs(motion["z_velocity_mm_s"]).max()),
-            "z_accel_peak_m_s2": float(np.abs(motion["z_accel_m_s2"]).max()),
-            "x_accel_peak_m_s2": float(np.abs(motion["x_accel_m_s2"]).max()),
+    opt_case = resolved["optimised"]
+    rpm = opt_case.cutting.spindle_rpm
+    # the C step of one controller period (the records' accel_step_deg, formed alike)
+    step_deg = math.degrees(rpm * 2.0 * math.pi / 60.0 * dprog.period_of(opt_case.machine))
+    combined = _Progress(progress, len(TRANSITIONS) + int(with_spiral))
+    with ThreadPoolExecutor(max(1, current_threads(threads))) as pool:
+        cases = {
+            kind: pool.submit(_transition, rcase, feed_mm_min, combined.of(i))
+            for i, (kind, rcase) in enumerate(resolved.items())
         }
-        out["z_velocity_ratio"] = opt["w_velocity_peak_mm_s"] / out["spiral"]["z_velocity_peak_mm_s"]
-        out["time_ratio"] = opt["machining_s"] / out["spiral"]["machining_s"]
-        out["_spiral_motion"] = motion
+        spiral = pool.submit(_spiral, base, opt_case.layout, combined.of(2)) if with_spiral else None
+        by_step = pool.submit(accel_by_step, programs, rpm, step_deg)
+        for kind, done in cases.items():
+            out[kind] = done.result()
+        trad, opt = out["traditional"], out["optimised"]
+        out["x_accel_ratio"] = opt["x_accel_peak_m_s2"] / trad["x_accel_peak_m_s2"]
+        # [5]: the peak lies at the cuts' ends; d²ρ/dθ² is continuous there, so the samples
+        # either side of a junction read it alike (within 0.5 %)
+        out["x_accel_max_on_cut"] = bool(opt["x_accel_cut_m_s2"] >= 0.995 * opt["x_accel_peak_m_s2"])
+        out["accel_period_s"] = trad["accel_period_s"]
+        out["accel_step_deg"] = trad["accel_step_deg"]
+        out["x_accel_by_step"] = by_step.result()
+        if spiral is not None:
+            out["spiral"] = spiral.result()
+            out["_spiral_motion"] = out["spiral"].pop("motion")
+            out["z_velocity_ratio"] = opt["w_velocity_peak_mm_s"] / out["spiral"]["z_velocity_peak_mm_s"]
+            out["time_ratio"] = opt["machining_s"] / out["spiral"]["machining_s"]
     out["_programs"] = programs
     return out
 

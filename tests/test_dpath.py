@@ -446,3 +446,19 @@ def test_crossings_are_where_the_path_passes_each_ray(steps, start, rays):
             assert phi[j] <= q <= phi[j + 1] and (j == 0 or phi[j] < q)
             assert pos[a, c] == pytest.approx(np.interp(q, phi, rho), rel=1e-12, abs=1e-9)
             assert w[a, c] == pytest.approx(np.interp(q, phi, z), rel=1e-12, abs=1e-9)
+
+
+def test_study_is_the_same_on_one_thread_and_two_and_reports_progress_once_over_all_cases():
+    # the study runs its cases and the ratio table side by side: nothing may depend on it
+    base = dstudy.default_case(options={"spacing_um": 200.0, "points_per_cut": 41})
+    seen: list[tuple[int, int]] = []
+    one = dstudy.study(base, 2000.0, threads=1)
+    two = dstudy.study(base, 2000.0, progress=lambda d, t: seen.append((d, t)), threads=2)
+    assert dstudy.public(one) == dstudy.public(two)
+    assert one["spiral"]["pv_nm"] > 0 and one["x_accel_by_step"]["rows"]
+    for a, b in zip(one["_programs"]["optimised"], two["_programs"]["optimised"], strict=True):
+        assert np.array_equal(getattr(a, "phi", a), getattr(b, "phi", b))
+    assert np.array_equal(one["_spiral_motion"]["z"], two["_spiral_motion"]["z"])
+    # one report over the batches of the three cases: never backwards, ending complete
+    done = [d for d, _ in seen]
+    assert done == sorted(done) and seen[-1][0] == seen[-1][1] > 0

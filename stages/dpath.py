@@ -276,7 +276,11 @@ def plan(
     first = np.concatenate([[0], np.cumsum(steps - 1)])[:-1] if steps.size else np.empty(0, dtype=np.int64)
     tau = (np.arange(owner.size) - first[owner] + 1) / steps[owner]
     t_phi = bounds[1:-1:2][owner] + tau * span[owner]
-    t_rho = _poly(coeffs[owner], tau, span[owner])[0]
+    # the polynomial's value alone (Horner, as _poly forms it), each coefficient gathered per
+    # point: no (points, 6) copy of the coefficients and no derivatives nobody reads
+    t_rho = np.zeros(tau.size)
+    for m in range(5, -1, -1):
+        t_rho = t_rho * tau + coeffs[owner, m]
     count = points_per_cut * cut_d.size + t_phi.size
     phi, rho = np.empty(count), np.empty(count)
     cut = np.full(count, -1, dtype=np.int32)

@@ -87,6 +87,16 @@ def _digits(n):  # pragma: no cover - jit
     return count
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _put_digits(out, pos, n, width):  # pragma: no cover - jit
+    """The ``width`` lowest decimal digits of ``n`` ≥ 0 (zero-padded) at ``out[pos:]``;
+    returns the position after them."""
+    for j in range(width - 1, -1, -1):
+        out[pos + j] = 48 + n % 10
+        n //= 10
+    return pos + width
+
+
 @njit(nogil=True, cache=True)
 def _render(units, negative, cols, decimals, p10, out):  # pragma: no cover - jit
     """Write the rows of ``cols`` numbers (single spaces between, newlines between rows, none
@@ -104,18 +114,9 @@ def _render(units, negative, cols, decimals, p10, out):  # pragma: no cover - ji
             if negative[i]:
                 out[pos] = 45  # '-'
                 pos += 1
-            q = whole
-            for j in range(width - 1, -1, -1):
-                out[pos + j] = 48 + q % 10
-                q //= 10
-            pos += width
+            pos = _put_digits(out, pos, whole, width)
             out[pos] = 46  # '.'
-            pos += 1
-            q = frac
-            for j in range(decimals - 1, -1, -1):
-                out[pos + j] = 48 + q % 10
-                q //= 10
-            pos += decimals
+            pos = _put_digits(out, pos + 1, frac, decimals)
             if i + 1 < size:
                 out[pos] = 32 if (i + 1) % cols else 10
                 pos += 1

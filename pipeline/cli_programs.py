@@ -109,7 +109,8 @@ def dpath_command(**opts: Any) -> None:
     result = dstudy.public(summary)
     result["plots"] = plots
     if opts["out"] is not None:
-        result["program"] = _export_dpath(base, summary["optimised"], opts["out"], opts["force"])
+        planned = summary["_resolved"]["optimised"]
+        result["program"] = _export_dpath(base, summary["optimised"], opts["out"], opts["force"], planned)
     if opts["as_json"]:
         echo_json(result)
         return
@@ -131,8 +132,9 @@ def _check_overwrite(out: Optional[Path], force: bool) -> None:
             raise click.ClickException(str(exc)) from None
 
 
-def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool) -> dict[str, Any]:
-    """Export the optimised program of ``dpath`` (refusing to replace files without --force)."""
+def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool, planned: Any) -> dict[str, Any]:
+    """Export the optimised program of ``dpath`` (refusing to replace files without --force),
+    as the study planned it (``planned``, from the same entries)."""
     from ftsweep import dstudy
     from ftsweep.files import ExportError, check_overwrite, sidecar_path
     from ftsweep.kinds import path_programs as program
@@ -143,7 +145,7 @@ def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool) ->
     try:
         check_overwrite((out, side), force)
         case = dstudy.d_case(base, "optimised")
-        meta = program.export_dpath(out, side, case, resolve_specs(case), record, {})
+        meta = program.export_dpath(out, side, case, resolve_specs(case), record, {}, planned)
     except (ExportError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None
     return {"path": str(out), "sidecar": str(side), "lines": meta["n_points"]}

@@ -192,6 +192,7 @@ def study(
             out["z_velocity_ratio"] = opt["w_velocity_peak_mm_s"] / out["spiral"]["z_velocity_peak_mm_s"]
             out["time_ratio"] = opt["machining_s"] / out["spiral"]["machining_s"]
     out["_programs"] = programs
+    out["_resolved"] = resolved
     return out
 
 

@@ -180,6 +180,7 @@ class DataLines:
         if values.ndim != 2:
             raise ValueError(f"data lines need a (lines, columns) array, got shape {values.shape}")
         self.values = values
+        self._fixed: decimals.Fixed | None = None
         self._text: str | None = None
         self._printed: np.ndarray | None = None
 
@@ -192,17 +193,24 @@ class DataLines:
         return int(self.values.shape[0])
 
     @property
+    def fixed(self) -> decimals.Fixed:
+        """The numbers as printed, in units of the last decimal (text and read-back share it)."""
+        if self._fixed is None:
+            self._fixed = decimals.fixed(self.values, DECIMALS)
+        return self._fixed
+
+    @property
     def text(self) -> str:
         """The lines joined by newlines (none after the last)."""
         if self._text is None:
-            self._text = decimals.rows_text(self.values, DECIMALS) if len(self) else ""
+            self._text = decimals.rows_text(self.fixed) if len(self) else ""
         return self._text
 
     @property
     def printed(self) -> np.ndarray:
         """The numbers as printed and read back, shape of ``values``."""
         if self._printed is None:
-            self._printed = decimals.printed(self.values, DECIMALS)
+            self._printed = decimals.printed(self.fixed)
         return self._printed
 
 

@@ -17,6 +17,7 @@ one correctly rounded division), which :func:`printed` returns without parsing a
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -125,7 +126,20 @@ def _render(units, negative, cols, decimals, p10, out):  # pragma: no cover - ji
     return pos
 
 
-def _units(values: np.ndarray, decimals: int) -> tuple[np.ndarray, np.ndarray, int]:
+class Fixed(NamedTuple):
+    """Numbers as printed with ``decimals`` decimals: the units of the last decimal of each
+    (int64, flat), whether each is negative (its sign printed), and the array's shape."""
+
+    units: np.ndarray
+    negative: np.ndarray
+    decimals: int
+    shape: tuple[int, ...]
+
+
+def fixed(values: np.ndarray, decimals: int = 9) -> Fixed:
+    """The (rows, columns) array ``values`` as printed with ``decimals`` (1..9) decimals,
+    exactly (module docstring). Raises ValueError naming a value that is not finite or
+    ≥ 2^62/10^decimals in magnitude."""
     if not 1 <= decimals <= 9:
         raise ValueError(f"decimals must be 1..9, got {decimals}")
     values = np.ascontiguousarray(values, dtype=np.float64)
@@ -141,28 +155,30 @@ def _units(values: np.ndarray, decimals: int) -> tuple[np.ndarray, np.ndarray, i
             f"row {row}, column {col}: {values.reshape(-1)[bad]!r} cannot be written with {decimals} "
             f"decimals (finite and below {LIMIT / p10:.3g} in magnitude)"
         )
-    return units, negative, p10
+    return Fixed(units, negative, decimals, values.shape)
 
 
-def rows_text(values: np.ndarray, decimals: int = 9) -> str:
-    """The rows of ``values`` (n, c) as text: each number as ``format(v, f".{decimals}f")``
-    prints it, single spaces between the numbers of a row, rows joined by newlines (none after
-    the last). Raises ValueError naming a value that is not finite or ≥ 2^62/10^decimals."""
-    units, negative, p10 = _units(values, decimals)
-    cols = max(int(np.shape(values)[1]), 1)
-    size = _render(units, negative, cols, decimals, p10, np.empty(0, dtype=np.uint8))
+def rows_text(values: np.ndarray | Fixed, decimals: int = 9) -> str:
+    """The rows of ``values`` (n, c) (or of their :func:`fixed` form) as text: each number as
+    ``format(v, f".{decimals}f")`` prints it, single spaces between the numbers of a row, rows
+    joined by newlines (none after the last)."""
+    f = values if isinstance(values, Fixed) else fixed(values, decimals)
+    cols = max(int(f.shape[1]), 1)
+    p10 = 10**f.decimals
+    size = _render(f.units, f.negative, cols, f.decimals, p10, np.empty(0, dtype=np.uint8))
     out = np.empty(size, dtype=np.uint8)
-    _render(units, negative, cols, decimals, p10, out)
+    _render(f.units, f.negative, cols, f.decimals, p10, out)
     return out.tobytes().decode("ascii")
 
 
-def printed(values: np.ndarray, decimals: int = 9) -> np.ndarray:
-    """The numbers :func:`rows_text` prints for ``values``, as read back (``float`` of each
-    printed number, signed zeros kept), shape of ``values``."""
-    units, negative, p10 = _units(values, decimals)
-    out = units.astype(np.float64) / p10
-    big = units >= 2**53  # N/10^d would round twice: read those few from their text
+def printed(values: np.ndarray | Fixed, decimals: int = 9) -> np.ndarray:
+    """The numbers :func:`rows_text` prints for ``values`` (or their :func:`fixed` form), as
+    read back (``float`` of each printed number, signed zeros kept), shape of ``values``."""
+    f = values if isinstance(values, Fixed) else fixed(values, decimals)
+    p10 = 10**f.decimals
+    out = f.units.astype(np.float64) / p10
+    big = f.units >= 2**53  # N/10^d would round twice: read those few from their text
     if np.any(big):
-        out[big] = [float(f"{n // p10}.{n % p10:0{decimals}d}") for n in units[big].tolist()]
-    out[negative] = -out[negative]
-    return out.reshape(np.shape(values))
+        out[big] = [float(f"{n // p10}.{n % p10:0{f.decimals}d}") for n in f.units[big].tolist()]
+    out[f.negative] = -out[f.negative]
+    return out.reshape(f.shape)

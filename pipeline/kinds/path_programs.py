@@ -248,11 +248,13 @@ def export_dpath(
     specs: tuple[Any, Any, Any],
     chosen: dict[str, Any],
     extra: dict[str, Any],
+    rcase: Any = None,
 ) -> dict[str, Any]:
     """Plan the chosen D-path case again ([5]) and write it as position-time lines
     (t [s] at constant spindle speed, accumulated C [deg], X [mm], Z [mm]) with its sidecar,
-    atomically; refused if any line leaves the machine's axis limits."""
-    rcase = resolve_case(case, specs=specs)
+    atomically; refused if any line leaves the machine's axis limits. ``rcase``: the case as
+    :func:`ftsweep.planning.resolve_case` planned it from these entries already (a study)."""
+    rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     head, lines, meta = dpath_document(case, specs, chosen, extra, now(), f"ftsweep {__version__}", rcase)
     reason = _limits_of_lines(specs[1], rcase.layout, lines.printed)
     if reason:

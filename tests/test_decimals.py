@@ -91,3 +91,17 @@ def test_data_lines_text_is_the_joined_lines():
     assert len(lines) == 2
     assert lines.text == "1.000000000 -2.500000000 0.000000000\n4.000000000 5.000000000 -6.000000000"
     assert DataLines(np.empty((0, 3))).text == ""
+
+
+@pytest.mark.parametrize("ending", ["\n", "", "\n\n"])
+def test_file_crc_is_over_its_lines_but_the_crc_line(ending):
+    # read_program_file takes the CRC from the file's bytes around the CRC line; it must be
+    # crc_of the rows without it, whatever the file's ending and its header's characters
+    from ftsweep import files
+
+    rows = ["# magic", "# tool: nose radius 83 µm", "# CRC32: 0x00000000", "a_b c_d", "1.0 2.0", "3.0 4.0"]
+    raw = ("\n".join(rows) + ending).encode("utf-8")
+    read = raw.decode("utf-8").split("\n")
+    if read[-1] == "":
+        read = read[:-1]
+    assert files._crc_without(raw, read, 2) == files.crc_of([r for i, r in enumerate(read) if i != 2])

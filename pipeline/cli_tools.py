@@ -289,13 +289,12 @@ def bench(
     """Time whole commands, the case runner per stage, and optionally a sweep.
 
     Prints the seconds of whole commands, each run as its own process (start-up, imports,
-    kernel loading and exit included: what a user waits for): help, predict on a small and
-    the 950k-point ring case and on a 990k-point chord spiral (one thread and all cores),
-    verify of an exported header, the dpath study (and its export of a 1M-line program, and
-    the verify of that program) and the fresnel study. Then the seconds per case
-    of the published reference cases and two 10⁶-point layouts split into compensation,
-    surface sampling, interpolation, envelope and metrics, after a warm-up that pays
-    numba's compile cost, on one thread (and the 10⁶-point ones on --threads). With
+    kernel loading and exit included: what a user waits for): help, predict (5k and 950k
+    ring points, a 990k-point chord spiral; one thread and all cores), verify of a header,
+    dpath (alone, with its 1M-line program, verify of that program), fresnel. Then the
+    seconds per case of the published reference cases and two 10⁶-point layouts split into
+    compensation, surface sampling, interpolation, envelope and metrics, after a warm-up that
+    pays numba's compile cost, on one thread (and the 10⁶-point ones on --threads). With
     --sweep, the throughput of a whole sweep on each --workers count and on --scheduler; with
     --cube-cases, a synthetic cube's object count and open and select times. Nothing is
     asserted about time (about 3 minutes without --sweep).

@@ -1,0 +1,71 @@
+"""numba's BLAS probe given its one module (ftsweep.startup, issue 29): no scipy.linalg at a
+kernel's first call, and the module the probe gets is scipy's own, which works through numba
+and through scipy.linalg imported afterwards."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+_FRESH = """
+import sys
+from ftsweep import startup
+startup.install()
+assert any(isinstance(f, startup._BeforeProbe) for f in sys.meta_path)
+import numpy as np
+from ftsweep.stages import kinematics
+q = np.linspace(0.0, 1.0, 30).reshape(10, 3)
+kinematics.extremes(q, np.full(9, 0.1), np.zeros(10, dtype=np.int64), 1)  # first kernel: numba's set-up
+print("linalg", "scipy.linalg" in sys.modules)
+print("probed", startup.PROBED in sys.modules)
+print("hook", any(isinstance(f, startup._BeforeProbe) for f in sys.meta_path))
+from numba import njit
+
+@njit
+def dot(a, b):
+    return np.dot(a, b)  # numba's BLAS path: the preloaded module's C functions
+
+a = np.arange(6.0).reshape(2, 3)
+print("numba_dot", dot(a, a.T).tolist() == (a @ a.T).tolist())
+import scipy.linalg
+from scipy.linalg import cython_blas
+print("same", cython_blas is sys.modules[startup.PROBED])
+print("solve", scipy.linalg.solve(np.eye(2) * 2.0, np.ones(2)).tolist())
+"""
+
+
+def _run(code: str) -> dict[str, str]:
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return dict(line.split(" ", 1) for line in out.stdout.strip().splitlines())
+
+
+def test_first_kernel_imports_no_scipy_linalg_and_blas_still_works():
+    got = _run(_FRESH)
+    assert got == {
+        "linalg": "False",
+        "probed": "True",
+        "hook": "False",
+        "numba_dot": "True",
+        "same": "True",
+        "solve": "[0.5, 0.5]",
+    }
+
+
+def test_install_after_numba_probed_changes_nothing():
+    got = _run(
+        "import sys\n"
+        "import numba.np.arraymath\n"  # numba's probe has run: scipy.linalg is in
+        "from ftsweep import startup\n"
+        "startup.install()\n"
+        "print('hook', any(isinstance(f, startup._BeforeProbe) for f in sys.meta_path))\n"
+        "print('preload', startup.preload_blas_probe())\n"
+    )
+    assert got == {"hook": "False", "preload": "True"}
+
+
+def test_without_the_hook_numba_imports_scipy_linalg():
+    # the cost the hook removes exists: the probe's import pulls in the package (else the
+    # test above would pass without any hook)
+    got = _run("import sys\nimport numba.np.arraymath\nprint('linalg', 'scipy.linalg' in sys.modules)\n")
+    assert got == {"linalg": "True"}

@@ -73,7 +73,8 @@ def preload_blas_probe() -> bool:
 class _BeforeProbe(importlib.abc.MetaPathFinder):
     """An import hook that finds nothing itself: at the first import of a module of
     :data:`PROBING` it removes itself and runs :func:`preload_blas_probe` (numba, hence scipy's
-    package, is imported by then), then lets the import proceed as usual."""
+    package, is imported by then), then lets the import proceed as usual (the finders after
+    it keep their turn: see :func:`uninstall`)."""
 
     def find_spec(self, fullname: str, path: object = None, target: object = None) -> None:
         if fullname in PROBING:
@@ -96,6 +97,8 @@ def install() -> None:
 
 
 def uninstall() -> None:
-    """Remove the hook of :func:`install` (if present)."""
-    while _HOOK in sys.meta_path:
-        sys.meta_path.remove(_HOOK)
+    """Remove the hook of :func:`install` (if present). ``sys.meta_path`` is given a new list
+    rather than changed in place: the hook removes itself while the import system walks the
+    list, and removing an entry then would make the walk skip the finder after it."""
+    if _HOOK in sys.meta_path:
+        sys.meta_path = [finder for finder in sys.meta_path if finder is not _HOOK]

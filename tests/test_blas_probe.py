@@ -69,3 +69,24 @@ def test_without_the_hook_numba_imports_scipy_linalg():
     # test above would pass without any hook)
     got = _run("import sys\nimport numba.np.arraymath\nprint('linalg', 'scipy.linalg' in sys.modules)\n")
     assert got == {"linalg": "True"}
+
+
+def test_the_hook_leaves_the_other_finders_of_the_probing_import_their_turn():
+    # the hook fires while the import system walks sys.meta_path: it must not shift the
+    # finders after it (a finder right behind it would be skipped for that import)
+    got = _run(
+        "import sys\n"
+        "from ftsweep import startup\n"
+        "startup.install()\n"
+        "seen = []\n"
+        "class Recorder:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        seen.append(name)\n"
+        "        return None\n"
+        "sys.meta_path.insert(sys.meta_path.index(startup._HOOK) + 1, Recorder())\n"
+        "import numba.np.arraymath\n"
+        "print('recorded', 'numba.np.arraymath' in seen)\n"
+        "print('hook', any(isinstance(f, startup._BeforeProbe) for f in sys.meta_path))\n"
+        "print('linalg', 'scipy.linalg' in sys.modules)\n"
+    )
+    assert got == {"recorded": "True", "hook": "False", "linalg": "False"}

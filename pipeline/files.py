@@ -181,7 +181,7 @@ class DataLines:
             raise ValueError(f"data lines need a (lines, columns) array, got shape {values.shape}")
         self.values = values
         self._fixed: decimals.Fixed | None = None
-        self._text: str | None = None
+        self._encoded: bytes | None = None
         self._printed: np.ndarray | None = None
 
     @classmethod
@@ -200,11 +200,11 @@ class DataLines:
         return self._fixed
 
     @property
-    def text(self) -> str:
-        """The lines joined by newlines (none after the last)."""
-        if self._text is None:
-            self._text = decimals.rows_text(self.fixed) if len(self) else ""
-        return self._text
+    def encoded(self) -> bytes:
+        """The lines joined by newlines (none after the last), ASCII: as written to the file."""
+        if self._encoded is None:
+            self._encoded = decimals.rows_bytes(self.fixed) if len(self) else b""
+        return self._encoded
 
     @property
     def printed(self) -> np.ndarray:
@@ -230,11 +230,13 @@ def write_program(
     """Close the header (the sidecar's digest, the CRC over every other line, the column
     line), name the program and its digest in the sidecar, and write both atomically."""
     rows = [*head, *closing_lines(side.name, meta)]
-    body = "\n" + lines.text if len(lines) else ""
-    crc = zlib.crc32(body.encode("ascii"), crc_of([*rows, columns])) & 0xFFFFFFFF
-    text = "\n".join([*rows, CRC_LINE.format(crc), columns]) + body + "\n"
-    meta.update(program=out.name, crc32=crc, program_sha256=hashlib.sha256(text.encode()).hexdigest())
-    write_texts_atomic({side: dumps_json(meta, indent=2) + "\n", out: text})
+    # the data lines stay the kernel's bytes: encoded once, not again for the CRC, the digest
+    # and the write
+    body = b"\n" + lines.encoded if len(lines) else b""
+    crc = zlib.crc32(body, crc_of([*rows, columns])) & 0xFFFFFFFF
+    data = "\n".join([*rows, CRC_LINE.format(crc), columns]).encode("utf-8") + body + b"\n"
+    meta.update(program=out.name, crc32=crc, program_sha256=hashlib.sha256(data).hexdigest())
+    write_texts_atomic({side: dumps_json(meta, indent=2) + "\n", out: data})
     return meta
 
 

@@ -16,14 +16,15 @@ def _umask() -> int:
     return mask
 
 
-def write_temporary(target: Path, text: str) -> Path:
-    """A complete, synced temporary file beside ``target`` holding ``text``, with the
-    permissions a plain ``open`` would give (mkstemp's own are 0600 whatever the umask)."""
+def write_temporary(target: Path, text: str | bytes) -> Path:
+    """A complete, synced temporary file beside ``target`` holding ``text`` (a string, written
+    as UTF-8, or bytes as they are), with the permissions a plain ``open`` would give
+    (mkstemp's own are 0600 whatever the umask)."""
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(text.encode("utf-8") if isinstance(text, str) else text)
             fh.flush()
             os.fchmod(fh.fileno(), 0o666 & ~_umask())
             os.fsync(fh.fileno())
@@ -45,7 +46,7 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
     return write_texts_atomic({Path(path): text})[0]
 
 
-def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
+def write_texts_atomic(files: dict[Path, str | bytes]) -> list[Path]:
     """Write several files as one unit: every temporary is complete before the first rename,
     and if a rename fails the files already renamed are removed again, so a reader never finds
     part of the set new (a kill between two renames can still leave a mixed pair; readers

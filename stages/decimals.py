@@ -158,8 +158,8 @@ def fixed(values: np.ndarray, decimals: int = 9) -> Fixed:
     return Fixed(units, negative, decimals, values.shape)
 
 
-def rows_text(values: np.ndarray | Fixed, decimals: int = 9) -> str:
-    """The rows of ``values`` (n, c) (or of their :func:`fixed` form) as text: each number as
+def rows_bytes(values: np.ndarray | Fixed, decimals: int = 9) -> bytes:
+    """The rows of ``values`` (n, c) (or of their :func:`fixed` form) as ASCII: each number as
     ``format(v, f".{decimals}f")`` prints it, single spaces between the numbers of a row, rows
     joined by newlines (none after the last)."""
     f = values if isinstance(values, Fixed) else fixed(values, decimals)
@@ -168,7 +168,12 @@ def rows_text(values: np.ndarray | Fixed, decimals: int = 9) -> str:
     size = _render(f.units, f.negative, cols, f.decimals, p10, np.empty(0, dtype=np.uint8))
     out = np.empty(size, dtype=np.uint8)
     _render(f.units, f.negative, cols, f.decimals, p10, out)
-    return out.tobytes().decode("ascii")
+    return out.tobytes()
+
+
+def rows_text(values: np.ndarray | Fixed, decimals: int = 9) -> str:
+    """:func:`rows_bytes` as a string."""
+    return rows_bytes(values, decimals).decode("ascii")
 
 
 def printed(values: np.ndarray | Fixed, decimals: int = 9) -> np.ndarray:

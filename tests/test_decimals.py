@@ -85,12 +85,12 @@ def test_unwritable_values_are_named(bad):
         decimals.rows_text(values, 9)
 
 
-def test_data_lines_text_is_the_joined_lines():
+def test_data_lines_are_the_joined_lines_as_ascii():
     values = np.array([[1.0, -2.5, 3.25e-10], [4.0, 5.0, -6.0]])
     lines = DataLines(values)
     assert len(lines) == 2
-    assert lines.text == "1.000000000 -2.500000000 0.000000000\n4.000000000 5.000000000 -6.000000000"
-    assert DataLines(np.empty((0, 3))).text == ""
+    assert lines.encoded == b"1.000000000 -2.500000000 0.000000000\n4.000000000 5.000000000 -6.000000000"
+    assert DataLines(np.empty((0, 3))).encoded == b""
 
 
 @pytest.mark.parametrize("ending", ["\n", "", "\n\n"])

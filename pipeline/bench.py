@@ -112,8 +112,8 @@ def format_table(result: dict[str, Any]) -> str:
         )
     lines.append(
         "compensation: control table + exact commands along the path; sampling: design surface on the "
-        "evaluation grid; compile time excluded (warm-up case first); -shared: the lines (sampling, exact "
-        "commands and their envelope) computed by an earlier case, as in a sweep whose cases share them; "
+        "evaluation grid; compile time excluded (warm-up case first); -shared: the lines (sampling and exact "
+        "commands) computed by an earlier case, as in a sweep whose cases share them; "
         "×N: on N threads (stage seconds are summed over the threads)."
     )
     return "\n".join(lines)

@@ -15,7 +15,8 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import Any, NamedTuple, Optional
+from dataclasses import dataclass
+from typing import Any, NamedTuple, Optional, Protocol
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from ftsweep.planning import ResolvedCase, resolve_case
 from ftsweep.record import ErrorMap, Timer, timed
 from ftsweep.result import STAGES
 from ftsweep.spec import Case, CaseError
-from ftsweep.stages import metrics
+from ftsweep.stages import envelope, metrics
 from ftsweep.threads import current as current_threads
 from ftsweep.threads import using_threads
 
@@ -45,15 +46,55 @@ def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -
 STAGE_TIMERS = STAGES
 
 
+class ExactEnvelope(Protocol):
+    """The envelope (model §5) of a batch's exact commands, which the interpolation-only error
+    d = z − z_exact (model §6) is judged by, evaluated only where it can matter."""
+
+    def extrema(self, inside: np.ndarray, ext: np.ndarray) -> int:
+        """Extend ``ext`` = [min, max] [µm] by d over the ``inside`` nodes; returns the rays
+        (or lines) whose exact envelope had to be evaluated."""
+        ...
+
+    def heights(self) -> np.ndarray:
+        """z_exact [µm] on every node of the batch (NaN off the evaluation nodes)."""
+        ...
+
+
+@dataclass(frozen=True)
+class ExactRows:
+    """:class:`ExactEnvelope` of rows whose passes are given directly (the grids of
+    :func:`ftsweep.stages.envelope.envelope_rows`): positions ``pos`` [µm], the executed
+    commands ``w`` and the exact ones ``w_exact`` [µm], ``n_valid`` passes per row, nose
+    radius ``rc`` [µm], the evaluation radii ``query`` [µm] and the machined height ``z``."""
+
+    pos: np.ndarray
+    w: np.ndarray
+    w_exact: np.ndarray
+    n_valid: np.ndarray
+    rc: float
+    query: np.ndarray
+    z: np.ndarray
+
+    def extrema(self, inside: np.ndarray, ext: np.ndarray) -> int:
+        return int(
+            envelope.interp_extrema_rows(
+                self.pos, self.w, self.w_exact, self.n_valid, self.rc, self.query, self.z, inside, ext
+            )
+        )
+
+    def heights(self) -> np.ndarray:
+        return envelope.machined_rows(self.pos, self.w_exact, self.n_valid, self.rc, self.query)[0]
+
+
 class Machined(NamedTuple):
     """One batch of rays machined (model §5) and what it is judged by (model §6), arrays of
-    (rays, nodes) in µm: the machined height ``z``, that of the exact commands ``z_exact``,
-    the design ``g``, the nodes ``inside`` the aperture, their distance ``r`` from the part's
-    centre (for the zones), their place ``x``, ``y`` in the part's frame (None when no error
-    map is asked); and the cusp peaks between passes: height, design, inside, distance."""
+    (rays, nodes) in µm: the machined height ``z``, the design ``g``, the nodes ``inside``
+    the aperture, their distance ``r`` from the part's centre (for the zones), their place
+    ``x``, ``y`` in the part's frame (None when no error map is asked); the cusp peaks between
+    passes: height, design, inside, distance; and the envelope of the exact commands
+    (None when the case asks the interpolation-only error off)."""
 
     z: np.ndarray
-    z_exact: np.ndarray
     g: np.ndarray
     inside: np.ndarray
     r: np.ndarray
@@ -63,6 +104,7 @@ class Machined(NamedTuple):
     cusp_g: np.ndarray
     cusp_inside: np.ndarray
     cusp_r: np.ndarray
+    exact: Optional[ExactEnvelope]
 
 
 def run_case(
@@ -152,8 +194,11 @@ def _accumulate(
 ) -> None:
     """A machined batch into the metric statistics (model §6) and the error map."""
     t = time.perf_counter()
-    metrics.accumulate(m.z, m.z_exact, m.g, m.inside, m.r, split_um, stats)
+    metrics.accumulate(m.z, m.g, m.inside, m.r, split_um, stats)
     metrics.accumulate_extrema(m.cusp_z, m.cusp_g, m.cusp_inside, m.cusp_r, split_um, stats)
     if emap is not None:
         emap.add_points(m.z, m.g, m.inside, m.x, m.y)
-    timer.add("metrics", t)
+    t = timer.add("metrics", t)
+    if m.exact is not None:
+        m.exact.extrema(m.inside, stats[metrics.INTERP])
+        timer.add("envelope", t)

@@ -62,8 +62,8 @@ EXIT_DONE, EXIT_INCOMPLETE, EXIT_LOCKED = 0, 1, 75
     type=NON_NEGATIVE,
     default=LINE_CACHE_MB,
     show_default=True,
-    help="Memory [MiB] each worker may keep of the lines (surface samples, exact commands and "
-    "their envelope) that cases on the same angular sampling share; 0 computes every case on its "
+    help="Memory [MiB] each worker may keep of the lines (surface samples and exact commands) "
+    "that cases on the same angular sampling share; 0 computes every case on its "
     "own. Results are the same either way. resolution.angular_ladder in the spec makes cases share.",
 )
 @click.option(

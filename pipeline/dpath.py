@@ -25,7 +25,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep import catalogs
-from ftsweep.case import Machined, require_finite
+from ftsweep.case import ExactRows, Machined, require_finite
 from ftsweep.record import non_finite, simulated
 from ftsweep.spec import CaseError
 from ftsweep.stages import compensation, dpath, envelope, kinematics
@@ -274,11 +274,11 @@ class DPathSimulation:
         t = timer.add("compensation", t)
         rc = rcase.nose_radius_um
         z, cusp_r, cusp_z = envelope.machined_rows(pos, w, n_valid, rc, query)
-        z_exact = envelope.machined_rows(pos, w_exact, n_valid, rc, query)[0] if w_exact is not None else z
+        exact = None if w_exact is None else ExactRows(pos, w, w_exact, n_valid, rc, query, z)
         t = timer.add("envelope", t)
         cusp_f, cusp_in, cusp_dist = self._cusps(cusp_r, ct, st)
         timer.add("metrics", t)
-        return Machined(z, z_exact, f, inside, np.hypot(px, py), px, py, cusp_z, cusp_f, cusp_in, cusp_dist)
+        return Machined(z, f, inside, np.hypot(px, py), px, py, cusp_z, cusp_f, cusp_in, cusp_dist, exact)
 
     def _exact(self, pos: np.ndarray, w: np.ndarray, on_cut: np.ndarray, theta: np.ndarray) -> Any:
         """The exact commands of the passes on a cut (the transitions' own Z elsewhere), or

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ftsweep import catalogs
-from ftsweep.case import Machined, require_finite
+from ftsweep.case import ExactRows, Machined, require_finite
 from ftsweep.spec import CaseError
 from ftsweep.stages import dpath, envelope, metrics
 from ftsweep.stages import fresnel as ff
@@ -98,12 +98,9 @@ class FresnelSimulation:
         w_exact = self._exact(pos, lev, ct, st) if rcase.case.resolution.interp_error else None
         t = timer.add("compensation", t)
         query = np.where(inside, q, np.nan)
-        z, cusp_r, cusp_z = envelope.machined_rows(pos, w, n_valid, rcase.nose_radius_um, query)
-        z_exact = (
-            z
-            if w_exact is None
-            else envelope.machined_rows(pos, w_exact, n_valid, rcase.nose_radius_um, query)[0]
-        )
+        rc = rcase.nose_radius_um
+        z, cusp_r, cusp_z = envelope.machined_rows(pos, w, n_valid, rc, query)
+        exact = None if w_exact is None else ExactRows(pos, w, w_exact, n_valid, rc, query, z)
         t = timer.add("envelope", t)
         cx, cy = self.apex[0] + cusp_r * ct, self.apex[1] + cusp_r * st
         cusp_g = np.full(cusp_r.shape, np.nan)
@@ -117,9 +114,12 @@ class FresnelSimulation:
         facets = {}
         for j in np.unique(level[inside]):
             facets[int(j)] = stats = metrics.empty_stats()
-            metrics.accumulate(z, z_exact, g, inside & (level == j), r, self.zone_split_um, stats)
+            facet = inside & (level == j)
+            metrics.accumulate(z, g, facet, r, self.zone_split_um, stats)
+            if exact is not None:
+                exact.extrema(facet, stats[metrics.INTERP])
         self.facet_stats[b] = facets
-        return Machined(z, z_exact, g, inside, r, x, y, cusp_z, cusp_g, cusp_in, np.hypot(cx, cy))
+        return Machined(z, g, inside, r, x, y, cusp_z, cusp_g, cusp_in, np.hypot(cx, cy), exact)
 
     def _crossings(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
         """The passes crossing each ray, sorted outwards: distance from the lowest point [µm],

@@ -137,8 +137,8 @@ def _table_of(
 class LineData:
     """What a batch of feed-plane lines gives independently of the table (model §3–§6): the
     path grid, the ray directions, the design height ``g`` [µm] and radial slope ``gp`` on the
-    nodes, which nodes lie inside the aperture, and the envelope ``z_exact`` [µm] of the exact
-    commands (None when the case does not ask for it)."""
+    nodes, which nodes lie inside the aperture, and the exact commands ``w_exact`` [µm] on the
+    passes (None when the case does not ask for the interpolation-only error)."""
 
     grid: Any
     ct: np.ndarray
@@ -146,13 +146,13 @@ class LineData:
     g: np.ndarray
     gp: np.ndarray
     inside: np.ndarray
-    z_exact: Optional[np.ndarray]
+    w_exact: Optional[np.ndarray]
 
     @property
     def nbytes(self) -> int:
         arrays = [self.ct, self.st, self.g, self.gp, self.inside, self.grid.node_r]
         arrays += [self.grid.ray_theta, self.grid.first_pass, self.grid.n_passes]
-        return sum(a.nbytes for a in arrays) + (0 if self.z_exact is None else self.z_exact.nbytes)
+        return sum(a.nbytes for a in arrays) + (0 if self.w_exact is None else self.w_exact.nbytes)
 
 
 class LineCache:
@@ -235,8 +235,9 @@ def _reach_um(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray) -> float:
 
 
 def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Timer) -> LineData:
-    """The layout-independent part of a batch of lines (model §3, §5, §6): surface samples,
-    the exact commands along the path and their envelope."""
+    """The layout-independent part of a batch of lines (model §3–§6): surface samples and the
+    exact commands along the path (their envelope is evaluated where the metrics need it,
+    :class:`ExactLines`)."""
     res, rc = rcase.case.resolution, rcase.nose_radius_um
     t = time.perf_counter()
     grid = interpolation.path_grid(
@@ -262,12 +263,10 @@ def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Ti
         return LineData(grid, ct, st, g, gp, inside, None)
     mode = compensation.MODE_CODES[rcase.case.compensation]
     w_exact = compensation.commands_on_rays(g, gp, grid.spacing_um, rc, grid.pass_nodes, grid.n_passes, mode)
-    t = timer.add("compensation", t)
+    timer.add("compensation", t)
     passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
     require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))
-    z_exact = _machined(grid, w_exact, plan, rc)[0]
-    timer.add("envelope", t)
-    return LineData(grid, ct, st, g, gp, inside, z_exact)
+    return LineData(grid, ct, st, g, gp, inside, w_exact)
 
 
 def _machined(
@@ -277,6 +276,29 @@ def _machined(
     fully machined zone: machined height z and the cusp peaks (radius, height) [µm]."""
     start = interpolation.first_machined_node(grid, plan.window_um)
     return envelope.machined_lines(grid.node_r, pass_w, grid.n_passes, grid.node_offset, grid.ppf, start, rc)
+
+
+@dataclass(frozen=True)
+class ExactLines:
+    """:class:`ftsweep.case.ExactEnvelope` of a batch of lines: the envelope of the exact
+    commands ``w_exact`` [µm] on the path grid, beside the executed commands ``w`` [µm] whose
+    envelope ``z`` [µm] it judges, over the fully machined zone of ``plan``."""
+
+    grid: Any
+    w: np.ndarray
+    w_exact: np.ndarray
+    plan: LinePlan
+    rc: float
+    z: np.ndarray
+
+    def extrema(self, inside: np.ndarray, ext: np.ndarray) -> int:
+        grid = self.grid
+        start = interpolation.first_machined_node(grid, self.plan.window_um)
+        on_grid = (grid.node_r, self.w, self.w_exact, grid.n_passes, grid.node_offset, grid.ppf, start)
+        return int(envelope.interp_extrema_lines(*on_grid, self.rc, self.z, inside, ext))
+
+    def heights(self) -> np.ndarray:
+        return _machined(self.grid, self.w_exact, self.plan, self.rc)[0]
 
 
 class LineSimulation:
@@ -331,16 +353,13 @@ class LineSimulation:
             )
         t = timer.add("interpolation", t)
         z, cusp_r, cusp_z = _machined(grid, w_interp, plan, rc)
-        # without the exact commands, z stands in for z_exact: pv_interp_nm is then set NaN
-        z_exact = z if data.z_exact is None else data.z_exact
+        exact = None if data.w_exact is None else ExactLines(grid, w_interp, data.w_exact, plan, rc, z)
         t = timer.add("envelope", t)
         cusp_g = interpolation.sample_on_nodes(grid, data.g, data.gp, cusp_r)
         cusp_inside = rcase.aperture.contains_polar(cusp_r, data.ct, data.st)
         x, y = (grid.node_r * data.ct, grid.node_r * data.st) if self.maps else (None, None)
         timer.add("metrics", t)
-        return Machined(
-            z, z_exact, data.g, data.inside, grid.node_r, x, y, cusp_z, cusp_g, cusp_inside, cusp_r
-        )
+        return Machined(z, data.g, data.inside, grid.node_r, x, y, cusp_z, cusp_g, cusp_inside, cusp_r, exact)
 
     def record(self, errors: dict[str, float], timer: Timer) -> dict[str, Any]:
         """The record (:func:`ftsweep.record.record_of`) with the W command's motion over time

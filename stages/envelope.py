@@ -11,6 +11,10 @@ as its neighbours cross before it would win. Two arcs of equal radius meet on th
 perpendicular bisector of their centres, which gives the crossing in closed form. Each pass
 is pushed and popped at most once, so a line costs O(passes + nodes): only the passes that
 can win at a point are ever compared there.
+
+The envelope of the exact commands serves only the extremes of the interpolation-only error
+(model §6); :func:`interp_extrema_lines` evaluates it on the lines where a bound says those
+extremes can still move.
 """
 
 from __future__ import annotations
@@ -86,6 +90,38 @@ def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover -
     return n_arcs
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _line_passes(node_r, pass_w, n_passes, node_offset, ppf, line, pos, w):  # pragma: no cover - jit
+    """The passes of ``line`` (rays 2·line, at θ, and 2·line + 1, at θ + π) in ascending
+    position into ``pos``, ``w``: the opposite ray's at −ρ', then the own ray's; returns their
+    number."""
+    own, opp = 2 * line, 2 * line + 1
+    n = 0
+    for k in range(n_passes[opp]):
+        pos[n] = -node_r[opp, node_offset + k * ppf]
+        w[n] = pass_w[opp, k]
+        n += 1
+    for k in range(n_passes[own] - 1, -1, -1):
+        pos[n] = node_r[own, node_offset + k * ppf]
+        w[n] = pass_w[own, k]
+        n += 1
+    return n
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _line_span(node_r, first, line):  # pragma: no cover - jit
+    """The evaluation nodes of ``line``: from ``first`` inwards while r ≥ 0 on each ray;
+    returns the end (exclusive) on the opposite and on the own ray."""
+    n_nodes = node_r.shape[1]
+    last_opp = first
+    while last_opp < n_nodes and node_r[2 * line + 1, last_opp] >= 0.0:
+        last_opp += 1
+    last_own = first
+    while last_own < n_nodes and node_r[2 * line, last_own] >= 0.0:
+        last_own += 1
+    return last_opp, last_own
+
+
 @njit(nogil=True, cache=True)
 def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z, cusp_r, cusp_z):  # noqa: E501  # pragma: no cover - jit
     """Machined height z [µm] on the node grids of a batch of feed-plane lines (§5).
@@ -110,26 +146,11 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
     w = np.empty(2 * kmax)
     stack = np.empty(2 * kmax, dtype=np.int64)
     breaks = np.empty(2 * kmax)
+    first = eval_start
     for line in range(n_rays // 2):
         own, opp = 2 * line, 2 * line + 1
-        # passes along the line in ascending position: opposite ray (−ρ'), then own (+ρ)
-        n = 0
-        for k in range(n_passes[opp]):
-            pos[n] = -node_r[opp, node_offset + k * ppf]
-            w[n] = pass_w[opp, k]
-            n += 1
-        for k in range(n_passes[own] - 1, -1, -1):
-            pos[n] = node_r[own, node_offset + k * ppf]
-            w[n] = pass_w[own, k]
-            n += 1
-        # evaluation nodes: from eval_start inwards while r ≥ 0, in ascending position
-        first = eval_start
-        last_opp = first
-        while last_opp < n_nodes and node_r[opp, last_opp] >= 0.0:
-            last_opp += 1
-        last_own = first
-        while last_own < n_nodes and node_r[own, last_own] >= 0.0:
-            last_own += 1
+        n = _line_passes(node_r, pass_w, n_passes, node_offset, ppf, line, pos, w)
+        last_opp, last_own = _line_span(node_r, first, line)
         z[opp, :first] = np.nan
         z[opp, last_opp:] = np.nan
         z[own, :first] = np.nan
@@ -238,3 +259,157 @@ def machined_rows(
         cusp_z,
     )
     return z, cusp_r, cusp_z
+
+
+# The interpolation-only error d = z − z_exact (model §6) is needed only through its extremes.
+# At any r, with j the pass whose arc wins z and k the one that wins z_exact,
+#     z(r) ≤ w_k + arc_k(r) = z_exact(r) + δ_k   and   z_exact(r) ≤ e_j + arc_j(r) = z(r) − δ_j,
+# δ = w − e the commands' difference, so d(r) ∈ [δ_j, δ_k] ⊂ [min δ, max δ] over the passes of
+# the line. A line whose δ lie within the extremes already found cannot extend them and its
+# exact envelope is not evaluated: the extremes are those of evaluating every line. This needs
+# the envelope to be the least of the arcs that reach r, which the hull guarantees where the
+# passes lie less than Rc apart and the nodes within Rc/2 of the outermost ones (on the path
+# grids, a feed apart); a line that is not covered so is always evaluated. The bound is
+# widened by the rounding of the heights and crossings (a few ulp of |w| + Rc, ~1e-14 µm at
+# 100 µm): 1e-9 µm plus 1e-12 of |w| + Rc keeps three orders of margin.
+_BOUND_TOL_UM = 1e-9
+_BOUND_TOL_REL = 1e-12
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _difference_range(pos, w, exact_w, n, rc, q_lo, q_hi):  # pragma: no cover - jit
+    """(min δ, max δ, scale) of the first ``n`` passes at ``pos`` [µm], δ = w − exact_w [µm],
+    with scale the largest |w| + Rc; (−inf, inf, scale) where the bound does not hold: passes
+    Rc or more apart, or evaluation nodes [q_lo, q_hi] [µm] beyond Rc/2 of the outermost."""
+    lo, hi, scale = math.inf, -math.inf, rc
+    covered = n > 0 and q_lo >= pos[0] - 0.5 * rc and q_hi <= pos[n - 1] + 0.5 * rc
+    for k in range(n):
+        d = w[k] - exact_w[k]
+        lo = min(lo, d)
+        hi = max(hi, d)
+        scale = max(scale, abs(w[k]) + rc, abs(exact_w[k]) + rc)
+        if k > 0 and pos[k] - pos[k - 1] >= rc:
+            covered = False
+    if not covered:
+        return -math.inf, math.inf, scale
+    return lo, hi, scale
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _worth_evaluating(lo_b, hi_b, tol, ext):  # pragma: no cover - jit
+    """Whether a line or row with commands' differences in [lo_b, hi_b] [µm] can extend the
+    extremes ``ext`` = [min, max] of d found so far."""
+    return lo_b - tol < ext[0] or hi_b + tol > ext[1]
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _evaluation_order(lo_b, hi_b):  # pragma: no cover - jit
+    """Lines (or rows) in the order that settles the extremes soonest: the one of the lowest
+    δ first, then by descending highest δ."""
+    order = np.argsort(-hi_b)
+    low = np.argmin(lo_b)
+    out = np.empty(order.size, dtype=np.int64)
+    out[0] = low
+    n = 1
+    for i in order:
+        if i != low:
+            out[n] = i
+            n += 1
+    return out
+
+
+@njit(nogil=True, cache=True)
+def interp_extrema_lines(node_r, pass_w, exact_w, n_passes, node_offset, ppf, eval_start, rc, z, inside, ext):  # noqa: E501  # pragma: no cover - jit
+    """Extremes of the interpolation-only error d = z − z_exact [µm] (model §6) over the
+    ``inside`` evaluation nodes of a batch of lines, z_exact being the envelope (§5) of the
+    exact commands ``exact_w`` on the grid of :func:`envelope_lines` (same arguments; ``z``
+    the envelope of ``pass_w``). Added into ``ext`` = [min, max] [µm] in place; lines that
+    provably cannot extend it are skipped (see above), so the result is that of every line.
+    Returns the number of lines whose exact envelope was evaluated."""
+    n_lines = node_r.shape[0] // 2
+    if n_lines == 0:
+        return 0
+    kmax = pass_w.shape[1]
+    pos = np.empty(2 * kmax)
+    w = np.empty(2 * kmax)
+    we = np.empty(2 * kmax)
+    stack = np.empty(2 * kmax, dtype=np.int64)
+    breaks = np.empty(2 * kmax)
+    first = eval_start
+    lo_b = np.empty(n_lines)
+    hi_b = np.empty(n_lines)
+    scale = rc
+    for line in range(n_lines):
+        n = _line_passes(node_r, pass_w, n_passes, node_offset, ppf, line, pos, w)
+        _line_passes(node_r, exact_w, n_passes, node_offset, ppf, line, pos, we)
+        # the evaluation nodes span the line from −r to r at ``first`` (or less)
+        span = 0.0
+        if first < node_r.shape[1]:
+            span = max(abs(node_r[2 * line, first]), abs(node_r[2 * line + 1, first]))
+        lo_b[line], hi_b[line], s = _difference_range(pos, w, we, n, rc, -span, span)
+        scale = max(scale, s)
+    tol = _BOUND_TOL_UM + _BOUND_TOL_REL * scale
+    evaluated = 0
+    for line in _evaluation_order(lo_b, hi_b):
+        if not _worth_evaluating(lo_b[line], hi_b[line], tol, ext):
+            continue
+        evaluated += 1
+        own, opp = 2 * line, 2 * line + 1
+        n = _line_passes(node_r, exact_w, n_passes, node_offset, ppf, line, pos, we)
+        last_opp, last_own = _line_span(node_r, first, line)
+        n_arcs = _hull(pos[:n], we[:n], rc, stack, breaks)
+        m = 0
+        for j in range(first, last_opp):
+            if inside[opp, j] and not math.isnan(z[opp, j]):
+                ze, m = _arc_at(-node_r[opp, j], m, n_arcs, pos, we, rc, stack, breaks)
+                ext[0] = min(ext[0], z[opp, j] - ze)
+                ext[1] = max(ext[1], z[opp, j] - ze)
+        for j in range(last_own - 1, first - 1, -1):
+            if inside[own, j] and not math.isnan(z[own, j]):
+                ze, m = _arc_at(node_r[own, j], m, n_arcs, pos, we, rc, stack, breaks)
+                ext[0] = min(ext[0], z[own, j] - ze)
+                ext[1] = max(ext[1], z[own, j] - ze)
+    return evaluated
+
+
+@njit(nogil=True, cache=True)
+def interp_extrema_rows(pos, pass_w, exact_w, n_valid, rc, query, z, inside, ext):  # pragma: no cover - jit
+    """:func:`interp_extrema_lines` for rows whose passes are given directly, on the grid of
+    :func:`envelope_rows` (same ``pos``, ``n_valid``, ``rc``, ``query``; ``z`` the envelope
+    of ``pass_w``): the extremes of d = z − z_exact [µm] over the ``inside`` nodes into
+    ``ext`` = [min, max] in place. Returns the number of rows evaluated."""
+    n_rows, kmax = pos.shape
+    if n_rows == 0:
+        return 0
+    lo_b = np.empty(n_rows)
+    hi_b = np.empty(n_rows)
+    scale = rc
+    for a in range(n_rows):
+        q_lo, q_hi = math.inf, -math.inf
+        for q in range(query.shape[1]):
+            if not math.isnan(query[a, q]):
+                q_lo = min(q_lo, query[a, q])
+                q_hi = max(q_hi, query[a, q])
+        lo_b[a], hi_b[a], s = _difference_range(pos[a], pass_w[a], exact_w[a], n_valid[a], rc, q_lo, q_hi)
+        scale = max(scale, s)
+    tol = _BOUND_TOL_UM + _BOUND_TOL_REL * scale
+    stack = np.empty(kmax, dtype=np.int64)
+    breaks = np.empty(kmax)
+    evaluated = 0
+    for a in _evaluation_order(lo_b, hi_b):
+        n = n_valid[a]
+        if n == 0 or not _worth_evaluating(lo_b[a], hi_b[a], tol, ext):
+            continue
+        evaluated += 1
+        p = pos[a, :n]
+        ww = exact_w[a, :n]
+        n_arcs = _hull(p, ww, rc, stack, breaks)
+        m = 0
+        for q in range(query.shape[1]):
+            r = query[a, q]
+            if math.isnan(r) or not inside[a, q] or math.isnan(z[a, q]):
+                continue
+            ze, m = _arc_at(r, m, n_arcs, p, ww, rc, stack, breaks)
+            ext[0] = min(ext[0], z[a, q] - ze)
+            ext[1] = max(ext[1], z[a, q] - ze)
+    return evaluated

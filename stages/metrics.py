@@ -45,6 +45,10 @@ STAT_NAMES = (
     OUTER_COUNT,
 ) = range(len(STAT_NAMES))
 _N = len(STAT_NAMES)
+# the extremes of the interpolation-only error, [min, max]: a view the envelope's
+# :func:`ftsweep.stages.envelope.interp_extrema_lines` updates in place
+INTERP = slice(INTERP_MIN, INTERP_MAX + 1)
+assert INTERP_MAX == INTERP_MIN + 1
 _MIN_SLOTS = np.array([MIN, INNER_MIN, OUTER_MIN, INTERP_MIN])
 _MAX_SLOTS = np.array([MAX, INNER_MAX, OUTER_MAX, INTERP_MAX])
 _SUM_SLOTS = np.array([COUNT, SUM, SUM_SQ, INNER_COUNT, OUTER_COUNT])
@@ -68,11 +72,12 @@ def merge_stats(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @njit(nogil=True, cache=True)
-def accumulate(z, z_exact, g, inside, node_r, zone_split_um, stats):  # pragma: no cover - jit
-    """Add the errors of one batch of node grids to ``stats`` in place (model §6).
+def accumulate(z, g, inside, node_r, zone_split_um, stats):  # pragma: no cover - jit
+    """Add the form errors of one batch of node grids to ``stats`` in place (model §6); the
+    interpolation-only error's extremes come from the envelope
+    (:func:`ftsweep.stages.envelope.interp_extrema_lines`).
 
-    z, z_exact : (R, G) machined height from interpolated / exact commands [µm], NaN off
-        the evaluation nodes.
+    z : (R, G) machined height [µm], NaN off the evaluation nodes.
     g : (R, G) design height f at the nodes [µm].
     inside : (R, G) bool, node inside the aperture.
     node_r : (R, G) node radius [µm] (its sign ignored); nodes with |r| ≤ ``zone_split_um``
@@ -86,7 +91,6 @@ def accumulate(z, z_exact, g, inside, node_r, zone_split_um, stats):  # pragma: 
     lo, hi = stats[MIN], stats[MAX]
     in_lo, in_hi, in_n = stats[INNER_MIN], stats[INNER_MAX], stats[INNER_COUNT]
     out_lo, out_hi, out_n = stats[OUTER_MIN], stats[OUTER_MAX], stats[OUTER_COUNT]
-    d_lo, d_hi = stats[INTERP_MIN], stats[INTERP_MAX]
     n_rays, n_nodes = z.shape
     for a in range(n_rays):
         for j in range(n_nodes):
@@ -94,7 +98,6 @@ def accumulate(z, z_exact, g, inside, node_r, zone_split_um, stats):  # pragma: 
             if not inside[a, j] or math.isnan(zz):
                 continue
             e = zz - g[a, j]
-            d = zz - z_exact[a, j]
             count += 1.0
             total += e
             total_sq += e * e
@@ -108,13 +111,10 @@ def accumulate(z, z_exact, g, inside, node_r, zone_split_um, stats):  # pragma: 
                 out_lo = min(out_lo, e)
                 out_hi = max(out_hi, e)
                 out_n += 1.0
-            d_lo = min(d_lo, d)
-            d_hi = max(d_hi, d)
     stats[COUNT], stats[SUM], stats[SUM_SQ] = count, total, total_sq
     stats[MIN], stats[MAX] = lo, hi
     stats[INNER_MIN], stats[INNER_MAX], stats[INNER_COUNT] = in_lo, in_hi, in_n
     stats[OUTER_MIN], stats[OUTER_MAX], stats[OUTER_COUNT] = out_lo, out_hi, out_n
-    stats[INTERP_MIN], stats[INTERP_MAX] = d_lo, d_hi
 
 
 @njit(nogil=True, cache=True)

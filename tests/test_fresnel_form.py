@@ -33,7 +33,7 @@ def _worst_below_design(case: Case) -> float:
     low = math.inf
     for b in range(sim.n_batches):
         m = sim.batch(b, Timer())
-        low = min(low, float(np.nanmin(np.where(m.inside, m.z_exact - m.g, np.nan))))
+        low = min(low, float(np.nanmin(np.where(m.inside, m.exact.heights() - m.g, np.nan))))
     return low
 
 

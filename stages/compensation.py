@@ -336,6 +336,7 @@ def _on_ray(g, gp, spacing_um, rc, nodes, mode, lift, out):  # pragma: no cover 
     """:func:`compensate_on_ray` with the arc heights ``lift`` of :func:`_lift_table`."""
     n_nodes = g.size
     jmax = int(rc / spacing_um) - 1
+    per_node = 1.0 / spacing_um
     for p in range(nodes.size):
         n = nodes[p]
         if mode == 2:
@@ -344,9 +345,18 @@ def _on_ray(g, gp, spacing_um, rc, nodes, mode, lift, out):  # pragma: no cover 
         if mode == 1:
             out[p] = g[n] + rc * (math.sqrt(1.0 + gp[n] * gp[n]) - 1.0)
             continue
-        # contact offset s = rc·sinβ lies outwards (s > 0, smaller n) where g rises outwards
-        s0 = rc * gp[n] / math.sqrt(1.0 + gp[n] * gp[n])
-        j = int(round(-s0 / spacing_um))
+        # contact offset s = rc·sinβ lies outwards (s > 0, smaller n) where g rises outwards.
+        # It only starts the climb, which ends on the same sample from any start on a
+        # single-peaked section, so below slope 1/4 the series of β's sine stands in for the
+        # square root and division (within 2e-5·Rc of it: 2 nm at Rc 83 µm, a fraction of a
+        # node; the root was a third of this loop's time)
+        q = gp[n]
+        q2 = q * q
+        if q2 < 0.0625:
+            s0 = rc * q * (1.0 - q2 * (0.5 - 0.375 * q2))
+        else:
+            s0 = rc * q / math.sqrt(1.0 + q2)
+        j = int(math.floor(0.5 - s0 * per_node))
         jlo = max(-jmax, -n)
         jhi = min(jmax, n_nodes - 1 - n)
         j = min(max(j, jlo), jhi)

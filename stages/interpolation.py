@@ -29,34 +29,50 @@ Program = Layout | SpiralPath
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _bilinear_at(table, u, v, periodic):  # pragma: no cover - jit
-    """Eq. (2) at fractional indices (u, v): u clamped, v wrapped when ``periodic``."""
-    n0, n1 = table.shape
-    # first index: clamped to the table (the controller holds the edge value)
+def _first_index(u, n0):  # pragma: no cover - jit
+    """Cell i and fraction t of the first index ``u``, clamped to a table of ``n0`` rows
+    (the controller holds the edge value)."""
     i = int(math.floor(u))
     if i < 0:
-        i, t = 0, 0.0
-    elif i > n0 - 2:
-        i, t = n0 - 2, 1.0
-    else:
-        t = u - i
+        return 0, 0.0
+    if i > n0 - 2:
+        return n0 - 2, 1.0
+    return i, u - i
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _second_index(v, n1, periodic):  # pragma: no cover - jit
+    """Columns j, j1 and fraction s of the second index ``v``: wrapped when ``periodic``
+    (column n1−1 neighbours column 0), else clamped."""
     j = int(math.floor(v))
     s = v - j
     if periodic:
-        j = j % n1
-        j1 = (j + 1) % n1
-    else:
-        if j < 0:
-            j, s = 0, 0.0
-        elif j > n1 - 2:
-            j, s = n1 - 2, 1.0
-        j1 = j + 1
+        return j % n1, (j % n1 + 1) % n1, s
+    if j < 0:
+        return 0, 1, 0.0
+    if j > n1 - 2:
+        return n1 - 2, n1 - 1, 1.0
+    return j, j + 1, s
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _blend(table, i, t, j, j1, s):  # pragma: no cover - jit
+    """Eq. (2) in cell (i, j) at fractions (t, s)."""
     return (
         (1.0 - t) * (1.0 - s) * table[i, j]
         + t * (1.0 - s) * table[i + 1, j]
         + t * s * table[i + 1, j1]
         + (1.0 - t) * s * table[i, j1]
     )
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _bilinear_at(table, u, v, periodic):  # pragma: no cover - jit
+    """Eq. (2) at fractional indices (u, v): u clamped, v wrapped when ``periodic``."""
+    n0, n1 = table.shape
+    i, t = _first_index(u, n0)
+    j, j1, s = _second_index(v, n1, periodic)
+    return _blend(table, i, t, j, j1, s)
 
 
 @njit(nogil=True, cache=True)
@@ -71,15 +87,21 @@ def _pass_commands_kernel(table, polar, o0, o1, p0, p1, periodic, first, k0, ste
     # k + k0, see path_grid) and their table indices are formed here,
     # pass by pass, instead of as (rays × passes) arrays; the arithmetic is that of
     # pass_rho and table_indices, so the commands are the same to the last bit
+    n0, n1 = table.shape
     for a in range(out.shape[0]):
+        if polar:
+            # a ray keeps its angle: its columns are found once (the modulo of a wrapped
+            # index cost as much as the rest of a pass)
+            j, j1, s = _second_index(ray_a[a], n1, periodic)
+            for k in range(out.shape[1]):
+                rho = max(first[a] - (k + k0) * step, 0.0)
+                i, t = _first_index((rho - o0) / p0, n0)
+                out[a, k] = _blend(table, i, t, j, j1, s)
+            continue
         for k in range(out.shape[1]):
             rho = max(first[a] - (k + k0) * step, 0.0)
-            if polar:
-                u = (rho - o0) / p0
-                v = ray_a[a]
-            else:
-                u = (rho * ray_a[a] - o0) / p0
-                v = (rho * ray_b[a] - o1) / p1
+            u = (rho * ray_a[a] - o0) / p0
+            v = (rho * ray_b[a] - o1) / p1
             out[a, k] = _bilinear_at(table, u, v, periodic)
 
 

@@ -125,19 +125,26 @@ def accumulate_extrema(z, f, inside, r, zone_split_um, stats):  # pragma: no cov
     z, f : machined and design heights [µm] (NaN entries are skipped); inside : bool;
     r : radius [µm]; all 2-D of one shape.
     """
+    # running extremes in locals, as in :func:`accumulate` (min and max do not depend on order)
+    lo, hi = stats[MIN], stats[MAX]
+    in_lo, in_hi = stats[INNER_MIN], stats[INNER_MAX]
+    out_lo, out_hi = stats[OUTER_MIN], stats[OUTER_MAX]
     for a in range(z.shape[0]):
         for c in range(z.shape[1]):
             if not inside[a, c] or math.isnan(z[a, c]) or math.isnan(f[a, c]):
                 continue
             e = z[a, c] - f[a, c]
-            stats[MIN] = min(stats[MIN], e)
-            stats[MAX] = max(stats[MAX], e)
+            lo = min(lo, e)
+            hi = max(hi, e)
             if r[a, c] <= zone_split_um:
-                stats[INNER_MIN] = min(stats[INNER_MIN], e)
-                stats[INNER_MAX] = max(stats[INNER_MAX], e)
+                in_lo = min(in_lo, e)
+                in_hi = max(in_hi, e)
             else:
-                stats[OUTER_MIN] = min(stats[OUTER_MIN], e)
-                stats[OUTER_MAX] = max(stats[OUTER_MAX], e)
+                out_lo = min(out_lo, e)
+                out_hi = max(out_hi, e)
+    stats[MIN], stats[MAX] = lo, hi
+    stats[INNER_MIN], stats[INNER_MAX] = in_lo, in_hi
+    stats[OUTER_MIN], stats[OUTER_MAX] = out_lo, out_hi
 
 
 @njit(nogil=True, cache=True)

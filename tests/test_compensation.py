@@ -239,3 +239,38 @@ def test_a_wrong_curvature_bound_is_refused():
     rho, theta = random_points(3, 1000.0, n=500)
     with pytest.raises(ValueError, match="exceeds the curvature bound"):
         compensate(surface, rho, theta, 83.0, "exact", bound, curvature_bound=0.2 * curvature)
+
+
+def _sampled_maximum(g, spacing, rc, n):
+    """The exact command at node n by brute force over the sampled section: the best sample
+    h_j = g[n + j] − arc(j·spacing) in the whole window, refined by the parabola through it and
+    its neighbours (what the climb converges to on a single-peaked section)."""
+    jmax = int(rc / spacing) - 1
+    j = np.arange(max(-jmax, -n), min(jmax, g.size - 1 - n) + 1)
+    h = g[n + j] - (rc - np.sqrt(np.maximum(rc * rc - (j * spacing) ** 2, 0.0)))
+    b = int(np.argmax(h))
+    if 0 < b < h.size - 1:
+        hm, hj, hp = h[b - 1], h[b], h[b + 1]
+        curv = hm - 2.0 * hj + hp
+        if curv < 0.0:
+            return hj - (hp - hm) * (hp - hm) / (8.0 * curv)
+    return h[b]
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.floats(-0.6, 0.6), st.floats(-0.008, 0.008), st.floats(20.0, 150.0), st.integers(0, 2**32 - 1))
+def test_on_ray_climb_finds_the_sampled_maximum(slope, curvature, rc, seed):
+    """From any start, gentle slopes (the series start) and steep ones (the exact start) alike,
+    the climb ends on the best sample of a single-peaked section (curvature below 1/Rc)."""
+    rng = np.random.default_rng(seed)
+    spacing = 0.5
+    r = 400.0 - np.arange(1600) * spacing
+    phase = rng.uniform(0.0, 2.0 * math.pi)
+    c = min(curvature, 0.9 / rc)  # with the wiggle's ≤ 0.2/31² µm⁻¹, below 1/Rc
+    g = slope * r + 0.5 * c * (r - 200.0) ** 2 + 0.2 * np.sin(r / 31.0 + phase)
+    gp = slope + c * (r - 200.0) + 0.2 / 31.0 * np.cos(r / 31.0 + phase)
+    nodes = np.sort(rng.choice(np.arange(1, 1599), 60, replace=False)).astype(np.int64)
+    out = np.empty(nodes.size)
+    compensation.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out)
+    want = np.array([_sampled_maximum(g, spacing, rc, int(n)) for n in nodes])
+    np.testing.assert_array_equal(out, want)

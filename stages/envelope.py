@@ -296,6 +296,37 @@ def _difference_range(pos, w, exact_w, n, rc, q_lo, q_hi):  # pragma: no cover -
 
 
 @njit(nogil=True, cache=True, inline="always")
+def _line_difference_range(node_r, pass_w, exact_w, n_passes, node_offset, ppf, line, rc):  # noqa: E501  # pragma: no cover - jit
+    """:func:`_difference_range` of a line of a path grid, read from its rays' rows: along a
+    ray the passes lie ``ppf`` nodes apart, the innermost ones of the two rays face each other
+    across the axis, and the evaluation nodes lie inside both rays' first passes."""
+    own, opp = 2 * line, 2 * line + 1
+    lo, hi, big = math.inf, -math.inf, 0.0
+    for a in range(own, opp + 1):
+        for k in range(n_passes[a]):
+            w, e = pass_w[a, k], exact_w[a, k]
+            d = w - e
+            # plain comparisons: the loop runs over every pass of the batch
+            if d < lo:
+                lo = d
+            if d > hi:
+                hi = d
+            if abs(w) > big:
+                big = abs(w)
+            if abs(e) > big:
+                big = abs(e)
+    scale = big + rc
+    n_own, n_opp = n_passes[own], n_passes[opp]
+    if n_own < 2 or n_opp < 2:
+        return -math.inf, math.inf, scale
+    step = node_r[own, node_offset] - node_r[own, node_offset + ppf]
+    across = node_r[own, node_offset + (n_own - 1) * ppf] + node_r[opp, node_offset + (n_opp - 1) * ppf]
+    if step >= rc or across >= rc:
+        return -math.inf, math.inf, scale
+    return lo, hi, scale
+
+
+@njit(nogil=True, cache=True, inline="always")
 def _worth_evaluating(lo_b, hi_b, tol, ext):  # pragma: no cover - jit
     """Whether a line or row with commands' differences in [lo_b, hi_b] [µm] can extend the
     extremes ``ext`` = [min, max] of d found so far."""
@@ -331,7 +362,6 @@ def interp_extrema_lines(node_r, pass_w, exact_w, n_passes, node_offset, ppf, ev
         return 0
     kmax = pass_w.shape[1]
     pos = np.empty(2 * kmax)
-    w = np.empty(2 * kmax)
     we = np.empty(2 * kmax)
     stack = np.empty(2 * kmax, dtype=np.int64)
     breaks = np.empty(2 * kmax)
@@ -340,13 +370,9 @@ def interp_extrema_lines(node_r, pass_w, exact_w, n_passes, node_offset, ppf, ev
     hi_b = np.empty(n_lines)
     scale = rc
     for line in range(n_lines):
-        n = _line_passes(node_r, pass_w, n_passes, node_offset, ppf, line, pos, w)
-        _line_passes(node_r, exact_w, n_passes, node_offset, ppf, line, pos, we)
-        # the evaluation nodes span the line from −r to r at ``first`` (or less)
-        span = 0.0
-        if first < node_r.shape[1]:
-            span = max(abs(node_r[2 * line, first]), abs(node_r[2 * line + 1, first]))
-        lo_b[line], hi_b[line], s = _difference_range(pos, w, we, n, rc, -span, span)
+        lo_b[line], hi_b[line], s = _line_difference_range(
+            node_r, pass_w, exact_w, n_passes, node_offset, ppf, line, rc
+        )
         scale = max(scale, s)
     tol = _BOUND_TOL_UM + _BOUND_TOL_REL * scale
     evaluated = 0

@@ -248,7 +248,7 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
     "--sweep",
     "sweep_name",
     metavar="SWEEP",
-    help="Also run this sweep (e.g. sinewave-ring, ~40 s on 2 workers) and report cases/s and the "
+    help="Also run this sweep (e.g. sinewave-ring, ~30 s on 2 workers) and report cases/s and the "
     "efficiency (summed case time over wall time × workers).",
 )
 @click.option(

@@ -109,6 +109,13 @@ def _line_passes(node_r, pass_w, n_passes, node_offset, ppf, line, pos, w):  # p
 
 
 @njit(nogil=True, cache=True, inline="always")
+def _line_scratch(kmax):  # pragma: no cover - jit
+    """Scratch arrays for a line of up to 2·``kmax`` passes: positions, commands, and the
+    hull's stack and breaks (:func:`_hull`)."""
+    return np.empty(2 * kmax), np.empty(2 * kmax), np.empty(2 * kmax, dtype=np.int64), np.empty(2 * kmax)
+
+
+@njit(nogil=True, cache=True, inline="always")
 def _line_span(node_r, first, line):  # pragma: no cover - jit
     """The evaluation nodes of ``line``: from ``first`` inwards while r ≥ 0 on each ray;
     returns the end (exclusive) on the opposite and on the own ray."""
@@ -141,11 +148,7 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
     n_rays, n_nodes = node_r.shape
     cusp_r[:, :] = np.nan
     cusp_z[:, :] = np.nan
-    kmax = pass_w.shape[1]
-    pos = np.empty(2 * kmax)
-    w = np.empty(2 * kmax)
-    stack = np.empty(2 * kmax, dtype=np.int64)
-    breaks = np.empty(2 * kmax)
+    pos, w, stack, breaks = _line_scratch(pass_w.shape[1])
     first = eval_start
     for line in range(n_rays // 2):
         own, opp = 2 * line, 2 * line + 1
@@ -200,6 +203,15 @@ def machined_lines(
     return z, cusp_r, cusp_z
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _row_arcs(pos, w, a, n, rc, stack, breaks):  # pragma: no cover - jit
+    """The first ``n`` passes of row ``a`` (positions, commands) and their hull's arc count
+    (:func:`_hull`, into ``stack`` and ``breaks``)."""
+    p = pos[a, :n]
+    ww = w[a, :n]
+    return p, ww, _hull(p, ww, rc, stack, breaks)
+
+
 @njit(nogil=True, cache=True)
 def envelope_rows(pos, w, n_valid, rc, query, z, cusp_r, cusp_z):  # pragma: no cover - jit
     """Machined height z [µm] along a batch of rays whose passes are given directly (§5):
@@ -222,9 +234,7 @@ def envelope_rows(pos, w, n_valid, rc, query, z, cusp_r, cusp_z):  # pragma: no 
         if n == 0:
             z[a, :] = np.nan
             continue
-        p = pos[a, :n]
-        ww = w[a, :n]
-        n_arcs = _hull(p, ww, rc, stack, breaks)
+        p, ww, n_arcs = _row_arcs(pos, w, a, n, rc, stack, breaks)
         m = 0
         for q in range(query.shape[1]):
             r = query[a, q]
@@ -360,11 +370,7 @@ def interp_extrema_lines(node_r, pass_w, exact_w, n_passes, node_offset, ppf, ev
     n_lines = node_r.shape[0] // 2
     if n_lines == 0:
         return 0
-    kmax = pass_w.shape[1]
-    pos = np.empty(2 * kmax)
-    we = np.empty(2 * kmax)
-    stack = np.empty(2 * kmax, dtype=np.int64)
-    breaks = np.empty(2 * kmax)
+    pos, we, stack, breaks = _line_scratch(pass_w.shape[1])
     first = eval_start
     lo_b = np.empty(n_lines)
     hi_b = np.empty(n_lines)
@@ -427,9 +433,7 @@ def interp_extrema_rows(pos, pass_w, exact_w, n_valid, rc, query, z, inside, ext
         if n == 0 or not _worth_evaluating(lo_b[a], hi_b[a], tol, ext):
             continue
         evaluated += 1
-        p = pos[a, :n]
-        ww = exact_w[a, :n]
-        n_arcs = _hull(p, ww, rc, stack, breaks)
+        p, ww, n_arcs = _row_arcs(pos, exact_w, a, n, rc, stack, breaks)
         m = 0
         for q in range(query.shape[1]):
             r = query[a, q]

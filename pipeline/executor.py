@@ -133,6 +133,9 @@ ErrorFn = Callable[[TaskSpec, list[int], BaseException], list[dict]]
 SYNCHRONOUS = "synchronous"
 # how often the driver looks for published cases while no task finishes [s]
 EVENT_POLL_S = 0.25
+# how long reading a finished task's summaries may take before it counts as lost with its
+# worker [s] (they are a few kB)
+RESULT_WAIT_S = 5.0
 # a scheduler that does not answer within this many seconds is reported, not waited for
 CONNECT_TIMEOUT_S = 5
 
@@ -379,16 +382,33 @@ def _run_distributed(
                 done = set()
             deliveries.drain()
             for future in done:
-                try:
-                    rows = future.result()
-                except Exception as exc:  # the task itself broke (not a case): its cases stay pending
-                    rows = on_error(spec, lookup[future.key], exc)
+                rows = _task_rows(future, lookup[future.key], spec, on_error)
+                if rows is None:  # lost with its worker before we read it: computed again
+                    pending.add(future)
+                    continue
                 deliveries.deliver(rows)
                 future.release()
             if pending:
                 watch.check(len(deliveries.seen))
     finally:
         client.unsubscribe_topic(topic)
+
+
+def _task_rows(future: Any, group: list[int], spec: TaskSpec, on_error: ErrorFn) -> Optional[list[dict]]:
+    """The summaries a finished task returned, those of its failure (the task itself broke, not
+    a case: its cases stay pending), or None when its result went with a worker that left
+    before it was read. The result is then computed again; waiting for it without a time limit
+    hung a run whose every worker had left (the watch never got its turn)."""
+    if future.status == "error":
+        return on_error(spec, group, future.exception())
+    try:
+        return future.result(timeout=RESULT_WAIT_S)
+    except TimeoutError:
+        if future.status == "error":  # broke meanwhile, raising a TimeoutError of its own
+            return on_error(spec, group, future.exception())
+        return None
+    except Exception as exc:  # noqa: BLE001 - any failure of the task is reported with its cases
+        return on_error(spec, group, exc)
 
 
 class WorkerWatch:

@@ -138,3 +138,41 @@ def test_the_local_dashboard_listens_on_loopback_only():
         assert hosts == {"127.0.0.1"}, hosts
     finally:
         _close_quietly(client, cluster)
+
+
+class _Future:
+    """A finished task's future as the driver sees it: its status, and what reading it gives."""
+
+    def __init__(self, status, result=None, error=None, lost=False, becomes=None):
+        self.status, self._result, self._error, self._lost = status, result, error, lost
+        self._becomes = becomes
+
+    def exception(self):
+        return self._error
+
+    def result(self, timeout=None):
+        if self._lost:  # its data went with its worker: the scheduler computes it again
+            self.status = "pending"
+            raise TimeoutError(f"no result within {timeout} s")
+        if self._error is not None:
+            self.status = self._becomes or self.status
+            raise self._error
+        return self._result
+
+
+def test_a_result_lost_with_its_worker_goes_back_to_pending_instead_of_blocking():
+    from ftsweep.executor import _task_rows
+
+    def on_error(spec, group, exc):
+        return [{"index": i, "status": "error", "message": str(exc)} for i in group]
+
+    rows = [{"index": 3, "status": "done"}]
+    assert _task_rows(_Future("finished", result=rows), [3], None, on_error) == rows
+    assert _task_rows(_Future("finished", lost=True), [3], None, on_error) is None
+    # a task that broke, even with a TimeoutError of its own, is reported with its cases
+    for error in (ValueError("disk full"), TimeoutError("cube lock")):
+        out = _task_rows(_Future("error", error=error), [4, 5], None, on_error)
+        assert [r["index"] for r in out] == [4, 5] and str(error) in out[0]["message"]
+    # finished when looked at, broken when read (status moved on)
+    broke_meanwhile = _Future("finished", error=TimeoutError("slow store"), becomes="error")
+    assert _task_rows(broke_meanwhile, [6], None, on_error)[0]["status"] == "error"

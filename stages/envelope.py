@@ -287,22 +287,36 @@ _BOUND_TOL_REL = 1e-12
 
 
 @njit(nogil=True, cache=True, inline="always")
+def _delta_range(w, exact_w, n, lo, hi, big):  # pragma: no cover - jit
+    """(lo, hi, big) extended by the first ``n`` passes of one row: the least and greatest
+    δ = w − exact_w [µm] and the largest |w| or |exact_w| [µm]."""
+    for k in range(n):
+        d = w[k] - exact_w[k]
+        # plain comparisons: the loop runs over every pass of the batch
+        if d < lo:
+            lo = d
+        if d > hi:
+            hi = d
+        if abs(w[k]) > big:
+            big = abs(w[k])
+        if abs(exact_w[k]) > big:
+            big = abs(exact_w[k])
+    return lo, hi, big
+
+
+@njit(nogil=True, cache=True, inline="always")
 def _difference_range(pos, w, exact_w, n, rc, q_lo, q_hi):  # pragma: no cover - jit
     """(min δ, max δ, scale) of the first ``n`` passes at ``pos`` [µm], δ = w − exact_w [µm],
     with scale the largest |w| + Rc; (−inf, inf, scale) where the bound does not hold: passes
     Rc or more apart, or evaluation nodes [q_lo, q_hi] [µm] beyond Rc/2 of the outermost."""
-    lo, hi, scale = math.inf, -math.inf, rc
+    lo, hi, big = _delta_range(w, exact_w, n, math.inf, -math.inf, 0.0)
     covered = n > 0 and q_lo >= pos[0] - 0.5 * rc and q_hi <= pos[n - 1] + 0.5 * rc
-    for k in range(n):
-        d = w[k] - exact_w[k]
-        lo = min(lo, d)
-        hi = max(hi, d)
-        scale = max(scale, abs(w[k]) + rc, abs(exact_w[k]) + rc)
-        if k > 0 and pos[k] - pos[k - 1] >= rc:
+    for k in range(1, n):
+        if pos[k] - pos[k - 1] >= rc:
             covered = False
     if not covered:
-        return -math.inf, math.inf, scale
-    return lo, hi, scale
+        return -math.inf, math.inf, big + rc
+    return lo, hi, big + rc
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -311,20 +325,8 @@ def _line_difference_range(node_r, pass_w, exact_w, n_passes, node_offset, ppf, 
     ray the passes lie ``ppf`` nodes apart, the innermost ones of the two rays face each other
     across the axis, and the evaluation nodes lie inside both rays' first passes."""
     own, opp = 2 * line, 2 * line + 1
-    lo, hi, big = math.inf, -math.inf, 0.0
-    for a in range(own, opp + 1):
-        for k in range(n_passes[a]):
-            w, e = pass_w[a, k], exact_w[a, k]
-            d = w - e
-            # plain comparisons: the loop runs over every pass of the batch
-            if d < lo:
-                lo = d
-            if d > hi:
-                hi = d
-            if abs(w) > big:
-                big = abs(w)
-            if abs(e) > big:
-                big = abs(e)
+    lo, hi, big = _delta_range(pass_w[own], exact_w[own], n_passes[own], math.inf, -math.inf, 0.0)
+    lo, hi, big = _delta_range(pass_w[opp], exact_w[opp], n_passes[opp], lo, hi, big)
     scale = big + rc
     n_own, n_opp = n_passes[own], n_passes[opp]
     if n_own < 2 or n_opp < 2:

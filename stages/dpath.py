@@ -360,7 +360,10 @@ def _evaluate_kernel(phi, bounds, cut_d, cut_centre, coeffs, rho, d1, d2, on_cut
             seg = max(np.searchsorted(bounds, p, side="right") - 1, 0)
         while seg + 1 < nb and bounds[seg + 1] <= p:
             seg += 1
-        on = seg % 2 == 0 or bounds[seg] == p
+        # the path ends on a cut: an angle at or past its last bound (the file's C printed to
+        # 1e-9° lands a few ulp beyond it) continues that cut, not the last transition's
+        # polynomial far outside its span
+        on = seg % 2 == 0 or bounds[seg] == p or seg == nb - 1
         on_cut[k] = on
         i = min(seg // 2, ncut - 1)
         if on or nt == 0:

@@ -254,6 +254,10 @@ def test_export_lines_stay_within_the_axis_limits_and_verify(tmp_path):
     assert np.all(np.diff(data[:, 0]) > 0)
     checked = verify(out)
     assert abs(checked["pv_nm"] - record["pv_nm"]) <= checked["pv_tolerance_nm"]
+    # the motion re-simulated from the file's lines is the planned one
+    assert checked["feasible"] == record["feasible"] == 1 and checked["infeasible_reason"] == ""
+    for k in ("x_max_um", "x_feed_peak_mm_s", "x_accel_peak_m_s2"):
+        assert checked[k] == pytest.approx(record[k], rel=1e-6), k
     # a changed line is refused
     text = out.read_text().splitlines()
     text[-1] = text[-1][:-1] + ("1" if text[-1][-1] != "1" else "2")
@@ -408,6 +412,23 @@ def test_evaluate_walks_increasing_angles_and_searches_others_alike():
     x = path.bounds - path.cut_centre[cut]
     assert np.allclose(rho, path.cut_d[cut] / np.cos(x), rtol=1e-14)
     assert np.allclose(d1, path.cut_d[cut] * np.tan(x) / np.cos(x), rtol=1e-12)
+
+
+@pytest.mark.parametrize("transition", ["traditional", "optimised"])
+def test_angles_a_few_ulp_beyond_the_path_ends_continue_its_end_cuts(transition):
+    # a program's C is printed to 1e-9°: read back, its last angle can land a few ulp past the
+    # last bound; it must continue the last cut, not evaluate the last transition's polynomial
+    # outside its span (the seed's program then re-simulated with X 32.5 mm instead of 22.4 and
+    # 10 m/s at its last line)
+    path = seed_path(transition, spacing_um=500.0, ppc=21)
+    end, first = path.bounds[-1], path.bounds[0]
+    beyond = np.array([np.nextafter(end, np.inf), end + 1e-12, end + 1e-9])
+    before = np.array([np.nextafter(first, -np.inf), first - 1e-12, first - 1e-9])
+    for phi, cut in ((beyond, path.n_cuts - 1), (before, 0)):
+        rho, on_cut = dpath.radius_at(path, phi)
+        assert on_cut.all()
+        assert np.allclose(rho, path.cut_d[cut] / np.cos(phi - path.cut_centre[cut]), rtol=1e-14)
+        assert np.allclose(rho, path.rho[-1 if cut else 0], rtol=1e-9)
 
 
 @pytest.mark.parametrize("transition", ["traditional", "optimised"])

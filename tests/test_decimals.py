@@ -4,6 +4,8 @@ Python's ``format(v, ".9f")`` prints, and the numbers read back from it, on rand
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -105,3 +107,78 @@ def test_file_crc_is_over_its_lines_but_the_crc_line(ending):
     if read[-1] == "":
         read = read[:-1]
     assert files._crc_without(raw, read, 2) == files.crc_of([r for i, r in enumerate(read) if i != 2])
+
+
+def _loadtxt(text: str, cols: int) -> np.ndarray:
+    return np.loadtxt(text.split("\n"), dtype=np.float64, delimiter=" ", comments=None, ndmin=2).reshape(
+        -1, cols
+    )
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(st.tuples(_finite, _finite, _finite), min_size=1, max_size=20),
+    st.integers(1, 9),
+    st.integers(1, 9),
+)
+def test_lines_as_written_are_read_as_any_reader_reads_them(rows, d, read_d):
+    # the compiled reader gives each printed decimal's nearest double, as loadtxt does; a
+    # number of 2^53 units or more, or more decimals than it reads, is left to the general
+    # reader (None)
+    values = np.where(np.abs(np.array(rows)) * 10**d < decimals.LIMIT, np.array(rows), 0.0)
+    text = decimals.rows_text(values, d)
+    got = decimals.parse_rows(text.encode("ascii"), 3, read_d)
+    units = np.abs(np.round(decimals.printed(values, d) * 10**read_d))
+    if d > read_d or np.any(units >= 2**53):
+        assert got is None
+    else:
+        assert got is not None and _same(got, _loadtxt(text, 3))
+        assert _same(got, decimals.printed(values, d))
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "1.0 2.0\n3.0",  # a short row
+        "1.0 2.0\n3.0 4.0\n",  # a blank last line
+        "1.0  2.0",  # two spaces
+        "1.0 2.0\r\n3.0 4.0",  # a carriage return
+        "1e-3 2.0",  # an exponent
+        "+1.0 2.0",  # a plus sign
+        ".5 2.0",  # no whole part
+        "5. 2.0",  # no decimals
+        "1.0 2.0 3.0",  # a third number
+        "1.0,2.0",  # another separator
+        "nan 2.0",
+        "1.0000000001 2.0",  # ten decimals
+        "9007199.254740992 1.0",  # 2^53 units
+    ],
+)
+def test_other_text_is_left_to_the_general_reader(text):
+    assert decimals.parse_rows(text.encode("ascii"), 2, 9) is None
+
+
+def test_program_files_read_the_same_by_either_reader(tmp_path):
+    # a file whose lines leave the written form is read by loadtxt (the same numbers) or
+    # refused naming the line
+    from ftsweep import files
+
+    def program(lines: list[str]) -> Path:
+        rows = ["# magic", "# a: b"]
+        body = "\n".join(["x_mm y_mm", *lines]) + "\n"
+        crc = files.crc_of([*rows, "x_mm y_mm", *lines])
+        out = tmp_path / "p.txt"
+        out.write_text("\n".join([*rows, files.CRC_LINE.format(crc), body]))
+        return out
+
+    written = files.read_program_file(
+        program(["1.500000000 -0.000000000", "2.0 3.25"]), "# magic", "x_mm y_mm"
+    )
+    general = files.read_program_file(program(["1.5e0 -0.0", "+2.0 3.25"]), "# magic", "x_mm y_mm")
+    assert _same(written.data, np.array([[1.5, -0.0], [2.0, 3.25]])) and _same(general.data, written.data)
+    assert written.fields["a"] == "b" and written.fields["CRC32"].startswith("0x")
+    with pytest.raises(files.ProgramError, match="from line 5 on"):
+        files.read_program_file(program(["1.0 2.0", "3.0 x"]), "# magic", "x_mm y_mm")
+    with pytest.raises(files.ProgramError, match="2 finite numbers"):
+        files.read_program_file(program(["1.0 2.0", "3.0 inf"]), "# magic", "x_mm y_mm")
+    assert files.read_program_file(program([]), "# magic", "x_mm y_mm").data.shape == (0, 2)

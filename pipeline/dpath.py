@@ -159,8 +159,9 @@ def motion_summary(
     makes is ``accel_step_deg``): X range, feed and acceleration (overall, on the cuts and in
     the transitions), Z velocity and acceleration (peak and RMS), the largest dρ/dθ jump at a
     junction and the machining time; and the machine's limits the motion exceeds ('' when it
-    fits them, :func:`limits_reason`)."""
-    t = times(path, z_um, rpm)
+    fits them, :func:`limits_reason`). A path with its points' times (``t_s``, a program file's
+    lines) is timed by them, and checked with the slack their printed digits need."""
+    t = times(path, z_um, rpm) if path.t_s is None else path.t_s
     period = period_of(machine)
     s, e = sampled_extremes(path, z_um, t, period)
     jumps = dpath.junctions(path)
@@ -179,7 +180,9 @@ def motion_summary(
         "accel_period_s": period,
         "accel_step_deg": math.degrees(rpm * 2.0 * math.pi / 60.0 * period),
     }
-    return summary, limits_reason(machine, s, e)
+    # a file's lines are checked as export checked them before writing (the same numbers, the
+    # same samples, slack 1e-6): verify refuses nothing export let through
+    return summary, limits_reason(machine, s, e, 1e-9 if path.t_s is None else 1e-6)
 
 
 NO_AXES = "the machine declares no X, Z, C axis limits (axes:) for a slow-tool-servo program"
@@ -198,14 +201,6 @@ def limits_reason(machine: Any, s: dpath.Sampled, e: kinematics.Extremes, slack:
         return f"line {s.line(i) + 1}, t = {s.t[i]:.4f} s"
 
     return kinematics.extremes_reason(e, machine.axes.limits(AXES), slack, where)
-
-
-def program_limits(machine: Any, path: dpath.DPath, z_um: np.ndarray, t: np.ndarray, slack: float) -> str:
-    """:func:`limits_reason` of a program's points at times ``t`` [s] on its planned path
-    (export and verify check what the record reports)."""
-    if machine.axes is None:
-        return NO_AXES
-    return limits_reason(machine, *sampled_extremes(path, z_um, t, period_of(machine)), slack=slack)
 
 
 def ray_angles(geometry: dpath.DGeometry, n: int) -> np.ndarray:

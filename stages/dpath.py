@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import NamedTuple, Optional
 
 import numpy as np
 from numba import njit
@@ -125,6 +125,8 @@ class DPath(NamedTuple):
     cut_d : (C,) distance of cut i from the C axis [µm].
     cut_centre : (C,) φ of the zone centre of cut i [rad].
     coeffs : (C − 1, 6) the transition after cut i as a polynomial in τ ∈ [0, 1].
+    t_s : (N,) time of each point [s] as a program file gives it, or None: at constant
+        spindle speed (:func:`point_times`).
     """
 
     kind: str
@@ -138,6 +140,7 @@ class DPath(NamedTuple):
     cut_d: np.ndarray
     cut_centre: np.ndarray
     coeffs: np.ndarray
+    t_s: Optional[np.ndarray] = None
 
     @property
     def n_points(self) -> int:

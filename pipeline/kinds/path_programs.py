@@ -179,17 +179,22 @@ D_MAGIC = "# ftsweep D-path program"
 D_COLUMNS = "t_s C_deg X_mm Z_mm"
 
 
-def _limits_of_lines(machine: Any, path: Any, data: np.ndarray) -> str:
-    """The axis limits a D-path program's lines (t [s], C [deg], X [mm], Z [mm]) exceed on the
-    planned path ``path`` they were checked against, sampled every controller period with the
-    lines' times and Z (:func:`ftsweep.dpath.program_limits`: what the case record reports)."""
+def _as_run(path: Any, data: np.ndarray) -> Any:
+    """The D path as a program's lines (t [s], C [deg], X [mm], Z [mm]) run it: their C, X and
+    times on the planned cuts' geometry."""
+    return path._replace(phi=np.radians(data[:, 1]), rho=data[:, 2] * 1e3, t_s=data[:, 0])
+
+
+def _limits_of_lines(machine: Any, rpm: float, path: Any, data: np.ndarray) -> str:
+    """The axis limits a D-path program's lines exceed ('' when none) on the planned path
+    ``path`` through them, sampled every controller period at the lines' times
+    (:func:`ftsweep.dpath.motion_summary` of :func:`_as_run`: what the record of a case
+    simulated from these lines reports)."""
     from ftsweep import dpath as dprog
 
-    t = data[:, 0]
-    if not np.all(np.diff(t) > 0.0):
+    if not np.all(np.diff(data[:, 0]) > 0.0):
         return "time does not increase from line to line"
-    # the printed digits (1 ns, 1e-9°, 1 nm) move speeds and accelerations by far less
-    return dprog.program_limits(machine, path, data[:, 3] * 1e3, t, slack=1e-6)
+    return dprog.motion_summary(_as_run(path, data), data[:, 3] * 1e3, rpm, machine)[1]
 
 
 def dpath_document(
@@ -256,7 +261,7 @@ def export_dpath(
     :func:`ftsweep.planning.resolve_case` planned it from these entries already (a study)."""
     rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     head, lines, meta = dpath_document(case, specs, chosen, extra, now(), f"ftsweep {__version__}", rcase)
-    reason = _limits_of_lines(specs[1], rcase.layout, lines.printed)
+    reason = _limits_of_lines(specs[1], specs[2].spindle_rpm, rcase.layout, lines.printed)
     if reason:
         raise ProgramError(
             f"the program leaves the axis limits of machine '{case.machine}': {reason}; nothing exported"
@@ -282,13 +287,17 @@ def verify_dpath(
         case, specs, meta["selection"], recorded_extra(meta), meta["created"], meta["generator"], rcase
     )
     check_document(path, doc, planned, meta, D_COLUMNS)
-    reason = _limits_of_lines(specs[1], rcase.layout, doc.data)
-    if reason:
-        raise ProgramError(
-            f"{path}: a line leaves the axis limits of machine '{case.machine}': {reason}; do not run it"
-        )
     data = doc.data
-    # the path as the file gives it: its C and X, on the planned cuts' geometry
-    given = rcase.layout._replace(phi=np.radians(data[:, 1]), rho=data[:, 2] * 1e3)
-    record = run_case(case, specs=specs, progress=progress, program=(given, data[:, 3] * 1e3))
+    if not np.all(np.diff(data[:, 0]) > 0.0):
+        raise ProgramError(f"{path}: time does not increase from line to line; do not run it")
+    # the record's axis motion is that of the lines as they stand (their times included): the
+    # limits check the export made, done once
+    record = run_case(
+        case, specs=specs, progress=progress, program=(_as_run(rcase.layout, data), data[:, 3] * 1e3)
+    )
+    if record["infeasible_reason"]:
+        raise ProgramError(
+            f"{path}: a line leaves the axis limits of machine '{case.machine}': "
+            f"{record['infeasible_reason']}; do not run it"
+        )
     return checked_pv(path, meta, record, pv_tolerance_nm)

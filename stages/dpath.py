@@ -504,11 +504,9 @@ def planned_z(path: DPath, z_um: np.ndarray, phi: np.ndarray, on_cut: np.ndarray
     it (slopes by second-order differences, so it is exact for Z quadratic in u and its second
     derivative converges to the surface's); across a transition linear in θ ([5] eq. 14), as
     the points there are. ``on_cut``: :func:`evaluate`'s flags of ``phi``, if known."""
-    phi = np.asarray(phi, dtype=np.float64)
-    z = np.interp(phi, path.phi, z_um)
-    on_cut = radius_at(path, phi)[1] if on_cut is None else on_cut
-    if not np.any(on_cut):
-        return z
+    phi = np.ascontiguousarray(phi, dtype=np.float64)
+    on_cut = radius_at(path, phi)[1] if on_cut is None else np.ascontiguousarray(on_cut, dtype=np.bool_)
+    z_um = np.ascontiguousarray(z_um, dtype=np.float64)
     n, p = path.n_cuts, path.points_per_cut
     zc = z_um[path.cut >= 0].reshape(n, p)
     du = path.cut_step_um
@@ -516,15 +514,60 @@ def planned_z(path: DPath, z_um: np.ndarray, phi: np.ndarray, on_cut: np.ndarray
     slope[:, 1:-1] = (zc[:, 2:] - zc[:, :-2]) / (2.0 * du)
     slope[:, 0] = (-3.0 * zc[:, 0] + 4.0 * zc[:, 1] - zc[:, 2]) / (2.0 * du) if p > 2 else zc[:, 1] - zc[:, 0]
     slope[:, -1] = (3.0 * zc[:, -1] - 4.0 * zc[:, -2] + zc[:, -3]) / (2.0 * du) if p > 2 else slope[:, 0]
-    seg = np.clip(np.searchsorted(path.bounds, phi[on_cut], side="right") - 1, 0, path.bounds.size - 1)
-    i = np.minimum(seg // 2, n - 1)
-    u = path.cut_d[i] * np.tan(phi[on_cut] - path.cut_centre[i]) + 0.5 * path.geometry.length_um
-    j = np.clip(np.floor(u / du).astype(np.int64), 0, p - 2)
-    s = u / du - j
-    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-    z[on_cut] = h00 * zc[i, j] + h10 * du * slope[i, j] + h01 * zc[i, j + 1] + h11 * du * slope[i, j + 1]
-    return z
+    out = np.empty(phi.shape)
+    _planned_z_kernel(
+        phi.reshape(-1),
+        on_cut.reshape(-1),
+        np.ascontiguousarray(path.phi, dtype=np.float64),
+        z_um,
+        zc,
+        slope,
+        path.bounds,
+        path.cut_d,
+        path.cut_centre,
+        du,
+        0.5 * path.geometry.length_um,
+        out.reshape(-1),
+    )
+    return out
+
+
+@njit(nogil=True, cache=True)
+def _planned_z_kernel(
+    phi, on_cut, path_phi, z_um, zc, slope, bounds, cut_d, cut_centre, du, half, out
+):  # pragma: no cover - jit
+    """:func:`planned_z` sample by sample: the point step and the segment of each angle found
+    by a walk from the last one's (a search when the angles go back), then the line between
+    the points (numpy's ``interp``: slope·(φ − φ_j) + z_j) or the cut's Hermite cubic."""
+    last, nb, n, p = path_phi.size - 2, bounds.size, cut_d.size, zc.shape[1]
+    j = 0
+    seg = 0
+    for k in range(phi.size):
+        q = phi[k]
+        if not on_cut[k]:
+            if q <= path_phi[0]:
+                out[k] = z_um[0]
+                continue
+            if q >= path_phi[-1]:
+                out[k] = z_um[-1]
+                continue
+            if q < path_phi[j]:
+                j = 0
+            while j < last and path_phi[j + 1] <= q:
+                j += 1
+            out[k] = (z_um[j + 1] - z_um[j]) / (path_phi[j + 1] - path_phi[j]) * (q - path_phi[j]) + z_um[j]
+            continue
+        if q < bounds[seg]:
+            seg = max(np.searchsorted(bounds, q, side="right") - 1, 0)
+        while seg + 1 < nb and bounds[seg + 1] <= q:
+            seg += 1
+        i = min(seg // 2, n - 1)
+        u = cut_d[i] * math.tan(q - cut_centre[i]) + half
+        m = min(max(np.int64(math.floor(u / du)), 0), p - 2)
+        s = u / du - m
+        h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+        h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+        out[k] = h00 * zc[i, m] + h10 * du * slope[i, m] + h01 * zc[i, m + 1] + h11 * du * slope[i, m + 1]
 
 
 class Sampled(NamedTuple):

@@ -204,16 +204,14 @@ PAPER_RATIO = 0.16  # [5]: "16 % of that along the traditional D-shaped toolpath
 def accel_by_step(programs: dict[str, Any], rpm: float, machine_step_deg: float) -> dict[str, Any]:
     """Peak X acceleration [m/s²] of both transitions formed over each C step of
     :data:`STEPS_DEG` and the machine's own (one controller period at the spindle speed,
-    marked ``machine``) on the planned curves (:func:`ftsweep.stages.dpath.x_accel_at_step`),
+    marked ``machine``) on the planned curves (:func:`ftsweep.stages.dpath.x_accel_peak_at_step`),
     their ratio, and the step [deg] at which the ratio is [5]'s 0.16 (log-log interpolation)."""
     rows = []
     both = TRANSITIONS
     curve = {k: dpath.radius_at(programs[k][0], programs[k][0].phi)[0] for k in both}
     for deg in sorted({*STEPS_DEG, machine_step_deg}):
         h = math.radians(deg)
-        trad, opt = (
-            float(np.abs(dpath.x_accel_at_step(programs[k][0], rpm, h, curve[k])).max()) for k in both
-        )
+        trad, opt = (dpath.x_accel_peak_at_step(programs[k][0], rpm, h, curve[k]) for k in both)
         rows.append(
             {
                 "step_deg": deg,

@@ -398,6 +398,36 @@ def _evaluate_kernel(phi, bounds, cut_d, cut_centre, coeffs, rho, d1, d2, on_cut
         d2[k] = ddv / (span * span)
 
 
+@njit(nogil=True, cache=True)
+def _peak_second_difference(phi, mid, h, bounds, cut_d, cut_centre, coeffs):  # pragma: no cover - jit
+    """max |ρ(φ + h) − 2ρ(φ) + ρ(φ − h)| [µm] over the points ``phi`` whose φ ± h stay on the
+    program (``mid`` = ρ(φ)): the neighbours evaluated by :func:`_evaluate_kernel` a block at
+    a time, so no array of the whole path is formed."""
+    block = 4096
+    ahead, behind = np.empty(block), np.empty(block)
+    rho_a, rho_b = np.empty(block), np.empty(block)
+    index = np.empty(block, dtype=np.int64)
+    flags, none = np.empty(block, dtype=np.bool_), np.empty(0)
+    lo, hi = phi[0], phi[-1]
+    peak = 0.0
+    k = 0
+    while k < phi.size:
+        n = 0
+        while k < phi.size and n < block:
+            p = phi[k]
+            if p - h >= lo and p + h <= hi:
+                ahead[n], behind[n], index[n] = p + h, p - h, k
+                n += 1
+            k += 1
+        _evaluate_kernel(ahead[:n], bounds, cut_d, cut_centre, coeffs, rho_a, none, none, flags, False)
+        _evaluate_kernel(behind[:n], bounds, cut_d, cut_centre, coeffs, rho_b, none, none, flags, False)
+        for m in range(n):
+            d = abs(rho_a[m] - 2.0 * mid[index[m]] + rho_b[m])
+            if d > peak:
+                peak = d
+    return peak
+
+
 def junctions(path: DPath) -> dict[str, np.ndarray]:
     """ρ, dρ/dθ and d²ρ/dθ² on both sides of every junction of a cut and a transition:
     ``jump_rho``, ``jump_d1``, ``jump_d2`` (transition side minus cut side; µm, µm/rad,
@@ -478,24 +508,24 @@ def axis_motion(t: np.ndarray, phi: np.ndarray, x_um: np.ndarray, z_um: np.ndarr
     }
 
 
-def x_accel_at_step(
+def x_accel_peak_at_step(
     path: DPath, spindle_rpm: float, step_rad: float, rho_um: np.ndarray | None = None
-) -> np.ndarray:
-    """X accelerations [m/s²] at the program's points of the planned curve (:func:`evaluate`)
-    at constant spindle speed, formed over a C step h either side: ω²·(ρ(φ+h) − 2ρ(φ) +
-    ρ(φ−h))/h², the kinematics stage's scheme ([2] eq. 14) on the uniform step h. At a
-    traditional junction it reads the slope jump over h, ω²·Δ(dρ/dθ)/h; on smooth stretches
-    the curvature, ω²·d²ρ/dθ². Zero where φ ± h leaves the program. ``rho_um``: the curve at
-    the points, ``radius_at(path, path.phi)[0]``, if already known (several steps)."""
+) -> float:
+    """The peak X acceleration [m/s²] at the program's points of the planned curve
+    (:func:`evaluate`) at constant spindle speed, formed over a C step h either side:
+    ω²·|ρ(φ+h) − 2ρ(φ) + ρ(φ−h)|/h², the kinematics stage's scheme ([2] eq. 14) on the uniform
+    step h, over the points whose φ ± h stay on the program (0 if none). At a traditional
+    junction it reads the slope jump over h, ω²·Δ(dρ/dθ)/h; on smooth stretches the
+    curvature, ω²·d²ρ/dθ². ``rho_um``: the curve at the points, ``radius_at(path, path.phi)[0]``,
+    if already known (several steps). One compiled pass, no arrays: the scaling is monotone,
+    so this is the largest of the per-point accelerations, to the last bit."""
     omega = spindle_rpm * 2.0 * math.pi / 60.0
-    phi = path.phi
-    out = np.zeros(phi.size)
-    ok = (phi - step_rad >= phi[0]) & (phi + step_rad <= phi[-1])
-    p = phi[ok]
-    mid = (radius_at(path, phi)[0] if rho_um is None else rho_um)[ok]
-    ahead, behind = (radius_at(path, p + d)[0] for d in (step_rad, -step_rad))
-    out[ok] = omega**2 * (ahead - 2.0 * mid + behind) / step_rad**2 * 1e-6
-    return out
+    phi = np.ascontiguousarray(path.phi, dtype=np.float64)
+    mid = radius_at(path, phi)[0] if rho_um is None else np.ascontiguousarray(rho_um, dtype=np.float64)
+    d = _peak_second_difference(
+        phi, mid, float(step_rad), path.bounds, path.cut_d, path.cut_centre, np.ascontiguousarray(path.coeffs)
+    )
+    return float(omega**2 * d / step_rad**2 * 1e-6)
 
 
 def planned_z(path: DPath, z_um: np.ndarray, phi: np.ndarray, on_cut: np.ndarray | None = None) -> np.ndarray:

@@ -444,6 +444,21 @@ def test_evaluate_walks_increasing_angles_and_searches_others_alike():
 
 
 @pytest.mark.parametrize("transition", ["traditional", "optimised"])
+@pytest.mark.parametrize("step_deg", [0.05, 1.0, 30.0, 1e4])
+def test_peak_acceleration_at_a_step_is_the_largest_of_the_points(transition, step_deg):
+    # one compiled pass over blocks: the largest of ω²|ρ(φ+h) − 2ρ(φ) + ρ(φ−h)|/h² at the
+    # points whose φ ± h stay on the program, to the last bit (0 when none does)
+    path = seed_path(transition, spacing_um=500.0, ppc=21)
+    h, omega = math.radians(step_deg), 40.0 * 2.0 * math.pi / 60.0
+    ok = (path.phi - h >= path.phi[0]) & (path.phi + h <= path.phi[-1])
+    p = path.phi[ok]
+    mid, ahead, behind = (dpath.radius_at(path, p + d)[0] for d in (0.0, h, -h))
+    want = np.abs(omega**2 * (ahead - 2.0 * mid + behind) / h**2 * 1e-6).max(initial=0.0)
+    assert dpath.x_accel_peak_at_step(path, 40.0, h) == want
+    assert (want > 0.0) == bool(ok.any())
+
+
+@pytest.mark.parametrize("transition", ["traditional", "optimised"])
 def test_angles_a_few_ulp_beyond_the_path_ends_continue_its_end_cuts(transition):
     # a program's C is printed to 1e-9°: read back, its last angle can land a few ulp past the
     # last bound; it must continue the last cut, not evaluate the last transition's polynomial

@@ -242,10 +242,14 @@ def write_program(
 
 class ProgramFile:
     """A program file as read: its header rows (magic line to the sidecar line), header
-    fields, data lines as numbers, and its CRC-32 as written (``0x…``)."""
+    fields, data lines as numbers, its CRC-32 as written (``0x…``) and the SHA-256 of the
+    bytes read (hex), so that the sidecar's digest is checked on the very bytes whose lines
+    are checked, not on a second read of a file that may have changed in between."""
 
-    def __init__(self, rows: list[str], fields: dict[str, str], data: np.ndarray, crc: str) -> None:
-        self.rows, self.fields, self.data, self.crc = rows, fields, data, crc
+    def __init__(
+        self, rows: list[str], fields: dict[str, str], data: np.ndarray, crc: str, sha256: str
+    ) -> None:
+        self.rows, self.fields, self.data, self.crc, self.sha256 = rows, fields, data, crc, sha256
 
 
 def read_program_file(path: Path, magic: str, columns: str) -> ProgramFile:
@@ -280,7 +284,7 @@ def read_program_file(path: Path, magic: str, columns: str) -> ProgramFile:
     data = _numbers(path, body, n_cols, len(rows) + 2)
     if data.shape[1] != n_cols or not np.all(np.isfinite(data)):
         raise ProgramError(f"{path}: every data line must hold {columns} as {n_cols} finite numbers")
-    return ProgramFile(rows[: crc_rows[0]], head, data, stored)
+    return ProgramFile(rows[: crc_rows[0]], head, data, stored, hashlib.sha256(raw).hexdigest())
 
 
 def _crc_without(raw: bytes, rows: list[str], skip: int) -> int:
@@ -380,8 +384,9 @@ def _check_claims(path: Path, meta: dict[str, Any], expected: dict[str, Any]) ->
         )
 
 
-def checked_sidecar(path: Path, head: dict[str, str]) -> dict[str, Any]:
-    """The sidecar of a program, refused unless it and the program name each other."""
+def checked_sidecar(path: Path, doc: ProgramFile) -> dict[str, Any]:
+    """The sidecar of a program (``doc``, as read from ``path``), refused unless it and the
+    program name each other."""
     side = sidecar_path(path)
     try:
         meta = json.loads(side.read_text(encoding="utf-8"))
@@ -389,9 +394,9 @@ def checked_sidecar(path: Path, head: dict[str, str]) -> dict[str, Any]:
         raise ProgramError(f"{side}: the sidecar cannot be read ({exc})") from None
     if not isinstance(meta, dict):
         raise ProgramError(f"{side} is not an ftsweep sidecar (a JSON object is expected)")
-    if meta.get("program_sha256") != hashlib.sha256(path.read_bytes()).hexdigest():
+    if meta.get("program_sha256") != doc.sha256:
         raise ProgramError(f"{side} does not belong to {path} (SHA-256 of the program differs)")
-    if head.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta, TEXT_FIELDS):
+    if doc.fields.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta, TEXT_FIELDS):
         raise ProgramError(f"{path}: the sidecar was changed (its SHA-256 differs from the header's)")
     return dict(meta)
 

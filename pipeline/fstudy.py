@@ -434,7 +434,7 @@ def verify(
     from ftsweep import files, trust
 
     doc = files.read_program_file(path, F_MAGIC, F_COLUMNS)
-    meta = files.checked_sidecar(path, doc.fields)
+    meta = files.checked_sidecar(path, doc)
     if "case" in meta:  # exported from a cube case
         return verify_case(path, doc, meta, trust_plugins, progress, pv_tolerance_nm)
     side = files.sidecar_path(path)

@@ -160,7 +160,7 @@ def verify_program(
     predicted P-V and the tolerance applied."""
     path = Path(path)
     doc = read_program_file(path, MAGIC, COLUMNS)
-    meta = checked_sidecar(path, doc.fields)
+    meta = checked_sidecar(path, doc)
     case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
     planned = spiral_document(
         case, specs, meta["selection"], recorded_extra(meta), meta["created"], meta["generator"]
@@ -279,7 +279,7 @@ def verify_dpath(
     every line (t, C, X, Z) and header line against the program its recorded case plans
     (:func:`check_document`), and the part re-simulated from the lines' C, X and Z."""
     doc = read_program_file(path, D_MAGIC, D_COLUMNS)
-    meta = checked_sidecar(path, doc.fields)
+    meta = checked_sidecar(path, doc)
     case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
     # planned once: its lines are compared, its cut geometry carries the file's points
     rcase = resolve_case(case, specs=specs)

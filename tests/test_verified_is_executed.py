@@ -286,6 +286,20 @@ def test_program_crc_covers_the_layer_lines(exports, tmp_path, catalogs_with_fre
     assert res.exit_code == 1 and "CRC32 mismatch" in res.output, res.output
 
 
+@pytest.mark.parametrize("kind", ["spiral-angle", "dpath", "fresnel"])
+def test_a_sidecar_naming_other_bytes_is_refused(kind, exports, tmp_path, catalogs_with_fresnel):
+    """The sidecar's SHA-256 of the program must be that of the bytes read (hashed as read,
+    the very bytes whose lines are checked)."""
+    path = copy_of(exports, kind, tmp_path)
+    side = path.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    assert meta["program_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+    meta["program_sha256"] = hashlib.sha256(path.read_bytes() + b"\n").hexdigest()
+    side.write_text(json.dumps(meta, indent=2))
+    res = invoke(["verify", str(path)], catalogs_with_fresnel)
+    assert res.exit_code == 1 and "does not belong to" in res.output, res.output
+
+
 # ----------------------------------------------------------------------------- trust
 PROBE_MODULE = "ftsweep_probe_issue26"
 

@@ -16,7 +16,6 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep import catalogs
-from ftsweep import dpath as dpath_program
 from ftsweep.kinds import Planning, ProgramKind
 from ftsweep.kinds.requests import DPathRequest
 from ftsweep.planning import compensator
@@ -77,6 +76,8 @@ def plan_dpath(
     """The D-path program of a case ([5], :func:`ftsweep.dpath.plan`): its cut points
     compensated as a table's (model §4), or the given ``program`` as it stands. A path of
     more than ``max_points`` points is refused before it is made."""
+
+    from ftsweep import dpath as dpath_program
 
     def compensated(part: Any, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         def solve() -> tuple[np.ndarray, np.ndarray]:
@@ -144,6 +145,8 @@ def _record_fields(rcase: Any) -> dict[str, Any]:
 
 def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
     """The evaluated nodes (rays × cuts × points per feed); its lines are its own."""
+    from ftsweep import dpath as dpath_program
+
     cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
     ap = catalogs.aperture_of(surface)
     spacing = case.layout.spacing_um or case.feed_of(cutting)
@@ -203,6 +206,14 @@ def request_options(opts: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in fields.items() if v is not None}
 
 
+def _simulation(inputs: Any, timer: Any) -> Any:
+    # the D-path engine (ftsweep.dpath, stages.dpath) is imported where a D path is
+    # simulated, not by every command that lists the kinds
+    from ftsweep.dpath import DPathSimulation
+
+    return DPathSimulation(inputs, timer)
+
+
 DPATH = ProgramKind(
     name="dpath",
     noun="D-path program",
@@ -213,7 +224,7 @@ DPATH = ProgramKind(
     plan=_plan,
     record_fields=_record_fields,
     cost=_cost,
-    simulation=dpath_program.DPathSimulation,
+    simulation=_simulation,
     pitch_text=_pitch,
     point_text=_point,
     angular_cells=None,

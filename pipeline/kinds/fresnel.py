@@ -9,16 +9,21 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ftsweep import catalogs, fresnel
-from ftsweep.fresnel_form import COMPENSATION, FresnelSimulation
+from ftsweep import catalogs
 from ftsweep.kinds import Planning, ProgramKind
 from ftsweep.kinds.requests import FRESNEL_FIELDS, FresnelRequest
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import kinematics
+
+if TYPE_CHECKING:
+    from ftsweep import fresnel
+
+# the planner (ftsweep.fresnel) and the engine (ftsweep.fresnel_form) are imported where a
+# Fresnel program is planned or simulated, not by every command that lists the kinds
 
 AXES = ("facet_height_um", "points_per_turn", "deviation_deg")
 # the request's fields → the planner's option names (ftsweep.fresnel.DEFAULTS)
@@ -27,6 +32,8 @@ OPTION = {"control_points": "scheme"}
 
 def option(request: Any, name: str) -> Any:
     """A Fresnel option of a request, or its default (:data:`ftsweep.fresnel.DEFAULTS`)."""
+    from ftsweep import fresnel
+
     value = getattr(request, name, None)
     return fresnel.DEFAULTS[OPTION.get(name, name)] if value is None else value
 
@@ -51,6 +58,9 @@ def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, p
 def _plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
     """The program ([2] §2.1–2.5): planned, then timed at T0 = one turn at the spindle speed;
     or the given one as it stands (no gouge flags)."""
+    from ftsweep import fresnel
+    from ftsweep.fresnel_form import COMPENSATION
+
     if p.program is not None:
         prog, values = p.program
         values = np.asarray(values, dtype=np.float64)
@@ -85,6 +95,8 @@ def record_fields(rcase: Any) -> dict[str, Any]:
     """The Fresnel fields of a case record ([2]; declared in :mod:`ftsweep.result`): the
     program, its Z motion (the servo's W fields) and its axes against the machine's limits
     (the kinematics stage), machining times with adaptive and constant timesteps."""
+    from ftsweep import fresnel
+
     prog = rcase.layout
     fplan, steps = prog.plan, prog.steps
     q = fplan.axes_si()
@@ -167,6 +179,12 @@ def _check_sweep(spec: Any) -> None:
     FresnelRequest(kind="fresnel", **given)  # names a bad option
 
 
+def _simulation(inputs: Any, timer: Any) -> Any:
+    from ftsweep.fresnel_form import FresnelSimulation
+
+    return FresnelSimulation(inputs, timer)
+
+
 FRESNEL = ProgramKind(
     name="fresnel",
     noun="Fresnel program",
@@ -177,7 +195,7 @@ FRESNEL = ProgramKind(
     plan=_plan,
     record_fields=_record_fields,
     cost=_cost,
-    simulation=FresnelSimulation,
+    simulation=_simulation,
     pitch_text=_pitch,
     point_text=_point,
     angular_cells=None,

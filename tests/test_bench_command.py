@@ -37,6 +37,16 @@ def test_whole_process_rows_time_real_commands():
     assert "predict 5k-point ring" in format_whole_process(rows)
 
 
+def test_the_whole_process_table_says_when_modules_had_no_bytecode(monkeypatch):
+    import ftsweep.bench as bench
+
+    rows = [{"command": "ftsweep --help", "seconds": 0.1, "case_seconds": float("nan")}]
+    monkeypatch.setattr(bench, "has_bytecode", lambda: False)
+    assert "compiled them from source" in format_whole_process(rows)
+    monkeypatch.setattr(bench, "has_bytecode", lambda: True)
+    assert "compiled them from source" not in format_whole_process(rows)
+
+
 @pytest.mark.slow
 def test_the_verify_row_checks_an_exported_header():
     name = next(n for n, (args, _) in WHOLE_PROCESS.items() if args[0] == "verify")

@@ -14,7 +14,7 @@ from __future__ import annotations
 import importlib.abc
 import importlib.util
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from types import ModuleType
 from typing import Any, Optional
 
@@ -25,29 +25,38 @@ def _register_accessor() -> None:
     from ftsweep import accessor  # noqa: F401  (registers ds.ftsweep)
 
 
-class _AfterXarray(importlib.abc.MetaPathFinder):
-    """Registers the accessor once xarray has been imported, wherever that import happens."""
+class _AfterImport(importlib.abc.MetaPathFinder):
+    """Runs ``action`` once module ``name`` has been imported, wherever that import happens
+    (it finds nothing itself: it wraps the loader the other finders give)."""
+
+    def __init__(self, name: str, action: Callable[[], Any]) -> None:
+        self.name, self.action = name, action
 
     def find_spec(
         self, fullname: str, path: Optional[Sequence[str]], target: Optional[ModuleType] = None
     ) -> Any:
-        if fullname != "xarray":
+        if fullname != self.name:
             return None
-        sys.meta_path.remove(self)
-        spec = importlib.util.find_spec("xarray")
+        sys.meta_path = [finder for finder in sys.meta_path if finder is not self]
+        spec = importlib.util.find_spec(fullname)
         if spec is None or spec.loader is None:
             return spec
-        load = spec.loader.exec_module
+        load, action = spec.loader.exec_module, self.action
 
         def exec_module(module: ModuleType) -> None:
             load(module)
-            _register_accessor()
+            action()
 
         spec.loader.exec_module = exec_module  # type: ignore[method-assign]
         return spec
 
 
-if "xarray" in sys.modules:
-    _register_accessor()
-elif not any(isinstance(f, _AfterXarray) for f in sys.meta_path):
-    sys.meta_path.insert(0, _AfterXarray())
+def after_import(name: str, action: Callable[[], Any]) -> None:
+    """Run ``action`` now if module ``name`` is imported, else right after its import (once)."""
+    if name in sys.modules:
+        action()
+    elif not any(isinstance(f, _AfterImport) and f.name == name for f in sys.meta_path):
+        sys.meta_path.insert(0, _AfterImport(name, action))
+
+
+after_import("xarray", _register_accessor)

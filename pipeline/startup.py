@@ -14,6 +14,12 @@ at the moment numba's set-up imports the probing module, so a command that runs 
 
 Measured on this project's 2-core VM (first call of a cached kernel after ``import numba``,
 fresh interpreters, 3 runs each): 0.248–0.264 s without, 0.135–0.142 s with the preload.
+
+The rest of that set-up is skipped where nothing is compiled (:func:`lazy_cache_loads`): a
+kernel loaded from numba's cache is machine code already typed and lowered, yet numba sets up
+its whole typing and lowering context before loading it (``Cache.load_overload`` calls
+``refresh``), importing some forty implementation modules — string, list, set, random,
+linear-algebra and CFFI support among them — which only a compilation reads.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import importlib.machinery
 import importlib.util
 import os
 import sys
+from typing import Any
 
 PROBED = "scipy.linalg.cython_blas"
 # numba's modules whose import runs the probe (numba.np.arraymath calls ensure_blas at import)
@@ -88,8 +95,13 @@ _HOOK = _BeforeProbe()
 
 def install() -> None:
     """Preload the probed module when numba's CPU target is first set up in this process
-    (:func:`preload_blas_probe`), or now if that happened already (then it changes nothing).
-    Idempotent; called by the command line and by every sweep worker's warm-up."""
+    (:func:`preload_blas_probe`), or now if that happened already (then it changes nothing),
+    and load cached kernels without that set-up (:func:`lazy_cache_loads`, once numba's
+    caching module is imported). Idempotent; called by the command line and by every sweep
+    worker's warm-up."""
+    from ftsweep import after_import
+
+    after_import(_CACHING, lazy_cache_loads)
     if any(name in sys.modules for name in PROBING):
         return  # numba has probed already: nothing left to save
     if _HOOK not in sys.meta_path:
@@ -102,3 +114,48 @@ def uninstall() -> None:
     list, and removing an entry then would make the walk skip the finder after it."""
     if _HOOK in sys.meta_path:
         sys.meta_path = [finder for finder in sys.meta_path if finder is not _HOOK]
+
+
+_CACHING = "numba.core.caching"
+
+
+def lazy_cache_loads() -> bool:
+    """Load kernels from numba's cache without setting up numba's typing and lowering
+    registries first; True if numba's cache loader now does so (now or before), False where
+    this numba lacks the pieces relied on (it then loads as it always did).
+
+    A cached kernel is machine code: loading it needs numba's runtime (NRT, the allocator its
+    arrays use), the C helpers and math symbols the target context installs when created, and
+    the pickled function descriptor; not the registries of implementations that typing and
+    lowering consult. numba's loader sets the registries up anyway (``target_context.refresh``,
+    ~0.2 s at a process's first kernel: CFFI's parser, string, list, set, random and
+    linear-algebra support). Here the loader initialises the runtime, as the registries'
+    set-up would, and loads; a compilation (a cache miss, a new signature, a user's own
+    ``@njit``) still sets everything up first, in numba's compiler. A load that fails without
+    the set-up is retried with it, as numba would have done."""
+    from numba.core import caching
+    from numba.core.runtime import nrt
+
+    cache = caching.Cache
+    if getattr(cache.load_overload, "_ftsweep_lazy", False):
+        return True
+    relied_on = (
+        hasattr(cache, "_load_overload")
+        and hasattr(cache, "_guard_against_spurious_io_errors")
+        and hasattr(getattr(nrt, "rtsys", None), "initialize")
+    )
+    if not relied_on:
+        return False
+    full = cache.load_overload
+
+    def load_overload(self: Any, sig: Any, target_context: Any) -> Any:
+        try:
+            nrt.rtsys.initialize(target_context)
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
+        except Exception:  # noqa: BLE001
+            return full(self, sig, target_context)
+
+    load_overload._ftsweep_lazy = True  # type: ignore[attr-defined]
+    cache.load_overload = load_overload  # type: ignore[method-assign]
+    return True

@@ -1,6 +1,6 @@
-"""numba's BLAS probe given its one module (ftsweep.startup, issue 29): no scipy.linalg at a
-kernel's first call, and the module the probe gets is scipy's own, which works through numba
-and through scipy.linalg imported afterwards."""
+"""numba's BLAS probe given its one module (ftsweep.startup, issue 29): no scipy.linalg when
+numba's CPU target is set up (a process's first compilation), and the module the probe gets
+is scipy's own, which works through numba and through scipy.linalg imported afterwards."""
 
 from __future__ import annotations
 
@@ -13,13 +13,16 @@ from ftsweep import startup
 startup.install()
 assert any(isinstance(f, startup._BeforeProbe) for f in sys.meta_path)
 import numpy as np
-from ftsweep.stages import kinematics
-q = np.linspace(0.0, 1.0, 30).reshape(10, 3)
-kinematics.extremes(q, np.full(9, 0.1), np.zeros(10, dtype=np.int64), 1)  # first kernel: numba's set-up
+from numba import njit
+
+@njit
+def first(a):
+    return a.sum()
+
+first(np.ones(3))  # a first compilation: numba's full set-up (cached kernels load without it)
 print("linalg", "scipy.linalg" in sys.modules)
 print("probed", startup.PROBED in sys.modules)
 print("hook", any(isinstance(f, startup._BeforeProbe) for f in sys.meta_path))
-from numba import njit
 
 @njit
 def dot(a, b):

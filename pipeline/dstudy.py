@@ -251,13 +251,9 @@ def plot_x_motion(
     ``cycles`` revolutions, traditional against optimised (the planned path at constant
     spindle speed sampled every controller period ``period_s`` [s], eqs. 3–6; the
     traditional acceleration is a spike over one period)."""
-    from ftsweep.io import new_axes as _axes
-    from ftsweep.io import save_figure
+    from ftsweep.io import save_figure, stacked_axes
 
-    ax = _axes(None, (8.0, 7.5))
-    fig = ax.figure
-    fig.clear()
-    axes = fig.subplots(3, 1, sharex=True)
+    axes = stacked_axes(3, (8.0, 7.5), sharex=True)
     omega = rpm * 2.0 * math.pi / 60.0
     for kind, (path, z) in programs.items():
         t = dpath.point_times(path.phi, path.rho, z, "spindle", rpm)
@@ -286,13 +282,9 @@ def plot_z_motion(
 ) -> Path:
     """[5] fig. 7: Z over one revolution of the spiral (mid-radius) and over one cycle of the
     D path, with their Z velocities."""
-    from ftsweep.io import new_axes as _axes
-    from ftsweep.io import save_figure
+    from ftsweep.io import save_figure, stacked_axes
 
-    ax = _axes(None, (8.0, 6.0))
-    fig = ax.figure
-    fig.clear()
-    axes = fig.subplots(2, 1)
+    axes = stacked_axes(2, (8.0, 6.0))
     phi = spiral["phi"]
     mid = 0.5 * phi[-1]
     sel = (phi >= mid) & (phi < mid + 2.0 * math.pi)

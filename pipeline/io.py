@@ -102,6 +102,25 @@ def new_axes(ax: Any = None, size: tuple[float, float] = (7.0, 4.6)) -> Any:
     return ax
 
 
+def stacked_axes(rows: int, size: tuple[float, float], sharex: bool = False) -> Any:
+    """``rows`` axes stacked in a new figure of ``size`` inches on pyplot's backend (as
+    :func:`new_axes`), with margins fixed in inches: room for the tick labels and a label at
+    each side and a title on top. Constrained layout measured every artist twice to find
+    about the same margins: 0.1–0.2 s a figure, a tenth of the D-path study's command."""
+    import matplotlib.pyplot as plt
+
+    width, height = size
+    gap = 0.15 if sharex else 0.45  # [in] between axes: inner tick labels shown or not
+    left, right, bottom, top = 0.9, 0.15, 0.55, 0.35  # [in]
+    each = (height - bottom - top - gap * (rows - 1)) / rows
+    fig = plt.figure(figsize=size)
+    fig.subplots_adjust(
+        left=left / width, right=1.0 - right / width, bottom=bottom / height, top=1.0 - top / height,
+        hspace=gap / each,
+    )  # fmt: skip
+    return fig.subplots(rows, 1, sharex=sharex)
+
+
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     """Save a matplotlib figure to ``path`` through a temporary file and a rename (no
     half-written PNG), with the permissions the umask gives a plain ``open``; closes it."""

@@ -19,7 +19,9 @@ The rest of that set-up is skipped where nothing is compiled (:func:`lazy_cache_
 kernel loaded from numba's cache is machine code already typed and lowered, yet numba sets up
 its whole typing and lowering context before loading it (``Cache.load_overload`` calls
 ``refresh``), importing some forty implementation modules — string, list, set, random,
-linear-algebra and CFFI support among them — which only a compilation reads.
+linear-algebra and CFFI support among them — which only a compilation reads. Measured here
+(whole commands, alternating with and without, best of 5): a 5k-point predict 1.30 → 1.09 s,
+the 950k-point one on one thread 2.53 → 2.39 s, on a VM twice as slow as the figures above.
 """
 
 from __future__ import annotations

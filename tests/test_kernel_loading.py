@@ -15,7 +15,7 @@ from tests.test_conformance import KindTests
 _SWEEPS = [cls.sweep for cls in KindTests.__subclasses__()]
 
 _RUN = """
-import json, math, sys
+import json, sys
 lazy = sys.argv[1] == "lazy"
 if lazy:
     from ftsweep import startup

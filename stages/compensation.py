@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 
 from .surfaces import SurfaceFn, radial_section
+from .trig import cos_sin
 
 MODES = ("exact", "slope", "none")
 MODE_CODES = {"exact": 0, "slope": 1, "none": 2}
@@ -111,7 +112,7 @@ def compensate(
     shape = rho.shape
     rho = np.ascontiguousarray(rho).reshape(-1)
     theta = np.ascontiguousarray(theta).reshape(-1)
-    ct, st = np.cos(theta), np.sin(theta)
+    ct, st = cos_sin(theta)
     if mode != "exact":
         f, gp = radial_section(surface, rho, ct, st)
         w = f if mode == "none" else slope_compensation(f, gp, nose_radius_um)

@@ -34,6 +34,16 @@ def _target_text(value: float | str) -> str:
     return f"{value:,.0f}" if value == round(value) and abs(value) >= 1000 else f"{value:.4g}"
 
 
+def _one_criterion(**options: Any) -> None:
+    """Refuse, before any cube is opened, a command given no selection rule or more than
+    one (each keyword is an option's parameter, named as the command line spells it)."""
+    given = [f"--{name.replace('_', '-')}" for name, value in options.items() if value is not None]
+    if len(given) != 1:
+        names = [f"--{name.replace('_', '-')}" for name in options]
+        got = f"got {' and '.join(given)}" if given else "got none"
+        raise click.UsageError(f"give exactly one of {', '.join(names[:-1])} or {names[-1]} ({got})")
+
+
 def _selection_text(chosen: dict[str, Any]) -> str:
     from ftsweep import kinds
 
@@ -80,6 +90,7 @@ def select(
     --budget-points: the lowest P-V at or under that many points. With --tolerance-nm: the
     smallest layout that meets the tolerance; when none does, say so and show the best.
     """
+    _one_criterion(budget_points=budget_points, tolerance_nm=tolerance_nm)
     from ftsweep.cube import CubeError
     from ftsweep.select import SelectError, choose, open_cube
 
@@ -136,6 +147,7 @@ def export(
     sidecar holds the same metadata and the full case spec. Both are written atomically.
     Failed, pending, infeasible and over-capacity cases are refused.
     """
+    _one_criterion(budget_points=budget_points, tolerance_nm=tolerance_nm, case=index)
     from ftsweep import export as exp
     from ftsweep.cube import CubeError
     from ftsweep.select import SelectError

@@ -77,7 +77,7 @@ def choose(
     """One of: a budget, a tolerance, or an explicit flat case index."""
     given = [v is not None for v in (budget_points, tolerance_nm, index)]
     if sum(given) != 1:
-        raise SelectError("give exactly one of --budget-points, --tolerance-nm or --case")
+        raise SelectError("give exactly one of budget_points, tolerance_nm or index")
     if budget_points is not None:
         return select_budget(ds, budget_points)
     if tolerance_nm is not None:

@@ -88,6 +88,21 @@ def test_select_cli_json(ring_cube):
     assert {"n_points", "drho_um", "dtheta_deg", "pv_nm", "aspect_actual", "aspect_target"} <= set(data)
 
 
+def test_a_missing_or_second_rule_is_refused_with_the_commands_own_options(tmp_path):
+    # refused before the cube is opened (an empty folder would fail as a cube), naming the
+    # options each command has: select has no --case
+    folder = tmp_path / "any.zarr"
+    folder.mkdir()
+    r = CliRunner().invoke(main, ["select", str(folder)])
+    assert r.exit_code == 2 and "give exactly one of --budget-points or --tolerance-nm (got none)" in r.output
+    r = CliRunner().invoke(
+        main, ["export", str(folder), "--budget-points", "5", "--case", "0", "-o", str(tmp_path / "a.h")]
+    )
+    assert r.exit_code == 2
+    assert "--budget-points, --tolerance-nm or --case (got --budget-points and --case)" in r.output
+    assert not (tmp_path / "a.h").exists()
+
+
 # ----------------------------------------------------------------------------- export
 C_PROGRAM = """
 #include <stdio.h>

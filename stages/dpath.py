@@ -222,7 +222,7 @@ def _spans(geometry: DGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     zone = np.tile(np.arange(g.zones), g.n_cycles)
     cut_d = g.outer_um - n * g.spacing_um
     cut_centre = 2.0 * math.pi * (n + zone / g.zones)
-    half = g.half_angle(cut_d)
+    half = np.asarray(g.half_angle(cut_d))
     span = (cut_centre[1:] - half[1:]) - (cut_centre[:-1] + half[:-1])
     return cut_d, cut_centre, half, span
 
@@ -435,7 +435,7 @@ def junctions(path: DPath) -> dict[str, np.ndarray]:
     if path.coeffs.shape[0] == 0:
         empty = np.empty(0)
         return {k: empty for k in ("rho", "d1", "d2", "jump_rho", "jump_d1", "jump_d2")}
-    half = path.geometry.half_angle(path.cut_d)
+    half = np.asarray(path.geometry.half_angle(path.cut_d))
     ends = cut_radius(path.cut_d[:-1], half[:-1])
     starts = cut_radius(path.cut_d[1:], -half[1:])
     span = path.bounds[2::2] - path.bounds[1:-1:2]

@@ -272,41 +272,45 @@ def sinewave2d(
 
 
 # --------------------------------------------------------------------------- lens_array
-@njit(nogil=True, cache=True, inline="always")
+@njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _lens_point(x, y, R, h, pitch, nx, ny):  # pragma: no cover - jit
-    """Height [µm] and gradient [-] of the lens array at one point (see :func:`lens_array`)."""
+    """Height [µm] and gradient [-] of the lens array at one point (see :func:`lens_array`).
+
+    Both the sphere's and the torus's expressions are formed and the point's own is
+    selected, with no branch: a loop over points then runs four at a time (square roots and
+    divisions included; ``error_model="numpy"`` lets a lane that is not selected divide by
+    zero instead of raising)."""
     a = math.sqrt(2.0 * h * R - h * h)
     rt = 0.5 * R
     Rt = a * (1.0 + rt / R)
     cx0 = 0.5 * (nx - 1)
     cy0 = 0.5 * (ny - 1)
     # nearest lenslet centre, clipped to the grid of lenslets
-    i = math.floor(x / pitch + cx0 + 0.5)
-    j = math.floor(y / pitch + cy0 + 0.5)
-    i = min(max(i, 0), nx - 1)
-    j = min(max(j, 0), ny - 1)
+    i = min(max(math.floor(x / pitch + cx0 + 0.5), 0.0), nx - 1.0)
+    j = min(max(math.floor(y / pitch + cy0 + 0.5), 0.0), ny - 1.0)
     dx = x - (i - cx0) * pitch
     dy = y - (j - cy0) * pitch
     r = math.sqrt(dx * dx + dy * dy)
-    # ∂f/∂x = f'(r)·dx/r; f'(r)/r is formed once (one division instead of three)
-    if r <= a:
-        root = math.sqrt(R * R - r * r)
-        return R - h - root, dx / root, dy / root  # sphere: f'(r)/r = 1/root
-    if r <= Rt:
-        root = math.sqrt(max(rt * rt - (r - Rt) * (r - Rt), 0.0))
-        f = root - rt * (R - h) / R  # the torus tube centre lies rt·(R − h)/R below z = 0
-        q = -(r - Rt) / (root * r) if root > 0.0 else 0.0
-        return f, q * dx, q * dy
-    return rt * h / R, 0.0, 0.0
+    # ∂f/∂x = f'(r)·dx/r with q = f'(r)/r: sphere (r ≤ a) 1/sqrt(R² − r²); torus (a < r ≤ Rt)
+    # −(r − Rt)/(root·r), 0 where its root vanishes; plane 0
+    sphere = r <= a
+    torus = r <= Rt
+    root_s = math.sqrt(max(R * R - r * r, 0.0))
+    u = r - Rt
+    root_t = math.sqrt(max(rt * rt - u * u, 0.0))
+    f = (R - h - root_s) if sphere else ((root_t - rt * (R - h) / R) if torus else rt * h / R)
+    q_t = -u / (root_t * r) if root_t > 0.0 else 0.0
+    q = (1.0 / root_s) if sphere else (q_t if torus else 0.0)
+    return f, q * dx, q * dy
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def _lens_array_kernel(x, y, R, h, pitch, nx, ny, f, fx, fy):  # pragma: no cover - jit
     for n in range(x.size):
         f[n], fx[n], fy[n] = _lens_point(x[n], y[n], R, h, pitch, nx, ny)
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def _lens_array_lines_kernel(first, spacing, offset, ct, st, R, h, pitch, nx, ny, g, gp):  # noqa: E501  # pragma: no cover - jit
     n_rays, n_nodes = g.shape
     for i in range(n_rays):

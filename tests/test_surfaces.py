@@ -55,6 +55,44 @@ def test_lens_array_gradient_matches_finite_difference_away_from_seams(seed):
     np.testing.assert_allclose(fy, dy, atol=2e-5)
 
 
+def _lens_piecewise(x: float, y: float) -> tuple[float, float, float]:
+    """lens_array's formulas (model §7) one point at a time, branch by branch, in Python."""
+    R, h, pitch, n = 252.5, 5.0, 150.0, 11
+    a = math.sqrt(2 * h * R - h * h)
+    rt = R / 2
+    Rt = a * (1 + rt / R)
+    i = min(max(math.floor(x / pitch + (n - 1) / 2 + 0.5), 0), n - 1)
+    j = min(max(math.floor(y / pitch + (n - 1) / 2 + 0.5), 0), n - 1)
+    dx, dy = x - (i - (n - 1) / 2) * pitch, y - (j - (n - 1) / 2) * pitch
+    r = math.hypot(dx, dy)
+    if r <= a:
+        root = math.sqrt(R * R - r * r)
+        return R - h - root, dx / root, dy / root
+    if r <= Rt:
+        root = math.sqrt(max(rt * rt - (r - Rt) ** 2, 0.0))
+        q = -(r - Rt) / (root * r) if root > 0 else 0.0
+        return root - rt * (R - h) / R, q * dx, q * dy
+    return rt * h / R, 0.0, 0.0
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_lens_array_branch_free_kernel_selects_each_points_own_piece(seed):
+    # the kernel forms every piece and selects (so that it vectorises): the values are those
+    # of evaluating the point's own piece, at random points and on the seams r = a, r = Rt,
+    # the lenslet centres and beyond the outermost lenslets
+    rng = np.random.default_rng(seed)
+    ang = rng.uniform(0, 2 * np.pi, 60)
+    centres = rng.integers(-5, 6, (2, 60)) * 150.0
+    radii = rng.choice([0.0, 50.0, 75.0, 49.999999, 75.000001, 30.0, 60.0], 60)
+    x = np.concatenate([rng.uniform(-1000, 1000, 200), centres[0] + radii * np.cos(ang)])
+    y = np.concatenate([rng.uniform(-1000, 1000, 200), centres[1] + radii * np.sin(ang)])
+    f, fx, fy = lens_array(x, y, **LENS)
+    ref = np.array([_lens_piecewise(a, b) for a, b in zip(x, y, strict=True)])
+    np.testing.assert_allclose(f, ref[:, 0], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(fx, ref[:, 1], rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(fy, ref[:, 2], rtol=1e-14, atol=1e-15)
+
+
 def test_lens_array_geometry():
     a = math.sqrt(2 * 5.0 * 252.5 - 25.0)
     assert a == pytest.approx(50.0)

@@ -153,12 +153,8 @@ def scan_samples(half_um: float, nose_radius_um: float, curvature_bound: float, 
 
 
 def _check_slope(gp: np.ndarray, gradient_bound: float) -> None:
-    steepest = float(np.max(np.abs(gp))) if gp.size else 0.0
-    if steepest > gradient_bound * (1.0 + 1e-9) + 1e-12:
-        raise ValueError(
-            f"surface slope {steepest:.4g} exceeds the gradient bound {gradient_bound:.4g} given to "
-            "exact compensation; raise the bound (the contact window would miss contacts)"
-        )
+    """Refuse radial slopes ``gp`` steeper than the gradient bound (see :func:`_check_steepest`)."""
+    _check_steepest(float(np.max(np.abs(gp))) if gp.size else 0.0, gradient_bound)
 
 
 def _secant_max(surface, rho, ct, st, rc, half, bounds, tol_um, max_iter):
@@ -167,25 +163,25 @@ def _secant_max(surface, rho, ct, st, rc, half, bounds, tol_um, max_iter):
     [−half, half] (where h' ≥ 0 ≥ h' because |g'| ≤ G) and bisected when a step leaves the
     bracket. Starts at s = 0 and the slope-predicted contact Rc·g'/sqrt(1 + g'²). The surface
     is evaluated once per iteration on the points still moving; the rest of an iteration is
-    one pass of :func:`_secant_update`."""
+    one pass of :func:`_secant_update` (and the points' positions one of :func:`_positions`:
+    the numpy temporaries between them cost as much as the update)."""
     gradient_bound, curvature_bound = bounds
-    f0, g0 = radial_section(surface, rho, ct, st)
-    _check_slope(g0, gradient_bound)
-    best = f0.copy()
-    idx = np.flatnonzero(g0 != 0.0)
-    g = g0[idx]
-    a = np.where(g > 0.0, 0.0, -half)
-    b = np.where(g > 0.0, half, 0.0)
-    s_prev, d_prev, gp_prev = np.zeros(idx.size), g.copy(), g.copy()  # h'(0) = g'(ρ)
-    s = np.clip(rc * g / np.sqrt(1.0 + g * g), a, b)
-    n = idx.size
+    f0, fx0, fy0 = surface(rho * ct, rho * st)
+    n = rho.size
+    best = np.empty(n)
+    idx = np.empty(n, dtype=np.int64)
+    s, s_prev, d_prev, gp_prev, a, b = (np.empty(n) for _ in range(6))
+    n, steepest = _secant_start(f0, fx0, fy0, ct, st, rc, half, best, idx, s, s_prev, d_prev, gp_prev, a, b)
+    _check_steepest(steepest, gradient_bound)
+    x, y = np.empty(n), np.empty(n)
     for _ in range(max_iter):
         if n == 0:
             break
-        f, gp = radial_section(surface, rho[idx[:n]] + s[:n], ct[idx[:n]], st[idx[:n]])
-        _check_slope(gp, gradient_bound)
+        _positions(rho, ct, st, idx, s, n, x, y)
+        f, fx, fy = surface(x[:n], y[:n])
         state = (idx, s, s_prev, d_prev, gp_prev, a, b)
-        n, worst = _secant_update(f, gp, rc, tol_um, curvature_bound, *state, best)
+        n, worst, steepest = _secant_update(f, fx, fy, ct, st, rc, tol_um, curvature_bound, *state, best)
+        _check_steepest(steepest, gradient_bound)
         if worst > 0.0:
             raise ValueError(
                 f"surface curvature {worst:.4g} /µm exceeds the curvature bound {curvature_bound:.4g} "
@@ -194,28 +190,78 @@ def _secant_max(surface, rho, ct, st, rc, half, bounds, tol_um, max_iter):
     return best
 
 
+def _check_steepest(steepest: float, gradient_bound: float) -> None:
+    """Refuse a largest radial slope |g'| [-] above the gradient bound G given to exact
+    compensation: the contact window, sized by G, would miss contacts."""
+    if steepest > gradient_bound * (1.0 + 1e-9) + 1e-12:
+        raise ValueError(
+            f"surface slope {steepest:.4g} exceeds the gradient bound {gradient_bound:.4g} given to "
+            "exact compensation; raise the bound (the contact window would miss contacts)"
+        )
+
+
 @njit(nogil=True, cache=True)
-def _secant_update(f, gp, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, gp_prev, a, b, best):  # noqa: E501  # pragma: no cover - jit
+def _secant_start(f0, fx0, fy0, ct, st, rc, half, best, idx, s, s_prev, d_prev, gp_prev, a, b):  # noqa: E501  # pragma: no cover - jit
+    """The state of :func:`_secant_max` after its evaluation at s = 0 (heights ``f0`` and
+    gradients at ρ on sections (ct, st)): h(0) in ``best``; the points whose slope g' is not
+    0 packed to the front of the state arrays with their bracket, h'(0) = g' and the
+    slope-predicted contact. Returns their number and the largest |g'| (NaN ignored)."""
+    n = 0
+    steepest = 0.0
+    for p in range(f0.size):
+        g = fx0[p] * ct[p] + fy0[p] * st[p]
+        steepest = max(steepest, abs(g))
+        best[p] = f0[p]
+        if g != 0.0:
+            ap = 0.0 if g > 0.0 else -half
+            bp = half if g > 0.0 else 0.0
+            idx[n] = p
+            a[n] = ap
+            b[n] = bp
+            s_prev[n] = 0.0
+            d_prev[n] = g
+            gp_prev[n] = g
+            s[n] = min(max(rc * g / math.sqrt(1.0 + g * g), ap), bp)
+            n += 1
+    return n, steepest
+
+
+@njit(nogil=True, cache=True)
+def _positions(rho, ct, st, idx, s, n, x, y):  # pragma: no cover - jit
+    """x, y [µm] of the first ``n`` moving points, at ρ + s on their sections."""
+    for i in range(n):
+        p = idx[i]
+        r = rho[p] + s[i]
+        x[i] = r * ct[p]
+        y[i] = r * st[p]
+
+
+@njit(nogil=True, cache=True)
+def _secant_update(f, fx, fy, ct, st, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, gp_prev, a, b, best):  # noqa: E501  # pragma: no cover - jit
     """One secant iteration of :func:`_secant_max` on its ``f.size`` active points, in place:
-    records h at s in ``best``, moves s, and packs the points still moving to the front of
-    the state arrays. Returns their number and the largest difference quotient |Δg'/Δs|
-    found above the curvature bound K (0 when none: by the mean value theorem it is at most
-    sup|g''| ≤ K, so a larger one proves the declared bound, and the concavity the solver
-    relies on, wrong)."""
+    forms each point's radial slope g' from the gradient (fx, fy) on its section, records h
+    at s in ``best``, moves s, and packs the points still moving to the front of the state
+    arrays. Returns their number, the largest difference quotient |Δg'/Δs| found above the
+    curvature bound K (0 when none: by the mean value theorem it is at most sup|g''| ≤ K, so
+    a larger one proves the declared bound, and the concavity the solver relies on, wrong),
+    and the largest |g'| (for the gradient bound's check)."""
     n_keep = 0
     worst = 0.0
+    steepest = 0.0
     for i in range(f.size):
+        p = idx[i]
+        gpi = fx[i] * ct[p] + fy[i] * st[p]
+        steepest = max(steepest, abs(gpi))
         si, ds = s[i], s[i] - s_prev[i]
-        change = abs(gp[i] - gp_prev[i])
+        change = abs(gpi - gp_prev[i])
         # rounding of g' (~1e-16) divided by a small step must not read as curvature
         if change - 1e-12 > curvature_bound * (1.0 + 1e-6) * abs(ds):
             worst = max(worst, change / abs(ds) if ds != 0.0 else math.inf)
         root = math.sqrt(rc * rc - si * si)
-        p = idx[i]
         h = f[i] - (rc - root)
         if h > best[p] or h != h:
             best[p] = h
-        d = gp[i] - si / root
+        d = gpi - si / root
         ai = si if d > 0.0 else a[i]
         bi = si if d < 0.0 else b[i]
         step = d * ds / (d - d_prev[i]) if d != d_prev[i] else math.nan
@@ -228,12 +274,12 @@ def _secant_update(f, gp, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, g
             idx[n_keep] = p
             s_prev[n_keep] = si
             d_prev[n_keep] = d
-            gp_prev[n_keep] = gp[i]
+            gp_prev[n_keep] = gpi
             a[n_keep] = ai
             b[n_keep] = bi
             s[n_keep] = s_new if inside else 0.5 * (ai + bi)
             n_keep += 1
-    return n_keep, worst
+    return n_keep, worst, steepest
 
 
 def _scan_max(surface, rho, ct, st, rc, half, count, gradient_bound, tol_um, max_iter):

@@ -153,6 +153,11 @@ def test_rejects_bad_arguments():
         compensate(surface, np.ones(3), np.zeros(3), 83.0, "magic")
     with pytest.raises(ValueError, match="exceeds the gradient bound"):
         compensate(surface, np.linspace(0, 100, 30), np.zeros(30), 83.0, "exact", 0.001)
+    # the secant solver checks the slopes its kernels form, at the start and at every iterate
+    _, curvature = sine_bounds(sine_params(0.5, 0.5, 100.0, 100.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="surface slope 0.03.* exceeds the gradient bound 0.001"):
+        rho = np.linspace(0, 100, 30)
+        compensate(surface, rho, np.zeros(30), 83.0, "exact", 1e-3, curvature_bound=curvature)
 
 
 # ------------------------------------------------------------------ the fast (secant) solver

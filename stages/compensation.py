@@ -237,7 +237,9 @@ def _positions(rho, ct, st, idx, s, n, x, y):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _secant_update(f, fx, fy, ct, st, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, gp_prev, a, b, best):  # noqa: E501  # pragma: no cover - jit
+def _secant_update(
+    f, fx, fy, ct, st, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, gp_prev, a, b, best
+):  # noqa: E501  # pragma: no cover - jit
     """One secant iteration of :func:`_secant_max` on its ``f.size`` active points, in place:
     forms each point's radial slope g' from the gradient (fx, fy) on its section, records h
     at s in ``best``, moves s, and packs the points still moving to the front of the state

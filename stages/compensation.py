@@ -162,25 +162,26 @@ def _secant_max(surface, rho, ct, st, rc, half, bounds, tol_um, max_iter):
     of the decreasing h'(s) = g'(ρ+s) − s/sqrt(Rc² − s²) by secant steps, bracketed by
     [−half, half] (where h' ≥ 0 ≥ h' because |g'| ≤ G) and bisected when a step leaves the
     bracket. Starts at s = 0 and the slope-predicted contact Rc·g'/sqrt(1 + g'²). The surface
-    is evaluated once per iteration on the points still moving; the rest of an iteration is
-    one pass of :func:`_secant_update` (and the points' positions one of :func:`_positions`:
-    the numpy temporaries between them cost as much as the update)."""
+    is evaluated once per iteration on the points still moving, at the places the previous
+    kernel pass left in (x, y); the rest of an iteration is one pass of
+    :func:`_secant_update` (numpy temporaries between them cost as much as the update)."""
     gradient_bound, curvature_bound = bounds
     f0, fx0, fy0 = surface(rho * ct, rho * st)
     n = rho.size
     best = np.empty(n)
     idx = np.empty(n, dtype=np.int64)
     s, s_prev, d_prev, gp_prev, a, b = (np.empty(n) for _ in range(6))
-    n, steepest = _secant_start(f0, fx0, fy0, ct, st, rc, half, best, idx, s, s_prev, d_prev, gp_prev, a, b)
-    _check_steepest(steepest, gradient_bound)
     x, y = np.empty(n), np.empty(n)
+    state = (idx, s, s_prev, d_prev, gp_prev, a, b)
+    n, steepest = _secant_start(f0, fx0, fy0, rho, ct, st, rc, half, best, *state, x, y)
+    _check_steepest(steepest, gradient_bound)
     for _ in range(max_iter):
         if n == 0:
             break
-        _positions(rho, ct, st, idx, s, n, x, y)
         f, fx, fy = surface(x[:n], y[:n])
-        state = (idx, s, s_prev, d_prev, gp_prev, a, b)
-        n, worst, steepest = _secant_update(f, fx, fy, ct, st, rc, tol_um, curvature_bound, *state, best)
+        n, worst, steepest = _secant_update(
+            f, fx, fy, rho, ct, st, rc, tol_um, curvature_bound, *state, best, x, y
+        )
         _check_steepest(steepest, gradient_bound)
         if worst > 0.0:
             raise ValueError(
@@ -201,11 +202,12 @@ def _check_steepest(steepest: float, gradient_bound: float) -> None:
 
 
 @njit(nogil=True, cache=True)
-def _secant_start(f0, fx0, fy0, ct, st, rc, half, best, idx, s, s_prev, d_prev, gp_prev, a, b):  # noqa: E501  # pragma: no cover - jit
+def _secant_start(f0, fx0, fy0, rho, ct, st, rc, half, best, idx, s, s_prev, d_prev, gp_prev, a, b, x, y):  # noqa: E501  # pragma: no cover - jit
     """The state of :func:`_secant_max` after its evaluation at s = 0 (heights ``f0`` and
     gradients at ρ on sections (ct, st)): h(0) in ``best``; the points whose slope g' is not
-    0 packed to the front of the state arrays with their bracket, h'(0) = g' and the
-    slope-predicted contact. Returns their number and the largest |g'| (NaN ignored)."""
+    0 packed to the front of the state arrays with their bracket, h'(0) = g', the
+    slope-predicted contact s and its place (x, y) [µm] at ρ + s. Returns their number and
+    the largest |g'| (NaN ignored)."""
     n = 0
     steepest = 0.0
     for p in range(f0.size):
@@ -222,31 +224,31 @@ def _secant_start(f0, fx0, fy0, ct, st, rc, half, best, idx, s, s_prev, d_prev, 
             d_prev[n] = g
             gp_prev[n] = g
             s[n] = min(max(rc * g / math.sqrt(1.0 + g * g), ap), bp)
+            _place(rho, ct, st, p, s[n], n, x, y)
             n += 1
     return n, steepest
 
 
-@njit(nogil=True, cache=True)
-def _positions(rho, ct, st, idx, s, n, x, y):  # pragma: no cover - jit
-    """x, y [µm] of the first ``n`` moving points, at ρ + s on their sections."""
-    for i in range(n):
-        p = idx[i]
-        r = rho[p] + s[i]
-        x[i] = r * ct[p]
-        y[i] = r * st[p]
+@njit(nogil=True, cache=True, inline="always")
+def _place(rho, ct, st, p, s, i, x, y):  # pragma: no cover - jit
+    """x[i], y[i] [µm]: point ``p`` moved by s [µm] along its section (as radial_section)."""
+    r = rho[p] + s
+    x[i] = r * ct[p]
+    y[i] = r * st[p]
 
 
 @njit(nogil=True, cache=True)
 def _secant_update(
-    f, fx, fy, ct, st, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, gp_prev, a, b, best
+    f, fx, fy, rho, ct, st, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, gp_prev, a, b, best, x, y
 ):  # noqa: E501  # pragma: no cover - jit
     """One secant iteration of :func:`_secant_max` on its ``f.size`` active points, in place:
     forms each point's radial slope g' from the gradient (fx, fy) on its section, records h
     at s in ``best``, moves s, and packs the points still moving to the front of the state
-    arrays. Returns their number, the largest difference quotient |Δg'/Δs| found above the
-    curvature bound K (0 when none: by the mean value theorem it is at most sup|g''| ≤ K, so
-    a larger one proves the declared bound, and the concavity the solver relies on, wrong),
-    and the largest |g'| (for the gradient bound's check)."""
+    arrays, with their next place (x, y) [µm]. Returns their number, the largest difference
+    quotient |Δg'/Δs| found above the curvature bound K (0 when none: by the mean value
+    theorem it is at most sup|g''| ≤ K, so a larger one proves the declared bound, and the
+    concavity the solver relies on, wrong), and the largest |g'| (for the gradient bound's
+    check)."""
     n_keep = 0
     worst = 0.0
     steepest = 0.0
@@ -280,6 +282,7 @@ def _secant_update(
             a[n_keep] = ai
             b[n_keep] = bi
             s[n_keep] = s_new if inside else 0.5 * (ai + bi)
+            _place(rho, ct, st, p, s[n_keep], n_keep, x, y)
             n_keep += 1
     return n_keep, worst, steepest
 

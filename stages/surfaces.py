@@ -104,6 +104,15 @@ def _um(text: str) -> str:
 
 
 # --------------------------------------------------------------------------- sinewave2d
+@njit(nogil=True, cache=True, inline="always")
+def _sinewave2d_store(i, ax, ay, kx, ky, sx, cx, sy, cy, f, fx, fy):  # pragma: no cover - jit
+    """f, ∂f/∂x, ∂f/∂y of :func:`sinewave2d` at point ``i`` from the sines and cosines of its
+    two phases (one formula for both passes of ``_sinewave2d_kernel``)."""
+    f[i] = ax * sx + ay * sy
+    fx[i] = ax * kx * cx
+    fy[i] = ay * ky * cy
+
+
 @njit(nogil=True, cache=True)
 def _sinewave2d_kernel(x, y, ax, ay, kx, ky, px, py, f, fx, fy):  # pragma: no cover - jit
     # the vectorisable sincos (stages.trig): the C library's scalar calls were ~80 % of the
@@ -116,17 +125,15 @@ def _sinewave2d_kernel(x, y, ax, ay, kx, ky, px, py, f, fx, fy):  # pragma: no c
         far |= not (within_reach(argx) and within_reach(argy))
         sx, cx = sincos(argx)
         sy, cy = sincos(argy)
-        f[i] = ax * sx + ay * sy
-        fx[i] = ax * kx * cx
-        fy[i] = ay * ky * cy
+        _sinewave2d_store(i, ax, ay, kx, ky, sx, cx, sy, cy, f, fx, fy)
     if far:
         for i in range(x.size):
             argx = kx * x[i] + px
             argy = ky * y[i] + py
             if not (within_reach(argx) and within_reach(argy)):
-                f[i] = ax * math.sin(argx) + ay * math.sin(argy)
-                fx[i] = ax * kx * math.cos(argx)
-                fy[i] = ay * ky * math.cos(argy)
+                sx, cx = math.sin(argx), math.cos(argx)
+                sy, cy = math.sin(argy), math.cos(argy)
+                _sinewave2d_store(i, ax, ay, kx, ky, sx, cx, sy, cy, f, fx, fy)
 
 
 # Along a radial section the phases kx·x and ky·y advance by a fixed step per node, so sin and

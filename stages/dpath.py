@@ -399,33 +399,128 @@ def _evaluate_kernel(phi, bounds, cut_d, cut_centre, coeffs, rho, d1, d2, on_cut
 
 
 @njit(nogil=True, cache=True)
-def _peak_second_difference(phi, mid, h, bounds, cut_d, cut_centre, coeffs):  # pragma: no cover - jit
-    """max |ρ(φ + h) − 2ρ(φ) + ρ(φ − h)| [µm] over the points ``phi`` whose φ ± h stay on the
-    program (``mid`` = ρ(φ)): the neighbours evaluated by :func:`_evaluate_kernel` a block at
-    a time, so no array of the whole path is formed."""
+def _peak_over(phi, mid, h, points, bounds, cut_d, cut_centre, coeffs, peak):  # pragma: no cover - jit
+    """``peak`` raised to |ρ(φ + h) − 2ρ(φ) + ρ(φ − h)| [µm] at the ``points`` (ascending
+    indices into ``phi``; ``mid`` = ρ(φ)): the neighbours evaluated by :func:`_evaluate_kernel`
+    a block at a time, so no array of the whole path is formed."""
     block = 4096
     ahead, behind = np.empty(block), np.empty(block)
     rho_a, rho_b = np.empty(block), np.empty(block)
-    index = np.empty(block, dtype=np.int64)
     flags, none = np.empty(block, dtype=np.bool_), np.empty(0)
-    lo, hi = phi[0], phi[-1]
-    peak = 0.0
-    k = 0
-    while k < phi.size:
-        n = 0
-        while k < phi.size and n < block:
-            p = phi[k]
-            if p - h >= lo and p + h <= hi:
-                ahead[n], behind[n], index[n] = p + h, p - h, k
-                n += 1
-            k += 1
+    for start in range(0, points.size, block):
+        n = min(block, points.size - start)
+        for m in range(n):
+            p = phi[points[start + m]]
+            ahead[m], behind[m] = p + h, p - h
         _evaluate_kernel(ahead[:n], bounds, cut_d, cut_centre, coeffs, rho_a, none, none, flags, False)
         _evaluate_kernel(behind[:n], bounds, cut_d, cut_centre, coeffs, rho_b, none, none, flags, False)
         for m in range(n):
-            d = abs(rho_a[m] - 2.0 * mid[index[m]] + rho_b[m])
+            d = abs(rho_a[m] - 2.0 * mid[points[start + m]] + rho_b[m])
             if d > peak:
                 peak = d
     return peak
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _cut_difference_bound(h, start, end, d, centre, reach):  # pragma: no cover - jit
+    """An upper bound [µm] of the computed |ρ(φ + h) − 2ρ(φ) + ρ(φ − h)| at any point whose
+    φ ± h lie inside the cut from ``start`` to ``end`` [rad] (distance ``d`` [µm], centre
+    ``centre`` [rad]), |φ| + h ≤ ``reach`` [rad]. Exactly, the second difference is
+    h²·ρ''(ξ) for some ξ between, and ρ'' = d·sec x·(tan² x + sec² x) ([5] eq. 3) grows with
+    |x|: at most h²·ρ'' at the cut's farther end. Computed, each ρ is off by at most ρ'·(the
+    rounding of φ ± h − centre, 1.2e-16·reach) plus two ulp: the bound adds 16× that (inf
+    where the cut comes within 0.07 rad of x = π/2)."""
+    xm = max(abs(start - centre), abs(end - centre))
+    if not xm < 1.5:
+        return math.inf
+    sec = 1.0 / math.cos(xm)
+    tan = math.tan(xm)
+    ad = abs(d)
+    curv = ad * sec * (tan * tan + sec * sec)
+    slope = ad * sec * tan
+    return h * h * curv * (1.0 + 1e-9) + 16.0 * (4.0 * slope * 1.2e-16 * reach + 4.0 * 4.5e-16 * ad * sec)
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _transition_difference_bound(h, span, b, reach):  # pragma: no cover - jit
+    """:func:`_cut_difference_bound` for a transition ρ = Σ b_m τ^m, τ = (φ − a)/``span``
+    ([5] eq. 4): ρ'' = P''(τ)/span², whose largest |value| on [0, 1] lies at an end or where
+    the derivative of P'' vanishes (a quadratic's roots); the bound adds 1e-12 of
+    Σ m(m − 1)|b_m| for the rounding of those roots and values, and 16× the rounding of the
+    three Horner evaluations (12 ulp of Σ|b_m| each) and of τ (ρ'·(1.2e-16·reach/span + 2 ulp))."""
+    s0 = s1 = s2 = 0.0
+    for m in range(6):
+        s0 += abs(b[m])
+        s1 += m * abs(b[m])
+        s2 += m * (m - 1) * abs(b[m])
+    # P'' = c0 + c1 τ + c2 τ² + c3 τ³; its derivative c1 + 2 c2 τ + 3 c3 τ²
+    c0, c1, c2, c3 = 2.0 * b[2], 6.0 * b[3], 12.0 * b[4], 20.0 * b[5]
+    top = max(abs(c0), abs(c0 + c1 + c2 + c3))
+    qa, qb, qc = 3.0 * c3, 2.0 * c2, c1
+    r0 = r1 = -1.0
+    if qa != 0.0:
+        disc = qb * qb - 4.0 * qa * qc
+        if disc >= 0.0:
+            sq = math.sqrt(disc)
+            r0, r1 = (-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa)
+    elif qb != 0.0:
+        r0 = -qc / qb
+    for t in (r0, r1):
+        if 0.0 < t < 1.0:
+            top = max(top, abs(c0 + t * (c1 + t * (c2 + t * c3))))
+    curv = (top + 1e-12 * s2) / (span * span)
+    rounding = 4.0 * s1 * (1.2e-16 * reach / span + 4.5e-16) + 4.0 * 12.0 * 2.3e-16 * s0
+    return h * h * curv * (1.0 + 1e-9) + 16.0 * rounding
+
+
+@njit(nogil=True, cache=True)
+def _peak_second_difference(phi, mid, h, bounds, cut_d, cut_centre, coeffs):  # pragma: no cover - jit
+    """max |ρ(φ + h) − 2ρ(φ) + ρ(φ − h)| [µm] over the points ``phi`` (ascending) whose φ ± h
+    stay on the program (``mid`` = ρ(φ)). A point whose φ ± h lie strictly inside its own
+    segment (a cut, or a transition's polynomial) is evaluated only where that segment's
+    bound (:func:`_cut_difference_bound`, :func:`_transition_difference_bound`) reaches the
+    peak of the points near the junctions: the result is the largest over every point, to
+    the last bit, while the inner points of most segments of a smooth path are left out."""
+    lo, hi = phi[0], phi[-1]
+    nb, nt = bounds.size, coeffs.shape[0]
+    inner = np.full(phi.size, -1, dtype=np.int64)
+    points = np.empty(phi.size, dtype=np.int64)
+    n = 0
+    seg = 0
+    for k in range(phi.size):
+        p = phi[k]
+        if not (p - h >= lo and p + h <= hi):
+            continue
+        if p < bounds[seg]:
+            seg = max(np.searchsorted(bounds, p, side="right") - 1, 0)
+        while seg + 1 < nb and bounds[seg + 1] <= p:
+            seg += 1
+        # strictly inside: all three evaluations take this segment's expression
+        # (_evaluate_kernel; without transition polynomials, odd segments take a cut's)
+        own = seg % 2 == 0 or seg // 2 < nt
+        if own and seg + 1 < nb and p - h > bounds[seg] and p + h < bounds[seg + 1]:
+            inner[k] = seg
+        else:
+            points[n] = k
+            n += 1
+    peak = _peak_over(phi, mid, h, points[:n], bounds, cut_d, cut_centre, coeffs, 0.0)
+    reach = max(abs(lo), abs(hi)) + h
+    bound = np.full(nb, math.nan)
+    n = 0
+    for k in range(phi.size):
+        s = inner[k]
+        if s < 0:
+            continue
+        if math.isnan(bound[s]):
+            i = s // 2
+            if s % 2 == 0:
+                bound[s] = _cut_difference_bound(h, bounds[s], bounds[s + 1], cut_d[i], cut_centre[i], reach)
+            else:
+                bound[s] = _transition_difference_bound(h, bounds[s + 1] - bounds[s], coeffs[i], reach)
+        if bound[s] >= peak:
+            points[n] = k
+            n += 1
+    return _peak_over(phi, mid, h, points[:n], bounds, cut_d, cut_centre, coeffs, peak)
 
 
 def junctions(path: DPath) -> dict[str, np.ndarray]:

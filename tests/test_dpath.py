@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from ftsweep import dstudy
@@ -456,6 +456,83 @@ def test_peak_acceleration_at_a_step_is_the_largest_of_the_points(transition, st
     want = np.abs(omega**2 * (ahead - 2.0 * mid + behind) / h**2 * 1e-6).max(initial=0.0)
     assert dpath.x_accel_peak_at_step(path, 40.0, h) == want
     assert (want > 0.0) == bool(ok.any())
+
+
+def _random_path(transition, zones, length_mm, width_mm, inner_mm, spacing_fraction, ppc):
+    geometry = dpath.DGeometry(
+        length_um=length_mm * 1e3,
+        width_um=width_mm * 1e3,
+        outer_um=(inner_mm + width_mm) * 1e3,
+        spacing_um=max(spacing_fraction * width_mm * 1e3, 300.0),
+        zones=zones,
+        transition=transition,
+    )
+    try:
+        dpath.check_geometry(geometry)
+    except ValueError:
+        assume(False)  # zones that do not fit a revolution: refused by the planner
+    return dpath.plan(geometry, ppc, 1.0)
+
+
+def _segment_bound(path: dpath.DPath, s: int, h: float) -> float:
+    """The second-difference bound of segment ``s`` of ``path`` (cut or transition) at step h."""
+    b, i = path.bounds, s // 2
+    reach = max(abs(path.phi[0]), abs(path.phi[-1])) + h
+    if s % 2 == 0:
+        return dpath._cut_difference_bound(h, b[s], b[s + 1], path.cut_d[i], path.cut_centre[i], reach)
+    return dpath._transition_difference_bound(h, b[s + 1] - b[s], path.coeffs[i], reach)
+
+
+PATHS = {
+    "transition": st.sampled_from(["traditional", "optimised"]),
+    "zones": st.sampled_from([1, 2, 4]),
+    "length_mm": st.floats(2.0, 40.0),
+    "width_mm": st.floats(1.0, 15.0),
+    "inner_mm": st.floats(5.0, 60.0),
+    "spacing_fraction": st.floats(0.02, 1.0),
+    "ppc": st.integers(3, 41),
+}
+
+
+@settings(max_examples=30, deadline=None)
+@given(step_fraction=st.floats(1e-4, 0.2), **PATHS)
+def test_second_difference_bounds_hold_inside_every_segment(step_fraction, **geometry):
+    # the bound of a cut (eq. 3) or a transition (its quintic) is at least the computed
+    # |ρ(φ+h) − 2ρ(φ) + ρ(φ−h)| wherever φ ± h lie strictly inside the segment; and tight
+    # for a small step (h²·ρ'' at its largest): on some segment the second differences at a
+    # step of 1e-4 of its span come within 1 % of it, so a bound too small would show
+    path = _random_path(**geometry)
+    b = path.bounds
+    tightest = 0.0
+    for s in range(b.size - 1):
+        span = b[s + 1] - b[s]
+        for fraction in (step_fraction, 1e-4):
+            h = fraction * span
+            bound = _segment_bound(path, s, h)
+            p = np.linspace(b[s] + 1.001 * h, b[s + 1] - 1.001 * h, 257)
+            mid, ahead, behind = (dpath.radius_at(path, p + d)[0] for d in (0.0, h, -h))
+            second = np.abs(ahead - 2.0 * mid + behind).max()
+            assert second <= bound, (s, h, second, bound)
+            # where h²·ρ'' stands well above the rounding allowance (the bound at h = 0)
+            if fraction == 1e-4 and bound > 100.0 * _segment_bound(path, s, 0.0):
+                tightest = max(tightest, second / bound)
+    assert tightest > 0.99
+
+
+@settings(max_examples=40, deadline=None)
+@given(step_deg=st.floats(1e-3, 20.0), **PATHS)
+def test_peak_at_a_step_leaves_out_only_points_that_cannot_reach_it(step_deg, **geometry):
+    # the inner points of a cut or transition are evaluated only where the segment's bound
+    # on the second difference reaches the peak of the others: the peak is still the largest
+    # of every point's, to the last bit, on any geometry and step
+    path = _random_path(**geometry)
+    h = math.radians(step_deg)
+    ok = (path.phi - h >= path.phi[0]) & (path.phi + h <= path.phi[-1])
+    p = path.phi[ok]
+    mid, ahead, behind = (dpath.radius_at(path, p + d)[0] for d in (0.0, h, -h))
+    omega = 40.0 * 2.0 * math.pi / 60.0
+    want = np.abs(omega**2 * (ahead - 2.0 * mid + behind) / h**2 * 1e-6).max(initial=0.0)
+    assert dpath.x_accel_peak_at_step(path, 40.0, h) == want
 
 
 @pytest.mark.parametrize("transition", ["traditional", "optimised"])

@@ -126,12 +126,13 @@ def _transition(rcase: ResolvedCase, feed_mm_min: float, progress: Any) -> dict[
     return keep
 
 
-def _spiral(base: Case, path: dpath.DPath, progress: Any) -> dict[str, Any]:
+def _spiral(base: Case, path: dpath.DPath, progress: Any, threads: int) -> dict[str, Any]:
     """The spiral on the same part (:func:`spiral_case` of the optimised path's spacing and
-    cut step): its record's figures (one thread) and its axis motion (``motion``)."""
+    cut step): its record's figures (its batches on ``threads`` threads) and its axis motion
+    (``motion``)."""
     scase = spiral_case(base, {"cut_step_um": path.cut_step_um, "spacing_um": path.geometry.spacing_um})
     srcase = resolve_case(scase)
-    srec = run_case(scase, progress=progress, resolved=srcase, threads=1)
+    srec = run_case(scase, progress=progress, resolved=srcase, threads=threads)
     motion = spiral_motion(scase, srcase)
     return {
         "n_points": srec["n_points"],
@@ -158,8 +159,11 @@ def study(
     Every program is planned once (the two D paths share their compensated cuts,
     :func:`ftsweep.kinds.dpath.shared_cuts`); then the parts that do not depend on each other
     (each transition's case, the spiral's, the ratio table) run side by side on ``threads``
-    threads (the context's, :func:`ftsweep.threads.using_threads`, when None), each case on
-    one: the kernels release the GIL. The summary is the same whatever the number."""
+    threads (the context's, :func:`ftsweep.threads.using_threads`, when None): the kernels
+    release the GIL. Each transition's case takes one; the spiral, which starts last, spreads
+    its batches over all of them, so the core the short ratio table frees does not wait for
+    it (the seed example's study 0.2 s sooner on two cores). The summary is the same whatever
+    the number."""
     out: dict[str, Any] = {"surface": base.surface, "machine": base.machine, "cutting": base.cutting}
     with dpath_kind.shared_cuts():
         resolved = {kind: resolve_case(d_case(base, kind)) for kind in TRANSITIONS}
@@ -169,12 +173,15 @@ def study(
     # the C step of one controller period (the records' accel_step_deg, formed alike)
     step_deg = math.degrees(rpm * 2.0 * math.pi / 60.0 * dprog.period_of(opt_case.machine))
     combined = _Progress(progress, len(TRANSITIONS) + int(with_spiral))
-    with ThreadPoolExecutor(max(1, current_threads(threads))) as pool:
+    n_threads = max(1, current_threads(threads))
+    with ThreadPoolExecutor(n_threads) as pool:
         cases = {
             kind: pool.submit(_transition, rcase, feed_mm_min, combined.of(i))
             for i, (kind, rcase) in enumerate(resolved.items())
         }
-        spiral = pool.submit(_spiral, base, opt_case.layout, combined.of(2)) if with_spiral else None
+        spiral = None
+        if with_spiral:
+            spiral = pool.submit(_spiral, base, opt_case.layout, combined.of(2), n_threads)
         by_step = pool.submit(accel_by_step, programs, rpm, step_deg)
         for kind, done in cases.items():
             out[kind] = done.result()

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import Any, Optional
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
@@ -145,15 +145,52 @@ def axes_of(s: dpath.Sampled) -> np.ndarray:
     return q
 
 
+# samples of the planned path taken at a time by :func:`sampled_extremes`: a stretch's
+# arrays stay in the core's caches, and no array of the millions of samples is formed
+SAMPLE_BLOCK = 65536
+
+
+class PeriodSamples(NamedTuple):
+    """The planned path's samples every controller period, as :class:`ftsweep.stages.dpath.
+    Sampled` names them in messages, without their arrays: ``n`` uniform times from ``first``
+    to ``last`` [s] over the program's points at times ``t_points`` [s]."""
+
+    first: float
+    last: float
+    n: int
+    t_points: np.ndarray
+
+    def time(self, i: int) -> float:
+        """Time of sample ``i`` [s] (that of ``Sampled.t[i]``)."""
+        return float(dpath.period_times(self.first, self.last, self.n, i, i + 1)[0])
+
+    def line(self, i: int) -> int:
+        """The program line (0-based point) sample ``i`` follows."""
+        found = int(np.searchsorted(self.t_points, self.time(i), side="right")) - 1
+        return min(max(found, 0), self.t_points.size - 1)
+
+
 def sampled_extremes(
     path: dpath.DPath, z_um: np.ndarray, t_points: np.ndarray, period_s: float
-) -> tuple[dpath.Sampled, kinematics.Extremes]:
-    """The program's planned path sampled every controller period (as :func:`sampled_motion`)
-    and the extremes of its motion, the samples on a cut in group 1 and the rest in group 0
-    (:func:`ftsweep.stages.kinematics.extremes`: one pass, no velocity or acceleration
-    arrays of its millions of samples)."""
-    s = dpath.at_period(path, z_um, t_points, period_s)
-    return s, kinematics.extremes(axes_of(s), kinematics.steps_of(s.t), s.on_cut, 2)
+) -> tuple[PeriodSamples, kinematics.Extremes, tuple[float, float]]:
+    """The extremes of the motion of the program's planned path sampled every controller
+    period (as :func:`sampled_motion`), the samples on a cut in group 1 and the rest in group
+    0, and the lowest and highest X [µm]: the samples formed :data:`SAMPLE_BLOCK` at a time,
+    each stretch with its neighbours, and their extremes carried from one to the next
+    (:class:`ftsweep.stages.kinematics.ExtremesOver`): the values and first points of one
+    pass over every sample, without the millions of samples' arrays."""
+    first, last, n = dpath.period_grid(t_points, period_s)
+    z = dpath.z_plan(path, z_um)
+    over = kinematics.ExtremesOver(n, len(AXES), 2)
+    x_low, x_high = math.inf, -math.inf
+    for lo in range(0, n, SAMPLE_BLOCK):
+        hi = min(lo + SAMPLE_BLOCK, n)
+        a, b = max(lo - 1, 0), min(hi + 1, n)
+        s = dpath.sample_path(path, z, t_points, dpath.period_times(first, last, n, a, b))
+        over.add(axes_of(s), kinematics.steps_of(s.t), s.on_cut, lo - a, hi - a, a)
+        own = s.rho[lo - a : hi - a]
+        x_low, x_high = min(x_low, float(own.min())), max(x_high, float(own.max()))
+    return PeriodSamples(first, last, n, np.asarray(t_points)), over.out, (x_low, x_high)
 
 
 def motion_summary(
@@ -168,16 +205,16 @@ def motion_summary(
     lines) is timed by them, and checked with the slack their printed digits need."""
     t = times(path, z_um, rpm) if path.t_s is None else path.t_s
     period = period_of(machine)
-    s, e = sampled_extremes(path, z_um, t, period)
+    s, e, (x_min, x_max) = sampled_extremes(path, z_um, t, period)
     jumps = dpath.junctions(path)
     summary = {
-        "x_min_um": float(s.rho.min()),
-        "x_max_um": float(s.rho.max()),
+        "x_min_um": x_min,
+        "x_max_um": x_max,
         "x_feed_peak_mm_s": float(e.speed[1] * 1e3),
         "x_accel_peak_m_s2": float(e.accel[1]),
         "z_velocity_peak_mm_s": float(e.speed[2] * 1e3),
         "z_accel_peak_m_s2": float(e.accel[2]),
-        "z_accel_rms_m_s2": math.sqrt(float(e.accel_sq[2]) / s.t.size),
+        "z_accel_rms_m_s2": math.sqrt(float(e.accel_sq[2]) / s.n),
         "x_accel_cut_m_s2": float(e.accel_group[1, 1]),
         "x_accel_transition_m_s2": float(e.accel_group[0, 1]),
         "slope_jump_um_rad": float(np.abs(jumps["jump_d1"]).max()) if jumps["jump_d1"].size else 0.0,
@@ -193,7 +230,9 @@ def motion_summary(
 NO_AXES = "the machine declares no X, Z, C axis limits (axes:) for a slow-tool-servo program"
 
 
-def limits_reason(machine: Any, s: dpath.Sampled, e: kinematics.Extremes, slack: float = 1e-9) -> str:
+def limits_reason(
+    machine: Any, s: dpath.Sampled | PeriodSamples, e: kinematics.Extremes, slack: float = 1e-9
+) -> str:
     """The machine's X, Z and C limits the sampled motion of samples ``s`` (extremes ``e``)
     exceeds, checked by the kinematics stage on every sample and named by the program line
     it follows ('' when it fits them); a machine without axis limits cannot run a D path.
@@ -203,7 +242,7 @@ def limits_reason(machine: Any, s: dpath.Sampled, e: kinematics.Extremes, slack:
         return NO_AXES
 
     def where(i: int) -> str:
-        return f"line {s.line(i) + 1}, t = {s.t[i]:.4f} s"
+        return f"line {s.line(i) + 1}, t = {s.time(i):.4f} s"
 
     return kinematics.extremes_reason(e, machine.axes.limits(AXES), slack, where)
 

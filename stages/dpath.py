@@ -623,14 +623,19 @@ def x_accel_peak_at_step(
     return float(omega**2 * d / step_rad**2 * 1e-6)
 
 
-def planned_z(path: DPath, z_um: np.ndarray, phi: np.ndarray, on_cut: np.ndarray | None = None) -> np.ndarray:
-    """Z [µm] of the planned path at accumulated angles ``phi`` [rad] given Z at its points
-    ``z_um``: on a cut the cubic Hermite curve through the cut's points in the distance u along
-    it (slopes by second-order differences, so it is exact for Z quadratic in u and its second
-    derivative converges to the surface's); across a transition linear in θ ([5] eq. 14), as
-    the points there are. ``on_cut``: :func:`evaluate`'s flags of ``phi``, if known."""
-    phi = np.ascontiguousarray(phi, dtype=np.float64)
-    on_cut = radius_at(path, phi)[1] if on_cut is None else np.ascontiguousarray(on_cut, dtype=np.bool_)
+class ZPlan(NamedTuple):
+    """What :func:`planned_z` needs of a program's Z at its points, formed once: the Z
+    [µm] of every point, of the cuts' points (C, points per cut) and their slopes along the
+    cut [µm/µm]."""
+
+    z_um: np.ndarray
+    zc: np.ndarray
+    slope: np.ndarray
+
+
+def z_plan(path: DPath, z_um: np.ndarray) -> ZPlan:
+    """The :class:`ZPlan` of Z ``z_um`` [µm] at the points of ``path``: the cuts' slopes by
+    second-order differences (one-sided at the ends)."""
     z_um = np.ascontiguousarray(z_um, dtype=np.float64)
     n, p = path.n_cuts, path.points_per_cut
     zc = z_um[path.cut >= 0].reshape(n, p)
@@ -639,18 +644,36 @@ def planned_z(path: DPath, z_um: np.ndarray, phi: np.ndarray, on_cut: np.ndarray
     slope[:, 1:-1] = (zc[:, 2:] - zc[:, :-2]) / (2.0 * du)
     slope[:, 0] = (-3.0 * zc[:, 0] + 4.0 * zc[:, 1] - zc[:, 2]) / (2.0 * du) if p > 2 else zc[:, 1] - zc[:, 0]
     slope[:, -1] = (3.0 * zc[:, -1] - 4.0 * zc[:, -2] + zc[:, -3]) / (2.0 * du) if p > 2 else slope[:, 0]
+    return ZPlan(z_um, zc, slope)
+
+
+def planned_z(
+    path: DPath,
+    z_um: np.ndarray | ZPlan,
+    phi: np.ndarray,
+    on_cut: np.ndarray | None = None,
+) -> np.ndarray:
+    """Z [µm] of the planned path at accumulated angles ``phi`` [rad] given Z at its points
+    ``z_um`` (or their :func:`z_plan`): on a cut the cubic Hermite curve through the cut's
+    points in the distance u along it (slopes by second-order differences, so it is exact for
+    Z quadratic in u and its second derivative converges to the surface's); across a
+    transition linear in θ ([5] eq. 14), as the points there are. ``on_cut``:
+    :func:`evaluate`'s flags of ``phi``, if known."""
+    plan = z_um if isinstance(z_um, ZPlan) else z_plan(path, z_um)
+    phi = np.ascontiguousarray(phi, dtype=np.float64)
+    on_cut = radius_at(path, phi)[1] if on_cut is None else np.ascontiguousarray(on_cut, dtype=np.bool_)
     out = np.empty(phi.shape)
     _planned_z_kernel(
         phi.reshape(-1),
         on_cut.reshape(-1),
         np.ascontiguousarray(path.phi, dtype=np.float64),
-        z_um,
-        zc,
-        slope,
+        plan.z_um,
+        plan.zc,
+        plan.slope,
         path.bounds,
         path.cut_d,
         path.cut_centre,
-        du,
+        path.cut_step_um,
         0.5 * path.geometry.length_um,
         out.reshape(-1),
     )
@@ -662,10 +685,11 @@ def _planned_z_kernel(
     phi, on_cut, path_phi, z_um, zc, slope, bounds, cut_d, cut_centre, du, half, out
 ):  # pragma: no cover - jit
     """:func:`planned_z` sample by sample: the point step and the segment of each angle found
-    by a walk from the last one's (a search when the angles go back), then the line between
-    the points (numpy's ``interp``: slope·(φ − φ_j) + z_j) or the cut's Hermite cubic."""
+    by a walk from the last one's (a search for the first and when the angles go back), then
+    the line between the points (numpy's ``interp``: slope·(φ − φ_j) + z_j) or the cut's
+    Hermite cubic."""
     last, nb, n, p = path_phi.size - 2, bounds.size, cut_d.size, zc.shape[1]
-    j = 0
+    j = -1
     seg = 0
     for k in range(phi.size):
         q = phi[k]
@@ -676,8 +700,9 @@ def _planned_z_kernel(
             if q >= path_phi[-1]:
                 out[k] = z_um[-1]
                 continue
-            if q < path_phi[j]:
-                j = 0
+            if j < 0 or q < path_phi[j]:
+                # the step a walk from the first point ends on (φ increases), without the walk
+                j = min(max(np.searchsorted(path_phi, q, side="right") - 1, 0), last)
             while j < last and path_phi[j + 1] <= q:
                 j += 1
             out[k] = (z_um[j + 1] - z_um[j]) / (path_phi[j + 1] - path_phi[j]) * (q - path_phi[j]) + z_um[j]
@@ -713,24 +738,54 @@ class Sampled(NamedTuple):
         found = int(np.searchsorted(self.t_points, self.t[i], side="right")) - 1
         return min(max(found, 0), self.t_points.size - 1)
 
+    def time(self, i: int) -> float:
+        """Time of sample ``i`` [s]."""
+        return float(self.t[i])
+
+
+def period_grid(t_points: np.ndarray, period_s: float, until_s: float = math.inf) -> tuple[float, float, int]:
+    """The uniform times at most ``period_s`` [s] apart over the program's points at times
+    ``t_points`` [s] (up to ``until_s``): first and last time [s] and their number (≥ 3)."""
+    if not (math.isfinite(period_s) and period_s > 0.0):
+        raise ValueError(f"the controller period must be positive, got {period_s!r} s")
+    end = min(float(t_points[-1]), until_s)
+    n = int(math.ceil((end - float(t_points[0])) / period_s)) + 1
+    return float(t_points[0]), end, max(n, 3)
+
+
+def period_times(first: float, last: float, n: int, lo: int, hi: int) -> np.ndarray:
+    """Times ``lo`` … ``hi`` − 1 [s] of ``np.linspace(first, last, n)``, the same values
+    (its arithmetic: i·step + first, the last exactly ``last``), so a long grid can be taken
+    a stretch at a time."""
+    delta, div = last - first, n - 1
+    step = delta / div
+    i = np.arange(lo, hi, dtype=np.float64)
+    # linspace's own branches: a step that underflows to zero scales the fractions instead
+    t = (i / div * delta if step == 0.0 else i * step) + first
+    if hi == n and hi > lo:
+        t[-1] = last
+    return t
+
+
+def sample_path(path: DPath, z: ZPlan, t_points: np.ndarray, t: np.ndarray) -> Sampled:
+    """The planned path (:func:`evaluate`, :func:`planned_z`) at times ``t`` [s] over the
+    program's points at times ``t_points`` [s], C linear in time between points."""
+    phi = np.interp(t, t_points, path.phi)
+    rho, on_cut = radius_at(path, phi)
+    return Sampled(t, phi, rho, planned_z(path, z, phi, on_cut), on_cut, np.asarray(t_points))
+
 
 def at_period(
     path: DPath, z_um: np.ndarray, t_points: np.ndarray, period_s: float, until_s: float = math.inf
 ) -> Sampled:
     """The program's planned path (:func:`evaluate`, :func:`planned_z`) at uniform times at
     most ``period_s`` [s] apart over the program's points at times ``t_points`` [s] (up to
-    ``until_s``), C taken linear in time between points (exact at constant spindle speed).
-    Accelerations formed on these samples by the kinematics stage are those the machine's
-    controller forms over its command period: a slope jump reads ω·Δ(dρ/dθ)/T, a smooth
-    stretch ω²·d²ρ/dθ² (model §6)."""
-    if not (math.isfinite(period_s) and period_s > 0.0):
-        raise ValueError(f"the controller period must be positive, got {period_s!r} s")
-    end = min(float(t_points[-1]), until_s)
-    n = int(math.ceil((end - float(t_points[0])) / period_s)) + 1
-    t = np.linspace(float(t_points[0]), end, max(n, 3))
-    phi = np.interp(t, t_points, path.phi)
-    rho, on_cut = radius_at(path, phi)
-    return Sampled(t, phi, rho, planned_z(path, z_um, phi, on_cut), on_cut, np.asarray(t_points))
+    ``until_s``, :func:`period_grid`), C taken linear in time between points (exact at
+    constant spindle speed). Accelerations formed on these samples by the kinematics stage
+    are those the machine's controller forms over its command period: a slope jump reads
+    ω·Δ(dρ/dθ)/T, a smooth stretch ω²·d²ρ/dθ² (model §6)."""
+    first, last, n = period_grid(t_points, period_s, until_s)
+    return sample_path(path, z_plan(path, z_um), t_points, period_times(first, last, n, 0, n))
 
 
 @njit(nogil=True, cache=True)

@@ -144,42 +144,118 @@ class Extremes(NamedTuple):
 
 
 @njit(nogil=True, cache=True)
-def _extremes(
-    q, steps, group, low, low_at, high, high_at, speed, speed_at, accel, accel_at, accel_group, accel_sq
-):  # pragma: no cover - jit
-    n, m = q.shape
-    for j in range(m):
-        low[j] = high[j] = q[0, j]
+def _extremes_start(q0, low, low_at, high, high_at, speed, speed_at, accel, accel_at, accel_group, accel_sq):  # noqa: E501  # pragma: no cover - jit
+    """The :class:`Extremes` before any point: positions at the first point ``q0`` (A,)."""
+    for j in range(q0.size):
+        low[j] = high[j] = q0[j]
         low_at[j] = high_at[j] = speed_at[j] = accel_at[j] = 0
         speed[j] = -1.0
         accel[j] = accel_sq[j] = 0.0  # the end points' accelerations are zero
     accel_group[:, :] = 0.0
-    for i in range(n):
+
+
+@njit(nogil=True, cache=True)
+def _extremes_span(
+    q,
+    steps,
+    group,
+    i0,
+    i1,
+    base,
+    n,
+    low,
+    low_at,
+    high,
+    high_at,
+    speed,
+    speed_at,
+    accel,
+    accel_at,
+    accel_group,
+    accel_sq,
+):  # noqa: E501  # pragma: no cover - jit
+    """The extremes carried over points i0 … i1 − 1 of a stretch q (S, A) whose point i is
+    point ``base`` + i of ``n``: the stretch holds the neighbours i ± 1 a point's velocity and
+    acceleration need, ``steps`` (S − 1) and ``group`` (S) alike. Points in order, so the
+    first point of each extreme and the running sum are those of one pass over all."""
+    m = q.shape[1]
+    # each velocity is formed once: the step's after a point is the next point's before it
+    before = np.empty(m)
+    if i0 > 0:
+        for j in range(m):
+            before[j] = (q[i0, j] - q[i0 - 1, j]) / steps[i0 - 1]
+    for i in range(i0, i1):
+        k = base + i
         for j in range(m):
             x = q[i, j]
             if x < low[j]:
                 low[j] = x
-                low_at[j] = i
+                low_at[j] = k
             if x > high[j]:
                 high[j] = x
-                high_at[j] = i
-            if i < n - 1:
+                high_at[j] = k
+            if k < n - 1:
                 # the arithmetic of _velocities and accelerations, so the same values
-                v = abs((q[i + 1, j] - x) / steps[i])
+                after = (q[i + 1, j] - x) / steps[i]
+                v = abs(after)
                 if v > speed[j]:
                     speed[j] = v
-                    speed_at[j] = i
-            if 0 < i < n - 1:
-                t0, t1 = steps[i - 1], steps[i]
-                a = 2.0 * ((q[i + 1, j] - x) / t1 - (x - q[i - 1, j]) / t0) / (t0 + t1)
-                accel_sq[j] += a * a
-                a = abs(a)
-                if a > accel[j]:
-                    accel[j] = a
-                    accel_at[j] = i
-                g = group[i]
-                if a > accel_group[g, j]:
-                    accel_group[g, j] = a
+                    speed_at[j] = k
+                if k > 0:
+                    t0, t1 = steps[i - 1], steps[i]
+                    a = 2.0 * (after - before[j]) / (t0 + t1)
+                    accel_sq[j] += a * a
+                    a = abs(a)
+                    if a > accel[j]:
+                        accel[j] = a
+                        accel_at[j] = k
+                    g = group[i]
+                    if a > accel_group[g, j]:
+                        accel_group[g, j] = a
+                before[j] = after
+
+
+class ExtremesOver:
+    """The :class:`Extremes` of a motion of ``n`` points and ``axes`` axes taken stretch by
+    stretch (:meth:`add`), so a program sampled every controller period need not be held
+    whole: the same values and first points as :func:`extremes` of all the points at once."""
+
+    def __init__(self, n: int, axes: int, groups: int = 1) -> None:
+        value, at = np.empty, lambda size: np.empty(size, dtype=np.int64)
+        self.n, self.groups, self.started = n, groups, False
+        self.out = Extremes(
+            value(axes), at(axes), value(axes), at(axes), value(axes), at(axes), value(axes), at(axes),
+            value((groups, axes)), value(axes),
+        )  # fmt: skip
+        if n == 0:  # no point: nothing to exceed
+            e = self.out
+            e.low[:], e.high[:], e.speed[:], e.accel[:] = math.inf, -math.inf, -1.0, -1.0
+            e.accel_group[:], e.accel_sq[:] = 0.0, 0.0
+            e.low_at[:], e.high_at[:], e.speed_at[:], e.accel_at[:] = 0, 0, 0, 0
+
+    def add(
+        self, q: np.ndarray, steps: np.ndarray, group: np.ndarray | None, i0: int, i1: int, base: int
+    ) -> None:
+        """Points ``base`` + i0 … ``base`` + i1 − 1 from the stretch q (S, A) SI of points
+        ``base`` … ``base`` + S − 1, its timesteps (S − 1) [s] and groups (S) (0 … groups − 1;
+        None: all 0). Stretches must come in order and hold each point's neighbours."""
+        q = np.ascontiguousarray(q, dtype=np.float64)
+        s = q.shape[0]
+        group = np.zeros(s, dtype=np.int64) if group is None else np.asarray(group, dtype=np.int64)
+        if group.shape != (s,) or (s and not 0 <= group.min() <= group.max() < self.groups):
+            raise ValueError(
+                f"a group for each of the {s} points, numbered 0 to {self.groups - 1}, is needed"
+            )
+        if i0 >= i1:
+            return
+        if not self.started:
+            if base + i0 != 0:
+                raise ValueError("the first stretch must start at the first point")
+            _extremes_start(q[i0], *self.out)
+            self.started = True
+        _extremes_span(
+            q, np.ascontiguousarray(steps, dtype=np.float64), group, i0, i1, base, self.n, *self.out
+        )
 
 
 def extremes(q: np.ndarray, steps: np.ndarray, group: np.ndarray | None = None, groups: int = 1) -> Extremes:
@@ -188,20 +264,9 @@ def extremes(q: np.ndarray, steps: np.ndarray, group: np.ndarray | None = None, 
     without forming them (a D path sampled every controller period has millions of points).
     ``group`` (P) numbers each point's group, 0 … ``groups`` − 1 (e.g. on a cut or not)."""
     q = np.ascontiguousarray(q, dtype=np.float64)
-    n, m = q.shape
-    group = np.zeros(n, dtype=np.int64) if group is None else np.asarray(group, dtype=np.int64)
-    if group.shape != (n,) or (n and not 0 <= group.min() <= group.max() < groups):
-        raise ValueError(f"a group for each of the {n} points, numbered 0 to {groups - 1}, is needed")
-    value, at = np.empty, lambda size: np.empty(size, dtype=np.int64)
-    out = Extremes(
-        value(m), at(m), value(m), at(m), value(m), at(m), value(m), at(m), value((groups, m)), value(m)
-    )
-    if n > 0:
-        _extremes(q, np.ascontiguousarray(steps, dtype=np.float64), group, *out)
-    else:  # no point: nothing to exceed
-        out.low[:], out.high[:], out.speed[:], out.accel[:] = math.inf, -math.inf, -1.0, -1.0
-        out.accel_group[:], out.accel_sq[:] = 0.0, 0.0
-    return out
+    over = ExtremesOver(q.shape[0], q.shape[1], groups)
+    over.add(q, steps, group, 0, q.shape[0], 0)
+    return over.out
 
 
 def relative(m: Motion, limits: Limits) -> tuple[np.ndarray, np.ndarray]:

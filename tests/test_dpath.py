@@ -18,7 +18,7 @@ from ftsweep.export import ExportError, verify
 from ftsweep.kinds import path_programs as program
 from ftsweep.kinds.requests import program_request
 from ftsweep.spec import Case, CaseError
-from ftsweep.stages import dpath
+from ftsweep.stages import dpath, kinematics
 
 # [5]'s example: l = s = 20 mm, zone centre 30 mm from the C axis (outer edge 40 mm), 40 rpm
 SEED = {"length_um": 20000.0, "width_um": 20000.0, "outer_um": 40000.0, "zones": 1}
@@ -82,6 +82,45 @@ def test_planned_z_is_exact_for_z_quadratic_along_the_cuts(a, b, c, transition, 
     uu = path.cut_d[k] * np.tan(phi[on_cut] - path.cut_centre[k])
     assert np.allclose(got[on_cut], a + b * uu + c * uu**2, rtol=0.0, atol=1e-9)
     assert np.allclose(got[~on_cut], np.interp(phi[~on_cut], path.phi, z), rtol=0.0, atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    first=st.floats(-1e4, 1e4),
+    length=st.floats(0.0, 1e4),
+    n=st.integers(3, 5000),
+    cut=st.integers(0, 5000),
+)
+def test_period_times_a_stretch_at_a_time_are_linspace_own(first, length, n, cut):
+    # the controller-period grid taken in stretches: the same values as one linspace
+    whole = np.linspace(first, first + length, n)
+    cut = min(cut, n)
+    parts = [
+        dpath.period_times(first, first + length, n, 0, cut),
+        dpath.period_times(first, first + length, n, cut, n),
+    ]
+    np.testing.assert_array_equal(np.concatenate(parts), whole)
+
+
+@pytest.mark.parametrize("transition", ["traditional", "optimised"])
+def test_motion_extremes_taken_a_stretch_at_a_time_are_those_of_the_samples(monkeypatch, transition):
+    # the streamed extremes of the motion every controller period (stretches of 1,000 samples
+    # with their neighbours) are those of the whole sampled arrays, first points included
+    from ftsweep import dpath as dprog
+
+    path = seed_path(transition, spacing_um=500.0, ppc=21)
+    z = 1e-3 * (path.rho - path.rho.mean()) ** 2 / 1e4
+    t = dpath.point_times(path.phi, path.rho, z, "spindle", 40.0)
+    s = dpath.at_period(path, z, t, 1e-3)
+    want = kinematics.extremes(dprog.axes_of(s), kinematics.steps_of(s.t), s.on_cut, 2)
+    monkeypatch.setattr(dprog, "SAMPLE_BLOCK", 1000)
+    samples, got, (x_min, x_max) = dprog.sampled_extremes(path, z, t, 1e-3)
+    assert samples.n == s.t.size > 5000
+    for name, value in want._asdict().items():
+        np.testing.assert_array_equal(getattr(got, name), value, err_msg=name)
+    assert (x_min, x_max) == (s.rho.min(), s.rho.max())
+    for i in (0, 999, 1000, 4321, s.t.size - 1):
+        assert samples.time(i) == s.t[i] and samples.line(i) == s.line(i)
 
 
 def test_motion_at_the_controller_period_samples_the_planned_path():

@@ -127,6 +127,39 @@ def test_extremes_in_one_pass_are_the_motion_arrays_own(n, axes, seed, ties):
     np.testing.assert_allclose(e.accel_sq, np.sum(m.accel**2, axis=0), rtol=1e-12)
 
 
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(0, 60),
+    axes=st.integers(1, 3),
+    seed=st.integers(0, 2**32 - 1),
+    ties=st.booleans(),
+    cuts=st.lists(st.integers(1, 59), max_size=6),
+)
+def test_extremes_taken_stretch_by_stretch_are_those_of_one_pass(n, axes, seed, ties, cuts):
+    # stretches in order, each with its neighbours (as a long sampled program is taken):
+    # every value and first point, and the running sum to the last bit, as one pass gives
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(n, axes))
+    if ties:
+        q = np.round(q)
+    steps = rng.uniform(0.1, 2.0, max(n - 1, 0))
+    group = rng.integers(0, 3, n)
+    whole = kinematics.extremes(q, steps, group, 3)
+    over = kinematics.ExtremesOver(n, axes, 3)
+    edges = sorted({0, n, *(c for c in cuts if c < n)})
+    for lo, hi in zip(edges[:-1], edges[1:], strict=False):
+        a, b = max(lo - 1, 0), min(hi + 1, n)
+        over.add(q[a:b], steps[a : b - 1], group[a:b], lo - a, hi - a, a)
+    for name, value in whole._asdict().items():
+        np.testing.assert_array_equal(getattr(over.out, name), value, err_msg=name)
+
+
+def test_extremes_stretches_start_at_the_first_point():
+    over = kinematics.ExtremesOver(5, 1)
+    with pytest.raises(ValueError, match="first stretch"):
+        over.add(np.zeros((3, 1)), np.ones(2), None, 1, 2, 1)
+
+
 def test_extremes_refuses_groups_it_has_no_room_for():
     # the compiled pass indexes its per-group peaks by the group: one out of range is refused
     q, steps = np.zeros((4, 2)), np.ones(3)

@@ -18,7 +18,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import kinds
+from ftsweep import catalogs, kinds
 from ftsweep.case import Machined, require_finite
 from ftsweep.cost import angular_samples, check_cost, ray_nodes
 from ftsweep.kinds import Simulating
@@ -234,6 +234,16 @@ def _reach_um(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray) -> float:
     return float(extent.max()) + rcase.nose_radius_um + plan.margin_um
 
 
+def single_peaked(rcase: ResolvedCase) -> bool:
+    """Whether every radial section's h(s) = g(ρ + s) − arc(s) is single-peaked (model §4):
+    the surface's curvature bound K below 1/Rc makes it strictly concave (the criterion of
+    the table's secant solver). Not for a Fresnel-sliced entry, whose facet walls its base
+    surface's bound does not see."""
+    if getattr(rcase.surface_spec, "fresnel", None) is not None:
+        return False
+    return catalogs.curvature_bound(rcase.surface_spec) * rcase.nose_radius_um < 1.0
+
+
 def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Timer) -> LineData:
     """The layout-independent part of a batch of lines (model §3–§6): surface samples and the
     exact commands along the path (their envelope is evaluated where the metrics need it,
@@ -262,7 +272,9 @@ def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Ti
     if not res.interp_error:
         return LineData(grid, ct, st, g, gp, inside, None)
     mode = compensation.MODE_CODES[rcase.case.compensation]
-    w_exact = compensation.commands_on_rays(g, gp, grid.spacing_um, rc, grid.pass_nodes, grid.n_passes, mode)
+    w_exact = compensation.commands_on_rays(
+        g, gp, grid.spacing_um, rc, grid.pass_nodes, grid.n_passes, mode, single_peaked(rcase)
+    )
     timer.add("compensation", t)
     passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
     require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))

@@ -124,11 +124,11 @@ def test_on_ray_solver_agrees_with_point_solver():
     g, gp = radial_section(surface, r, math.cos(theta), math.sin(theta))
     nodes = np.arange(20, 980, 2, dtype=np.int64)
     out = np.empty(nodes.size)
-    compensation.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out)
+    compensation.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out, False)
     ref, _ = compensate(surface, r[nodes], np.full(nodes.size, theta), rc, "exact", bound)
     np.testing.assert_allclose(out, ref, atol=0.05e-3)  # 0.05 nm
     for code, mode in ((1, "slope"), (2, "none")):
-        compensation.compensate_on_ray(g, gp, spacing, rc, nodes, code, out)
+        compensation.compensate_on_ray(g, gp, spacing, rc, nodes, code, out, False)
         want, _ = compensate(surface, r[nodes], np.full(nodes.size, theta), rc, mode)
         np.testing.assert_allclose(out, want, atol=1e-12)
 
@@ -263,10 +263,19 @@ def _sampled_maximum(g, spacing, rc, n):
 
 
 @settings(max_examples=80, deadline=None)
-@given(st.floats(-0.6, 0.6), st.floats(-0.008, 0.008), st.floats(20.0, 150.0), st.integers(0, 2**32 - 1))
-def test_on_ray_climb_finds_the_sampled_maximum(slope, curvature, rc, seed):
-    """From any start, gentle slopes (the series start) and steep ones (the exact start) alike,
-    the climb ends on the best sample of a single-peaked section (curvature below 1/Rc)."""
+@given(
+    st.floats(-0.6, 0.6),
+    st.floats(-0.008, 0.008),
+    st.floats(20.0, 150.0),
+    st.integers(0, 2**32 - 1),
+    st.booleans(),
+    st.booleans(),
+)
+def test_on_ray_climb_finds_the_sampled_maximum(slope, curvature, rc, seed, from_passes, even):
+    """From any start, gentle slopes (the series start), steep ones (the exact start) and the
+    line through the last two passes' contacts alike, on passes at random nodes or evenly
+    spaced as on a path grid, the climb ends on the best sample of a single-peaked section
+    (curvature below 1/Rc)."""
     rng = np.random.default_rng(seed)
     spacing = 0.5
     r = 400.0 - np.arange(1600) * spacing
@@ -274,8 +283,11 @@ def test_on_ray_climb_finds_the_sampled_maximum(slope, curvature, rc, seed):
     c = min(curvature, 0.9 / rc)  # with the wiggle's ≤ 0.2/31² µm⁻¹, below 1/Rc
     g = slope * r + 0.5 * c * (r - 200.0) ** 2 + 0.2 * np.sin(r / 31.0 + phase)
     gp = slope + c * (r - 200.0) + 0.2 / 31.0 * np.cos(r / 31.0 + phase)
-    nodes = np.sort(rng.choice(np.arange(1, 1599), 60, replace=False)).astype(np.int64)
+    if even:
+        nodes = np.arange(int(rng.integers(1, 20)), 1599, int(rng.integers(1, 5)), dtype=np.int64)
+    else:
+        nodes = np.sort(rng.choice(np.arange(1, 1599), 60, replace=False)).astype(np.int64)
     out = np.empty(nodes.size)
-    compensation.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out)
+    compensation.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out, from_passes)
     want = np.array([_sampled_maximum(g, spacing, rc, int(n)) for n in nodes])
     np.testing.assert_array_equal(out, want)

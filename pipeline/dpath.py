@@ -166,8 +166,7 @@ class PeriodSamples(NamedTuple):
 
     def line(self, i: int) -> int:
         """The program line (0-based point) sample ``i`` follows."""
-        found = int(np.searchsorted(self.t_points, self.time(i), side="right")) - 1
-        return min(max(found, 0), self.t_points.size - 1)
+        return dpath.line_at(self.t_points, self.time(i))
 
 
 def sampled_extremes(

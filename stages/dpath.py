@@ -720,6 +720,13 @@ def _planned_z_kernel(
         out[k] = h00 * zc[i, m] + h10 * du * slope[i, m] + h01 * zc[i, m + 1] + h11 * du * slope[i, m + 1]
 
 
+def line_at(t_points: np.ndarray, t: float) -> int:
+    """The program line (0-based point) a sample at time ``t`` [s] follows, the points at
+    times ``t_points`` [s]."""
+    found = int(np.searchsorted(t_points, t, side="right")) - 1
+    return min(max(found, 0), t_points.size - 1)
+
+
 class Sampled(NamedTuple):
     """A D-path program's motion sampled on its planned path every controller period:
     times t [s], C φ [rad], X = ρ and Z [µm], whether each sample lies on a cut, and the
@@ -735,8 +742,7 @@ class Sampled(NamedTuple):
     def line(self, i: int) -> int:
         """The program line (0-based point) sample ``i`` follows: found for the few samples a
         message names, not for millions of samples that no one reads."""
-        found = int(np.searchsorted(self.t_points, self.t[i], side="right")) - 1
-        return min(max(found, 0), self.t_points.size - 1)
+        return line_at(self.t_points, float(self.t[i]))
 
     def time(self, i: int) -> float:
         """Time of sample ``i`` [s]."""

@@ -173,7 +173,7 @@ def _extremes_span(
     accel_at,
     accel_group,
     accel_sq,
-):  # noqa: E501  # pragma: no cover - jit
+):  # pragma: no cover - jit
     """The extremes carried over points i0 … i1 − 1 of a stretch q (S, A) whose point i is
     point ``base`` + i of ``n``: the stretch holds the neighbours i ± 1 a point's velocity and
     acceleration need, ``steps`` (S − 1) and ``group`` (S) alike. Points in order, so the

@@ -240,7 +240,7 @@ def _place(rho, ct, st, p, s, i, x, y):  # pragma: no cover - jit
 @njit(nogil=True, cache=True)
 def _secant_update(
     f, fx, fy, rho, ct, st, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, gp_prev, a, b, best, x, y
-):  # noqa: E501  # pragma: no cover - jit
+):  # pragma: no cover - jit
     """One secant iteration of :func:`_secant_max` on its ``f.size`` active points, in place:
     forms each point's radial slope g' from the gradient (fx, fy) on its section, records h
     at s in ``best``, moves s, and packs the points still moving to the front of the state

@@ -488,13 +488,20 @@ def test_peak_acceleration_at_a_step_is_the_largest_of_the_points(transition, st
     # one compiled pass over blocks: the largest of ω²|ρ(φ+h) − 2ρ(φ) + ρ(φ−h)|/h² at the
     # points whose φ ± h stay on the program, to the last bit (0 when none does)
     path = seed_path(transition, spacing_um=500.0, ppc=21)
-    h, omega = math.radians(step_deg), 40.0 * 2.0 * math.pi / 60.0
+    h = math.radians(step_deg)
+    want, any_point = _every_points_peak(path, h)
+    assert dpath.x_accel_peak_at_step(path, 40.0, h) == want
+    assert (want > 0.0) == any_point
+
+
+def _every_points_peak(path: dpath.DPath, h: float) -> tuple[float, bool]:
+    """ω²|ρ(φ+h) − 2ρ(φ) + ρ(φ−h)|/h² [m/s²] at 40 rpm, largest over every point whose φ ± h
+    stay on the program (0 when none does), each evaluated; and whether any does."""
+    omega = 40.0 * 2.0 * math.pi / 60.0
     ok = (path.phi - h >= path.phi[0]) & (path.phi + h <= path.phi[-1])
     p = path.phi[ok]
     mid, ahead, behind = (dpath.radius_at(path, p + d)[0] for d in (0.0, h, -h))
-    want = np.abs(omega**2 * (ahead - 2.0 * mid + behind) / h**2 * 1e-6).max(initial=0.0)
-    assert dpath.x_accel_peak_at_step(path, 40.0, h) == want
-    assert (want > 0.0) == bool(ok.any())
+    return np.abs(omega**2 * (ahead - 2.0 * mid + behind) / h**2 * 1e-6).max(initial=0.0), bool(ok.any())
 
 
 def _random_path(transition, zones, length_mm, width_mm, inner_mm, spacing_fraction, ppc):
@@ -566,12 +573,7 @@ def test_peak_at_a_step_leaves_out_only_points_that_cannot_reach_it(step_deg, **
     # of every point's, to the last bit, on any geometry and step
     path = _random_path(**geometry)
     h = math.radians(step_deg)
-    ok = (path.phi - h >= path.phi[0]) & (path.phi + h <= path.phi[-1])
-    p = path.phi[ok]
-    mid, ahead, behind = (dpath.radius_at(path, p + d)[0] for d in (0.0, h, -h))
-    omega = 40.0 * 2.0 * math.pi / 60.0
-    want = np.abs(omega**2 * (ahead - 2.0 * mid + behind) / h**2 * 1e-6).max(initial=0.0)
-    assert dpath.x_accel_peak_at_step(path, 40.0, h) == want
+    assert dpath.x_accel_peak_at_step(path, 40.0, h) == _every_points_peak(path, h)[0]
 
 
 @pytest.mark.parametrize("transition", ["traditional", "optimised"])

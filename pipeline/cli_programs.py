@@ -76,36 +76,19 @@ def dpath_command(**opts: Any) -> None:
       ftsweep dpath --surface integral_mirror --json
       ftsweep dpath --spacing-um 20 -o outputs/sphere-dpath.txt --force
     """
-    from pydantic import ValidationError
+    from ftsweep.dfigures import Plots
 
-    from ftsweep import dstudy
-    from ftsweep.catalogs import CatalogError
-    from ftsweep.kinds import dpath as dpath_kind
-    from ftsweep.spec import CaseError
-
-    options = dpath_kind.request_options(opts)
     _check_overwrite(opts["out"], opts["force"])
-    progress = stderr_progress("dpath", opts["as_json"])
     try:
-        base = dstudy.default_case(opts["surface"], opts["machine"], opts["cutting"], options)
-        summary = dstudy.study(base, opts["feed_mm_min"], not opts["no_spiral"], progress)
-    except (CaseError, CatalogError, ValidationError, ValueError) as exc:
-        raise click.ClickException(one_line(str(exc))) from None
-    finally:
-        progress_done(progress)
-    rpm = summary["optimised"]["spindle_rpm"]
-    folder = opts["plot_dir"]
-    folder.mkdir(parents=True, exist_ok=True)
-    period = summary["accel_period_s"]
-    out_x = folder / f"dpath-{base.surface}-x.png"
-    plots = [str(dstudy.plot_x_motion(summary["_programs"], rpm, period, out_x))]
-    if "_spiral_motion" in summary:
-        out_z = folder / f"dpath-{base.surface}-z.png"
-        plots.append(
-            str(
-                dstudy.plot_z_motion(summary["_spiral_motion"], summary["_programs"]["optimised"], rpm, out_z)
-            )
-        )  # noqa: E501
+        drawn = Plots(opts["plot_dir"], opts["surface"])
+    except OSError as exc:
+        raise click.ClickException(f"--plots {opts['plot_dir']}: cannot write plots there ({exc})") from None
+    # the plots' process is started first: its imports overlap the study's
+    with drawn:
+        summary, base = _dpath_study(opts, drawn)
+        plots = [str(p) for p in drawn.paths()]
+    from ftsweep import dstudy
+
     result = dstudy.public(summary)
     result["plots"] = plots
     if opts["out"] is not None:
@@ -119,6 +102,29 @@ def dpath_command(**opts: Any) -> None:
     click.echo(f"plots        {', '.join(plots)}")
     if opts["out"] is not None:
         click.echo(f"program      {result['program']['path']} ({result['program']['lines']:,} lines t C X Z)")
+
+
+def _dpath_study(opts: dict[str, Any], plots: Any) -> tuple[dict[str, Any], Case]:
+    """``dpath``'s study (:func:`ftsweep.dstudy.study`) of the command's options, its
+    figures drawn by ``plots`` (:class:`ftsweep.dfigures.Plots`), and the case it started
+    from; bad options and entries are the command's errors."""
+    from pydantic import ValidationError
+
+    from ftsweep import dstudy
+    from ftsweep.catalogs import CatalogError
+    from ftsweep.kinds import dpath as dpath_kind
+    from ftsweep.spec import CaseError
+
+    options = dpath_kind.request_options(opts)
+    progress = stderr_progress("dpath", opts["as_json"])
+    try:
+        base = dstudy.default_case(opts["surface"], opts["machine"], opts["cutting"], options)
+        summary = dstudy.study(base, opts["feed_mm_min"], not opts["no_spiral"], progress, plots=plots)
+    except (CaseError, CatalogError, ValidationError, ValueError) as exc:
+        raise click.ClickException(one_line(str(exc))) from None
+    finally:
+        progress_done(progress)
+    return summary, base
 
 
 def _check_overwrite(out: Optional[Path], force: bool) -> None:

@@ -15,7 +15,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 
@@ -27,6 +27,9 @@ from ftsweep.planning import ResolvedCase, resolve_case
 from ftsweep.spec import Case, Resolution
 from ftsweep.stages import dpath
 from ftsweep.threads import current as current_threads
+
+if TYPE_CHECKING:
+    from ftsweep.dfigures import Plots
 
 
 def d_case(base: Case, transition: str) -> Case:
@@ -126,14 +129,19 @@ def _transition(rcase: ResolvedCase, feed_mm_min: float, progress: Any) -> dict[
     return keep
 
 
-def _spiral(base: Case, path: dpath.DPath, progress: Any, threads: int) -> dict[str, Any]:
-    """The spiral on the same part (:func:`spiral_case` of the optimised path's spacing and
-    cut step): its record's figures (its batches on ``threads`` threads) and its axis motion
-    (``motion``)."""
+def _spiral(
+    base: Case, program: tuple[dpath.DPath, np.ndarray], progress: Any, threads: int, plots: Optional[Plots]
+) -> dict[str, Any]:
+    """The spiral on the same part (:func:`spiral_case` of the optimised ``program``'s spacing
+    and cut step): its record's figures (its batches on ``threads`` threads) and its axis
+    motion (``motion``), handed to ``plots`` with ``program`` before its case runs."""
+    path = program[0]
     scase = spiral_case(base, {"cut_step_um": path.cut_step_um, "spacing_um": path.geometry.spacing_um})
     srcase = resolve_case(scase)
-    srec = run_case(scase, progress=progress, resolved=srcase, threads=threads)
     motion = spiral_motion(scase, srcase)
+    if plots is not None:
+        plots.z_motion(z_motion_curves(motion, program, srcase.cutting.spindle_rpm))
+    srec = run_case(scase, progress=progress, resolved=srcase, threads=threads)
     return {
         "n_points": srec["n_points"],
         "pv_nm": srec["pv_nm"],
@@ -153,6 +161,7 @@ def study(
     with_spiral: bool = True,
     progress: Any = None,
     threads: Optional[int] = None,
+    plots: Optional[Plots] = None,
 ) -> dict[str, Any]:
     """Both transitions of ``base`` and (optionally) the spiral: one JSON-ready summary.
 
@@ -163,7 +172,8 @@ def study(
     release the GIL. Each transition's case takes one; the spiral, which starts last, spreads
     its batches over all of them, so the core the short ratio table frees does not wait for
     it (the seed example's study 0.2 s sooner on two cores). The summary is the same whatever
-    the number."""
+    the number. ``plots`` (:class:`ftsweep.dfigures.Plots`) is handed each figure's curves as
+    soon as they are known, to draw them while the cases run."""
     out: dict[str, Any] = {"surface": base.surface, "machine": base.machine, "cutting": base.cutting}
     with dpath_kind.shared_cuts():
         resolved = {kind: resolve_case(d_case(base, kind)) for kind in TRANSITIONS}
@@ -171,7 +181,10 @@ def study(
     opt_case = resolved["optimised"]
     rpm = opt_case.cutting.spindle_rpm
     # the C step of one controller period (the records' accel_step_deg, formed alike)
-    step_deg = math.degrees(rpm * 2.0 * math.pi / 60.0 * dprog.period_of(opt_case.machine))
+    period = dprog.period_of(opt_case.machine)
+    step_deg = math.degrees(rpm * 2.0 * math.pi / 60.0 * period)
+    if plots is not None:
+        plots.x_motion(x_motion_curves(programs, rpm, period), x_motion_title(rpm))
     combined = _Progress(progress, len(TRANSITIONS) + int(with_spiral))
     n_threads = max(1, current_threads(threads))
     with ThreadPoolExecutor(n_threads) as pool:
@@ -181,7 +194,7 @@ def study(
         }
         spiral = None
         if with_spiral:
-            spiral = pool.submit(_spiral, base, opt_case.layout, combined.of(2), n_threads)
+            spiral = pool.submit(_spiral, base, programs["optimised"], combined.of(2), n_threads, plots)
         by_step = pool.submit(accel_by_step, programs, rpm, step_deg)
         for kind, done in cases.items():
             out[kind] = done.result()
@@ -247,51 +260,41 @@ def _by_step_text(table: dict[str, Any]) -> str:
     )
 
 
-def plot_x_motion(
-    programs: dict[str, tuple[dpath.DPath, np.ndarray]],
-    rpm: float,
-    period_s: float,
-    out: Path,
-    cycles: int = 2,
-) -> Path:  # noqa: E501
-    """[5] fig. 3: ρ, X feed-rate and X acceleration against the polar angle over the first
-    ``cycles`` revolutions, traditional against optimised (the planned path at constant
-    spindle speed sampled every controller period ``period_s`` [s], eqs. 3–6; the
-    traditional acceleration is a spike over one period)."""
-    from ftsweep.io import save_figure, stacked_axes
-
-    axes = stacked_axes(3, (8.0, 7.5), sharex=True)
-    omega = rpm * 2.0 * math.pi / 60.0
+def x_motion_curves(
+    programs: dict[str, tuple[dpath.DPath, np.ndarray]], rpm: float, period_s: float, cycles: int = 2
+) -> dict[str, dict[str, np.ndarray]]:
+    """What [5] fig. 3 shows of each transition over its first ``cycles`` revolutions: the
+    planned path at constant spindle speed sampled every controller period ``period_s`` [s]
+    (eqs. 3–6): polar angle ``deg`` [deg], ρ ``rho_mm`` [mm], X acceleration ``x_accel_m_s2``
+    [m/s²] at the samples, X feed ``x_feed_mm_s`` [mm/s] at the steps' middles ``mid_deg``
+    (the traditional acceleration is a spike over one period)."""
+    out = {}
     for kind, (path, z) in programs.items():
         t = dpath.point_times(path.phi, path.rho, z, "spindle", rpm)
         s, _, m = dprog.sampled_motion(path, z, t, period_s, until_s=cycles * 60.0 / rpm)
-        deg = np.degrees(s.phi)
-        # velocities belong to the steps between samples: drawn at the steps' middles
-        mid = np.degrees(0.5 * (s.phi[1:] + s.phi[:-1]))
-        axes[0].plot(deg, s.rho * 1e-3, label=kind)
-        axes[1].plot(mid, m.velocity[:, 1] * 1e3, label=kind)
-        axes[2].plot(deg, m.accel[:, 1], label=kind)
-    axes[0].set_ylabel("ρ = X [mm]")
-    axes[1].set_ylabel("X feed [mm/s]")
-    axes[2].set_ylabel("X acceleration [m/s²]")
-    axes[2].set_xlabel("polar angle θ (accumulated C) [deg]")
-    axes[0].set_title(
-        f"D path: traditional against optimised transition at {rpm:g} rpm (ω = {omega:.3g} rad/s)", fontsize=9
-    )  # noqa: E501
-    for a in axes:
-        a.grid(True, alpha=0.3)
-        a.legend(fontsize=7)
-    return save_figure(axes[0].figure, out)
+        out[kind] = {
+            "deg": np.degrees(s.phi),
+            "rho_mm": s.rho * 1e-3,
+            "mid_deg": np.degrees(0.5 * (s.phi[1:] + s.phi[:-1])),
+            "x_feed_mm_s": m.velocity[:, 1] * 1e3,
+            "x_accel_m_s2": m.accel[:, 1],
+        }
+    return out
 
 
-def plot_z_motion(
-    spiral: dict[str, Any], program: tuple[dpath.DPath, np.ndarray], rpm: float, out: Path
-) -> Path:
-    """[5] fig. 7: Z over one revolution of the spiral (mid-radius) and over one cycle of the
-    D path, with their Z velocities."""
-    from ftsweep.io import save_figure, stacked_axes
+def x_motion_title(rpm: float) -> str:
+    """[5] fig. 3's title at spindle speed ``rpm``."""
+    omega = rpm * 2.0 * math.pi / 60.0
+    return f"D path: traditional against optimised transition at {rpm:g} rpm (ω = {omega:.3g} rad/s)"
 
-    axes = stacked_axes(2, (8.0, 6.0))
+
+def z_motion_curves(
+    spiral: dict[str, Any], program: tuple[dpath.DPath, np.ndarray], rpm: float
+) -> dict[str, dict[str, np.ndarray]]:
+    """What [5] fig. 7 shows: Z [µm] over one revolution of the spiral (from mid-radius,
+    ``spiral`` as :func:`spiral_motion`) and over one cycle of the D path (the mid-zone cut),
+    against C within it (``deg`` [deg]), with the Z velocity [mm/s] of the steps from each
+    point (``step_deg``)."""
     phi = spiral["phi"]
     mid = 0.5 * phi[-1]
     sel = (phi >= mid) & (phi < mid + 2.0 * math.pi)
@@ -300,22 +303,40 @@ def plot_z_motion(
     m = dpath.axis_motion(t, path.phi, path.rho, z)
     cycle = path.n_cuts // 2
     dsel = (path.phi >= path.cut_centre[cycle] - math.pi) & (path.phi < path.cut_centre[cycle] + math.pi)
-    axes[0].plot(np.degrees(phi[sel] - phi[sel][0]), spiral["z"][sel], label="spiral")
-    axes[0].plot(np.degrees(path.phi[dsel] - path.phi[dsel][0]), z[dsel], label="D path")
-    axes[0].set_ylabel("Z [µm]")
-    # velocities belong to the steps between points (drawn from each step's start)
-    vs, vd = sel[:-1], dsel[:-1]
-    axes[1].plot(np.degrees(phi[:-1][vs] - phi[sel][0]), spiral["z_velocity_mm_s"][vs], label="spiral")
-    axes[1].plot(np.degrees(path.phi[:-1][vd] - path.phi[dsel][0]), m["z_velocity_mm_s"][vd], label="D path")
-    axes[1].set_ylabel("Z velocity [mm/s]")
-    axes[1].set_xlabel("C within one revolution [deg]")
-    axes[0].set_title(
-        "Z motion over one revolution: spiral (mid-radius) against D path (mid-zone cut)", fontsize=9
-    )
-    for a in axes:
-        a.grid(True, alpha=0.3)
-        a.legend(fontsize=7)
-    return save_figure(axes[0].figure, out)
+
+    def one(phi: np.ndarray, z: np.ndarray, velocity: np.ndarray, on: np.ndarray) -> dict[str, np.ndarray]:
+        start = phi[on][0]
+        return {
+            "deg": np.degrees(phi[on] - start),
+            "z_um": z[on],
+            "step_deg": np.degrees(phi[:-1][on[:-1]] - start),
+            "z_velocity_mm_s": velocity[on[:-1]],
+        }
+
+    return {
+        "spiral": one(phi, spiral["z"], spiral["z_velocity_mm_s"], sel),
+        "D path": one(path.phi, z, m["z_velocity_mm_s"], dsel),
+    }
+
+
+def plot_x_motion(
+    programs: dict[str, tuple[dpath.DPath, np.ndarray]], rpm: float, period_s: float, out: Path
+) -> Path:
+    """[5] fig. 3 (:func:`x_motion_curves`, drawn by :func:`ftsweep.dfigures.draw_x_motion`)
+    saved to ``out`` here and now (:class:`Plots` draws it beside a study)."""
+    from ftsweep import dfigures
+
+    return dfigures.draw_x_motion(x_motion_curves(programs, rpm, period_s), x_motion_title(rpm), out)
+
+
+def plot_z_motion(
+    spiral: dict[str, Any], program: tuple[dpath.DPath, np.ndarray], rpm: float, out: Path
+) -> Path:
+    """[5] fig. 7 (:func:`z_motion_curves`, drawn by :func:`ftsweep.dfigures.draw_z_motion`)
+    saved to ``out`` here and now."""
+    from ftsweep import dfigures
+
+    return dfigures.draw_z_motion(z_motion_curves(spiral, program, rpm), out)
 
 
 def public(summary: dict[str, Any]) -> dict[str, Any]:

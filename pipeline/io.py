@@ -103,17 +103,18 @@ def new_axes(ax: Any = None, size: tuple[float, float] = (7.0, 4.6)) -> Any:
 
 
 def stacked_axes(rows: int, size: tuple[float, float], sharex: bool = False) -> Any:
-    """``rows`` axes stacked in a new figure of ``size`` inches on pyplot's backend (as
-    :func:`new_axes`), with margins fixed in inches: room for the tick labels and a label at
-    each side and a title on top. Constrained layout measured every artist twice to find
-    about the same margins: 0.1–0.2 s a figure, a tenth of the D-path study's command."""
-    import matplotlib.pyplot as plt
+    """``rows`` axes stacked in a new figure of ``size`` inches, with margins fixed in inches:
+    room for the tick labels and a label at each side and a title on top (constrained layout
+    measured every artist twice to find about the same margins: 0.1–0.2 s a figure). The
+    figure is matplotlib's own, outside pyplot (it is made to be saved by
+    :func:`save_figure`): no backend is chosen or started, so it may be drawn on any thread."""
+    from matplotlib.figure import Figure
 
     width, height = size
     gap = 0.15 if sharex else 0.45  # [in] between axes: inner tick labels shown or not
     left, right, bottom, top = 0.9, 0.15, 0.55, 0.35  # [in]
     each = (height - bottom - top - gap * (rows - 1)) / rows
-    fig = plt.figure(figsize=size)
+    fig = Figure(figsize=size)
     fig.subplots_adjust(
         left=left / width, right=1.0 - right / width, bottom=bottom / height, top=1.0 - top / height,
         hspace=gap / each,
@@ -124,8 +125,6 @@ def stacked_axes(rows: int, size: tuple[float, float], sharex: bool = False) -> 
 def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
     """Save a matplotlib figure to ``path`` through a temporary file and a rename (no
     half-written PNG), with the permissions the umask gives a plain ``open``; closes it."""
-    import matplotlib.pyplot as plt
-
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
     os.close(fd)
@@ -135,5 +134,8 @@ def save_figure(fig: Any, path: Path, dpi: int = 110) -> Path:
         os.replace(tmp, path)
     finally:
         Path(tmp).unlink(missing_ok=True)
-        plt.close(fig)
+        if fig.canvas.manager is not None:  # pyplot's: let it go; a bare Figure is only ours
+            import matplotlib.pyplot as plt
+
+            plt.close(fig)
     return path

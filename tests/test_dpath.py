@@ -645,3 +645,65 @@ def test_study_is_the_same_on_one_thread_and_two_and_reports_progress_once_over_
     # one report over the batches of the three cases: never backwards, ending complete
     done = [d for d, _ in seen]
     assert done == sorted(done) and seen[-1][0] == seen[-1][1] > 0
+
+
+def test_plots_drawn_beside_the_study_are_those_drawn_after_it(tmp_path):
+    # the figures' own process draws from the curves the study hands it while its cases run:
+    # the same pixels as drawing them here from the finished study
+    import matplotlib.image as image
+
+    from ftsweep.dfigures import Plots
+
+    base = dstudy.default_case(options={"spacing_um": 500.0, "points_per_cut": 41})
+    with Plots(tmp_path / "beside", base.surface) as plots:
+        summary = dstudy.study(base, 2000.0, plots=plots)
+        beside = plots.paths()
+    assert [p.name for p in beside] == [f"dpath-{base.surface}-x.png", f"dpath-{base.surface}-z.png"]
+    (tmp_path / "after").mkdir()
+    programs, rpm = summary["_programs"], summary["optimised"]["spindle_rpm"]
+    after = [
+        dstudy.plot_x_motion(programs, rpm, summary["accel_period_s"], tmp_path / "after" / beside[0].name),
+        dstudy.plot_z_motion(
+            summary["_spiral_motion"], programs["optimised"], rpm, tmp_path / "after" / beside[1].name
+        ),
+    ]
+    for a, b in zip(beside, after, strict=True):
+        pa, pb = image.imread(a), image.imread(b)
+        assert pa.shape == pb.shape and np.array_equal(pa, pb), a.name
+        # and the figure is drawn, not blank
+        assert np.ptp(pa[..., :3]) > 0.5
+
+
+def test_plots_report_what_drawing_raised_and_a_lost_process(tmp_path):
+    import os
+    import signal
+
+    from ftsweep.dfigures import Plots
+
+    with Plots(tmp_path, "part") as plots:
+        plots.x_motion({"optimised": {"deg": [0.0, 1.0]}}, "no curves")  # rho_mm missing
+        with pytest.raises(KeyError, match="rho_mm"):
+            plots.paths()
+    assert not list(tmp_path.glob("*.png")) and not list(tmp_path.glob(".*"))
+    plots = Plots(tmp_path, "part")
+    plots._pool.submit(int).result()  # the process is up
+    # killed (an out-of-memory kill, a user's signal): an error that says what happened
+    for pid in list(plots._pool._processes):
+        os.kill(pid, signal.SIGKILL)
+    plots.z_motion({})
+    with pytest.raises(RuntimeError, match="process drawing the D-path plots ended"):
+        plots.paths()
+
+
+def test_dpath_command_with_bad_input_names_it_and_draws_nothing(tmp_path):
+    from click.testing import CliRunner
+
+    from ftsweep.cli import main
+
+    res = CliRunner().invoke(main, ["dpath", "--surface", "no_such_part", "--plots", str(tmp_path / "p")])
+    assert res.exit_code != 0 and "no_such_part" in res.output
+    assert not list((tmp_path / "p").glob("*.png"))
+    (tmp_path / "file").write_text("")
+    # click refuses a file itself; a folder that cannot be made under one is refused here
+    res = CliRunner().invoke(main, ["dpath", "--plots", str(tmp_path / "file" / "plots")])
+    assert res.exit_code != 0 and "--plots" in res.output and "cannot write plots there" in res.output

@@ -1,0 +1,114 @@
+"""The D-path study's figures ([5] figs. 3 and 7) drawn from plain arrays, with numpy and
+matplotlib alone: what they show is formed by :mod:`ftsweep.dstudy`
+(:func:`~ftsweep.dstudy.x_motion_curves`, :func:`~ftsweep.dstudy.z_motion_curves`), and the
+drawing can run in a process of its own while the study's cases run
+(:class:`~ftsweep.dstudy.Plots`): importing this module loads no kernel, no catalog."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ftsweep.io import save_figure, stacked_axes
+
+
+def ready() -> None:
+    """Import what drawing a figure needs, ahead of the first figure (matplotlib's figure
+    and its PNG canvas: ~0.3–0.6 s, paid while the study plans its paths)."""
+    import matplotlib.backends.backend_agg  # noqa: F401
+    import matplotlib.figure  # noqa: F401
+
+
+def draw_x_motion(curves: dict[str, dict[str, Any]], title: str, out: Path) -> Path:
+    """[5] fig. 3 from :func:`ftsweep.dstudy.x_motion_curves`: ρ [mm], X feed [mm/s] and X
+    acceleration [m/s²] against the polar angle [deg], one line per transition; saved to
+    ``out`` (PNG, :func:`ftsweep.io.save_figure`)."""
+    axes = stacked_axes(3, (8.0, 7.5), sharex=True)
+    for kind, c in curves.items():
+        axes[0].plot(c["deg"], c["rho_mm"], label=kind)
+        # velocities belong to the steps between samples: drawn at the steps' middles
+        axes[1].plot(c["mid_deg"], c["x_feed_mm_s"], label=kind)
+        axes[2].plot(c["deg"], c["x_accel_m_s2"], label=kind)
+    axes[0].set_ylabel("ρ = X [mm]")
+    axes[1].set_ylabel("X feed [mm/s]")
+    axes[2].set_ylabel("X acceleration [m/s²]")
+    axes[2].set_xlabel("polar angle θ (accumulated C) [deg]")
+    axes[0].set_title(title, fontsize=9)
+    return _finish(axes, out)
+
+
+def draw_z_motion(curves: dict[str, dict[str, Any]], out: Path) -> Path:
+    """[5] fig. 7 from :func:`ftsweep.dstudy.z_motion_curves`: Z [µm] and Z velocity [mm/s]
+    against C within one revolution [deg], the spiral's and the D path's; saved to ``out``."""
+    axes = stacked_axes(2, (8.0, 6.0))
+    for name, c in curves.items():
+        axes[0].plot(c["deg"], c["z_um"], label=name)
+        # velocities belong to the steps between points (drawn from each step's start)
+        axes[1].plot(c["step_deg"], c["z_velocity_mm_s"], label=name)
+    axes[0].set_ylabel("Z [µm]")
+    axes[1].set_ylabel("Z velocity [mm/s]")
+    axes[1].set_xlabel("C within one revolution [deg]")
+    axes[0].set_title(
+        "Z motion over one revolution: spiral (mid-radius) against D path (mid-zone cut)", fontsize=9
+    )
+    return _finish(axes, out)
+
+
+def _finish(axes: Any, out: Path) -> Path:
+    for a in axes:
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=7)
+    return save_figure(axes[0].figure, out)
+
+
+class Plots:
+    """A D-path study's two figures as ``folder``/dpath-<surface>-x.png and -z.png, drawn by a
+    process of its own while the study runs: :func:`ftsweep.dstudy.study` hands each its
+    curves as soon as they are known (fig. 3's once the paths are planned, fig. 7's once the
+    spiral's motion is). Drawn after the study they were a third of the seed example's
+    command; a thread would not do: importing matplotlib and drawing hold the GIL, which each
+    of the cases' kernels waits for between batches. The process imports numpy and matplotlib
+    alone (this module), from the start, while the command imports the study's modules.
+
+    :meth:`paths` waits for the figures and raises what drawing raised; leaving a ``with``
+    drops what is not started and waits for the rest."""
+
+    def __init__(self, folder: Path, surface: str) -> None:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        folder.mkdir(parents=True, exist_ok=True)
+        self.x_path = folder / f"dpath-{surface}-x.png"
+        self.z_path = folder / f"dpath-{surface}-z.png"
+        # spawned, not forked: the study's threads may hold locks a fork would copy held
+        self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+        self._jobs: list[Any] = []
+        self._pool.submit(ready)
+
+    def x_motion(self, curves: dict[str, dict[str, Any]], title: str) -> None:
+        """Fig. 3 (:func:`draw_x_motion`) of ``curves``, queued."""
+        self._jobs.append(self._pool.submit(draw_x_motion, curves, title, self.x_path))
+
+    def z_motion(self, curves: dict[str, dict[str, Any]]) -> None:
+        """Fig. 7 (:func:`draw_z_motion`) of ``curves``, queued."""
+        self._jobs.append(self._pool.submit(draw_z_motion, curves, self.z_path))
+
+    def paths(self) -> list[Path]:
+        """The figures' files in the order asked, once drawn."""
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            return [job.result() for job in self._jobs]
+        except BrokenProcessPool:
+            raise RuntimeError("the process drawing the D-path plots ended before drawing them") from None
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> Plots:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()

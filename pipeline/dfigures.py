@@ -82,23 +82,23 @@ class Plots:
         self.z_path = folder / f"dpath-{surface}-z.png"
         # spawned, not forked: the study's threads may hold locks a fork would copy held
         self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
-        self._jobs: list[Any] = []
+        self._jobs: dict[str, Any] = {}  # by figure: handed in from any of the study's threads
         self._pool.submit(ready)
 
     def x_motion(self, curves: dict[str, dict[str, Any]], title: str) -> None:
         """Fig. 3 (:func:`draw_x_motion`) of ``curves``, queued."""
-        self._jobs.append(self._pool.submit(draw_x_motion, curves, title, self.x_path))
+        self._jobs["x"] = self._pool.submit(draw_x_motion, curves, title, self.x_path)
 
     def z_motion(self, curves: dict[str, dict[str, Any]]) -> None:
         """Fig. 7 (:func:`draw_z_motion`) of ``curves``, queued."""
-        self._jobs.append(self._pool.submit(draw_z_motion, curves, self.z_path))
+        self._jobs["z"] = self._pool.submit(draw_z_motion, curves, self.z_path)
 
     def paths(self) -> list[Path]:
-        """The figures' files in the order asked, once drawn."""
+        """The figures' files (fig. 3's, then fig. 7's, those asked for), once drawn."""
         from concurrent.futures.process import BrokenProcessPool
 
         try:
-            return [job.result() for job in self._jobs]
+            return [self._jobs[k].result() for k in ("x", "z") if k in self._jobs]
         except BrokenProcessPool:
             raise RuntimeError("the process drawing the D-path plots ended before drawing them") from None
         finally:

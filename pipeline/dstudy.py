@@ -129,6 +129,13 @@ def _transition(rcase: ResolvedCase, feed_mm_min: float, progress: Any) -> dict[
     return keep
 
 
+def _x_figure(
+    plots: Plots, programs: dict[str, tuple[dpath.DPath, np.ndarray]], rpm: float, period_s: float
+) -> None:
+    """Hand ``plots`` [5] fig. 3 of the planned ``programs`` (:func:`x_motion_curves`)."""
+    plots.x_motion(x_motion_curves(programs, rpm, period_s), x_motion_title(rpm))
+
+
 def _spiral(
     base: Case, program: tuple[dpath.DPath, np.ndarray], progress: Any, threads: int, plots: Optional[Plots]
 ) -> dict[str, Any]:
@@ -183,11 +190,11 @@ def study(
     # the C step of one controller period (the records' accel_step_deg, formed alike)
     period = dprog.period_of(opt_case.machine)
     step_deg = math.degrees(rpm * 2.0 * math.pi / 60.0 * period)
-    if plots is not None:
-        plots.x_motion(x_motion_curves(programs, rpm, period), x_motion_title(rpm))
     combined = _Progress(progress, len(TRANSITIONS) + int(with_spiral))
     n_threads = max(1, current_threads(threads))
     with ThreadPoolExecutor(n_threads) as pool:
+        # its curves formed on a thread of the pool too: the kernels' first loads are most of it
+        figure = None if plots is None else pool.submit(_x_figure, plots, programs, rpm, period)
         cases = {
             kind: pool.submit(_transition, rcase, feed_mm_min, combined.of(i))
             for i, (kind, rcase) in enumerate(resolved.items())
@@ -211,6 +218,8 @@ def study(
             out["_spiral_motion"] = out["spiral"].pop("motion")
             out["z_velocity_ratio"] = opt["w_velocity_peak_mm_s"] / out["spiral"]["z_velocity_peak_mm_s"]
             out["time_ratio"] = opt["machining_s"] / out["spiral"]["machining_s"]
+        if figure is not None:
+            figure.result()
     out["_programs"] = programs
     out["_resolved"] = resolved
     return out

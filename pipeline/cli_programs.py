@@ -129,7 +129,7 @@ def _dpath_study(opts: dict[str, Any], plots: Any) -> tuple[dict[str, Any], Case
 
 def _check_overwrite(out: Optional[Path], force: bool) -> None:
     """Refuse, before any work, to replace an existing program or its sidecar without --force."""
-    from ftsweep.files import ExportError, check_overwrite, sidecar_path
+    from ftsweep.io import ExportError, check_overwrite, sidecar_path
 
     if out is not None:
         try:
@@ -142,7 +142,7 @@ def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool, pl
     """Export the optimised program of ``dpath`` (refusing to replace files without --force),
     as the study planned it (``planned``, from the same entries)."""
     from ftsweep import dstudy
-    from ftsweep.files import ExportError, check_overwrite, sidecar_path
+    from ftsweep.io import ExportError, check_overwrite, sidecar_path
     from ftsweep.kinds import path_programs as program
     from ftsweep.planning import resolve_specs
     from ftsweep.spec import CaseError

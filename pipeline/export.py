@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ftsweep.files import ExportError, check_overwrite, sidecar_path
+from ftsweep.io import ExportError, check_overwrite, sidecar_path
 from ftsweep.storage import PathLike
 
 Progress = Callable[[int, int], None] | None

@@ -20,21 +20,12 @@ from typing import Any
 import numpy as np
 
 from ftsweep.catalogs import CatalogError
-from ftsweep.io import dumps_json, write_texts_atomic
+from ftsweep.io import ExportError, dumps_json, sidecar_path, write_texts_atomic
 from ftsweep.planning import ResolvedCase, layer_plan
 from ftsweep.spec import Case
 from ftsweep.stages import decimals
 from ftsweep.stages.spiral import spiral_radius
 from ftsweep.trust import specs_from_entries
-
-
-class ExportError(ValueError):
-    """The header cannot be written or verified; the message says why."""
-
-
-def sidecar_path(header: Path) -> Path:
-    """``FILE.json`` beside ``FILE.h``."""
-    return header.with_suffix(".json")
 
 
 def sidecar_digest(sidecar: dict[str, Any], text_fields: tuple[str, ...] = ("crc32", "header_sha256")) -> str:
@@ -133,14 +124,6 @@ def layer_schedule(rcase: ResolvedCase, values: Any) -> dict[str, Any] | None:
         "segment_layer": plan.seg_layer.tolist(),
         "segment_phi_deg": np.degrees(np.column_stack((plan.seg_start, plan.seg_end))).tolist(),
     }
-
-
-def check_overwrite(paths: tuple[Path, ...], force: bool) -> None:
-    """Refuse to replace an existing file unless ``force`` (every exported kind writes a file
-    and its sidecar as one unit: neither is replaced without ``--force``)."""
-    for path in paths:
-        if Path(path).exists() and not force:
-            raise ExportError(f"{path} exists; give --force to replace it")
 
 
 class ProgramError(ExportError):

@@ -16,6 +16,24 @@ def _umask() -> int:
     return mask
 
 
+class ExportError(ValueError):
+    """The header cannot be written or verified; the message says why (raised by
+    :mod:`ftsweep.files` and the exporters)."""
+
+
+def sidecar_path(header: Path) -> Path:
+    """``FILE.json`` beside ``FILE.h``."""
+    return header.with_suffix(".json")
+
+
+def check_overwrite(paths: tuple[Path, ...], force: bool) -> None:
+    """Refuse to replace an existing file unless ``force`` (every exported kind writes a file
+    and its sidecar as one unit: neither is replaced without ``--force``)."""
+    for path in paths:
+        if Path(path).exists() and not force:
+            raise ExportError(f"{path} exists; give --force to replace it")
+
+
 def write_temporary(target: Path, text: str | bytes) -> Path:
     """A complete, synced temporary file beside ``target`` holding ``text`` (a string, written
     as UTF-8, or bytes as they are), with the permissions a plain ``open`` would give

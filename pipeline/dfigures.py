@@ -6,8 +6,9 @@ drawing can run in a process of its own while the study's cases run
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 from ftsweep.io import save_figure, stacked_axes
 
@@ -70,6 +71,8 @@ class Plots:
     of the cases' kernels waits for between batches. The process imports numpy and matplotlib
     alone (this module), from the start, while the command imports the study's modules.
 
+    Where no process can be started (no POSIX semaphores, a process limit: a warning says
+    why), the figures are drawn here when :meth:`paths` is called, after the study.
     :meth:`paths` waits for the figures and raises what drawing raised; leaving a ``with``
     drops what is not started and waits for the rest."""
 
@@ -80,18 +83,31 @@ class Plots:
         folder.mkdir(parents=True, exist_ok=True)
         self.x_path = folder / f"dpath-{surface}-x.png"
         self.z_path = folder / f"dpath-{surface}-z.png"
-        # spawned, not forked: the study's threads may hold locks a fork would copy held
-        self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
         self._jobs: dict[str, Any] = {}  # by figure: handed in from any of the study's threads
-        self._pool.submit(ready)
+        self._pool: Optional[ProcessPoolExecutor] = None
+        try:
+            # spawned, not forked: the study's threads may hold locks a fork would copy held
+            self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+            self._pool.submit(ready)
+        except (OSError, NotImplementedError) as exc:
+            import warnings
+
+            self.close()
+            self._pool = None
+            warnings.warn(
+                f"the D-path plots are drawn after the study: no process can be started ({exc})", stacklevel=2
+            )
+
+    def _submit(self, draw: Callable[..., Path], *args: Any) -> Any:
+        return _Later(draw, *args) if self._pool is None else self._pool.submit(draw, *args)
 
     def x_motion(self, curves: dict[str, dict[str, Any]], title: str) -> None:
         """Fig. 3 (:func:`draw_x_motion`) of ``curves``, queued."""
-        self._jobs["x"] = self._pool.submit(draw_x_motion, curves, title, self.x_path)
+        self._jobs["x"] = self._submit(draw_x_motion, curves, title, self.x_path)
 
     def z_motion(self, curves: dict[str, dict[str, Any]]) -> None:
         """Fig. 7 (:func:`draw_z_motion`) of ``curves``, queued."""
-        self._jobs["z"] = self._pool.submit(draw_z_motion, curves, self.z_path)
+        self._jobs["z"] = self._submit(draw_z_motion, curves, self.z_path)
 
     def paths(self) -> list[Path]:
         """The figures' files (fig. 3's, then fig. 7's, those asked for), once drawn."""
@@ -105,10 +121,22 @@ class Plots:
             self.close()
 
     def close(self) -> None:
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
 
     def __enter__(self) -> Plots:
         return self
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+
+
+class _Later:
+    """A figure :class:`Plots` draws here, when its file is asked for (where no process can
+    be started)."""
+
+    def __init__(self, draw: Callable[..., Path], *args: Any) -> None:
+        self.draw, self.args = draw, args
+
+    def result(self) -> Path:
+        return self.draw(*self.args)

@@ -707,3 +707,36 @@ def test_dpath_command_with_bad_input_names_it_and_draws_nothing(tmp_path):
     # click refuses a file itself; a folder that cannot be made under one is refused here
     res = CliRunner().invoke(main, ["dpath", "--plots", str(tmp_path / "file" / "plots")])
     assert res.exit_code != 0 and "--plots" in res.output and "cannot write plots there" in res.output
+
+
+def test_plots_are_drawn_here_where_no_process_can_be_started(tmp_path, monkeypatch):
+    # e.g. a container without POSIX semaphores: ProcessPoolExecutor refuses to start
+    import concurrent.futures
+
+    from ftsweep.dfigures import Plots
+
+    def refuse(*args, **kwargs):
+        raise NotImplementedError("no sem_open here")
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", refuse)
+    deg = np.linspace(0.0, 720.0, 50)
+    x = {
+        "optimised": {
+            "deg": deg,
+            "rho_mm": 30.0 + np.sin(deg),
+            "mid_deg": deg[1:],
+            "x_feed_mm_s": deg[1:],
+            "x_accel_m_s2": deg,
+        }
+    }
+    z = {"spiral": {"deg": deg, "z_um": deg, "step_deg": deg[1:], "z_velocity_mm_s": deg[1:]}}
+    with pytest.warns(
+        UserWarning, match=r"drawn after the study: no process can be started \(no sem_open here\)"
+    ):
+        plots = Plots(tmp_path, "part")
+    with plots:
+        plots.z_motion(z)
+        plots.x_motion(x, "title")
+        drawn = plots.paths()
+    assert drawn == [tmp_path / "dpath-part-x.png", tmp_path / "dpath-part-z.png"]
+    assert all(p.stat().st_size > 0 for p in drawn)

@@ -21,6 +21,7 @@ from ftsweep.cli_common import (
 )
 
 if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
+    from ftsweep.dfigures import Plots
     from ftsweep.spec import Case
 
 
@@ -86,7 +87,10 @@ def dpath_command(**opts: Any) -> None:
     # the plots' process is started first: its imports overlap the study's
     with drawn:
         summary, base = _dpath_study(opts, drawn)
-        plots = [str(p) for p in drawn.paths()]
+        try:
+            plots = [str(p) for p in drawn.paths()]
+        except (OSError, RuntimeError) as exc:  # a full disk, a lost drawing process
+            raise click.ClickException(f"the D-path plots: {one_line(str(exc))}") from None
     from ftsweep import dstudy
 
     result = dstudy.public(summary)
@@ -104,7 +108,7 @@ def dpath_command(**opts: Any) -> None:
         click.echo(f"program      {result['program']['path']} ({result['program']['lines']:,} lines t C X Z)")
 
 
-def _dpath_study(opts: dict[str, Any], plots: Any) -> tuple[dict[str, Any], Case]:
+def _dpath_study(opts: dict[str, Any], plots: Plots) -> tuple[dict[str, Any], Case]:
     """``dpath``'s study (:func:`ftsweep.dstudy.study`) of the command's options, its
     figures drawn by ``plots`` (:class:`ftsweep.dfigures.Plots`), and the case it started
     from; bad options and entries are the command's errors."""

@@ -740,3 +740,28 @@ def test_plots_are_drawn_here_where_no_process_can_be_started(tmp_path, monkeypa
         drawn = plots.paths()
     assert drawn == [tmp_path / "dpath-part-x.png", tmp_path / "dpath-part-z.png"]
     assert all(p.stat().st_size > 0 for p in drawn)
+
+
+def test_dpath_command_names_a_plot_it_cannot_write(tmp_path, monkeypatch):
+    # drawn here (no process may start) so that the disk can be made to fail here
+    import concurrent.futures
+    import errno
+
+    from click.testing import CliRunner
+
+    from ftsweep import dfigures
+    from ftsweep.cli import main
+
+    def refuse(*args, **kwargs):
+        raise NotImplementedError("no sem_open here")
+
+    def full(fig, path):
+        raise OSError(errno.ENOSPC, f"{path}: cannot write it (No space left on device)")
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", refuse)
+    monkeypatch.setattr(dfigures, "save_figure", full)
+    args = ["dpath", "--spacing-um", "500", "--points-per-cut", "41", "--no-spiral", "--plots", str(tmp_path)]
+    with pytest.warns(UserWarning, match="drawn after the study"):
+        res = CliRunner().invoke(main, args)
+    assert res.exit_code == 1, res.output
+    assert "the D-path plots:" in res.output and "dpath-concave_sphere-x.png: cannot write it" in res.output

@@ -179,8 +179,7 @@ def study(
     release the GIL. Each transition's case takes one; the spiral, which starts last, spreads
     its batches over all of them, so the core the short ratio table frees does not wait for
     it (the seed example's study 0.2 s sooner on two cores). The summary is the same whatever
-    the number. ``plots`` (:class:`ftsweep.dfigures.Plots`) is handed each figure's curves as
-    soon as they are known, to draw them while the cases run."""
+    the number. ``plots`` (:class:`ftsweep.dfigures.Plots`) draws the figures meanwhile."""
     out: dict[str, Any] = {"surface": base.surface, "machine": base.machine, "cutting": base.cutting}
     with dpath_kind.shared_cuts():
         resolved = {kind: resolve_case(d_case(base, kind)) for kind in TRANSITIONS}
@@ -332,7 +331,7 @@ def plot_x_motion(
     programs: dict[str, tuple[dpath.DPath, np.ndarray]], rpm: float, period_s: float, out: Path
 ) -> Path:
     """[5] fig. 3 (:func:`x_motion_curves`, drawn by :func:`ftsweep.dfigures.draw_x_motion`)
-    saved to ``out`` here and now (:class:`Plots` draws it beside a study)."""
+    saved to ``out`` here and now (:class:`ftsweep.dfigures.Plots` draws it beside a study)."""
     from ftsweep import dfigures
 
     return dfigures.draw_x_motion(x_motion_curves(programs, rpm, period_s), x_motion_title(rpm), out)

@@ -74,7 +74,8 @@ class Plots:
     Where no process can be started (no POSIX semaphores, a process limit: a warning says
     why), the figures are drawn here when :meth:`paths` is called, after the study.
     :meth:`paths` waits for the figures and raises what drawing raised; leaving a ``with``
-    drops what is not started and waits for the rest."""
+    drops what is not started and waits for the rest, or, left by an error (bad input found
+    by the study), ends the process at once rather than wait for its imports."""
 
     def __init__(self, folder: Path, surface: str) -> None:
         import multiprocessing
@@ -85,10 +86,12 @@ class Plots:
         self.z_path = folder / f"dpath-{surface}-z.png"
         self._jobs: dict[str, Any] = {}  # by figure: handed in from any of the study's threads
         self._pool: Optional[ProcessPoolExecutor] = None
+        self._process: set[Any] = set()
+        before = set(multiprocessing.active_children())
         try:
             # spawned, not forked: the study's threads may hold locks a fork would copy held
             self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
-            self._pool.submit(ready)
+            self._pool.submit(ready)  # starts the process
         except (OSError, NotImplementedError) as exc:
             import warnings
 
@@ -97,6 +100,8 @@ class Plots:
             warnings.warn(
                 f"the D-path plots are drawn after the study: no process can be started ({exc})", stacklevel=2
             )
+        # the pool's own process (the executor gives no handle on it before Python 3.14)
+        self._process = set(multiprocessing.active_children()) - before
 
     def _submit(self, draw: Callable[..., Path], *args: Any) -> Any:
         return _Later(draw, *args) if self._pool is None else self._pool.submit(draw, *args)
@@ -120,15 +125,20 @@ class Plots:
         finally:
             self.close()
 
-    def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
+    def close(self, abandon: bool = False) -> None:
+        """Shut the process down once its figures are drawn; with ``abandon``, end it now."""
+        if self._pool is None:
+            return
+        if abandon:
+            for process in self._process:
+                process.terminate()
+        self._pool.shutdown(wait=True, cancel_futures=True)
 
     def __enter__(self) -> Plots:
         return self
 
-    def __exit__(self, *exc: Any) -> None:
-        self.close()
+    def __exit__(self, kind: Any, *exc: Any) -> None:
+        self.close(abandon=kind is not None)
 
 
 class _Later:

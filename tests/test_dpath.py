@@ -688,11 +688,26 @@ def test_plots_report_what_drawing_raised_and_a_lost_process(tmp_path):
     plots = Plots(tmp_path, "part")
     plots._pool.submit(int).result()  # the process is up
     # killed (an out-of-memory kill, a user's signal): an error that says what happened
-    for pid in list(plots._pool._processes):
-        os.kill(pid, signal.SIGKILL)
+    for process in plots._process:
+        os.kill(process.pid, signal.SIGKILL)
     plots.z_motion({})
     with pytest.raises(RuntimeError, match="process drawing the D-path plots ended"):
         plots.paths()
+
+
+def test_plots_left_by_an_error_end_their_process_at_once(tmp_path):
+    # bad input found by the study: the process is ended, not waited for through its imports
+    import signal
+
+    from ftsweep.dfigures import Plots
+
+    with pytest.raises(ValueError, match="bad input"), Plots(tmp_path, "part") as plots:
+        (process,) = plots._process
+        raise ValueError("bad input")
+    assert process.exitcode == -signal.SIGTERM
+    with Plots(tmp_path, "part") as plots:
+        (process,) = plots._process
+    assert process.exitcode == 0  # left without an error: shut down once idle
 
 
 def test_dpath_command_with_bad_input_names_it_and_draws_nothing(tmp_path):

@@ -658,6 +658,8 @@ def test_plots_drawn_beside_the_study_are_those_drawn_after_it(tmp_path):
     with Plots(tmp_path / "beside", base.surface) as plots:
         summary = dstudy.study(base, 2000.0, plots=plots)
         beside = plots.paths()
+        (process,) = plots._process
+        assert process.exitcode is not None  # drawn: the process is ended, not left behind
     assert [p.name for p in beside] == [f"dpath-{base.surface}-x.png", f"dpath-{base.surface}-z.png"]
     (tmp_path / "after").mkdir()
     programs, rpm = summary["_programs"], summary["optimised"]["spindle_rpm"]

@@ -100,7 +100,8 @@ class Plots:
             warnings.warn(
                 f"the D-path plots are drawn after the study: no process can be started ({exc})", stacklevel=2
             )
-        # the pool's own process (the executor gives no handle on it before Python 3.14)
+        # the pool's own process (the executor gives no handle on it before Python 3.14; made
+        # before the study starts, nothing else starts a process in between)
         self._process = set(multiprocessing.active_children()) - before
 
     def _submit(self, draw: Callable[..., Path], *args: Any) -> Any:

@@ -2,7 +2,7 @@
 matplotlib alone: what they show is formed by :mod:`ftsweep.dstudy`
 (:func:`~ftsweep.dstudy.x_motion_curves`, :func:`~ftsweep.dstudy.z_motion_curves`), and the
 drawing can run in a process of its own while the study's cases run
-(:class:`~ftsweep.dstudy.Plots`): importing this module loads no kernel, no catalog."""
+(:class:`Plots`): importing this module loads no kernel, no catalog."""
 
 from __future__ import annotations
 

@@ -284,17 +284,19 @@ def _lens_point(x, y, R, h, pitch, nx, ny):  # pragma: no cover - jit
     """Height [µm] and gradient [-] of the lens array at one point (see :func:`lens_array`).
 
     Both the sphere's and the torus's expressions are formed and the point's own is
-    selected, with no branch: a loop over points then runs four at a time (square roots and
-    divisions included; ``error_model="numpy"`` lets a lane that is not selected divide by
-    zero instead of raising)."""
+    selected, with no branch: a loop over points then runs four at a time (square roots
+    included). Divisions are the dearest vector operation after the square roots, so the
+    point's one quotient (q below) divides selected operands, and the lenslet index
+    multiplies by the reciprocal pitch (hoisted out of a loop)."""
     a = math.sqrt(2.0 * h * R - h * h)
     rt = 0.5 * R
     Rt = a * (1.0 + rt / R)
     cx0 = 0.5 * (nx - 1)
     cy0 = 0.5 * (ny - 1)
+    per_pitch = 1.0 / pitch
     # nearest lenslet centre, clipped to the grid of lenslets
-    i = min(max(math.floor(x / pitch + cx0 + 0.5), 0.0), nx - 1.0)
-    j = min(max(math.floor(y / pitch + cy0 + 0.5), 0.0), ny - 1.0)
+    i = min(max(np.floor(x * per_pitch + cx0 + 0.5), 0.0), nx - 1.0)
+    j = min(max(np.floor(y * per_pitch + cy0 + 0.5), 0.0), ny - 1.0)
     dx = x - (i - cx0) * pitch
     dy = y - (j - cy0) * pitch
     r = math.sqrt(dx * dx + dy * dy)
@@ -302,12 +304,17 @@ def _lens_point(x, y, R, h, pitch, nx, ny):  # pragma: no cover - jit
     # −(r − Rt)/(root·r), 0 where its root vanishes; plane 0
     sphere = r <= a
     torus = r <= Rt
-    root_s = math.sqrt(max(R * R - r * r, 0.0))
     u = r - Rt
-    root_t = math.sqrt(max(rt * rt - u * u, 0.0))
-    f = (R - h - root_s) if sphere else ((root_t - rt * (R - h) / R) if torus else rt * h / R)
-    q_t = -u / (root_t * r) if root_t > 0.0 else 0.0
-    q = (1.0 / root_s) if sphere else (q_t if torus else 0.0)
+    # a point needs the sphere's root or the torus's, never both: one square root of the
+    # selected radicand
+    root = math.sqrt(max((R * R - r * r) if sphere else (rt * rt - u * u), 0.0))
+    f = (R - h - root) if sphere else ((root - rt * (R - h) / R) if torus else rt * h / R)
+    # one division of selected operands: r ≤ a < R keeps the sphere's root > 0, and a torus
+    # point whose root vanishes (or a plane point) gets 0/1
+    curved = torus and root > 0.0
+    num = 1.0 if sphere else (-u if curved else 0.0)
+    den = root if sphere else (root * r if curved else 1.0)
+    q = num / den
     return f, q * dx, q * dy
 
 
@@ -320,11 +327,16 @@ def _lens_array_kernel(x, y, R, h, pitch, nx, ny, f, fx, fy):  # pragma: no cove
 @njit(nogil=True, cache=True, error_model="numpy")
 def _lens_array_lines_kernel(first, spacing, offset, ct, st, R, h, pitch, nx, ny, g, gp):  # noqa: E501  # pragma: no cover - jit
     n_rays, n_nodes = g.shape
+    # the nodes' offsets from the first pass, the same products every ray: AVX2 has no vector
+    # conversion of int64 to float, so forming them in the loop took four scalar ones a step
+    along = np.empty(n_nodes)
+    for j in range(n_nodes):
+        along[j] = (j - offset) * spacing
     for i in range(n_rays):
         c = ct[i]
         s = st[i]
         for j in range(n_nodes):
-            r = first[i] - (j - offset) * spacing
+            r = first[i] - along[j]
             f, fx, fy = _lens_point(r * c, r * s, R, h, pitch, nx, ny)
             g[i, j] = f
             gp[i, j] = fx * c + fy * s

@@ -50,17 +50,17 @@ def sincos(x):  # pragma: no cover - jit
     test the reach and use ``math.sin``/``math.cos`` there). No branch and no conversion to
     an integer, so that a loop calling it vectorises and a NaN stays NaN: the quadrant n mod 4
     is read from the fractional parts of n/2 and n/4, exact for such n."""
-    n = math.floor(x * _INV_PIO2 + 0.5)
+    n = np.floor(x * _INV_PIO2 + 0.5)
     r = ((x - n * _P1) - n * _P2) - n * _P3
     z = r * r
     s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
     c = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
     half = 0.5 * n
-    odd = half != math.floor(half)  # n ≡ 1, 3 (mod 4): sin and cos swap
+    odd = half != np.floor(half)  # n ≡ 1, 3 (mod 4): sin and cos swap
     quarter = 0.25 * n
-    upper = quarter - math.floor(quarter) >= 0.5  # n ≡ 2, 3: sin x = −(sin or cos r)
+    upper = quarter - np.floor(quarter) >= 0.5  # n ≡ 2, 3: sin x = −(sin or cos r)
     quarter = 0.25 * (n + 1.0)
-    upper_c = quarter - math.floor(quarter) >= 0.5  # n ≡ 1, 2: cos x = −(cos or sin r)
+    upper_c = quarter - np.floor(quarter) >= 0.5  # n ≡ 1, 2: cos x = −(cos or sin r)
     sin_x = c if odd else s
     cos_x = s if odd else c
     return (-sin_x if upper else sin_x), (-cos_x if upper_c else cos_x)

@@ -146,8 +146,6 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
         fall; these are the exact peaks, which move off the nodes by about Rc·slope.
     """
     n_rays, n_nodes = node_r.shape
-    cusp_r[:, :] = np.nan
-    cusp_z[:, :] = np.nan
     pos, w, stack, breaks = _line_scratch(pass_w.shape[1])
     first = eval_start
     for line in range(n_rays // 2):
@@ -168,21 +166,45 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
             z[own, j], m = _arc_at(node_r[own, j], m, n_arcs, pos, w, rc, stack, breaks)
         r_opp = node_r[opp, first] if first < n_nodes else -1.0
         r_own = node_r[own, first] if first < n_nodes else -1.0
-        c_opp = 0
-        c_own = 0
-        for m in range(1, n_arcs):
-            x = breaks[m]
-            k = stack[m]
-            d = x - pos[k]
-            zc = w[k] + rc - math.sqrt(max(rc * rc - d * d, 0.0))
-            if x < 0.0 and -x <= r_opp and c_opp < cusp_r.shape[1]:
-                cusp_r[opp, c_opp] = -x
-                cusp_z[opp, c_opp] = zc
-                c_opp += 1
-            elif x >= 0.0 and x <= r_own and c_own < cusp_r.shape[1]:
-                cusp_r[own, c_own] = x
-                cusp_z[own, c_own] = zc
-                c_own += 1
+        _line_cusps(stack, breaks, n_arcs, pos, w, rc, r_opp, r_own, cusp_r[opp], cusp_z[opp], cusp_r[own], cusp_z[own])
+    for a in range(2 * (n_rays // 2), n_rays):  # an odd last ray belongs to no line
+        cusp_r[a, :] = np.nan
+        cusp_z[a, :] = np.nan
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _line_cusps(stack, breaks, n_arcs, pos, w, rc, r_opp, r_own, opp_r, opp_z, own_r, own_z):  # noqa: E501  # pragma: no cover - jit
+    """The cusp peaks of a line's hull (:func:`envelope_lines`) into its rays' rows, each
+    NaN-padded: the takeovers at −r_opp ≤ x < 0 on the opposite ray (at −x), those at
+    0 ≤ x ≤ r_own on the own ray. The breaks ascend, so each ray's are one run of slots, and
+    the runs' loops are free of branches (they run four at a time)."""
+    m = 1
+    while m < n_arcs and breaks[m] < 0.0 and breaks[m] < -r_opp:
+        m += 1
+    lo = m
+    while m < n_arcs and breaks[m] < 0.0:
+        m += 1
+    c_opp = _cusp_run(stack, breaks, pos, w, rc, lo, min(m, lo + opp_r.size), -1.0, opp_r, opp_z)
+    lo = m
+    while m < n_arcs and breaks[m] <= r_own:
+        m += 1
+    c_own = _cusp_run(stack, breaks, pos, w, rc, lo, min(m, lo + own_r.size), 1.0, own_r, own_z)
+    opp_r[c_opp:] = np.nan
+    opp_z[c_opp:] = np.nan
+    own_r[c_own:] = np.nan
+    own_z[c_own:] = np.nan
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _cusp_run(stack, breaks, pos, w, rc, lo, hi, sign, out_r, out_z):  # pragma: no cover - jit
+    """Cusp peaks of hull slots lo … hi−1 into ``out_r`` (at sign·x [µm]) and ``out_z`` (the
+    height where arc stack[m] takes over [µm]) from index 0; returns their number."""
+    for m in range(lo, hi):
+        x = breaks[m]
+        d = x - pos[stack[m]]
+        out_r[m - lo] = sign * x
+        out_z[m - lo] = w[stack[m]] + rc - math.sqrt(max(rc * rc - d * d, 0.0))
+    return max(hi - lo, 0)
 
 
 def machined_lines(

@@ -32,25 +32,27 @@ Program = Layout | SpiralPath
 def _first_index(u, n0):  # pragma: no cover - jit
     """Cell i and fraction t of the first index ``u``, clamped to a table of ``n0`` rows
     (the controller holds the edge value)."""
-    i = int(math.floor(u))
-    if i < 0:
+    # floored as a float (np.floor; math.floor's int would be converted back for u − i)
+    fi = np.floor(u)
+    if not fi >= 0.0:  # NaN too: held at the edge, never an index from a NaN
         return 0, 0.0
-    if i > n0 - 2:
+    if fi > n0 - 2.0:
         return n0 - 2, 1.0
-    return i, u - i
+    return int(fi), u - fi
 
 
 @njit(nogil=True, cache=True, inline="always")
 def _second_index(v, n1, periodic):  # pragma: no cover - jit
     """Columns j, j1 and fraction s of the second index ``v``: wrapped when ``periodic``
     (column n1−1 neighbours column 0), else clamped."""
-    j = int(math.floor(v))
-    s = v - j
+    fj = np.floor(v)
+    s = v - fj
+    j = int(fj)
     if periodic:
         return j % n1, (j % n1 + 1) % n1, s
-    if j < 0:
+    if not fj >= 0.0:  # NaN too, as in _first_index
         return 0, 1, 0.0
-    if j > n1 - 2:
+    if fj > n1 - 2.0:
         return n1 - 2, n1 - 1, 1.0
     return j, j + 1, s
 
@@ -93,13 +95,19 @@ def _pass_commands_kernel(table, polar, o0, o1, p0, p1, periodic, first, k0, ste
             # a ray keeps its angle: its columns are found once (the modulo of a wrapped
             # index cost as much as the rest of a pass)
             j, j1, s = _second_index(ray_a[a], n1, periodic)
+            # the pass number counted as a float (exact): the same product as (k + k0)·step
+            # without an integer's conversion every pass
+            kf = float(k0)
             for k in range(out.shape[1]):
-                rho = max(first[a] - (k + k0) * step, 0.0)
+                rho = max(first[a] - kf * step, 0.0)
+                kf += 1.0
                 i, t = _first_index((rho - o0) / p0, n0)
                 out[a, k] = _blend(table, i, t, j, j1, s)
             continue
+        kf = float(k0)
         for k in range(out.shape[1]):
-            rho = max(first[a] - (k + k0) * step, 0.0)
+            rho = max(first[a] - kf * step, 0.0)
+            kf += 1.0
             u = (rho * ray_a[a] - o0) / p0
             v = (rho * ray_b[a] - o1) / p1
             out[a, k] = _bilinear_at(table, u, v, periodic)
@@ -234,16 +242,20 @@ class PathGrid(NamedTuple):
 @njit(nogil=True, cache=True)
 def _hermite_kernel(g, gp, first_pass, node_offset, spacing, r, out):  # pragma: no cover - jit
     n_rays, n_nodes = g.shape
+    top = n_nodes - 2.0
     for a in range(n_rays):
         for c in range(r.shape[1]):
             rr = r[a, c]
             if math.isnan(rr):
                 out[a, c] = math.nan
                 continue
-            # node index grows inwards: rr lies between nodes j (outer) and j + 1
+            # node index grows inwards: rr lies between nodes j (outer) and j + 1. The node is
+            # floored and clamped as a float (np.floor, not math.floor's int), so the fraction
+            # needs no conversion back from an integer
             xi = (first_pass[a] - rr) / spacing + node_offset
-            j = min(max(int(math.floor(xi)), 0), n_nodes - 2)
-            t = xi - j
+            fj = min(max(np.floor(xi), 0.0), top)
+            j = int(fj)
+            t = xi - fj
             # Hermite basis in the node coordinate ξ, where d/dξ = −spacing·d/dr
             h00 = (1.0 + 2.0 * t) * (1.0 - t) * (1.0 - t)
             h10 = t * (1.0 - t) * (1.0 - t)

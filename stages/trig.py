@@ -49,7 +49,9 @@ def sincos(x):  # pragma: no cover - jit
     """(sin x, cos x) of ``x`` [rad], |x| ≤ :data:`REACH` (beyond it, meaningless: callers
     test the reach and use ``math.sin``/``math.cos`` there). No branch and no conversion to
     an integer, so that a loop calling it vectorises and a NaN stays NaN: the quadrant n mod 4
-    is read from the fractional parts of n/2 and n/4, exact for such n."""
+    is read from the fractional parts of n/2 and n/4, exact for such n. ``np.floor``, not
+    ``math.floor``: numba's ``math.floor`` returns an int, and AVX2 converts between int64 and
+    float one lane at a time (8.8 → 5.2 ns a point here, the same values)."""
     n = np.floor(x * _INV_PIO2 + 0.5)
     r = ((x - n * _P1) - n * _P2) - n * _P3
     z = r * r

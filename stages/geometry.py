@@ -111,8 +111,10 @@ def radial_section(
 @njit(nogil=True, cache=True)
 def _inside_rectangle_rows(r, ct, st, hw, hh, out):  # pragma: no cover - jit
     for i in range(r.shape[0]):
+        c, s = ct[i], st[i]
         for j in range(r.shape[1]):
-            out[i, j] = abs(r[i, j] * ct[i]) <= hw and abs(r[i, j] * st[i]) <= hh
+            # ``&``, not ``and``: no short-circuit branch, so the row runs four nodes at a time
+            out[i, j] = (abs(r[i, j] * c) <= hw) & (abs(r[i, j] * s) <= hh)
 
 
 class Aperture(NamedTuple):

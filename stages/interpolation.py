@@ -333,5 +333,7 @@ def path_grid(
     spacing = feed_um / ppf
     offset = int(math.ceil(margin_um / spacing))
     n_nodes = offset + int(math.ceil((rho0_um + margin_um) / spacing)) + 1 - k0 * ppf
-    node_r = first[:, None] - (np.arange(n_nodes)[None, :] + (k0 * ppf - offset)) * spacing
+    # the nodes' offsets along a ray once, then one pass over the grid (the same products)
+    along = (np.arange(n_nodes) + (k0 * ppf - offset)) * spacing
+    node_r = first[:, None] - along[None, :]
     return PathGrid(ray_theta, first, n_passes - k0, offset, spacing, ppf, node_r, k0)

@@ -83,34 +83,38 @@ def _bilinear_kernel(table, u, v, periodic, out):  # pragma: no cover - jit
         out[p] = _bilinear_at(table, u[p], v[p], periodic)
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def _pass_commands_kernel(table, polar, o0, o1, p0, p1, periodic, first, k0, step, ray_a, ray_b, out):  # noqa: E501  # pragma: no cover - jit
     # the tool positions ρ_k = max(first − (k + k0)·step, 0) (column k is the spiral's pass
-    # k + k0, see path_grid) and their table indices are formed here,
-    # pass by pass, instead of as (rays × passes) arrays; the arithmetic is that of
-    # pass_rho and table_indices, so the commands are the same to the last bit
+    # k + k0, see path_grid) and their table indices are formed here, ray by ray, instead of
+    # as (rays × passes) arrays; the arithmetic is that of pass_rho and table_indices, so the
+    # commands are the same to the last bit. A ray's indices come first in a loop of their own,
+    # free of branches and lookups, which runs four passes at a time (the divisions included;
+    # ``error_model="numpy"`` keeps a zero pitch from adding a branch), then the lookups
     n0, n1 = table.shape
+    n_k = out.shape[1]
+    pass_k = np.empty(n_k)  # the pass numbers as floats: no int64 conversion in the loop
+    for k in range(n_k):
+        pass_k[k] = k + k0
+    us, vs = np.empty(n_k), np.empty(n_k)
     for a in range(out.shape[0]):
+        f, ca, sa = first[a], ray_a[a], ray_b[a]
         if polar:
             # a ray keeps its angle: its columns are found once (the modulo of a wrapped
             # index cost as much as the rest of a pass)
-            j, j1, s = _second_index(ray_a[a], n1, periodic)
-            # the pass number counted as a float (exact): the same product as (k + k0)·step
-            # without an integer's conversion every pass
-            kf = float(k0)
-            for k in range(out.shape[1]):
-                rho = max(first[a] - kf * step, 0.0)
-                kf += 1.0
-                i, t = _first_index((rho - o0) / p0, n0)
+            j, j1, s = _second_index(ca, n1, periodic)
+            for k in range(n_k):
+                us[k] = (max(f - pass_k[k] * step, 0.0) - o0) / p0
+            for k in range(n_k):
+                i, t = _first_index(us[k], n0)
                 out[a, k] = _blend(table, i, t, j, j1, s)
             continue
-        kf = float(k0)
-        for k in range(out.shape[1]):
-            rho = max(first[a] - kf * step, 0.0)
-            kf += 1.0
-            u = (rho * ray_a[a] - o0) / p0
-            v = (rho * ray_b[a] - o1) / p1
-            out[a, k] = _bilinear_at(table, u, v, periodic)
+        for k in range(n_k):
+            rho = max(f - pass_k[k] * step, 0.0)
+            us[k] = (rho * ca - o0) / p0
+            vs[k] = (rho * sa - o1) / p1
+        for k in range(n_k):
+            out[a, k] = _bilinear_at(table, us[k], vs[k], periodic)
 
 
 def bilinear(table: np.ndarray, u: np.ndarray, v: np.ndarray, periodic: bool) -> np.ndarray:

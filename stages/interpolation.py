@@ -243,20 +243,27 @@ class PathGrid(NamedTuple):
         return self.first_pass[:, None] - k[None, :] * (self.spacing_um * self.ppf)
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, error_model="numpy")
 def _hermite_kernel(g, gp, first_pass, node_offset, spacing, r, out):  # pragma: no cover - jit
     n_rays, n_nodes = g.shape
     top = n_nodes - 2.0
+    n_c = r.shape[1]
+    # a ray's node coordinates first, in a loop of their own that runs four at a time (the
+    # division included), then the lookups
+    xis = np.empty(n_c)
+    origin = float(node_offset)
     for a in range(n_rays):
-        for c in range(r.shape[1]):
-            rr = r[a, c]
-            if math.isnan(rr):
+        fa = first_pass[a]
+        for c in range(n_c):
+            # node index grows inwards: r lies between nodes j (outer) and j + 1
+            xis[c] = (fa - r[a, c]) / spacing + origin
+        for c in range(n_c):
+            xi = xis[c]
+            if math.isnan(xi):  # a NaN radius
                 out[a, c] = math.nan
                 continue
-            # node index grows inwards: rr lies between nodes j (outer) and j + 1. The node is
             # floored and clamped as a float (np.floor, not math.floor's int), so the fraction
             # needs no conversion back from an integer
-            xi = (first_pass[a] - rr) / spacing + node_offset
             fj = min(max(np.floor(xi), 0.0), top)
             j = int(fj)
             t = xi - fj

@@ -26,7 +26,7 @@ from ftsweep.planning import ResolvedCase, resolve_case
 from ftsweep.record import ErrorMap, Timer, timed
 from ftsweep.result import STAGES
 from ftsweep.spec import Case, CaseError
-from ftsweep.stages import envelope, metrics
+from ftsweep.stages import envelope, interpolation, metrics
 from ftsweep.threads import current as current_threads
 from ftsweep.threads import using_threads
 
@@ -36,11 +36,21 @@ def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -
     place (``where(flat index)``)."""
     finite = np.isfinite(values)
     if not finite.all():
-        first = int(np.flatnonzero(~finite.ravel())[0])
-        raise CaseError(
-            f"{what} is not finite (NaN or inf) at {int(finite.size - finite.sum()):,} points, first at "
-            f"{where(first)}"
-        )
+        _not_finite(what, int(finite.size - finite.sum()), int(np.flatnonzero(~finite.ravel())[0]), where)
+
+
+def require_finite_passes(
+    w: np.ndarray, n_passes: np.ndarray, what: str, where: Callable[[int], str]
+) -> None:
+    """:func:`require_finite` over the passes of (rays, passes) commands ``w``: the first
+    ``n_passes[a]`` of row a (the rest is padding), read in place."""
+    count, first = interpolation.nonfinite_passes(w, n_passes)
+    if count:
+        _not_finite(what, count, first, where)
+
+
+def _not_finite(what: str, count: int, first: int, where: Callable[[int], str]) -> None:
+    raise CaseError(f"{what} is not finite (NaN or inf) at {count:,} points, first at {where(first)}")
 
 
 STAGE_TIMERS = STAGES

@@ -19,7 +19,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep import catalogs, kinds
-from ftsweep.case import Machined, require_finite
+from ftsweep.case import Machined, require_finite, require_finite_passes
 from ftsweep.cost import angular_samples, check_cost, ray_nodes
 from ftsweep.kinds import Simulating
 from ftsweep.planning import ResolvedCase, control_table, layer_plan, z_error_of
@@ -276,8 +276,7 @@ def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Ti
         g, gp, grid.spacing_um, rc, grid.pass_nodes, grid.n_passes, mode, single_peaked(rcase)
     )
     timer.add("compensation", t)
-    passes = np.arange(w_exact.shape[1])[None, :] < grid.n_passes[:, None]
-    require_finite(np.where(passes, w_exact, 0.0), "the exact W command", _pass_point(grid, ray_theta))
+    require_finite_passes(w_exact, grid.n_passes, "the exact W command", _pass_point(grid, ray_theta))
     return LineData(grid, ct, st, g, gp, inside, w_exact)
 
 
@@ -357,9 +356,9 @@ class LineSimulation:
                 z_error_of(rcase),
                 grid.first_revolution,
             )
-            passes = np.arange(w_interp.shape[1])[None, :] < grid.n_passes[:, None]
-            require_finite(
-                np.where(passes, w_interp, 0.0),
+            require_finite_passes(
+                w_interp,
+                grid.n_passes,
                 "the layered W command (a pass no layer cuts)",
                 _pass_point(grid, grid.ray_theta[:, None]),
             )

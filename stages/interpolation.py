@@ -34,11 +34,13 @@ def _first_index(u, n0):  # pragma: no cover - jit
     (the controller holds the edge value)."""
     # floored as a float (np.floor; math.floor's int would be converted back for u − i)
     fi = np.floor(u)
-    if not fi >= 0.0:  # NaN too: held at the edge, never an index from a NaN
-        return 0, 0.0
     if fi > n0 - 2.0:
         return n0 - 2, 1.0
-    return int(fi), u - fi
+    if fi >= 0.0:
+        return int(fi), u - fi
+    # before the first row; a NaN index reads row 0 (never an index made from a NaN) with a
+    # NaN fraction, so its value is NaN
+    return 0, (0.0 if fi < 0.0 else u)
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -50,11 +52,11 @@ def _second_index(v, n1, periodic):  # pragma: no cover - jit
     j = int(fj)
     if periodic:
         return j % n1, (j % n1 + 1) % n1, s
-    if not fj >= 0.0:  # NaN too, as in _first_index
-        return 0, 1, 0.0
     if fj > n1 - 2.0:
         return n1 - 2, n1 - 1, 1.0
-    return j, j + 1, s
+    if fj >= 0.0:
+        return j, j + 1, s
+    return 0, 1, (0.0 if fj < 0.0 else v)  # NaN as in _first_index
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -273,6 +275,22 @@ def _hermite_kernel(g, gp, first_pass, node_offset, spacing, r, out):  # pragma:
             h01 = t * t * (3.0 - 2.0 * t)
             h11 = t * t * (t - 1.0)
             out[a, c] = h00 * g[a, j] + h01 * g[a, j + 1] - spacing * (h10 * gp[a, j] + h11 * gp[a, j + 1])
+
+
+@njit(nogil=True, cache=True)
+def nonfinite_passes(w, n_passes):  # pragma: no cover - jit
+    """NaN or inf among the passes of (rays, passes) commands ``w`` [µm], the first
+    ``n_passes[a]`` of row a (the rest is padding): (their number, the flat index of the
+    first, −1 when none), read in place."""
+    count = 0
+    first = -1
+    for a in range(w.shape[0]):
+        for k in range(n_passes[a]):
+            if not math.isfinite(w[a, k]):
+                if first < 0:
+                    first = a * w.shape[1] + k
+                count += 1
+    return count, first
 
 
 def sample_on_nodes(grid: PathGrid, g: np.ndarray, gp: np.ndarray, r: np.ndarray) -> np.ndarray:

@@ -82,3 +82,41 @@ def test_envelope_lines_covers_both_rays_and_reports_cusps():
     np.testing.assert_allclose(cz[away], cusp, rtol=1e-6)
     np.testing.assert_allclose(cz[peaks & ~away], axis_cusp, rtol=1e-6)
     assert peaks[0].sum() + peaks[1].sum() == 2 * 19 + 1 - 2  # all peaks but the two first ones
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.integers(2, 40),
+    st.sampled_from([1, 2, 3]),
+    st.floats(0.0, 0.2),
+    st.integers(-3, 200),
+    st.integers(0, 2**32 - 1),
+)
+def test_envelope_lines_cusps_are_the_hull_breaks_on_each_ray(n_pass, ppf, slope, start, seed):
+    """Each ray's cusp peaks are the takeovers of the line's hull (lower_envelope of both rays'
+    passes in ascending position) within its evaluated part, in order, NaN-padded; wherever
+    the evaluation starts, including past the axis on one ray only."""
+    rng = np.random.default_rng(seed)
+    feed, rc = 1.0, 30.0
+    off = 3
+    n_nodes = off + ppf * n_pass + 4
+    first = np.array([n_pass - 0.3, n_pass - 0.8])  # the opposite ray is half a feed inwards
+    node_r = first[:, None] - (np.arange(n_nodes)[None, :] - off) * (feed / ppf)
+    n_passes = np.array([n_pass, n_pass])
+    pass_w = slope * node_r[:, off : off + ppf * n_pass : ppf] + rng.uniform(0.0, 0.05, (2, n_pass))
+    start = min(start, n_nodes + 2)
+    z = np.empty(node_r.shape)
+    cr, cz = np.full((2, n_pass + 2), 7.0), np.full((2, n_pass + 2), 7.0)
+    envelope.envelope_lines(node_r, pass_w, n_passes, off, ppf, start, rc, z, cr, cz)
+    pos = np.concatenate([-node_r[1, off : off + ppf * n_pass : ppf], node_r[0, off : off + ppf * n_pass : ppf][::-1]])
+    w = np.concatenate([pass_w[1], pass_w[0][::-1]])
+    out, stack, breaks = run_envelope(pos, w, rc, np.zeros(1))
+    top = [node_r[a, start] if start < n_nodes else -1.0 for a in (0, 1)]
+    height = w[stack[1:]] + rc - np.sqrt(np.maximum(rc * rc - (breaks - pos[stack[1:]]) ** 2, 0.0))
+    opp = (breaks < 0.0) & (-breaks <= top[1])
+    own = (breaks >= 0.0) & (breaks <= top[0])
+    for row, sel, sign in ((1, opp, -1.0), (0, own, 1.0)):
+        k = int(sel.sum())
+        np.testing.assert_array_equal(cr[row, :k], sign * breaks[sel])
+        np.testing.assert_array_equal(cz[row, :k], height[sel])
+        assert np.isnan(cr[row, k:]).all() and np.isnan(cz[row, k:]).all()

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep.stages import interpolation, layouts, spiral
@@ -169,3 +169,28 @@ def test_a_grid_left_out_beyond_a_reach_is_the_tail_of_the_whole_grid(rho0, feed
     want = interpolation.pass_commands(path, values, whole)[:, k0 : k0 + got.shape[1]]
     held = np.arange(got.shape[1])[None, :] < part.n_passes[:, None]
     np.testing.assert_array_equal(got[held], want[held])
+
+
+def test_infinite_and_nan_indices_are_held_at_an_edge():
+    table = np.arange(20.0).reshape(4, 5)
+    u = np.array([np.inf, -np.inf, 1.5, 1.5, np.nan])
+    v = np.array([2.0, 2.0, np.inf, -np.inf, 2.0])
+    got = interpolation.bilinear(table, u, v, False)
+    # ±inf lie beyond the last or the first row or column: the controller holds that edge
+    np.testing.assert_array_equal(got[:4], [table[3, 2], table[0, 2], 0.5 * (table[1, 4] + table[2, 4]), 0.5 * (table[1, 0] + table[2, 0])])
+    assert np.isnan(got[4])  # a NaN index never reads outside the table: its value is NaN
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 6), st.integers(1, 9), st.integers(0, 2**32 - 1))
+def test_nonfinite_passes_counts_only_the_passes(rays, kmax, seed):
+    rng = np.random.default_rng(seed)
+    w = rng.normal(size=(rays, kmax))
+    n_passes = rng.integers(0, kmax + 1, rays)
+    bad = rng.random((rays, kmax)) < 0.3
+    w[bad] = rng.choice([np.nan, np.inf, -np.inf], int(bad.sum()))
+    valid = np.arange(kmax)[None, :] < n_passes[:, None]
+    expected = ~np.isfinite(w) & valid
+    count, first = interpolation.nonfinite_passes(w, n_passes)
+    assert count == int(expected.sum())
+    assert first == (int(np.flatnonzero(expected.ravel())[0]) if count else -1)

@@ -117,6 +117,12 @@ def _inside_rectangle_rows(r, ct, st, hw, hh, out):  # pragma: no cover - jit
             out[i, j] = (abs(r[i, j] * c) <= hw) & (abs(r[i, j] * s) <= hh)
 
 
+@njit(nogil=True, cache=True)
+def _inside_circle_flat(r, radius, out):  # pragma: no cover - jit
+    for i in range(r.size):
+        out[i] = abs(r[i]) <= radius
+
+
 class Aperture(NamedTuple):
     """A centred aperture: ``circle`` of ``radius_um`` or ``rectangle`` ``width_um`` × ``height_um``
     (model §2 and §7). All lengths in µm."""
@@ -135,6 +141,11 @@ class Aperture(NamedTuple):
     def contains_polar(self, r: np.ndarray, cos_t: np.ndarray, sin_t: np.ndarray) -> np.ndarray:
         """:meth:`contains` for points at radius ``r`` [µm] on sections of angle θ (cos, sin)."""
         if self.shape == "circle":
+            if r.ndim == 2 and r.flags.c_contiguous:
+                # the case runner's (rays, nodes) grids: one pass, no |r| array
+                inside = np.empty(r.shape, dtype=np.bool_)
+                _inside_circle_flat(r.reshape(-1), float(self.radius_um), inside.reshape(-1))
+                return inside
             return np.abs(r) <= self.radius_um
         hw, hh = 0.5 * self.width_um, 0.5 * self.height_um
         if r.ndim == 2 and np.shape(cos_t) == np.shape(sin_t) == (r.shape[0], 1):

@@ -273,7 +273,7 @@ def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Ti
         return LineData(grid, ct, st, g, gp, inside, None)
     mode = compensation.MODE_CODES[rcase.case.compensation]
     w_exact = compensation.commands_on_rays(
-        g, gp, grid.spacing_um, rc, grid.pass_nodes, grid.n_passes, mode, single_peaked(rcase)
+        g, gp, grid.spacing_um, rc, grid.pass_node_index, grid.n_passes, mode, single_peaked(rcase)
     )
     timer.add("compensation", t)
     require_finite_passes(w_exact, grid.n_passes, "the exact W command", _pass_point(grid, ray_theta))

@@ -471,7 +471,7 @@ def _commands_kernel(g, gp, spacing_um, rc, pass_nodes, n_passes, mode, from_pas
     lift = _lift_table(spacing_um, rc)
     for a in range(g.shape[0]):
         k = n_passes[a]
-        _on_ray(g[a], gp[a], spacing_um, rc, pass_nodes[a, :k], mode, lift, out[a, :k], from_passes)
+        _on_ray(g[a], gp[a], spacing_um, rc, pass_nodes[:k], mode, lift, out[a, :k], from_passes)
 
 
 def commands_on_rays(
@@ -486,11 +486,11 @@ def commands_on_rays(
 ) -> np.ndarray:
     """Commands w [µm] at every pass of every ray of a path grid (model §4): the section
     samples ``g``, ``gp`` (R, G) along each ray, the passes at node indices ``pass_nodes``
-    (R, Kmax), ``n_passes`` (R,) of them on each ray. Returns (R, Kmax), NaN past the passes.
-    ``single_peaked``: the caller knows every section's h to be single-peaked (the surface's
+    (Kmax,), the same on every ray, ``n_passes`` (R,) of them on each ray. Returns (R, Kmax),
+    NaN past the passes. ``single_peaked``: the caller knows every section's h to be single-peaked (the surface's
     curvature bound below 1/Rc), so each climb may start from the passes before it
     (:func:`compensate_on_ray`); the same commands, found in fewer steps."""
-    out = np.full(pass_nodes.shape, np.nan)
+    out = np.full((g.shape[0], pass_nodes.size), np.nan)
     _commands_kernel(
         np.ascontiguousarray(g),
         np.ascontiguousarray(gp),

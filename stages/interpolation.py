@@ -233,10 +233,14 @@ class PathGrid(NamedTuple):
         return self.node_offset - self.first_revolution * self.ppf
 
     @property
+    def pass_node_index(self) -> np.ndarray:
+        """(Kmax,) node index of pass k, the same on every ray."""
+        return self.node_offset + np.arange(int(self.n_passes.max()), dtype=np.int64) * self.ppf
+
+    @property
     def pass_nodes(self) -> np.ndarray:
         """(R, Kmax) node index of each pass (valid for k < n_passes)."""
-        k = np.arange(int(self.n_passes.max()))
-        return self.node_offset + k[None, :] * self.ppf + np.zeros((self.ray_theta.size, 1), dtype=np.int64)
+        return np.broadcast_to(self.pass_node_index, (self.ray_theta.size, int(self.n_passes.max())))
 
     @property
     def pass_rho(self) -> np.ndarray:
@@ -283,14 +287,15 @@ def nonfinite_passes(w, n_passes):  # pragma: no cover - jit
     ``n_passes[a]`` of row a (the rest is padding): (their number, the flat index of the
     first, −1 when none), read in place."""
     count = 0
-    first = -1
     for a in range(w.shape[0]):
         for k in range(n_passes[a]):
-            if not math.isfinite(w[a, k]):
-                if first < 0:
-                    first = a * w.shape[1] + k
-                count += 1
-    return count, first
+            count += not math.isfinite(w[a, k])  # no branch: the row runs four at a time
+    if count:
+        for a in range(w.shape[0]):
+            for k in range(n_passes[a]):
+                if not math.isfinite(w[a, k]):
+                    return count, a * w.shape[1] + k
+    return count, -1
 
 
 def sample_on_nodes(grid: PathGrid, g: np.ndarray, gp: np.ndarray, r: np.ndarray) -> np.ndarray:

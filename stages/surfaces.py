@@ -719,8 +719,8 @@ def _cylinder_array_kernel(x, y, pitch, radius, count, ca, sa, f, fx, fy):  # pr
     for p in range(x.size):
         # across the cylinders' axes, measured from the array's centre
         u = x[p] * ca + y[p] * sa
-        k = math.floor(u / pitch + 0.5 * count)
-        k = min(max(k, 0), count - 1)
+        # the cylinder's number as a float (np.floor: no int round trip, see trig.sincos)
+        k = min(max(np.floor(u / pitch + 0.5 * count), 0.0), count - 1.0)
         xi = u - (k + 0.5 - 0.5 * count) * pitch
         root = math.sqrt(r_abs * r_abs - xi * xi) if xi * xi < r_abs * r_abs else math.nan
         f[p] = sense * (r_abs - root)

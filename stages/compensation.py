@@ -487,9 +487,9 @@ def commands_on_rays(
     """Commands w [µm] at every pass of every ray of a path grid (model §4): the section
     samples ``g``, ``gp`` (R, G) along each ray, the passes at node indices ``pass_nodes``
     (Kmax,), the same on every ray, ``n_passes`` (R,) of them on each ray. Returns (R, Kmax),
-    NaN past the passes. ``single_peaked``: the caller knows every section's h to be single-peaked (the surface's
-    curvature bound below 1/Rc), so each climb may start from the passes before it
-    (:func:`compensate_on_ray`); the same commands, found in fewer steps."""
+    NaN past the passes. ``single_peaked``: the caller knows every section's h to be
+    single-peaked (the surface's curvature bound below 1/Rc), so each climb may start from the
+    passes before it (:func:`compensate_on_ray`); the same commands, found in fewer steps."""
     out = np.full((g.shape[0], pass_nodes.size), np.nan)
     _commands_kernel(
         np.ascontiguousarray(g),

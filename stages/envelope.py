@@ -166,18 +166,21 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
             z[own, j], m = _arc_at(node_r[own, j], m, n_arcs, pos, w, rc, stack, breaks)
         r_opp = node_r[opp, first] if first < n_nodes else -1.0
         r_own = node_r[own, first] if first < n_nodes else -1.0
-        _line_cusps(stack, breaks, n_arcs, pos, w, rc, r_opp, r_own, cusp_r[opp], cusp_z[opp], cusp_r[own], cusp_z[own])
+        opp_rows, own_rows = (cusp_r[opp], cusp_z[opp]), (cusp_r[own], cusp_z[own])
+        _line_cusps(stack, breaks, n_arcs, pos, w, rc, r_opp, r_own, opp_rows, own_rows)
     for a in range(2 * (n_rays // 2), n_rays):  # an odd last ray belongs to no line
         cusp_r[a, :] = np.nan
         cusp_z[a, :] = np.nan
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _line_cusps(stack, breaks, n_arcs, pos, w, rc, r_opp, r_own, opp_r, opp_z, own_r, own_z):  # noqa: E501  # pragma: no cover - jit
-    """The cusp peaks of a line's hull (:func:`envelope_lines`) into its rays' rows, each
-    NaN-padded: the takeovers at −r_opp ≤ x < 0 on the opposite ray (at −x), those at
-    0 ≤ x ≤ r_own on the own ray. The breaks ascend, so each ray's are one run of slots, and
-    the runs' loops are free of branches (they run four at a time)."""
+def _line_cusps(stack, breaks, n_arcs, pos, w, rc, r_opp, r_own, opp_rows, own_rows):  # noqa: E501  # pragma: no cover - jit
+    """The cusp peaks of a line's hull (:func:`envelope_lines`) into its rays' rows (radius,
+    height), each NaN-padded: the takeovers at −r_opp ≤ x < 0 on the opposite ray (at −x),
+    those at 0 ≤ x ≤ r_own on the own ray. The breaks ascend, so each ray's are one run of
+    slots, and the runs' loops are free of branches (they run four at a time)."""
+    opp_r, opp_z = opp_rows
+    own_r, own_z = own_rows
     m = 1
     while m < n_arcs and breaks[m] < 0.0 and breaks[m] < -r_opp:
         m += 1

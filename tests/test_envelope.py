@@ -108,7 +108,8 @@ def test_envelope_lines_cusps_are_the_hull_breaks_on_each_ray(n_pass, ppf, slope
     z = np.empty(node_r.shape)
     cr, cz = np.full((2, n_pass + 2), 7.0), np.full((2, n_pass + 2), 7.0)
     envelope.envelope_lines(node_r, pass_w, n_passes, off, ppf, start, rc, z, cr, cz)
-    pos = np.concatenate([-node_r[1, off : off + ppf * n_pass : ppf], node_r[0, off : off + ppf * n_pass : ppf][::-1]])
+    passes = slice(off, off + ppf * n_pass, ppf)
+    pos = np.concatenate([-node_r[1, passes], node_r[0, passes][::-1]])
     w = np.concatenate([pass_w[1], pass_w[0][::-1]])
     out, stack, breaks = run_envelope(pos, w, rc, np.zeros(1))
     top = [node_r[a, start] if start < n_nodes else -1.0 for a in (0, 1)]

@@ -177,7 +177,8 @@ def test_infinite_and_nan_indices_are_held_at_an_edge():
     v = np.array([2.0, 2.0, np.inf, -np.inf, 2.0])
     got = interpolation.bilinear(table, u, v, False)
     # ±inf lie beyond the last or the first row or column: the controller holds that edge
-    np.testing.assert_array_equal(got[:4], [table[3, 2], table[0, 2], 0.5 * (table[1, 4] + table[2, 4]), 0.5 * (table[1, 0] + table[2, 0])])
+    edges = [table[3, 2], table[0, 2], 0.5 * (table[1, 4] + table[2, 4]), 0.5 * (table[1, 0] + table[2, 0])]
+    np.testing.assert_array_equal(got[:4], edges)
     assert np.isnan(got[4])  # a NaN index never reads outside the table: its value is NaN
 
 

@@ -538,7 +538,13 @@ def load_catalog(path: Path, model: Any) -> dict[str, Any]:
 
     adapter = TypeAdapter(model)
     out: dict[str, Any] = {}
+    from ftsweep.freetext import TextError, check_text
+
     for name, entry in _read_yaml(path).items():
+        try:
+            check_text(name, "the entry's name")  # names are written into headers and programs
+        except TextError as exc:
+            raise CatalogError(f"{path}: entry {str(name)[:80]!r}: {exc}") from None
         if not isinstance(entry, dict):
             raise CatalogError(f"{path}: entry '{name}' must be a mapping, got {type(entry).__name__}")
         try:

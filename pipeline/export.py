@@ -13,10 +13,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ftsweep.io import ExportError, check_overwrite, sidecar_path
+from ftsweep.freetext import TextError, check_text
+from ftsweep.io import MAX_PROGRAM_BYTES, ExportError, check_overwrite, read_regular, sidecar_path
 from ftsweep.storage import PathLike
 
 Progress = Callable[[int, int], None] | None
+# the largest file any format reads (a program; a header is smaller)
+MAX_FILE_BYTES = MAX_PROGRAM_BYTES
 
 
 @dataclass(frozen=True)
@@ -152,8 +155,8 @@ def format_of_kind(kind: str) -> FileFormat:
 def format_of_file(path: Path) -> FileFormat:
     """The format of an exported file, by its first line (anything else is read as a header,
     whose reader says precisely what is wrong with it)."""
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        first = fh.readline()
+    head = read_regular(path, MAX_FILE_BYTES, head=200)  # a device or FIFO is refused, never read
+    first = head.split(b"\n", 1)[0].decode("utf-8", errors="replace")
     found = [f for f in formats() if f.magic is not None and first.startswith(f.magic)]
     return found[0] if found else formats()[0]
 
@@ -177,6 +180,10 @@ def export(
 
     out = Path(out)
     side = sidecar_path(out)
+    try:  # the sidecar names the file and the file its sidecar: both are rendered
+        check_text(out.name, "the output file's name")
+    except TextError as exc:
+        raise ExportError(f"-o {str(out)[:200]!r}: {exc}") from None
     if side == out:
         raise ExportError(
             f"-o {out}: the sidecar {side.name} would overwrite the file; name it FILE.h or FILE.txt"

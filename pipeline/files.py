@@ -20,7 +20,16 @@ from typing import Any
 import numpy as np
 
 from ftsweep.catalogs import CatalogError
-from ftsweep.io import ExportError, dumps_json, sidecar_path, write_texts_atomic
+from ftsweep.io import (
+    MAX_PROGRAM_BYTES,
+    ExportError,
+    check_sidecar_text,
+    dumps_json,
+    read_regular,
+    read_sidecar,
+    sidecar_path,
+    write_texts_atomic,
+)
 from ftsweep.planning import ResolvedCase, layer_plan
 from ftsweep.spec import Case
 from ftsweep.stages import decimals
@@ -212,6 +221,7 @@ def write_program(
 ) -> dict[str, Any]:
     """Close the header (the sidecar's digest, the CRC over every other line, the column
     line), name the program and its digest in the sidecar, and write both atomically."""
+    check_sidecar_text(meta, side, "nothing exported")
     rows = [*head, *closing_lines(side.name, meta)]
     # the data lines stay the kernel's bytes: encoded once, not again for the CRC, the digest
     # and the write
@@ -235,13 +245,44 @@ class ProgramFile:
         self.rows, self.fields, self.data, self.crc, self.sha256 = rows, fields, data, crc, sha256
 
 
+def where_in(raw: bytes, pos: int) -> str:
+    """'line L, column C' of byte ``pos`` of a file (both from 1; LF ends a line)."""
+    line = raw.count(b"\n", 0, pos) + 1
+    column = pos - raw.rfind(b"\n", 0, pos)
+    return f"line {line}, column {column}"
+
+
+def check_controller_text(path: Path, raw: bytes) -> None:
+    """Refuse bytes a controller would read differently from export's lines: anything but
+    printable ASCII and LF (a CR, alone or before LF, ends a line on a controller that
+    splits lines at CR; NUL, tabs and non-ASCII bytes are not written by export), a blank
+    line, or a last line without its LF. Names the line and column."""
+    buf = np.frombuffer(raw, dtype=np.uint8)
+    bad = ((buf < 32) & (buf != 10)) | (buf > 126)
+    if bad.any():
+        pos = int(np.argmax(bad))
+        what = (
+            "a carriage return (CR): a controller ends a line there"
+            if raw[pos] == 13
+            else (f"byte 0x{raw[pos]:02x}, which export never writes")
+        )
+        raise ProgramError(f"{path}: {where_in(raw, pos)} holds {what}; do not run it")
+    blank = raw.find(b"\n\n")
+    if blank >= 0 or raw.startswith(b"\n"):
+        raise ProgramError(f"{path}: {where_in(raw, blank + 1)} is blank; export writes no blank line")
+    if not raw.endswith(b"\n"):
+        raise ProgramError(f"{path}: the last line has no line end (LF); the file was cut short")
+
+
 def read_program_file(path: Path, magic: str, columns: str) -> ProgramFile:
-    """A program file, its CRC (over every line but the CRC line) checked; every data line
-    must hold the columns' count of plain numbers."""
-    with open(path, "rb") as fh:
-        raw = fh.read()
+    """A program file read as a controller reads it: only a regular file, every line as
+    export writes it in form (:func:`check_controller_text`; data lines byte for byte in
+    :data:`DECIMALS`-decimal form, :func:`ftsweep.stages.decimals.fault`), its CRC (over
+    every line but the CRC line) checked."""
+    raw = read_regular(path, MAX_PROGRAM_BYTES, "program")
     if not raw.startswith(magic.encode("utf-8")):
         raise ProgramError(f"{path} is not an ftsweep program of this kind (no '{magic}' first line)")
+    check_controller_text(path, raw)
     # only the header is split into rows: the data lines are read from the file's bytes
     mark = ("\n" + columns + "\n").encode("utf-8")
     at = raw.find(mark)
@@ -249,7 +290,7 @@ def read_program_file(path: Path, magic: str, columns: str) -> ProgramFile:
         at = len(raw) - len(mark) + 1
     if at < 0:
         raise ProgramError(f"{path}: the column line '{columns}' is missing")
-    rows = raw[:at].decode("utf-8").split("\n")
+    rows = raw[:at].decode("ascii").split("\n")
     crc_rows = [i for i, row in enumerate(rows) if row.startswith("# CRC32:")]
     if len(crc_rows) != 1:
         raise ProgramError(f"{path}: the header must hold exactly one CRC32 line; do not run it")
@@ -263,10 +304,8 @@ def read_program_file(path: Path, magic: str, columns: str) -> ProgramFile:
         key, _, value = row[2:].partition(": ")
         head[key] = value
     n_cols = columns.count(" ") + 1
-    body = memoryview(raw)[min(at + len(mark), len(raw)) :]
-    data = _numbers(path, body, n_cols, len(rows) + 2)
-    if data.shape[1] != n_cols or not np.all(np.isfinite(data)):
-        raise ProgramError(f"{path}: every data line must hold {columns} as {n_cols} finite numbers")
+    start = min(at + len(mark), len(raw))
+    data = _numbers(path, raw, start, n_cols)
     return ProgramFile(rows[: crc_rows[0]], head, data, stored, hashlib.sha256(raw).hexdigest())
 
 
@@ -279,26 +318,22 @@ def _crc_without(raw: bytes, rows: list[str], skip: int) -> int:
     return zlib.crc32(memoryview(raw)[start:end], zlib.crc32(head)) & 0xFFFFFFFF
 
 
-def _numbers(path: Path, body: memoryview, n_cols: int, first_line: int) -> np.ndarray:
-    """The data lines (the file's bytes after the column line) as an (lines, columns) array.
-    Lines as export writes them are read at compiled speed (:func:`ftsweep.stages.decimals.
-    parse_rows`: a million lines in ~0.08 s); any other text by numpy's compiled text reader
-    (~0.3 s; it refuses what ``float`` refuses, and ``1_0`` too), whose error names it."""
-    text = body[:-1] if body[-1:] == b"\n" else body
-    fast = decimals.parse_rows(text, n_cols, DECIMALS)
-    if fast is not None:
-        return fast
-    lines = bytes(body).decode("utf-8").split("\n")
-    if lines[-1] == "":
-        lines = lines[:-1]
-    if not lines:
-        return np.empty((0, n_cols))
-    try:
-        return np.loadtxt(lines, dtype=np.float64, delimiter=" ", comments=None, ndmin=2)
-    except ValueError as exc:
+def _numbers(path: Path, raw: bytes, start: int, n_cols: int) -> np.ndarray:
+    """The data lines (``raw[start:]``, after the column line) as an (lines, columns) array,
+    refused unless byte for byte in export's form (:func:`ftsweep.stages.decimals.fault`,
+    naming line and column); read at compiled speed (a million lines in ~0.08 s)."""
+    body = memoryview(raw)[start : len(raw) - 1] if start < len(raw) else memoryview(b"")
+    off = decimals.fault(body, n_cols, DECIMALS)
+    if off >= 0:
         raise ProgramError(
-            f"{path}: a data line (from line {first_line} on) is not {n_cols} numbers ({exc})"
-        ) from None
+            f"{path}: {where_in(raw, start + off)}: a data line is not {n_cols} numbers as export writes "
+            f"them (-?digits.{DECIMALS} digits, one space between, LF at the end: no exponent, no '+', "
+            "no leading zero, no blank line); do not run it"
+        )
+    data = decimals.parse_rows(body, n_cols, DECIMALS)
+    if data is None:
+        raise ProgramError(f"{path}: a data line holds a number beyond 2^53 units of its last decimal")
+    return data
 
 
 def recorded_extra(meta: dict[str, Any]) -> dict[str, Any]:
@@ -372,11 +407,9 @@ def checked_sidecar(path: Path, doc: ProgramFile) -> dict[str, Any]:
     program name each other."""
     side = sidecar_path(path)
     try:
-        meta = json.loads(side.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise ProgramError(f"{side}: the sidecar cannot be read ({exc})") from None
-    if not isinstance(meta, dict):
-        raise ProgramError(f"{side} is not an ftsweep sidecar (a JSON object is expected)")
+        meta = read_sidecar(path)
+    except ExportError as exc:
+        raise ProgramError(str(exc)) from None
     if meta.get("program_sha256") != doc.sha256:
         raise ProgramError(f"{side} does not belong to {path} (SHA-256 of the program differs)")
     if doc.fields.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta, TEXT_FIELDS):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import stat
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -19,6 +20,90 @@ def _umask() -> int:
 class ExportError(ValueError):
     """The header cannot be written or verified; the message says why (raised by
     :mod:`ftsweep.files` and the exporters)."""
+
+
+def read_regular(
+    path: str | os.PathLike[str], cap: int, what: str = "file", head: int | None = None
+) -> bytes:
+    """The bytes of ``path``, refused (:class:`ExportError`, naming the path) unless it is a
+    regular file of at most ``cap`` bytes: a device (``/dev/zero``), a FIFO, a socket or a
+    directory is never read, so a read can neither block nor run without end. The file is
+    opened without blocking and judged by ``fstat`` of the open descriptor, so swapping the
+    path for a FIFO after a first look changes nothing. ``head``: read only that many
+    bytes from the start."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    except OSError as exc:
+        raise ExportError(f"{path}: cannot open it ({exc.strerror or exc})") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or info.st_size > cap:
+        os.close(fd)
+        if not stat.S_ISREG(info.st_mode):
+            kind = "a directory" if stat.S_ISDIR(info.st_mode) else "a device, FIFO or socket"
+            raise ExportError(f"{path} is {kind}, not a regular {what}; nothing was read")
+        raise ExportError(
+            f"{path} holds {info.st_size:,} bytes, more than any {what} ftsweep reads ({cap:,}); "
+            "nothing was read"
+        )
+    with os.fdopen(fd, "rb") as fh:
+        data = fh.read(cap + 1 if head is None else min(head, cap + 1))
+    if len(data) > cap:  # grew while being read
+        raise ExportError(f"{path} grew past {cap:,} bytes while it was read; nothing was used")
+    return data
+
+
+# a program holds at most a controller's block count: this bounds what verify reads
+MAX_PROGRAM_BYTES = 2 * 2**30
+# a sidecar holds a case, its catalog entries and at most a controller's layer schedule
+MAX_SIDECAR_BYTES = 64 * 2**20
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"the number {text[:40]} does not fit a float")
+    return value
+
+
+def _no_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def read_sidecar(path: Path) -> dict[str, Any]:
+    """The sidecar of an exported file (``FILE.json`` beside ``path``), read as untrusted
+    data: a regular file of at most :data:`MAX_SIDECAR_BYTES`, strict JSON (no NaN, no
+    Infinity, no number that overflows a float), an object, and every string that export
+    renders held to :func:`ftsweep.freetext.check_text`; :class:`ExportError` naming the
+    problem otherwise."""
+    side = sidecar_path(Path(path))
+    try:
+        raw = read_regular(side, MAX_SIDECAR_BYTES, "sidecar")
+    except ExportError as exc:
+        if not side.exists():
+            raise ExportError(f"{side} is missing: verify needs the sidecar written with the file") from None
+        raise exc from None
+    try:
+        meta = json.loads(raw.decode("utf-8"), parse_float=_finite, parse_constant=_no_constant)
+    except (ValueError, RecursionError) as exc:
+        raise ExportError(
+            f"{side} is not an ftsweep sidecar ({type(exc).__name__}: {str(exc)[:100]})"
+        ) from None
+    if not isinstance(meta, dict):
+        raise ExportError(f"{side} is not an ftsweep sidecar (a JSON object is expected)")
+    check_sidecar_text(meta, side, "do not load the file")
+    return meta
+
+
+def check_sidecar_text(meta: dict[str, Any], side: Path, then: str) -> None:
+    """Every string of a sidecar that export renders held to the strict character set
+    (:func:`ftsweep.freetext.check_strings`); :class:`ExportError` naming the field, then
+    ``then`` (what follows for the user)."""
+    from ftsweep.freetext import TextError, check_strings
+
+    try:
+        check_strings(meta, side.name)
+    except TextError as exc:
+        raise ExportError(f"{side}: {exc}; {then}") from None
 
 
 def sidecar_path(header: Path) -> Path:

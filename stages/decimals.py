@@ -261,3 +261,51 @@ def parse_rows(text: bytes | memoryview, cols: int, decimals: int = 9) -> np.nda
     if _parse(buf, cols, decimals, 10**decimals, out) != out.size:
         return None
     return out.reshape(rows, cols)
+
+
+@njit(nogil=True, cache=True)
+def _fault(buf, cols, decimals):  # pragma: no cover - jit
+    """−1 when ``buf`` is rows of ``cols`` numbers exactly as :func:`_render` writes them
+    ('-'? ('0' | [1-9][0-9]*) '.' exactly ``decimals`` digits; single spaces between numbers,
+    one LF between rows, none after the last); else the byte position where it leaves that
+    form."""
+    n = buf.size
+    pos = 0
+    k = 0
+    while pos < n:
+        if buf[pos] == 45:
+            pos += 1
+        start = pos
+        while pos < n and 48 <= buf[pos] <= 57:
+            pos += 1
+        if pos == start or (buf[start] == 48 and pos - start > 1):
+            return start if pos == start else start + 1
+        if pos >= n or buf[pos] != 46:
+            return pos
+        pos += 1
+        first = pos
+        while pos < n and 48 <= buf[pos] <= 57 and pos - first < decimals:
+            pos += 1
+        if pos - first != decimals:
+            return pos
+        k += 1
+        if pos == n:
+            break
+        if buf[pos] != (32 if k % cols else 10) or pos + 1 == n:
+            return pos
+        pos += 1
+    if k % cols or k == 0:
+        return pos
+    return -1
+
+
+def fault(text: bytes | memoryview, cols: int, decimals: int = 9) -> int:
+    """−1 when ``text`` is byte for byte rows of ``cols`` numbers as :func:`rows_bytes`
+    writes them with ``decimals`` decimals (what a controller reads is what export wrote);
+    else the byte offset [bytes from the start of ``text``] of the first departure: an
+    exponent, a '+', a leading zero, another count of decimals, two spaces, a CR, a blank
+    line, a missing or extra number."""
+    buf = np.frombuffer(text, dtype=np.uint8)
+    if buf.size == 0:
+        return -1
+    return int(_fault(buf, cols, decimals))

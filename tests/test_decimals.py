@@ -158,27 +158,75 @@ def test_other_text_is_left_to_the_general_reader(text):
     assert decimals.parse_rows(text.encode("ascii"), 2, 9) is None
 
 
-def test_program_files_read_the_same_by_either_reader(tmp_path):
-    # a file whose lines leave the written form is read by loadtxt (the same numbers) or
-    # refused naming the line
+def _program(folder: Path, lines: list[str], end: str = "\n") -> Path:
+    """A program file of header rows and ``lines`` after the column line, its CRC right."""
     from ftsweep import files
 
-    def program(lines: list[str]) -> Path:
-        rows = ["# magic", "# a: b"]
-        body = "\n".join(["x_mm y_mm", *lines]) + "\n"
-        crc = files.crc_of([*rows, "x_mm y_mm", *lines])
-        out = tmp_path / "p.txt"
-        out.write_text("\n".join([*rows, files.CRC_LINE.format(crc), body]))
-        return out
+    rows = ["# magic", "# a: b"]
+    crc = files.crc_of([*rows, "x_mm y_mm", *lines])
+    out = folder / "p.txt"
+    out.write_bytes(
+        "\n".join([*rows, files.CRC_LINE.format(crc), "x_mm y_mm", *lines]).encode() + end.encode()
+    )
+    return out
+
+
+def test_program_files_are_read_as_written(tmp_path):
+    from ftsweep import files
 
     written = files.read_program_file(
-        program(["1.500000000 -0.000000000", "2.0 3.25"]), "# magic", "x_mm y_mm"
+        _program(tmp_path, ["1.500000000 -0.000000000", "2.000000000 3.250000000"]), "# magic", "x_mm y_mm"
     )
-    general = files.read_program_file(program(["1.5e0 -0.0", "+2.0 3.25"]), "# magic", "x_mm y_mm")
-    assert _same(written.data, np.array([[1.5, -0.0], [2.0, 3.25]])) and _same(general.data, written.data)
+    assert _same(written.data, np.array([[1.5, -0.0], [2.0, 3.25]]))
     assert written.fields["a"] == "b" and written.fields["CRC32"].startswith("0x")
-    with pytest.raises(files.ProgramError, match="from line 5 on"):
-        files.read_program_file(program(["1.0 2.0", "3.0 x"]), "# magic", "x_mm y_mm")
-    with pytest.raises(files.ProgramError, match="2 finite numbers"):
-        files.read_program_file(program(["1.0 2.0", "3.0 inf"]), "# magic", "x_mm y_mm")
-    assert files.read_program_file(program([]), "# magic", "x_mm y_mm").data.shape == (0, 2)
+
+
+@pytest.mark.parametrize(
+    ("second", "column"),
+    [
+        ("4e0 3.250000000", 2),  # an exponent
+        ("+2.000000000 3.250000000", 1),  # a plus sign
+        ("3.340010000e-4 3.250000000", 12),  # an exponent after the digits
+        ("02.000000000 3.250000000", 2),  # a leading zero
+        ("2.00000000 3.250000000", 11),  # eight decimals
+        ("2.000000000  3.250000000", 13),  # two spaces
+        ("2.000000000 x", 13),
+        ("2.000000000 inf", 13),
+        ("2.000000000", 12),  # a short line
+    ],
+)
+def test_program_data_lines_other_than_exports_are_refused_by_line_and_column(tmp_path, second, column):
+    # what a controller reads must be what export wrote, byte for byte: no other spelling of a number
+    from ftsweep import files
+
+    path = _program(tmp_path, ["1.500000000 -0.000000000", second])
+    with pytest.raises(files.ProgramError, match=f"line 6, column {column}: a data line"):
+        files.read_program_file(path, "# magic", "x_mm y_mm")
+
+
+@pytest.mark.parametrize(
+    ("lines", "end", "message"),
+    [
+        (
+            ["1.500000000 -0.000000000", "2.000000000 3.250000000"],
+            "\r\n",
+            "line 6, column 24 holds a carriage",
+        ),
+        (["1.500000000 -0.000000000\r2.000000000 3.250000000"], "\n", "line 5, column 25 holds a carriage"),
+        (["1.500000000 -0.000000000", "", "2.000000000 3.250000000"], "\n", "line 6, column 1 is blank"),
+        (["1.500000000 -0.000000000"], "", "no line end"),
+        (["1.500000000 -0.000000000\t"], "\n", "byte 0x09"),
+    ],
+)
+def test_line_ends_other_than_exports_are_refused(tmp_path, lines, end, message):
+    # every CR, LF or CRLF ends a line on some controller: only export's LF is accepted
+    from ftsweep import files
+
+    with pytest.raises(files.ProgramError, match=message):
+        files.read_program_file(_program(tmp_path, lines, end), "# magic", "x_mm y_mm")
+
+
+def test_a_program_without_data_lines_reads_empty(tmp_path):
+    from ftsweep import files
+
+    assert files.read_program_file(_program(tmp_path, []), "# magic", "x_mm y_mm").data.shape == (0, 2)

@@ -185,7 +185,7 @@ def test_a_table_value_that_is_not_an_integer_is_named(ring_cube, tmp_path):
     end = text.index(",", start)
     for bad in ("1.5", "12x", "0x1F"):  # each read as integers once (a regex took their digits)
         header.write_text(text[:start] + bad + text[end:])
-        with pytest.raises(ExportError, match="not an integer"):
+        with pytest.raises(ExportError, match=f"holds {bad!r}, not an integer"):
             read_header(header)
 
 

@@ -152,7 +152,7 @@ def test_every_edited_macro_fails_verify(header_copy, name):
     macros = dict(read_header(header_copy)[0])
     edited = _replace_macro(header_copy.read_text(), name, _edited(macros[name]))
     header_copy.write_text(edited)
-    with pytest.raises(ExportError, match="checksum mismatch|INT_TYPE|the table holds"):
+    with pytest.raises(ExportError, match="checksum mismatch|INT_TYPE|the table holds|the table is declared"):
         verify(header_copy)
     r = cli(["verify", str(header_copy)])
     assert r.exit_code == 1 and ("do not load it" in r.output or "INT_TYPE" in r.output)

@@ -34,7 +34,8 @@ from ftsweep.files import (
     sidecar_digest,
     sidecar_path,
 )
-from ftsweep.io import dumps_json, write_texts_atomic
+from ftsweep.io import check_sidecar_text, dumps_json, read_regular, read_sidecar, write_texts_atomic
+from ftsweep.kinds.c_view import read_c
 from ftsweep.kinds.table import build_layout
 from ftsweep.planning import control_table, resolve_case
 from ftsweep.spec import Case
@@ -278,6 +279,7 @@ def export_header(
         case=case.model_dump(mode="json"),
         catalog_entries=recorded_entries(specs),
     )
+    check_sidecar_text(sidecar, side, "nothing exported")
     # the header names the sidecar's hash and the sidecar the header's: editing either one,
     # or re-forging the table with its CRC, is caught by verify
     meta["sidecar_sha256"] = sidecar_digest(sidecar)
@@ -289,60 +291,50 @@ def export_header(
 
 
 # ----------------------------------------------------------------------------- verify
-_DEFINE = re.compile(r"^#define\s+(\w+)\s+(.*?)\s*(?:/\*.*\*/)?\s*$")
-# what separates the table's values: braces of rows, commas, white space
-_SEPARATORS = str.maketrans("{},", "   ")
 # a header holds at most a controller's table: this bounds what verify reads
 MAX_HEADER_BYTES = 200 * 2**20
 
 
-def _defines(text: str) -> list[tuple[str, str]]:
-    """(name, value) of every ``#define`` line, the trailing comment dropped."""
-    out = []
-    for line in text.splitlines():
-        m = _DEFINE.match(line)
-        if m:
-            out.append((m.group(1), m.group(2)))
-    return out
+def read_header(path: Path, raw: bytes | None = None) -> tuple[list[tuple[str, str]], np.ndarray]:
+    """:func:`read_c_header` without the prefix."""
+    macros, ints, _ = read_c_header(path, raw)
+    return macros, ints
 
 
-def read_header(path: Path) -> tuple[list[tuple[str, str]], np.ndarray]:
-    """The macros (name without prefix, value as written, in header order) and the integer
-    table of a header written by :func:`export`; :class:`ExportError` if it is not one."""
+def read_c_header(path: Path, raw: bytes | None = None) -> tuple[list[tuple[str, str]], np.ndarray, str]:
+    """The macros (name without prefix, replacement text as C reads it, in header order) and
+    the integer table of a header, read as C reads it (:func:`ftsweep.kinds.c_view.read_c`:
+    a real preprocessor and parser), and the identifiers' prefix; :class:`ExportError` if it
+    is not what export writes in form. ``raw``: the file's bytes, read already."""
     path = Path(path)
-    if path.stat().st_size > MAX_HEADER_BYTES:
-        raise ExportError(f"{path} is larger than any ftsweep header ({MAX_HEADER_BYTES // 2**20} MiB)")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ExportError(f"{path} is not an ftsweep header (not UTF-8 text at byte {exc.start})") from None
-    defines = _defines(text)
-    rows_key = next((k for k, _ in defines if k.endswith("_ROWS")), None)
-    if rows_key is None:
-        raise ExportError(f"{path} is not an ftsweep header (no *_ROWS macro)")
-    prefix = rows_key[: -len("_ROWS")]
-    macros = [(k[len(prefix) + 1 :], v) for k, v in defines if k.startswith(prefix + "_") and v]
+    raw = read_regular(path, MAX_HEADER_BYTES, "header") if raw is None else raw
+    view = read_c(raw, str(path))
+    prefix = view.guard[:-2]
+    if not view.guard.endswith("_H") or view.name != prefix.lower() + "_table":
+        raise ExportError(
+            f"{path}: the include guard {view.guard[:60]} and the table {view.name[:60]} do not share "
+            "export's prefix (PREFIX_H, prefix_table); do not load it"
+        )
+    strays = [k for k, _ in view.macros if not k.startswith(prefix + "_")]
+    if strays:
+        raise ExportError(
+            f"{path}: macro {strays[0][:60]} does not carry the prefix {prefix}_; do not load it"
+        )
+    macros = [(k[len(prefix) + 1 :], v) for k, v in view.macros]
     found = dict(macros)
     missing = [k for k in ("ROWS", "COLS", "INT_TYPE", "UNIT_NM", CHECKSUM_MACRO) if k not in found]
     if missing:
         raise ExportError(f"{path} is not a complete ftsweep header (missing {', '.join(missing)})")
-    body = re.search(r"_table\[\w+\]\[\w+\]\s*=\s*\{(.*)\};", text, re.S)
-    if body is None:
-        raise ExportError(f"{path}: no table initializer found")
-    try:
-        rows, cols = int(found["ROWS"]), int(found["COLS"])
-    except ValueError:
-        raise ExportError(f"{path}: ROWS and COLS must be integers") from None
-    try:
-        # numpy parses the tokens in C (a Python int per value took 0.33 s for 950k values)
-        ints = np.array(body.group(1).translate(_SEPARATORS).split(), dtype=np.int64)
-    except (ValueError, OverflowError) as exc:
-        raise ExportError(f"{path}: the table holds a value that is not an integer ({exc})") from None
-    if ints.size != rows * cols:
+    if found["INT_TYPE"] != c_string(view.int_type[:-2]):
         raise ExportError(
-            f"{path}: the table holds {ints.size} values, the macros say {rows} × {cols}; do not load it"
+            f"{path}: the table is declared {view.int_type} but INT_TYPE says {found['INT_TYPE'][:40]}"
         )
-    return macros, ints.reshape(rows, cols)
+    if (found["ROWS"], found["COLS"]) != tuple(str(n) for n in view.cells.shape):
+        raise ExportError(
+            f"{path}: the table holds {view.cells.shape[0]} × {view.cells.shape[1]} values, the macros say "
+            f"{found['ROWS'][:20]} × {found['COLS'][:20]}; do not load it"
+        )
+    return macros, view.cells, prefix
 
 
 def _macro_value(macros: dict[str, str], name: str, kind: Callable[[str], Any], path: Path) -> Any:
@@ -360,18 +352,18 @@ def default_pv_tolerance_nm(unit_nm: float, pv_nm: float) -> float:
     return unit_nm + 1e-3 * pv_nm
 
 
-def check_integrity(path: Path) -> tuple[dict[str, str], np.ndarray, dict[str, Any]]:
-    """The macros, table and sidecar of a header whose CRC-32 (over every macro and the table),
-    sidecar CRC, header SHA-256 (in the sidecar) and sidecar SHA-256 (in the header) all
-    match; :class:`ExportError` naming the first that does not."""
-    macro_list, ints = read_header(path)
+def check_integrity(path: Path) -> tuple[dict[str, str], np.ndarray, dict[str, Any], str, bytes]:
+    """The macros (as C reads them), table, sidecar, identifiers' prefix and bytes of a
+    header whose CRC-32 (over every macro and the table), sidecar CRC, header SHA-256 (in
+    the sidecar) and sidecar SHA-256 (in the header) all match; :class:`ExportError`
+    naming the first that does not."""
+    raw = read_regular(path, MAX_HEADER_BYTES, "header")
+    macro_list, ints, prefix = read_c_header(path, raw)
     macros = dict(macro_list)
     stored = _stored_checksum(macros, macro_list, ints, path)
+    meta = read_sidecar(path)
     side = sidecar_path(path)
-    if not side.exists():
-        raise ExportError(f"{side} is missing: verify needs the sidecar written with the header")
     try:
-        meta = json.loads(side.read_text(encoding="utf-8"))
         header_sha = meta["header_sha256"]
         recorded_crc = int(meta["crc32"])
     except (ValueError, KeyError, TypeError) as exc:
@@ -380,7 +372,7 @@ def check_integrity(path: Path) -> tuple[dict[str, str], np.ndarray, dict[str, A
         ) from None
     if recorded_crc != stored:
         raise ExportError(f"{side} belongs to another table (checksum 0x{recorded_crc:08x})")
-    if hashlib.sha256(path.read_bytes()).hexdigest() != header_sha:
+    if hashlib.sha256(raw).hexdigest() != header_sha:
         raise ExportError(
             f"{path} differs from the header the sidecar was written with (SHA-256 mismatch): the header "
             "was edited, or header and sidecar come from different exports; do not load it"
@@ -391,7 +383,7 @@ def check_integrity(path: Path) -> tuple[dict[str, str], np.ndarray, dict[str, A
             f"{side} was changed after export (its SHA-256 does not match the header's SIDECAR_SHA256); "
             "re-export instead of editing it"
         )
-    return macros, ints, meta
+    return macros, ints, meta, prefix, raw
 
 
 def _stored_checksum(
@@ -432,7 +424,7 @@ def verify_header(
     the first difference.
     """
     path = Path(path)
-    macros, ints, meta = check_integrity(path)
+    macros, ints, meta, prefix, raw = check_integrity(path)
     case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
     surface, machine, _ = specs
     try:
@@ -447,9 +439,10 @@ def verify_header(
     )
     expected["layers"] = layer_schedule(resolve_case(case, specs=specs), table)
     expected["sidecar_sha256"] = sidecar_digest(meta)
-    text = path.read_text(encoding="utf-8")
-    prefix = next(k for k, _ in _defines(text) if k.endswith("_ROWS"))[: -len("_ROWS")]
-    check_canonical(text, render_header(prefix, expected, ints, machine.table_int_type)[0], path, prefix)
+    check_macros(macros, expected, ints, machine.table_int_type, path)
+    check_canonical(
+        raw.decode("ascii"), render_header(prefix, expected, ints, machine.table_int_type)[0], path, prefix
+    )
     predicted = float(meta["pv_nm"])
     record = run_case(case, table=table, specs=specs, progress=progress)
     tol = default_pv_tolerance_nm(unit_nm, predicted) if pv_tolerance_nm is None else pv_tolerance_nm
@@ -488,6 +481,26 @@ def check_table(ints: np.ndarray, planned: np.ndarray, path: Path) -> None:
             f"{int(planned[i, j])} ({int(off.sum()):,} cell(s) differ by more than "
             f"{TABLE_UNITS_TOLERANCE} unit); do not load it"
         )
+
+
+def check_macros(
+    macros: dict[str, str], expected: dict[str, Any], ints: np.ndarray, int_type: str, path: Path
+) -> None:
+    """Refuse a header whose macros, as C reads them (name, replacement text, order), are
+    not the ones export writes for the recorded case (``expected``: :func:`header_meta` of
+    it); names the first macro that differs."""
+    want = [(n, v) for n, v, _ in header_macros(expected, ints.shape, int_type)]
+    want.append((CHECKSUM_MACRO, f"0x{checksum(want, ints, int_type):08x}UL"))
+    wanted = dict(want)
+    for name in [*macros, *wanted]:
+        if macros.get(name) != wanted.get(name):
+            got, value = macros.get(name), wanted.get(name)
+            raise ExportError(
+                f"{path}: C reads macro {name[:60]} as {str(got)[:120]!r}, but the recorded case gives "
+                f"{str(value)[:120]!r}; do not load it"
+            )
+    if list(macros) != list(wanted):
+        raise ExportError(f"{path}: the macros are not in export's order; do not load it")
 
 
 def check_canonical(text: str, expected: str, path: Path, prefix: str) -> None:

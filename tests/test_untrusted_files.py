@@ -1,0 +1,346 @@
+"""Exported files are read as the C compiler and the controller read them: free text never
+becomes syntax, a header is judged by what a real preprocessor and parser make of it, a
+program line by line as a controller splits lines, and only regular files are read. Each
+attack is first shown to work on what C or the controller would execute."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ftsweep.cli import main
+from ftsweep.export import ExportError, export, verify
+from ftsweep.files import CRC_LINE, crc_of, sidecar_digest
+from ftsweep.io import read_sidecar
+from ftsweep.kinds.c_view import read_c
+from ftsweep.kinds.table_header import CHECKSUM_MACRO, checksum, read_header, render_header
+from ftsweep.run import run_sweep
+
+CC = shutil.which("cc") or shutil.which("gcc")
+needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler on this machine")
+
+RING = "surface: small_sine\nlayout: ring\naxes: {points: [15000], aspect: [4.0]}\n"
+SPIRAL = "surface: small_sine\nlayout: spiral\naxes: {points_per_rev: [60]}\n"
+
+
+def cli(args: list[str], catalogs: Path):  # type: ignore[no-untyped-def]
+    return CliRunner().invoke(main, args, env={"FTSWEEP_CATALOGS": str(catalogs)})
+
+
+@pytest.fixture(scope="module")
+def originals(tmp_path_factory, module_catalog_dir):
+    """A ring header and a spiral program, freshly exported (tests edit copies)."""
+    folder = tmp_path_factory.mktemp("originals")
+    out = {}
+    for name, text, suffix in (("fts", RING, ".h"), ("prog", SPIRAL, ".txt")):
+        spec = folder / f"{name}.yaml"
+        spec.write_text(text)
+        cube_path = folder / f"{name}.zarr"
+        run_sweep(str(spec), cube_path, scheduler="synchronous", catalog_folder=module_catalog_dir)
+        os.environ["FTSWEEP_CATALOGS"] = str(module_catalog_dir)
+        try:
+            export(cube_path, folder / f"{name}{suffix}", index=0)
+        finally:
+            del os.environ["FTSWEEP_CATALOGS"]
+        out[name] = folder / f"{name}{suffix}"
+    return out
+
+
+@pytest.fixture()
+def copies(originals, tmp_path, module_catalog_dir, monkeypatch):
+    monkeypatch.setenv("FTSWEEP_CATALOGS", str(module_catalog_dir))
+    out = {}
+    for name, path in originals.items():
+        for suffix in (path.suffix, ".json"):
+            shutil.copy(path.with_suffix(suffix), tmp_path / f"{name}{suffix}")
+        out[name] = tmp_path / path.name
+    return out
+
+
+# ------------------------------------------------------------------ forging as an attacker
+def forge_header_from_sidecar(header: Path, edit) -> str:  # type: ignore[no-untyped-def]
+    """Edit the sidecar, then re-make the header from it with ftsweep's own renderer and
+    re-make every digest, CRC and hash: what an attacker with the project's code can do."""
+    side = header.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    edit(meta)
+    macros, ints = read_header(header)
+    rendered = dict(meta, sidecar_sha256=sidecar_digest(meta))
+    text, crc = render_header(header.stem, rendered, ints, meta["int_type"])
+    meta.update(crc32=crc, header_sha256=hashlib.sha256(text.encode()).hexdigest())
+    header.write_text(text)
+    side.write_text(json.dumps(meta, indent=2))
+    return text
+
+
+def forge_header_text(header: Path, text: str) -> None:
+    """Write ``text`` as the header, with the CRC macro re-made from what C reads of it
+    (when C reads it at all) and the sidecar's CRC and header hash re-made."""
+    header.write_text(text)
+    try:
+        macros, ints = read_header(header)
+    except ExportError:
+        crc = None
+    else:
+        crc = checksum(macros, ints, json.loads(dict(macros)["INT_TYPE"]))
+        text = re.sub(rf"(_{CHECKSUM_MACRO}) 0x[0-9a-f]+UL", rf"\g<1> 0x{crc:08x}UL", text)
+        header.write_text(text)
+    side = header.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    meta.update(header_sha256=hashlib.sha256(text.encode()).hexdigest(), **({"crc32": crc} if crc else {}))
+    side.write_text(json.dumps(meta, indent=2))
+
+
+def forge_program(path: Path, edit) -> None:  # type: ignore[no-untyped-def]
+    """Edit a program's sidecar, re-render the header rows that carry the edited text, and
+    re-make the sidecar digest line, the CRC line and the program hash."""
+    side = path.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    old = dict(meta)
+    edit(meta)
+    text = path.read_bytes().decode()
+    for key in ("created", "generator"):
+        text = text.replace(str(old[key]), str(meta[key]), 1)
+    rows = text.split("\n")
+    rows = [f"# sidecar: {side.name} sha256 {sidecar_digest(meta, ('program', 'program_sha256', 'crc32'))}"
+            if r.startswith("# sidecar:") else r for r in rows]  # fmt: skip
+    at = next(i for i, r in enumerate(rows) if r.startswith("# CRC32:"))
+    rows[at] = CRC_LINE.format(crc_of(rows[:at] + rows[at + 1 : -1]))
+    data = "\n".join(rows).encode()
+    path.write_bytes(data)
+    meta.update(program_sha256=hashlib.sha256(data).hexdigest(), crc32=int(rows[at].split()[2], 16))
+    side.write_text(json.dumps(meta, indent=2))
+
+
+INJECTED = "2026-01-01T00:00:00+0000 */\n#\tdefine FTS_H\n#\tdefine FTS_PITCH0 7.63\n/*"
+
+
+def c_macros(header: Path) -> dict[str, str]:
+    """The macros gcc's preprocessor ends with, by name (``cc -E -dM``)."""
+    out = subprocess.run(
+        [CC, "-E", "-dM", "-x", "c", str(header)], capture_output=True, text=True, check=True
+    )
+    pairs = (line.split(None, 2)[1:] for line in out.stdout.splitlines() if line.startswith("#define "))
+    return {p[0]: (p[1] if len(p) > 1 else "") for p in pairs}
+
+
+# ------------------------------------------------------------------ the header
+@needs_cc
+def test_free_text_in_the_sidecar_cannot_rewrite_the_header(copies):
+    header = copies["fts"]
+    good_pitch = c_macros(header)["FTS_PITCH0"]
+    forge_header_from_sidecar(header, lambda m: m.update(created=INJECTED))
+    # the attack is real: C reads the injected pitch and skips the real definitions
+    assert c_macros(header)["FTS_PITCH0"] == "7.63" != good_pitch
+    with pytest.raises(ExportError, match="a conditional other than the include guard"):
+        verify(header)  # C's reading of the header refuses it first
+    with pytest.raises(ExportError, match=r"fts.json: fts.json.created holds '\*' at character 26"):
+        read_sidecar(header)  # and the sidecar's text is refused where it enters
+
+
+def test_the_header_is_judged_by_what_c_reads_even_with_a_clean_sidecar(copies):
+    # the injected lines in the header alone, every checksum re-made: C's reading refuses them
+    header = copies["fts"]
+    text = header.read_text()
+    forged = text.replace(" */\n#ifndef", " */\n#\tdefine FTS_H\n#\tdefine FTS_PITCH0 7.63\n#ifndef", 1)
+    forge_header_text(header, forged)
+    with pytest.raises(ExportError, match="line 12: a conditional other than the include guard"):
+        verify(header)
+
+
+D0, UNIT, INC = "#define FTS_PITCH0", "#define FTS_UNIT_NM", "#include <stdint.h>"
+OPEN, CLOSE = " = {\n", "\n};"
+# id -> ((old, new) replacements, what the refusal names)
+EDITS = {
+    "include-file": ([(INC, '#include "/etc/hostname"')], "#include"),
+    "include-system": ([(INC, INC + "\n#include <stdio.h>")], "#include"),
+    "undef": ([("#define FTS_ROWS", "# define FTS_ROWS 1\n#undef FTS_ROWS\n#define FTS_ROWS")], "#undef"),
+    "redefine": ([(D0, "# define FTS_PITCH0 7.63\n" + D0)], "second definition"),
+    "conditional": ([(D0, "#define FTS_PITCH0 7.63\n#if 0\n" + D0)], "#if"),
+    "function-like": ([(UNIT, "#define FTS_X(a) a\n" + UNIT)], "function-like"),
+    "pragma": ([(UNIT, "#pragma once\n" + UNIT)], "#pragma"),
+    "rows-skipped": ([(OPEN, OPEN + "#if 0\n"), (CLOSE, "\n#endif" + CLOSE)], "#if"),
+    "rows-in-comment": ([(OPEN, OPEN + "/*\n"), (CLOSE, "\n*/" + CLOSE)], "other declarations"),
+    "second-table": (
+        [(CLOSE, CLOSE + "\nstatic const int32_t fts_other[1][1] = {{1}};")],
+        "other declarations",
+    ),
+    "expression": ([(D0 + " ", D0 + " 2. + ")], "C reads macro PITCH0"),
+    "comment-in-value": ([(D0 + " ", D0 + " /* */ 1.0 + ")], "C reads macro PITCH0"),
+    "splice": ([(D0 + " ", D0 + " \\\n")], "C reads macro PITCH0|line"),
+}
+
+
+@pytest.mark.parametrize("edit", list(EDITS))
+def test_anything_export_does_not_write_is_refused_by_name(copies, edit):
+    header = copies["fts"]
+    replacements, message = EDITS[edit]
+    text = header.read_text()
+    for old, new in replacements:
+        assert old in text
+        text = text.replace(old, new, 1)
+    forge_header_text(header, text)
+    with pytest.raises(ExportError, match=message):
+        verify(header)
+
+
+@needs_cc
+def test_the_c_view_is_what_gcc_reads(originals):
+    header = originals["fts"]
+    view = read_c(header.read_bytes(), str(header))
+    gcc = c_macros(header)
+    assert {k: gcc[k] for k, _ in view.macros} == dict(view.macros)
+    assert view.guard in gcc
+
+
+def _gcc_cells(header: Path, folder: Path) -> list[int] | None:
+    """The table cells as a program compiled by gcc reads them (None: gcc refuses the file)."""
+    main_c = folder / "main.c"
+    main_c.write_text(
+        f'#include <stdio.h>\n#include "{header.name}"\n'
+        "int main(void) { const int32_t *p = &fts_table[0][0];\n"
+        '  for (long k = 0; k < (long)(sizeof fts_table / sizeof *p); ++k) printf("%ld\\n", (long)p[k]);\n'
+        "  return 0; }\n"
+    )
+    exe = folder / "main"
+    built = subprocess.run(
+        [CC, "-std=c99", "-w", "-o", str(exe), str(main_c)], capture_output=True, cwd=folder
+    )
+    if built.returncode:
+        return None
+    return [int(v) for v in subprocess.run([str(exe)], capture_output=True, text=True).stdout.split()]
+
+
+BYTES = st.sampled_from(
+    [b"#", b"/", b"*", b"\n", b"\\", b'"', b"1", b"9", b"-", b" ", b"x", b"{", b"}", b",", b"?"]
+)
+
+
+@needs_cc
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_mutated_headers_are_refused_whenever_c_would_read_other_values(
+    originals, tmp_path_factory, module_catalog_dir, data
+):
+    # any byte inserted, deleted or replaced, inside or outside comments: when the C view
+    # accepts the file it agrees with gcc, and verify refuses whenever the values differ
+    original = originals["fts"]
+    text = original.read_bytes()
+    pos = data.draw(st.integers(0, len(text) - 1))
+    op = data.draw(st.sampled_from(["insert", "delete", "replace"]))
+    byte = data.draw(BYTES)
+    mutated = text[:pos] + (byte if op != "delete" else b"") + text[pos + (op != "insert") :]
+    folder = tmp_path_factory.mktemp("mutated")
+    header = folder / "fts.h"
+    header.write_bytes(mutated)
+    shutil.copy(original.with_suffix(".json"), folder / "fts.json")
+    base = read_c(text, "original")
+    try:
+        view = read_c(mutated, "mutated")
+    except ExportError:
+        view = None
+    if view is not None:  # accepted in form: it must be what gcc reads
+        gcc = c_macros(header)
+        assert {k: gcc.get(k) for k, _ in view.macros} == dict(view.macros)
+        assert _gcc_cells(header, folder) == view.cells.ravel().tolist()
+    forge_header_text(header, mutated.decode("latin-1"))
+    same = view is not None and view.macros == base.macros and (view.cells == base.cells).all()
+    if not same:
+        os.environ["FTSWEEP_CATALOGS"] = str(module_catalog_dir)
+        try:
+            with pytest.raises(ExportError):
+                verify(header)
+        finally:
+            del os.environ["FTSWEEP_CATALOGS"]
+
+
+# ------------------------------------------------------------------ programs
+def test_a_line_end_in_the_sidecar_never_becomes_a_motion_line(copies):
+    program = copies["prog"]
+    forge_program(program, lambda m: m.update(created=m["created"] + "\r0.000 0.5 -0.1"))
+    assert b"\r0.000 0.5 -0.1\n" in program.read_bytes()  # a CR-splitting controller runs this line
+    with pytest.raises(ExportError, match="carriage return|created holds"):
+        verify(program)
+
+
+@pytest.mark.parametrize("spelling", ["4e0", "+{v}", "{v}0", "0{v}"])
+def test_a_data_line_spelt_otherwise_is_refused(copies, spelling):
+    program = copies["prog"]
+    rows = program.read_bytes().decode().split("\n")
+    k = len(rows) - 5
+    first = rows[k].split(" ")
+    first[1] = spelling.format(v=first[1]) if "{v}" in spelling else spelling
+    rows[k] = " ".join(first)
+    at = next(i for i, r in enumerate(rows) if r.startswith("# CRC32:"))
+    rows[at] = CRC_LINE.format(crc_of(rows[:at] + rows[at + 1 : -1]))
+    program.write_bytes("\n".join(rows).encode())
+    with pytest.raises(ExportError, match=f"line {k + 1}, column .*: a data line"):
+        verify(program)
+
+
+# ------------------------------------------------------------------ what is read at all
+@pytest.mark.parametrize("target", ["/dev/zero", "fifo", "folder"])
+def test_only_regular_files_are_read_and_refused_at_once(tmp_path, module_catalog_dir, target):
+    if target == "fifo":
+        path = tmp_path / "p.h"
+        os.mkfifo(path)
+    elif target == "folder":
+        path = tmp_path / "d.h"
+        path.mkdir()
+    else:
+        path = Path(target)
+    start = time.perf_counter()
+    with pytest.raises(ExportError, match="not a regular"):
+        verify(path)
+    assert time.perf_counter() - start < 1.0
+
+
+def test_verify_dev_zero_exits_nonzero_within_a_second(tmp_path):
+    start = time.perf_counter()
+    done = subprocess.run(
+        [str(Path(sys.executable).parent / "ftsweep"), "verify", "/dev/zero"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
+    elapsed = time.perf_counter() - start
+    assert done.returncode != 0 and "not a regular file" in done.stderr
+    print(f"ftsweep verify /dev/zero: exit {done.returncode} in {elapsed:.2f} s")
+
+
+def test_a_sidecar_number_beyond_a_float_is_named(copies, module_catalog_dir):
+    header = copies["fts"]
+    side = header.with_suffix(".json")
+    side.write_text(side.read_text().replace('"crc32": ', '"crc32": 1e400, "x": ', 1))
+    res = cli(["verify", str(header)], module_catalog_dir)
+    assert res.exit_code == 1 and "does not fit a float" in res.output and "unexpected" not in res.output
+
+
+def test_an_output_name_that_would_become_syntax_is_refused(originals, tmp_path, module_catalog_dir):
+    cube_path = originals["fts"].with_suffix(".zarr")
+    res = cli(["export", str(cube_path), "--case", "0", "-o", str(tmp_path / "a*b.h")], module_catalog_dir)
+    assert res.exit_code == 1 and "file's name holds '*'" in res.output
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_catalog_entry_name_that_would_become_syntax_is_refused(tmp_path, module_catalog_dir):
+    from ftsweep.catalogs import CatalogError, entries
+
+    folder = tmp_path / "cat"
+    shutil.copytree(module_catalog_dir, folder)
+    with (folder / "machines.yaml").open("a") as fh:
+        fh.write('\n"evil */ #define":\n  description: x\n')
+    with pytest.raises(CatalogError, match=r"entry's name holds '\*'"):
+        entries("machines", folder)

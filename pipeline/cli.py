@@ -30,6 +30,7 @@ COMMANDS = {
     "estimate": ("ftsweep.cli_tools", "estimate"),
     "bench": ("ftsweep.cli_tools", "bench"),
     "compare": ("ftsweep.cli_cubes", "compare"),
+    "keys": ("ftsweep.cli_cubes", "keys"),
     "dpath": ("ftsweep.cli_programs", "dpath_command"),
     "fresnel": ("ftsweep.cli_programs", "fresnel_command"),
 }

@@ -44,6 +44,15 @@ TRUST_PLUGINS = click.option(
 )
 
 
+# ftsweep.origin: who made an exported file
+SIGN_KEY = click.option(
+    "--sign-key",
+    type=click.Path(dir_okay=False),
+    help="Sign what is written with this ed25519 private key (FILE.sig beside it; `ftsweep keys new` "
+    "makes one). Default: FTSWEEP_SIGNING_KEY, else signing_key of the config file; none: not signed.",
+)
+
+
 class CubeLocation(click.ParamType):
     """A cube: a local folder (which must exist) or an fsspec URL (``s3://bucket/c.zarr``, checked
     when opened); the value stays text so a URL is not mangled into a path."""

@@ -15,6 +15,7 @@ from ftsweep.cli_common import (
     CUBE,
     NON_NEGATIVE,
     POSITIVE,
+    SIGN_KEY,
     STORAGE_OPTIONS,
     TRUST_PLUGINS,
     cube_place,
@@ -122,6 +123,7 @@ def select(
 )
 @click.option("--name", help="Prefix of the C identifiers. Default: the file name.")
 @click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
+@SIGN_KEY
 @TRUST_PLUGINS
 @STORAGE_OPTIONS
 def export(
@@ -132,6 +134,7 @@ def export(
     out: str,
     name: Optional[str],
     force: bool,
+    sign_key: Optional[str],
     trust_plugins: bool,
     storage_options: tuple[str, ...],
 ) -> None:
@@ -156,13 +159,17 @@ def export(
     assert target is not None
     cube = cube_place(cube_path, storage_options)
     try:
-        meta = exp.export(cube, target, budget_points, tolerance_nm, index, force, name, trust_plugins)
+        meta = exp.export(
+            cube, target, budget_points, tolerance_nm, index, force, name, trust_plugins, sign_key
+        )
     except (exp.ExportError, SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(_selection_text(meta["selection"]))
     for line in exp.format_of_file(target).exported(target, meta):
         click.echo(line)
     click.echo(f"sidecar      {exp.sidecar_path(target)}")
+    if meta.get("signature"):
+        click.echo(f"signature    {exp.signature_path(target)} (key {meta['signature']})")
 
 
 @click.command()
@@ -173,10 +180,31 @@ def export(
     help="Largest allowed |re-simulated − predicted| P-V [nm]. Default: a table's unit (the "
     "quantisation bound) + 0.1 % of the P-V; a program's 0.01 nm + 0.1 %.",
 )
+@click.option(
+    "--trusted-key",
+    "trusted",
+    multiple=True,
+    type=click.Path(dir_okay=False),
+    help="A public key (PEM) whose signature the file must carry (repeat for several). Default: "
+    "trusted_keys of the config file; none: the recorded entries are compared with the catalog.",
+)
+@click.option(
+    "--accept-recorded",
+    is_flag=True,
+    help="Without a trusted key, verify against the entries the sidecar recorded even where the "
+    "local catalog differs (proves consistency only).",
+)
 @TRUST_PLUGINS
 @threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
-def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, as_json: bool) -> None:
+def verify(
+    header: Path,
+    pv_tolerance_nm: Optional[float],
+    trusted: tuple[str, ...],
+    accept_recorded: bool,
+    trust_plugins: bool,
+    as_json: bool,
+) -> None:
     """Check an exported file as the machine will read it, against the program its sidecar's
     case plans: a controller header (ring or mesh table, layered or not: FILE.h) or a path
     program (spiral, layered spiral, D path, Fresnel: FILE.txt).
@@ -194,6 +222,14 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, 
       the tolerance of the P-V predicted at export.
     Otherwise exit 1 naming the first difference: do not load that file. Files are data: a
     plug-in surface they name runs only if the local catalog declares it (--trust-plugins).
+
+    \b
+    Origin (what the hashes above cannot prove: anyone can re-make them):
+    - with a trusted key (--trusted-key, or the config file's trusted_keys): the file must
+      carry FILE.sig, an ed25519 signature of that key over the file and its sidecar;
+    - without: the sidecar's recorded surface, machine and cutting entries must equal the
+      local catalog's (--accept-recorded verifies against the recorded ones instead).
+    The output's origin line says which of the two was proved.
     """
     from ftsweep import export as exp
     from ftsweep.catalogs import CatalogError
@@ -201,7 +237,7 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, 
 
     progress = stderr_progress("re-simulating", as_json)
     try:
-        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins)
+        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins, trusted, accept_recorded)
     except (exp.ExportError, CaseError, CatalogError) as exc:
         raise click.ClickException(str(exc)) from None
     finally:
@@ -211,6 +247,7 @@ def verify(header: Path, pv_tolerance_nm: Optional[float], trust_plugins: bool, 
         return
     for line in exp.format_of_file(header).verified(record):
         click.echo(line)
+    click.echo(exp.origin_line(record))
 
 
 @click.command()
@@ -392,3 +429,39 @@ def _print_compare(
         )
     if out is not None:
         click.echo(f"plot         {out}")
+
+
+@click.group("keys")
+def keys() -> None:
+    """Make the ed25519 key pair export signs with and verify trusts.
+
+    \b
+    A shop keeps the private key (NAME.key, mode 0600) on the machine that exports, named by
+    --sign-key, FTSWEEP_SIGNING_KEY or signing_key in the config file
+    ($XDG_CONFIG_HOME/ftsweep/config.toml, or FTSWEEP_CONFIG); the public key (NAME.pub) goes
+    to every machine that verifies, named by --trusted-key or trusted_keys there.
+    """
+
+
+@keys.command("new")
+@click.option(
+    "-o",
+    "--output",
+    "stem",
+    default="ftsweep-signing",
+    show_default=True,
+    type=click.Path(dir_okay=False),
+    help="Name of the pair: writes NAME.key (private) and NAME.pub (public); never replaces a key.",
+)
+def keys_new(stem: str) -> None:
+    """Make a new ed25519 key pair (NAME.key, NAME.pub) and print its key ID."""
+    from ftsweep.io import ExportError
+    from ftsweep.origin import new_keys
+
+    try:
+        private, public, ident = new_keys(Path(stem))
+    except ExportError as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(f"private key  {private} (mode 0600: keep it on the exporting machine only)")
+    click.echo(f"public key   {public} (give it to every machine that verifies)")
+    click.echo(f"key ID       {ident}")

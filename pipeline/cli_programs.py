@@ -11,6 +11,7 @@ import click
 from ftsweep.cli_common import (
     FINITE,
     POSITIVE,
+    SIGN_KEY,
     FiniteRange,
     dpath_options,
     echo_json,
@@ -59,6 +60,7 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
     help="Export the optimised program here (t C X Z lines + FILE.json sidecar).",
 )  # noqa: E501
 @click.option("--force", is_flag=True, help="Replace an existing program.")
+@SIGN_KEY
 @threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def dpath_command(**opts: Any) -> None:
@@ -97,7 +99,7 @@ def dpath_command(**opts: Any) -> None:
     result["plots"] = plots
     if opts["out"] is not None:
         planned = summary["_resolved"]["optimised"]
-        result["program"] = _export_dpath(base, summary["optimised"], opts["out"], opts["force"], planned)
+        result["program"] = _export_dpath(base, summary["optimised"], opts, planned)
     if opts["as_json"]:
         echo_json(result)
         return
@@ -142,20 +144,25 @@ def _check_overwrite(out: Optional[Path], force: bool) -> None:
             raise click.ClickException(str(exc)) from None
 
 
-def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool, planned: Any) -> dict[str, Any]:
-    """Export the optimised program of ``dpath`` (refusing to replace files without --force),
-    as the study planned it (``planned``, from the same entries)."""
+def _export_dpath(base: Case, record: dict[str, Any], opts: dict[str, Any], planned: Any) -> dict[str, Any]:
+    """Export the optimised program of ``dpath`` to ``opts["out"]`` (refusing to replace files
+    without --force; signed with --sign-key), as the study planned it (``planned``, from the
+    same entries)."""
     from ftsweep import dstudy
+    from ftsweep.export import signed
     from ftsweep.io import ExportError, check_overwrite, sidecar_path
     from ftsweep.kinds import path_programs as program
+    from ftsweep.origin import signature_path, signing_key
     from ftsweep.planning import resolve_specs
     from ftsweep.spec import CaseError
 
+    out = opts["out"]
     side = sidecar_path(out)
     try:
-        check_overwrite((out, side), force)
+        check_overwrite((out, side, signature_path(out)), opts["force"])
         case = dstudy.d_case(base, "optimised")
         meta = program.export_dpath(out, side, case, resolve_specs(case), record, {}, planned)
+        signed(out, signing_key(opts["sign_key"]), meta)
     except (ExportError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None
     return {"path": str(out), "sidecar": str(side), "lines": meta["n_points"]}
@@ -212,6 +219,7 @@ def _export_dpath(base: Case, record: dict[str, Any], out: Path, force: bool, pl
     help="Export the program (t C X Y Z lines).",
 )
 @click.option("--force", is_flag=True, help="Replace an existing program.")
+@SIGN_KEY
 @threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def fresnel_command(**opts: Any) -> None:
@@ -236,7 +244,9 @@ def fresnel_command(**opts: Any) -> None:
 
     from ftsweep import fstudy
     from ftsweep.catalogs import CatalogError
+    from ftsweep.export import signed
     from ftsweep.files import ExportError, sidecar_path
+    from ftsweep.origin import signing_key
 
     keys = ("facet_height_um", "points_per_turn", "deviation_deg", "compensation", "scheme", "safety")
     inp = fstudy.inputs(opts["surface"], opts["machine"], opts["cutting"], **{k: opts[k] for k in keys})
@@ -248,7 +258,8 @@ def fresnel_command(**opts: Any) -> None:
         progress_done(progress)
         plots = [str(p) for p in fstudy.plot(summary, opts["plot_dir"])]
         if out is not None:
-            fstudy.export(summary, out, sidecar_path(out), inp)
+            meta = fstudy.export(summary, out, sidecar_path(out), inp)
+            signed(out, signing_key(opts["sign_key"]), meta)
     except (CatalogError, ExportError, ValidationError, ValueError) as exc:
         raise click.ClickException(one_line(str(exc))) from None
     finally:

@@ -14,7 +14,16 @@ from pathlib import Path
 from typing import Any
 
 from ftsweep.freetext import TextError, check_text
-from ftsweep.io import MAX_PROGRAM_BYTES, ExportError, check_overwrite, read_regular, sidecar_path
+from ftsweep.io import (
+    MAX_PROGRAM_BYTES,
+    MAX_SIDECAR_BYTES,
+    ExportError,
+    check_overwrite,
+    read_regular,
+    read_sidecar,
+    sidecar_path,
+)
+from ftsweep.origin import sign, signature_path, signing_key
 from ftsweep.storage import PathLike
 
 Progress = Callable[[int, int], None] | None
@@ -170,12 +179,14 @@ def export(
     force: bool = False,
     name: str | None = None,
     trust_plugins: bool = False,
+    sign_key: str | None = None,
 ) -> dict[str, Any]:
     """Choose a case of a cube (a path or URL; ``select``'s rules), plan it again from the cube's recorded
     spec and catalog entries and write it in its kind's format with its sidecar, atomically
     (a table as a C header, a spiral or D-path program as plain-text lines). Returns the
     sidecar's content. A plug-in surface the cube names must be in the local catalog unless
-    ``trust_plugins``."""
+    ``trust_plugins``. Signed (``FILE.sig``) when a signing key is configured
+    (:func:`ftsweep.origin.signing_key` of ``sign_key``)."""
     from ftsweep.select import check_exportable, choose, open_cube, recorded_case
 
     out = Path(out)
@@ -188,7 +199,8 @@ def export(
         raise ExportError(
             f"-o {out}: the sidecar {side.name} would overwrite the file; name it FILE.h or FILE.txt"
         )
-    check_overwrite((out, side), force)
+    check_overwrite((out, side, signature_path(out)), force)
+    key = signing_key(sign_key)
     ds = open_cube(cube_path)
     chosen = choose(ds, budget_points, tolerance_nm, index)
     if tolerance_nm is not None and not chosen.get("met", True):
@@ -202,7 +214,17 @@ def export(
     extra = {"cube": str(cube_path), "cube_git_revision": ds.attrs.get("git_revision")}
     fmt = format_of_kind(case.layout.kind)
     assert fmt.export is not None
-    return fmt.export(out, side, case, specs, chosen, extra, name=name)
+    meta = fmt.export(out, side, case, specs, chosen, extra, name=name)
+    return signed(out, key, meta)
+
+
+def signed(out: Path, key: Path | None, meta: dict[str, Any]) -> dict[str, Any]:
+    """``meta`` of a file just written, after signing it with ``key`` (``signature`` then
+    holds the key's ID) or, with no key, removing a signature left by an earlier export."""
+    if key is None:
+        signature_path(out).unlink(missing_ok=True)
+        return meta
+    return {**meta, "signature": sign(out, key)}
 
 
 def verify(
@@ -210,8 +232,51 @@ def verify(
     progress: Progress = None,
     pv_tolerance_nm: float | None = None,
     trust_plugins: bool = False,
+    trusted: tuple[str, ...] = (),
+    accept_recorded: bool = False,
 ) -> dict[str, Any]:
     """Verify any exported file by its format (:func:`format_of_file`): what the machine
-    reads, parsed as the machine parses it, against what the recorded case plans. Raises
+    reads, parsed as the machine parses it, against what the recorded case plans; and its
+    origin (:mod:`ftsweep.origin`): with trusted keys (``trusted``, or the config file's)
+    its signature, else its recorded catalog entries against the local catalog (unless
+    ``accept_recorded``). The record's ``origin`` says which was proved. Raises
     :class:`~ftsweep.files.ExportError` naming the first difference."""
-    return format_of_file(Path(path)).verify(Path(path), progress, pv_tolerance_nm, trust_plugins)
+    from ftsweep import origin as org
+
+    path = Path(path)
+    fmt = format_of_file(path)
+    side = sidecar_path(path)
+    before = _contents(path, side)
+    keys = org.trusted_keys(trusted)
+    if keys:
+        proved = {"proved": "signed", "key_id": org.check_signature(path, *before, keys)}
+    elif accept_recorded:
+        proved = {"proved": "recorded entries (--accept-recorded): not compared with a catalog"}
+    else:
+        catalog = org.check_catalog(read_sidecar(path), side)
+        proved = {"proved": "consistent with this catalog", "catalog": catalog}
+    record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
+    if _contents(path, side) != before:  # what was judged must be what was proved
+        raise ExportError(f"{path} or its sidecar changed while it was verified; verify it again")
+    record["origin"] = proved
+    return record
+
+
+def _contents(path: Path, side: Path) -> tuple[bytes, bytes]:
+    """The bytes of a file and its sidecar (regular files only, bounded)."""
+    if not side.exists():
+        raise ExportError(f"{side} is missing: verify needs the sidecar written with the file")
+    return read_regular(path, MAX_FILE_BYTES), read_regular(side, MAX_SIDECAR_BYTES, "sidecar")
+
+
+def origin_line(record: dict[str, Any]) -> str:
+    """The line that says what verify proved of a file's origin."""
+    proved = record.get("origin", {})
+    if proved.get("key_id"):
+        return f"origin       signed by key {proved['key_id']} (trusted)"
+    if proved.get("catalog"):
+        return (
+            f"origin       consistent with this catalog ({proved['catalog']}); no signature checked "
+            "(--trusted-key proves who exported it)"
+        )
+    return f"origin       {proved.get('proved', 'not checked')}"

@@ -23,7 +23,6 @@ from hypothesis import strategies as st
 from ftsweep.cli import main
 from ftsweep.export import ExportError, export, verify
 from ftsweep.files import CRC_LINE, crc_of, sidecar_digest
-from ftsweep.io import read_sidecar
 from ftsweep.kinds.c_view import read_c
 from ftsweep.kinds.table_header import CHECKSUM_MACRO, checksum, read_header, render_header
 from ftsweep.run import run_sweep
@@ -144,10 +143,10 @@ def test_free_text_in_the_sidecar_cannot_rewrite_the_header(copies):
     forge_header_from_sidecar(header, lambda m: m.update(created=INJECTED))
     # the attack is real: C reads the injected pitch and skips the real definitions
     assert c_macros(header)["FTS_PITCH0"] == "7.63" != good_pitch
-    with pytest.raises(ExportError, match="a conditional other than the include guard"):
-        verify(header)  # C's reading of the header refuses it first
     with pytest.raises(ExportError, match=r"fts.json: fts.json.created holds '\*' at character 26"):
-        read_sidecar(header)  # and the sidecar's text is refused where it enters
+        verify(header)  # the sidecar's text is refused where it enters
+    with pytest.raises(ExportError, match="line 13: a conditional other than the include guard"):
+        read_header(header)  # and C's reading of the header refuses the header on its own
 
 
 def test_the_header_is_judged_by_what_c_reads_even_with_a_clean_sidecar(copies):
@@ -344,3 +343,97 @@ def test_a_catalog_entry_name_that_would_become_syntax_is_refused(tmp_path, modu
         fh.write('\n"evil */ #define":\n  description: x\n')
     with pytest.raises(CatalogError, match=r"entry's name holds '\*'"):
         entries("machines", folder)
+
+
+# ------------------------------------------------------------------ origin
+@pytest.fixture()
+def keypair(tmp_path, module_catalog_dir):
+    res = cli(["keys", "new", "-o", str(tmp_path / "shop")], module_catalog_dir)
+    assert res.exit_code == 0, res.output
+    assert oct((tmp_path / "shop.key").stat().st_mode & 0o777) == "0o600"
+    return tmp_path / "shop.key", tmp_path / "shop.pub"
+
+
+def test_signed_export_verifies_with_its_key_and_any_change_is_refused(
+    originals, tmp_path, module_catalog_dir, keypair
+):
+    key, pub = keypair
+    out = tmp_path / "signed.h"
+    cube_path = str(originals["fts"].with_suffix(".zarr"))
+    res = cli(
+        ["export", cube_path, "--case", "0", "-o", str(out), "--sign-key", str(key)], module_catalog_dir
+    )
+    assert res.exit_code == 0 and "signature" in res.output, res.output
+    ok = cli(["verify", str(out), "--trusted-key", str(pub)], module_catalog_dir)
+    assert ok.exit_code == 0 and "origin       signed by key" in ok.output, ok.output
+    # another key is not trusted
+    other = cli(["keys", "new", "-o", str(tmp_path / "other")], module_catalog_dir)
+    assert other.exit_code == 0
+    res = cli(["verify", str(out), "--trusted-key", str(tmp_path / "other.pub")], module_catalog_dir)
+    assert res.exit_code == 1 and "not trusted here" in res.output
+    # one changed byte anywhere in the file, its sidecar or the signature: refused
+    for target in (out, out.with_suffix(".json"), out.with_name("signed.h.sig")):
+        original = target.read_bytes()
+        for pos in (0, len(original) // 2, len(original) - 2):
+            changed = bytearray(original)
+            changed[pos] = ord("A") if changed[pos] != ord("A") else ord("B")
+            target.write_bytes(bytes(changed))
+            res = cli(["verify", str(out), "--trusted-key", str(pub)], module_catalog_dir)
+            assert res.exit_code == 1, (target.name, pos, res.output)
+        target.write_bytes(original)
+    # unsigned: refused when a key is trusted
+    out.with_name("signed.h.sig").unlink()
+    res = cli(["verify", str(out), "--trusted-key", str(pub)], module_catalog_dir)
+    assert res.exit_code == 1 and "is not signed" in res.output
+
+
+def test_trusted_keys_come_from_the_config_file(
+    originals, tmp_path, module_catalog_dir, keypair, monkeypatch
+):
+    key, pub = keypair
+    config = tmp_path / "config.toml"
+    config.write_text(f'signing_key = "{key}"\ntrusted_keys = ["{pub}"]\n')
+    monkeypatch.setenv("FTSWEEP_CONFIG", str(config))
+    out = tmp_path / "c.h"
+    res = cli(
+        ["export", str(originals["fts"].with_suffix(".zarr")), "--case", "0", "-o", str(out)],
+        module_catalog_dir,
+    )
+    assert res.exit_code == 0 and out.with_name("c.h.sig").exists(), res.output
+    res = cli(["verify", str(out)], module_catalog_dir)
+    assert res.exit_code == 0 and "signed by key" in res.output, res.output
+
+
+def test_a_consistent_forgery_of_the_recorded_surface_is_refused_against_the_catalog(
+    copies, module_catalog_dir
+):
+    # halve the recorded amplitude, re-plan the table with ftsweep's own planner and re-make
+    # every hash: consistent, so only the catalog (or a signature) can tell
+    from ftsweep.files import recorded_case_of
+    from ftsweep.kinds.table import build_layout
+    from ftsweep.kinds.table_header import planned_ints
+
+    header = copies["fts"]
+    side = header.with_suffix(".json")
+    meta = json.loads(side.read_text())
+    params = meta["catalog_entries"]["surface"]["params"]
+    key = next(k for k in params if k.startswith("amplitude"))
+    params[key] /= 2
+    side.write_text(json.dumps(meta))
+    case, specs = recorded_case_of(meta, side)
+    ints = planned_ints(case, specs, build_layout(specs[0], case.layout))
+    rendered = dict(meta, sidecar_sha256=sidecar_digest(meta))
+    text, crc = render_header(header.stem, rendered, ints, meta["int_type"])
+    meta.update(crc32=crc, header_sha256=hashlib.sha256(text.encode()).hexdigest())
+    header.write_text(text)
+    side.write_text(json.dumps(meta, indent=2))
+    res = cli(["verify", str(header)], module_catalog_dir)
+    assert res.exit_code == 1 and f"surface 'small_sine'.params.{key}: recorded" in res.output, res.output
+    # against its own recorded entries it is consistent, and verify says that is all it proved
+    res = cli(["verify", str(header), "--accept-recorded", "--pv-tolerance-nm", "1e9"], module_catalog_dir)
+    assert res.exit_code == 0 and "not compared with a catalog" in res.output, res.output
+
+
+def test_a_fresh_export_is_consistent_with_this_catalog(originals, module_catalog_dir):
+    res = cli(["verify", str(originals["fts"])], module_catalog_dir)
+    assert res.exit_code == 0 and "consistent with this catalog" in res.output, res.output

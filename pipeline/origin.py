@@ -122,6 +122,7 @@ def _load(path: Path, private: bool) -> Any:
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
     data = read_regular(path, MAX_KEY_BYTES, "key file")
+    key: Any
     try:
         if private:
             key = serialization.load_pem_private_key(data, password=None)

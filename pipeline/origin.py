@@ -210,29 +210,12 @@ def entry_names(meta: dict[str, Any]) -> dict[str, str]:
     return {key: str(source.get(key)) for key in ("surface", "machine", "cutting")}
 
 
-def _first_difference(got: Any, want: Any, where: str) -> str | None:
-    if isinstance(got, dict) and isinstance(want, dict):
-        for key in sorted(set(got) | set(want)):
-            found = _first_difference(got.get(key), want.get(key), f"{where}.{key}")
-            if found:
-                return found
-        return None
-    if isinstance(got, list) and isinstance(want, list) and len(got) == len(want):
-        for i, (a, b) in enumerate(zip(got, want, strict=True)):
-            found = _first_difference(a, b, f"{where}[{i}]")
-            if found:
-                return found
-        return None
-    if got != want:
-        return f"{where}: recorded {json.dumps(got)[:80]}, the local catalog has {json.dumps(want)[:80]}"
-    return None
-
-
 def check_catalog(meta: dict[str, Any], side: Path, folder: Path | None = None) -> str:
     """Refuse a sidecar whose recorded entries differ from the local catalog's entries of the
     same names (``folder``, default the catalog in use), naming the first field that does;
     returns the catalog folder compared with."""
     from ftsweep.catalogs import CatalogError, catalog_dir, entry
+    from ftsweep.trust import first_difference
 
     folder = folder or catalog_dir()
     names = entry_names(meta)
@@ -246,7 +229,7 @@ def check_catalog(meta: dict[str, Any], side: Path, folder: Path | None = None) 
             raise ExportError(
                 f"{side}: {exc}; give --accept-recorded to verify against the recorded entries"
             ) from None
-        found = _first_difference(recorded.get(key), json.loads(dumps_json(local)), f"{key} '{names[key]}'")
+        found = first_difference(recorded.get(key), json.loads(dumps_json(local)), f"{key} '{names[key]}'")
         if found:
             raise ExportError(
                 f"{side}: the recorded entry differs from the local catalog ({folder}): {found}; the file "

@@ -145,6 +145,7 @@ def prepare_cube(
             out.remove_all()
         else:
             caselog.merge_logs(out)
+            _same_catalog(out, spec, attrs, catalog_folder)
             if attrs["sweep_spec_hash"] != spec.spec_hash():
                 note = _grow_or_refuse(name, spec, out, attrs)
             _warn_other_revision(out, attrs)
@@ -152,6 +153,30 @@ def prepare_cube(
     entries = catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, catalog_folder)
     cube.create(out, cube.template(spec, name, entries))
     return 0, note
+
+
+def _same_catalog(out: Place, spec: SweepSpec, attrs: dict[str, Any], folder: Optional[Path]) -> None:
+    """Refuse to resume or grow a cube whose recorded catalog entries differ from the catalog
+    as it is now (its new cases would use the edited entries, its record the old ones),
+    naming the first field that differs."""
+    from ftsweep.trust import first_difference
+
+    try:
+        recorded = json.loads(attrs["catalog_entries"])
+    except (KeyError, TypeError, ValueError):
+        raise CubeError(f"{out} records no readable catalog entries; re-run with --restart") from None
+    now = json.loads(json.dumps(catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, folder)))
+    for key in ("surface", "machine", "cutting"):
+        name = next(iter(now[key]))
+        if name not in (recorded.get(key) or {}):
+            continue  # another entry: the spec changed, which the spec's own check names
+        found = first_difference(recorded[key][name], now[key][name], f"{key} '{name}'")
+        if found:
+            raise CubeError(
+                f"{out} was computed with other catalog entries than the catalog's now ({found}); its "
+                "cases would mix the two. Re-run with --restart to recompute every case with the catalog "
+                "as it is, or restore the entry."
+            )
 
 
 def _grow_or_refuse(name: str, spec: SweepSpec, out: Place, attrs: dict[str, Any]) -> str:

@@ -6,6 +6,7 @@ anything is imported.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -77,3 +78,24 @@ def one_error(exc: ValidationError) -> str:
     e = errors[0]
     loc = ".".join(str(p) for p in e["loc"])
     return f"{loc}: {error_text(e)}" if loc else error_text(e)
+
+
+def first_difference(got: Any, want: Any, where: str) -> str | None:
+    """The first field where recorded entries ``got`` differ from the local catalog's
+    ``want`` (JSON-like), as ``where.key[i]: recorded X, the local catalog has Y``; None
+    when they are equal."""
+    if isinstance(got, dict) and isinstance(want, dict):
+        for key in sorted(set(got) | set(want)):
+            found = first_difference(got.get(key), want.get(key), f"{where}.{key}")
+            if found:
+                return found
+        return None
+    if isinstance(got, list) and isinstance(want, list) and len(got) == len(want):
+        for i, (a, b) in enumerate(zip(got, want, strict=True)):
+            found = first_difference(a, b, f"{where}[{i}]")
+            if found:
+                return found
+        return None
+    if got != want:
+        return f"{where}: recorded {json.dumps(got)[:80]}, the local catalog has {json.dumps(want)[:80]}"
+    return None

@@ -133,3 +133,21 @@ def test_a_scheduled_run_whose_spec_grows_and_its_exit_statuses(tmp_path, catalo
     r = CliRunner().invoke(main, ["sweep", str(spec), "--out", str(out), "--workers", "0"], env=env)
     assert r.exit_code == 2  # a usage error
     assert np.sum(cube.read_status(out) == cube.DONE) == 6
+
+
+@pytest.mark.parametrize("grows", [False, True], ids=["resume", "growth"])
+def test_a_cube_never_mixes_catalogs(tmp_path, catalog_dir, grows):
+    # the catalog's surface edited after the cube was computed: neither a plain resume nor a
+    # growth may compute new cases with the edited entry under the old record
+    out = tmp_path / "g.zarr"
+    run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    surfaces = catalog_dir / "surfaces.yaml"
+    surfaces.write_text(surfaces.read_text().replace("amplitude_x_um: 0.5,", "amplitude_x_um: 0.25,", 1))
+    spec = _spec(tmp_path, "[8000, 12000, 20000]") if grows else _spec(tmp_path)
+    with pytest.raises(
+        CubeError, match=r"surface 'small_sine'.params.amplitude_x_um: recorded 0.5, .* has 0.25"
+    ):
+        run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert xr.open_zarr(out).sizes["points"] == 2  # untouched
+    again = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir, restart=True)
+    assert again.done == (6 if grows else 4)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import io
 import uuid
+import warnings
 from collections import defaultdict
 from typing import Any
 
@@ -23,6 +24,8 @@ from ftsweep import cube
 from ftsweep.storage import PathLike, Place, place
 
 LOG = "_log"
+# where logs that fail their checks are kept for inspection (zarr ignores the folder too)
+REJECTED = "_log_rejected"
 
 
 def _encode(cases: list[tuple[int, cube.Values]]) -> bytes:
@@ -42,14 +45,91 @@ def _encode(cases: list[tuple[int, cube.Values]]) -> bytes:
     return buffer.getvalue()
 
 
-def _decode(data: bytes) -> list[tuple[int, cube.Values]]:
+class BadLog(ValueError):
+    """A case log that is not what a worker writes; the message says what is wrong."""
+
+
+def _check_column(
+    var: str, index: np.ndarray, values: np.ndarray, shapes: dict[str, tuple[int, ...]]
+) -> None:
+    """One variable's columns of a log: a cube variable, int64 flat indices within the cube,
+    one value per index of the cube variable's kind (maps of its shape)."""
+    if var not in shapes:
+        raise BadLog(f"variable {var[:60]!r} is not one of the cube's")
+    n_cases = int(np.prod(shapes["status"]))
+    if index.dtype != np.int64 or index.ndim != 1 or values.shape[:1] != index.shape:
+        raise BadLog(
+            f"{var}: indices and values do not pair up ({index.dtype} {index.shape}, {values.shape})"
+        )
+    if index.size and (index.min() < 0 or index.max() >= n_cases):
+        raise BadLog(f"{var}: case index {int(index.min())}..{int(index.max())} outside 0..{n_cases - 1}")
+    kind = "U" if var in cube.TEXT else "biuf"
+    if values.dtype.kind not in kind:
+        held = "text" if kind == "U" else "numbers"
+        raise BadLog(f"{var}: values of type {values.dtype} where the cube holds {held}")
+    extra = shapes[var][len(shapes["status"]) :]
+    if values.shape[1:] != extra:
+        raise BadLog(f"{var}: values of shape {values.shape[1:]} where the cube holds {extra}")
+
+
+# stored metrics that cannot be negative; P-V = max - min and RMS <= P-V hold for every case
+_NON_NEGATIVE = ("pv_nm", "rms_nm", "pv_inner_nm", "pv_outer_nm", "pv_interp_nm", "cusp_nm", "n_points")
+
+
+def _check_done(flat: int, values: cube.Values) -> None:
+    """A done case's values: P-V and RMS present and finite, no infinity anywhere, the
+    non-negative metrics non-negative, ``feasible`` 0 or 1, and the metrics consistent
+    (P-V = max − min error to 1e-6 relative, RMS ≤ P-V)."""
+    pv, rms = values.get("pv_nm"), values.get("rms_nm")
+    if not all(isinstance(v, (int, float)) and np.isfinite(v) for v in (pv, rms)):
+        raise BadLog(f"case {flat} is done but its P-V or RMS is missing or not finite ({pv}, {rms})")
+    for var, value in values.items():
+        if isinstance(value, (int, float)) and np.isinf(value):
+            raise BadLog(f"case {flat}: {var} is infinite")
+        if var in _NON_NEGATIVE and isinstance(value, (int, float)) and value < 0:
+            raise BadLog(f"case {flat}: {var} = {value} is negative")
+    if values.get("feasible", 0) not in (0, 1):
+        raise BadLog(f"case {flat}: feasible = {values['feasible']} is not 0 or 1")
+    lo, hi = values.get("error_min_nm"), values.get("error_max_nm")
+    if isinstance(lo, float) and isinstance(hi, float) and abs((hi - lo) - pv) > 1e-6 * max(1.0, abs(pv)):
+        raise BadLog(f"case {flat}: P-V {pv} nm is not its largest minus its smallest error ({hi} - {lo})")
+    if rms > pv * (1 + 1e-9) + 1e-9:
+        raise BadLog(f"case {flat}: RMS {rms} nm exceeds its P-V {pv} nm")
+
+
+def checked_cases(data: bytes, shapes: dict[str, tuple[int, ...]]) -> list[tuple[int, cube.Values]]:
+    """The cases of a log's bytes, every record checked as untrusted input (``shapes``: each
+    cube variable's shape): a readable ``.npz`` without pickles, columns that pair up, indices
+    within the cube, values of the variables' kinds, a status a worker writes, and a done
+    case's metrics finite, in range and consistent (:func:`_check_done`); :class:`BadLog`
+    naming the first problem otherwise."""
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as npz:
+            columns = {}
+            for name in npz.files:
+                var, _, part = name.rpartition(".")
+                if (
+                    part not in ("index", "value")
+                    or f"{var}.index" not in npz.files
+                    or f"{var}.value" not in npz.files
+                ):
+                    raise BadLog(f"entry {name[:60]!r} is not a variable's index or value")
+                columns[var] = (npz[f"{var}.index"], npz[f"{var}.value"])
+    except BadLog:
+        raise
+    except Exception as exc:  # zipfile, numpy and zlib raise many kinds for damaged bytes
+        raise BadLog(f"not a readable log ({type(exc).__name__}: {str(exc)[:120]})") from None
     by_case: dict[int, cube.Values] = defaultdict(dict)
-    with np.load(io.BytesIO(data), allow_pickle=False) as npz:
-        names = {n.rsplit(".", 1)[0] for n in npz.files}
-        for var in names:
-            values = npz[f"{var}.value"]
-            for flat, value in zip(npz[f"{var}.index"].tolist(), values, strict=True):
-                by_case[int(flat)][var] = value.item() if value.ndim == 0 else value
+    for var, (index, values) in columns.items():
+        _check_column(var, index, values, shapes)
+        for flat, value in zip(index.tolist(), values, strict=True):
+            by_case[int(flat)][var] = value.item() if value.ndim == 0 else value
+    for flat, case_values in by_case.items():
+        status = case_values.get("status")
+        if status not in (cube.DONE, cube.FAILED):
+            raise BadLog(f"case {flat}: status {status!r} is not one a worker writes (done, failed)")
+        if status == cube.DONE:
+            _check_done(flat, case_values)
     return list(by_case.items())
 
 
@@ -100,6 +180,7 @@ def merge_logs(where: PathLike) -> int:
     writers = _latest(at.listing(LOG))
     if not writers:
         return 0
+    shapes = cube.variable_shapes(at)
     cases: list[tuple[int, cube.Values]] = []
     merged: list[str] = []
     for stem in sorted(writers):  # the run id (a timestamp) leads the stem
@@ -108,7 +189,10 @@ def merge_logs(where: PathLike) -> int:
             data = at.read(keys[-1])
         except FileNotFoundError:  # its writer replaced it just now: the next merge takes that
             continue
-        cases.extend(_decode(data))
+        try:
+            cases.extend(checked_cases(data, shapes))
+        except BadLog as exc:
+            _reject(at, keys[-1], data, str(exc))
         merged.extend(keys)
     if cases:
         cube.CubeWriter(at).write(cases)
@@ -116,6 +200,18 @@ def merge_logs(where: PathLike) -> int:
         at.remove(key)
     at.remove_empty_folders(LOG)
     return len({flat for flat, _ in cases})
+
+
+def _reject(at: Place, key: str, data: bytes, reason: str) -> None:
+    """Move a bad log aside (under ``_log_rejected/``, kept for inspection) with a warning;
+    its cases stay pending, so the run computes them again."""
+    aside = REJECTED + key[len(LOG) :]
+    at.write(aside, data)
+    warnings.warn(
+        f"case log {key} is not what a worker writes ({reason}); moved to {aside} and its cases "
+        "will be computed again",
+        stacklevel=3,
+    )
 
 
 def pending_logs(where: PathLike) -> int:
@@ -128,11 +224,12 @@ def current_status(where: PathLike) -> np.ndarray:
     hold laid over (read only; for watching a running sweep from another process)."""
     at = place(where)
     status = cube.read_status(at)
+    shapes = cube.variable_shapes(at)
     flat = status.reshape(-1)
     for _, (_, keys) in sorted(_latest(at.listing(LOG)).items()):
         try:
-            cases = _decode(at.read(keys[-1]))
-        except FileNotFoundError:  # replaced just now by its next version
+            cases = checked_cases(at.read(keys[-1]), shapes)
+        except (FileNotFoundError, BadLog):  # replaced just now, or one the merge will reject
             continue
         for index, values in cases:
             if "status" in values:

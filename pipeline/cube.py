@@ -249,6 +249,12 @@ def read_attrs(where: PathLike, check_schema: bool = True) -> dict[str, Any]:
     return attrs
 
 
+def variable_shapes(where: PathLike) -> dict[str, tuple[int, ...]]:
+    """Every array of the cube by name with its shape (what a case log may write into)."""
+    group = open_group(where, mode="r")
+    return {name: tuple(array.shape) for name, array in group.arrays()}
+
+
 def read_status(where: PathLike) -> np.ndarray:
     """Status of every case; a chunk that cannot be read (damaged) counts as pending."""
     values, _ = _read_array(place(where), "status", PENDING)

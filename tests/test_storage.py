@@ -109,3 +109,51 @@ def test_a_cube_in_object_storage_grows_by_copy(tmp_path, catalog_dir):
     assert report.skipped == 4 and report.done == 2 and "points +1" in report.note
     assert not place(url + ".grow").exists()
     assert (cube.read_status(url) == cube.DONE).all()
+
+
+def _done_values(out, flat: int) -> dict:  # type: ignore[no-untyped-def,type-arg]
+    """The stored values of a done case of a cube, as a worker's log holds them."""
+    ds = cube.open_dataset(out).load()
+    names = [v for v in ds.data_vars if ds[v].dims == ds["status"].dims and v not in cube.TIMING_VARS]
+    out_values = {v: ds[v].values.ravel()[flat] for v in names}
+    return {v: x.item() if hasattr(x, "item") else x for v, x in out_values.items()}
+
+
+@pytest.mark.parametrize(
+    ("forge", "reason"),
+    [
+        (lambda v: v.update(pv_nm=float("nan")), "P-V or RMS is missing or not finite"),
+        (lambda v: v.update(pv_nm=0.5), "is not its largest minus its smallest error"),
+        (lambda v: v.update(rms_nm=float("inf")), "infinite|not finite"),
+        (lambda v: v.update(status=7), "status 7"),
+        (lambda v: v.update(feasible=3), "feasible = 3"),
+        (lambda v: None, "case index"),  # index -1
+        (lambda v: None, "case index"),  # index 10^9
+        (lambda v: None, "not a readable log"),  # truncated
+    ],
+    ids=["nan-pv", "pv-0.5", "inf-rms", "status", "feasible", "index-negative", "index-huge", "truncated"],
+)
+def test_a_bad_worker_log_is_moved_aside_and_its_case_computed_again(
+    tmp_path, catalog_dir, forge, reason, request
+):
+    spec = tmp_path / "m.yaml"
+    spec.write_text(SPEC)
+    out = tmp_path / "logs.zarr"
+    run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    good = _done_values(out, 1)
+    cube.CubeWriter(out).write([(1, {"status": cube.PENDING})])  # as if the case had not run
+    values = dict(good)
+    forge(values)
+    flat = {"index-negative": -1, "index-huge": 10**9}.get(request.node.callspec.id, 1)
+    data = caselog._encode([(flat, values)])
+    if request.node.callspec.id == "truncated":
+        data = data[: len(data) // 2]
+    caselog.place(out).write(f"{caselog.LOG}/20260101T000000-x/abc-000001.npz", data)
+    with pytest.warns(UserWarning, match=reason):
+        report = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert report.done == 1 and report.skipped == 3  # the case computed again, once
+    assert np.isclose(_done_values(out, 1)["pv_nm"], good["pv_nm"], rtol=1e-12)
+    kept = caselog.place(out).listing(caselog.REJECTED)
+    assert len(kept) == 1 and not caselog.place(out).listing(caselog.LOG)
+    again = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert again.done == 0 and again.skipped == 4  # never fails over and over on one file

@@ -108,10 +108,30 @@ class _Group(click.Group):
         except Exception as exc:
             if os.environ.get("FTSWEEP_DEBUG"):
                 raise
-            known = isinstance(exc, USER_ERRORS)
+            cause = user_cause(exc)
+            known = isinstance(exc, USER_ERRORS) or cause is not None
             hint = "" if known else " (an unexpected error: set FTSWEEP_DEBUG=1 for the traceback)"
-            text = str(exc) if known and str(exc) else f"{type(exc).__name__}: {exc}"
+            text = cause or (str(exc) if known and str(exc) else f"{type(exc).__name__}: {exc}")
             raise click.ClickException(one_line(text, MESSAGE_LIMIT - len(hint)) + hint) from None
+
+
+# object storage's refusals that a user's set-up causes (botocore's, by name: not imported here)
+CREDENTIAL_ERRORS = frozenset({"NoCredentialsError", "PartialCredentialsError", "NoRegionError"})
+
+
+def user_cause(exc: BaseException) -> Optional[str]:
+    """The one-line cause of an error a user's input or set-up made that is not one of
+    :data:`USER_ERRORS`: missing object-storage credentials, a number out of range."""
+    name = type(exc).__name__
+    if name in CREDENTIAL_ERRORS:
+        return (
+            f"object storage refused to start: {name}: {exc}. Give credentials (AWS_ACCESS_KEY_ID and "
+            "AWS_SECRET_ACCESS_KEY, a profile, or --storage-option key=... --storage-option secret=...), "
+            "or --storage-option anon=true for a public bucket"
+        )
+    if isinstance(exc, OverflowError):
+        return f"a number is out of range ({exc}): check the magnitudes of the options and entries given"
+    return None
 
 
 def _leave(code: Any) -> None:

@@ -78,8 +78,14 @@ def check_cost(nodes_per_ray: float, n_theta: int, max_nodes: float = MAX_NODES)
 
 
 def count_text(n: float) -> str:
-    """A point count as people read it: grouped digits, or 3 significant digits when huge."""
-    return f"{n:,.0f}" if n < 1e12 else f"{n:.3g}"
+    """A point count as people read it: grouped digits, or 3 significant digits when huge
+    (a count past a float's range, as tiny pitches give, by its power of ten)."""
+    if n < 1e12:
+        return f"{n:,.0f}"
+    try:
+        return f"{float(n):.3g}"
+    except OverflowError:
+        return f"about 1e{len(str(int(n))) - 1}"
 
 
 def check_capacity(case: Case, what: str, n_points: float, capacity: int, note: str = "") -> None:

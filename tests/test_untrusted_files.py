@@ -437,3 +437,34 @@ def test_a_consistent_forgery_of_the_recorded_surface_is_refused_against_the_cat
 def test_a_fresh_export_is_consistent_with_this_catalog(originals, module_catalog_dir):
     res = cli(["verify", str(originals["fts"])], module_catalog_dir)
     assert res.exit_code == 0 and "consistent with this catalog" in res.output, res.output
+
+
+# ------------------------------------------------------------------ causes a user made
+def test_tiny_pitches_are_one_line_naming_the_point_count(module_catalog_dir):
+    res = cli(["predict", "--surface", "sinewave2d", "--drho-um", "1e-300", "--dtheta-deg", "1e-300"],
+              module_catalog_dir)  # fmt: skip
+    assert res.exit_code == 1 and "about 1e605 points, over the capacity" in res.output, res.output
+    assert "unexpected" not in res.output
+
+
+def test_object_storage_without_credentials_is_one_line_naming_them(tmp_path, module_catalog_dir):
+    pytest.importorskip("s3fs")
+    spec = tmp_path / "s.yaml"
+    spec.write_text(RING)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("AWS_")}
+    # no credentials anywhere, no instance metadata; the endpoint is a closed local port
+    env.update(
+        AWS_SHARED_CREDENTIALS_FILE=str(tmp_path / "none"),
+        AWS_CONFIG_FILE=str(tmp_path / "none"),
+        AWS_EC2_METADATA_DISABLED="true",
+        FSSPEC_S3_ENDPOINT_URL="http://127.0.0.1:9",
+        FTSWEEP_CATALOGS=str(module_catalog_dir),
+    )
+    exe = str(Path(sys.executable).parent / "ftsweep")
+    done = subprocess.run(
+        [exe, "sweep", str(spec), "--out", "s3://bucket/c.zarr", "--scheduler", "synchronous"],
+        capture_output=True, text=True, env=env, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert "NoCredentialsError" in last and "AWS_ACCESS_KEY_ID" in last and "unexpected" not in last

@@ -16,6 +16,7 @@ import io
 import uuid
 import warnings
 from collections import defaultdict
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -172,10 +173,12 @@ def _latest(keys: list[str]) -> dict[str, tuple[int, list[str]]]:
     return {stem: (max(v)[0], [k for _, k in sorted(v)]) for stem, v in versions.items()}
 
 
-def merge_logs(where: PathLike) -> int:
+def merge_logs(where: PathLike, fence: Callable[[], None] | None = None) -> int:
     """Merge every case log under the cube into its blocks and delete the merged logs; the
     caller holds the cube's lock. Logs are applied oldest run first (a case computed again
-    by a later run takes the later values). Returns the number of cases merged."""
+    by a later run takes the later values). ``fence``, called before every block write,
+    raises when this writer may no longer write (:meth:`ftsweep.lock.Lease.fence`); nothing
+    is deleted then. Returns the number of cases merged."""
     at: Place = place(where)
     writers = _latest(at.listing(LOG))
     if not writers:
@@ -195,7 +198,7 @@ def merge_logs(where: PathLike) -> int:
             _reject(at, keys[-1], data, str(exc))
         merged.extend(keys)
     if cases:
-        cube.CubeWriter(at).write(cases)
+        cube.CubeWriter(at).write(cases, fence)
     for key in merged:
         at.remove(key)
     at.remove_empty_folders(LOG)

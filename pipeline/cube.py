@@ -26,6 +26,7 @@ import json
 import subprocess
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal, Optional
 
@@ -310,9 +311,11 @@ class CubeWriter:
     def _index(self, flat: int) -> tuple[int, ...]:
         return tuple(int(i) for i in np.unravel_index(flat, self.shape))
 
-    def write(self, cases: list[tuple[int, Values]]) -> None:
+    def write(self, cases: list[tuple[int, Values]], fence: Optional[Callable[[], None]] = None) -> None:
         """Write ``(flat index, values)`` of many cases: one pass per variable, ``status``
-        last. Writing the same values again changes nothing (a merge may be repeated)."""
+        last. Writing the same values again changes nothing (a merge may be repeated).
+        ``fence`` is called before each variable's blocks are written (it raises to stop a
+        writer that lost its lease)."""
         columns: dict[str, tuple[list[int], list[Any]]] = {}
         for flat, values in cases:
             for var, value in values.items():
@@ -323,6 +326,8 @@ class CubeWriter:
             if var not in self.group:
                 continue  # an error map the cube was made without
             flats, vals = columns[var]
+            if fence is not None:
+                fence()
             array = self._array(var)
             coords = np.unravel_index(np.asarray(flats, dtype=np.int64), self.shape)
             if array.ndim > len(self.shape):  # error maps: each case's whole map

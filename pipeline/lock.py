@@ -39,6 +39,11 @@ class LockError(RuntimeError):
     """Another live process writes the cube; the message names it."""
 
 
+class LeaseLost(LockError):
+    """This writer no longer holds its lease (taken over, or not confirmed in time): it
+    must not write; the message says why."""
+
+
 def lock_path(cube: PathLike) -> Path:
     """``NAME.zarr.lock`` beside a local ``NAME.zarr``."""
     at = place(cube)
@@ -142,6 +147,11 @@ def release(path: Path) -> None:
 LEASE_S = 60.0
 
 
+# a block is written only within this fraction of the lease after its last confirmation: the
+# rest of the term is the margin for clocks, the write itself and a slow store
+FENCE_FRACTION = 0.5
+
+
 def lease_seconds() -> float:
     """The lease: ``FTSWEEP_LOCK_LEASE_S`` if set (a positive number of seconds), else :data:`LEASE_S`."""
     text = os.environ.get("FTSWEEP_LOCK_LEASE_S")
@@ -173,6 +183,9 @@ class Lease:
         self.command = command
         self.tag = ""
         self.lost: Optional[str] = None
+        # when the lease was last confirmed by a conditional write [time.monotonic() s]
+        self.confirmed = 0.0
+        self._mutex = threading.Lock()  # one conditional write at a time (renewer, confirm)
         self._stop = threading.Event()
         self._renewer: Optional[threading.Thread] = None
 
@@ -215,29 +228,73 @@ class Lease:
                 continue  # another writer took the expired lease first
         else:
             raise LockError(f"could not take the lock {self.lock}: it keeps changing hands")
+        self.confirmed = time.monotonic()
         self._renewer = threading.Thread(target=self._renew, name="ftsweep-lease", daemon=True)
         self._renewer.start()
 
-    def _renew(self) -> None:
-        renewed = time.time()
-        while not self._stop.wait(self.lease_s / 3.0):
+    def _swap(self) -> None:
+        """Renew the lease by compare-and-swap on the tag this writer last wrote (the lock
+        object's ETag): it succeeds only if nobody wrote the lock since. FileExistsError when
+        another writer did, or deleted the lock (``lost`` is set)."""
+        with self._mutex:
+            if self.lost:
+                raise FileExistsError(self.lost)
             try:
                 self.tag = self.lock.replace_if("", self._record(), self.tag)
-                renewed = time.time()
             except FileExistsError:
                 self.lost = f"the lease on {self.cube} was taken over by another writer"
+                raise
+            except FileNotFoundError:  # another writer took it over and has released it since
+                self.lost = f"the lease on {self.cube} was taken over (its lock object is gone)"
+                raise FileExistsError(self.lost) from None
+            self.confirmed = time.monotonic()
+
+    def _renew(self) -> None:
+        while not self._stop.wait(self.lease_s / 3.0):
+            try:
+                self._swap()
+            except FileExistsError:
                 return
             except Exception as exc:  # noqa: BLE001 - a network error: try again next period
-                if time.time() - renewed >= self.lease_s:  # it may have expired: stop writing
+                if time.monotonic() - self.confirmed >= self.lease_s:  # it may have expired
                     self.lost = (
                         f"the lease on {self.cube} could not be renewed for {self.lease_s:g} s ({exc})"
                     )
                     return
 
     def check(self) -> None:
-        """Raise :class:`LockError` if this writer no longer holds the lease."""
+        """Raise :class:`LeaseLost` if this writer is known to have lost the lease."""
         if self.lost:
-            raise LockError(f"{self.lost}; this run stops (its finished cases are in the cube)")
+            raise LeaseLost(f"{self.lost}; this run stops and writes nothing more (finished cases are kept)")
+
+    def confirm(self) -> None:
+        """Confirm the lease now by a conditional write on the lock object (before a merge):
+        :class:`LeaseLost` if another writer holds it, or if the write fails (this writer
+        cannot know that it still holds it)."""
+        self.check()
+        try:
+            self._swap()
+        except FileExistsError:
+            self.check()
+        except Exception as exc:  # noqa: BLE001 - a network error: not confirmed, so no write
+            raise LeaseLost(
+                f"the lease on {self.cube} could not be confirmed ({str(exc)[:120]}); this run stops and "
+                "writes nothing more (finished cases are kept)"
+            ) from None
+
+    def fence(self) -> None:
+        """Raise :class:`LeaseLost` unless the lease was confirmed well inside its term
+        (within :data:`FENCE_FRACTION` of it): called right before each block write, so a
+        writer paused (stopped, swapped out) after its confirmation never writes on an
+        expired lease another writer may hold."""
+        self.check()
+        age = time.monotonic() - self.confirmed
+        if age > FENCE_FRACTION * self.lease_s:
+            raise LeaseLost(
+                f"the lease on {self.cube} was last confirmed {age:.1f} s ago, more than "
+                f"{FENCE_FRACTION:g} of its {self.lease_s:g} s term: another writer may hold it now; this "
+                "run stops and writes nothing more (finished cases are kept)"
+            )
 
     def release(self) -> None:
         """Stop renewing and delete the lease if it is still this writer's."""

@@ -20,7 +20,7 @@ from ftsweep import caselog, catalogs, cube, grow, kinds
 from ftsweep.cube import CubeError
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
 from ftsweep.executor import Cluster, TaskSpec, execute, run_task, warm_up
-from ftsweep.lock import LockError, cube_lock
+from ftsweep.lock import Lease, LeaseLost, cube_lock
 from ftsweep.spec import CaseError
 from ftsweep.storage import PathLike, Place, place
 from ftsweep.sweep import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
@@ -98,11 +98,11 @@ class SweepReport:
 
 
 # what a run tells as it goes: each finished case (progress), the cluster once connected
-# (announce); and what it asks: whether it still holds the cube's lease (raises if not)
+# (announce); and the lease it writes under on object storage (None: a local lock)
 Watchers = tuple[
     Optional[Callable[[SweepReport, list[dict]], None]],
     Optional[Callable[[SweepReport], None]],
-    Optional[Callable[[], None]],
+    Optional[Lease],
 ]
 
 
@@ -256,7 +256,7 @@ def run_sweep(
             restart,
             (retry_failed, prune),
             catalog_folder,
-            (progress, announce, lease.check if lease is not None else None),
+            (progress, announce, lease),
         )
 
 
@@ -304,7 +304,7 @@ def _compute(
 ) -> None:
     """Run ``pending`` on the cluster ``where`` says, each case written as it finishes; the
     tasks are planned for the threads of the cluster the run got."""
-    progress, announce, still_held = watchers
+    progress, announce, lease = watchers
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
 
     merged = [time.monotonic()]
@@ -312,9 +312,7 @@ def _compute(
     def on_result(rows: list[dict]) -> None:
         report.rows.extend(rows)
         if time.monotonic() - merged[0] >= MERGE_EVERY_S:
-            if still_held is not None:
-                still_held()  # a writer whose lease was taken over must not merge
-            caselog.merge_logs(report.cube)
+            _merge_fenced(report.cube, lease)  # a writer whose lease was taken over stops here
             merged[0] = time.monotonic()
         if progress is not None:
             progress(report, rows)
@@ -350,13 +348,16 @@ def _compute(
     )
 
 
-def _still_holds(check: Optional[Callable[[], None]]) -> bool:
-    try:
-        if check is not None:
-            check()
-    except LockError:
-        return False
-    return True
+def _merge_fenced(out: Place, lease: Optional[Lease]) -> None:
+    """Merge the case logs into the blocks, fenced on object storage: the lease is first
+    confirmed by a conditional write on the lock object, and every block write checks that
+    the confirmation is still recent (:meth:`ftsweep.lock.Lease.fence`); a writer that lost
+    the lease writes nothing (:class:`~ftsweep.lock.LeaseLost`)."""
+    if lease is None:
+        caselog.merge_logs(out)
+        return
+    lease.confirm()
+    caselog.merge_logs(out, fence=lease.fence)
 
 
 def _run_locked(
@@ -386,8 +387,10 @@ def _run_locked(
     finally:
         # also on an error or a signal: what the workers finished goes into the blocks now,
         # unless another writer took over the lease (its next run merges these logs)
-        if _still_holds(watchers[2]):
-            caselog.merge_logs(out)
+        try:
+            _merge_fenced(out, watchers[2])
+        except LeaseLost:
+            pass
     report.wall_s = time.perf_counter() - start
     return report
 

@@ -229,3 +229,46 @@ def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refuse
     run_sweep(str(spec), clean, scheduler="synchronous", catalog_folder=catalog_dir)
     xr.testing.assert_equal(_data(url), _data(clean))
     assert place(f"{url}.lock").exists() is False
+
+
+def _block_tags(url: str) -> dict[str, str]:
+    """ETag of every object of a cube but its case logs (the blocks and metadata)."""
+    import s3fs
+
+    fs = s3fs.S3FileSystem()
+    fs.invalidate_cache()
+    return {p: fs.info(p)["ETag"] for p in fs.find(url) if "/_log" not in p}
+
+
+def test_a_writer_paused_past_its_lease_writes_no_block_after_the_takeover(s3, s3_env, tmp_path, catalog_dir):
+    # the writer is stopped (SIGSTOP) until its lease expired and another writer took the cube
+    # over and finished it; resumed (SIGCONT), it must not write a block: its lease is fenced
+    spec = _spec(tmp_path, SLOW)
+    url = f"{s3}/fence.zarr"
+    env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir), FTSWEEP_LOCK_LEASE_S="6", **s3_env)
+    cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", url, "--workers", "1"]
+    paused = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.time() + 240
+        while done_count(url) < 2 and time.time() < deadline and paused.poll() is None:
+            time.sleep(0.05)
+        assert done_count(url) >= 2 and paused.poll() is None, "the first writer did not get going"
+        os.kill(paused.pid, signal.SIGSTOP)
+        _wait_lease_out(f"{url}.lock")
+        taker = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+        assert taker.returncode == 0, taker.stderr
+        before = _block_tags(url)
+        os.kill(paused.pid, signal.SIGCONT)
+        _, err = paused.communicate(timeout=180)
+    finally:
+        if paused.poll() is None:
+            os.kill(paused.pid, signal.SIGCONT)
+            paused.kill()
+            paused.wait()
+    assert paused.returncode == 75, err
+    last = err.strip().splitlines()[-1]
+    assert "lease" in last and ("taken over" in last or "last confirmed" in last), err
+    assert _block_tags(url) == before  # not one block (nor the metadata) written after the takeover
+    clean = tmp_path / "clean.zarr"
+    run_sweep(str(spec), clean, scheduler="synchronous", catalog_folder=catalog_dir)
+    xr.testing.assert_equal(_data(url), _data(clean))

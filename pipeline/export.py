@@ -247,26 +247,31 @@ def verify(
     fmt = format_of_file(path)
     side = sidecar_path(path)
     before = _contents(path, side)
+    # the file as the machine reads it first (its own errors name what is wrong with it) ...
+    record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
+    file_bytes, side_bytes = _contents(path, side)
+    if side_bytes is None or (file_bytes, side_bytes) != before:  # judged must be what is proved
+        raise ExportError(f"{path} or its sidecar changed while it was verified; verify it again")
+    # ... then who made it
     keys = org.trusted_keys(trusted)
     if keys:
-        proved = {"proved": "signed", "key_id": org.check_signature(path, *before, keys)}
+        record["origin"] = {
+            "proved": "signed",
+            "key_id": org.check_signature(path, file_bytes, side_bytes, keys),
+        }
     elif accept_recorded:
-        proved = {"proved": "recorded entries (--accept-recorded): not compared with a catalog"}
+        record["origin"] = {"proved": "recorded entries (--accept-recorded): not compared with a catalog"}
     else:
         catalog = org.check_catalog(read_sidecar(path), side)
-        proved = {"proved": "consistent with this catalog", "catalog": catalog}
-    record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
-    if _contents(path, side) != before:  # what was judged must be what was proved
-        raise ExportError(f"{path} or its sidecar changed while it was verified; verify it again")
-    record["origin"] = proved
+        record["origin"] = {"proved": "consistent with this catalog", "catalog": catalog}
     return record
 
 
-def _contents(path: Path, side: Path) -> tuple[bytes, bytes]:
-    """The bytes of a file and its sidecar (regular files only, bounded)."""
-    if not side.exists():
-        raise ExportError(f"{side} is missing: verify needs the sidecar written with the file")
-    return read_regular(path, MAX_FILE_BYTES), read_regular(side, MAX_SIDECAR_BYTES, "sidecar")
+def _contents(path: Path, side: Path) -> tuple[bytes, bytes | None]:
+    """The bytes of a file and its sidecar (regular files only, bounded; None: no sidecar,
+    which the format's verify names)."""
+    sidecar = read_regular(side, MAX_SIDECAR_BYTES, "sidecar") if side.exists() else None
+    return read_regular(path, MAX_FILE_BYTES), sidecar
 
 
 def origin_line(record: dict[str, Any]) -> str:

@@ -96,11 +96,16 @@ def recorded_case(ds: xr.Dataset, flat: int, trust_plugins: bool = False) -> tup
     the cube recorded for it. A cube is data: a plug-in surface it names must be one of the
     local catalog's unless ``trust_plugins`` (:func:`~ftsweep.catalogs.specs_from_entries`)."""
     from ftsweep.catalogs import CatalogError
+    from ftsweep.freetext import TextError, check_strings
     from ftsweep.sweep import SweepSpec, case_at
     from ftsweep.trust import specs_from_entries
 
     case = case_at(SweepSpec.model_validate_json(ds.attrs["sweep_spec"]), flat)
     entries = json.loads(ds.attrs["catalog_entries"])
+    try:  # a cube's recorded text is written into what export makes: held to the same rule
+        check_strings({"case": case.model_dump(mode="json"), "catalog_entries": entries}, "the cube's record")
+    except TextError as exc:
+        raise SelectError(f"the cube's case {flat}: {exc}") from None
     try:
         return case, specs_from_entries(
             entries["surface"][case.surface],

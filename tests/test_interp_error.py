@@ -53,7 +53,8 @@ def test_the_default_keeps_hashes_and_round_trips():
     assert a.key() != b.key()
 
 
-def test_a_sweep_can_leave_it_out(tmp_path, catalog_dir):
+def test_a_sweep_can_leave_it_out(tmp_path, catalog_dir, monkeypatch):
+    monkeypatch.setenv("FTSWEEP_CATALOGS", str(catalog_dir))  # verify compares the entries with it
     spec = tmp_path / "off.yaml"
     spec.write_text(SMALL + "resolution: {interp_error: false}\n")
     out = tmp_path / "off.zarr"

@@ -86,7 +86,9 @@ def exported(tmp_path_factory, module_catalog_dir):
 
 
 @pytest.fixture()
-def header_copy(exported, tmp_path):
+def header_copy(exported, tmp_path, module_catalog_dir, monkeypatch):
+    # verify compares the recorded entries with the catalog: the one the header came from
+    monkeypatch.setenv("FTSWEEP_CATALOGS", str(module_catalog_dir))
     for suffix in (".h", ".json"):
         shutil.copy(exported.with_suffix(suffix), tmp_path / f"fts{suffix}")
     return tmp_path / "fts.h"
@@ -139,7 +141,8 @@ MACROS = [
 ]
 
 
-def test_untouched_header_verifies_with_its_pv_tolerance(exported):
+def test_untouched_header_verifies_with_its_pv_tolerance(exported, module_catalog_dir, monkeypatch):
+    monkeypatch.setenv("FTSWEEP_CATALOGS", str(module_catalog_dir))
     record = verify(exported)
     assert abs(record["pv_nm"] - record["predicted_pv_nm"]) <= record["pv_tolerance_nm"]
     r = cli(["verify", str(exported)])

@@ -223,7 +223,8 @@ axes:
 """
 
 
-def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_dir):
+def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_dir, monkeypatch):
+    monkeypatch.setenv("FTSWEEP_CATALOGS", str(catalog_dir))  # verify compares the entries with it
     import xarray as xr
 
     from ftsweep.query import best_per_points

@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 from ftsweep.cli import main
 from ftsweep.export import ExportError, export, verify
 from ftsweep.files import CRC_LINE, crc_of, sidecar_digest
+from ftsweep.io import read_sidecar
 from ftsweep.kinds.c_view import read_c
 from ftsweep.kinds.table_header import CHECKSUM_MACRO, checksum, read_header, render_header
 from ftsweep.run import run_sweep
@@ -143,10 +144,10 @@ def test_free_text_in_the_sidecar_cannot_rewrite_the_header(copies):
     forge_header_from_sidecar(header, lambda m: m.update(created=INJECTED))
     # the attack is real: C reads the injected pitch and skips the real definitions
     assert c_macros(header)["FTS_PITCH0"] == "7.63" != good_pitch
-    with pytest.raises(ExportError, match=r"fts.json: fts.json.created holds '\*' at character 26"):
-        verify(header)  # the sidecar's text is refused where it enters
     with pytest.raises(ExportError, match="line 13: a conditional other than the include guard"):
-        read_header(header)  # and C's reading of the header refuses the header on its own
+        verify(header)  # C's reading of the header refuses it
+    with pytest.raises(ExportError, match=r"fts.json: fts.json.created holds '\*' at character 26"):
+        read_sidecar(header)  # and the sidecar's text is refused where it enters, on its own
 
 
 def test_the_header_is_judged_by_what_c_reads_even_with_a_clean_sidecar(copies):
@@ -422,15 +423,21 @@ def test_a_consistent_forgery_of_the_recorded_surface_is_refused_against_the_cat
     side.write_text(json.dumps(meta))
     case, specs = recorded_case_of(meta, side)
     ints = planned_ints(case, specs, build_layout(specs[0], case.layout))
-    rendered = dict(meta, sidecar_sha256=sidecar_digest(meta))
-    text, crc = render_header(header.stem, rendered, ints, meta["int_type"])
-    meta.update(crc32=crc, header_sha256=hashlib.sha256(text.encode()).hexdigest())
-    header.write_text(text)
-    side.write_text(json.dumps(meta, indent=2))
+
+    def forge() -> None:
+        rendered = dict(meta, sidecar_sha256=sidecar_digest(meta))
+        text, crc = render_header(header.stem, rendered, ints, meta["int_type"])
+        meta.update(crc32=crc, header_sha256=hashlib.sha256(text.encode()).hexdigest())
+        header.write_text(text)
+        side.write_text(json.dumps(meta, indent=2))
+
+    forge()  # and the predicted P-V re-simulated from the forged table, as a forger would
+    meta["pv_nm"] = verify(header, pv_tolerance_nm=1e9, accept_recorded=True)["pv_nm"]
+    forge()
     res = cli(["verify", str(header)], module_catalog_dir)
     assert res.exit_code == 1 and f"surface 'small_sine'.params.{key}: recorded" in res.output, res.output
     # against its own recorded entries it is consistent, and verify says that is all it proved
-    res = cli(["verify", str(header), "--accept-recorded", "--pv-tolerance-nm", "1e9"], module_catalog_dir)
+    res = cli(["verify", str(header), "--accept-recorded"], module_catalog_dir)
     assert res.exit_code == 0 and "not compared with a catalog" in res.output, res.output
 
 
@@ -468,3 +475,72 @@ def test_object_storage_without_credentials_is_one_line_naming_them(tmp_path, mo
     assert done.returncode == 1, done.stderr
     last = done.stderr.strip().splitlines()[-1]
     assert "NoCredentialsError" in last and "AWS_ACCESS_KEY_ID" in last and "unexpected" not in last
+
+
+def _controller_reading(raw: bytes) -> list[list[float]] | None:
+    """A program's data as a controller that ends lines at CR, LF or CRLF and reads numbers
+    loosely reads it: the numbers of every line after the column line (comments ``#`` aside);
+    None where a line holds something that is not a number."""
+    lines = re.split(rb"\r\n|\r|\n", raw)
+    start = next((i for i, line in enumerate(lines) if line == b"C_deg X_mm Z_mm"), None)
+    if start is None:
+        return None
+    rows = []
+    for line in lines[start + 1 :]:
+        if line.startswith(b"#") or not line.strip():
+            continue
+        try:
+            rows.append([float(v) for v in line.split()])
+        except ValueError:
+            return None
+    return rows
+
+
+def _same_motion(a: list[list[float]] | None, b: list[list[float]]) -> bool:
+    # within the lines' stated tolerance (files.LINE_TOLERANCE: 1e-6 of each column's unit)
+    return (
+        a is not None
+        and len(a) == len(b)
+        and all(len(x) == len(y) and all(abs(u - v) <= 1e-6 for u, v in zip(x, y, strict=True))
+                for x, y in zip(a, b, strict=True))
+    )  # fmt: skip
+
+
+PROGRAM_BYTES = st.sampled_from([b"\r", b"\n", b"#", b" ", b"1", b"9", b"-", b"+", b"e", b".", b"\t", b"0"])
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_mutated_programs_are_refused_whenever_the_controller_would_move_otherwise(
+    originals, tmp_path_factory, module_catalog_dir, data
+):
+    # any byte inserted, deleted or replaced, with the CRC line, the sidecar's digest line and
+    # every hash re-made as an attacker would: if a controller would read other motion, verify
+    # refuses
+    original = originals["prog"]
+    text = original.read_bytes()
+    pos = data.draw(st.integers(0, len(text) - 1))
+    op = data.draw(st.sampled_from(["insert", "delete", "replace"]))
+    byte = data.draw(PROGRAM_BYTES)
+    mutated = text[:pos] + (byte if op != "delete" else b"") + text[pos + (op != "insert") :]
+    folder = tmp_path_factory.mktemp("mutated")
+    program = folder / "prog.txt"
+    program.write_bytes(mutated)
+    shutil.copy(original.with_suffix(".json"), folder / "prog.json")
+    rows = mutated.decode("latin-1").split("\n")
+    at = next((i for i, r in enumerate(rows) if r.startswith("# CRC32:")), None)
+    if at is not None:  # re-make the CRC over every other line, and the file's hashes
+        rows[at] = CRC_LINE.format(crc_of(rows[:at] + rows[at + 1 : -1]))
+        forged = "\n".join(rows).encode("latin-1")
+        program.write_bytes(forged)
+        side = folder / "prog.json"
+        meta = json.loads(side.read_text())
+        meta.update(program_sha256=hashlib.sha256(forged).hexdigest(), crc32=int(rows[at].split()[2], 16))
+        side.write_text(json.dumps(meta, indent=2))
+    if not _same_motion(_controller_reading(program.read_bytes()), _controller_reading(text) or []):
+        os.environ["FTSWEEP_CATALOGS"] = str(module_catalog_dir)
+        try:
+            with pytest.raises(ExportError):
+                verify(program)
+        finally:
+            del os.environ["FTSWEEP_CATALOGS"]

@@ -20,8 +20,9 @@ ALLOWED = "A-Za-z0-9 _.,:+=/@\\[\\]-"
 _TEXT = re.compile(f"[{ALLOWED}]*")
 _BAD = re.compile(f"[^{ALLOWED}]")
 MAX_TEXT = 256
-# sidecar keys whose strings are never rendered into a file: prose and provenance
-UNRENDERED = frozenset({"description", "cube"})
+# sidecar keys whose strings are never rendered into a file: prose, provenance and how the
+# case was chosen (select's rule, as `select` prints it)
+UNRENDERED = frozenset({"description", "cube", "selection"})
 
 
 class TextError(ValueError):

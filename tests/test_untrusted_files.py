@@ -544,3 +544,14 @@ def test_mutated_programs_are_refused_whenever_the_controller_would_move_otherwi
                 verify(program)
         finally:
             del os.environ["FTSWEEP_CATALOGS"]
+
+
+def test_an_export_chosen_by_tolerance_verifies(originals, tmp_path, module_catalog_dir):
+    # select's rule ("P-V ≤ … nm") is how the case was chosen, not text written into the file
+    cube_path = str(originals["fts"].with_suffix(".zarr"))
+    out = tmp_path / "tol.h"
+    res = cli(["export", cube_path, "--tolerance-nm", "1000", "-o", str(out)], module_catalog_dir)
+    assert res.exit_code == 0, res.output
+    assert "≤" in json.loads(out.with_suffix(".json").read_text())["selection"]["rule"]
+    res = cli(["verify", str(out)], module_catalog_dir)
+    assert res.exit_code == 0, res.output

@@ -223,6 +223,21 @@ def _gcc_cells(header: Path, folder: Path) -> list[int] | None:
     return [int(v) for v in subprocess.run([str(exe)], capture_output=True, text=True).stdout.split()]
 
 
+def _mutated_copy(data, original: Path, alphabet, factory) -> tuple[bytes, bytes, Path]:  # type: ignore[no-untyped-def]
+    """An exported file with one byte inserted, deleted or replaced (drawn from ``alphabet``),
+    copied with its sidecar into a folder of its own: (original bytes, mutated bytes, copy)."""
+    text = original.read_bytes()
+    pos = data.draw(st.integers(0, len(text) - 1))
+    op = data.draw(st.sampled_from(["insert", "delete", "replace"]))
+    byte = data.draw(alphabet)
+    mutated = text[:pos] + (byte if op != "delete" else b"") + text[pos + (op != "insert") :]
+    folder = factory.mktemp("mutated")
+    copy = folder / original.name
+    copy.write_bytes(mutated)
+    shutil.copy(original.with_suffix(".json"), folder / original.with_suffix(".json").name)
+    return text, mutated, copy
+
+
 BYTES = st.sampled_from(
     [b"#", b"/", b"*", b"\n", b"\\", b'"', b"1", b"9", b"-", b" ", b"x", b"{", b"}", b",", b"?"]
 )
@@ -237,15 +252,8 @@ def test_mutated_headers_are_refused_whenever_c_would_read_other_values(
     # any byte inserted, deleted or replaced, inside or outside comments: when the C view
     # accepts the file it agrees with gcc, and verify refuses whenever the values differ
     original = originals["fts"]
-    text = original.read_bytes()
-    pos = data.draw(st.integers(0, len(text) - 1))
-    op = data.draw(st.sampled_from(["insert", "delete", "replace"]))
-    byte = data.draw(BYTES)
-    mutated = text[:pos] + (byte if op != "delete" else b"") + text[pos + (op != "insert") :]
-    folder = tmp_path_factory.mktemp("mutated")
-    header = folder / "fts.h"
-    header.write_bytes(mutated)
-    shutil.copy(original.with_suffix(".json"), folder / "fts.json")
+    text, mutated, header = _mutated_copy(data, original, BYTES, tmp_path_factory)
+    folder = header.parent
     base = read_c(text, "original")
     try:
         view = read_c(mutated, "mutated")
@@ -518,15 +526,8 @@ def test_mutated_programs_are_refused_whenever_the_controller_would_move_otherwi
     # every hash re-made as an attacker would: if a controller would read other motion, verify
     # refuses
     original = originals["prog"]
-    text = original.read_bytes()
-    pos = data.draw(st.integers(0, len(text) - 1))
-    op = data.draw(st.sampled_from(["insert", "delete", "replace"]))
-    byte = data.draw(PROGRAM_BYTES)
-    mutated = text[:pos] + (byte if op != "delete" else b"") + text[pos + (op != "insert") :]
-    folder = tmp_path_factory.mktemp("mutated")
-    program = folder / "prog.txt"
-    program.write_bytes(mutated)
-    shutil.copy(original.with_suffix(".json"), folder / "prog.json")
+    text, mutated, program = _mutated_copy(data, original, PROGRAM_BYTES, tmp_path_factory)
+    folder = program.parent
     rows = mutated.decode("latin-1").split("\n")
     at = next((i for i, r in enumerate(rows) if r.startswith("# CRC32:")), None)
     if at is not None:  # re-make the CRC over every other line, and the file's hashes

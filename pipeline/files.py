@@ -221,7 +221,7 @@ def write_program(
 ) -> dict[str, Any]:
     """Close the header (the sidecar's digest, the CRC over every other line, the column
     line), name the program and its digest in the sidecar, and write both atomically."""
-    check_sidecar_text(meta, side, "nothing exported")
+    check_sidecar_text({**meta, "program": out.name, "sidecar": side.name}, side, "nothing exported")
     rows = [*head, *closing_lines(side.name, meta)]
     # the data lines stay the kernel's bytes: encoded once, not again for the CRC, the digest
     # and the write

@@ -556,3 +556,12 @@ def test_an_export_chosen_by_tolerance_verifies(originals, tmp_path, module_cata
     assert "≤" in json.loads(out.with_suffix(".json").read_text())["selection"]["rule"]
     res = cli(["verify", str(out)], module_catalog_dir)
     assert res.exit_code == 0, res.output
+
+
+def test_a_study_program_name_that_would_become_syntax_is_refused(tmp_path, module_catalog_dir):
+    # `fresnel -o` names the sidecar inside the program: the name is held to the text rule
+    out = tmp_path / "f(1).txt"
+    res = cli(["fresnel", "--points-per-turn", "40", "--facet-height-um", "10", "--plots", str(tmp_path),
+               "-o", str(out)], module_catalog_dir)  # fmt: skip
+    assert res.exit_code == 1 and "holds '('" in res.output, res.output
+    assert not out.exists() and not out.with_suffix(".json").exists()

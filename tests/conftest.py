@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -11,7 +12,11 @@ from hypothesis import settings
 # numba compiles on a kernel's first call (or loads it from cache); that one-off cost is not
 # what a property test measures, so examples get no deadline.
 settings.register_profile("ftsweep", deadline=None, max_examples=60)
-settings.load_profile("ftsweep")
+# HYPOTHESIS_PROFILE=thorough: thousands of fresh examples (the byte-mutation properties of
+# exported files draw the same ones every run otherwise, so CI never fails by the draw)
+settings.register_profile("thorough", deadline=None, max_examples=2000)
+THOROUGH = os.environ.get("HYPOTHESIS_PROFILE") == "thorough"
+settings.load_profile("thorough" if THOROUGH else "ftsweep")
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
@@ -25,7 +26,13 @@ from ftsweep.export import ExportError, export, verify
 from ftsweep.files import CRC_LINE, crc_of, sidecar_digest
 from ftsweep.io import read_sidecar
 from ftsweep.kinds.c_view import read_c
-from ftsweep.kinds.table_header import CHECKSUM_MACRO, checksum, read_header, render_header
+from ftsweep.kinds.table_header import (
+    CHECKSUM_MACRO,
+    TABLE_UNITS_TOLERANCE,
+    checksum,
+    read_header,
+    render_header,
+)
 from ftsweep.run import run_sweep
 
 CC = shutil.which("cc") or shutil.which("gcc")
@@ -180,6 +187,7 @@ EDITS = {
     "expression": ([(D0 + " ", D0 + " 2. + ")], "C reads macro PITCH0"),
     "comment-in-value": ([(D0 + " ", D0 + " /* */ 1.0 + ")], "C reads macro PITCH0"),
     "splice": ([(D0 + " ", D0 + " \\\n")], "C reads macro PITCH0|line"),
+    "octal-cell": ([("    {1000, ", "    {01000, ")], "holds '01000', not an integer as export writes one"),
 }
 
 
@@ -205,13 +213,14 @@ def test_the_c_view_is_what_gcc_reads(originals):
     assert view.guard in gcc
 
 
-def _gcc_cells(header: Path, folder: Path) -> list[int] | None:
-    """The table cells as a program compiled by gcc reads them (None: gcc refuses the file)."""
+def _gcc_cells(header: Path, folder: Path, name: str, int_type: str) -> list[int] | None:
+    """The cells of table ``name`` as a program compiled by gcc reads them (None: gcc refuses
+    the file)."""
     main_c = folder / "main.c"
     main_c.write_text(
         f'#include <stdio.h>\n#include "{header.name}"\n'
-        "int main(void) { const int32_t *p = &fts_table[0][0];\n"
-        '  for (long k = 0; k < (long)(sizeof fts_table / sizeof *p); ++k) printf("%ld\\n", (long)p[k]);\n'
+        f"int main(void) {{ const {int_type} *p = &{name}[0][0];\n"
+        f'  for (long k = 0; k < (long)(sizeof {name} / sizeof *p); ++k) printf("%ld\\n", (long)p[k]);\n'
         "  return 0; }\n"
     )
     exe = folder / "main"
@@ -244,7 +253,12 @@ BYTES = st.sampled_from(
 
 
 @needs_cc
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 @given(data=st.data())
 def test_mutated_headers_are_refused_whenever_c_would_read_other_values(
     originals, tmp_path_factory, module_catalog_dir, data
@@ -262,9 +276,17 @@ def test_mutated_headers_are_refused_whenever_c_would_read_other_values(
     if view is not None:  # accepted in form: it must be what gcc reads
         gcc = c_macros(header)
         assert {k: gcc.get(k) for k, _ in view.macros} == dict(view.macros)
-        assert _gcc_cells(header, folder) == view.cells.ravel().tolist()
+        assert _gcc_cells(header, folder, view.name, view.int_type) == view.cells.ravel().tolist()
     forge_header_text(header, mutated.decode("latin-1"))
-    same = view is not None and view.macros == base.macros and (view.cells == base.cells).all()
+    # the same reading, cells within the re-planning tolerance verify allows (one table unit:
+    # planned values are rounded to the unit, so noise at a half unit may flip the last one)
+    same = (
+        view is not None
+        and (view.macros, view.name, view.int_type, view.guard)
+        == (base.macros, base.name, base.int_type, base.guard)
+        and view.cells.shape == base.cells.shape
+        and int(np.abs(view.cells - base.cells).max()) <= TABLE_UNITS_TOLERANCE
+    )
     if not same:
         os.environ["FTSWEEP_CATALOGS"] = str(module_catalog_dir)
         try:
@@ -517,7 +539,12 @@ def _same_motion(a: list[list[float]] | None, b: list[list[float]]) -> bool:
 PROGRAM_BYTES = st.sampled_from([b"\r", b"\n", b"#", b" ", b"1", b"9", b"-", b"+", b"e", b".", b"\t", b"0"])
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 @given(data=st.data())
 def test_mutated_programs_are_refused_whenever_the_controller_would_move_otherwise(
     originals, tmp_path_factory, module_catalog_dir, data

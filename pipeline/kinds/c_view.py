@@ -33,8 +33,10 @@ from ftsweep.io import ExportError
 
 # stands for the table's rows while the rest of the header is preprocessed
 SENTINEL = "FTSWEEP_TABLE_ROWS_"
-# a row as export writes it: four spaces, braces, decimal integers separated by ", "
-_ROW = re.compile(rb"    \{-?[0-9]+(?:, -?[0-9]+)*\},?")
+# a row as export writes it: four spaces, braces, decimal integers separated by ", " (no
+# leading zero: C reads 012 as octal 10)
+_INT = rb"(?:0|-?[1-9][0-9]*)"
+_ROW = re.compile(rb"    \{" + _INT + rb"(?:, " + _INT + rb")*\},?")
 # the typedefs <stdint.h> gives the two table types (the include itself is not followed)
 _STDINT = "typedef short int16_t;\ntypedef int int32_t;\n"
 INT_LIMITS = {"int16_t": (-(2**15), 2**15 - 1), "int32_t": (-(2**31), 2**31 - 1)}
@@ -111,8 +113,8 @@ def _fault(row: str) -> str:
     """Where a table row first leaves export's form: the value that is not an integer."""
     at = 5
     for value in row[5:].rstrip(",}").split(", "):
-        if re.fullmatch(r"-?[0-9]+", value) is None:
-            return f": column {at + 1} holds {value[:40]!r}, not an integer"
+        if re.fullmatch(_INT.decode(), value) is None:
+            return f": column {at + 1} holds {value[:40]!r}, not an integer as export writes one"
         at += len(value) + 2
     return ""
 

@@ -119,7 +119,7 @@ def format_table(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-# whole-process figures (issue 29): what a user waits for, start-up and exit included. Each
+# whole-process figures: what a user waits for, start-up and exit included. Each
 # entry: the command's arguments ("{dir}": a scratch folder, "{header}": an exported header of
 # the 950k-point ring case, made first) and its most runs (the slow ones run once)
 _RING_5K = ["--surface", "sinewave2d", "--points", "5000", "--aspect", "8"]

@@ -1,6 +1,6 @@
 """The one simulator: any program kind's case through surface sampling, its program, the
 controller's interpolation along the tool's path, the arc envelope and the metrics, in the
-order of architecture.md, on batches of rays so memory stays bounded whatever the program.
+order of docs/architecture.md, on batches of rays so memory stays bounded whatever the program.
 
 A kind says how its program is sampled (its :class:`ftsweep.kinds.Simulation`: the rays of
 a batch, the passes crossing them with their commands, the design they are judged by, and the

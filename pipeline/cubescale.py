@@ -1,6 +1,6 @@
 """Cubes at scale: a synthetic cube of many cases (a ring sweep's template, every case done
 with made-up results written as a sweep's driver merges them), and what it costs to hold and
-to read: objects in the store, opening it, and ``select`` on it (issue 30, item 3). It
+to read: objects in the store, opening it, and ``select`` on it. It
 measures; it asserts nothing about time."""
 
 from __future__ import annotations

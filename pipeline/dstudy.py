@@ -69,7 +69,7 @@ def feed_mode(
     """The constant-feed XZC interpolation of a program: time, C speed range overall and on
     the cuts, and the C speed's largest jump between steps [rpm]. The feed holds along the
     whole path, or with ``cuts_only`` on the cuts alone, the transitions at the C cap ``rpm``
-    (README, "D paths": [5]'s DIFFSYS figures)."""
+    (docs/kinds.md, "D-shaped slow-tool-servo paths": [5]'s DIFFSYS figures)."""
     on = (path.cut[1:] >= 0) & (path.cut[1:] == path.cut[:-1])
     t = dpath.point_times(path.phi, path.rho, z, "feed", rpm, feed_mm_min, on if cuts_only else None)
     c = np.diff(path.phi) / np.diff(t) * 60.0 / (2.0 * math.pi)

@@ -1,5 +1,5 @@
 """Sweeps that grow: a spec whose axes gained values extends its cube, and only the new cases
-are computed (issue 30, item 4).
+are computed.
 
 A spec grows its cube when everything but the axes is unchanged, the same axes come in the
 same order, and every value the cube holds is still on its axis (new point counts, aspect

@@ -288,7 +288,7 @@ def entry_offset(facet: np.ndarray, count: int, h: float) -> np.ndarray:
     with zero slope at both ends; 0 elsewhere. The first turn runs within one feed Δr of the
     edge, so the ramp cuts only inside the band the nose forms the wall in anyway
     (sqrt(2·Rc·h) + Δr, left out of the form error); a step of h in one timestep would set the
-    Z acceleration of the whole program (README, "Fresnel")."""
+    Z acceleration of the whole program (docs/kinds.md, "Freeform Fresnel optics")."""
     out = np.zeros(facet.size)
     starts = np.flatnonzero(np.diff(facet) != 0) + 1
     k = np.arange(count)

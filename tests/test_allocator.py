@@ -1,4 +1,4 @@
-"""The allocator settings (issue 10): applied on glibc, and results never depend on them."""
+"""The allocator settings: applied on glibc, and results never depend on them."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""numba's BLAS probe given its one module (ftsweep.startup, issue 29): no scipy.linalg when
+"""numba's BLAS probe given its one module (ftsweep.startup): no scipy.linalg when
 numba's CPU target is set up (a process's first compilation), and the module the probe gets
 is scipy's own, which works through numba and through scipy.linalg imported afterwards."""
 

@@ -1,4 +1,4 @@
-"""Citations resolve for a reader of the project alone (issue 15, item 7): every "model §N"
+"""Citations resolve for a reader of the project alone: every "model §N"
 and every "[n]" cited in the sources, catalogs and exported headers names a section or a
 reference of the README's model, and nothing cites files the project does not ship."""
 
@@ -74,3 +74,15 @@ def test_exported_headers_cite_the_readme_in_ascii():
         assert phrase in text and "ftsweep README, 'The model'" in text
         for sec in re.findall(r"section (\d)", text):
             assert int(sec) in model_sections()
+
+
+def test_every_document_the_code_cites_is_in_the_repository():
+    # a docstring's "docs/architecture.md" or "README" must lead a reader to a file that exists
+    cited = set()
+    for path in [*SOURCES, ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        for name in re.findall(r"(?<![\w/.])((?:docs/)?[A-Za-z_-]+\.md)\b", path.read_text(encoding="utf-8")):
+            cited.add(name)
+            # a bare name is one in the repository's root or in docs/ (as the README's layout lists it)
+            found = (ROOT / name).is_file() or (ROOT / "docs" / name).is_file()
+            assert found, f"{path.name} cites {name}, which the repository does not hold"
+    assert {"docs/architecture.md", "docs/performance.md", "docs/kinds.md"} <= cited

@@ -1,4 +1,4 @@
-"""Clusters as they are (issue 30, item 6): tasks planned for the cluster's threads and the
+"""Clusters as they are: tasks planned for the cluster's threads and the
 summary counting its workers; a run whose workers all left ends with a message; a worker
 without ftsweep is named; SIGTERM releases the cube's lock; the local dashboard's address."""
 

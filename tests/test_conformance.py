@@ -1,4 +1,4 @@
-"""The conformance suite of the program-kind contract (issue 27; zarr's ``StoreTests``
+"""The conformance suite of the program-kind contract (zarr's ``StoreTests``
 pattern): one subclass per registered kind (and per spiral rule and layered wrapper), each
 naming a one-case sweep; every subclass runs the same tests. Plan → simulate → export →
 verify round trip, the record holds exactly the kind's declared fields, a case's key is

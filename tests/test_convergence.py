@@ -1,4 +1,4 @@
-"""The default resolution is converged (issue: P-V moves < 3 % when the angular samples are
+"""The default resolution is converged (P-V moves < 3 % when the angular samples are
 quadrupled and the evaluation points per feed doubled). Slow: about two minutes.
 
 Run with: pytest -m slow

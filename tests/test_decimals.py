@@ -1,4 +1,4 @@
-"""Fixed-point text of program lines (ftsweep.stages.decimals, issue 29): digit for digit what
+"""Fixed-point text of program lines (ftsweep.stages.decimals): digit for digit what
 Python's ``format(v, ".9f")`` prints, and the numbers read back from it, on random, tied
 (dyadic halves of the last decimal) and extreme values."""
 

@@ -44,7 +44,7 @@ def test_seed_example_optimised_acceleration_is_a_fraction_of_the_traditional_an
     assert a_opt[on].max() >= a_opt[~on].max()
     # the spike (kinematics stage, [2] eq. 14): the X velocity jump ω·Δ(dρ/dθ) at the junction
     # over the mean of the two C steps either side, ω²·Δ(dρ/dθ)/(½(Δθ₁+Δθ₂)); it grows as the
-    # step shrinks (issue 28); within 10 %: the cut's own acceleration adds to it
+    # step shrinks; within 10 %: the cut's own acceleration adds to it
     omega = 40.0 * 2.0 * math.pi / 60.0
     end = int(np.flatnonzero(trad.cut == 0)[-1])
     span = trad.phi[end + 1] - trad.phi[end - 1]
@@ -425,7 +425,7 @@ def test_dpath_cli_json_reports_the_ratio(tmp_path):
     assert out["optimised"]["d2_rel_jump"] <= 1e-9
     assert out["traditional"]["slope_jump_um_rad"] > 0.0
     assert out["spiral"]["pv_nm"] > 0.0
-    # constant feed (README, DIFFSYS): along the whole path the optimised C speed changes
+    # constant feed (docs/kinds.md, DIFFSYS): along the whole path the optimised C speed changes
     # smoothly, the traditional jumps at the junctions; on the cuts only, the transitions run
     # at the C cap (40 rpm) and both paths take the same time
     whole = {k: out[k]["feed_mode"] for k in ("traditional", "optimised")}

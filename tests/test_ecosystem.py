@@ -1,4 +1,4 @@
-"""Fit the ecosystem (issue 9): one installed package ``ftsweep``, cubes with physics names
+"""Fit the ecosystem: one installed package ``ftsweep``, cubes with physics names
 and parseable units, realisable pitches by rounding, catalogs printed whole."""
 
 from __future__ import annotations
@@ -179,7 +179,7 @@ def test_wheel_installs_one_package_named_ftsweep(tmp_path):
 
     tops = {name.split("/")[0] for name in zipfile.ZipFile(wheel).namelist()}
     assert {t for t in tops if not t.endswith(".dist-info")} == {"ftsweep"}
-    # issue 30, item 7: the license as a PEP 639 expression (a TOML table stops building in 2027)
+    # the license as a PEP 639 expression (a TOML table stops building in 2027)
     with zipfile.ZipFile(wheel) as zf:
         meta = zf.read(next(n for n in zf.namelist() if n.endswith(".dist-info/METADATA"))).decode()
     assert "License-Expression: BSD-3-Clause" in meta.splitlines()

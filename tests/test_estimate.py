@@ -1,4 +1,4 @@
-"""The first-order estimate (issue 10, item 3): exact where its premise is exact, and its
+"""The first-order estimate: exact where its premise is exact, and its
 agreement with the simulation measured (tests/test_reference_sweep.py)."""
 
 from __future__ import annotations

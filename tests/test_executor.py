@@ -1,4 +1,4 @@
-"""Executors on trivial task functions (issue 15, item 6): no numerics, no cube. The same
+"""Executors on trivial task functions: no numerics, no cube. The same
 groups give the same summaries on every scheduler; a task that raises is reported through
 ``on_error`` and the others run on; the warm-up runs before any task."""
 
@@ -82,7 +82,7 @@ def publish_then_wait(task: TaskSpec, group: list[int]) -> list[dict]:
 
 @pytest.mark.parametrize("scheduler", [SYNCHRONOUS, None])
 def test_a_case_is_reported_when_it_is_written_and_only_once(scheduler):
-    # issue 29: progress as cases finish, not as tasks do (run_task publishes each case)
+    # progress as cases finish, not as tasks do (run_task publishes each case)
     import time
 
     arrivals: list[tuple[float, list[int]]] = []

@@ -1,4 +1,4 @@
-"""Stored expectations (issue 15): a fresh sweep reproduces, value for value, the cube stored
+"""Stored expectations: a fresh sweep reproduces, value for value, the cube stored
 in tests/data/expected_small_sweep.json, so refactoring the engine cannot move a result
 unnoticed. Regenerate (only for an intended change of results, and say why in the commit):
 

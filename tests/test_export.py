@@ -1,4 +1,4 @@
-"""Selection, header export and verification (issue 4)."""
+"""Selection, header export and verification."""
 
 from __future__ import annotations
 

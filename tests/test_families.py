@@ -1,4 +1,4 @@
-"""Surface families users bring (issue 6): freeforms, Zernikes, height maps, plug-ins."""
+"""Surface families users bring: freeforms, Zernikes, height maps, plug-ins."""
 
 from __future__ import annotations
 

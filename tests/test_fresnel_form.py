@@ -1,4 +1,4 @@
-"""The form error of Fresnel programs through the one simulator (issue 27: Fresnel a case kind
+"""The form error of Fresnel programs through the one simulator (Fresnel a case kind
 of predict, sweeps and cubes; [2] eqs. 3, 9, 10, 12, 13)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Fresnel programs at the papers' scale (issue 28): facet entries ramped over a turn, the
+"""Fresnel programs at the papers' scale: facet entries ramped over a turn, the
 speed-up of adaptive timesteps and its account on a 14 mm part, Fresnel sweeps over the rake
 deviation and the compensation ([2] = seed 001, §2.4–2.5, §3.3)."""
 
@@ -104,7 +104,7 @@ def _check_paper_scale(s: dict) -> None:
 def test_paper_scale_part_at_90_points_a_turn():
     s = _paper_study(90)
     _check_paper_scale(s)
-    # the speed-up does not hang on K (README: 2.47 at K = 90 … 2.46 at 720)
+    # the speed-up does not hang on K (docs/kinds.md: 2.47 at K = 90 … 2.46 at 720)
     assert 2.0 <= s["speedup"] <= 3.0
 
 
@@ -186,7 +186,7 @@ def test_fresnel_sweep_options_are_checked(tmp_path, change, message):
 
 
 def test_predict_takes_the_kinds_machine_and_cutting():
-    # the issue's check: no --machine, no --cutting; a Fresnel program takes the X-Y-Z-C lathe
+    # the check: no --machine, no --cutting; a Fresnel program takes the X-Y-Z-C lathe
     res = CliRunner().invoke(
         main,
         [

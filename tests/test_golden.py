@@ -1,4 +1,4 @@
-"""Golden keys and P-V values of every program kind and every catalog surface (issue 27),
+"""Golden keys and P-V values of every program kind and every catalog surface,
 recorded before the program-kind refactor so that no move of the code can change a case's
 identity (its key: the hash of its canonical spec) or its predicted form error unnoticed.
 Regenerate only for an intended change of results, and say why in the commit:
@@ -57,7 +57,7 @@ def _kind_cases() -> dict[str, Case]:
         "dpath": _case(
             "concave_sphere", {"kind": "dpath", "spacing_um": 500.0, "points_per_cut": 41}, **sphere
         ),
-        # added with the Fresnel kind (issue 27), after the refactor's other moves
+        # added with the Fresnel kind, after the refactor's other moves
         "fresnel-case": _case(
             "chebyshev_example",
             {"kind": "fresnel", "points_per_turn": 60},
@@ -69,7 +69,7 @@ def _kind_cases() -> dict[str, Case]:
 
 
 def _fresnel(folder: Path) -> dict[str, Any]:
-    """The coarse Fresnel study of tests/test_fresnel.py: no P-V yet (issue 28), so its plan
+    """The coarse Fresnel study of tests/test_fresnel.py: no P-V yet, so its plan
     and timing figures stand for it."""
     inp = fstudy.inputs("chebyshev_example", "xyzc-nanoform", "coarse-fresnel", points_per_turn=120)
     s = fstudy.study(inp, folder)

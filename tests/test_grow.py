@@ -1,4 +1,4 @@
-"""Sweeps that grow (issue 30, item 4): values added to a sweep axis extend the cube and only
+"""Sweeps that grow: values added to a sweep axis extend the cube and only
 the new cases are computed; removing values or changing anything else is still refused;
 a growth killed midway finishes on the next run; exit statuses a scheduler can act on."""
 

@@ -1,4 +1,4 @@
-"""The exact-command envelope only when asked (issue 10, item 1): the same results without it,
+"""The exact-command envelope only when asked: the same results without it,
 pv_interp_nm NaN, and unchanged hashes for specs that keep the default."""
 
 from __future__ import annotations

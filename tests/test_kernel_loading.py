@@ -1,5 +1,5 @@
 """Cached kernels loaded without numba's typing and lowering set-up (ftsweep.startup.
-lazy_cache_loads, issue 29): every program kind's record is the same as with numba's own
+lazy_cache_loads): every program kind's record is the same as with numba's own
 loader, value for value, no kernel is compiled again, the registries that only a compilation
 reads are not set up, and a compilation afterwards (a user's own ``@njit``) still works."""
 

@@ -1,4 +1,4 @@
-"""The one kinematics stage (issue 27): every kind's axis velocities and accelerations by one
+"""The one kinematics stage: every kind's axis velocities and accelerations by one
 difference scheme ([2] eq. 14), checked against the machine's limits by one function."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Layered trajectories for parts deeper than the stroke ([3], issue 12)."""
+"""Layered trajectories for parts deeper than the stroke ([3])."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Work shared across cases (issue 10, item 2): cases on the same lines reuse their surface
+"""Work shared across cases: cases on the same lines reuse their surface
 samples, exact commands and exact envelope, and give exactly what they give alone."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The notebook tour in a real Jupyter kernel (issue 30, item 7): every ``ds.ftsweep.plot_*``
+"""The notebook tour in a real Jupyter kernel: every ``ds.ftsweep.plot_*``
 shows its figure inline, and a plain matplotlib cell run after them still shows its own (a
 plot once switched pyplot to Agg, and every later figure of the session was lost)."""
 

@@ -1,4 +1,4 @@
-"""The tolerance loop (issue 4, ftsweep optimize)."""
+"""The tolerance loop (ftsweep optimize)."""
 
 from __future__ import annotations
 
@@ -89,7 +89,7 @@ def test_same_search_resumes_and_another_needs_restart(tmp_path, catalog_dir):
 
 
 def test_a_search_seeded_by_the_estimate_needs_fewer_evaluations(tmp_path, catalog_dir):
-    # issue 10, item 3: the estimate seeds the aspect optimum and the point count
+    # the estimate seeds the aspect optimum and the point count
     args = ("small_sine", "ring", 40.0)
     scan = optimize(*args, tmp_path / "scan.zarr", start_points=5000, catalog_folder=catalog_dir)
     seeded = optimize(*args, tmp_path / "seeded.zarr", catalog_folder=catalog_dir, seed="estimate")

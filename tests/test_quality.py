@@ -44,7 +44,7 @@ MAX_FUNCTION_LINES = 60
 
 
 def test_pipeline_modules_and_functions_stay_small():
-    """Modules by responsibility (issue 27): no module of pipeline/ over 600 lines, no function
+    """Modules by responsibility: no module of pipeline/ over 600 lines, no function
     over 60 (its ``def`` line to its last, docstring included)."""
     import ast
 

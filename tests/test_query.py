@@ -1,4 +1,4 @@
-"""One query core (issue 15, item 4): the sweep summary, ``ds.ftsweep.optimum()``, ``select``
+"""One query core: the sweep summary, ``ds.ftsweep.optimum()``, ``select``
 and ``export`` agree on every cube, also one with infeasible and over-capacity cases."""
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ def test_summary_optimum_and_select_agree(mixed_cube):
     ds = open_cube(mixed_cube)
     summary = best_per_point_count(mixed_cube)
     optimum = ds.ftsweep.optimum()
-    # an aspect ratio: the coordinate's units (issue 30: it carried the P-V's "nm")
+    # an aspect ratio: the coordinate's units (it carried the P-V's "nm")
     assert optimum.name == "aspect" and optimum.attrs == ds["aspect"].attrs
     assert optimum.attrs["units"] != "nm"
     for i, row in enumerate(summary):

@@ -1,5 +1,5 @@
 """The reference sweep sinewave-ring end to end, as the README's main command runs it:
-a LocalCluster sweep, then the selection at a 950,000-point budget (issue 4) and the
+a LocalCluster sweep, then the selection at a 950,000-point budget and the
 export/verify round trip of that layout. Takes about five minutes on two cores."""
 
 from __future__ import annotations

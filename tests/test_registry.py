@@ -1,4 +1,4 @@
-"""Surface families are declared once (issue 15, item 3): the registering decorator of
+"""Surface families are declared once: the registering decorator of
 ftsweep.stages.surfaces is the only place a family is written; the catalog's validated model
 is generated from it. A new family, registered in a fresh process, is validated, refused
 with named keys when wrong, and predicted, without touching any other module."""

@@ -1,4 +1,4 @@
-"""Figures, the HTML report and the xarray accessor (issue 5)."""
+"""Figures, the HTML report and the xarray accessor."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The declared result (issue 15, item 1): run_case, predict --json, cubes and describe use
+"""The declared result: run_case, predict --json, cubes and describe use
 the names, units and long names ftsweep.result declares, for every program kind."""
 
 from __future__ import annotations

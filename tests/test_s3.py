@@ -1,4 +1,4 @@
-"""Cubes on object storage (issue 30, items 1, 2 and 5), against a real S3-compatible server:
+"""Cubes on object storage, against a real S3-compatible server:
 moto's standalone server on 127.0.0.1, as zarr's and s3fs's own test suites run it. A sweep
 into ``s3://``: done, a re-run computes nothing, select/export/report/compare read it,
 ``xr.open_zarr`` + the accessor open it; a killed sweep resumes once its lease expired; a

@@ -1,4 +1,4 @@
-"""Nothing wrong reaches the controller (issue 16): verify, non-finite values, cube locks,
+"""Nothing wrong reaches the controller: verify, non-finite values, cube locks,
 task failures, resume integrity, and one-line errors for every probe a user can make."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Commands that answer at once (issue 29, item 1): ``ftsweep --help`` and every command's
+"""Commands that answer at once: ``ftsweep --help`` and every command's
 ``--help`` load no numba, xarray or zarr; ``import ftsweep`` stays light and still gives the
 ``ds.ftsweep`` accessor whichever of ftsweep and xarray is imported first. Timings are printed
 by ``ftsweep bench``, never asserted here."""
@@ -71,7 +71,7 @@ def test_console_script_exit_codes_and_output_survive_the_fast_exit(argv, code, 
 
 
 def test_plots_leave_the_callers_matplotlib_backend_alone():
-    # issue 30, item 7: a notebook's ds.ftsweep.plot_* switched pyplot to Agg, and every later
+    # a notebook's ds.ftsweep.plot_* switched pyplot to Agg, and every later
     # plot of the session showed nothing
     code = (
         "import matplotlib\nmatplotlib.use('svg')\n"

@@ -1,4 +1,4 @@
-"""Where cubes live (issue 30, items 1-3) without a server: memory:// in this process, the
+"""Where cubes live without a server: memory:// in this process, the
 lease lock's rules, and what a store without conditional writes gets."""
 
 from __future__ import annotations

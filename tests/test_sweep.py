@@ -1,4 +1,4 @@
-"""Sweeps on Dask into Zarr cubes (issue 3): specs, schedulers, crash safety."""
+"""Sweeps on Dask into Zarr cubes: specs, schedulers, crash safety."""
 
 from __future__ import annotations
 
@@ -75,7 +75,7 @@ def test_reference_sweeps_validate_and_cover_the_ranges():
             "axes.aspect: required key is missing",
         ),
         (SMALL.replace("num: 3", "num: 3, spacing: 2"), "spacing: unknown key"),
-        # every rule is the model's, checked when the file is loaded (issue 15, item 2)
+        # every rule is the model's, checked when the file is loaded
         (SMALL.replace("surface: small_sine", "surface: [a, b]"), "surface"),
         (SMALL + "  feed_um: [1.0, 170.0]\n", "axes.feed_um: feed 170 µm/rev is not below twice the nose"),
         (

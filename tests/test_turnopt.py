@@ -1,4 +1,4 @@
-"""The compiled timestep optimiser of a Fresnel turn ([2] §2.5, eq. 15; issue 29): its cost's
+"""The compiled timestep optimiser of a Fresnel turn ([2] §2.5, eq. 15): its cost's
 gradient, its optimum against SciPy's L-BFGS-B on the same cost, and the per-turn peaks the
 final scaling reads, against the whole program's kinematics."""
 

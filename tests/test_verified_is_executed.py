@@ -1,4 +1,4 @@
-"""The verified file is the executed file (issue 26): for every exported kind a fresh export
+"""The verified file is the executed file: for every exported kind a fresh export
 verifies; an edit the machine would execute fails even with every checksum and hash forged to
 agree; files never make ftsweep import code; a finished sweep of every kind resumes with
 nothing computed."""

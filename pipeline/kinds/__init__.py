@@ -1,4 +1,4 @@
-"""The program-kind contract and its registry (architecture.md, "The program-kind contract").
+"""The program-kind contract and its registry (docs/architecture.md, "The program-kind contract").
 
 A program kind is one :class:`ProgramKind` entry, in the spirit of flox's ``Aggregation``
 table and xarray's backend entrypoints: it names its sweep axes and says how a sweep point

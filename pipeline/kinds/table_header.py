@@ -166,12 +166,12 @@ COMPENSATION_CITED = {
 
 
 LAYERED_NOTE = [
-    " * Layered ([3], README 'Layered trajectories'): the part is cut in N_LAYERS layers, in",
-    " * order. In layer k the Z axis sets the workpiece at LAYER_OFFSETS_UM[k] and the FTS",
-    " * outputs W = table - LAYER_OFFSETS_UM[k] (within its travel); the layer cuts the",
-    " * spiral only on its segments, from SEGMENT_PHI_DEG[2s] to SEGMENT_PHI_DEG[2s+1]",
-    " * (spindle angle accumulated from the edge: C = phi mod 360, X = RHO0_UM - FEED_UM*phi/360),",
-    " * stopping the spindle and lifting the tool between them.",
+    " * Layered ([3], ftsweep docs/kinds.md 'Layered trajectories'): the part is cut in",
+    " * N_LAYERS layers, in order. In layer k the Z axis sets the workpiece at",
+    " * LAYER_OFFSETS_UM[k] and the FTS outputs W = table - LAYER_OFFSETS_UM[k] (within its",
+    " * travel); the layer cuts the spiral only on its segments, from SEGMENT_PHI_DEG[2s] to",
+    " * SEGMENT_PHI_DEG[2s+1] (spindle angle accumulated from the edge: C = phi mod 360,",
+    " * X = RHO0_UM - FEED_UM*phi/360), stopping the spindle and lifting the tool between them.",
 ]
 
 

@@ -1,5 +1,9 @@
 """ftsweep orchestration: catalogs, case specs, the case runner and the CLI.
 
+This package's source is the repository's ``pipeline/`` folder, installed as ``ftsweep``
+(``pipeline/export.py`` is ``ftsweep.export``); the pure numerical stages are ``stages/``,
+installed as ``ftsweep.stages``. docs/architecture.md draws the layers.
+
 Citations in docstrings, messages and exported headers: "model §N, eq. (k)" is section N and
 equation k of "The model" in the project's README.md; "[n]" is reference n listed there.
 

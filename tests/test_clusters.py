@@ -18,6 +18,9 @@ from ftsweep.lock import lock_path
 from ftsweep.run import run_sweep
 from ftsweep.sweep import load_sweep, n_cases, plan_tasks
 
+# external Dask schedulers and workers, killed and terminated
+pytestmark = pytest.mark.integration
+
 # 18 cases: 8 tasks on one thread, 9 on two (this machine's cores)
 SPEC = """
 surface: small_sine

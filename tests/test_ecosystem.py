@@ -160,6 +160,7 @@ def test_catalogs_prints_whole_descriptions_and_json():
     assert "sinewave-ring" in data["sweeps"]
 
 
+@pytest.mark.integration  # builds a wheel into a fresh virtual environment
 # ----------------------------------------------------------------------------- packaging
 def test_wheel_installs_one_package_named_ftsweep(tmp_path):
     """A regular (non-editable) install: build the wheel, install it without dependencies into

@@ -8,6 +8,9 @@ import pytest
 
 from ftsweep.run import run_sweep
 
+# a Jupyter kernel
+pytestmark = pytest.mark.integration
+
 nbformat = pytest.importorskip("nbformat")
 nbclient = pytest.importorskip("nbclient")
 pytest.importorskip("ipykernel")

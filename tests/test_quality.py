@@ -28,6 +28,7 @@ def test_ruff_lint_and_complexity():
     assert out.returncode == 0, out.stdout + out.stderr
 
 
+@pytest.mark.integration  # mypy over the package
 def test_mypy_every_pipeline_function_typed():
     out = subprocess.run(
         [_tool("mypy"), "--disallow-untyped-defs", "--no-error-summary", "pipeline"],

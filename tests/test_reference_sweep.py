@@ -13,6 +13,9 @@ from ftsweep.export import export, verify
 from ftsweep.run import run_sweep
 from ftsweep.select import choose, open_cube
 
+# the reference sweep on a local cluster
+pytestmark = pytest.mark.integration
+
 BUDGET = 950_000
 
 

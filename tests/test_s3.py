@@ -25,6 +25,9 @@ from ftsweep.cli import main
 from ftsweep.run import run_sweep
 from ftsweep.storage import place
 
+# a moto S3 server, sweeps in subprocesses killed and paused
+pytestmark = pytest.mark.integration
+
 pytest.importorskip("s3fs")
 pytest.importorskip("moto")
 

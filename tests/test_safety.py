@@ -403,6 +403,7 @@ def _wait_for(condition, seconds: float = 120.0) -> None:  # type: ignore[no-unt
         time.sleep(0.05)
 
 
+@pytest.mark.integration  # two sweep processes
 def test_concurrent_sweeps_are_refused_and_the_cube_equals_a_single_run(tmp_path, catalog_dir):
     # twelve cases keep the first run busy for several seconds after it takes the lock, while
     # the other two start up (a run that ended too early fails this test, never passes it)
@@ -499,6 +500,7 @@ def test_cube_deleted_mid_run_is_reported(tmp_path, catalog_dir):
     assert len(errors) == 5 and all("request" in r and "task error" in r["message"] for r in errors)
 
 
+@pytest.mark.integration  # waits on an unreachable scheduler
 def test_unreachable_scheduler_is_reported_within_seconds(tmp_path, catalog_dir):
     spec = write(tmp_path, "one.yaml", ONE_CASE)
     start = time.perf_counter()

@@ -122,6 +122,7 @@ def test_local_cluster_equals_synchronous_value_for_value(tmp_path, catalog_dir,
     xr.testing.assert_equal(data_of(out), data_of(reference_cube))
 
 
+@pytest.mark.integration  # an external scheduler and workers
 def test_external_dask_scheduler_and_workers_give_the_same_cube(tmp_path, catalog_dir, reference_cube):
     """The README's --scheduler example with a relative --out: the workers run in another
     folder than the client, so the cube path must reach them absolute."""
@@ -168,6 +169,7 @@ cases_per_task: 1
 """
 
 
+@pytest.mark.integration  # a sweep process killed midway
 def test_killed_sweep_loses_nothing_and_resumes(tmp_path, catalog_dir):
     spec = write_spec(tmp_path, KILL_SPEC, "kill.yaml")
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))

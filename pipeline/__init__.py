@@ -22,7 +22,9 @@ from collections.abc import Callable, Sequence
 from types import ModuleType
 from typing import Any, Optional
 
-__version__ = "0.1.0"
+from ftsweep.version import __version__
+
+__all__ = ["__version__"]
 
 
 def _register_accessor() -> None:

@@ -13,11 +13,12 @@ import platform
 import time
 from typing import Any
 
-from ftsweep import __version__, catalogs
+from ftsweep import catalogs
 from ftsweep.case import STAGE_TIMERS, run_case
 from ftsweep.kinds.requests import program_request
 from ftsweep.lines import LineCache
 from ftsweep.spec import Case, Resolution
+from ftsweep.version import __version__
 
 MILLION_CASES = {
     "ring-1M-a8": ("sinewave2d", program_request(kind="ring", points=1_000_000, aspect=8.0)),

@@ -13,8 +13,8 @@ from typing import Any, Optional
 
 import click
 
-from ftsweep import __version__
 from ftsweep.cli_common import MESSAGE_LIMIT, USER_ERRORS, echo_json, one_line
+from ftsweep.version import __version__
 
 # every command but `catalogs`: its module and function, imported only when the command runs or
 # shows its own help, so that `ftsweep --help` need not load numba, xarray or zarr; the group's

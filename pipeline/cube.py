@@ -34,9 +34,10 @@ import numpy as np
 import xarray as xr
 import zarr
 
-from ftsweep import __version__, result
+from ftsweep import result
 from ftsweep.storage import PathLike, Place, place
 from ftsweep.sweep import SweepSpec, axis_attrs, coordinates
+from ftsweep.version import __version__
 
 PENDING, DONE, FAILED, PRUNED = 0, 1, 2, 3
 STATUS_MEANINGS = "pending done failed pruned"

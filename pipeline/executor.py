@@ -25,7 +25,7 @@ from typing import Any, Optional
 
 import dask
 
-from ftsweep import __version__, allocator, kinds, startup
+from ftsweep import allocator, kinds, startup
 from ftsweep.case import run_case
 from ftsweep.caselog import CaseLog
 from ftsweep.defaults import WORKER_WAIT_S
@@ -33,6 +33,7 @@ from ftsweep.lines import LineCache
 from ftsweep.spec import Case
 from ftsweep.storage import Place
 from ftsweep.sweep import SweepSpec, case_at, case_lines
+from ftsweep.version import __version__
 
 
 @dataclass(frozen=True)

@@ -13,13 +13,14 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Optional
 
 import numpy as np
 
-from ftsweep import __version__, catalogs
+from ftsweep import catalogs
 from ftsweep import fresnel as fp
 from ftsweep.io import save_figure
 from ftsweep.kinds.requests import FresnelRequest
 from ftsweep.planning import resolve_case
 from ftsweep.spec import Case, CaseError
 from ftsweep.stages import fresnel as ff
+from ftsweep.version import __version__
 
 if TYPE_CHECKING:
     from ftsweep.files import DataLines

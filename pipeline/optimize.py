@@ -26,7 +26,7 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-from ftsweep import __version__, catalogs, cube, kinds
+from ftsweep import catalogs, cube, kinds
 from ftsweep.case import run_case
 from ftsweep.cube import SCHEMA_VERSION, CubeError, CubeWriter, git_revision
 from ftsweep.kinds.requests import program_request
@@ -34,6 +34,7 @@ from ftsweep.lock import cube_lock
 from ftsweep.spec import Case, CaseError, Resolution
 from ftsweep.storage import PathLike, Place, place
 from ftsweep.sweep import axis_attrs
+from ftsweep.version import __version__
 
 
 def _aspect_range(layout: str) -> tuple[float, float]:

@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep import __version__
 from ftsweep.case import run_case
 from ftsweep.files import (
     DataLines,
@@ -44,6 +43,7 @@ from ftsweep.files import (
 from ftsweep.planning import resolve_case
 from ftsweep.spec import Case
 from ftsweep.stages.spiral import SpiralPath
+from ftsweep.version import __version__
 
 MAGIC = "# ftsweep spiral program"
 COLUMNS = "C_deg X_mm Z_mm"  # printed with 9 decimals (files.DECIMALS): 1 pm in X and Z, 1e-9 deg in C

@@ -24,7 +24,6 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep import __version__
 from ftsweep.case import run_case
 from ftsweep.files import (
     ExportError,
@@ -39,6 +38,7 @@ from ftsweep.kinds.c_view import read_c
 from ftsweep.kinds.table import build_layout
 from ftsweep.planning import control_table, resolve_case
 from ftsweep.spec import Case
+from ftsweep.version import __version__
 
 INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}
 LE_DTYPE = {"int16": "<i2", "int32": "<i4"}

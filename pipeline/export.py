@@ -262,7 +262,7 @@ def verify(
     elif accept_recorded:
         record["origin"] = {"proved": "recorded entries (--accept-recorded): not compared with a catalog"}
     else:
-        catalog = org.check_catalog(read_sidecar(path), side)
+        catalog = org.check_catalog(read_sidecar(path, side_bytes), side)
         record["origin"] = {"proved": "consistent with this catalog", "catalog": catalog}
     return record
 

@@ -69,15 +69,15 @@ def _no_constant(name: str) -> float:
     raise ValueError(f"{name} is not a number JSON allows")
 
 
-def read_sidecar(path: Path) -> dict[str, Any]:
+def read_sidecar(path: Path, raw: bytes | None = None) -> dict[str, Any]:
     """The sidecar of an exported file (``FILE.json`` beside ``path``), read as untrusted
     data: a regular file of at most :data:`MAX_SIDECAR_BYTES`, strict JSON (no NaN, no
     Infinity, no number that overflows a float), an object, and every string that export
     renders held to :func:`ftsweep.freetext.check_text`; :class:`ExportError` naming the
-    problem otherwise."""
+    problem otherwise. ``raw``: the sidecar's bytes, read already."""
     side = sidecar_path(Path(path))
     try:
-        raw = read_regular(side, MAX_SIDECAR_BYTES, "sidecar")
+        raw = read_regular(side, MAX_SIDECAR_BYTES, "sidecar") if raw is None else raw
     except ExportError as exc:
         if not side.exists():
             raise ExportError(f"{side} is missing: verify needs the sidecar written with the file") from None

@@ -239,6 +239,8 @@ class Lease:
         with self._mutex:
             if self.lost:
                 raise FileExistsError(self.lost)
+            # the new term counts from before the request: a slow request only shortens it
+            sent = time.monotonic()
             try:
                 self.tag = self.lock.replace_if("", self._record(), self.tag)
             except FileExistsError:
@@ -247,7 +249,7 @@ class Lease:
             except FileNotFoundError:  # another writer took it over and has released it since
                 self.lost = f"the lease on {self.cube} was taken over (its lock object is gone)"
                 raise FileExistsError(self.lost) from None
-            self.confirmed = time.monotonic()
+            self.confirmed = sent
 
     def _renew(self) -> None:
         while not self._stop.wait(self.lease_s / 3.0):

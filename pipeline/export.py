@@ -27,8 +27,6 @@ from ftsweep.origin import sign, signature_path, signing_key
 from ftsweep.storage import PathLike
 
 Progress = Callable[[int, int], None] | None
-# the largest file any format reads (a program; a header is smaller)
-MAX_FILE_BYTES = MAX_PROGRAM_BYTES
 
 
 @dataclass(frozen=True)
@@ -164,7 +162,8 @@ def format_of_kind(kind: str) -> FileFormat:
 def format_of_file(path: Path) -> FileFormat:
     """The format of an exported file, by its first line (anything else is read as a header,
     whose reader says precisely what is wrong with it)."""
-    head = read_regular(path, MAX_FILE_BYTES, head=200)  # a device or FIFO is refused, never read
+    # the largest file any format reads is a program's; a device or FIFO is refused, never read
+    head = read_regular(path, MAX_PROGRAM_BYTES, head=200)
     first = head.split(b"\n", 1)[0].decode("utf-8", errors="replace")
     found = [f for f in formats() if f.magic is not None and first.startswith(f.magic)]
     return found[0] if found else formats()[0]
@@ -271,7 +270,7 @@ def _contents(path: Path, side: Path) -> tuple[bytes, bytes | None]:
     """The bytes of a file and its sidecar (regular files only, bounded; None: no sidecar,
     which the format's verify names)."""
     sidecar = read_regular(side, MAX_SIDECAR_BYTES, "sidecar") if side.exists() else None
-    return read_regular(path, MAX_FILE_BYTES), sidecar
+    return read_regular(path, MAX_PROGRAM_BYTES), sidecar
 
 
 def origin_line(record: dict[str, Any]) -> str:

@@ -29,7 +29,15 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from ftsweep.io import ExportError, dumps_json, read_regular, sidecar_path, write_texts_atomic
+from ftsweep.io import (
+    MAX_PROGRAM_BYTES,
+    MAX_SIDECAR_BYTES,
+    ExportError,
+    dumps_json,
+    read_regular,
+    sidecar_path,
+    write_texts_atomic,
+)
 
 # what a signature covers, in this order; the first line names the scheme
 DOMAIN = b"ftsweep export signature v1\n"
@@ -158,8 +166,8 @@ def sign(path: Path, key_path: Path) -> str:
     """Sign an exported file and its sidecar as they lie on disk with the private key at
     ``key_path``; writes ``FILE.sig`` atomically and returns the key's ID."""
     key = _load(key_path, private=True)
-    file_sha = hashlib.sha256(read_regular(path, 2**31, "exported file")).hexdigest()
-    side_sha = hashlib.sha256(read_regular(sidecar_path(path), 2**31, "sidecar")).hexdigest()
+    file_sha = hashlib.sha256(read_regular(path, MAX_PROGRAM_BYTES, "exported file")).hexdigest()
+    side_sha = hashlib.sha256(read_regular(sidecar_path(path), MAX_SIDECAR_BYTES, "sidecar")).hexdigest()
     raw = _raw(key.public_key())
     text = _signature_text(raw, file_sha, side_sha, key.sign(_message(file_sha, side_sha)))
     write_texts_atomic({signature_path(path): text})

@@ -35,11 +35,12 @@ from ftsweep.io import ExportError
 SENTINEL = "FTSWEEP_TABLE_ROWS_"
 # a row as export writes it: four spaces, braces, decimal integers separated by ", " (no
 # leading zero: C reads 012 as octal 10)
-_INT = rb"(?:0|-?[1-9][0-9]*)"
-_ROW = re.compile(rb"    \{" + _INT + rb"(?:, " + _INT + rb")*\},?")
+_INT = r"(?:0|-?[1-9][0-9]*)"
+_ROW = re.compile(r"    \{" + _INT + r"(?:, " + _INT + r")*\},?")
 # the typedefs <stdint.h> gives the two table types (the include itself is not followed)
 _STDINT = "typedef short int16_t;\ntypedef int int32_t;\n"
-INT_LIMITS = {"int16_t": (-(2**15), 2**15 - 1), "int32_t": (-(2**31), 2**31 - 1)}
+# the table types export writes (their ranges: numpy's of the same width)
+INT_TYPES = ("int16_t", "int32_t")
 # the directives export writes, in this order: guard, its define, <stdint.h>, the macros, #endif
 _GUARD, _DEFINE, _INCLUDE, _ENDIF = "ifndef", "define", "include", "endif"
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -71,7 +72,7 @@ def read_c(raw: bytes, where: str) -> CView:
             f"{where} is not an ftsweep header: byte {exc.start} is not ASCII (export writes ASCII only)"
         ) from None
     lines = text.split("\n")
-    first, last, cells = _rows(raw, lines, where)
+    first, last, cells = _rows(lines, where)
     stub = "\n".join([*lines[:first], SENTINEL, *lines[last:]])
     macros, guard, out = _preprocess(stub, where)
     int_type, name, dims = _declaration(out, where)
@@ -80,13 +81,13 @@ def read_c(raw: bytes, where: str) -> CView:
             f"{where}: the table is declared [{dims[0]}][{dims[1]}] but its initializer holds "
             f"{cells.shape[0]} row(s) of {cells.shape[1]}; do not load it"
         )
-    lo, hi = INT_LIMITS[int_type]
-    if cells.size and (cells.min() < lo or cells.max() > hi):
+    limits = np.iinfo(int_type[: -len("_t")])
+    if cells.size and (cells.min() < limits.min or cells.max() > limits.max):
         raise ExportError(f"{where}: a table value does not fit {int_type}; do not load it")
     return CView(tuple(macros.items()), guard, int_type, name, cells)
 
 
-def _rows(raw: bytes, lines: list[str], where: str) -> tuple[int, int, np.ndarray]:
+def _rows(lines: list[str], where: str) -> tuple[int, int, np.ndarray]:
     """(first row's line index, index after the last, cells) of the one run of table rows."""
     rows = [i for i, line in enumerate(lines) if line.startswith("    {")]
     if not rows:
@@ -96,7 +97,7 @@ def _rows(raw: bytes, lines: list[str], where: str) -> tuple[int, int, np.ndarra
         raise ExportError(f"{where}: line {rows[-1] + 1}: a table row outside the table; do not load it")
     body = "\n".join(lines[first:last])
     for k, line in enumerate(lines[first:last]):
-        if _ROW.fullmatch(line.encode("ascii")) is None or line.endswith(",") == (k == last - first - 1):
+        if _ROW.fullmatch(line) is None or line.endswith(",") == (k == last - first - 1):
             raise ExportError(
                 f"{where}: line {first + k + 1} is not a table row as export writes it "
                 f"('    {{v, v, ...}},' with decimal integers; no comma after the last){_fault(line)}; "
@@ -113,7 +114,7 @@ def _fault(row: str) -> str:
     """Where a table row first leaves export's form: the value that is not an integer."""
     at = 5
     for value in row[5:].rstrip(",}").split(", "):
-        if re.fullmatch(_INT.decode(), value) is None:
+        if re.fullmatch(_INT, value) is None:
             return f": column {at + 1} holds {value[:40]!r}, not an integer as export writes one"
         at += len(value) + 2
     return ""
@@ -254,7 +255,7 @@ def _declaration(out: str, where: str) -> tuple[str, str, tuple[int, int]]:
         and leaf.quals == ["const"]
         and isinstance(leaf.type, c_ast.IdentifierType)
         and len(leaf.type.names) == 1
-        and leaf.type.names[0] in INT_LIMITS
+        and leaf.type.names[0] in INT_TYPES
         and isinstance(init, c_ast.InitList)
         and len(init.exprs) == 1
         and isinstance(init.exprs[0], c_ast.ID)

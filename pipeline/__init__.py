@@ -1,13 +1,13 @@
 """ftsweep orchestration: catalogs, case specs, the case runner and the CLI.
 
 This package's source is the repository's ``pipeline/`` folder, installed as ``ftsweep``
-(``pipeline/export.py`` is ``ftsweep.export``); the pure numerical stages are ``stages/``,
+(``pipeline/export.py`` is ``ftsweep.exports.export``); the pure numerical stages are ``stages/``,
 installed as ``ftsweep.stages``. docs/architecture.md draws the layers.
 
 Citations in docstrings, messages and exported headers: "model §N, eq. (k)" is section N and
 equation k of "The model" in the project's README.md; "[n]" is reference n listed there.
 
-Importing ftsweep is light: the ``ds.ftsweep`` accessor (:mod:`ftsweep.accessor`) is registered
+Importing ftsweep is light: the ``ds.ftsweep`` accessor (:mod:`ftsweep.tools.accessor`) is registered
 with xarray at once if xarray is loaded, else the moment it is, so that ``import ftsweep`` in
 either order with ``import xarray`` gives the accessor while the command line, which may not
 need xarray at all, does not pay for loading it.
@@ -28,7 +28,7 @@ __all__ = ["__version__"]
 
 
 def _register_accessor() -> None:
-    from ftsweep import accessor  # noqa: F401  (registers ds.ftsweep)
+    from ftsweep.tools import accessor  # noqa: F401  (registers ds.ftsweep)
 
 
 class _AfterImport(importlib.abc.MetaPathFinder):

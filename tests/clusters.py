@@ -98,7 +98,7 @@ def done_count(where: object) -> int:
     """Cases done in a cube so far, the ones its workers logged included (0 before it exists)."""
     import numpy as np
 
-    from ftsweep import caselog, cube
+    from ftsweep.store import caselog, cube
 
     try:
         return int(np.sum(caselog.current_status(where) == cube.DONE))  # type: ignore[arg-type]

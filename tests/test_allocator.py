@@ -10,10 +10,10 @@ import sys
 
 import pytest
 
-from ftsweep import allocator
-from ftsweep.case import run_case
+from ftsweep.engine import allocator
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case
 from ftsweep.kinds.requests import program_request
-from ftsweep.spec import Case
 
 
 @pytest.mark.skipif(platform.system() != "Linux" or not ctypes.util.find_library("c"), reason="glibc only")
@@ -39,7 +39,7 @@ def _advice_in_fresh_process(numpy_first: bool, env: dict[str, str]) -> str:
     code = "\n".join(
         [
             "import numpy" if numpy_first else "",
-            "from ftsweep import allocator",
+            "from ftsweep.engine import allocator",
             "allocator.tune()",
             "import numpy",
             "print(numpy._core.multiarray._get_madvise_hugepage())",

@@ -8,8 +8,8 @@ import json
 import pytest
 from click.testing import CliRunner
 
-from ftsweep.bench import WHOLE_PROCESS, format_whole_process, whole_process
-from ftsweep.cli import main
+from ftsweep.cli.main import main
+from ftsweep.tools.bench import WHOLE_PROCESS, format_whole_process, whole_process
 
 
 def test_bench_prints_a_row_per_case_and_writes_json(tmp_path):
@@ -38,7 +38,7 @@ def test_whole_process_rows_time_real_commands():
 
 
 def test_the_whole_process_table_says_when_modules_had_no_bytecode(monkeypatch):
-    import ftsweep.bench as bench
+    import ftsweep.tools.bench as bench
 
     rows = [{"command": "ftsweep --help", "seconds": 0.1, "case_seconds": float("nan")}]
     monkeypatch.setattr(bench, "has_bytecode", lambda: False)
@@ -63,8 +63,8 @@ def test_the_dpath_verify_row_checks_an_exported_program():
 def test_cube_scale_counts_objects_and_times_open_and_select(tmp_path):
     """Issue 30, item 3: a synthetic cube in blocks holds a few objects per variable, and its
     every case reads back as written (select picks one of them)."""
-    from ftsweep import cube
-    from ftsweep.cubescale import build, measure, synthetic_spec
+    from ftsweep.store import cube
+    from ftsweep.store.cubescale import build, measure, synthetic_spec
 
     where = tmp_path / "synthetic.zarr"
     made = build(where, 5000)

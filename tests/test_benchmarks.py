@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ftsweep.bench import bench_cases
-from ftsweep.case import run_case
+from ftsweep.engine.simulator import run_case
 from ftsweep.stages import envelope, interpolation, layouts
+from ftsweep.tools.bench import bench_cases
 
 
 @pytest.mark.bench

@@ -1,4 +1,4 @@
-"""numba's BLAS probe given its one module (ftsweep.startup): no scipy.linalg when
+"""numba's BLAS probe given its one module (ftsweep.engine.startup): no scipy.linalg when
 numba's CPU target is set up (a process's first compilation), and the module the probe gets
 is scipy's own, which works through numba and through scipy.linalg imported afterwards."""
 
@@ -9,7 +9,7 @@ import sys
 
 _FRESH = """
 import sys
-from ftsweep import startup
+from ftsweep.engine import startup
 startup.install()
 assert any(isinstance(f, startup._BeforeProbe) for f in sys.meta_path)
 import numpy as np
@@ -59,7 +59,7 @@ def test_install_after_numba_probed_changes_nothing():
     got = _run(
         "import sys\n"
         "import numba.np.arraymath\n"  # numba's probe has run: scipy.linalg is in
-        "from ftsweep import startup\n"
+        "from ftsweep.engine import startup\n"
         "startup.install()\n"
         "print('hook', any(isinstance(f, startup._BeforeProbe) for f in sys.meta_path))\n"
         "print('preload', startup.preload_blas_probe())\n"
@@ -79,7 +79,7 @@ def test_the_hook_leaves_the_other_finders_of_the_probing_import_their_turn():
     # finders after it (a finder right behind it would be skipped for that import)
     got = _run(
         "import sys\n"
-        "from ftsweep import startup\n"
+        "from ftsweep.engine import startup\n"
         "startup.install()\n"
         "seen = []\n"
         "class Recorder:\n"

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from ftsweep import catalogs
-from ftsweep.catalogs import CatalogError, Cutting, Machine, SurfaceSpec, load_catalog
+from ftsweep.inputs import catalogs
+from ftsweep.inputs.catalogs import CatalogError, Cutting, Machine, SurfaceSpec, load_catalog
 
 
 def write(tmp_path, text):

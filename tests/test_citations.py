@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ftsweep.kinds.table_header import COMPENSATION_CITED, render_header
+from ftsweep.kinds.table.header import COMPENSATION_CITED, render_header
 
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = [

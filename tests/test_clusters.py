@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 from clusters import BIN, done_count, external_cluster, kill_group, start_sweep
 
-from ftsweep import cube
-from ftsweep.lock import lock_path
-from ftsweep.run import run_sweep
-from ftsweep.sweep import load_sweep, n_cases, plan_tasks
+from ftsweep.store import cube
+from ftsweep.store.lock import lock_path
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.sweeps.spec import load_sweep, n_cases, plan_tasks
 
 # external Dask schedulers and workers, killed and terminated
 pytestmark = pytest.mark.integration

@@ -13,14 +13,15 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
-from ftsweep import kinds, result
-from ftsweep.case import run_case
-from ftsweep.cli import main
-from ftsweep.export import format_of_kind
-from ftsweep.run import run_sweep
-from ftsweep.select import open_cube, recorded_case
-from ftsweep.spec import Case
-from ftsweep.sweep import case_at, load_sweep
+from ftsweep import kinds
+from ftsweep.cli.main import main
+from ftsweep.engine import result
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case
+from ftsweep.exports.export import format_of_kind
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.sweeps.spec import case_at, load_sweep
+from ftsweep.tools.select import open_cube, recorded_case
 
 
 class KindTests:
@@ -120,7 +121,7 @@ class KindTests:
 
 
 def _surface(case: Case, folder):  # type: ignore[no-untyped-def]
-    from ftsweep import catalogs
+    from ftsweep.inputs import catalogs
 
     return catalogs.entry("surfaces", case.surface, folder)
 

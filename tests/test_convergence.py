@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import pytest
 
-from ftsweep import catalogs
-from ftsweep.case import run_case
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case, Resolution
+from ftsweep.inputs import catalogs
 from ftsweep.kinds.requests import program_request
-from ftsweep.spec import Case, Resolution
 
 REFERENCES = catalogs.entries("references")
 

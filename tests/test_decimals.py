@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftsweep.files import DataLines
+from ftsweep.exports.files import DataLines
 from ftsweep.stages import decimals
 
 
@@ -99,7 +99,7 @@ def test_data_lines_are_the_joined_lines_as_ascii():
 def test_file_crc_is_over_its_lines_but_the_crc_line(ending):
     # read_program_file takes the CRC from the file's bytes around the CRC line; it must be
     # crc_of the rows without it, whatever the file's ending and its header's characters
-    from ftsweep import files
+    from ftsweep.exports import files
 
     rows = ["# magic", "# tool: nose radius 83 µm", "# CRC32: 0x00000000", "a_b c_d", "1.0 2.0", "3.0 4.0"]
     raw = ("\n".join(rows) + ending).encode("utf-8")
@@ -160,7 +160,7 @@ def test_other_text_is_left_to_the_general_reader(text):
 
 def _program(folder: Path, lines: list[str], end: str = "\n") -> Path:
     """A program file of header rows and ``lines`` after the column line, its CRC right."""
-    from ftsweep import files
+    from ftsweep.exports import files
 
     rows = ["# magic", "# a: b"]
     crc = files.crc_of([*rows, "x_mm y_mm", *lines])
@@ -172,7 +172,7 @@ def _program(folder: Path, lines: list[str], end: str = "\n") -> Path:
 
 
 def test_program_files_are_read_as_written(tmp_path):
-    from ftsweep import files
+    from ftsweep.exports import files
 
     written = files.read_program_file(
         _program(tmp_path, ["1.500000000 -0.000000000", "2.000000000 3.250000000"]), "# magic", "x_mm y_mm"
@@ -197,7 +197,7 @@ def test_program_files_are_read_as_written(tmp_path):
 )
 def test_program_data_lines_other_than_exports_are_refused_by_line_and_column(tmp_path, second, column):
     # what a controller reads must be what export wrote, byte for byte: no other spelling of a number
-    from ftsweep import files
+    from ftsweep.exports import files
 
     path = _program(tmp_path, ["1.500000000 -0.000000000", second])
     with pytest.raises(files.ProgramError, match=f"line 6, column {column}: a data line"):
@@ -220,13 +220,13 @@ def test_program_data_lines_other_than_exports_are_refused_by_line_and_column(tm
 )
 def test_line_ends_other_than_exports_are_refused(tmp_path, lines, end, message):
     # every CR, LF or CRLF ends a line on some controller: only export's LF is accepted
-    from ftsweep import files
+    from ftsweep.exports import files
 
     with pytest.raises(files.ProgramError, match=message):
         files.read_program_file(_program(tmp_path, lines, end), "# magic", "x_mm y_mm")
 
 
 def test_a_program_without_data_lines_reads_empty(tmp_path):
-    from ftsweep import files
+    from ftsweep.exports import files
 
     assert files.read_program_file(_program(tmp_path, []), "# magic", "x_mm y_mm").data.shape == (0, 2)

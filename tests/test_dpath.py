@@ -11,13 +11,13 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from ftsweep import dstudy
-from ftsweep.case import run_case
-from ftsweep.catalogs import CatalogError
-from ftsweep.export import ExportError, verify
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case, CaseError
+from ftsweep.exports.export import ExportError, verify
+from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds import path_programs as program
+from ftsweep.kinds.dpath import study as dstudy
 from ftsweep.kinds.requests import program_request
-from ftsweep.spec import Case, CaseError
 from ftsweep.stages import dpath, kinematics
 
 # [5]'s example: l = s = 20 mm, zone centre 30 mm from the C axis (outer edge 40 mm), 40 rpm
@@ -106,7 +106,7 @@ def test_period_times_a_stretch_at_a_time_are_linspace_own(first, length, n, cut
 def test_motion_extremes_taken_a_stretch_at_a_time_are_those_of_the_samples(monkeypatch, transition):
     # the streamed extremes of the motion every controller period (stretches of 1,000 samples
     # with their neighbours) are those of the whole sampled arrays, first points included
-    from ftsweep import dpath as dprog
+    from ftsweep.kinds.dpath import program as dprog
 
     path = seed_path(transition, spacing_um=500.0, ppc=21)
     z = 1e-3 * (path.rho - path.rho.mean()) ** 2 / 1e4
@@ -134,7 +134,7 @@ def test_motion_at_the_controller_period_samples_the_planned_path():
     assert np.diff(s.t).max() <= 1e-3 + 1e-12
     assert np.allclose(np.diff(s.phi), omega * np.diff(s.t), rtol=1e-9)
     assert np.allclose(s.rho, dpath.evaluate(path, s.phi)[0])
-    from ftsweep import dpath as dprog
+    from ftsweep.kinds.dpath import program as dprog
 
     _, _, m = dprog.sampled_motion(path, z, t, 1e-3)
     d2 = dpath.evaluate(path, s.phi)[2]
@@ -224,8 +224,8 @@ def d_case(surface: str = "concave_sphere", **options) -> Case:
 def test_both_transitions_share_their_compensated_cuts_and_nothing_else(monkeypatch):
     # the D-path study plans both transitions in shared_cuts: one compensation of the common
     # cuts, values bit for bit those of plans made apart; another part is solved anew
-    from ftsweep.kinds import dpath as dpath_kind
-    from ftsweep.planning import resolve_case
+    from ftsweep.engine.planning import resolve_case
+    from ftsweep.kinds.dpath import kind as dpath_kind
 
     apart = {t: resolve_case(d_case(spacing_um=100.0, transition=t)) for t in dstudy.TRANSITIONS}
     calls = []
@@ -279,7 +279,7 @@ def test_layout_options_are_checked():
 
 
 def test_export_lines_stay_within_the_axis_limits_and_verify(tmp_path):
-    from ftsweep.planning import resolve_specs
+    from ftsweep.engine.planning import resolve_specs
 
     case = d_case(spacing_um=500.0, points_per_cut=41)
     record = run_case(case)
@@ -308,7 +308,7 @@ def test_export_lines_stay_within_the_axis_limits_and_verify(tmp_path):
 
 
 def test_export_refuses_a_program_beyond_the_machine(tmp_path):
-    from ftsweep.planning import resolve_specs
+    from ftsweep.engine.planning import resolve_specs
 
     case = d_case(spacing_um=500.0, points_per_cut=41)
     record = run_case(case)
@@ -336,8 +336,8 @@ def test_verify_refuses_lines_beyond_the_machine_from_the_record_of_their_own_mo
     # verify's limits check is the re-simulated record's motion (the lines' C, X and times):
     # a machine whose X acceleration limit lies below the program's refuses it, naming line
     # and time, and the record of a program within the limits carries no reason
-    from ftsweep.catalogs import AxisLimits
-    from ftsweep.planning import resolve_specs
+    from ftsweep.engine.planning import resolve_specs
+    from ftsweep.inputs.catalogs import AxisLimits
 
     case = d_case(spacing_um=500.0, points_per_cut=41)
     record = run_case(case)
@@ -360,8 +360,8 @@ def test_verify_refuses_lines_beyond_the_machine_from_the_record_of_their_own_mo
 
 
 def test_dpath_sweep_is_scheduler_independent_and_compares(tmp_path):
-    from ftsweep.compare import compare_rows
-    from ftsweep.run import run_sweep
+    from ftsweep.sweeps.run import run_sweep
+    from ftsweep.tools.compare import compare_rows
 
     spec = {
         "surface": "concave_sphere",
@@ -388,7 +388,7 @@ def test_dpath_sweep_is_scheduler_independent_and_compares(tmp_path):
 def test_dpath_cli_json_reports_the_ratio(tmp_path):
     from click.testing import CliRunner
 
-    from ftsweep.cli import main
+    from ftsweep.cli.main import main
 
     res = CliRunner().invoke(
         main,
@@ -443,7 +443,7 @@ def test_dpath_cli_json_reports_the_ratio(tmp_path):
 def test_predict_takes_a_d_path_and_refuses_the_options_of_other_kinds():
     from click.testing import CliRunner
 
-    from ftsweep.cli import main
+    from ftsweep.cli.main import main
 
     base = ["predict", "--surface", "concave_sphere", "--layout", "dpath", "--machine", "sts-xzc"]
     args = [*base, "--cutting", "dpath-finish", "--spacing-um", "500", "--points-per-cut", "21"]
@@ -652,7 +652,7 @@ def test_plots_drawn_beside_the_study_are_those_drawn_after_it(tmp_path):
     # the same pixels as drawing them here from the finished study
     import matplotlib.image as image
 
-    from ftsweep.dfigures import Plots
+    from ftsweep.kinds.dpath.figures import Plots
 
     base = dstudy.default_case(options={"spacing_um": 500.0, "points_per_cut": 41})
     with Plots(tmp_path / "beside", base.surface) as plots:
@@ -680,7 +680,7 @@ def test_plots_report_what_drawing_raised_and_a_lost_process(tmp_path):
     import os
     import signal
 
-    from ftsweep.dfigures import Plots
+    from ftsweep.kinds.dpath.figures import Plots
 
     with Plots(tmp_path, "part") as plots:
         plots.x_motion({"optimised": {"deg": [0.0, 1.0]}}, "no curves")  # rho_mm missing
@@ -701,7 +701,7 @@ def test_plots_left_by_an_error_end_their_process_at_once(tmp_path):
     # bad input found by the study: the process is ended, not waited for through its imports
     import signal
 
-    from ftsweep.dfigures import Plots
+    from ftsweep.kinds.dpath.figures import Plots
 
     with pytest.raises(ValueError, match="bad input"), Plots(tmp_path, "part") as plots:
         (process,) = plots._process
@@ -715,7 +715,7 @@ def test_plots_left_by_an_error_end_their_process_at_once(tmp_path):
 def test_dpath_command_with_bad_input_names_it_and_draws_nothing(tmp_path):
     from click.testing import CliRunner
 
-    from ftsweep.cli import main
+    from ftsweep.cli.main import main
 
     res = CliRunner().invoke(main, ["dpath", "--surface", "no_such_part", "--plots", str(tmp_path / "p")])
     assert res.exit_code != 0 and "no_such_part" in res.output
@@ -730,7 +730,7 @@ def test_plots_are_drawn_here_where_no_process_can_be_started(tmp_path, monkeypa
     # e.g. a container without POSIX semaphores: ProcessPoolExecutor refuses to start
     import concurrent.futures
 
-    from ftsweep.dfigures import Plots
+    from ftsweep.kinds.dpath.figures import Plots
 
     def refuse(*args, **kwargs):
         raise NotImplementedError("no sem_open here")
@@ -766,8 +766,8 @@ def test_dpath_command_names_a_plot_it_cannot_write(tmp_path, monkeypatch):
 
     from click.testing import CliRunner
 
-    from ftsweep import dfigures
-    from ftsweep.cli import main
+    from ftsweep.cli.main import main
+    from ftsweep.kinds.dpath import figures as dfigures
 
     def refuse(*args, **kwargs):
         raise NotImplementedError("no sem_open here")

@@ -16,11 +16,12 @@ import xarray as xr
 import zarr
 from click.testing import CliRunner
 
-from ftsweep import catalogs, cube
-from ftsweep.cli import main
-from ftsweep.cube import CubeError
-from ftsweep.run import run_sweep
-from ftsweep.select import open_cube
+from ftsweep.cli.main import main
+from ftsweep.inputs import catalogs
+from ftsweep.store import cube
+from ftsweep.store.cube import CubeError
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.select import open_cube
 
 REPO = Path(__file__).resolve().parent.parent
 SPEC = """

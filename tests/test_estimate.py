@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.cli import main
+from ftsweep.cli.main import main
 from ftsweep.stages import estimate as est
 from ftsweep.stages.geometry import Aperture
 from ftsweep.stages.interpolation import bilinear
@@ -85,10 +85,10 @@ def test_cli_estimate_prints_the_optimum_per_point_count():
 def test_estimate_agrees_with_the_simulated_lens_array_sweep(tmp_path):
     """Issue 10, item 3, on the mesh reference sweep (about three minutes on two cores; the
     ring reference sweep is checked in the default suite, tests/test_reference_sweep.py)."""
-    from ftsweep.run import run_sweep
-    from ftsweep.select import open_cube
-    from ftsweep.sweep import load_sweep
-    from ftsweep.table_estimate import agreement, estimate_sweep
+    from ftsweep.kinds.table.estimate import agreement, estimate_sweep
+    from ftsweep.sweeps.run import run_sweep
+    from ftsweep.sweeps.spec import load_sweep
+    from ftsweep.tools.select import open_cube
 
     out = tmp_path / "lens-array-mesh.zarr"
     report = run_sweep("lens-array-mesh", out, workers=2)
@@ -113,10 +113,10 @@ def test_prune_leaves_out_hopeless_cases_and_keeps_the_optimum(tmp_path, catalog
     rule out; a later run without it computes the rest, giving the full cube."""
     import xarray as xr
 
-    from ftsweep import cube
-    from ftsweep.query import describe
-    from ftsweep.run import best_per_point_count, run_sweep
-    from ftsweep.select import SelectError, check_exportable
+    from ftsweep.store import cube
+    from ftsweep.sweeps.run import best_per_point_count, run_sweep
+    from ftsweep.tools.query import describe
+    from ftsweep.tools.select import SelectError, check_exportable
 
     spec = tmp_path / "p.yaml"
     spec.write_text(PRUNE_SPEC)

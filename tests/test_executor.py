@@ -8,7 +8,7 @@ import os
 
 import pytest
 
-from ftsweep.executor import SYNCHRONOUS, TaskSpec, execute
+from ftsweep.sweeps.executor import SYNCHRONOUS, TaskSpec, execute
 
 SPEC = TaskSpec(cube="/nowhere.zarr", spec_json="{}", catalog_folder=None, run_id="test-run")
 GROUPS = [[0, 1], [2], [3, 4, 5]]
@@ -72,7 +72,7 @@ def publish_then_wait(task: TaskSpec, group: list[int]) -> list[dict]:
     """A task whose first case is published at once and whose second takes 1.5 s."""
     import time
 
-    from ftsweep.executor import publish
+    from ftsweep.sweeps.executor import publish
 
     rows = square(task, group)
     publish(task, rows[0])
@@ -101,7 +101,7 @@ def test_a_case_is_reported_when_it_is_written_and_only_once(scheduler):
 
 
 def test_deliveries_hand_on_each_case_once_whatever_comes_first():
-    from ftsweep.executor import Deliveries
+    from ftsweep.sweeps.executor import Deliveries
 
     got: list[list[int]] = []
     d = Deliveries(lambda rows: got.append([r["index"] for r in rows]))
@@ -128,7 +128,7 @@ def test_local_workers_run_without_the_statistical_profiler():
 
 
 def test_the_local_dashboard_listens_on_loopback_only():
-    from ftsweep.executor import _close_quietly, _connect
+    from ftsweep.sweeps.executor import _close_quietly, _connect
 
     client, cluster = _connect(None, 1)
     try:
@@ -161,7 +161,7 @@ class _Future:
 
 
 def test_a_result_lost_with_its_worker_goes_back_to_pending_instead_of_blocking():
-    from ftsweep.executor import _task_rows
+    from ftsweep.sweeps.executor import _task_rows
 
     def on_error(spec, group, exc):
         return [{"index": i, "status": "error", "message": str(exc)} for i in group]

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from ftsweep import cube
-from ftsweep.run import run_sweep
+from ftsweep.store import cube
+from ftsweep.sweeps.run import run_sweep
 
 EXPECTED = Path(__file__).parent / "data" / "expected_small_sweep.json"
 SPECS = {

@@ -12,16 +12,16 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
-from ftsweep import cube
-from ftsweep.catalogs import entry
-from ftsweep.cli import main
-from ftsweep.export import ExportError, export, verify
-from ftsweep.kinds.table import build_layout
-from ftsweep.kinds.table_header import c_identifier, c_string, read_header
-from ftsweep.planning import control_table
-from ftsweep.run import run_sweep
-from ftsweep.select import SelectError, choose, open_cube
-from ftsweep.sweep import case_at, load_sweep
+from ftsweep.cli.main import main
+from ftsweep.engine.planning import control_table
+from ftsweep.exports.export import ExportError, export, verify
+from ftsweep.inputs.catalogs import entry
+from ftsweep.kinds.table.header import c_identifier, c_string, read_header
+from ftsweep.kinds.table.kind import build_layout
+from ftsweep.store import cube
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.sweeps.spec import case_at, load_sweep
+from ftsweep.tools.select import SelectError, choose, open_cube
 
 RING = """
 surface: small_sine
@@ -218,7 +218,7 @@ def test_failed_and_infeasible_cases_are_refused(tmp_path, catalog_dir, monkeypa
 
 
 def test_identifiers_are_valid_c_whatever_the_names(ring_cube, tmp_path):
-    from ftsweep.kinds.table_header import C_KEYWORDS
+    from ftsweep.kinds.table.header import C_KEYWORDS
 
     for raw in ("3d lens/array", "ü-mlaut x", "__", "if", "int"):
         ident = c_identifier(raw)

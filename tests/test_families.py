@@ -11,14 +11,14 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftsweep import catalogs
-from ftsweep.case import run_case
-from ftsweep.catalogs import CatalogError, SurfaceSpec, load_catalog
-from ftsweep.cli import main
+from ftsweep.cli.main import main
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case
+from ftsweep.inputs import catalogs
+from ftsweep.inputs.catalogs import CatalogError, SurfaceSpec, load_catalog
+from ftsweep.inputs.usersurfaces import SurfaceLoadError, height_map_surface
 from ftsweep.kinds.requests import program_request
-from ftsweep.spec import Case
 from ftsweep.stages.surfaces import Aperture, noll_to_nm, radial_section, sinewave2d
-from ftsweep.usersurfaces import SurfaceLoadError, height_map_surface
 
 ALL = [
     "sinewave2d",
@@ -194,9 +194,9 @@ def test_plugin_returning_the_wrong_shape_is_refused(tmp_path, monkeypatch, cata
 
 def test_plugin_without_slopes_is_differentiated():
     spec = catalogs.entry("surfaces", "dimples_plugin").model_copy(deep=True)
-    from ftsweep.catalogs import PluginParams
+    from ftsweep.inputs.catalogs import PluginParams
 
-    saddle = spec.model_copy(update={"params": PluginParams(function="ftsweep.examples:saddle")})
+    saddle = spec.model_copy(update={"params": PluginParams(function="ftsweep.inputs.examples:saddle")})
     f, fx, fy = catalogs.surface_callable(saddle)(np.array([300.0]), np.array([-200.0]))
     assert f[0] == pytest.approx(2.0 * (300.0**2 - 200.0**2) / 1e6)
     assert fx[0] == pytest.approx(2.0 * 2 * 300.0 / 1e6, rel=1e-6)

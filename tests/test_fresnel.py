@@ -14,9 +14,10 @@ from conftest import make_catalog_dir
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftsweep import catalogs, fstudy
-from ftsweep import fresnel as fp
-from ftsweep.cli import main
+from ftsweep.cli.main import main
+from ftsweep.inputs import catalogs
+from ftsweep.kinds.fresnel import program as fp
+from ftsweep.kinds.fresnel import study as fstudy
 from ftsweep.stages import fresnel as ff
 
 SURFACE = "chebyshev_example"
@@ -283,7 +284,7 @@ def test_export_and_verify_round_trip(coarse, tmp_path):
     data = np.loadtxt(out, comments="#", skiprows=lines.index(fstudy.F_COLUMNS) + 1)
     assert np.all(np.diff(data[:, 0]) > 0.0)
     # a changed line is refused (CRC), and so is a line faster than the machine allows
-    from ftsweep.files import ProgramError
+    from ftsweep.exports.files import ProgramError
 
     start = lines.index(fstudy.F_COLUMNS) + 1
     bad = lines.copy()

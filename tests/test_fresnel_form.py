@@ -11,11 +11,11 @@ import pytest
 from click.testing import CliRunner
 
 from ftsweep import kinds
-from ftsweep.case import run_case
-from ftsweep.cli import main
-from ftsweep.planning import resolve_case
-from ftsweep.record import Timer
-from ftsweep.spec import Case
+from ftsweep.cli.main import main
+from ftsweep.engine.planning import resolve_case
+from ftsweep.engine.record import Timer
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case
 
 # a coarse program of the example: K = 90 points a turn at 4 µm a turn (cusp 50 nm at Rc 40 µm)
 COARSE = dict(surface="chebyshev_example", machine="xyzc-nanoform", cutting="fresnel-finish")

@@ -14,16 +14,16 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftsweep import fstudy
-from ftsweep.case import run_case
-from ftsweep.catalogs import CatalogError
-from ftsweep.cli import main
-from ftsweep.compare import conditions
-from ftsweep.export import verify
-from ftsweep.run import run_sweep
-from ftsweep.spec import Case
+from ftsweep.cli.main import main
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case
+from ftsweep.exports.export import verify
+from ftsweep.inputs.catalogs import CatalogError
+from ftsweep.kinds.fresnel import study as fstudy
 from ftsweep.stages import fresnel as ff
-from ftsweep.sweep import load_sweep
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.sweeps.spec import load_sweep
+from ftsweep.tools.compare import conditions
 
 PAPER = "chebyshev_paper_scale"
 

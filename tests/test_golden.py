@@ -16,10 +16,11 @@ from typing import Any
 
 import pytest
 
-from ftsweep import catalogs, fstudy
-from ftsweep.case import run_case
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case, Resolution
+from ftsweep.inputs import catalogs
+from ftsweep.kinds.fresnel import study as fstudy
 from ftsweep.kinds.requests import program_request
-from ftsweep.spec import Case, Resolution
 
 GOLDEN = Path(__file__).parent / "data" / "golden_cases.json"
 # same code, same platform: identical bits; the bound admits libm/SIMD last digits elsewhere

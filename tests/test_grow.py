@@ -13,11 +13,12 @@ import xarray as xr
 from click.testing import CliRunner
 from clusters import BIN
 
-from ftsweep import cube, grow
-from ftsweep.cli import main
-from ftsweep.cube import CubeError
-from ftsweep.run import run_sweep
-from ftsweep.storage import place
+from ftsweep.cli.main import main
+from ftsweep.store import cube
+from ftsweep.store.cube import CubeError
+from ftsweep.store.storage import place
+from ftsweep.sweeps import grow
+from ftsweep.sweeps.run import run_sweep
 
 BASE = """
 surface: small_sine
@@ -121,7 +122,7 @@ def test_a_scheduled_run_whose_spec_grows_and_its_exit_statuses(tmp_path, catalo
     assert "grown: points +1, aspect +0 values; 2 new case(s), 4 kept" in night2.stdout
     assert "(4 were done already, 2 run now)" in night2.stdout
     # another run holds the lock: 75, try later
-    from ftsweep.lock import cube_lock
+    from ftsweep.store.lock import cube_lock
 
     with cube_lock(out, "a long run"):
         locked = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)

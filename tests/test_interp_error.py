@@ -12,13 +12,13 @@ from click.testing import CliRunner
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from ftsweep.case import run_case
-from ftsweep.cli import main
-from ftsweep.export import export, verify
+from ftsweep.cli.main import main
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case, Resolution
+from ftsweep.exports.export import export, verify
 from ftsweep.kinds.requests import program_request
-from ftsweep.run import run_sweep
-from ftsweep.spec import Case, Resolution
 from ftsweep.stages import envelope
+from ftsweep.sweeps.run import run_sweep
 
 SMALL = """
 surface: small_sine

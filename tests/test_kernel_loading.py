@@ -1,4 +1,4 @@
-"""Cached kernels loaded without numba's typing and lowering set-up (ftsweep.startup.
+"""Cached kernels loaded without numba's typing and lowering set-up (ftsweep.engine.startup.
 lazy_cache_loads): every program kind's record is the same as with numba's own
 loader, value for value, no kernel is compiled again, the registries that only a compilation
 reads are not set up, and a compilation afterwards (a user's own ``@njit``) still works."""
@@ -18,12 +18,12 @@ _RUN = """
 import json, sys
 lazy = sys.argv[1] == "lazy"
 if lazy:
-    from ftsweep import startup
+    from ftsweep.engine import startup
     startup.install()  # what the command line and every sweep worker do
 from pathlib import Path
 import numba
-from ftsweep.case import run_case
-from ftsweep.sweep import case_at, load_sweep
+from ftsweep.engine.simulator import run_case
+from ftsweep.sweeps.spec import case_at, load_sweep
 folder, sweeps = Path(sys.argv[2]), json.loads(sys.argv[3])
 records = []
 for i, text in enumerate(sweeps):
@@ -47,7 +47,7 @@ print(json.dumps({
 """
 
 _THEN_COMPILE = """
-from ftsweep import startup
+from ftsweep.engine import startup
 startup.install()
 import sys
 import numpy as np

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftsweep import catalogs
+from ftsweep.inputs import catalogs
 from ftsweep.stages import dpath, dynamics, kinematics
 
 

@@ -11,17 +11,17 @@ from click.testing import CliRunner
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.case import run_case
-from ftsweep.cli import main
-from ftsweep.export import export, verify
+from ftsweep.cli.main import main
+from ftsweep.engine.lines import LinePlan, _line_data, _machined, _table_of
+from ftsweep.engine.planning import layer_plan, resolve_case
+from ftsweep.engine.record import Timer
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case
+from ftsweep.exports.export import export, verify
 from ftsweep.kinds.requests import program_request
-from ftsweep.lines import LinePlan, _line_data, _machined, _table_of
-from ftsweep.planning import layer_plan, resolve_case
-from ftsweep.record import Timer
-from ftsweep.run import run_sweep
-from ftsweep.spec import Case
 from ftsweep.stages import dynamics, interpolation, layers
 from ftsweep.stages.surfaces import FAMILIES
+from ftsweep.sweeps.run import run_sweep
 
 PRISM = dict(surface="microprism", machine="fts-5um", cutting="microprism")
 
@@ -290,7 +290,7 @@ def test_microprism_faces_are_checked():
 
 
 def test_catalog_entries_of_the_layered_example():
-    from ftsweep.catalogs import entry
+    from ftsweep.inputs.catalogs import entry
 
     machine = entry("machines", "fts-5um")
     assert machine.travel_um == 5.0 and 0.0 < machine.layer_margin_um < machine.travel_um

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep import catalogs
+from ftsweep.inputs import catalogs
 from ftsweep.stages import layouts
 
 radius = st.floats(50.0, 3000.0)

@@ -11,14 +11,14 @@ import xarray as xr
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.case import run_case
-from ftsweep.cost import ladder_rung
-from ftsweep.cube import TIMING_VARS
+from ftsweep.engine.cost import ladder_rung
+from ftsweep.engine.lines import LineCache
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case, Resolution
 from ftsweep.kinds.requests import program_request
-from ftsweep.lines import LineCache
-from ftsweep.run import run_sweep
-from ftsweep.spec import Case, Resolution
-from ftsweep.sweep import case_lines, load_sweep, plan_tasks
+from ftsweep.store.cube import TIMING_VARS
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.sweeps.spec import case_lines, load_sweep, plan_tasks
 
 
 def _same(a: dict, b: dict) -> list[str]:
@@ -153,8 +153,8 @@ def test_a_sweep_with_shared_lines_equals_the_sweep_case_by_case(tmp_path, catal
 def test_a_task_keeps_only_lines_another_of_its_cases_reads(tmp_path, catalog_dir):
     """Kept lines cost fresh memory per batch: a case whose lines no other case of its task
     simulates runs without the cache (nothing kept), the sharing cases through it."""
-    from ftsweep.executor import _LINE_CACHES, TaskSpec, run_task
-    from ftsweep.run import prepare_cube
+    from ftsweep.sweeps.executor import _LINE_CACHES, TaskSpec, run_task
+    from ftsweep.sweeps.run import prepare_cube
 
     spec = tmp_path / "ladder.yaml"
     spec.write_text(SPEC)
@@ -189,7 +189,7 @@ def test_a_task_keeps_only_lines_another_of_its_cases_reads(tmp_path, catalog_di
 def test_passes_left_out_beyond_a_rectangle_change_nothing(case, catalog_dir, monkeypatch):
     """A rectangle's rays stop at its edge plus the arc's reach (``lines._reach_um``): the
     record equals the one simulated out to the circumscribed circle, value for value."""
-    from ftsweep import lines
+    from ftsweep.engine import lines
     from ftsweep.stages import interpolation
 
     held = []
@@ -213,7 +213,7 @@ def test_passes_left_out_beyond_a_rectangle_change_nothing(case, catalog_dir, mo
 
 
 def test_layered_passes_of_a_grid_left_out_are_those_of_the_whole_grid(catalog_dir):
-    from ftsweep.planning import control_table, layer_plan, resolve_case
+    from ftsweep.engine.planning import control_table, layer_plan, resolve_case
     from ftsweep.stages import interpolation, layers
 
     case = Case(

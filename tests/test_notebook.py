@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from ftsweep.run import run_sweep
+from ftsweep.sweeps.run import run_sweep
 
 # a Jupyter kernel
 pytestmark = pytest.mark.integration

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from ftsweep import cube
-from ftsweep.cube import CubeError
-from ftsweep.optimize import optimize
+from ftsweep.store import cube
+from ftsweep.store.cube import CubeError
+from ftsweep.tools.optimize import optimize
 
 
 def test_finds_the_smallest_layout_meeting_the_tolerance(tmp_path, catalog_dir):

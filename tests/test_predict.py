@@ -14,12 +14,12 @@ import pytest
 from click.testing import CliRunner
 from pydantic import ValidationError
 
-from ftsweep.case import run_case
-from ftsweep.catalogs import CatalogError
-from ftsweep.cli import main
+from ftsweep.cli.main import main
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case, CaseError, Resolution
+from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds.requests import program_request
-from ftsweep.spec import Case, CaseError, Resolution
-from ftsweep.sweep import load_sweep
+from ftsweep.sweeps.spec import load_sweep
 
 REQUIRED = {"surface", "layout", "n_points", "pv_nm", "rms_nm", "pv_interp_nm", "seconds"}
 

@@ -10,9 +10,10 @@ import pytest
 import xarray as xr
 
 import ftsweep  # noqa: F401  (registers ds.ftsweep)
-from ftsweep import cube, query
-from ftsweep.run import best_per_point_count, run_sweep
-from ftsweep.select import check_exportable, choose, open_cube
+from ftsweep.store import cube
+from ftsweep.sweeps.run import best_per_point_count, run_sweep
+from ftsweep.tools import query
+from ftsweep.tools.select import check_exportable, choose, open_cube
 
 SPEC = """
 surface: small_sine

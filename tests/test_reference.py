@@ -13,8 +13,8 @@ import json
 import pytest
 from click.testing import CliRunner
 
-from ftsweep import catalogs
-from ftsweep.cli import main
+from ftsweep.cli.main import main
+from ftsweep.inputs import catalogs
 
 REFERENCES = catalogs.entries("references")
 

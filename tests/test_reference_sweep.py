@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from ftsweep import cube
-from ftsweep.export import export, verify
-from ftsweep.run import run_sweep
-from ftsweep.select import choose, open_cube
+from ftsweep.exports.export import export, verify
+from ftsweep.store import cube
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.select import choose, open_cube
 
 # the reference sweep on a local cluster
 pytestmark = pytest.mark.integration
@@ -65,8 +65,8 @@ def test_cube_has_units_and_provenance(ring_cube):
 
 def test_estimate_agrees_with_the_simulated_reference_sweep(ring_cube):
     """Issue 10, item 3: the first-order estimate against the 84 simulated cases."""
-    from ftsweep.sweep import load_sweep
-    from ftsweep.table_estimate import agreement, estimate_sweep
+    from ftsweep.kinds.table.estimate import agreement, estimate_sweep
+    from ftsweep.sweeps.spec import load_sweep
 
     _, spec = load_sweep("sinewave-ring")
     found = agreement(estimate_sweep(spec), open_cube(ring_cube))

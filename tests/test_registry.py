@@ -9,7 +9,7 @@ import subprocess
 import sys
 import textwrap
 
-from ftsweep import catalogs
+from ftsweep.inputs import catalogs
 from ftsweep.stages.surfaces import FAMILIES
 
 NEW_FAMILY = textwrap.dedent(
@@ -26,10 +26,10 @@ NEW_FAMILY = textwrap.dedent(
         return offset_um + slope_x * x, np.full(x.shape, slope_x), np.zeros(y.shape)
 
     from pydantic import TypeAdapter
-    from ftsweep import catalogs
-    from ftsweep.case import run_case
+    from ftsweep.inputs import catalogs
+    from ftsweep.engine.simulator import run_case
     from ftsweep.kinds.requests import program_request
-    from ftsweep.spec import Case
+    from ftsweep.engine.spec import Case
 
     entry = {"family": "tilted_plane", "layout": "mesh", "aperture": {"shape": "circle", "radius_um": 300.0},
              "params": {"slope_x": 0.0, "offset_um": 2.0}}
@@ -71,8 +71,8 @@ def test_the_commands_offer_every_registered_kind():
     # the --layout choices are spelled out (the CLI starts without importing the kinds); they
     # must name every registered kind
     from ftsweep import kinds
-    from ftsweep.cli_predict import predict
-    from ftsweep.cli_tools import optimize as optimize_command
+    from ftsweep.cli.predict import predict
+    from ftsweep.cli.tools import optimize as optimize_command
 
     for command in (predict, optimize_command):
         layout = next(p for p in command.params if p.name == "layout")

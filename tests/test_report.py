@@ -10,9 +10,9 @@ import xarray as xr
 from click.testing import CliRunner
 
 import ftsweep  # noqa: F401  (registers ds.ftsweep)
-from ftsweep.cli import main
-from ftsweep.report import FIGURES
-from ftsweep.run import run_sweep
+from ftsweep.cli.main import main
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.report import FIGURES
 
 SPEC = """
 surface: small_sine

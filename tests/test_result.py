@@ -1,5 +1,5 @@
 """The declared result: run_case, predict --json, cubes and describe use
-the names, units and long names ftsweep.result declares, for every program kind."""
+the names, units and long names ftsweep.engine.result declares, for every program kind."""
 
 from __future__ import annotations
 
@@ -9,13 +9,14 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
-from ftsweep import cube, result
-from ftsweep.case import run_case
-from ftsweep.cli import main
+from ftsweep.cli.main import main
+from ftsweep.engine import result
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case
 from ftsweep.kinds.requests import program_request
-from ftsweep.query import describe
-from ftsweep.run import run_sweep
-from ftsweep.spec import Case
+from ftsweep.store import cube
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.query import describe
 
 KIND_CASES = {
     "ring": Case(surface="small_sine", layout=program_request(kind="ring", pitch=(10.0, 4.0))),

@@ -20,10 +20,10 @@ import xarray as xr
 from click.testing import CliRunner
 from clusters import BIN, done_count
 
-from ftsweep import cube
-from ftsweep.cli import main
-from ftsweep.run import run_sweep
-from ftsweep.storage import place
+from ftsweep.cli.main import main
+from ftsweep.store import cube
+from ftsweep.store.storage import place
+from ftsweep.sweeps.run import run_sweep
 
 # a moto S3 server, sweeps in subprocesses killed and paused
 pytestmark = pytest.mark.integration

@@ -20,13 +20,13 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
-from ftsweep import caselog, cube
-from ftsweep.cli import main
-from ftsweep.export import ExportError, export, verify
-from ftsweep.kinds.table_header import CHECKSUM_MACRO, checksum, read_header
-from ftsweep.lock import LockError, acquire, lock_path, release
-from ftsweep.run import run_sweep
-from ftsweep.select import SelectError, choose, open_cube
+from ftsweep.cli.main import main
+from ftsweep.exports.export import ExportError, export, verify
+from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum, read_header
+from ftsweep.store import caselog, cube
+from ftsweep.store.lock import LockError, acquire, lock_path, release
+from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.select import SelectError, choose, open_cube
 
 BIN = Path(sys.executable).parent
 
@@ -239,7 +239,7 @@ def test_consistently_forged_prediction_fails_on_the_resimulated_pv(header_copy)
     meta = json.loads(side.read_text())
     meta["pv_nm"] = meta["pv_nm"] / 2
     side.write_text(json.dumps(meta, indent=2))
-    from ftsweep.files import sidecar_digest
+    from ftsweep.exports.files import sidecar_digest
 
     text = _replace_macro(header_copy.read_text(), "PREDICTED_PV_NM", repr(meta["pv_nm"]))
     text = _replace_macro(text, "SIDECAR_SHA256", json.dumps(sidecar_digest(meta)))
@@ -319,7 +319,7 @@ def test_nan_off_the_test_grid_fails_the_case_and_nothing_is_exported(tmp_path, 
 
 
 def test_quantisation_refuses_non_finite_values():
-    from ftsweep.kinds.table_header import quantise
+    from ftsweep.kinds.table.header import quantise
 
     with pytest.raises(ExportError, match="non-finite"):
         quantise(np.array([[1.0, np.nan]]), 1.0, "int32")

@@ -11,11 +11,11 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from ftsweep.case import run_case
-from ftsweep.catalogs import CatalogError
+from ftsweep.engine.planning import resolve_case
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case, CaseError, Resolution
+from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds.requests import program_request
-from ftsweep.planning import resolve_case
-from ftsweep.spec import Case, CaseError, Resolution
 from ftsweep.stages import interpolation, spiral
 from ftsweep.stages.interpolation import path_grid
 
@@ -227,10 +227,10 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     monkeypatch.setenv("FTSWEEP_CATALOGS", str(catalog_dir))  # verify compares the entries with it
     import xarray as xr
 
-    from ftsweep.query import best_per_points
-    from ftsweep.run import run_sweep
-    from ftsweep.select import choose
-    from ftsweep.sweep import case_at, load_sweep
+    from ftsweep.sweeps.run import run_sweep
+    from ftsweep.sweeps.spec import case_at, load_sweep
+    from ftsweep.tools.query import best_per_points
+    from ftsweep.tools.select import choose
 
     spec_path = tmp_path / "spiral.yaml"
     spec_path.write_text(SPIRAL_SWEEP)
@@ -250,7 +250,7 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     assert [target for target, _ in best_per_points(a)] == [40.0, 90.0]
 
     # export the chosen program as text, verify it, and catch a changed line or sidecar
-    from ftsweep.export import ExportError, export, verify
+    from ftsweep.exports.export import ExportError, export, verify
 
     out = tmp_path / "part.txt"
     meta = export(tmp_path / "a.zarr", out, budget_points=20_000)
@@ -270,7 +270,7 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     # compare: the spiral cube beside a ring cube of the same part, table and plot
     from click.testing import CliRunner
 
-    from ftsweep.cli import main
+    from ftsweep.cli.main import main
 
     ring = tmp_path / "ring.yaml"
     ring.write_text("surface: small_sine\nlayout: ring\naxes: {points: [6000, 13000], aspect: [1, 4]}\n")
@@ -327,7 +327,7 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     assert "feed_um 4 (differs)" in res.output and "nose_radius_um 83;" in res.output
 
     # the report of a spiral cube: P-V against points, the chosen case's map and spectrum
-    from ftsweep.report import make_report
+    from ftsweep.tools.report import make_report
 
     paths = make_report(tmp_path / "a.zarr", tmp_path / "report", map_bins=16)
     assert {"pv_vs_points", "error_map", "w_spectrum", "index"} <= set(paths)
@@ -346,13 +346,13 @@ def test_spiral_results_do_not_depend_on_the_batch_size(catalog_dir):
 
 def best_pv(ds, points_per_rev):
     """Lowest eligible P-V [nm] of a spiral cube at one points_per_rev."""
-    from ftsweep.query import eligible_pv
+    from ftsweep.tools.query import eligible_pv
 
     return float(eligible_pv(ds).sel(points_per_rev=points_per_rev).min())
 
 
 def test_spiral_sweep_axes_are_checked(tmp_path, catalog_dir):
-    from ftsweep.sweep import load_sweep
+    from ftsweep.sweeps.spec import load_sweep
 
     bad = {
         "points": "surface: small_sine\nlayout: spiral\naxes: {points: [1000], chord_um: [0.1]}\n",

@@ -12,7 +12,7 @@ import sys
 import click
 import pytest
 
-from ftsweep.cli import COMMANDS, main, short_help
+from ftsweep.cli.main import COMMANDS, main, short_help
 
 HEAVY = ("numba", "xarray", "zarr", "pandas", "dask", "distributed", "scipy", "matplotlib")
 
@@ -28,7 +28,10 @@ def _modules_after(code: str) -> set[str]:
     "argv", [["--help"], *[[name, "--help"] for name in COMMANDS], ["catalogs", "--help"]]
 )
 def test_help_loads_no_heavy_library(argv):
-    code = f"import sys\nfrom ftsweep.cli import main\ntry:\n    main({argv!r})\nexcept SystemExit:\n    pass"
+    code = (
+        f"import sys\nfrom ftsweep.cli.main import main\ntry:\n    main({argv!r})\n"
+        "except SystemExit:\n    pass"
+    )
     loaded = _modules_after(code)
     assert not loaded & set(HEAVY), sorted(loaded & set(HEAVY))
 
@@ -63,8 +66,8 @@ def test_group_help_lists_every_command_with_its_own_summary():
 )
 def test_console_script_exit_codes_and_output_survive_the_fast_exit(argv, code, stream, text):
     # as the console script runs it: main() with no arguments reads sys.argv and leaves by
-    # os._exit after the exit handlers and a flush (ftsweep.cli._Group.__call__)
-    run = f"import sys\nfrom ftsweep.cli import main\nsys.argv = ['ftsweep', *{argv!r}]\nmain()"
+    # os._exit after the exit handlers and a flush (ftsweep.cli.main._Group.__call__)
+    run = f"import sys\nfrom ftsweep.cli.main import main\nsys.argv = ['ftsweep', *{argv!r}]\nmain()"
     done = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True)
     assert done.returncode == code, done.stderr
     assert text in getattr(done, stream)
@@ -75,7 +78,7 @@ def test_plots_leave_the_callers_matplotlib_backend_alone():
     # plot of the session showed nothing
     code = (
         "import matplotlib\nmatplotlib.use('svg')\n"
-        "from ftsweep.accessor import _axes\nax = _axes()\n"
+        "from ftsweep.tools.accessor import _axes\nax = _axes()\n"
         "assert matplotlib.get_backend() == 'svg', matplotlib.get_backend()"
     )
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from ftsweep import caselog, cube
-from ftsweep.lock import Lease, LockError
-from ftsweep.run import run_sweep
-from ftsweep.storage import StorageError, parse_options, place
+from ftsweep.store import caselog, cube
+from ftsweep.store.lock import Lease, LockError
+from ftsweep.store.storage import StorageError, parse_options, place
+from ftsweep.sweeps.run import run_sweep
 
 SPEC = """
 surface: small_sine

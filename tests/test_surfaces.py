@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep import catalogs
+from ftsweep.inputs import catalogs
 from ftsweep.stages.surfaces import FAMILIES, Aperture, lens_array, radial_section, sinewave2d
 
 LENS = dict(radius_um=252.5, sag_um=5.0, pitch_um=150.0, count_x=11, count_y=11)

@@ -15,11 +15,11 @@ import pytest
 import xarray as xr
 from clusters import done_count, external_cluster
 
-from ftsweep import caselog, cube
-from ftsweep.catalogs import CatalogError
-from ftsweep.cube import CubeError
-from ftsweep.run import best_per_point_count, run_sweep
-from ftsweep.sweep import case_at, load_sweep, n_cases
+from ftsweep.inputs.catalogs import CatalogError
+from ftsweep.store import caselog, cube
+from ftsweep.store.cube import CubeError
+from ftsweep.sweeps.run import best_per_point_count, run_sweep
+from ftsweep.sweeps.spec import case_at, load_sweep, n_cases
 
 SMALL = """
 description: a small sweep for tests
@@ -51,7 +51,7 @@ def test_reference_sweeps_validate_and_cover_the_ranges():
         ("lens-array-mesh", 4e4, 1e6, 0.08, 16),
     ):
         _, spec = load_sweep(name)
-        from ftsweep.sweep import coordinates
+        from ftsweep.sweeps.spec import coordinates
 
         c = coordinates(spec)
         assert c["points"].size >= 6 and c["aspect"].size >= 12
@@ -327,7 +327,7 @@ def test_provenance_is_ftsweeps_own_revision_not_the_callers(tmp_path):
     import shutil
     import subprocess
 
-    from ftsweep import cube
+    from ftsweep.store import cube
 
     def git(*args):
         return subprocess.run(["git", *args], cwd=tmp_path, capture_output=True, text=True, check=True)
@@ -353,7 +353,7 @@ def test_resuming_another_revisions_cube_warns_in_one_line(tmp_path, catalog_dir
     args = [
         sys.executable,
         "-m",
-        "ftsweep.cli",
+        "ftsweep.cli.main",
         "sweep",
         str(spec),
         "--out",

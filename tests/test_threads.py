@@ -1,13 +1,11 @@
-"""Threads of one case (ftsweep.threads): the work splits, the results do not change."""
+"""Threads of one case (ftsweep.engine.threads): the work splits, the results do not change."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from ftsweep import catalogs
-from ftsweep.stages import compensation
-from ftsweep.threads import (
+from ftsweep.engine.threads import (
     MAX_PART_POINTS,
     PART_POINTS,
     THREAD_PART_POINTS,
@@ -16,6 +14,8 @@ from ftsweep.threads import (
     current,
     using_threads,
 )
+from ftsweep.inputs import catalogs
+from ftsweep.stages import compensation
 
 
 def test_a_table_compensated_in_parts_equals_one_call_bit_for_bit():

@@ -22,19 +22,19 @@ from conftest import THOROUGH
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ftsweep.cli import main
-from ftsweep.export import ExportError, export, verify
-from ftsweep.files import CRC_LINE, crc_of, sidecar_digest
-from ftsweep.io import read_sidecar
-from ftsweep.kinds.c_view import read_c
-from ftsweep.kinds.table_header import (
+from ftsweep.cli.main import main
+from ftsweep.exports.export import ExportError, export, verify
+from ftsweep.exports.files import CRC_LINE, crc_of, sidecar_digest
+from ftsweep.kinds.table.c_view import read_c
+from ftsweep.kinds.table.header import (
     CHECKSUM_MACRO,
     TABLE_UNITS_TOLERANCE,
     checksum,
     read_header,
     render_header,
 )
-from ftsweep.run import run_sweep
+from ftsweep.store.io import read_sidecar
+from ftsweep.sweeps.run import run_sweep
 
 CC = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler on this machine")
@@ -366,7 +366,7 @@ def test_an_output_name_that_would_become_syntax_is_refused(originals, tmp_path,
 
 
 def test_a_catalog_entry_name_that_would_become_syntax_is_refused(tmp_path, module_catalog_dir):
-    from ftsweep.catalogs import CatalogError, entries
+    from ftsweep.inputs.catalogs import CatalogError, entries
 
     folder = tmp_path / "cat"
     shutil.copytree(module_catalog_dir, folder)
@@ -440,9 +440,9 @@ def test_a_consistent_forgery_of_the_recorded_surface_is_refused_against_the_cat
 ):
     # halve the recorded amplitude, re-plan the table with ftsweep's own planner and re-make
     # every hash: consistent, so only the catalog (or a signature) can tell
-    from ftsweep.files import recorded_case_of
-    from ftsweep.kinds.table import build_layout
-    from ftsweep.kinds.table_header import planned_ints
+    from ftsweep.exports.files import recorded_case_of
+    from ftsweep.kinds.table.header import planned_ints
+    from ftsweep.kinds.table.kind import build_layout
 
     header = copies["fts"]
     side = header.with_suffix(".json")

@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from ftsweep.cli import main
-from ftsweep.files import CRC_LINE, sidecar_digest
-from ftsweep.kinds.table_header import CHECKSUM_MACRO, checksum, read_header
-from ftsweep.run import run_sweep
+from ftsweep.cli.main import main
+from ftsweep.exports.files import CRC_LINE, sidecar_digest
+from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum, read_header
+from ftsweep.sweeps.run import run_sweep
 
 SPHERE_D = """
 surface: concave_sphere
@@ -481,7 +481,7 @@ def test_progress_in_a_log_is_plain_periodic_lines():
 def test_eta_comes_from_measured_case_times_once_two_finished():
     from types import SimpleNamespace
 
-    from ftsweep.cli_sweep import _eta_text
+    from ftsweep.cli.sweep import _eta_text
 
     report = SimpleNamespace(workers=2)
     assert _eta_text(report, [{"seconds": 5.0}], remaining=10) == "ETA –"
@@ -498,7 +498,7 @@ def test_figures_and_files_respect_the_umask_and_write_errors_name_the_file(tmp_
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ftsweep import io
+    from ftsweep.store import io
 
     old = os.umask(0o022)
     try:

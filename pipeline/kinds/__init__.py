@@ -40,8 +40,8 @@ class Simulating(NamedTuple):
     """What a kind's ``simulation`` receives: the resolved case, a given table [µm] (the
     controller's as stored) or None, the catalog folder, the nodes per batch, the largest
     number of nodes a case may have, and a cache of shared work (or None). It is made in
-    the case's thread context (:mod:`ftsweep.threads`): work it does up front, such as
-    compensating a table, may split over the threads; :func:`ftsweep.case.run_case` spreads
+    the case's thread context (:mod:`ftsweep.engine.threads`): work it does up front, such as
+    compensating a table, may split over the threads; :func:`ftsweep.engine.simulator.run_case` spreads
     the batches."""
 
     rcase: Any
@@ -53,8 +53,8 @@ class Simulating(NamedTuple):
 
 
 class Simulation(Protocol):
-    """How the one simulator (:func:`ftsweep.case.run_case`) samples a kind's program: its
-    batches of rays, each machined into a :class:`ftsweep.case.Machined`, the inner/outer
+    """How the one simulator (:func:`ftsweep.engine.simulator.run_case`) samples a kind's program: its
+    batches of rays, each machined into a :class:`ftsweep.engine.simulator.Machined`, the inner/outer
     zone boundary [µm], and the record of the finished case from its metrics (the kind's
     fields, its axis motion against the machine's limits). ``batch`` may run on several
     threads at once (``run_case(threads=N)``): it must not change shared state, or only in
@@ -80,14 +80,14 @@ class ProgramKind:
     request_at : ``(sweep spec, {axis: value}) -> request`` of one sweep point.
     feed : ``(case, cutting, nose radius, surface spec, catalog folder, program) -> F [µm/rev]``.
     plan : ``(Planning) -> (program, extra fields of the resolved case)``.
-    record_fields : ``(resolved case) -> its fields of the record`` (:mod:`ftsweep.result`).
+    record_fields : ``(resolved case) -> its fields of the record`` (:mod:`ftsweep.engine.result`).
     cost : ``(case, surface spec, catalog folder) -> (relative cost, key of shared lines)``.
     simulation : ``(Simulating, timer) -> Simulation``: how the one simulator samples its
-        program (:mod:`ftsweep.lines` for spindle programs, tables and spirals).
+        program (:mod:`ftsweep.engine.lines` for spindle programs, tables and spirals).
     pitch_text : ``(record) -> text`` of a program's pitches or mean steps, with units.
     point_text : ``(program, flat index) -> text`` naming where a point lies, for errors.
     angular_cells : ``(program, ρ0 [µm]) -> cells`` along the outer circumference that set
-        the spindle angles the line engine samples (:func:`ftsweep.cost.angular_samples`).
+        the spindle angles the line engine samples (:func:`ftsweep.engine.cost.angular_samples`).
     warm_request : a coarse request of the kind that compiles its kernels in a new worker.
     aspect_range : the aspect ratios [its units] a sweep or search may span, for kinds swept
         over aspect ratios (tables); None for path programs.
@@ -134,7 +134,10 @@ class ProgramKind:
 @functools.cache
 def registry() -> dict[str, ProgramKind]:
     """Every registered program kind by name."""
-    from ftsweep.kinds import dpath, fresnel, spiral, table
+    from ftsweep.kinds.dpath import kind as dpath
+    from ftsweep.kinds.fresnel import kind as fresnel
+    from ftsweep.kinds.spiral import kind as spiral
+    from ftsweep.kinds.table import kind as table
 
     return {k.name: k for k in (table.RING, table.MESH, spiral.SPIRAL, dpath.DPATH, fresnel.FRESNEL)}
 

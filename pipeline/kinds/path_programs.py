@@ -1,5 +1,5 @@
 """Export and verification of path programs: spiral ([4]), D-path ([5]) and, through
-:mod:`ftsweep.fstudy`, Fresnel ([2]) programs. One plain-text line per control point under a
+:mod:`ftsweep.kinds.fresnel.study`, Fresnel ([2]) programs. One plain-text line per control point under a
 ``#`` header of units, surface, tool, budgets and predicted P-V, with a JSON sidecar holding
 the full case; both written atomically.
 
@@ -8,7 +8,7 @@ part's edge, increasing by 360 per revolution), X the radius of the tool on the 
 the compensated tool-tip height; the controller interpolates X and Z linearly in C between
 consecutive lines. ``CRC32`` in the header covers every other line of the file (the header
 lines, the layer offsets and segments included); the header names the sidecar's SHA-256 and
-the sidecar the program's (the shared machinery is :mod:`ftsweep.files`). The verify
+the sidecar the program's (the shared machinery is :mod:`ftsweep.exports.files`). The verify
 functions plan the program again from the recorded case and compare it with every line the
 machine reads: the header lines exactly, every data line within ``files.LINE_TOLERANCE`` per
 column, the sidecar's claims with the re-derived ones.
@@ -23,8 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.case import run_case
-from ftsweep.files import (
+from ftsweep.engine.planning import resolve_case
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case
+from ftsweep.exports.files import (
     DataLines,
     ProgramError,
     case_meta,
@@ -40,8 +42,6 @@ from ftsweep.files import (
     sidecar_path,
     write_program,
 )
-from ftsweep.planning import resolve_case
-from ftsweep.spec import Case
 from ftsweep.stages.spiral import SpiralPath
 from ftsweep.version import __version__
 
@@ -188,9 +188,9 @@ def _as_run(path: Any, data: np.ndarray) -> Any:
 def _limits_of_lines(machine: Any, rpm: float, path: Any, data: np.ndarray) -> str:
     """The axis limits a D-path program's lines exceed ('' when none) on the planned path
     ``path`` through them, sampled every controller period at the lines' times
-    (:func:`ftsweep.dpath.motion_summary` of :func:`_as_run`: what the record of a case
+    (:func:`ftsweep.kinds.dpath.program.motion_summary` of :func:`_as_run`: what the record of a case
     simulated from these lines reports)."""
-    from ftsweep import dpath as dprog
+    from ftsweep.kinds.dpath import program as dprog
 
     if not np.all(np.diff(data[:, 0]) > 0.0):
         return "time does not increase from line to line"
@@ -208,7 +208,7 @@ def dpath_document(
 ) -> tuple[list[str], DataLines, dict[str, Any]]:
     """The header lines, data lines and sidecar content of a D-path case ([5]), planned from
     its spec and entries (or ``rcase``, resolved already): export writes, verify re-derives."""
-    from ftsweep import dpath as dprog
+    from ftsweep.kinds.dpath import program as dprog
 
     rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     path, z = rcase.layout, rcase.values
@@ -258,7 +258,7 @@ def export_dpath(
     """Plan the chosen D-path case again ([5]) and write it as position-time lines
     (t [s] at constant spindle speed, accumulated C [deg], X [mm], Z [mm]) with its sidecar,
     atomically; refused if any line leaves the machine's axis limits. ``rcase``: the case as
-    :func:`ftsweep.planning.resolve_case` planned it from these entries already (a study)."""
+    :func:`ftsweep.engine.planning.resolve_case` planned it from these entries already (a study)."""
     rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     head, lines, meta = dpath_document(case, specs, chosen, extra, now(), f"ftsweep {__version__}", rcase)
     reason = _limits_of_lines(specs[1], specs[2].spindle_rpm, rcase.layout, lines.printed)

@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import Field, PositiveFloat, TypeAdapter, model_serializer, model_validator
 
-from ftsweep.catalogs import Strict, without_defaults
+from ftsweep.inputs.catalogs import Strict, without_defaults
 from ftsweep.stages import spiral
 
 # every path request's dump carried the table's target fields (null) before the split
@@ -150,7 +150,7 @@ DPATH_FIELDS = (
 
 
 class DPathRequest(_Request):
-    """A D-shaped slow-tool-servo path ([5]); unset options take ``ftsweep.dpath.DEFAULTS``."""
+    """A D-shaped slow-tool-servo path ([5]); unset options take ``ftsweep.kinds.dpath.program.DEFAULTS``."""
 
     kind: Literal["dpath"]
     spacing_um: Optional[PositiveFloat] = Field(
@@ -180,7 +180,7 @@ class DPathRequest(_Request):
 
 class FresnelRequest(_Request):
     """A freeform Fresnel program on an X-Y-Z-C lathe ([2]); unset options take
-    ``ftsweep.fresnel.DEFAULTS``. The case's compensation selects [2]'s tool-edge
+    ``ftsweep.kinds.fresnel.program.DEFAULTS``. The case's compensation selects [2]'s tool-edge
     compensation: exact (eq. 10), slope (the straight-line eq. 12) or none."""
 
     kind: Literal["fresnel"]

@@ -1,0 +1,244 @@
+"""What every ``ftsweep`` command shares: option types that refuse NaN and infinities at
+parse time, the one-line error format, strict JSON on stdout, progress on stderr and the
+``--trust-plugins`` option."""
+
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+from typing import Any, Optional
+
+import click
+
+from ftsweep.store.io import dumps_json
+
+
+class FiniteRange(click.FloatRange):
+    """A finite float within a range; click refuses anything else naming the option."""
+
+    def convert(self, value: Any, param: Optional[click.Parameter], ctx: Optional[click.Context]) -> Any:
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{number} is not a finite number", param, ctx)
+        return number
+
+    def _describe_range(self) -> str:
+        # click prints "x<=None" for a range without bounds
+        if self.min is None and self.max is None:
+            return "finite"
+        return str(super()._describe_range())
+
+
+FINITE = FiniteRange()
+POSITIVE = FiniteRange(min=0.0, min_open=True)
+NON_NEGATIVE = FiniteRange(min=0.0)
+COUNT = click.IntRange(min=1)
+
+# exported files and cubes are data: the plug-ins they name run only from the local catalog
+TRUST_PLUGINS = click.option(
+    "--trust-plugins",
+    is_flag=True,
+    help="Run a plug-in surface the file names even if the local catalog does not declare it "
+    "(plug-ins are code: only for files you trust; README 'Trust').",
+)
+
+
+# ftsweep.exports.origin: who made an exported file
+SIGN_KEY = click.option(
+    "--sign-key",
+    type=click.Path(dir_okay=False),
+    help="Sign what is written with this ed25519 private key (FILE.sig beside it; `ftsweep keys new` "
+    "makes one). Default: FTSWEEP_SIGNING_KEY, else signing_key of the config file; none: not signed.",
+)
+
+
+class CubeLocation(click.ParamType):
+    """A cube: a local folder (which must exist) or an fsspec URL (``s3://bucket/c.zarr``, checked
+    when opened); the value stays text so a URL is not mangled into a path."""
+
+    name = "cube"
+
+    def convert(self, value: Any, param: Optional[click.Parameter], ctx: Optional[click.Context]) -> str:
+        text = str(value)
+        if "://" in text and not text.startswith("file://"):
+            return text
+        path = Path(text.removeprefix("file://"))
+        if not path.exists():
+            self.fail(f"{text!r} does not exist", param, ctx)
+        if not path.is_dir():
+            self.fail(f"{text!r} is a file, not a cube (a Zarr folder)", param, ctx)
+        return text
+
+
+CUBE = CubeLocation()
+
+# storage options of a cube given as a URL; the usual places come first (fsspec's configuration)
+STORAGE_OPTIONS = click.option(
+    "--storage-option",
+    "storage_options",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="An fsspec storage option for a cube given as a URL (repeat for more; VALUE is JSON when it "
+    "parses), e.g. --storage-option endpoint_url=http://127.0.0.1:9000. Options also come from "
+    "fsspec's configuration (FSSPEC_S3_ENDPOINT_URL=..., ~/.config/fsspec) and the store's own "
+    "(AWS_* variables, ~/.aws).",
+)
+
+
+def cube_place(text: str, storage_options: tuple[str, ...]) -> Any:
+    """The :class:`~ftsweep.store.storage.Place` of a CUBE argument or ``--out`` with its options;
+    a malformed option is a usage error."""
+    from ftsweep.store.storage import StorageError, parse_options, place
+
+    try:
+        return place(text, parse_options(storage_options))
+    except StorageError as exc:
+        raise click.BadParameter(str(exc), param_hint="--storage-option") from None
+
+
+def local_output(text: Optional[str], what: str) -> Optional[Path]:
+    """A local path for a file or folder ftsweep writes; a URL is refused (a header goes to the
+    controller from a disk, a report is opened in a browser), saying how to get it there."""
+    if text is None:
+        return None
+    if "://" in text and not text.startswith("file://"):
+        raise click.BadParameter(
+            f"{what} is written to a local path, not {text}; write it here and copy it with your "
+            "storage's tools (aws s3 cp, gsutil cp, ...)",
+            param_hint="-o/--out",
+        )
+    return Path(text.removeprefix("file://"))
+
+
+def threads_option(command: Any) -> Any:
+    """Add ``--threads N`` to a command that simulates one case at a time: its cases run on N
+    threads each (:func:`ftsweep.engine.threads.using_threads`), by default on every usable core."""
+
+    @functools.wraps(command)
+    def run(*args: Any, threads: Optional[int] = None, **kwargs: Any) -> Any:
+        from ftsweep.defaults import usable_cores
+        from ftsweep.engine.threads import using_threads
+
+        with using_threads(threads or usable_cores()):
+            return command(*args, **kwargs)
+
+    return click.option(
+        "--threads",
+        type=COUNT,
+        help="Threads per simulated case: its batches of lines and its table's compensation run "
+        "in parallel (the kernels release the GIL); results are the same for any number. "
+        "Default: every core this process may use.",
+    )(run)
+
+
+def fail(message: str) -> None:
+    raise click.UsageError(message)
+
+
+MESSAGE_LIMIT = 1500
+
+
+def one_line(text: str, limit: int = MESSAGE_LIMIT) -> str:
+    """A message on one line: its lines joined with "; ", whitespace collapsed and the whole
+    cut at ``limit`` characters, so no input, however large, is echoed in full."""
+    parts = [" ".join(line.split()) for line in str(text).splitlines()]
+    joined = "; ".join(p for p in parts if p).replace(":; ", ": ")
+    return joined if len(joined) <= limit else joined[: limit - 1] + "…"
+
+
+# errors a user can cause: shown as one line, exit 1, no traceback
+USER_ERRORS: tuple[type[BaseException], ...] = (
+    ValueError,
+    OSError,
+    RuntimeError,
+    MemoryError,
+    RecursionError,
+)
+
+
+def _nan_safe(value: Any) -> Any:  # pragma: no cover - only non-JSON types reach here
+    return str(value)
+
+
+def echo_json(value: Any) -> None:
+    """Exactly one strict JSON document on stdout."""
+    click.echo(dumps_json(value, default=_nan_safe))
+
+
+def stderr_progress(label: str, quiet: bool = False) -> Any:
+    """Progress on stderr (:mod:`ftsweep.progress`): a bar on a terminal, plain lines in a log."""
+    from ftsweep import progress
+
+    return progress.progress(label, quiet)
+
+
+def progress_done(bar: Any) -> None:
+    from ftsweep import progress
+
+    progress.done(bar)
+
+
+def flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def dpath_options(f: Any) -> Any:
+    """The options of a D-path program ([5]) shared by ``dpath`` and ``predict --layout dpath``."""
+    options = [
+        click.option(
+            "--spacing-um", type=POSITIVE, help="D path: spacing h between cuts [µm]. Default: the feed."
+        ),
+        click.option(
+            "--points-per-cut", type=click.IntRange(min=2), help="D path: points on every cut. Default: 201."
+        ),
+        click.option(
+            "--zones", type=click.Choice(["1", "2", "4"]), help="D path: zones per revolution. Default: 1."
+        ),
+        click.option(
+            "--offaxis-mm",
+            type=POSITIVE,
+            help="D path: distance of the part's centre from the C axis [mm]. Default: 30.",
+        ),
+        click.option(
+            "--cut-angle-deg",
+            type=FINITE,
+            help="D path: direction of the cuts [deg from +x]. Default: 90 (along y).",
+        ),
+        click.option(
+            "--transition-step-deg",
+            type=POSITIVE,
+            help="D path: largest C step in a transition [deg]. Default: 1.",
+        ),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+def fresnel_options(f: Any) -> Any:
+    """The options of a Fresnel program ([2]) for ``predict --layout fresnel``."""
+    options = [
+        click.option("--facet-height-um", type=POSITIVE, help="Fresnel: facet height h [µm]. Default: 10."),
+        click.option(
+            "--points-per-turn",
+            type=click.IntRange(min=8),
+            help="Fresnel: control points K per turn. Default: 360.",
+        ),
+        click.option(
+            "--deviation-deg",
+            type=FINITE,
+            help="Fresnel: rake face from the cutting direction [deg]. Default: 0.",
+        ),
+        click.option(
+            "--safety", type=FINITE, help="Fresnel: safety factor K_s on the axis limits. Default: 1.25."
+        ),
+        click.option(
+            "--control-points",
+            type=click.Choice(["auto", "polar", "arc"]),
+            help="Fresnel: control points polar about centroids (eqs. 5-6), by arc length (A.3), auto.",
+        ),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f

@@ -1,0 +1,467 @@
+"""The commands on cubes and exported files: ``sweep``, ``select``, ``export``, ``verify``,
+``report`` and ``compare``."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+from typing import Any, Optional
+
+import click
+
+from ftsweep.cli.common import (
+    COUNT,
+    CUBE,
+    NON_NEGATIVE,
+    POSITIVE,
+    SIGN_KEY,
+    STORAGE_OPTIONS,
+    TRUST_PLUGINS,
+    cube_place,
+    echo_json,
+    local_output,
+    progress_done,
+    stderr_progress,
+    threads_option,
+)
+
+
+def _target_text(value: float | str) -> str:
+    """A sweep axis value: whole counts with thousands separators, others to 4 digits, names
+    (the compensation) as they are."""
+    if isinstance(value, str):
+        return value
+    return f"{value:,.0f}" if value == round(value) and abs(value) >= 1000 else f"{value:.4g}"
+
+
+def _one_criterion(**options: Any) -> None:
+    """Refuse, before any cube is opened, a command given no selection rule or more than
+    one (each keyword is an option's parameter, named as the command line spells it)."""
+    given = [f"--{name.replace('_', '-')}" for name, value in options.items() if value is not None]
+    if len(given) != 1:
+        names = [f"--{name.replace('_', '-')}" for name in options]
+        got = f"got {' and '.join(given)}" if given else "got none"
+        raise click.UsageError(f"give exactly one of {', '.join(names[:-1])} or {names[-1]} ({got})")
+
+
+def _selection_text(chosen: dict[str, Any]) -> str:
+    from ftsweep import kinds
+
+    pitch = kinds.kind(chosen["layout"]).pitch_text(chosen)
+    interp = (
+        f"interpolation alone {chosen['pv_interp_nm']:.2f} nm"
+        if math.isfinite(chosen["pv_interp_nm"])
+        else "interpolation alone not simulated"
+    )
+    targets = ", ".join(
+        f"{name[: -len('_target')]} {_target_text(value)}"
+        for name, value in chosen.items()
+        if name.endswith("_target")
+    )
+    aspect = chosen.get("aspect_actual", math.nan)
+    # path programs off the spindle's spiral (D paths, Fresnel) have no aspect ratio
+    alpha = f" (α = {aspect:.4g})" if math.isfinite(aspect) else ""
+    return "\n".join(
+        [
+            f"rule         {chosen['rule']}",
+            f"case         {chosen['index']} ({targets})",
+            f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch}{alpha}",
+            f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, {interp})",
+        ]
+    )
+
+
+@click.command()
+@click.argument("cube_path", metavar="CUBE", type=CUBE)
+@click.option("--budget-points", type=COUNT, help="Best aspect ratio at or under this many points.")
+@click.option("--tolerance-nm", type=POSITIVE, help="Fewest points whose P-V meets this tolerance [nm].")
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+@STORAGE_OPTIONS
+def select(
+    cube_path: str,
+    budget_points: Optional[int],
+    tolerance_nm: Optional[float],
+    as_json: bool,
+    storage_options: tuple[str, ...],
+) -> None:
+    """Choose the layout for production from a sweep's cube (a folder or a URL).
+
+    Only computed, feasible cases within the controller's capacity are ever chosen. With
+    --budget-points: the lowest P-V at or under that many points. With --tolerance-nm: the
+    smallest layout that meets the tolerance; when none does, say so and show the best.
+    """
+    _one_criterion(budget_points=budget_points, tolerance_nm=tolerance_nm)
+    from ftsweep.store.cube import CubeError
+    from ftsweep.tools.select import SelectError, choose, open_cube
+
+    try:
+        chosen = choose(open_cube(cube_place(cube_path, storage_options)), budget_points, tolerance_nm)
+    except (SelectError, CubeError) as exc:
+        raise click.ClickException(str(exc)) from None
+    if as_json:
+        echo_json(chosen)
+    else:
+        click.echo(_selection_text(chosen))
+    if chosen.get("met") is False:
+        click.echo(f"tolerance    not met: no case reaches {tolerance_nm:g} nm", err=True)
+        sys.exit(1)
+
+
+@click.command()
+@click.argument("cube_path", metavar="CUBE", type=CUBE)
+@click.option("--budget-points", type=COUNT, help="Export the best layout at or under this many points.")
+@click.option("--tolerance-nm", type=POSITIVE, help="Export the smallest layout meeting this P-V [nm].")
+@click.option("--case", "index", type=int, help="Export the case at this flat index of the cube.")
+@click.option(
+    "-o",
+    "--output",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Header file to write (FILE.h, a local path); the sidecar FILE.json is written beside it.",
+)
+@click.option("--name", help="Prefix of the C identifiers. Default: the file name.")
+@click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
+@SIGN_KEY
+@TRUST_PLUGINS
+@STORAGE_OPTIONS
+def export(
+    cube_path: str,
+    budget_points: Optional[int],
+    tolerance_nm: Optional[float],
+    index: Optional[int],
+    out: str,
+    name: Optional[str],
+    force: bool,
+    sign_key: Optional[str],
+    trust_plugins: bool,
+    storage_options: tuple[str, ...],
+) -> None:
+    """Export the chosen case of a cube: a ring or mesh table (layered or not) as a C header
+    for the FTS controller (-o FILE.h), a spiral program (layered or not) as plain-text lines
+    C [deg] X [mm] Z [mm], or a D-path program as lines t [s] C [deg] X [mm] Z [mm] (-o
+    FILE.txt), each under a header of units, surface, tool, budgets and predicted P-V. Fresnel
+    programs are exported by `ftsweep fresnel -o FILE.txt`; `ftsweep verify FILE` checks any.
+
+    The table is stored as fixed-point integers (unit and type from the machine catalog) in
+    the order the controller indexes it, with macros for the layout, pitches, origin, units,
+    surface, cutting conditions, predicted P-V, generator and a CRC-32 of the table. A JSON
+    sidecar holds the same metadata and the full case spec. Both are written atomically.
+    Failed, pending, infeasible and over-capacity cases are refused.
+    """
+    _one_criterion(budget_points=budget_points, tolerance_nm=tolerance_nm, case=index)
+    from ftsweep.exports import export as exp
+    from ftsweep.store.cube import CubeError
+    from ftsweep.tools.select import SelectError
+
+    target = local_output(out, "the exported program")
+    assert target is not None
+    cube = cube_place(cube_path, storage_options)
+    try:
+        meta = exp.export(
+            cube, target, budget_points, tolerance_nm, index, force, name, trust_plugins, sign_key
+        )
+    except (exp.ExportError, SelectError, CubeError) as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(_selection_text(meta["selection"]))
+    for line in exp.format_of_file(target).exported(target, meta):
+        click.echo(line)
+    click.echo(f"sidecar      {exp.sidecar_path(target)}")
+    if meta.get("signature"):
+        click.echo(f"signature    {exp.signature_path(target)} (key {meta['signature']})")
+
+
+@click.command()
+@click.argument("header", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option(
+    "--pv-tolerance-nm",
+    type=NON_NEGATIVE,
+    help="Largest allowed |re-simulated − predicted| P-V [nm]. Default: a table's unit (the "
+    "quantisation bound) + 0.1 % of the P-V; a program's 0.01 nm + 0.1 %.",
+)
+@click.option(
+    "--trusted-key",
+    "trusted",
+    multiple=True,
+    type=click.Path(dir_okay=False),
+    help="A public key (PEM) whose signature the file must carry (repeat for several). Default: "
+    "trusted_keys of the config file; none: the recorded entries are compared with the catalog.",
+)
+@click.option(
+    "--accept-recorded",
+    is_flag=True,
+    help="Without a trusted key, verify against the entries the sidecar recorded even where the "
+    "local catalog differs (proves consistency only).",
+)
+@TRUST_PLUGINS
+@threads_option
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def verify(
+    header: Path,
+    pv_tolerance_nm: Optional[float],
+    trusted: tuple[str, ...],
+    accept_recorded: bool,
+    trust_plugins: bool,
+    as_json: bool,
+) -> None:
+    """Check an exported file as the machine will read it, against the program its sidecar's
+    case plans: a controller header (ring or mesh table, layered or not: FILE.h) or a path
+    program (spiral, layered spiral, D path, Fresnel: FILE.txt).
+
+    \b
+    Exit 0 only if everything the machine will use checks out:
+    - the CRC-32 over every line the machine reads, the sidecar's SHA-256 of the file and
+      the file's SHA-256 of the sidecar;
+    - the file is exactly what export writes for the recorded case: every macro value (no
+      comment or expression inside one), every header and layer/segment line; every table
+      cell within one unit of the re-planned table, every program line (t, C, X, Y, Z)
+      within 1 µs, 1e-6° and 1 nm of the re-planned one;
+    - a D-path or Fresnel program: every line within the machine's axis limits;
+    - a table or spiral/D-path program: the P-V re-simulated from the file as stored within
+      the tolerance of the P-V predicted at export.
+    Otherwise exit 1 naming the first difference: do not load that file. Files are data: a
+    plug-in surface they name runs only if the local catalog declares it (--trust-plugins).
+
+    \b
+    Origin (what the hashes above cannot prove: anyone can re-make them):
+    - with a trusted key (--trusted-key, or the config file's trusted_keys): the file must
+      carry FILE.sig, an ed25519 signature of that key over the file and its sidecar;
+    - without: the sidecar's recorded surface, machine and cutting entries must equal the
+      local catalog's (--accept-recorded verifies against the recorded ones instead).
+    The output's origin line says which of the two was proved.
+    """
+    from ftsweep.engine.spec import CaseError
+    from ftsweep.exports import export as exp
+    from ftsweep.inputs.catalogs import CatalogError
+
+    progress = stderr_progress("re-simulating", as_json)
+    try:
+        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins, trusted, accept_recorded)
+    except (exp.ExportError, CaseError, CatalogError) as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        progress_done(progress)
+    if as_json:
+        echo_json(record)
+        return
+    for line in exp.format_of_file(header).verified(record):
+        click.echo(line)
+    click.echo(exp.origin_line(record))
+
+
+@click.command()
+@click.argument("cube_path", metavar="CUBE", type=CUBE)
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False),
+    help="Folder for the figures and index.html. Default: <cube>-report beside a local cube, "
+    "outputs/<cube>-report for a URL.",
+)
+@click.option(
+    "--case",
+    "index",
+    type=int,
+    help="Case (flat index) for the error map and spectrum. Default: the best at the largest budget.",
+)
+@click.option(
+    "--map-bins",
+    type=click.IntRange(min=8),
+    default=160,
+    show_default=True,
+    help="Bins per side of the error map.",
+)
+@TRUST_PLUGINS
+@STORAGE_OPTIONS
+def report(
+    cube_path: str,
+    out_dir: Optional[str],
+    index: Optional[int],
+    map_bins: int,
+    trust_plugins: bool,
+    storage_options: tuple[str, ...],
+) -> None:
+    """Figures of a sweep's cube and one HTML page that shows them with its metadata.
+
+    P-V against point count and against aspect ratio (optimum marked), a heat map of P-V,
+    the error map of the chosen case over the part and its W command spectrum with the servo
+    bandwidth. The error map needs a re-simulation of that case, which shows progress.
+    """
+    from ftsweep.engine.spec import CaseError
+    from ftsweep.store.cube import CubeError
+    from ftsweep.tools.report import make_report
+    from ftsweep.tools.select import SelectError
+
+    progress = stderr_progress("error map")
+    click.echo("plotting the cube; re-simulating the chosen case for its error map ...", err=True)
+    try:
+        paths = make_report(
+            cube_place(cube_path, storage_options),
+            local_output(out_dir, "the report"),
+            index,
+            map_bins,
+            progress,
+            trust_plugins,
+        )
+    except (CubeError, SelectError, CaseError) as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        progress_done(progress)
+    for name, path in paths.items():
+        click.echo(f"{name:14s} {path}")
+
+
+@click.command()
+@click.argument(
+    "cubes",
+    nargs=-1,
+    required=True,
+    metavar="CUBE...",
+    type=CUBE,
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the plot of P-V against point count here (PNG). Default: no plot.",
+)
+@click.option(
+    "--allow-different",
+    is_flag=True,
+    help="List cubes made under different conditions (surface, nose radius, feed, machine, "
+    "compensation, resolution) instead of refusing them; the differences are flagged.",
+)
+@click.option(
+    "--as-recorded",
+    is_flag=True,
+    help="Show the cubes' P-V as recorded, each kind on its own spindle-angle sampling, instead of "
+    "simulating the tables' and spirals' rows again on the finest sampling among them.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object (the rows) on stdout.")
+@STORAGE_OPTIONS
+def compare(
+    cubes: tuple[str, ...],
+    out: Optional[Path],
+    allow_different: bool,
+    as_recorded: bool,
+    as_json: bool,
+    storage_options: tuple[str, ...],
+) -> None:
+    """Compare program kinds on one part: tables (ring, mesh), spiral, D-path and Fresnel programs.
+
+    Give the cubes of sweeps on the same part under the same conditions, e.g. a ring sweep
+    and a spiral sweep: cubes whose surface, nose radius, feed (a swept feed or D-path
+    spacing by its values), machine or compensation differ are refused, naming the
+    difference (--allow-different lists them, flagged). Each cube's conditions are shown;
+    for each point count of each cube (target N of a table sweep, the rule axis of a path
+    sweep) its best feasible case is listed with its realised N and P-V, one block per
+    program; -o draws P-V against point count, one line per program.
+
+    A table's cases are simulated on spindle angles set by its cells, a spiral's by its
+    densest revolution: the rows of tables and spirals are simulated again on the finest
+    sampling among them (their cube's P-V shown as "recorded"; --as-recorded skips this).
+
+    \b
+    Example:
+      ftsweep sweep sinewave-ring && ftsweep sweep sinewave-spiral
+      ftsweep compare outputs/sinewave-ring.zarr outputs/sinewave-spiral.zarr -o outputs/compare.png
+    """
+    from ftsweep.engine.spec import CaseError
+    from ftsweep.store.cube import CubeError
+    from ftsweep.store.io import save_figure
+    from ftsweep.tools.compare import common_sampling, compare_rows, plot_compare
+    from ftsweep.tools.select import SelectError
+
+    progress = stderr_progress("re-simulating", as_json)
+    try:
+        rows, per_cube = compare_rows([cube_place(c, storage_options) for c in cubes], allow_different)
+        n_theta = None if as_recorded else common_sampling(rows, progress=progress)
+    except (SelectError, CubeError, CaseError) as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        progress_done(progress)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        save_figure(plot_compare(rows).figure, out)
+    _print_compare(rows, per_cube, n_theta, out, as_json)
+
+
+def _print_compare(
+    rows: list[dict[str, Any]],
+    per_cube: dict[str, Any],
+    n_theta: Optional[int],
+    out: Optional[Path],
+    as_json: bool,
+) -> None:
+    from ftsweep.tools.compare import CONDITIONS, differing
+
+    differ = differing(per_cube)
+    if as_json:
+        echo_json(
+            {
+                "rows": rows,
+                "conditions": per_cube,
+                "different": differ,
+                "common_n_theta": n_theta,
+                "plot": str(out) if out else None,
+            }
+        )
+        return
+    for label, cond in per_cube.items():
+        shown = "; ".join(f"{c} {cond[c]}" + (" (differs)" if c in differ else "") for c in CONDITIONS)
+        click.echo(f"conditions   {label}: {shown}")
+    if n_theta is not None:
+        click.echo(
+            f"sampling     tables and spirals simulated on {n_theta:,} spindle angles (the finest of theirs)"
+        )
+    head = (
+        f"  {'program':<40s} {'target':>10s} {'actual N':>10s} {'P-V nm':>9s} {'recorded':>9s} {'RMS nm':>8s}"
+    )
+    click.echo(head + f" {'interp nm':>9s} {'angles':>7s}")
+    for r in rows:
+        recorded = r.get("pv_recorded_nm")
+        click.echo(
+            f"  {r['program']:<40s} {r['target']:10,.4g} {r['n_points']:10,d} {r['pv_nm']:9.2f} "
+            + (f"{recorded:9.2f} " if recorded is not None else f"{'–':>9s} ")
+            + f"{r['rms_nm']:8.2f} {r['pv_interp_nm']:9.2f} "
+            + (f"{r['n_theta']:7,d}" if r["n_theta"] is not None else f"{'–':>7s}")
+        )
+    if out is not None:
+        click.echo(f"plot         {out}")
+
+
+@click.group("keys")
+def keys() -> None:
+    """Make the ed25519 key pair export signs with and verify trusts.
+
+    \b
+    A shop keeps the private key (NAME.key, mode 0600) on the machine that exports, named by
+    --sign-key, FTSWEEP_SIGNING_KEY or signing_key in the config file
+    ($XDG_CONFIG_HOME/ftsweep/config.toml, or FTSWEEP_CONFIG); the public key (NAME.pub) goes
+    to every machine that verifies, named by --trusted-key or trusted_keys there.
+    """
+
+
+@keys.command("new")
+@click.option(
+    "-o",
+    "--output",
+    "stem",
+    default="ftsweep-signing",
+    show_default=True,
+    type=click.Path(dir_okay=False),
+    help="Name of the pair: writes NAME.key (private) and NAME.pub (public); never replaces a key.",
+)
+def keys_new(stem: str) -> None:
+    """Make a new ed25519 key pair (NAME.key, NAME.pub) and print its key ID."""
+    from ftsweep.exports.origin import new_keys
+    from ftsweep.store.io import ExportError
+
+    try:
+        private, public, ident = new_keys(Path(stem))
+    except ExportError as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(f"private key  {private} (mode 0600: keep it on the exporting machine only)")
+    click.echo(f"public key   {public} (give it to every machine that verifies)")
+    click.echo(f"key ID       {ident}")

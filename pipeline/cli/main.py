@@ -1,0 +1,232 @@
+"""The ``ftsweep`` command line: the group, its error handling and the ``catalogs`` command;
+the other commands live in ``cli_*`` modules by family and are registered here."""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import importlib.util
+import os
+import sys
+import warnings
+from typing import Any, Optional
+
+import click
+
+from ftsweep.cli.common import MESSAGE_LIMIT, USER_ERRORS, echo_json, one_line
+from ftsweep.version import __version__
+
+# every command but `catalogs`: its module and function, imported only when the command runs or
+# shows its own help, so that `ftsweep --help` need not load numba, xarray or zarr; the group's
+# help reads their one-line summaries from the modules' source
+COMMANDS = {
+    "predict": ("ftsweep.cli.predict", "predict"),
+    "sweep": ("ftsweep.cli.sweep", "sweep"),
+    "select": ("ftsweep.cli.cubes", "select"),
+    "export": ("ftsweep.cli.cubes", "export"),
+    "verify": ("ftsweep.cli.cubes", "verify"),
+    "optimize": ("ftsweep.cli.tools", "optimize"),
+    "report": ("ftsweep.cli.cubes", "report"),
+    "estimate": ("ftsweep.cli.tools", "estimate"),
+    "bench": ("ftsweep.cli.tools", "bench"),
+    "compare": ("ftsweep.cli.cubes", "compare"),
+    "keys": ("ftsweep.cli.cubes", "keys"),
+    "dpath": ("ftsweep.cli.programs", "dpath_command"),
+    "fresnel": ("ftsweep.cli.programs", "fresnel_command"),
+}
+
+
+def short_help(name: str, limit: int = 45) -> str:
+    """The one-line summary of command ``name`` as click makes it from the command's docstring,
+    read from its module's source without importing the module."""
+    module, function = COMMANDS[name]
+    spec = importlib.util.find_spec(module)
+    assert spec is not None and spec.origin is not None
+    with open(spec.origin, encoding="utf-8") as f:
+        tree = ast.parse(f.read())
+    doc = next(
+        ast.get_docstring(node, clean=False) or ""
+        for node in tree.body
+        if isinstance(node, ast.FunctionDef) and node.name == function
+    )
+    # a bare command with the same help text makes the summary exactly as click does
+    return click.Command(name, help=doc).get_short_help_str(limit)
+
+
+class _Group(click.Group):
+    """Turns every error into a one-line message and a non-zero exit (no traceback); set
+    FTSWEEP_DEBUG=1 to see the traceback of an unexpected one. Its commands are loaded when
+    first asked for (:data:`COMMANDS`)."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        """Run as the console script (no arguments: ``sys.argv``) and leave at once: after
+        the command, the exit handlers run (clusters, zarr's event loop, logging) and the
+        streams are flushed, but the interpreter's teardown, which frees numba's and
+        llvmlite's objects one by one for nothing (0.15 s), is skipped. Called with arguments
+        (tests, other programs), it behaves as any click group."""
+        if args or kwargs:
+            return super().__call__(*args, **kwargs)
+        try:
+            super().__call__()
+            code: Any = 0
+        except SystemExit as exc:
+            code = exc.code
+        _leave(code)
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted({*self.commands, *COMMANDS})
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> Optional[click.Command]:
+        if cmd_name in COMMANDS and cmd_name not in self.commands:
+            module, function = COMMANDS[cmd_name]
+            self.add_command(getattr(importlib.import_module(module), function), cmd_name)
+        return super().get_command(ctx, cmd_name)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        names = self.list_commands(ctx)
+        limit = formatter.width - 6 - max(len(n) for n in names)
+        rows = [
+            (n, self.commands[n].get_short_help_str(limit) if n in self.commands else short_help(n, limit))
+            for n in names
+        ]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except click.UsageError as exc:
+            raise click.UsageError(one_line(exc.format_message()), exc.ctx) from None
+        except click.ClickException as exc:
+            raise click.ClickException(one_line(exc.format_message())) from None
+        except (click.exceptions.Exit, click.Abort, KeyboardInterrupt, SystemExit):
+            raise
+        except BrokenPipeError:
+            # the reader went away (e.g. `| head`): stop quietly, as other command-line tools do
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            sys.exit(1)
+        except Exception as exc:
+            if os.environ.get("FTSWEEP_DEBUG"):
+                raise
+            cause = user_cause(exc)
+            known = isinstance(exc, USER_ERRORS) or cause is not None
+            hint = "" if known else " (an unexpected error: set FTSWEEP_DEBUG=1 for the traceback)"
+            text = cause or (str(exc) if known and str(exc) else f"{type(exc).__name__}: {exc}")
+            raise click.ClickException(one_line(text, MESSAGE_LIMIT - len(hint)) + hint) from None
+
+
+# object storage's refusals that a user's set-up causes (botocore's, by name: not imported here)
+CREDENTIAL_ERRORS = frozenset({"NoCredentialsError", "PartialCredentialsError", "NoRegionError"})
+
+
+def user_cause(exc: BaseException) -> Optional[str]:
+    """The one-line cause of an error a user's input or set-up made that is not one of
+    :data:`USER_ERRORS`: missing object-storage credentials, a number out of range."""
+    name = type(exc).__name__
+    if name in CREDENTIAL_ERRORS:
+        return (
+            f"object storage refused to start: {name}: {exc}. Give credentials (AWS_ACCESS_KEY_ID and "
+            "AWS_SECRET_ACCESS_KEY, a profile, or --storage-option key=... --storage-option secret=...), "
+            "or --storage-option anon=true for a public bucket"
+        )
+    if isinstance(exc, OverflowError):
+        return f"a number is out of range ({exc}): check the magnitudes of the options and entries given"
+    return None
+
+
+def _leave(code: Any) -> None:
+    """Exit with ``code`` (a SystemExit's: None, a number or a message) without the
+    interpreter's teardown, once the exit handlers have run and the streams are flushed."""
+    import atexit
+
+    if code is not None and not isinstance(code, int):
+        sys.stderr.write(f"{code}\n")
+        code = 1
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: nothing more can be said on it
+            pass
+    os._exit(code or 0)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(__version__, prog_name="ftsweep")
+def main() -> None:
+    """Control-point layouts for fast-tool-servo (FTS) diamond turning.
+
+    An FTS controller moves the tool by bilinear interpolation in a table of control
+    points (rings in polar coordinates or a Cartesian mesh). ftsweep predicts the form
+    error a layout leaves on the machined part, including tool-nose compensation and the
+    tool-arc envelope (the model is in the README, section "The model").
+
+    \b
+    Units: lengths µm, errors nm, angles degrees, feed µm/rev.
+    Catalogs (surfaces, machines, cutting conditions) are YAML files in catalogs/ or in
+    the folder named by $FTSWEEP_CATALOGS; `ftsweep catalogs` lists them.
+    """
+    from ftsweep.engine import allocator, startup
+
+    # figures go to files here: pyplot's file backend unless the user chose one; the library
+    # itself never switches a caller's backend (a notebook's plots would stop showing)
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    allocator.tune()  # large batch temporaries reused, not page-faulted afresh (see the module)
+    startup.install()  # numba's set-up imports no scipy.linalg (see the module)
+    # a library warning (e.g. resuming a cube another code revision started) is one line on
+    # stderr, not a file path, a line number and the source line that raised it
+    warnings.formatwarning = _one_line_warning
+
+
+def _one_line_warning(message: Any, category: Any, *_: Any, **__: Any) -> str:
+    return f"Warning: {message}\n"
+
+
+@main.command("catalogs")
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def list_catalogs(as_json: bool) -> None:
+    """List the surfaces, machines, cutting conditions and sweeps the catalogs define.
+
+    Descriptions are printed whole, wrapped to the terminal. With --json, one object maps
+    each kind to its entries (every field, units in the field names) and the sweep names.
+    """
+    import shutil
+    import textwrap
+
+    from ftsweep.inputs import catalogs
+    from ftsweep.sweeps.spec import sweep_dir
+
+    kinds = ("surfaces", "machines", "cutting")
+    found = {kind: catalogs.entries(kind) for kind in kinds}
+    sweeps = sorted(p.stem for p in sweep_dir().glob("*.yaml"))
+    if as_json:
+        data: dict[str, Any] = {
+            kind: {name: spec.model_dump(mode="json") for name, spec in entries.items()}
+            for kind, entries in found.items()
+        }
+        data["sweeps"] = sweeps
+        data["catalog_dir"] = str(catalogs.catalog_dir())
+        echo_json(data)
+        return
+    width = max(40, min(shutil.get_terminal_size((100, 24)).columns, 120))
+    for kind in kinds:
+        click.echo(f"{kind} ({catalogs.catalog_dir() / (kind + '.yaml')}):")
+        for name, spec in found[kind].items():
+            extra = f" [{spec.family}, {spec.layout} layout]" if kind == "surfaces" else ""
+            desc = " ".join(spec.description.split())
+            click.echo(
+                textwrap.fill(
+                    f"{name}{extra}: {desc}",
+                    width=width,
+                    initial_indent="  ",
+                    subsequent_indent="      ",
+                    break_on_hyphens=False,  # keep "Noll-indexed", "off-axis" whole
+                )
+            )
+    click.echo(f"sweeps ({sweep_dir()}):")
+    for name in sweeps:
+        click.echo(f"  {name}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

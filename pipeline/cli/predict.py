@@ -1,0 +1,328 @@
+"""``ftsweep predict``: one case from command-line options, its record printed."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from ftsweep.cli.common import (
+    FINITE,
+    POSITIVE,
+    dpath_options,
+    echo_json,
+    fail,
+    flag,
+    fresnel_options,
+    progress_done,
+    stderr_progress,
+    threads_option,
+)
+from ftsweep.defaults import MAX_NODES, POINTS_PER_FEED, SAMPLES_PER_CELL
+
+if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
+    from pydantic import ValidationError
+
+    from ftsweep.engine.spec import Case
+
+
+@click.command()
+@click.option("--surface", required=True, metavar="NAME", help="Surface from catalogs/surfaces.yaml.")
+@click.option(
+    "--layout",
+    type=click.Choice(["ring", "mesh", "spiral", "dpath", "fresnel"]),
+    default=None,
+    help="Program: a ring (polar grid) or mesh (Cartesian grid) table for an independent FTS "
+    "controller, a spiral path program (points along the tool path, linear between them), a "
+    "D-path program ([5]: straight cuts over an off-axis part) or a freeform Fresnel program "
+    "([2]: 4-axis, facets cut along a quasi-spiral). Default: the surface's table method.",
+)
+@dpath_options
+@fresnel_options
+@click.option("--drho-um", type=FINITE, help="Ring pitch Δρ [µm] (ring layout).")
+@click.option(
+    "--dtheta-deg",
+    type=FINITE,
+    help="Angular pitch Δθ [deg] (ring); rounded to the nearest 360/Np with a notice unless --strict.",
+)
+@click.option("--dx-um", type=FINITE, help="Mesh pitch Δx [µm] (mesh layout).")
+@click.option("--dy-um", type=FINITE, help="Mesh pitch Δy [µm] (mesh layout).")
+@click.option("--points", type=FINITE, help="Target number of control points N (with --aspect).")
+@click.option("--aspect", type=FINITE, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh).")
+@click.option("--points-per-rev", type=int, help="Spiral: constant-angle rule, points per revolution.")
+@click.option("--arc-um", type=FINITE, help="Spiral: constant-arc rule, path length between points [µm].")
+@click.option(
+    "--chord-um", type=FINITE, help="Spiral: chord-error budget Δcho [µm] that places each next point."
+)
+@click.option(
+    "--residual-um",
+    type=FINITE,
+    help="Spiral: residual (cusp) budget Δres [µm]; the feed is the largest that keeps every cusp "
+    "within it, from each radial section's curvature (instead of --feed-um).",
+)
+@click.option("--feed-um", type=FINITE, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
+@click.option("--nose-radius-um", type=FINITE, help="Tool nose radius Rc [µm]. Default: cutting entry.")
+@click.option(
+    "--compensation",
+    type=click.Choice(["exact", "slope", "none"]),
+    default="exact",
+    show_default=True,
+    help="Tool-nose compensation of the table: exact arc contact, the slope approximation, or none.",
+)
+@click.option(
+    "--machine",
+    help="Machine from catalogs/machines.yaml. Default: the program kind's (tables and spirals fts-1m, "
+    "D paths sts-xzc, Fresnel xyzc-nanoform).",
+)
+@click.option(
+    "--cutting",
+    help="Entry of catalogs/cutting.yaml. Default: the program kind's (tables and spirals reference, "
+    "D paths dpath-finish, Fresnel fresnel-finish).",
+)
+@click.option(
+    "--layers",
+    type=click.Choice(["auto", "off"]),
+    default="auto",
+    show_default=True,
+    help="auto: commands spanning more than the machine's travel are cut in layers, the Z axis "
+    "retracting the part by one stroke zone between them ([3]); off: one pass, infeasible when "
+    "the commands exceed the travel.",
+)
+@click.option(
+    "--z-error-um",
+    type=FINITE,
+    help="Z positioning error per retraction between layers [µm] (positive: each falls short, "
+    "so later layers cut deeper). Default: the machine entry's.",
+)
+@click.option(
+    "--layer-change-s",
+    type=FINITE,
+    help="Time per layer segment to stop the spindle, move Z and restart [s] (layered machining). "
+    "Default: the machine entry's layer_change_s.",
+)
+@click.option(
+    "--samples-per-cell",
+    type=int,
+    default=SAMPLES_PER_CELL,
+    show_default=True,
+    help="Spindle angles simulated per table cell along the outer circumference.",
+)
+@click.option(
+    "--points-per-feed",
+    type=int,
+    default=POINTS_PER_FEED,
+    show_default=True,
+    help="Evaluation points per feed along each simulated angle (even).",
+)
+@click.option(
+    "--n-theta", type=int, help="Simulated spindle angles over 360° (overrides --samples-per-cell)."
+)
+@click.option(
+    "--interp-error/--no-interp-error",
+    default=True,
+    show_default=True,
+    help="Also simulate the exact commands for the interpolation-only P-V (pv_interp_nm); "
+    "off saves about a fifth of the time.",
+)
+@click.option(
+    "--strict",
+    is_flag=True,
+    help="Refuse an explicit Δθ that does not divide 360° instead of rounding it to the nearest that does.",
+)
+@click.option(
+    "--max-nodes",
+    type=POSITIVE,
+    default=MAX_NODES,
+    show_default=True,
+    help="Refuse cases of more evaluation nodes than this (about 3·10⁶ nodes a second on one core).",
+)
+@threads_option
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def predict(**opts: Any) -> None:
+    """Predict the form error one program leaves on the machined surface.
+
+    Give a table either by explicit pitches (--drho-um and --dtheta-deg for rings,
+    --dx-um and --dy-um for meshes) or by a target point count and aspect ratio
+    (--points and --aspect); the actual point count and pitches are reported.
+
+    Commands spanning more than the machine's travel are cut in layers (--layers auto, [3]):
+    stroke zones of the travel less the machine's margin, one Z offset each; the JSON's
+    "layers" holds the schedule (offsets, start radii, strokes, lengths, times per layer).
+
+    A spiral program (--layout spiral) places its points along the tool path by one rule:
+    --points-per-rev (constant angle), --arc-um (constant path length) or --chord-um (each
+    chord within the budget of the compensated path, [4]); its feed is --feed-um, the
+    cutting entry's, or the largest the residual budget --residual-um allows.
+
+    A D-path program (--layout dpath, [5]) cuts the off-axis part along straight lines
+    --spacing-um apart, --points-per-cut each, joined by quintic transitions outside it; give
+    a machine with X, Z and C limits and its cutting entry (e.g. --machine sts-xzc --cutting
+    dpath-finish). `ftsweep dpath` studies both transitions and the spiral beside it.
+
+    A Fresnel program (--layout fresnel, [2]) slices the surface into facets --facet-height-um
+    high and cuts them along a quasi-spiral, --points-per-turn per turn, feed Δr per turn the
+    --feed-um; its timesteps are optimised for the machine's X, Y, Z, C limits (e.g. --machine
+    xyzc-nanoform --cutting fresnel-finish). P-V and RMS are the facets' (walls excluded);
+    --compensation selects [2]'s exact (eq. 10), slope (eq. 12) or none.
+
+    \b
+    Examples:
+      ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5
+      ftsweep predict --surface lens_array --layout mesh --dx-um 4 --dy-um 4 --json
+      ftsweep predict --surface sinewave2d --points 500000 --aspect 8
+      ftsweep predict --surface sinewave2d --layout spiral --points-per-rev 500
+      ftsweep predict --surface sinusoidal_mesh --layout spiral --chord-um 0.5 --residual-um 0.5 \\
+          --cutting seed003 --machine sts-nanoform
+      ftsweep predict --surface microprism --machine fts-5um --cutting microprism --points 250000 \\
+          --aspect 1 --z-error-um 0.1
+      ftsweep predict --surface concave_sphere --layout dpath --spacing-um 20 \\
+          --machine sts-xzc --cutting dpath-finish
+      ftsweep predict --surface chebyshev_example --layout fresnel --facet-height-um 10 \\
+          --machine xyzc-nanoform --cutting fresnel-finish
+    """
+    from ftsweep.engine.simulator import run_case
+    from ftsweep.engine.spec import CaseError
+    from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.inputs.usersurfaces import SurfaceLoadError
+
+    case = _build_case(opts)
+    as_json = opts["as_json"]
+    progress = stderr_progress("simulating", as_json)
+    try:
+        record = run_case(case, progress=progress, max_nodes=opts["max_nodes"])
+    except (CaseError, CatalogError, SurfaceLoadError) as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        progress_done(progress)
+    if as_json:
+        echo_json(record)
+    else:
+        click.echo(summary_text(record))
+
+
+def _build_case(opts: dict[str, Any]) -> Case:
+    """The case of ``predict``'s options. The option combinations are checked here; every
+    value is validated by the spec models, whose errors are reported by option name."""
+    from pydantic import ValidationError
+
+    from ftsweep import kinds
+    from ftsweep.engine import result
+    from ftsweep.engine.spec import Case, Resolution
+    from ftsweep.inputs import catalogs
+    from ftsweep.inputs.catalogs import CatalogError
+
+    surface, layout = opts["surface"], opts["layout"]
+    try:
+        spec = catalogs.entry("surfaces", surface)
+        kind = layout or spec.layout
+        machine = opts["machine"] or kinds.kind(kind).machine
+        cutting = opts["cutting"] or kinds.kind(kind).cutting
+        catalogs.entry("machines", machine)
+        catalogs.entry("cutting", cutting)
+    except CatalogError as exc:
+        raise click.ClickException(str(exc)) from None
+    try:
+        request, notices = kinds.request_from_options(kind, opts)
+    except ValueError as exc:
+        fail(str(exc))
+    own = result.pitch_names(kind) if kinds.kind(kind).aspect_range is not None else ()
+    try:
+        # validated as part of the case, so that an error's location names the option
+        case = Case(
+            surface=surface,
+            layout=request,  # type: ignore[arg-type]
+            machine=machine,
+            cutting=cutting,
+            feed_um=opts["feed_um"],
+            nose_radius_um=opts["nose_radius_um"],
+            compensation=opts["compensation"],
+            layers=opts["layers"],
+            z_error_um=opts["z_error_um"],
+            layer_change_s=opts["layer_change_s"],
+            resolution=Resolution(
+                samples_per_cell=opts["samples_per_cell"],
+                points_per_feed=opts["points_per_feed"],
+                n_theta=opts["n_theta"],
+                interp_error=opts["interp_error"],
+            ),
+        )
+    except ValidationError as exc:
+        raise click.UsageError(_option_errors(exc, own)) from None
+    for notice in notices:
+        click.echo(notice, err=True)
+    return case
+
+
+def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
+    """A spec model's validation errors, each named by the option that gave the value
+    (``layout.pitch.0`` is the first pitch option, ``resolution.n_theta`` is --n-theta)."""
+    from ftsweep import kinds
+    from ftsweep.inputs import catalogs
+
+    parts = []
+    for e in exc.errors():
+        loc = [str(p) for p in e["loc"]]
+        if loc[:1] == ["layout"] and len(loc) > 1 and loc[1] in kinds.registry():
+            del loc[1]  # the request model's tag (its kind)
+        if loc[:2] == ["layout", "pitch"] and len(loc) > 2:
+            name = pitch_names[int(loc[2])]
+        elif loc and loc[0] in ("layout", "resolution") and len(loc) > 1:
+            name = loc[1]
+        else:
+            name = loc[-1] if loc else ""
+        text = f"{catalogs.error_text(e)} (got {catalogs.short_repr(e.get('input'))})"
+        parts.append(f"{flag(name)}: {text}" if name else text)
+    return "; ".join(dict.fromkeys(parts))
+
+
+def summary_text(r: dict[str, Any]) -> str:
+    from ftsweep import kinds
+
+    lines = [
+        f"surface      {r['surface']}",
+        *kinds.kind(r["layout"]).describe(r),
+        f"cutting      feed {r['feed_um']:g} µm/rev, nose radius {r['nose_radius_um']:g} µm, "
+        f"compensation {r['compensation']}",
+        f"resolution   {r['n_theta']:,} angles × {r['points_per_feed']} points/feed "
+        f"({r['n_eval']:,} evaluation points)",
+        "",
+        f"P-V          {r['pv_nm']:.2f} nm   "
+        f"(inner zone {r['pv_inner_nm']:.2f} nm, outer zone {r['pv_outer_nm']:.2f} nm)",
+        f"RMS          {r['rms_nm']:.2f} nm",
+        f"error range  {r['error_min_nm']:.2f} … {r['error_max_nm']:.2f} nm",
+        f"interp. P-V  {r['pv_interp_nm']:.2f} nm   (interpolation alone)"
+        if math.isfinite(r["pv_interp_nm"])
+        else "interp. P-V  not simulated (--no-interp-error)",
+        f"feed cusp    {r['cusp_nm']:.2f} nm   (F²/8Rc)",
+    ]
+    if "w_freq_max_hz" in r:  # the W motion of a spindle program (a D path describes its own)
+        verdict = "feasible" if r["feasible"] else f"INFEASIBLE: {r['infeasible_reason']}"
+        lines.append(
+            f"W motion     stroke {r['stroke_um']:.3g} µm, "
+            f"peak velocity {r['w_velocity_peak_mm_s']:.3g} mm/s, "
+            f"peak acceleration {r['w_accel_peak_m_s2']:.3g} m/s² (RMS {r['w_accel_rms_m_s2']:.3g}), "
+            f"content up to {r['w_freq_max_hz']:.0f} Hz: {verdict}"
+        )
+    if r.get("layers"):
+        lay = r["layers"]
+        starts = ", ".join(f"{v:.1f}" for v in lay["start_radius_um"])
+        lines += [
+            f"layers       {lay['n_layers']} zones of {lay['zone_um']:.4g} µm ({r['layer_segments']:,} "
+            f"segments), stroke extended {lay['stroke_extension']:.3g}×, Z error "
+            f"{lay['z_error_um']:.3g} µm per retraction",
+            f"             offsets {', '.join(f'{v:.4g}' for v in lay['offset_um'])} µm; "
+            f"start radii {starts} µm",
+            f"machining    {r['machining_s']:.0f} s in layers ({r['layer_change_share']:.0%} of it changing "
+            f"segments at {r['layer_change_s']:g} s each), {r['single_pass_s']:.0f} s for one pass",
+        ]
+    if r["gouge_points"]:
+        lines.append(
+            f"gouge        {r['gouge_points']:,} control points where the concave radius is below Rc"
+        )
+    lines.append(
+        f"time         {r['seconds']:.2f} s  (compensation {r['seconds_compensation']:.2f}, sampling "
+        f"{r['seconds_sampling']:.2f}, interpolation {r['seconds_interpolation']:.2f}, envelope "
+        f"{r['seconds_envelope']:.2f}, metrics {r['seconds_metrics']:.2f})"
+    )
+    return "\n".join(lines)

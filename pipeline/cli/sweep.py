@@ -1,0 +1,277 @@
+"""The ``sweep`` command: run a sweep into its cube with progress lines, the cluster it got,
+and an end-of-run summary."""
+
+from __future__ import annotations
+
+import math
+import signal
+import sys
+import time
+from collections.abc import Callable
+from typing import Any, Optional
+
+import click
+
+from ftsweep.cli.common import COUNT, NON_NEGATIVE, STORAGE_OPTIONS, FiniteRange, cube_place, one_line
+from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S
+
+# exit statuses a scheduler can act on: 0 every case done; 1 cases failed or are pending, or
+# the run could not go on (the message says why: re-run, or --retry-failed); 2 a usage error;
+# 75 (EX_TEMPFAIL) another run holds the cube's lock: try again later
+EXIT_DONE, EXIT_INCOMPLETE, EXIT_LOCKED = 0, 1, 75
+
+
+@click.command()
+@click.argument("sweep_name", metavar="NAME|PATH")
+@click.option(
+    "--out",
+    metavar="PATH|URL",
+    help="Cube to write: a Zarr folder, or an fsspec URL (s3://bucket/c.zarr, gs://, abfs://, "
+    "memory://) that every worker reaches. Default: outputs/<sweep>.zarr.",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDRESS",
+    help="Address of a running dask scheduler (tcp://host:port); also read from "
+    "$DASK_SCHEDULER_ADDRESS. 'synchronous' runs in this process. Default: a local cluster.",
+)
+@click.option("--workers", type=COUNT, help="Worker processes of the local cluster. Default: one per core.")
+@click.option(
+    "--restart",
+    is_flag=True,
+    help="Discard an existing cube and start over (required when the spec changed).",
+)
+@click.option("--retry-failed", is_flag=True, help="Also recompute cases recorded as failed.")
+@click.option(
+    "--max-cases",
+    type=COUNT,
+    default=MAX_CASES,
+    show_default=True,
+    help="Refuse sweeps of more cases than this (each takes seconds of a core).",
+)
+@click.option(
+    "--prune",
+    type=FiniteRange(min=1.0, min_open=True),
+    metavar="FACTOR",
+    help="Leave out cases whose estimated P-V (`ftsweep estimate`) exceeds FACTOR times the best "
+    "estimate of their point count; they are marked pruned, and a run without --prune computes "
+    "them. The estimate was within 0.62-1.23 of the simulation on the reference sweeps, so 3 is safe.",
+)
+@click.option(
+    "--line-cache-mb",
+    type=NON_NEGATIVE,
+    default=LINE_CACHE_MB,
+    show_default=True,
+    help="Memory [MiB] each worker may keep of the lines (surface samples and exact commands) "
+    "that cases on the same angular sampling share; 0 computes every case on its "
+    "own. Results are the same either way. resolution.angular_ladder in the spec makes cases share.",
+)
+@click.option(
+    "--worker-wait",
+    type=FiniteRange(min=0.0, min_open=True),
+    default=WORKER_WAIT_S,
+    show_default=True,
+    metavar="SECONDS",
+    help="How long to wait for a first worker of --scheduler, and for one to come back after "
+    "every worker left; then the run ends with exit status 1 (finished cases are in the cube).",
+)
+@STORAGE_OPTIONS
+def sweep(
+    sweep_name: str,
+    out: Optional[str],
+    scheduler: Optional[str],
+    workers: Optional[int],
+    restart: bool,
+    retry_failed: bool,
+    max_cases: int,
+    prune: Optional[float],
+    line_cache_mb: float,
+    worker_wait: float,
+    storage_options: tuple[str, ...],
+) -> None:
+    """Run a sweep of point counts and aspect ratios into a Zarr result cube.
+
+    NAME is a spec in catalogs/sweeps/ (e.g. sinewave-ring, lens-array-mesh), or give a
+    path to a YAML file. Every case is logged as soon as it finishes and merged into the
+    cube within seconds. Re-running the same command computes only what is missing, so an
+    interrupted or killed run loses nothing already written; done cases whose data files are
+    missing or unreadable are recomputed. A cube made from a different spec is refused unless
+    --restart, which discards the cube and starts over — except a spec that only adds values to
+    its axes: the cube grows and only the new cases are computed. One process writes a cube at
+    a time: a second sweep on the same cube (also with --restart) is refused while the first
+    runs.
+
+    \b
+    Exit status: 0 every case done; 1 cases failed or pending, or the run could not go on (the
+    message says why); 2 a usage error; 75 another run holds the cube's lock (try later).
+
+    \b
+    Examples:
+      ftsweep sweep sinewave-ring
+      ftsweep sweep my-sweep.yaml --out outputs/my.zarr --workers 2
+      ftsweep sweep lens-array-mesh --scheduler tcp://127.0.0.1:8786
+    """
+    from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.sweeps.run import axis_summary
+    from ftsweep.sweeps.spec import load_sweep
+
+    try:
+        name, spec = load_sweep(sweep_name)
+    except CatalogError as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
+    report = _run(
+        sweep_name,
+        None if out is None else cube_place(out, storage_options),
+        scheduler,
+        workers,
+        restart,
+        retry_failed,
+        max_cases=max_cases,
+        prune=prune,
+        line_cache_mb=line_cache_mb,
+        worker_wait_s=worker_wait,
+    )
+    _report_problems(report)
+    counts = _print_sweep_summary(report)
+    if counts["pending"] or counts["failed"]:
+        sys.exit(EXIT_INCOMPLETE)
+
+
+def _run(*args: Any, **kwargs: Any) -> Any:
+    """:func:`ftsweep.sweeps.run.run_sweep` with progress lines, its errors as one-line messages, and
+    a word on stderr when a signal ends it (its lock is released on the way out)."""
+    from ftsweep.store.lock import LockError
+    from ftsweep.sweeps.executor import ExecutorError
+    from ftsweep.sweeps.run import run_sweep
+
+    try:
+        return run_sweep(
+            *args, progress=_sweep_progress(time.perf_counter()), announce=_announce_cluster, **kwargs
+        )
+    except LockError as exc:  # another run writes the cube: a scheduler should try again later
+        click.echo(f"Error: {exc}", err=True)
+        sys.exit(EXIT_LOCKED)
+    except (ValueError, ExecutorError) as exc:  # catalog, cube and case errors are ValueErrors
+        raise click.ClickException(str(exc)) from None
+    except SystemExit as exc:
+        if exc.code in (128 + signal.SIGTERM, 128 + signal.SIGHUP):
+            click.echo(
+                "terminated by a signal: the cube's lock is released and finished cases are kept; "
+                "run the same command to go on",
+                err=True,
+            )
+        raise
+
+
+def _announce_cluster(report: Any) -> None:
+    """One line when the cluster is up: its workers and threads, and where its dashboard is."""
+    board = report.dashboard or "none (pip install 'ftsweep[dashboard]' for one)"
+    click.echo(
+        f"cluster      {report.workers} worker(s), {report.threads} thread(s), {report.tasks} task(s); "
+        f"dashboard {board}",
+        err=True,
+    )
+
+
+def _report_problems(report: Any) -> None:
+    """Say which done cases were recomputed (damaged) and refuse a run whose cases could not
+    be started (they stay pending)."""
+    for index, reason in sorted(report.damaged.items())[:5]:
+        click.echo(f"recomputed   case {index}: it was done but {reason}", err=True)
+    errors = [r for r in report.rows if r["status"] == "error"]
+    if errors:
+        first = errors[0]
+        raise click.ClickException(
+            f"{len(errors)} case(s) could not be run and stay pending; first: {_case_label(first)}: "
+            f"{first['message']}"
+        )
+
+
+def _case_label(row: dict[str, Any]) -> str:
+    return f"case {row['index']} ({row['request']})" if row.get("request") else f"case {row['index']}"
+
+
+# progress lines come as cases finish, at most one a second (a failure or the last case at once)
+PROGRESS_EVERY_S = 1.0
+
+
+def _sweep_progress(started: float) -> Callable[[Any, list[dict]], None]:
+    """A progress line on stderr as cases finish (the first at once, then at most one per
+    :data:`PROGRESS_EVERY_S`): cases done, failures, time, ETA, last case."""
+    shown = [-math.inf]
+
+    def progress(report: Any, rows: list[dict]) -> None:
+        total_now = report.queued
+        done = len(report.rows)
+        elapsed = time.perf_counter() - started
+        failed_now = any(r["status"] != "done" for r in rows)
+        if elapsed - shown[0] < PROGRESS_EVERY_S and done < total_now and not failed_now:
+            return
+        shown[0] = elapsed
+        eta = _eta_text(report, rows_all=report.rows, remaining=total_now - done)
+        last = rows[-1]
+        what = f"{_case_label(last)}: " + (
+            f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else one_line(last["message"], 300)
+        )
+        click.echo(
+            f"[{done:>{len(str(total_now))}}/{total_now}] {report.failed} failed | {elapsed:6.1f} s, "
+            f"{eta} | {what}",
+            err=True,
+        )
+
+    return progress
+
+
+def _eta_text(report: Any, rows_all: list[dict], remaining: int) -> str:
+    """The time left, from the measured times of the cases finished so far (their summed
+    case seconds over the workers), not from the wall time, which holds the cluster's start
+    and the kernels' compilation; none until two cases have finished."""
+    times = [r.get("seconds", 0.0) for r in rows_all if r.get("seconds")]
+    if len(times) < 2 or remaining <= 0:
+        return "ETA –" if remaining > 0 else "ETA 0 s"
+    per_case = sum(times) / len(times)
+    return f"ETA {per_case * remaining / max(report.workers, 1):6.0f} s"
+
+
+def _print_sweep_summary(report: Any) -> dict[str, int]:
+    """The end-of-run summary on stdout: counts, throughput, failures, best per point count."""
+    from ftsweep.sweeps.run import best_per_point_count, cube_counts
+
+    counts = cube_counts(report.cube)
+    click.echo(f"cube         {report.cube}")
+    if report.note:
+        click.echo(f"spec         {report.note}")
+    click.echo(
+        f"cases        {report.total} in all: {counts['done']} done, {counts['failed']} failed, "
+        f"{counts['pending']} pending, {counts['pruned']} pruned ({report.skipped} were done already, "
+        f"{len(report.rows)} run now)"
+    )
+    busy = sum(r.get("seconds", 0.0) for r in report.rows)
+    rate = len(report.rows) / report.wall_s if report.wall_s > 0 else float("nan")
+    click.echo(
+        f"wall time    {report.wall_s:.1f} s with {report.workers} worker(s) ({report.threads} thread(s)): "
+        f"{rate:.3g} cases/s; "
+        f"summed case time {busy:.1f} s"
+    )
+    reused = [r.get("reused_batches", 0) for r in report.rows if r["status"] == "done"]
+    if any(reused):
+        click.echo(
+            f"shared lines {sum(1 for n in reused if n)} case(s) reused {sum(reused):,} batches of lines "
+            "computed by an earlier case on the same worker"
+        )
+    for r in [r for r in report.rows if r["status"] != "done"][:5]:
+        click.echo(f"failed       {_case_label(r)}: {one_line(r['message'], 300)}")
+    click.echo("best P-V per point count (among the cases select may choose):")
+    rows = best_per_point_count(report.cube)
+    # tables are swept over aspect ratios; a path program's best is named by its case
+    tables = any(r["table"] for r in rows)
+    third = "best α" if tables else "case"
+    click.echo(f"  {'target':>10s} {'actual N':>10s} {third:>8s} {'P-V nm':>9s}")
+    for row in rows:
+        if row["pv_nm"] is None:
+            click.echo(f"  {row['points']:10,.0f} {'–':>10s} {'–':>8s} {'–':>9s}")
+            continue
+        which = f"{row['aspect']:8.3g}" if tables else f"{row['index']:8d}"
+        click.echo(f"  {row['points']:10,.0f} {row['n_points']:10,d} {which} {row['pv_nm']:9.2f}")
+    return counts

@@ -1,0 +1,338 @@
+"""The planning tools: ``optimize`` (the tolerance loop), ``estimate`` (predicted P-V of a
+sweep's cases without simulating them) and ``bench`` (timings)."""
+
+from __future__ import annotations
+
+import functools
+import sys
+import time
+from pathlib import Path
+from typing import Any, Optional
+
+import click
+
+from ftsweep.cli.common import COUNT, FINITE, POSITIVE, echo_json, fail
+
+
+@click.command()
+@click.argument("surface", required=False)
+@click.option(
+    "--sweep",
+    "sweep_name",
+    metavar="NAME|PATH",
+    help="Take surface, layout, machine, cutting and resolution from a sweep spec.",
+)
+@click.option(
+    "--layout",
+    type=click.Choice(["ring", "mesh", "spiral", "dpath", "fresnel"]),
+    help="Program kind. Default: the surface's table method. The search spans aspect ratios, so "
+    "it takes tables; a path program is refused saying so.",
+)
+@click.option("--tolerance-nm", type=POSITIVE, required=True, help="P-V the part must meet [nm].")
+@click.option(
+    "--start-points",
+    type=FINITE,
+    default=50_000,
+    show_default=True,
+    help="Point count of the first, coarse round.",
+)
+@click.option("--machine", default="fts-1m", show_default=True, help="Machine from catalogs/machines.yaml.")
+@click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False),
+    help="Cube recording every evaluation (a folder, or an fsspec URL with storage options from "
+    "fsspec's configuration). Default: outputs/optimize-<surface>-<layout>.zarr.",
+)
+@click.option(
+    "--restart",
+    is_flag=True,
+    help="Discard the evaluation cube and start over (required when the search changed); without "
+    "it, re-running the same search resumes, reusing every finished evaluation.",
+)
+@click.option(
+    "--seed",
+    type=click.Choice(["scan", "estimate"]),
+    default="scan",
+    show_default=True,
+    help="Where the search starts: a scan of nine aspect ratios at --start-points, or the point "
+    "count and aspect ratio `ftsweep estimate` predicts for the tolerance (fewer evaluations).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def optimize(
+    surface: Optional[str],
+    sweep_name: Optional[str],
+    layout: Optional[str],
+    tolerance_nm: float,
+    start_points: float,
+    machine: str,
+    cutting: str,
+    out: Optional[str],
+    restart: bool,
+    seed: str,
+    as_json: bool,
+) -> None:
+    """Find the smallest layout that meets a P-V tolerance (the shop's tolerance loop).
+
+    Starts coarse (a scan of aspect ratios at --start-points), refines around the best
+    aspect ratio, then raises (or lowers) the point count using P-V ∝ 1/N until the
+    tolerance is met with as few points as possible or the controller's capacity is
+    reached. Every evaluation is recorded in a cube as soon as it finishes (the store
+    protocol of sweeps), so an interrupted search resumes where it stopped.
+
+    \b
+    Examples:
+      ftsweep optimize sinewave2d --layout ring --tolerance-nm 20
+      ftsweep optimize --sweep lens-array-mesh --tolerance-nm 30
+    """
+    from ftsweep.tools.optimize import optimize as run_optimize
+
+    resolution = None
+    compensation = "exact"
+    try:
+        if sweep_name:
+            surface, layout, machine, cutting, resolution, compensation = _of_sweep(sweep_name)
+        if not surface:
+            fail("give a SURFACE or --sweep")
+        assert surface is not None
+
+        result = run_optimize(
+            surface,
+            layout,
+            tolerance_nm,
+            out,
+            start_points,
+            machine,
+            cutting,
+            compensation,
+            resolution,
+            restart,
+            on_eval=functools.partial(_print_evaluation, tolerance_nm),
+            seed=seed,
+        )
+    except ValueError as exc:  # catalog and cube errors are ValueErrors
+        raise click.ClickException(str(exc)) from None
+    if as_json:
+        echo_json(result)
+    else:
+        _print_optimum(result, tolerance_nm)
+    if not result["met"]:
+        sys.exit(1)
+
+
+def _of_sweep(sweep_name: str) -> tuple[Any, ...]:
+    """Surface, layout, machine, cutting, resolution and compensation of a sweep spec."""
+    from ftsweep.sweeps.spec import load_sweep
+
+    _, spec = load_sweep(sweep_name)
+    return spec.surface, spec.layout, spec.machine, spec.cutting, spec.resolution, spec.compensation
+
+
+def _print_evaluation(tolerance_nm: float, rec: dict[str, Any]) -> None:
+    """One line on stderr per evaluation of the tolerance loop."""
+    pv = f"P-V {rec['pv_nm']:.2f} nm" if rec["status"] == "done" else rec["message"]
+    mark = "meets" if rec["status"] == "done" and rec["pv_nm"] <= tolerance_nm else ""
+    click.echo(
+        f"[{rec['stage']:>6s}] N≈{rec['points_target']:>9,.0f} α={rec['aspect_target']:<8.4g} {pv} {mark}",
+        err=True,
+    )
+
+
+def _print_optimum(result: dict[str, Any], tolerance_nm: float) -> None:
+    """The loop's verdict and the layout it found."""
+    from ftsweep.cli.predict import summary_text
+
+    verdict = "met" if result["met"] else "NOT met (best found below)"
+    click.echo(
+        f"tolerance    {tolerance_nm:g} nm: {verdict}; {result['evaluations']} evaluations "
+        f"({result['reused']} reused) in {result['cube']}"
+    )
+    if result["answer"] is not None:
+        click.echo(summary_text(result["answer"]))
+
+
+@click.command()
+@click.argument("sweep_name", metavar="SWEEP")
+@click.option(
+    "--compare",
+    "cube_path",
+    type=click.Path(path_type=Path),
+    help="A simulated cube of this sweep: also print how the estimate agrees with it.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
+    """Estimate the P-V of every layout of a sweep in milliseconds, without simulating.
+
+    The first-order bilinear error ⅛·(Δ₁²·∂₁₁f + Δ₂²·∂₂₂f) per cell (model §3), from the
+    surface's sampled second derivatives and each layout's pitches, spanned over the part,
+    plus the feed cusp F²/8Rc (model §5). It locates the aspect optimum and the hopeless
+    corners of a sweep plane; the simulation decides. With --compare CUBE it states its
+    measured agreement with a simulated cube of the same sweep.
+
+    \b
+    Examples:
+      ftsweep estimate sinewave-ring
+      ftsweep estimate lens-array-mesh --compare outputs/lens-array-mesh.zarr --json
+    """
+    import numpy as np
+
+    from ftsweep import kinds
+    from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.kinds.table.estimate import agreement, best_aspect, estimate_sweep
+    from ftsweep.store.cube import CubeError
+    from ftsweep.sweeps.spec import load_sweep
+    from ftsweep.tools.select import open_cube
+
+    try:
+        name, spec = load_sweep(sweep_name)
+    except CatalogError as exc:
+        raise click.ClickException(str(exc)) from None
+    started = time.perf_counter()
+    ds = estimate_sweep(spec)
+    seconds = time.perf_counter() - started
+    pv = ds["pv_estimate_nm"]
+    while pv.ndim > 2:  # optional feed/nose-radius axes: their first values
+        pv = pv.isel({pv.dims[-1]: 0})
+    best = best_aspect(pv)
+    out: dict[str, Any] = {
+        "sweep": name,
+        "layouts": int(ds["interp_estimate_nm"].size),
+        "seconds": seconds,
+        "best": [
+            {"points": float(n), "aspect": float(a), "pv_estimate_nm": float(pv.sel(points=n, aspect=a))}
+            for n, a in zip(best["points"].values, best.values, strict=True)
+            if np.isfinite(a)
+        ],
+    }
+    if cube_path is not None:
+        try:
+            out["agreement"] = agreement(ds, open_cube(cube_path))
+        except (CubeError, OSError, KeyError, ValueError) as exc:
+            raise click.ClickException(f"{cube_path}: cannot compare: {exc}") from None
+    if as_json:
+        echo_json(out)
+        return
+    _print_estimate(out, name, kinds.kind(spec.layout).aspect_units.replace("um", "µm").replace("1", ""))
+
+
+def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
+    """The estimate's best aspect per point count, and its agreement with a simulated cube."""
+    click.echo(f"estimated {out['layouts']} layouts of sweep '{name}' in {out['seconds'] * 1e3:.0f} ms")
+    click.echo(f"{'points':>12}  {'best aspect':>12}  {'P-V estimate':>14}")
+    for row in out["best"]:
+        click.echo(
+            f"{row['points']:>12,.0f}  {row['aspect']:>8.4g} {unit:<6} {row['pv_estimate_nm']:>9.2f} nm"
+        )
+    if "agreement" in out:
+        a = out["agreement"]
+        click.echo(
+            f"against {a['cases']} simulated cases: estimate/simulated P-V {a['pv_ratio_min']:.2f} … "
+            f"{a['pv_ratio_max']:.2f} (median {a['pv_ratio_median']:.2f}; "
+            f"{100 * a['within_factor_2']:.0f} % within a factor 2); aspect optimum within a factor "
+            f"{a['optimum_aspect_factor_max']:.2f} of the simulated one"
+        )
+
+
+@click.command()
+@click.option("--case", "names", multiple=True, metavar="NAME", help="Only this case (repeatable).")
+@click.option("--repeat", type=int, default=1, show_default=True, help="Runs per case; the fastest counts.")
+@click.option(
+    "--json",
+    "json_path",
+    type=click.Path(dir_okay=False, writable=True),
+    default="outputs/bench.json",
+    show_default=True,
+    help="Also write the figures to this JSON file.",
+)
+@click.option(
+    "--sweep",
+    "sweep_name",
+    metavar="SWEEP",
+    help="Also run this sweep (e.g. sinewave-ring, ~30 s on 2 workers) and report cases/s and the "
+    "efficiency (summed case time over wall time × workers).",
+)
+@click.option(
+    "--workers",
+    type=COUNT,
+    multiple=True,
+    help="Worker processes for --sweep on a local cluster; repeat for one run each "
+    "(e.g. --workers 1 --workers 2). Default: 2.",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDRESS",
+    help="Also run --sweep on the cluster of this Dask scheduler (e.g. tcp://127.0.0.1:8786), "
+    "with the workers it has.",
+)
+@click.option(
+    "--threads",
+    type=COUNT,
+    help="Threads for the '×N' rows of the 10⁶-point cases (a single case on N threads, as "
+    "`predict --threads N`). Default: every usable core; 1 leaves those rows out.",
+)
+@click.option(
+    "--cube-cases",
+    type=COUNT,
+    help="Also build a synthetic cube of this many cases (e.g. 100000: ~10 s) in a temporary "
+    "folder and report its objects, and the seconds to open it and to select from it.",
+)
+def bench(
+    names: tuple[str, ...],
+    repeat: int,
+    json_path: str,
+    sweep_name: Optional[str],
+    workers: tuple[int, ...],
+    scheduler: Optional[str],
+    threads: Optional[int],
+    cube_cases: Optional[int],
+) -> None:
+    """Time whole commands, the case runner per stage, and optionally a sweep.
+
+    Prints the seconds of whole commands, each run as its own process (start-up, imports,
+    kernel loading and exit included: what a user waits for): help, predict (5k and 950k
+    ring points, a 990k-point chord spiral; one thread and all cores), verify of a header,
+    dpath (alone, with its 1M-line program, verify of that program), fresnel. Then the
+    seconds per case of the published reference cases and two 10⁶-point layouts split into
+    compensation, surface sampling, interpolation, envelope and metrics, after a warm-up that
+    pays numba's compile cost, on one thread (and the 10⁶-point ones on --threads). With
+    --sweep, the throughput of a whole sweep on each --workers count and on --scheduler; with
+    --cube-cases, a synthetic cube's object count and open and select times. Nothing is
+    asserted about time (about 3 minutes without --sweep).
+    """
+    from ftsweep.defaults import usable_cores
+    from ftsweep.store.io import write_json_atomic
+    from ftsweep.tools.bench import (
+        format_sweep,
+        format_table,
+        format_whole_process,
+        run_benchmark,
+        sweep_throughput,
+        whole_process,
+    )
+
+    try:
+        # whole processes first, while this one is small: once the in-process cases have run it
+        # keeps ~1 GB (ftsweep.engine.allocator), and on this VM a child's fresh pages then came ~30 %
+        # slower (the 990k-point chord spiral 3.0 -> 3.9-4.2 s, measured both ways)
+        rows = whole_process(max(repeat, 3)) if not names else []
+        result = run_benchmark(list(names) or None, repeat=repeat, threads=threads or usable_cores())
+        result["whole_process"] = rows
+    except ValueError as exc:
+        raise click.ClickException(str(exc)) from None
+    if result["whole_process"]:
+        click.echo(format_whole_process(result["whole_process"]))
+    click.echo(format_table(result))
+    if sweep_name is not None:
+        runs = [(n, None) for n in (workers or (2,))] + ([(0, scheduler)] if scheduler else [])
+        result["sweeps"] = []
+        for n, address in runs:
+            click.echo(f"running sweep {sweep_name} on {address or f'{n} local worker(s)'} ...", err=True)
+            result["sweeps"].append(sweep_throughput(sweep_name, n, address))
+            click.echo(format_sweep(result["sweeps"][-1]))
+    if cube_cases:
+        from ftsweep.store.cubescale import cube_scale, format_cube_scale
+
+        result["cube_scale"] = cube_scale(cube_cases)
+        click.echo(format_cube_scale(result["cube_scale"]))
+    write_json_atomic(json_path, result)
+    click.echo(f"wrote {json_path}")

@@ -1,0 +1,3 @@
+"""D-shaped slow-tool-servo paths ([5]): the kind, its planner and simulation, its study and
+figures.
+"""

@@ -1,0 +1,240 @@
+"""D-shaped slow-tool-servo programs ([5]): straight parallel cuts over an off-axis part, one
+per revolution, joined by transitions outside it; planned by :func:`ftsweep.kinds.dpath.program.plan`, the
+cut points compensated as a table's (model §4), and simulated by the one simulator on rays
+across the zone that the path's passes cross (:class:`ftsweep.kinds.dpath.program.DPathSimulation`)."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from typing import Any, Optional
+
+import numpy as np
+
+from ftsweep.engine.planning import compensator
+from ftsweep.engine.spec import Case, CaseError
+from ftsweep.engine.threads import compensate_in_parts
+from ftsweep.inputs import catalogs
+from ftsweep.kinds import Planning, ProgramKind
+from ftsweep.kinds.requests import DPathRequest
+
+AXES = ("spacing_um", "points_per_cut")
+
+
+# compensated cut points kept for the plans made inside :func:`shared_cuts` (None: not kept)
+_SHARED_CUTS: ContextVar[Optional[dict[tuple[Any, ...], tuple[np.ndarray, np.ndarray]]]] = ContextVar(
+    "dpath_shared_cuts", default=None
+)
+
+
+@contextmanager
+def shared_cuts() -> Iterator[None]:
+    """Within the block, D-path plans whose cut points are the same points of the same part,
+    compensated the same way, compensate them once: the traditional and the optimised path of
+    one part differ only in their transitions (a D-path study plans both; [5]). The values are
+    those a plan computes on its own; they are dropped when the block ends."""
+    token = _SHARED_CUTS.set({})
+    try:
+        yield
+    finally:
+        _SHARED_CUTS.reset(token)
+
+
+def _cuts_key(
+    case: Case, surface_spec: Any, rc: float, bound: float, rho: np.ndarray, theta: np.ndarray
+) -> tuple[Any, ...]:
+    """Everything the compensated cut points depend on but the transition: the case (its
+    request without the transition: the part's placement), the surface entry, the arc, the
+    gradient bound and the points themselves (their bytes' digest)."""
+    layout = case.layout.model_copy(update={"transition": None})
+    points = hashlib.blake2b(np.ascontiguousarray(rho).tobytes(), digest_size=16)
+    points.update(np.ascontiguousarray(theta).tobytes())
+    return (
+        case.model_copy(update={"layout": layout}).model_dump_json(),
+        surface_spec.model_dump_json(),
+        rc,
+        bound,
+        rho.size,
+        points.hexdigest(),
+    )
+
+
+def plan_dpath(
+    case: Case,
+    surface_spec: Any,
+    surface: Any,
+    spacing_um: float,
+    rc: float,
+    bound: float,
+    program: Optional[tuple[Any, np.ndarray]] = None,
+    max_points: float = math.inf,
+) -> tuple[Any, dict[str, Any]]:
+    """The D-path program of a case ([5], :func:`ftsweep.kinds.dpath.program.plan`): its cut points
+    compensated as a table's (model §4), or the given ``program`` as it stands. A path of
+    more than ``max_points`` points is refused before it is made."""
+
+    from ftsweep.kinds.dpath import program as dpath_program
+
+    def compensated(part: Any, rho: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        def solve() -> tuple[np.ndarray, np.ndarray]:
+            return compensate_in_parts(compensator(case, surface_spec, part, rc, bound), rho, theta)
+
+        kept = _SHARED_CUTS.get()
+        if kept is None:
+            return solve()
+        key = _cuts_key(case, surface_spec, rc, bound, rho, theta)
+        if key not in kept:
+            kept[key] = solve()
+        z, gouge = kept[key]
+        return z.copy(), gouge.copy()
+
+    try:
+        return dpath_program.plan(
+            case.layout,
+            catalogs.aperture_of(surface_spec),
+            surface,
+            spacing_um,
+            rc,
+            compensated,
+            program,
+            max_points,
+        )
+    except ValueError as exc:
+        raise CaseError(f"D path (machine '{case.machine}'): {exc}") from None
+
+
+def _request_at(spec: Any, value: dict[str, float]) -> DPathRequest:
+    return DPathRequest(
+        kind="dpath",
+        **(spec.dpath or {}),
+        **{k: (int(round(v)) if k == "points_per_cut" else v) for k, v in value.items() if k in AXES},
+    )
+
+
+def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
+    """A D path's feed is its spacing between cuts [µm]: a given program's, else the request's,
+    the case's or the cutting entry's."""
+    if program is not None:
+        return float(program[0].geometry.spacing_um)
+    return float(case.layout.spacing_um or case.feed_of(cutting))
+
+
+def _plan(p: Planning) -> tuple[Any, dict[str, Any]]:
+    t = time.perf_counter()
+    path, extra = plan_dpath(
+        p.case,
+        p.surface_spec,
+        p.surface,
+        p.feed_um,
+        p.nose_radius_um,
+        p.gradient_bound,
+        p.program,
+        p.machine.capacity_points,
+    )
+    extra["plan_seconds"] = time.perf_counter() - t
+    return path, extra
+
+
+def _record_fields(rcase: Any) -> dict[str, Any]:
+    return {}  # the D-path engine writes its own fields (:func:`ftsweep.kinds.dpath.program.record_fields`)
+
+
+def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
+    """The evaluated nodes (rays × cuts × points per feed); its lines are its own."""
+    from ftsweep.kinds.dpath import program as dpath_program
+
+    cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
+    ap = catalogs.aperture_of(surface)
+    spacing = case.layout.spacing_um or case.feed_of(cutting)
+    ppc = case.layout.points_per_cut or dpath_program.DEFAULTS["points_per_cut"]
+    return 3.0 * ppc * 2.0 * ap.half_extent_um[0] / spacing * case.resolution.points_per_feed, None
+
+
+def _pitch(r: dict[str, Any]) -> str:
+    return f"mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
+
+
+def _point(path: Any, flat: int) -> str:
+    x, c = float(path.rho[flat]), math.degrees(path.phi[flat])
+    return f"D-path point {flat} (X = {x:.6g} µm, C = {c:.6g}°)"
+
+
+def _describe(r: dict[str, Any]) -> list[str]:
+    """The D path's cuts, transition and X motion at the spindle speed (``predict``)."""
+    verdict = "feasible" if r["feasible"] else f"INFEASIBLE: {r['infeasible_reason']}"
+    return [
+        f"program      D path: {r['n_points']:,} points, {r['n_cuts']:,} cuts of {r['points_per_cut']:,} "
+        f"points ({r['transition']} transitions, {r['zones']:g} zone(s) per revolution)",
+        f"zone         {r['cut_length_um'] / 1e3:.4g} × {r['cut_width_um'] / 1e3:.4g} mm, "
+        f"{r['offaxis_um'] / 1e3:.4g} mm off-axis; spacing {r['spacing_um']:.4g} µm, "
+        f"cut step {r['cut_step_um']:.4g} µm",
+        f"X motion     {r['x_min_um'] / 1e3:.4g} … {r['x_max_um'] / 1e3:.4g} mm, peak feed "
+        f"{r['x_feed_peak_mm_s']:.3g} mm/s, peak acceleration {r['x_accel_peak_m_s2']:.3g} m/s² "
+        f"(cuts {r['x_accel_cut_m_s2']:.3g}, transitions {r['x_accel_transition_m_s2']:.3g}); "
+        f"{r['machining_s']:.0f} s: {verdict}",
+    ]
+
+
+def _check_sweep(spec: Any) -> None:
+    """An axis of its own; the spacing is its feed, so not both; the D-path options valid."""
+    if not any(getattr(spec.axes, n) is not None for n in AXES):
+        raise ValueError("a D-path sweep needs an axis: spacing_um and/or points_per_cut")
+    if spec.axes.spacing_um is not None and spec.axes.feed_um is not None:
+        raise ValueError("axes.spacing_um is the D path's feed: give it or axes.feed_um, not both")
+    DPathRequest(kind="dpath", **(spec.dpath or {}))  # names a bad option
+
+
+# its command-line options: the request's fields, the off-axis distance in mm
+OPTIONS = ("spacing_um", "points_per_cut", "zones", "offaxis_mm", "cut_angle_deg", "transition_step_deg")
+
+
+def request_options(opts: dict[str, Any]) -> dict[str, Any]:
+    """The D-path request fields of command-line options (mm and choice strings converted;
+    options not given left out)."""
+    fields = {
+        "spacing_um": opts.get("spacing_um"),
+        "points_per_cut": opts.get("points_per_cut"),
+        "zones": int(opts["zones"]) if opts.get("zones") else None,
+        "offaxis_um": opts["offaxis_mm"] * 1e3 if opts.get("offaxis_mm") else None,
+        "cut_angle_deg": opts.get("cut_angle_deg"),
+        "transition_step_deg": opts.get("transition_step_deg"),
+    }
+    return {k: v for k, v in fields.items() if v is not None}
+
+
+def _simulation(inputs: Any, timer: Any) -> Any:
+    # the D-path engine (ftsweep.kinds.dpath.program, stages.dpath) is imported where a D path is
+    # simulated, not by every command that lists the kinds
+    from ftsweep.kinds.dpath.program import DPathSimulation
+
+    return DPathSimulation(inputs, timer)
+
+
+DPATH = ProgramKind(
+    name="dpath",
+    noun="D-path program",
+    request=DPathRequest,
+    axes=AXES,
+    request_at=_request_at,
+    feed=_feed,
+    plan=_plan,
+    record_fields=_record_fields,
+    cost=_cost,
+    simulation=_simulation,
+    pitch_text=_pitch,
+    point_text=_point,
+    angular_cells=None,
+    warm_request=lambda: DPathRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
+    describe=_describe,
+    check_sweep=_check_sweep,
+    sweeps="D-path sweeps",
+    options=OPTIONS,
+    from_options=lambda o: ({"kind": "dpath", **request_options(o)}, []),
+    machine="sts-xzc",
+    cutting="dpath-finish",
+    options_key="dpath",
+)

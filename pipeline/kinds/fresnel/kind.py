@@ -1,0 +1,215 @@
+"""Freeform Fresnel programs on an X-Y-Z-C lathe ([2]): the surface sliced into facets, the
+quasi-spiral path along their edges and its 4-axis trajectory planned by
+:func:`ftsweep.kinds.fresnel.program.plan`, timed adaptively
+(:func:`ftsweep.kinds.fresnel.program.timesteps`), and
+simulated by the one simulator along rays from the surface's lowest point
+(:class:`ftsweep.kinds.fresnel.form.FresnelSimulation`). The case's feed is the feed Δr per turn;
+its compensation selects [2]'s: exact (eq. 10), slope (the straight line of eq. 12) or none."""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ftsweep.engine.spec import Case, CaseError
+from ftsweep.inputs import catalogs
+from ftsweep.kinds import Planning, ProgramKind
+from ftsweep.kinds.requests import FRESNEL_FIELDS, FresnelRequest
+from ftsweep.stages import kinematics
+
+if TYPE_CHECKING:
+    from ftsweep.kinds.fresnel import program as fresnel
+
+# the planner (ftsweep.kinds.fresnel.program) and the engine (ftsweep.kinds.fresnel.form) are imported where a
+# Fresnel program is planned or simulated, not by every command that lists the kinds
+
+AXES = ("facet_height_um", "points_per_turn", "deviation_deg")
+# the request's fields → the planner's option names (ftsweep.kinds.fresnel.program.DEFAULTS)
+OPTION = {"control_points": "scheme"}
+
+
+def option(request: Any, name: str) -> Any:
+    """A Fresnel option of a request, or its default (:data:`ftsweep.kinds.fresnel.program.DEFAULTS`)."""
+    from ftsweep.kinds.fresnel import program as fresnel
+
+    value = getattr(request, name, None)
+    return fresnel.DEFAULTS[OPTION.get(name, name)] if value is None else value
+
+
+def _request_at(spec: Any, value: dict[str, float]) -> FresnelRequest:
+    return FresnelRequest(
+        kind="fresnel",
+        **{
+            **(spec.fresnel or {}),
+            **{k: (int(round(v)) if k == "points_per_turn" else v) for k, v in value.items() if k in AXES},
+        },
+    )
+
+
+def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
+    """The feed Δr per turn [µm]: a given program's, else the case's or the cutting entry's."""
+    if program is not None:
+        return float(program[0].plan.feed_um)
+    return case.feed_of(cutting)
+
+
+def _plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
+    """The program ([2] §2.1–2.5): planned, then timed at T0 = one turn at the spindle speed;
+    or the given one as it stands (no gouge flags)."""
+    from ftsweep.kinds.fresnel import program as fresnel
+    from ftsweep.kinds.fresnel.form import COMPENSATION
+
+    if p.program is not None:
+        prog, values = p.program
+        values = np.asarray(values, dtype=np.float64)
+        return prog, {"values": values, "gouge": np.zeros(values.shape, dtype=bool)}
+    t = time.perf_counter()
+    req, case = p.case.layout, p.case
+    k = int(option(req, "points_per_turn"))
+    try:
+        fplan = fresnel.plan(
+            catalogs.base_callable(p.surface_spec, p.catalog_folder),
+            catalogs.aperture_of(p.surface_spec),
+            float(option(req, "facet_height_um")),
+            p.feed_um,
+            p.nose_radius_um,
+            k,
+            float(option(req, "deviation_deg")),
+            COMPENSATION[case.compensation],
+            str(option(req, "control_points")),
+            p.machine.capacity_points,
+        )
+        limits = fresnel.limits_of(p.machine, case.machine)
+        reference = 60.0 / (p.cutting.spindle_rpm * k)  # T0: one turn at the spindle speed
+        steps = fresnel.timesteps(fplan, limits, float(option(req, "safety")), reference, p.progress)
+    except ValueError as exc:
+        raise CaseError(f"Fresnel program: {exc}") from None
+    prog = fresnel.FresnelProgram("fresnel", fplan, steps, fplan.path.xy)
+    gouge = np.zeros(prog.n_points, dtype=bool)
+    return prog, {"values": fplan.tool_z_um, "gouge": gouge, "plan_seconds": time.perf_counter() - t}
+
+
+def record_fields(rcase: Any) -> dict[str, Any]:
+    """The Fresnel fields of a case record ([2]; declared in :mod:`ftsweep.engine.result`): the
+    program, its Z motion (the servo's W fields) and its axes against the machine's limits
+    (the kinematics stage), machining times with adaptive and constant timesteps."""
+    from ftsweep.kinds.fresnel import program as fresnel
+
+    prog = rcase.layout
+    fplan, steps = prog.plan, prog.steps
+    q = fplan.axes_si()
+    m = kinematics.over_steps(q, steps.steps)  # the optimiser's steps are all positive
+    reason = kinematics.limits_reason(q, steps.steps, fresnel.limits_of(rcase.machine, rcase.case.machine))
+    z_acc = m.accel[:, 3]
+    time_adaptive = float(steps.steps.sum())
+    time_constant = steps.constant * (q.shape[0] - 1)
+    step_c = np.diff(fplan.phi)
+    return {
+        "facet_height_um": fplan.facet_height_um,
+        "points_per_turn": fplan.path.points_per_turn,
+        "deviation_deg": math.degrees(fplan.deviation_rad),
+        "n_facets": fplan.path.n_facets,
+        "revolutions": float(fplan.path.xy.shape[0] - 1) / fplan.path.points_per_turn,
+        "dphi_deg": float(np.degrees(np.abs(step_c).mean())),
+        "ds_um": float(np.hypot(*np.diff(fplan.path.xy, axis=0).T).mean()),
+        **{k: v for k, v in fresnel.ez_on_part(fplan, rcase.aperture).items() if k != "ez_difference_max_nm"},
+        "stroke_um": float(np.ptp(fplan.tool_z_um)),
+        "w_velocity_peak_mm_s": float(np.abs(m.velocity[:, 3]).max() * 1e3),
+        "w_accel_peak_m_s2": float(np.abs(z_acc).max()),
+        "w_accel_rms_m_s2": float(np.sqrt(np.mean(z_acc**2))),
+        "feasible": int(not reason),
+        "infeasible_reason": reason,
+        "machining_s": time_adaptive,
+        "time_constant_s": time_constant,
+        "speedup": time_constant / time_adaptive,
+    }
+
+
+def _record_fields(rcase: Any) -> dict[str, Any]:
+    return {}  # the Fresnel simulation writes its own fields (record_fields)
+
+
+def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
+    """Its rays × nodes (3 rays per point of a turn, points_per_feed per feed over the part's
+    radius) and the points it times; its lines are its own."""
+    feed = case.feed_of(catalogs.entry("cutting", case.cutting, catalog_folder))
+    k = int(option(case.layout, "points_per_turn"))
+    turns = catalogs.aperture_of(surface).outer_radius_um / feed
+    return 3.0 * k * turns * case.resolution.points_per_feed + 50.0 * k * turns, None
+
+
+def _pitch(r: dict[str, Any]) -> str:
+    return f"mean ΔC = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
+
+
+def _point(prog: Any, flat: int) -> str:
+    x, y = prog.xy[flat]
+    return f"Fresnel point {flat} (x = {x:.6g} µm, y = {y:.6g} µm in the part's frame)"
+
+
+def _describe(r: dict[str, Any]) -> list[str]:
+    """The program's facets, path and timing (``predict``)."""
+    verdict = "feasible" if r["feasible"] else f"INFEASIBLE: {r['infeasible_reason']}"
+    return [
+        f"program      Fresnel: {r['n_points']:,} points, {r['n_facets']} facet(s) of "
+        f"{r['facet_height_um']:g} µm, {r['revolutions']:.4g} turns of {r['points_per_turn']:,.0f} points "
+        f"(rake face {r['deviation_deg']:g}°)",
+        f"tool edge    e_z up to {r['ez_exact_max_nm']:.1f} nm (eq. 10), {r['ez_straight_max_nm']:.1f} nm "
+        "(eq. 12); metrics over the facets' interiors (walls excluded)",
+        f"timing       {r['machining_s']:.1f} s adaptive, {r['time_constant_s']:.1f} s constant "
+        f"({r['speedup']:.2f}×): {verdict}",
+    ]
+
+
+def _check_sweep(spec: Any) -> None:
+    """An axis of its own or of the compensation; the Fresnel options valid and not swept too."""
+    if not any(getattr(spec.axes, n) is not None for n in (*AXES, "compensation")):
+        raise ValueError(
+            "a Fresnel sweep needs an axis: facet_height_um, points_per_turn, deviation_deg and/or "
+            "compensation"
+        )
+    given = spec.fresnel or {}
+    for name in AXES:
+        if name in given and getattr(spec.axes, name) is not None:
+            raise ValueError(f"fresnel.{name} is also a sweep axis (axes.{name}): give one of them")
+    for value in spec.axes.deviation_deg or []:
+        FresnelRequest(kind="fresnel", deviation_deg=value)  # names a deviation out of range
+    FresnelRequest(kind="fresnel", **given)  # names a bad option
+
+
+def _simulation(inputs: Any, timer: Any) -> Any:
+    from ftsweep.kinds.fresnel.form import FresnelSimulation
+
+    return FresnelSimulation(inputs, timer)
+
+
+FRESNEL = ProgramKind(
+    name="fresnel",
+    noun="Fresnel program",
+    request=FresnelRequest,
+    axes=AXES,
+    request_at=_request_at,
+    feed=_feed,
+    plan=_plan,
+    record_fields=_record_fields,
+    cost=_cost,
+    simulation=_simulation,
+    pitch_text=_pitch,
+    point_text=_point,
+    angular_cells=None,
+    warm_request=lambda: FresnelRequest(kind="fresnel", points_per_turn=16, facet_height_um=50.0),
+    describe=_describe,
+    check_sweep=_check_sweep,
+    sweeps="Fresnel sweeps",
+    options=FRESNEL_FIELDS,
+    from_options=lambda o: (
+        {"kind": "fresnel", **{k: o[k] for k in FRESNEL_FIELDS if o.get(k) is not None}},
+        [],
+    ),
+    machine="xyzc-nanoform",
+    cutting="fresnel-finish",
+    options_key="fresnel",
+)

@@ -1,0 +1,258 @@
+"""Spiral path programs ([4]): points along the tool's spiral placed by a constant angle, a
+constant arc length or a chord-error budget, the feed set by the case or by a residual
+(cusp) budget, their commands compensated as a table's (model §4) and interpolated linearly
+in spindle angle by the line engine (:mod:`ftsweep.engine.simulator`)."""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+
+from ftsweep.engine.cost import check_capacity, spiral_points
+from ftsweep.engine.lines import LineSimulation
+from ftsweep.engine.planning import compensator
+from ftsweep.engine.spec import Case, CaseError
+from ftsweep.engine.threads import compensate_in_parts
+from ftsweep.inputs import catalogs
+from ftsweep.kinds import Planning, ProgramKind
+from ftsweep.kinds.requests import SpiralRequest
+from ftsweep.stages import spiral
+
+AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")
+
+
+def plan_spiral(
+    case: Case,
+    surface_spec: Any,
+    surface: Any,
+    feed_um: float,
+    rc: float,
+    bound: float,
+    program: Optional[tuple[spiral.SpiralPath, np.ndarray]] = None,
+) -> tuple[spiral.SpiralPath, dict[str, Any]]:
+    """The spiral program of a case ([4]): its points by the request's rule from the
+    aperture's circumscribed radius to the centre, and their commands compensated as a
+    table's (model §4); or the given ``program`` as it stands (no gouge flags)."""
+    rho0 = float(catalogs.aperture_of(surface_spec).outer_radius_um)
+    if program is not None:
+        path, values = program
+        values = np.asarray(values, dtype=np.float64)
+        return path, {"values": values, "gouge": np.zeros(values.shape, dtype=bool)}
+
+    solve = compensator(case, surface_spec, surface, rc, bound)
+
+    def compensated(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return compensate_in_parts(
+            solve, spiral.spiral_radius(phi, rho0, feed_um), np.mod(phi, 2.0 * math.pi)
+        )
+
+    rule, value = case.layout.spiral_rule()
+    extra: dict[str, Any] = {}
+    try:
+        if rule == "angle":
+            path = spiral.constant_angle(rho0, feed_um, int(value))
+        elif rule == "arc":
+            path = spiral.constant_arc(rho0, feed_um, value)
+        else:
+            path, _, errors = spiral.chord_budget(rho0, feed_um, value, lambda phi: compensated(phi)[0])
+            extra["chord_error_um"] = float(errors.max()) if errors.size else 0.0
+    except ValueError as exc:
+        raise CaseError(f"spiral program: {exc}") from None
+    values, gouge = compensated(path.phi)
+    return path, {"values": values, "gouge": gouge, **extra}
+
+
+# residual-budget sampling of the radial sections ([4] eq. 1): radii × angles over the
+# circumscribed circle; the feed is the smallest over these samples inside the aperture
+SECTION_RADII = 2001
+SECTION_ANGLES = 720
+
+
+@functools.lru_cache(maxsize=16)
+def _section_samples(spec_json: str, folder: Optional[str]) -> tuple[np.ndarray, ...]:
+    from pydantic import TypeAdapter
+
+    spec = TypeAdapter(catalogs.surface_spec()).validate_json(spec_json)
+    path = None if folder is None else Path(folder)
+    surface = catalogs.surface_callable(spec, path)
+    aperture = catalogs.aperture_of(spec)
+    step = aperture.outer_radius_um / (SECTION_RADII - 1)
+    # r = 0 is left out: sections of umbrella-like surfaces have no curvature at the apex
+    theta = (np.arange(SECTION_ANGLES) * (2.0 * math.pi / SECTION_ANGLES))[:, None]
+    rho = np.repeat((np.arange(1, SECTION_RADII) * step)[None, :], SECTION_ANGLES, axis=0)
+    ct, st = np.cos(theta), np.sin(theta)
+    slope, second = spiral.section_curvature(surface, rho, ct, st, 0.25 * step)
+    inside = aperture.contains_polar(rho, ct, st)
+    radius = spiral.signed_radius_um(slope, second)
+    x, y = rho * ct, rho * st
+    return radius[inside], slope[inside], x[inside], y[inside]
+
+
+def section_samples(surface_spec: Any, catalog_folder: Any = None) -> tuple[np.ndarray, ...]:
+    """Signed radius of curvature [µm], slope [-] and place (x, y [µm]) of the radial
+    sections of the surface on a polar grid of :data:`SECTION_RADII` radii by
+    :data:`SECTION_ANGLES` angles inside the aperture ([4] eq. 1; cached per entry)."""
+    folder = None if catalog_folder is None else str(catalog_folder)
+    return _section_samples(surface_spec.model_dump_json(), folder)
+
+
+def residual_feed_um(sections: tuple[np.ndarray, ...], residual_um: float, rc: float, name: str) -> float:
+    """The feed [µm/rev] of a residual budget Δres [µm] ([4] eqs. 2–3): the smallest
+    over the part of :func:`ftsweep.stages.spiral.feed_for_cusp`. Refuses a part with a
+    concave section tighter than the nose radius, where no feed meets the budget."""
+    radius, slope, x, y = sections
+    if not residual_um < rc:
+        raise CaseError(f"the residual budget {residual_um:g} µm must be below the nose radius {rc:g} µm")
+    feeds = spiral.feed_for_cusp(residual_um, rc, radius, slope)
+    worst = int(np.argmin(feeds))
+    if not feeds[worst] > 0.0:
+        raise CaseError(
+            f"surface '{name}' has a concave section of radius {radius[worst]:.4g} µm at x = "
+            f"{x[worst]:.6g} µm, y = {y[worst]:.6g} µm, tighter than the nose radius {rc:g} µm: no "
+            "feed meets a residual budget there; use a smaller nose radius"
+        )
+    return float(feeds[worst])
+
+
+def residual_error_um(sections: tuple[np.ndarray, ...], feed_um: float, rc: float) -> float:
+    """Largest residual (cusp) height [µm] the feed leaves over the part, from each section's
+    curvature (the inverse of [4] eq. 2, :func:`ftsweep.stages.spiral.cusp_for_feed`)."""
+    radius, slope, _, _ = sections
+    cusp = spiral.cusp_for_feed(feed_um, rc, radius, slope)
+    return float(np.nanmax(cusp)) if np.isfinite(cusp).any() else math.nan
+
+
+def _request_at(spec: Any, value: dict[str, float]) -> SpiralRequest:
+    return SpiralRequest(
+        kind="spiral",
+        **{k: (int(round(v)) if k == "points_per_rev" else v) for k, v in value.items() if k in AXES},
+    )
+
+
+def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
+    """A given program's feed, else the one the residual budget sets ([4] eq. 1), else the
+    case's or the cutting entry's [µm/rev]."""
+    if program is not None:
+        return float(program[0].feed_um)
+    if case.layout.residual_um is not None:
+        if case.feed_um is not None:
+            raise CaseError("give either a feed or a residual budget (which sets the feed), not both")
+        sections = section_samples(surface_spec, folder)
+        return residual_feed_um(sections, case.layout.residual_um, rc, case.surface)
+    return case.feed_of(cutting)
+
+
+def _plan(p: Planning) -> tuple[spiral.SpiralPath, dict[str, Any]]:
+    """The points and commands, refused up front when the rule's estimated count is over the
+    controller's capacity; the residual error the feed leaves."""
+    t = time.perf_counter()
+    case = p.case
+    note = " (estimated: a tenth of the count the curvature bound allows)" if case.layout.chord_um else ""
+    estimate = spiral_points(case, p.surface_spec, p.feed_um)
+    check_capacity(case, "spiral program", estimate, p.machine.capacity_points, note)
+    path, extra = plan_spiral(
+        case, p.surface_spec, p.surface, p.feed_um, p.nose_radius_um, p.gradient_bound, p.program
+    )
+    sections = section_samples(p.surface_spec, p.catalog_folder)
+    extra["residual_error_um"] = residual_error_um(sections, p.feed_um, p.nose_radius_um)
+    extra["plan_seconds"] = time.perf_counter() - t
+    return path, extra
+
+
+def _record_fields(rcase: Any) -> dict[str, Any]:
+    case, layout = rcase.case, rcase.layout
+    rule, value = case.layout.spiral_rule()
+    return {
+        "spiral_rule": rule,
+        "points_per_rev": value if rule == "angle" else math.nan,
+        "arc_um": value if rule == "arc" else math.nan,
+        "chord_um": value if rule == "chord" else math.nan,
+        "residual_um": case.layout.residual_um or math.nan,
+        "revolutions": layout.revolutions,
+        "dphi_deg": layout.dphi_deg,
+        "ds_um": layout.ds_um,
+        "chord_error_nm": rcase.chord_error_um * 1e3,
+        "residual_error_nm": rcase.residual_error_um * 1e3,
+    }
+
+
+def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
+    """A spiral's points (and with a chord budget its angular sampling) are only known once
+    planned: its cost is its simulated nodes at the part's outer circumference, and its lines
+    are its own."""
+    rho0 = catalogs.aperture_of(surface).outer_radius_um
+    feed = case.feed_of(catalogs.entry("cutting", case.cutting, catalog_folder))
+    return 3.0 * 2.0 * math.pi * rho0 * rho0 / feed, None
+
+
+def _pitch(r: dict[str, Any]) -> str:
+    return f"mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
+
+
+def _point(path: spiral.SpiralPath, flat: int) -> str:
+    rho, theta = float(path.rho[flat]), float(path.theta[flat])
+    return f"spiral point {flat} (ρ = {rho:.6g} µm, C = {math.degrees(theta):.6g}°)"
+
+
+def _cells(path: spiral.SpiralPath, rho0_um: float) -> float:
+    """The segments of the most densely sampled revolution."""
+    return path.max_points_per_rev
+
+
+def _describe(r: dict[str, Any]) -> list[str]:
+    """The spiral's points by its rule, its steps and its feed (``predict``)."""
+    rule = {
+        "angle": f"{r['points_per_rev']:g} points per revolution",
+        "arc": f"a point every {r['arc_um']:g} µm of path",
+        "chord": f"chord budget {r['chord_um']:g} µm (largest chord error {r['chord_error_nm']:.1f} nm)",
+    }[r["spiral_rule"]]
+    budget = (
+        f"from the residual budget {r['residual_um']:g} µm" if math.isfinite(r["residual_um"]) else "given"
+    )
+    return [
+        f"program      spiral: {r['n_points']:,} points, {rule}",
+        f"steps        mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm along the path, "
+        f"{r['revolutions']:.4g} revolutions  (α = {r['aspect_actual']:.4g} µm/deg)",
+        f"feed         {r['feed_um']:.4g} µm/rev ({budget}); largest residual (cusp) "
+        f"{r['residual_error_nm']:.1f} nm from the section curvature",
+    ]
+
+
+def _check_sweep(spec: Any) -> None:
+    """Exactly one rule axis; the residual budget sets the feed, so not both."""
+    rules = [n for n in AXES[:3] if getattr(spec.axes, n) is not None]
+    if len(rules) != 1:
+        raise ValueError(
+            "a spiral sweep needs exactly one rule axis: points_per_rev, arc_um or chord_um "
+            f"(got {', '.join(rules) or 'none'})"
+        )
+    if spec.axes.residual_um is not None and spec.axes.feed_um is not None:
+        raise ValueError("axes.residual_um sets the feed: give it or axes.feed_um, not both")
+
+
+SPIRAL = ProgramKind(
+    name="spiral",
+    noun="spiral program",
+    request=SpiralRequest,
+    axes=AXES,
+    request_at=_request_at,
+    feed=_feed,
+    plan=_plan,
+    record_fields=_record_fields,
+    cost=_cost,
+    simulation=LineSimulation,
+    pitch_text=_pitch,
+    point_text=_point,
+    angular_cells=_cells,
+    warm_request=lambda: SpiralRequest(kind="spiral", points_per_rev=16),
+    describe=_describe,
+    check_sweep=_check_sweep,
+    sweeps="spiral sweeps",
+    options=AXES,
+    from_options=lambda o: ({"kind": "spiral", **{k: o[k] for k in AXES if o.get(k) is not None}}, []),
+)

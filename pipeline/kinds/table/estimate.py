@@ -1,0 +1,147 @@
+"""``ftsweep estimate``: the first-order P-V of every layout of a sweep plane in milliseconds
+(model §3, §5; :mod:`ftsweep.stages.estimate`), and its measured agreement with a simulated
+cube. The estimate never replaces the simulation: it seeds and prunes it."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ftsweep.inputs import catalogs
+from ftsweep.kinds.requests import program_request
+from ftsweep.kinds.table.kind import build_layout
+from ftsweep.stages import estimate as est
+from ftsweep.store.cube import DONE
+from ftsweep.sweeps.spec import SweepSpec, coordinates
+
+
+def second_derivatives(
+    surface_spec: Any, kind: str, folder: Path | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sampled second derivatives of the surface along the table coordinates of ``kind``."""
+    surface = catalogs.surface_callable(surface_spec, folder)
+    aperture = catalogs.aperture_of(surface_spec)
+    if kind == "ring":
+        return est.ring_second_derivatives(surface, aperture)
+    return est.mesh_second_derivatives(surface, aperture)
+
+
+def pitches(surface_spec: Any, kind: str, points: float, aspect: float) -> tuple[float, float, int]:
+    """(pitch 1, pitch 2, realised N) of the layout for target (N, α), in the estimate's
+    coordinates: (Δρ µm, Δθ rad) for rings, (Δx, Δy) µm for meshes; NaN if it cannot be built."""
+    try:
+        layout = build_layout(surface_spec, program_request(kind=kind, points=points, aspect=aspect))
+    except ValueError:
+        return math.nan, math.nan, 0
+    second = math.radians(layout.pitch[1]) if layout.periodic else layout.pitch[1]
+    return layout.pitch[0], second, layout.n_points
+
+
+def interp_plane(
+    surface_spec: Any, kind: str, points: np.ndarray, aspects: np.ndarray, folder: Path | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(first-order interpolation span [nm], realised N) of every (N, α) of the plane
+    ``points`` × ``aspects``; NaN and 0 where the layout cannot be built."""
+    d11, d22 = second_derivatives(surface_spec, kind, folder)
+    p1 = np.empty((points.size, aspects.size))
+    p2 = np.empty_like(p1)
+    n_points = np.zeros(p1.shape, dtype=np.int64)
+    for i, n in enumerate(points):
+        for j, a in enumerate(aspects):
+            p1[i, j], p2[i, j], n_points[i, j] = pitches(surface_spec, kind, float(n), float(a))
+    span = est.interp_span_nm(d11, d22, np.nan_to_num(p1), np.nan_to_num(p2))
+    span[~np.isfinite(p1)] = np.nan
+    return span, n_points
+
+
+def seed_layout(
+    surface_spec: Any,
+    kind: str,
+    tolerance_nm: float,
+    capacity: int,
+    cusp_nm: float,
+    aspect_range: tuple[float, float],
+    folder: Path | None = None,
+) -> tuple[float, float, float]:
+    """Where a tolerance search should start: (target N, α, estimated P-V [nm]) of the fewest
+    points whose estimated P-V meets ``tolerance_nm``, at the estimated best aspect ratio of
+    that count (or the best layout at the capacity when none does)."""
+    points = np.geomspace(1e3, float(capacity), 80)
+    aspects = np.geomspace(aspect_range[0], aspect_range[1], 161)
+    span, n_points = interp_plane(surface_spec, kind, points, aspects, folder)
+    pv = np.where(n_points <= capacity, span + cusp_nm, np.nan)
+    best = np.nanmin(np.where(np.isfinite(pv), pv, np.inf), axis=1)
+    meets = np.flatnonzero(best <= tolerance_nm)
+    i = int(meets[0]) if meets.size else int(np.argmin(best))
+    j = int(np.argmin(np.where(np.isfinite(pv[i]), pv[i], np.inf)))
+    return float(points[i]), float(aspects[j]), float(pv[i, j])
+
+
+def estimate_sweep(spec: SweepSpec, folder: Path | None = None) -> xr.Dataset:
+    """The estimated P-V [nm] over the sweep's (points, aspect[, feed_um, nose_radius_um]) axes."""
+    assert spec.layout is not None
+    surface_spec = catalogs.entry("surfaces", spec.surface, folder)
+    cutting = catalogs.entry("cutting", spec.cutting, folder)
+    coords = coordinates(spec)
+    pts, asp = coords["points"], coords["aspect"]
+    interp, n_points = interp_plane(surface_spec, spec.layout, pts, asp, folder)
+    feeds = coords.get("feed_um", np.array([cutting.feed_um]))
+    radii = coords.get("nose_radius_um", np.array([cutting.nose_radius_um]))
+    cusp = np.array([[est.cusp_nm(f, r) for r in radii] for f in feeds])
+    pv = interp[:, :, None, None] + cusp[None, None, :, :]
+    dims = ["points", "aspect", "feed_um", "nose_radius_um"]
+    ds = xr.Dataset(
+        {
+            "pv_estimate_nm": (dims, pv, {"units": "nm", "long_name": "first-order estimate of P-V"}),
+            "interp_estimate_nm": (
+                dims[:2],
+                interp,
+                {"units": "nm", "long_name": "first-order span of the bilinear interpolation error"},
+            ),
+            "n_points": (
+                dims[:2],
+                n_points,
+                {"units": "1", "long_name": "realised number of control points"},
+            ),
+        },
+        coords={"points": pts, "aspect": asp, "feed_um": feeds, "nose_radius_um": radii},
+        attrs={"surface": spec.surface, "layout": spec.layout},
+    )
+    drop = [d for d in ("feed_um", "nose_radius_um") if d not in coords]
+    return ds.isel({d: 0 for d in drop}, drop=True)
+
+
+def best_aspect(pv: xr.DataArray) -> xr.DataArray:
+    """The aspect ratio of the lowest P-V at each point count (NaN where none is finite)."""
+    filled = pv.fillna(np.inf)
+    index = filled.argmin("aspect")
+    best = pv["aspect"].isel(aspect=index).where(np.isfinite(filled.min("aspect")))
+    return best.drop_vars("aspect", errors="ignore")
+
+
+def agreement(estimate: xr.Dataset, cube: xr.Dataset) -> dict[str, Any]:
+    """How the estimate compares with a simulated cube of the same axes: the ratio
+    estimate/simulated P-V over every computed case, and the aspect optimum per point count."""
+    sim = cube["pv_nm"].where(cube["status"] == DONE)
+    pv_est = estimate["pv_estimate_nm"].reindex_like(sim)  # the same sweep: the same coordinates
+    ratio = (pv_est / sim).values.ravel()
+    ratio = ratio[np.isfinite(ratio)]
+    a_est = best_aspect(pv_est)
+    a_sim = best_aspect(sim)
+    quotient = a_est / a_sim
+    factor = xr.where(quotient >= 1.0, quotient, 1.0 / quotient).values.ravel()
+    factor = factor[np.isfinite(factor)]
+    return {
+        "cases": int(ratio.size),
+        "pv_ratio_min": float(ratio.min()) if ratio.size else math.nan,
+        "pv_ratio_median": float(np.median(ratio)) if ratio.size else math.nan,
+        "pv_ratio_max": float(ratio.max()) if ratio.size else math.nan,
+        "within_factor_2": float(np.mean((ratio >= 0.5) & (ratio <= 2.0))) if ratio.size else math.nan,
+        "optimum_aspect_factor_max": float(factor.max()) if factor.size else math.nan,
+        "optimum_aspect_estimated": a_est.values.tolist(),
+        "optimum_aspect_simulated": a_sim.values.tolist(),
+    }

@@ -1,0 +1,534 @@
+"""The controller header: a ring or mesh table (layered or not) as a C header ([1], model
+§2-§4), exported from a cube's case and verified as the controller will read it.
+
+:func:`export_header` writes the chosen case's control table as fixed-point integers (unit
+and type from the machine catalog) in the order the controller indexes them,
+``table[i][j]`` with i the ring (ρ = origin0 + i·pitch0) or x index and j the angle
+(θ = origin1 + j·pitch1, periodic) or y index, plus macros for everything needed to use
+and check it and a CRC-32 of the table. A JSON sidecar repeats the metadata with the full
+case spec and the catalog entries used. :func:`verify_header` reads it back, refuses any
+text export would not write for the recorded case, compares the table with the re-planned
+one and re-simulates the machined surface from the stored integers.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import time
+import zlib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ftsweep.engine.planning import control_table, resolve_case
+from ftsweep.engine.simulator import run_case
+from ftsweep.engine.spec import Case
+from ftsweep.exports.files import (
+    ExportError,
+    layer_schedule,
+    recorded_case_of,
+    recorded_entries,
+    sidecar_digest,
+    sidecar_path,
+)
+from ftsweep.kinds.table.c_view import read_c
+from ftsweep.kinds.table.kind import build_layout
+from ftsweep.store.io import check_sidecar_text, dumps_json, read_regular, read_sidecar, write_texts_atomic
+from ftsweep.version import __version__
+
+INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}
+LE_DTYPE = {"int16": "<i2", "int32": "<i4"}
+
+
+C_KEYWORDS = frozenset(
+    "auto break case char const continue default do double else enum extern float for goto if inline int "
+    "long register restrict return short signed sizeof static struct switch typedef union unsigned void "
+    "volatile while _Bool _Complex _Imaginary".split()
+)
+
+
+def c_identifier(text: str) -> str:
+    """A valid C identifier from any name: other characters become ``_``; a leading digit, a
+    keyword or an empty name gets a prefix; reserved leading underscores are avoided."""
+    ident = re.sub(r"[^0-9A-Za-z_]", "_", text).strip("_")
+    if not ident or ident[0].isdigit() or ident in C_KEYWORDS:
+        ident = "fts_" + ident
+    return ident
+
+
+def c_string(text: str) -> str:
+    """A C string literal of ``text``: quotes, backslashes and non-printable or non-ASCII
+    bytes escaped (octal, which cannot swallow a following hex digit)."""
+    out = []
+    for byte in text.encode("utf-8"):
+        ch = chr(byte)
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif 32 <= byte < 127:
+            out.append(ch)
+        else:
+            out.append(f"\\{byte:03o}")
+    return '"' + "".join(out) + '"'
+
+
+def quantise(table_um: np.ndarray, unit_nm: float, int_type: str) -> np.ndarray:
+    """Fixed-point integers of a table [µm] in steps of ``unit_nm`` [nm]; refuses non-finite
+    values and overflow."""
+    table_um = np.asarray(table_um, dtype=np.float64)
+    bad = ~np.isfinite(table_um)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise ExportError(
+            f"the table holds {int(bad.sum()):,} non-finite values (first at [{i}, {j}]); nothing exported"
+        )
+    q = np.rint(table_um * 1e3 / unit_nm)
+    lo, hi = INT_RANGE[int_type]
+    if q.min() < lo or q.max() > hi:
+        raise ExportError(
+            f"table values {q.min():.0f}..{q.max():.0f} (units of {unit_nm} nm) do not fit {int_type}; "
+            "use a coarser table_unit_nm or int32 in the machine catalog"
+        )
+    return q.astype(LE_DTYPE[int_type])
+
+
+CHECKSUM_MACRO = "CHECKSUM_CRC32"
+
+
+def checksum(macros: list[tuple[str, str]], ints: np.ndarray, int_type: str) -> int:
+    """CRC-32 of everything the controller uses: each macro (name without the prefix, and its
+    value exactly as written, ``NAME=VALUE`` lines in header order, the checksum macro itself
+    left out) followed by the table as little-endian integers in row-major (controller) order."""
+    text = "".join(f"{name}={value}\n" for name, value in macros if name != CHECKSUM_MACRO)
+    crc = zlib.crc32(text.encode("utf-8"))
+    return zlib.crc32(np.ascontiguousarray(ints, dtype=LE_DTYPE[int_type]).tobytes(), crc) & 0xFFFFFFFF
+
+
+def _c_list(values: Any) -> str:
+    return "{" + ", ".join(repr(float(v)) if isinstance(v, float) else str(v) for v in values) + "}"
+
+
+def layer_macros(schedule: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """Macros of a layered header: the schedule of :func:`layer_schedule` (initializer lists
+    usable as ``static const double x[] = PREFIX_LAYER_OFFSETS_UM;``)."""
+    phis = [v for pair in schedule["segment_phi_deg"] for v in pair]
+    return [
+        ("N_LAYERS", str(schedule["n_layers"]), "layers, cut in this order"),
+        ("LAYER_ZONE_UM", repr(schedule["zone_um"]), "height of a stroke zone [um]"),
+        ("LAYER_MARGIN_UM", repr(schedule["margin_um"]), "travel kept free, half at each end [um]"),
+        ("RHO0_UM", repr(schedule["rho0_um"]), "spiral start radius [um]"),
+        ("LAYER_OFFSETS_UM", _c_list(schedule["offset_um"]), "Z offset of each layer: W = table - offset"),
+        ("LAYER_START_RADII_UM", _c_list(schedule["start_radius_um"]), "radius of each layer's first cut"),
+        ("N_SEGMENTS", str(len(schedule["segment_layer"])), ""),
+        ("SEGMENT_LAYERS", _c_list(schedule["segment_layer"]), "layer of each segment"),
+        ("SEGMENT_PHI_DEG", _c_list(phis), "start, end of each segment [deg of spindle from the edge]"),
+    ]
+
+
+def header_macros(meta: dict[str, Any], shape: tuple[int, int], int_type: str) -> list[tuple[str, str, str]]:
+    """(name without prefix, value as written, comment) of every macro of the header."""
+    kind = meta["layout"]
+    rows, cols = shape
+    layered = layer_macros(meta["layers"]) if meta.get("layers") else []
+    return [
+        ("LAYOUT_KIND", c_string(kind), ""),
+        ("LAYOUT_IS_RING", str(1 if kind == "ring" else 0), ""),
+        ("ROWS", str(rows), ""),
+        ("COLS", str(cols), ""),
+        ("N_POINTS", f"{rows * cols}L", ""),
+        ("PITCH0", repr(meta["pitch"][0]), "drho [um]" if kind == "ring" else "dx [um]"),
+        ("PITCH1", repr(meta["pitch"][1]), "dtheta [deg]" if kind == "ring" else "dy [um]"),
+        ("ORIGIN0", repr(meta["origin"][0]), ""),
+        ("ORIGIN1", repr(meta["origin"][1]), ""),
+        ("UNIT_NM", repr(meta["unit_nm"]), ""),
+        ("INT_TYPE", c_string(int_type), ""),
+        ("SURFACE", c_string(meta["surface"]), ""),
+        ("COMPENSATION", c_string(meta["compensation"]), ""),
+        ("FEED_UM", repr(meta["feed_um"]), ""),
+        ("NOSE_RADIUS_UM", repr(meta["nose_radius_um"]), ""),
+        ("SPINDLE_RPM", repr(meta["spindle_rpm"]), ""),
+        ("PREDICTED_PV_NM", repr(meta["pv_nm"]), ""),
+        ("GENERATOR", c_string(meta["generator"]), ""),
+        *layered,
+        ("SIDECAR_SHA256", c_string(meta["sidecar_sha256"]), "of the sidecar without crc32, header_sha256"),
+    ]
+
+
+# what the table's values are, citing the README's model (ASCII: the header is C source)
+COMPENSATION_CITED = {
+    "exact": "tool-nose compensated commands, section 4 eq. 3",
+    "slope": "slope-approximated compensated commands, section 4 eq. 4",
+    "none": "surface heights without nose compensation, section 4",
+}
+
+
+LAYERED_NOTE = [
+    " * Layered ([3], ftsweep docs/kinds.md 'Layered trajectories'): the part is cut in",
+    " * N_LAYERS layers, in order. In layer k the Z axis sets the workpiece at",
+    " * LAYER_OFFSETS_UM[k] and the FTS outputs W = table - LAYER_OFFSETS_UM[k] (within its",
+    " * travel); the layer cuts the spiral only on its segments, from SEGMENT_PHI_DEG[2s] to",
+    " * SEGMENT_PHI_DEG[2s+1] (spindle angle accumulated from the edge: C = phi mod 360,",
+    " * X = RHO0_UM - FEED_UM*phi/360), stopping the spindle and lifting the tool between them.",
+]
+
+
+def render_header(name: str, meta: dict[str, Any], ints: np.ndarray, int_type: str) -> tuple[str, int]:
+    """The C header text (C99) and its CRC-32 (:func:`checksum`)."""
+    ident = c_identifier(name)
+    macro = ident.upper()
+    table = ident.lower() + "_table"
+    rows, cols = ints.shape
+    kind = meta["layout"]
+    axes = ("rho [um]", "theta [deg], periodic") if kind == "ring" else ("x [um]", "y [um]")
+    macros = header_macros(meta, (rows, cols), int_type)
+    crc = checksum([(n, v) for n, v, _ in macros], ints, int_type)
+    lines = [
+        f"/* Controller table generated by {meta['generator']} on {meta['created']}.",
+        f" * Do not edit: {macro}_{CHECKSUM_MACRO} covers every macro below (NAME=VALUE lines)",
+        " * and the table.",
+        f" * {table}[i][j] holds the W command at {axes[0]} = {macro}_ORIGIN0 + i*{macro}_PITCH0,",
+        f" * {axes[1]} = {macro}_ORIGIN1 + j*{macro}_PITCH1, in units of {macro}_UNIT_NM nm.",
+        f" * Values are {COMPENSATION_CITED[meta['compensation']]} (ftsweep README, 'The model'),",
+        " * interpolated bilinearly by the FTS controller (section 3, eq. 2; the method of",
+        " * reference [1] there).",
+        *(LAYERED_NOTE if meta.get("layers") else []),
+        " */",
+        f"#ifndef {macro}_H",
+        f"#define {macro}_H",
+        "",
+        "#include <stdint.h>",
+        "",
+    ]
+    for n, v, comment in macros:
+        lines.append(f"#define {macro}_{n} {v}" + (f" /* {comment} */" if comment else ""))
+    lines += [
+        f"#define {macro}_{CHECKSUM_MACRO} 0x{crc:08x}UL",
+        "",
+        f"static const {int_type}_t {table}[{macro}_ROWS][{macro}_COLS] = {{",
+    ]
+    # tolist() makes Python ints in C: the same digits as str(int(v)) a value at a time, 4× faster
+    for i, row in enumerate(np.asarray(ints, dtype=np.int64).tolist()):
+        values = ", ".join(map(str, row))
+        lines.append(f"    {{{values}}}{',' if i < rows - 1 else ''}")
+    lines += ["};", "", f"#endif /* {macro}_H */", ""]
+    return "\n".join(lines), crc
+
+
+def header_meta(
+    case: Case, specs: tuple[Any, Any, Any], layout: Any, pv_nm: float, created: str, generator: str
+) -> dict[str, Any]:
+    """What a header states about a table case (everything but the layer schedule and the
+    sidecar's digest): export writes it and verify re-derives it from the recorded case."""
+    _, machine, cutting = specs
+    return {
+        "generator": generator,
+        "created": created,
+        "layout": layout.kind,
+        "shape": list(layout.shape),
+        "pitch": list(layout.pitch),
+        "origin": list(layout.origin),
+        "unit_nm": machine.table_unit_nm,
+        "int_type": machine.table_int_type,
+        "surface": case.surface,
+        "compensation": case.compensation,
+        "feed_um": case.feed_of(cutting),
+        "nose_radius_um": case.nose_radius_of(cutting),
+        "spindle_rpm": cutting.spindle_rpm,
+        "pv_nm": pv_nm,
+    }
+
+
+def planned_ints(case: Case, specs: tuple[Any, Any, Any], layout: Any) -> np.ndarray:
+    """The table [table units] a table case plans: compensated commands (model §4) quantised
+    to the machine's fixed-point unit."""
+    surface, machine, cutting = specs
+    table_um, _ = control_table(case, layout, surface, case.nose_radius_of(cutting))
+    return quantise(table_um, machine.table_unit_nm, machine.table_int_type)
+
+
+def export_header(
+    out: Path,
+    side: Path,
+    case: Case,
+    specs: tuple[Any, Any, Any],
+    chosen: dict[str, Any],
+    extra: dict[str, Any],
+    name: str | None = None,
+) -> dict[str, Any]:
+    """Compute the chosen table case's table from its recorded spec and catalog entries and
+    write the header (C identifiers prefixed by ``name``, default the file's stem) and its
+    sidecar atomically. Returns the sidecar's content."""
+    surface, machine, _ = specs
+    layout = build_layout(surface, case.layout)
+    if layout.n_points != chosen["n_points"]:
+        raise ExportError(f"the cube says {chosen['n_points']} points but the spec gives {layout.n_points}")
+    ints = planned_ints(case, specs, layout)
+    meta = header_meta(
+        case, specs, layout, chosen["pv_nm"], time.strftime("%Y-%m-%dT%H:%M:%S%z"), f"ftsweep {__version__}"
+    )
+    # the schedule of the table as stored: verify plans it again from the same integers
+    meta["layers"] = layer_schedule(resolve_case(case, specs=specs), ints * machine.table_unit_nm * 1e-3)
+    sidecar = dict(meta)
+    sidecar.update(
+        header=out.name,
+        **extra,
+        selection=chosen,
+        case=case.model_dump(mode="json"),
+        catalog_entries=recorded_entries(specs),
+    )
+    check_sidecar_text(sidecar, side, "nothing exported")
+    # the header names the sidecar's hash and the sidecar the header's: editing either one,
+    # or re-forging the table with its CRC, is caught by verify
+    meta["sidecar_sha256"] = sidecar_digest(sidecar)
+    text, crc = render_header(name or out.stem, meta, ints, machine.table_int_type)
+    sidecar.update(crc32=crc, header_sha256=hashlib.sha256(text.encode("utf-8")).hexdigest())
+    side_text = dumps_json(sidecar, indent=2) + "\n"
+    write_texts_atomic({side: side_text, out: text})
+    return sidecar
+
+
+# ----------------------------------------------------------------------------- verify
+# a header holds at most a controller's table: this bounds what verify reads
+MAX_HEADER_BYTES = 200 * 2**20
+
+
+def read_header(path: Path, raw: bytes | None = None) -> tuple[list[tuple[str, str]], np.ndarray]:
+    """:func:`read_c_header` without the prefix."""
+    macros, ints, _ = read_c_header(path, raw)
+    return macros, ints
+
+
+def read_c_header(path: Path, raw: bytes | None = None) -> tuple[list[tuple[str, str]], np.ndarray, str]:
+    """The macros (name without prefix, replacement text as C reads it, in header order) and
+    the integer table of a header, read as C reads it (:func:`ftsweep.kinds.table.c_view.read_c`:
+    a real preprocessor and parser), and the identifiers' prefix; :class:`ExportError` if it
+    is not what export writes in form. ``raw``: the file's bytes, read already."""
+    path = Path(path)
+    raw = read_regular(path, MAX_HEADER_BYTES, "header") if raw is None else raw
+    view = read_c(raw, str(path))
+    prefix = view.guard[:-2]
+    if not view.guard.endswith("_H") or view.name != prefix.lower() + "_table":
+        raise ExportError(
+            f"{path}: the include guard {view.guard[:60]} and the table {view.name[:60]} do not share "
+            "export's prefix (PREFIX_H, prefix_table); do not load it"
+        )
+    strays = [k for k, _ in view.macros if not k.startswith(prefix + "_")]
+    if strays:
+        raise ExportError(
+            f"{path}: macro {strays[0][:60]} does not carry the prefix {prefix}_; do not load it"
+        )
+    macros = [(k[len(prefix) + 1 :], v) for k, v in view.macros]
+    found = dict(macros)
+    missing = [k for k in ("ROWS", "COLS", "INT_TYPE", "UNIT_NM", CHECKSUM_MACRO) if k not in found]
+    if missing:
+        raise ExportError(f"{path} is not a complete ftsweep header (missing {', '.join(missing)})")
+    if found["INT_TYPE"] != c_string(view.int_type[:-2]):
+        raise ExportError(
+            f"{path}: the table is declared {view.int_type} but INT_TYPE says {found['INT_TYPE'][:40]}"
+        )
+    if (found["ROWS"], found["COLS"]) != tuple(str(n) for n in view.cells.shape):
+        raise ExportError(
+            f"{path}: the table holds {view.cells.shape[0]} × {view.cells.shape[1]} values, the macros say "
+            f"{found['ROWS'][:20]} × {found['COLS'][:20]}; do not load it"
+        )
+    return macros, view.cells, prefix
+
+
+def _macro_value(macros: dict[str, str], name: str, kind: Callable[[str], Any], path: Path) -> Any:
+    try:
+        return kind(macros[name])
+    except (KeyError, ValueError) as exc:
+        raise ExportError(f"{path}: macro {name} is missing or malformed ({exc})") from None
+
+
+def default_pv_tolerance_nm(unit_nm: float, pv_nm: float) -> float:
+    """Allowed |re-simulated − predicted| P-V [nm]. Quantisation moves each table value by at
+    most half a unit; interpolation is a convex combination and the envelope of arcs shifted
+    by at most δ moves by at most δ, so the error's extremes each move by at most half a unit
+    and the P-V by at most one unit. 0.1 % of the P-V is added for floating-point noise."""
+    return unit_nm + 1e-3 * pv_nm
+
+
+def check_integrity(path: Path) -> tuple[dict[str, str], np.ndarray, dict[str, Any], str, bytes]:
+    """The macros (as C reads them), table, sidecar, identifiers' prefix and bytes of a
+    header whose CRC-32 (over every macro and the table), sidecar CRC, header SHA-256 (in
+    the sidecar) and sidecar SHA-256 (in the header) all match; :class:`ExportError`
+    naming the first that does not."""
+    raw = read_regular(path, MAX_HEADER_BYTES, "header")
+    macro_list, ints, prefix = read_c_header(path, raw)
+    macros = dict(macro_list)
+    stored = _stored_checksum(macros, macro_list, ints, path)
+    meta = read_sidecar(path)
+    side = sidecar_path(path)
+    try:
+        header_sha = meta["header_sha256"]
+        recorded_crc = int(meta["crc32"])
+    except (ValueError, KeyError, TypeError) as exc:
+        raise ExportError(
+            f"{side} is not an ftsweep sidecar ({type(exc).__name__}: {str(exc)[:100]})"
+        ) from None
+    if recorded_crc != stored:
+        raise ExportError(f"{side} belongs to another table (checksum 0x{recorded_crc:08x})")
+    if hashlib.sha256(raw).hexdigest() != header_sha:
+        raise ExportError(
+            f"{path} differs from the header the sidecar was written with (SHA-256 mismatch): the header "
+            "was edited, or header and sidecar come from different exports; do not load it"
+        )
+    side_sha = _macro_value(macros, "SIDECAR_SHA256", json.loads, path)
+    if sidecar_digest(meta) != side_sha:
+        raise ExportError(
+            f"{side} was changed after export (its SHA-256 does not match the header's SIDECAR_SHA256); "
+            "re-export instead of editing it"
+        )
+    return macros, ints, meta, prefix, raw
+
+
+def _stored_checksum(
+    macros: dict[str, str], macro_list: list[tuple[str, str]], ints: np.ndarray, path: Path
+) -> int:
+    """The header's CRC-32, checked against its macros and table."""
+    try:
+        int_type = json.loads(macros["INT_TYPE"])
+        stored = int(macros[CHECKSUM_MACRO].rstrip("UuLl"), 16)
+    except ValueError:
+        raise ExportError(f"{path}: macro INT_TYPE or {CHECKSUM_MACRO} is malformed") from None
+    if int_type not in LE_DTYPE:
+        raise ExportError(f"{path}: INT_TYPE {int_type!r} is not one of {', '.join(LE_DTYPE)}")
+    actual = checksum(macro_list, ints, int_type)
+    if stored != actual:
+        raise ExportError(
+            f"{path}: checksum mismatch (header says 0x{stored:08x}, macros and table give 0x{actual:08x}): "
+            "a macro or the table was changed or damaged; do not load it"
+        )
+    return stored
+
+
+def verify_header(
+    path: Path,
+    progress: Callable[[int, int], None] | None = None,
+    pv_tolerance_nm: float | None = None,
+    trust_plugins: bool = False,
+) -> dict[str, Any]:
+    """Check a header as the controller will read it, then re-simulate the part.
+
+    A header passes only if: its CRC-32 (over every macro and the table), the sidecar's
+    SHA-256 of the header and the header's SHA-256 of the sidecar match; the whole text is
+    exactly what export writes for the recorded case (every macro value, the layer schedule,
+    no comment or expression inside a value, no other line), so what C reads is what was
+    checked; every table cell lies within one unit of the table the recorded case plans; and
+    the P-V re-simulated from the stored integers is within ``pv_tolerance_nm`` (default
+    :func:`default_pv_tolerance_nm`) of the predicted one. Raises :class:`ExportError` naming
+    the first difference.
+    """
+    path = Path(path)
+    macros, ints, meta, prefix, raw = check_integrity(path)
+    case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
+    surface, machine, _ = specs
+    try:
+        layout = build_layout(surface, case.layout)
+    except ValueError as exc:
+        raise ExportError(f"{path}: the recorded case plans no table ({exc})") from None
+    check_table(ints, planned_ints(case, specs, layout), path)
+    unit_nm = machine.table_unit_nm
+    table = ints * unit_nm * 1e-3
+    expected = header_meta(
+        case, specs, layout, float(meta["pv_nm"]), str(meta["created"]), str(meta["generator"])
+    )
+    expected["layers"] = layer_schedule(resolve_case(case, specs=specs), table)
+    expected["sidecar_sha256"] = sidecar_digest(meta)
+    check_macros(macros, expected, ints, machine.table_int_type, path)
+    check_canonical(
+        raw.decode("ascii"), render_header(prefix, expected, ints, machine.table_int_type)[0], path, prefix
+    )
+    predicted = float(meta["pv_nm"])
+    record = run_case(case, table=table, specs=specs, progress=progress)
+    tol = default_pv_tolerance_nm(unit_nm, predicted) if pv_tolerance_nm is None else pv_tolerance_nm
+    record["predicted_pv_nm"] = predicted
+    record["pv_tolerance_nm"] = tol
+    record["checksum"] = f"0x{int(meta['crc32']):08x}"
+    record["header"] = str(path)
+    if not abs(record["pv_nm"] - predicted) <= tol:
+        raise ExportError(
+            f"{path}: the table re-simulates to P-V {record['pv_nm']:.3f} nm, not the predicted "
+            f"{predicted:.3f} nm (difference {record['pv_nm'] - predicted:+.3f} nm, tolerance {tol:.3f} nm); "
+            "the header does not machine what was selected: do not load it"
+        )
+    return record
+
+
+# cells may differ from a re-planned table by one unit: the planned values are rounded to the
+# unit, so floating-point noise at a half-unit boundary can flip the last one
+TABLE_UNITS_TOLERANCE = 1
+
+
+def check_table(ints: np.ndarray, planned: np.ndarray, path: Path) -> None:
+    """Refuse a table whose shape differs from the re-planned one or any of whose cells lies
+    more than :data:`TABLE_UNITS_TOLERANCE` units from it, naming the first such cell."""
+    if ints.shape != planned.shape:
+        raise ExportError(
+            f"{path}: the table is {ints.shape[0]} × {ints.shape[1]}, the recorded case plans "
+            f"{planned.shape[0]} × {planned.shape[1]}; do not load it"
+        )
+    diff = np.abs(ints.astype(np.int64) - planned.astype(np.int64))
+    if diff.max(initial=0) > TABLE_UNITS_TOLERANCE:
+        off = diff > TABLE_UNITS_TOLERANCE
+        i, j = (int(v) for v in np.argwhere(off)[0])
+        raise ExportError(
+            f"{path}: table cell [{i}][{j}] holds {int(ints[i, j])}, the recorded case plans "
+            f"{int(planned[i, j])} ({int(off.sum()):,} cell(s) differ by more than "
+            f"{TABLE_UNITS_TOLERANCE} unit); do not load it"
+        )
+
+
+def check_macros(
+    macros: dict[str, str], expected: dict[str, Any], ints: np.ndarray, int_type: str, path: Path
+) -> None:
+    """Refuse a header whose macros, as C reads them (name, replacement text, order), are
+    not the ones export writes for the recorded case (``expected``: :func:`header_meta` of
+    it); names the first macro that differs."""
+    want = [(n, v) for n, v, _ in header_macros(expected, ints.shape, int_type)]
+    want.append((CHECKSUM_MACRO, f"0x{checksum(want, ints, int_type):08x}UL"))
+    wanted = dict(want)
+    for name in [*macros, *wanted]:
+        if macros.get(name) != wanted.get(name):
+            got, value = macros.get(name), wanted.get(name)
+            raise ExportError(
+                f"{path}: C reads macro {name[:60]} as {str(got)[:120]!r}, but the recorded case gives "
+                f"{str(value)[:120]!r}; do not load it"
+            )
+    if list(macros) != list(wanted):
+        raise ExportError(f"{path}: the macros are not in export's order; do not load it")
+
+
+def check_canonical(text: str, expected: str, path: Path, prefix: str) -> None:
+    """Refuse a header whose text is not exactly the one export writes for the recorded case
+    (table excepted, which :func:`check_table` judges): a macro's value, a comment or an
+    expression inside a value, or any other line that C would read differently from the
+    values checked. Names the macro, or the line, that differs."""
+    got, want = text.split("\n"), expected.split("\n")
+    for number, (a, b) in enumerate(zip(got, want, strict=False), start=1):
+        if a != b:
+            raise ExportError(_difference(path, number, a, b, prefix))
+    if len(got) != len(want):
+        raise ExportError(
+            f"{path}: the header has {len(got)} lines where export writes {len(want)}: it was edited; "
+            "do not load it"
+        )
+
+
+def _difference(path: Path, number: int, got: str, want: str, prefix: str) -> str:
+    m = re.match(rf"#define {re.escape(prefix)}_(\w+)\s", want)
+    if m:
+        value = want.split(None, 2)[2]
+        return (
+            f"{path}: macro {m.group(1)} reads {got.split(None, 2)[-1][:120]!r} on line {number}, but the "
+            f"recorded case gives {value[:120]!r} (a value must be written exactly as export writes it: no "
+            "other value, expression or comment); do not load it"
+        )
+    return (
+        f"{path}: line {number} reads {got[:120]!r} where export writes {want[:120]!r}: the header was "
+        "edited; do not load it"
+    )

@@ -1,0 +1,240 @@
+"""Case logs: how sweep workers hand finished cases to the cube without writing its blocks.
+
+A cube's arrays hold many cases per chunk (:mod:`ftsweep.store.cube`), and two workers must never
+rewrite the same chunk. So a worker logs: every task keeps one object
+``_log/<run id>/<writer>-<version>.npz`` under the cube holding every case it finished so
+far, replaced by the next version after each case (the previous one deleted after), so a
+kill loses at most the case being computed. The cube's one writer — the sweep's driver,
+holding the lock — merges the logs into the blocks (:func:`merge_logs`) and deletes each log
+only after, so a kill mid-merge merges it again; merging is idempotent. zarr ignores the
+``_log`` folder: readers see the merged cases.
+"""
+
+from __future__ import annotations
+
+import io
+import uuid
+import warnings
+from collections import defaultdict
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ftsweep.store import cube
+from ftsweep.store.storage import PathLike, Place, place
+
+LOG = "_log"
+# where logs that fail their checks are kept for inspection (zarr ignores the folder too)
+REJECTED = "_log_rejected"
+
+
+def _encode(cases: list[tuple[int, cube.Values]]) -> bytes:
+    """The cases as an ``.npz`` of plain arrays (no pickles): per variable the flat indices
+    of the cases that set it and their values."""
+    columns: dict[str, tuple[list[int], list[Any]]] = defaultdict(lambda: ([], []))
+    for flat, values in cases:
+        for var, value in values.items():
+            columns[var][0].append(flat)
+            columns[var][1].append(value)
+    arrays: dict[str, np.ndarray] = {}
+    for var, (flats, vals) in columns.items():
+        arrays[f"{var}.index"] = np.asarray(flats, dtype=np.int64)
+        arrays[f"{var}.value"] = np.asarray(vals, dtype=str if isinstance(vals[0], str) else None)
+    buffer = io.BytesIO()
+    np.savez(buffer, allow_pickle=False, **arrays)
+    return buffer.getvalue()
+
+
+class BadLog(ValueError):
+    """A case log that is not what a worker writes; the message says what is wrong."""
+
+
+def _check_column(
+    var: str, index: np.ndarray, values: np.ndarray, shapes: dict[str, tuple[int, ...]]
+) -> None:
+    """One variable's columns of a log: a cube variable, int64 flat indices within the cube,
+    one value per index of the cube variable's kind (maps of its shape)."""
+    if var not in shapes:
+        raise BadLog(f"variable {var[:60]!r} is not one of the cube's")
+    n_cases = int(np.prod(shapes["status"]))
+    if index.dtype != np.int64 or index.ndim != 1 or values.shape[:1] != index.shape:
+        raise BadLog(
+            f"{var}: indices and values do not pair up ({index.dtype} {index.shape}, {values.shape})"
+        )
+    if index.size and (index.min() < 0 or index.max() >= n_cases):
+        raise BadLog(f"{var}: case index {int(index.min())}..{int(index.max())} outside 0..{n_cases - 1}")
+    kind = "U" if var in cube.TEXT else "biuf"
+    if values.dtype.kind not in kind:
+        held = "text" if kind == "U" else "numbers"
+        raise BadLog(f"{var}: values of type {values.dtype} where the cube holds {held}")
+    extra = shapes[var][len(shapes["status"]) :]
+    if values.shape[1:] != extra:
+        raise BadLog(f"{var}: values of shape {values.shape[1:]} where the cube holds {extra}")
+
+
+# stored metrics that cannot be negative; P-V = max - min and RMS <= P-V hold for every case
+_NON_NEGATIVE = ("pv_nm", "rms_nm", "pv_inner_nm", "pv_outer_nm", "pv_interp_nm", "cusp_nm", "n_points")
+
+
+def _check_done(flat: int, values: cube.Values) -> None:
+    """A done case's values: P-V and RMS present and finite, no infinity anywhere, the
+    non-negative metrics non-negative, ``feasible`` 0 or 1, and the metrics consistent
+    (P-V = max − min error to 1e-6 relative, RMS ≤ P-V)."""
+    pv, rms = values.get("pv_nm"), values.get("rms_nm")
+    if not all(isinstance(v, (int, float)) and np.isfinite(v) for v in (pv, rms)):
+        raise BadLog(f"case {flat} is done but its P-V or RMS is missing or not finite ({pv}, {rms})")
+    for var, value in values.items():
+        if isinstance(value, (int, float)) and np.isinf(value):
+            raise BadLog(f"case {flat}: {var} is infinite")
+        if var in _NON_NEGATIVE and isinstance(value, (int, float)) and value < 0:
+            raise BadLog(f"case {flat}: {var} = {value} is negative")
+    if values.get("feasible", 0) not in (0, 1):
+        raise BadLog(f"case {flat}: feasible = {values['feasible']} is not 0 or 1")
+    lo, hi = values.get("error_min_nm"), values.get("error_max_nm")
+    if isinstance(lo, float) and isinstance(hi, float) and abs((hi - lo) - pv) > 1e-6 * max(1.0, abs(pv)):
+        raise BadLog(f"case {flat}: P-V {pv} nm is not its largest minus its smallest error ({hi} - {lo})")
+    if rms > pv * (1 + 1e-9) + 1e-9:
+        raise BadLog(f"case {flat}: RMS {rms} nm exceeds its P-V {pv} nm")
+
+
+def checked_cases(data: bytes, shapes: dict[str, tuple[int, ...]]) -> list[tuple[int, cube.Values]]:
+    """The cases of a log's bytes, every record checked as untrusted input (``shapes``: each
+    cube variable's shape): a readable ``.npz`` without pickles, columns that pair up, indices
+    within the cube, values of the variables' kinds, a status a worker writes, and a done
+    case's metrics finite, in range and consistent (:func:`_check_done`); :class:`BadLog`
+    naming the first problem otherwise."""
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as npz:
+            columns = {}
+            for name in npz.files:
+                var, _, part = name.rpartition(".")
+                if (
+                    part not in ("index", "value")
+                    or f"{var}.index" not in npz.files
+                    or f"{var}.value" not in npz.files
+                ):
+                    raise BadLog(f"entry {name[:60]!r} is not a variable's index or value")
+                columns[var] = (npz[f"{var}.index"], npz[f"{var}.value"])
+    except BadLog:
+        raise
+    except Exception as exc:  # zipfile, numpy and zlib raise many kinds for damaged bytes
+        raise BadLog(f"not a readable log ({type(exc).__name__}: {str(exc)[:120]})") from None
+    by_case: dict[int, cube.Values] = defaultdict(dict)
+    for var, (index, values) in columns.items():
+        _check_column(var, index, values, shapes)
+        for flat, value in zip(index.tolist(), values, strict=True):
+            by_case[int(flat)][var] = value.item() if value.ndim == 0 else value
+    for flat, case_values in by_case.items():
+        status = case_values.get("status")
+        if status not in (cube.DONE, cube.FAILED):
+            raise BadLog(f"case {flat}: status {status!r} is not one a worker writes (done, failed)")
+        if status == cube.DONE:
+            _check_done(flat, case_values)
+    return list(by_case.items())
+
+
+class CaseLog:
+    """One task's log (worker side), with :class:`~ftsweep.store.cube.CubeWriter`'s writing methods."""
+
+    def __init__(self, where: PathLike, run_id: str) -> None:
+        self.place = place(where)
+        self.prefix = f"{LOG}/{run_id}/{uuid.uuid4().hex[:12]}"
+        self.cases: list[tuple[int, cube.Values]] = []
+        self.version = 0
+
+    def _key(self, version: int) -> str:
+        return f"{self.prefix}-{version:06d}.npz"
+
+    def _add(self, flat: int, values: cube.Values) -> None:
+        if not self.place.exists("zarr.json"):
+            # a log would recreate the cube's folder and merge into nothing
+            raise cube.CubeError(f"the cube {self.place} is gone (deleted while the sweep ran)")
+        self.cases.append((flat, values))
+        self.version += 1
+        self.place.write(self._key(self.version), _encode(self.cases))
+        if self.version > 1:
+            self.place.remove(self._key(self.version - 1))
+
+    def write_done(self, flat: int, record: dict[str, Any], run_id: str) -> None:
+        self._add(flat, cube.done_values(record, run_id))
+
+    def write_failed(self, flat: int, message: str, run_id: str) -> None:
+        self._add(flat, cube.ended_values(cube.FAILED, message, run_id))
+
+
+def _latest(keys: list[str]) -> dict[str, tuple[int, list[str]]]:
+    """Per writer: its newest version's key and every key of that writer up to it."""
+    versions: dict[str, list[tuple[int, str]]] = defaultdict(list)
+    for key in keys:
+        stem, _, tail = key.rpartition("-")
+        if key.endswith(".npz") and tail[:-4].isdigit():
+            versions[stem].append((int(tail[:-4]), key))
+    return {stem: (max(v)[0], [k for _, k in sorted(v)]) for stem, v in versions.items()}
+
+
+def merge_logs(where: PathLike, fence: Callable[[], None] | None = None) -> int:
+    """Merge every case log under the cube into its blocks and delete the merged logs; the
+    caller holds the cube's lock. Logs are applied oldest run first (a case computed again
+    by a later run takes the later values). ``fence``, called before every block write,
+    raises when this writer may no longer write (:meth:`ftsweep.store.lock.Lease.fence`); nothing
+    is deleted then. Returns the number of cases merged."""
+    at: Place = place(where)
+    writers = _latest(at.listing(LOG))
+    if not writers:
+        return 0
+    shapes = cube.variable_shapes(at)
+    cases: list[tuple[int, cube.Values]] = []
+    merged: list[str] = []
+    for stem in sorted(writers):  # the run id (a timestamp) leads the stem
+        _, keys = writers[stem]
+        try:
+            data = at.read(keys[-1])
+        except FileNotFoundError:  # its writer replaced it just now: the next merge takes that
+            continue
+        try:
+            cases.extend(checked_cases(data, shapes))
+        except BadLog as exc:
+            _reject(at, keys[-1], data, str(exc))
+        merged.extend(keys)
+    if cases:
+        cube.CubeWriter(at).write(cases, fence)
+    for key in merged:
+        at.remove(key)
+    at.remove_empty_folders(LOG)
+    return len({flat for flat, _ in cases})
+
+
+def _reject(at: Place, key: str, data: bytes, reason: str) -> None:
+    """Move a bad log aside (under ``_log_rejected/``, kept for inspection) with a warning;
+    its cases stay pending, so the run computes them again."""
+    aside = REJECTED + key[len(LOG) :]
+    at.write(aside, data)
+    warnings.warn(
+        f"case log {key} is not what a worker writes ({reason}); moved to {aside} and its cases "
+        "will be computed again",
+        stacklevel=3,
+    )
+
+
+def pending_logs(where: PathLike) -> int:
+    """How many case logs wait to be merged (a run was killed, or is running)."""
+    return len(_latest(place(where).listing(LOG)))
+
+
+def current_status(where: PathLike) -> np.ndarray:
+    """Every case's status as the next merge will make it: the cube's, with what the logs
+    hold laid over (read only; for watching a running sweep from another process)."""
+    at = place(where)
+    status = cube.read_status(at)
+    shapes = cube.variable_shapes(at)
+    flat = status.reshape(-1)
+    for _, (_, keys) in sorted(_latest(at.listing(LOG)).items()):
+        try:
+            cases = checked_cases(at.read(keys[-1]), shapes)
+        except (FileNotFoundError, BadLog):  # replaced just now, or one the merge will reject
+            continue
+        for index, values in cases:
+            if "status" in values:
+                flat[index] = int(values["status"])
+    return status

@@ -1,0 +1,272 @@
+"""Where a cube lives: a local folder, or any fsspec URL (``s3://``, ``gs://``, ``abfs://``,
+``memory://`` ...), behind one small set of operations the cube, its case logs and its lock
+need: read, replace atomically, create only if absent, list, remove.
+
+Storage options come from the usual places: the protocol's own (AWS_* variables and
+``~/.aws`` for s3fs, ...), fsspec's configuration (``~/.config/fsspec/*.json`` and
+``FSSPEC_<PROTOCOL>_<OPTION>`` variables, e.g. ``FSSPEC_S3_ENDPOINT_URL``), and options given
+explicitly (``--storage-option KEY=VALUE``), which win. Explicit options travel with a
+sweep's tasks to its workers; the others are each machine's own.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional, Union
+
+PathLike = Union[str, Path, "Place"]
+
+_MEMORY_SWAP = threading.Lock()
+
+
+class StorageError(ValueError):
+    """A location cannot be used as asked; the message says what to do."""
+
+
+def is_url(text: Union[str, Path]) -> bool:
+    """``scheme://...`` other than ``file://`` (those are plain paths)."""
+    text = str(text)
+    return "://" in text and not text.startswith("file://")
+
+
+@dataclass(frozen=True)
+class Place:
+    """A cube's (or any stored object's) location: ``url`` is an absolute local path or a URL;
+    ``options`` the explicit storage options (JSON text, so a Place travels to workers)."""
+
+    url: str
+    options_json: str = "{}"
+    _cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False, hash=False)
+
+    # ------------------------------------------------------------------ identity
+    def __str__(self) -> str:
+        return self.url
+
+    @property
+    def local(self) -> bool:
+        return not is_url(self.url)
+
+    @property
+    def path(self) -> Path:
+        """The local folder (only for a local place)."""
+        if not self.local:
+            raise StorageError(f"{self.url} is not a local path")
+        return Path(self.url)
+
+    @property
+    def options(self) -> dict[str, Any]:
+        return dict(json.loads(self.options_json))
+
+    @property
+    def protocol(self) -> str:
+        return "file" if self.local else self.url.split("://", 1)[0]
+
+    @property
+    def name(self) -> str:
+        return self.url.rstrip("/").rsplit("/", 1)[-1]
+
+    def sibling(self, suffix: str) -> Place:
+        """The place ``<this>`` + ``suffix`` beside it (a lock ``c.zarr.lock``)."""
+        return Place(self.url.rstrip("/") + suffix, self.options_json)
+
+    # ------------------------------------------------------------------ access
+    def fs(self) -> tuple[Any, str]:
+        """The fsspec filesystem and this place's path in it (cached per Place)."""
+        if "fs" not in self._cache:
+            import fsspec
+
+            if self.local:
+                self._cache["fs"] = (fsspec.filesystem("file"), self.url)
+            else:
+                try:
+                    self._cache["fs"] = fsspec.core.url_to_fs(self.url, **self.options)
+                except (ImportError, ValueError) as exc:
+                    raise StorageError(
+                        f"cannot reach {self.url}: {exc} (s3:// needs s3fs: pip install 'ftsweep[s3]')"
+                    ) from None
+        fs, root = self._cache["fs"]
+        return fs, root
+
+    def key(self, key: str) -> str:
+        _, root = self.fs()
+        return f"{root.rstrip('/')}/{key}" if key else root
+
+    def zarr_store(self, read_only: bool = False) -> Any:
+        """A zarr store on this place (zarr's own for a local folder)."""
+        from zarr.storage import FsspecStore, LocalStore
+
+        if self.local:
+            return LocalStore(self.url, read_only=read_only)
+        # zarr runs its own event loop: it gets its own (asynchronous) filesystem instance,
+        # never the one :meth:`fs` serves synchronous calls from
+        return FsspecStore.from_url(self.url, storage_options=self.options, read_only=read_only)
+
+    def exists(self, key: str = "") -> bool:
+        fs, _ = self.fs()
+        fs.invalidate_cache(self.key(key))  # another process may have written or deleted it
+        return bool(fs.exists(self.key(key)))
+
+    def read(self, key: str = "") -> bytes:
+        """The object's bytes; FileNotFoundError if there is none."""
+        fs, _ = self.fs()
+        return bytes(fs.cat_file(self.key(key)))
+
+    def write(self, key: str, data: bytes) -> None:
+        """Replace the object ``key`` whole: a reader sees the old bytes or the new, never a
+        torn mix (a temporary file and a rename locally; one PUT on object storage)."""
+        if self.local:
+            target = Path(self.key(key))
+            target.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+            try:
+                with os.fdopen(fd, "wb") as fh:
+                    fh.write(data)
+                os.replace(tmp, target)
+            finally:
+                Path(tmp).unlink(missing_ok=True)
+            return
+        fs, _ = self.fs()
+        fs.pipe_file(self.key(key), data)
+
+    def create(self, key: str, data: bytes) -> str:
+        """Write ``key`` only if no object is there (FileExistsError otherwise), atomically:
+        O_EXCL locally, a conditional PUT (If-None-Match) on object storage; returns its tag
+        (:meth:`read_tagged`; empty locally). A store that cannot do that is refused by the
+        caller (:mod:`ftsweep.store.lock`)."""
+        if self.local:
+            target = Path(self.key(key))
+            target.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(target, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+            return ""
+        fs, _ = self.fs()
+        try:
+            out = fs.pipe_file(self.key(key), data, mode="create")
+        except OSError as exc:  # s3fs turns 412 Precondition Failed into EINVAL
+            if isinstance(exc, FileExistsError) or "pre-condition" in str(exc).lower():
+                raise FileExistsError(self.key(key)) from None
+            raise
+        etag = out.get("ETag") if isinstance(out, dict) else None
+        return str(etag) if etag else self._tag(fs, self.key(key))
+
+    # stores whose conditional writes a lock may rely on (create-if-absent and
+    # compare-and-swap): S3 and its kin (If-None-Match / If-Match), and the in-process memory://
+    CONDITIONAL = ("s3", "s3a", "memory")
+
+    def read_tagged(self, key: str) -> tuple[bytes, str]:
+        """The object's bytes and a tag that changes whenever it is replaced (S3's ETag).
+        FileNotFoundError if there is none."""
+        fs, _ = self.fs()
+        path = self.key(key)
+        for _ in range(5):
+            before = self._tag(fs, path)
+            data = bytes(fs.cat_file(path))
+            if self._tag(fs, path) == before:  # not replaced while it was read
+                return data, before
+        raise StorageError(f"{self.url}/{key} keeps changing while it is read")
+
+    def _tag(self, fs: Any, path: str) -> str:
+        if self.protocol == "memory":
+            import hashlib
+
+            return hashlib.sha256(bytes(fs.cat_file(path))).hexdigest()
+        info = fs.info(path)
+        return str(info.get("ETag") or info.get("etag") or info.get("LastModified"))
+
+    def replace_if(self, key: str, data: bytes, tag: str) -> str:
+        """Replace ``key`` only if it still carries ``tag`` (compare-and-swap: S3's If-Match);
+        returns the new tag. FileExistsError if another writer replaced it first."""
+        fs, _ = self.fs()
+        path = self.key(key)
+        if self.protocol == "memory":
+            with _MEMORY_SWAP:  # memory:// lives in this process: a lock makes the swap atomic
+                if self._tag(fs, path) != tag:
+                    raise FileExistsError(path)
+                fs.pipe_file(path, data)
+                return self._tag(fs, path)
+        try:
+            out = fs.pipe_file(path, data, IfMatch=tag)
+        except OSError as exc:  # s3fs turns 412 Precondition Failed into EINVAL
+            if "pre-condition" in str(exc).lower() or "precondition" in str(exc).lower():
+                raise FileExistsError(path) from None
+            raise
+        etag = out.get("ETag") if isinstance(out, dict) else None
+        return str(etag) if etag else self._tag(fs, path)
+
+    def listing(self, prefix: str) -> list[str]:
+        """Keys (relative to this place) of every object under ``prefix``."""
+        fs, root = self.fs()
+        base = self.key(prefix)
+        # object stores' drivers cache listings (of every folder a find passed through):
+        # other processes (workers) write here
+        fs.invalidate_cache()
+        try:
+            found = fs.find(base)
+        except FileNotFoundError:
+            return []
+        start = len(root.rstrip("/")) + 1
+        return sorted(str(p)[start:] for p in found)
+
+    def remove(self, key: str) -> None:
+        """Delete one object (already gone is fine)."""
+        fs, _ = self.fs()
+        try:
+            fs.rm_file(self.key(key))
+        except FileNotFoundError:
+            pass
+
+    def remove_empty_folders(self, prefix: str) -> None:
+        """Delete the empty folders under (and at) ``prefix`` of a local place (object
+        storage has none)."""
+        if not self.local:
+            return
+        top = Path(self.key(prefix))
+        if not top.is_dir():
+            return
+        for folder in sorted((p for p in top.rglob("*") if p.is_dir()), reverse=True) + [top]:
+            try:
+                folder.rmdir()
+            except OSError:  # not empty (a worker is logging into it)
+                pass
+
+    def remove_all(self) -> None:
+        """Delete this place and everything under it."""
+        fs, root = self.fs()
+        try:
+            fs.rm(root, recursive=True)
+        except FileNotFoundError:
+            pass
+
+
+def place(where: PathLike, options: Optional[dict[str, Any]] = None) -> Place:
+    """The :class:`Place` of a path or URL: local paths absolute (workers may run in another
+    folder), ``file://`` URLs as paths, other URLs as given."""
+    if isinstance(where, Place):
+        return where if options is None else Place(where.url, json.dumps(options, sort_keys=True))
+    text = str(where)
+    if text.startswith("file://"):
+        text = text[len("file://") :]
+    if not is_url(text):
+        text = str(Path(text).absolute())
+    return Place(text, json.dumps(options or {}, sort_keys=True))
+
+
+def parse_options(pairs: tuple[str, ...]) -> dict[str, Any]:
+    """``KEY=VALUE`` pairs of ``--storage-option``: a value is JSON when it parses (numbers,
+    true/false, objects), else the text itself."""
+    options: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise StorageError(f"--storage-option takes KEY=VALUE, got {pair!r}")
+        try:
+            options[key] = json.loads(value)
+        except ValueError:
+            options[key] = value
+    return options

@@ -1,0 +1,3 @@
+"""Sweeps: the sweep spec, its run into a cube (resume, growth), and the Dask execution of its
+tasks.
+"""

@@ -1,0 +1,110 @@
+"""Sweeps that grow: a spec whose axes gained values extends its cube, and only the new cases
+are computed.
+
+A spec grows its cube when everything but the axes is unchanged, the same axes come in the
+same order, and every value the cube holds is still on its axis (new point counts, aspect
+ratios, feeds ... anywhere, or a range with more values that keeps the old ones). The cube is
+rebuilt for the new spec with every recorded case moved to its new place (the cube is small:
+its blocks are few), written beside it as ``NAME.zarr.grow`` and then moved in; a run killed
+during the move finishes it on its next start (:func:`finish_interrupted`), one killed before
+leaves the old cube as it was. Removing values, or any other change, is still refused
+without ``--restart``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any, Optional
+
+import numpy as np
+
+from ftsweep.store import cube
+from ftsweep.store.storage import Place
+from ftsweep.sweeps.spec import SweepSpec, coordinates
+
+STAGING = ".grow"
+
+
+def _positions(old: np.ndarray, new: np.ndarray) -> Optional[np.ndarray]:
+    """Where each old axis value lies on the new axis, or None if one is gone."""
+    found = []
+    for value in old:
+        if isinstance(value, str) or old.dtype.kind in "OUS":
+            hits = np.flatnonzero(new == value)
+        else:
+            hits = np.flatnonzero(np.isclose(new.astype(float), float(value), rtol=1e-12, atol=0.0))
+        if hits.size != 1:
+            return None
+        found.append(int(hits[0]))
+    return np.asarray(found, dtype=np.int64)
+
+
+def growth(old_spec_json: str, new: SweepSpec) -> Optional[dict[str, Any]]:
+    """How ``new`` grows the cube of the old spec: per axis the positions of its old values
+    on the new axis and how many were added; None if it does not only grow it."""
+    old = SweepSpec.model_validate_json(old_spec_json)
+    if old.model_dump(mode="json", exclude={"axes"}) != new.model_dump(mode="json", exclude={"axes"}):
+        return None
+    old_axes, new_axes = coordinates(old), coordinates(new)
+    if list(old_axes) != list(new_axes):
+        return None
+    plan: dict[str, Any] = {"positions": {}, "added": {}}
+    for axis, values in old_axes.items():
+        where = _positions(np.asarray(values), np.asarray(new_axes[axis]))
+        if where is None:
+            return None
+        plan["positions"][axis] = where
+        plan["added"][axis] = int(new_axes[axis].size - values.size)
+    return plan
+
+
+def describe(plan: dict[str, Any]) -> str:
+    """``points +2, aspect +0`` for a notice."""
+    return ", ".join(f"{axis} +{n}" for axis, n in plan["added"].items())
+
+
+def grow(out: Place, spec: SweepSpec, name: str, plan: dict[str, Any]) -> None:
+    """Rebuild the cube at ``out`` for ``spec`` with its recorded cases in their new places
+    (the caller holds the lock and has merged the case logs)."""
+    old = cube.open_dataset(out).load()
+    entries = json.loads(old.attrs["catalog_entries"])
+    new = cube.template(spec, name, entries)
+    index = np.ix_(*plan["positions"].values())
+    for var in new.data_vars:
+        if var in old.data_vars:
+            values = new[var].values.copy()
+            values[index] = old[var].values
+            new[var].values = values
+    new.attrs["grown_from"] = old.attrs.get("sweep_spec_hash", "")
+    new.attrs["created"] = old.attrs.get("created", new.attrs["created"])
+    staging = out.sibling(STAGING)
+    staging.remove_all()
+    cube.create(staging, new)
+    _move_in(staging, out)
+
+
+def _move_in(staging: Place, out: Place) -> None:
+    """Replace ``out`` by the complete cube at ``staging``: a rename on a local disk; on object
+    storage a copy of every object, the root metadata last, then the staging deleted."""
+    out.remove_all()
+    if out.local:
+        os.replace(staging.path, out.path)
+        return
+    fs, _ = out.fs()
+    keys = [k for k in staging.listing("") if k != "zarr.json"] + ["zarr.json"]
+    for key in keys:
+        fs.copy(staging.key(key), out.key(key))
+    staging.remove_all()
+
+
+def finish_interrupted(out: Place) -> None:
+    """A growth killed midway: a complete staging cube is moved in (the old cube may be half
+    deleted already), an unfinished one deleted (the old cube is intact)."""
+    staging = out.sibling(STAGING)
+    if not staging.exists():
+        return
+    if cube.unfinished(staging) or not staging.exists("zarr.json"):
+        staging.remove_all()
+        return
+    _move_in(staging, out)

@@ -1,0 +1,488 @@
+"""Running a sweep into its cube: resume, refuse a changed spec, progress and summary."""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import os
+import time
+import uuid
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+
+from ftsweep import kinds
+from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
+from ftsweep.engine.spec import CaseError
+from ftsweep.inputs import catalogs
+from ftsweep.store import caselog, cube
+from ftsweep.store.cube import CubeError
+from ftsweep.store.lock import Lease, LeaseLost, cube_lock
+from ftsweep.store.storage import PathLike, Place, place
+from ftsweep.sweeps import grow
+from ftsweep.sweeps.executor import Cluster, TaskSpec, execute, run_task, warm_up
+from ftsweep.sweeps.spec import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
+
+
+def default_cube_path(name: str) -> Path:
+    """``outputs/<sweep>.zarr`` in the current folder."""
+    return Path("outputs") / f"{name}.zarr"
+
+
+# the driver merges its workers' case logs into the cube at most this often [s] (and at the
+# end): readers of a running sweep's cube see its cases this late at most
+MERGE_EVERY_S = 5.0
+
+
+# a cube's template is built in memory: beyond this it would not fit
+TEMPLATE_BYTES_LIMIT = 4 * 2**30
+# typical wall seconds of one converged case on one core (ftsweep bench), for cost estimates
+SECONDS_PER_CASE = 2.5
+
+
+def check_sweep_size(spec: SweepSpec, max_cases: int = MAX_CASES) -> None:
+    """Refuse a sweep whose cube would not fit in memory or that would run for days, naming
+    its size and the option that overrides the limit."""
+    sizes = [v.size for v in coordinates(spec).values()]
+    count = math.prod(sizes)
+    bins = spec.resolution.error_map_bins or 0
+    per_case = 8 * (len(cube.metrics_for(str(spec.layout))) + 4) + 16 * bins * bins
+    nbytes = count * per_case
+    hours = count * SECONDS_PER_CASE / 3600.0
+    if count > max_cases:
+        raise CubeError(
+            f"the sweep has {count:,} cases ({' × '.join(map(str, sizes))}): about {hours:,.0f} core-hours "
+            f"at {SECONDS_PER_CASE:g} s a case, over the limit of {max_cases:,} cases; narrow the axes, "
+            "or raise the limit with --max-cases"
+        )
+    if nbytes > TEMPLATE_BYTES_LIMIT:
+        raise CubeError(
+            f"the sweep has {count:,} cases ({' × '.join(map(str, sizes))}): its cube would take about "
+            f"{nbytes / 2**30:,.3g} GiB of memory to create, over the {TEMPLATE_BYTES_LIMIT / 2**30:g} GiB "
+            "limit; narrow the axes or lower resolution.error_map_bins"
+        )
+
+
+def default_workers() -> int:
+    """One worker process per core this process may use."""
+    return usable_cores()
+
+
+@dataclass
+class SweepReport:
+    """What a sweep run did; ``rows`` are the per-case summaries of this run."""
+
+    cube: Place
+    total: int
+    skipped: int
+    rows: list[dict] = field(default_factory=list)
+    wall_s: float = 0.0
+    workers: int = 1
+    threads: int = 1  # the cluster's, which tasks are planned for
+    dashboard: Optional[str] = None
+    tasks: int = 0
+    damaged: dict[int, str] = field(default_factory=dict)
+    pruned: int = 0  # cases left out by --prune (this run's and earlier ones kept)
+    queued: int = 0  # cases this run computes
+    note: str = ""  # what the run changed in the cube beyond its cases (it grew)
+
+    @property
+    def done(self) -> int:
+        return sum(r["status"] == "done" for r in self.rows)
+
+    @property
+    def failed(self) -> int:
+        return sum(r["status"] != "done" for r in self.rows)
+
+
+# what a run tells as it goes: each finished case (progress), the cluster once connected
+# (announce); and the lease it writes under on object storage (None: a local lock)
+Watchers = tuple[
+    Optional[Callable[[SweepReport, list[dict]], None]],
+    Optional[Callable[[SweepReport], None]],
+    Optional[Lease],
+]
+
+
+@dataclass(frozen=True)
+class Where:
+    """Where a sweep's cases run: the scheduler (None: a local cluster of ``workers``), the
+    line cache per worker [MiB] and the wait for workers [s] (:func:`run_sweep`)."""
+
+    scheduler: Optional[str]
+    workers: int
+    line_cache_mb: float
+    worker_wait_s: float
+
+
+def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
+    old = json.loads(old_json)
+    now = new.model_dump(mode="json")
+    return sorted(k for k in set(old) | set(now) if old.get(k) != now.get(k))
+
+
+def prepare_cube(
+    name: str, spec: SweepSpec, where: PathLike, restart: bool, catalog_folder: Optional[Path]
+) -> tuple[int, str]:
+    """Create the cube, or check an existing one belongs to ``spec`` (or grows into it,
+    :mod:`ftsweep.sweeps.grow`) and merge the case logs a killed run left; returns the cases already
+    done and a note on what changed (empty if nothing). The caller holds the cube's lock.
+
+    An existing cube from another spec is refused unless ``restart``, which discards any
+    existing cube and starts over. An unfinished template (a run killed while creating it)
+    is replaced.
+    """
+    out = place(where)
+    grow.finish_interrupted(out)
+    if cube.unfinished(out):
+        out.remove_all()
+    note = ""
+    if out.exists():
+        attrs = cube.read_attrs(out, check_schema=not restart)
+        if restart:
+            out.remove_all()
+        else:
+            caselog.merge_logs(out)
+            _same_catalog(out, spec, attrs, catalog_folder)
+            if attrs["sweep_spec_hash"] != spec.spec_hash():
+                note = _grow_or_refuse(name, spec, out, attrs)
+            _warn_other_revision(out, attrs)
+            return int(np.count_nonzero(cube.read_status(out) == cube.DONE)), note
+    entries = catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, catalog_folder)
+    cube.create(out, cube.template(spec, name, entries))
+    return 0, note
+
+
+def _same_catalog(out: Place, spec: SweepSpec, attrs: dict[str, Any], folder: Optional[Path]) -> None:
+    """Refuse to resume or grow a cube whose recorded catalog entries differ from the catalog
+    as it is now (its new cases would use the edited entries, its record the old ones),
+    naming the first field that differs."""
+    from ftsweep.inputs.trust import first_difference
+
+    try:
+        recorded = json.loads(attrs["catalog_entries"])
+    except (KeyError, TypeError, ValueError):
+        raise CubeError(f"{out} records no readable catalog entries; re-run with --restart") from None
+    now = json.loads(json.dumps(catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, folder)))
+    for key in ("surface", "machine", "cutting"):
+        name = next(iter(now[key]))
+        if name not in (recorded.get(key) or {}):
+            continue  # another entry: the spec changed, which the spec's own check names
+        found = first_difference(recorded[key][name], now[key][name], f"{key} '{name}'")
+        if found:
+            raise CubeError(
+                f"{out} was computed with other catalog entries than the catalog's now ({found}); its "
+                "cases would mix the two. Re-run with --restart to recompute every case with the catalog "
+                "as it is, or restore the entry."
+            )
+
+
+def _grow_or_refuse(name: str, spec: SweepSpec, out: Place, attrs: dict[str, Any]) -> str:
+    """Extend the cube when ``spec`` only adds axis values; refuse any other change."""
+    plan = grow.growth(attrs["sweep_spec"], spec)
+    if plan is None:
+        changed = ", ".join(_changed_keys(attrs["sweep_spec"], spec)) or "the spec"
+        raise CubeError(
+            f"{out} was created from a different spec of sweep '{attrs.get('sweep_name')}' "
+            f"(changed: {changed}; a spec may only add values to its axes). Re-run with --restart "
+            "to discard it and start over, or give another --out."
+        )
+    before = int(np.prod([len(p) for p in plan["positions"].values()]))
+    grow.grow(out, spec, name, plan)
+    return f"grown: {grow.describe(plan)} values; {n_cases(spec) - before} new case(s), {before} kept"
+
+
+def _warn_other_revision(out: Place, attrs: dict[str, Any]) -> None:
+    now = cube.git_revision()
+    if attrs.get("git_revision") not in (now, "unknown") and now != "unknown":
+        warnings.warn(
+            f"{out} was started by code revision {str(attrs.get('git_revision'))[:10]}, this is "
+            f"{now[:10]}; resuming mixes their results (use --restart to recompute all)",
+            stacklevel=3,
+        )
+
+
+def run_sweep(
+    name_or_path: str,
+    out: Optional[PathLike] = None,
+    scheduler: Optional[str] = None,
+    workers: Optional[int] = None,
+    restart: bool = False,
+    retry_failed: bool = False,
+    catalog_folder: Optional[Path] = None,
+    progress: Optional[Callable[[SweepReport, list[dict]], None]] = None,
+    max_cases: int = MAX_CASES,
+    prune: Optional[float] = None,
+    line_cache_mb: float = LINE_CACHE_MB,
+    announce: Optional[Callable[[SweepReport], None]] = None,
+    worker_wait_s: float = WORKER_WAIT_S,
+    storage_options: Optional[dict[str, Any]] = None,
+) -> SweepReport:
+    """Run (or resume) a sweep; cases already done in the cube are skipped.
+
+    The cube is locked for the whole run (:mod:`ftsweep.store.lock`): a second writer, or a
+    ``restart`` while another run writes, is refused. Done cases whose data chunks are
+    missing or unreadable are recomputed (``report.damaged`` names them).
+
+    scheduler : None (a LocalCluster of ``workers`` processes), ``"synchronous"``, or the
+        address of a running dask scheduler (also read from ``DASK_SCHEDULER_ADDRESS``).
+    retry_failed : also recompute cases recorded as failed.
+    prune : leave out (status ``pruned``, not computed) every pending case whose estimated
+        P-V (:mod:`ftsweep.kinds.table.estimate`) exceeds ``prune`` times the best estimate among the
+        aspect ratios of its point count. A run without ``prune`` computes earlier pruned cases.
+    line_cache_mb : memory [MiB] per worker for the lines that cases share (0: none); the
+        results are the same either way.
+    announce : told the report once the cluster is connected (its workers, threads and
+        dashboard), before any case runs.
+    worker_wait_s : seconds to wait for a first worker of an external scheduler, and for one
+        to come back after every worker left; then :class:`~ftsweep.sweeps.executor.ExecutorError`.
+    out : a local folder or an fsspec URL (:mod:`ftsweep.store.storage`), with ``storage_options``
+        for it beyond fsspec's configuration (they travel to the workers).
+    """
+    name, spec = load_sweep(name_or_path, catalog_folder)
+    check_sweep_size(spec, max_cases)
+    # workers may run in another folder (an external scheduler's): they get absolute paths
+    out = place(out if out is not None else default_cube_path(name), storage_options)
+    scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    workers = 1 if scheduler == "synchronous" else (workers or default_workers())
+    with cube_lock(out, command=f"ftsweep sweep {name_or_path}") as lease:
+        return _run_locked(
+            name,
+            spec,
+            out,
+            Where(scheduler, workers, line_cache_mb, worker_wait_s),
+            restart,
+            (retry_failed, prune),
+            catalog_folder,
+            (progress, announce, lease),
+        )
+
+
+def _undamaged_status(out: Place) -> tuple[np.ndarray, dict[int, str]]:
+    """The cube's case status after :func:`ftsweep.store.cube.repair` (unreadable chunks deleted,
+    done cases with missing or unreadable data pending again), and those cases with the
+    reason."""
+    damaged = cube.repair(out)
+    return cube.read_status(out).ravel(), damaged
+
+
+def _wanted_cases(
+    spec: SweepSpec,
+    out: Place,
+    status: np.ndarray,
+    rerun: tuple[bool, Optional[float]],
+    run_id: str,
+    catalog_folder: Optional[Path],
+) -> tuple[list[int], np.ndarray]:
+    """The cases this run computes (after pruning, if asked) and the cube's status then."""
+    retry_failed, prune = rerun
+    if prune is not None:
+        if kinds.kind(spec.layout).aspect_range is None:
+            raise CaseError(
+                f"--prune estimates tables over their aspect ratios; a {spec.layout} sweep has none"
+            )
+        prune_cases(spec, out, status, prune, run_id, catalog_folder)
+        status = cube.read_status(out).ravel()
+    wanted = (
+        (status == cube.PENDING)
+        | (retry_failed & (status == cube.FAILED))
+        | ((prune is None) & (status == cube.PRUNED))
+    )
+    return [int(i) for i in np.flatnonzero(wanted)], status
+
+
+def _compute(
+    report: SweepReport,
+    spec: SweepSpec,
+    pending: list[int],
+    where: Where,
+    run_id: str,
+    catalog_folder: Optional[Path],
+    watchers: Watchers,
+) -> None:
+    """Run ``pending`` on the cluster ``where`` says, each case written as it finishes; the
+    tasks are planned for the threads of the cluster the run got."""
+    progress, announce, lease = watchers
+    folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
+
+    merged = [time.monotonic()]
+
+    def on_result(rows: list[dict]) -> None:
+        report.rows.extend(rows)
+        if time.monotonic() - merged[0] >= MERGE_EVERY_S:
+            _merge_fenced(report.cube, lease)  # a writer whose lease was taken over stops here
+            merged[0] = time.monotonic()
+        if progress is not None:
+            progress(report, rows)
+
+    def plan(threads: int) -> list[list[int]]:
+        tasks = plan_tasks(spec, pending, threads, catalog_folder)
+        report.tasks = len(tasks)
+        return tasks
+
+    def on_cluster(got: Cluster) -> None:
+        report.workers, report.threads, report.dashboard = got.workers, got.threads, got.dashboard
+        if announce is not None:
+            announce(report)
+
+    assert spec.layout is not None
+    execute(
+        plan,
+        TaskSpec(
+            report.cube.url,
+            spec.model_dump_json(),
+            folder,
+            run_id,
+            where.line_cache_mb,
+            report.cube.options_json,
+        ),
+        where.scheduler,
+        where.workers,
+        on_result,
+        task=run_task,
+        warm=functools.partial(warm_up, spec.surface, spec.layout, folder),
+        on_cluster=on_cluster,
+        worker_wait_s=where.worker_wait_s,
+    )
+
+
+def _merge_fenced(out: Place, lease: Optional[Lease]) -> None:
+    """Merge the case logs into the blocks, fenced on object storage: the lease is first
+    confirmed by a conditional write on the lock object, and every block write checks that
+    the confirmation is still recent (:meth:`ftsweep.store.lock.Lease.fence`); a writer that lost
+    the lease writes nothing (:class:`~ftsweep.store.lock.LeaseLost`)."""
+    if lease is None:
+        caselog.merge_logs(out)
+        return
+    lease.confirm()
+    caselog.merge_logs(out, fence=lease.fence)
+
+
+def _run_locked(
+    name: str,
+    spec: SweepSpec,
+    out: Place,
+    where: Where,
+    restart: bool,
+    rerun: tuple[bool, Optional[float]],
+    catalog_folder: Optional[Path],
+    watchers: Watchers,
+) -> SweepReport:
+    _, note = prepare_cube(name, spec, out, restart, catalog_folder)
+    status, damaged = _undamaged_status(out)
+    already = int(np.count_nonzero(status == cube.DONE))
+    run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
+    pending, status = _wanted_cases(spec, out, status, rerun, run_id, catalog_folder)
+    report = SweepReport(
+        cube=out, total=n_cases(spec), skipped=already, workers=where.workers, damaged=damaged
+    )
+    report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
+    report.queued = len(pending)
+    report.note = note
+    start = time.perf_counter()
+    try:
+        _compute(report, spec, pending, where, run_id, catalog_folder, watchers)
+    finally:
+        # also on an error or a signal: what the workers finished goes into the blocks now,
+        # unless another writer took over the lease (its next run merges these logs)
+        try:
+            _merge_fenced(out, watchers[2])
+        except LeaseLost:
+            pass
+    report.wall_s = time.perf_counter() - start
+    return report
+
+
+def prune_cases(
+    spec: SweepSpec,
+    out: Place,
+    status: np.ndarray,
+    factor: float,
+    run_id: str,
+    catalog_folder: Optional[Path],
+) -> int:
+    """Mark pending cases hopeless by the estimate as pruned (see :func:`run_sweep`); returns
+    how many this call pruned."""
+    from ftsweep.kinds.table.estimate import estimate_sweep
+
+    if not factor > 1.0:
+        raise CubeError(f"the prune factor must be above 1, got {factor:g}")
+    est = estimate_sweep(spec, catalog_folder)["pv_estimate_nm"]
+    values = est.transpose(*coordinates(spec)).values
+    finite = np.where(np.isfinite(values), values, np.inf)
+    best = finite.min(axis=1, keepdims=True)  # over the aspect ratios of each row
+    hopeless = (np.isfinite(values) & (values > factor * best)).ravel()
+    targets = np.flatnonzero(hopeless & (status == cube.PENDING))
+    writer = cube.CubeWriter(out)
+    best_flat = np.broadcast_to(best, values.shape).ravel()
+    for flat in targets:
+        writer.write_pruned(
+            int(flat),
+            f"pruned: estimated P-V {values.ravel()[flat]:.4g} nm > {factor:g} × {best_flat[flat]:.4g} nm, "
+            "the best estimate of its point count",
+            run_id,
+        )
+    return int(targets.size)
+
+
+def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
+    """For each target point count: its best eligible case (:mod:`ftsweep.tools.query`), the one
+    ``select`` and ``ds.ftsweep.optimum()`` name too (None where no case is eligible)."""
+
+    from ftsweep.tools import query
+
+    ds = cube.open_dataset(path).load()
+    rows = []
+    for target, flat in query.best_per_points(ds):
+        if flat is None:
+            rows.append(
+                {
+                    "points": target,
+                    "aspect": None,
+                    "pv_nm": None,
+                    "n_points": None,
+                    "index": None,
+                    "table": "aspect" in ds.dims,
+                }
+            )
+            continue
+        case = query.describe(ds, flat)
+        rows.append(
+            {
+                "points": target,
+                # a table sweep's aspect axis; path programs have none worth naming
+                "aspect": case.get("aspect_target"),
+                "table": "aspect" in ds.dims,
+                "pv_nm": case["pv_nm"],
+                "n_points": case["n_points"],
+                "index": flat,
+            }
+        )
+    return rows
+
+
+def cube_counts(path: PathLike) -> dict[str, int]:
+    """Cases pending, done, failed and pruned in a cube."""
+    status = cube.read_status(path)
+    return {
+        "pending": int(np.sum(status == cube.PENDING)),
+        "done": int(np.sum(status == cube.DONE)),
+        "failed": int(np.sum(status == cube.FAILED)),
+        "pruned": int(np.sum(status == cube.PRUNED)),
+    }
+
+
+def axis_summary(spec: SweepSpec) -> str:
+    """One line per axis: its length and range, for the start of a run."""
+    parts = []
+    for axis, values in coordinates(spec).items():
+        if axis in NAMED_AXES:
+            parts.append(f"{axis} ×{values.size} [{', '.join(map(str, values))}]")
+        else:
+            parts.append(f"{axis} ×{values.size} [{values.min():.4g} … {values.max():.4g}]")
+    return ", ".join(parts)

@@ -1,0 +1,299 @@
+"""Benchmark of the case runner: seconds per case and per stage, on one core.
+
+Runs the published reference cases (catalogs/references.yaml) and two layouts of about one
+million points at the default resolution, after a warm-up case that pays numba's compile
+or cache-load cost, and prints a table. It measures; it asserts nothing about time.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import platform
+import time
+from typing import Any
+
+from ftsweep.engine.lines import LineCache
+from ftsweep.engine.simulator import STAGE_TIMERS, run_case
+from ftsweep.engine.spec import Case, Resolution
+from ftsweep.inputs import catalogs
+from ftsweep.kinds.requests import program_request
+from ftsweep.version import __version__
+
+MILLION_CASES = {
+    "ring-1M-a8": ("sinewave2d", program_request(kind="ring", points=1_000_000, aspect=8.0)),
+    "mesh-1M-a1": ("lens_array", program_request(kind="mesh", points=1_000_000, aspect=1.0)),
+}
+
+
+# "<case>-shared": the case run after another case computed its lines, as in a sweep whose
+# cases share their angular sampling (ftsweep.engine.lines.LineCache): the table's own work only
+SHARED_SUFFIX = "-shared"
+SHARED_CACHE_BYTES = 8 * 2**30
+# "<case>-threads": the case on the threads asked of the benchmark (predict's --threads), its
+# batches and table compensation in parallel: the same record, less wall time
+THREADS_SUFFIX = "-threads"
+
+
+def bench_cases() -> dict[str, Case]:
+    """The benchmarked cases: the six references plus two ~10⁶-point layouts, each also
+    without the exact-command envelope and with its lines shared (:data:`SHARED_SUFFIX`)."""
+    cases = {
+        name: Case(surface=ref.surface, layout=program_request(kind=ref.layout, pitch=ref.pitch))
+        for name, ref in catalogs.entries("references").items()
+    }
+    for name, (surface, request) in MILLION_CASES.items():
+        cases[name] = Case(surface=surface, layout=request)
+        # the same without the exact-command envelope (pv_interp_nm), as sweeps may run
+        cases[f"{name}-nointerp"] = Case(
+            surface=surface, layout=request, resolution=Resolution(interp_error=False)
+        )
+        cases[f"{name}{SHARED_SUFFIX}"] = cases[name]
+        cases[f"{name}{THREADS_SUFFIX}"] = cases[name]
+    return cases
+
+
+def run_benchmark(names: list[str] | None = None, repeat: int = 1, threads: int = 1) -> dict[str, Any]:
+    """Run the benchmark; returns machine info and one row per case (best of ``repeat``), the
+    ``-threads`` cases on ``threads`` threads (left out when it is one)."""
+    cases = bench_cases()
+    chosen = names or [n for n in cases if threads > 1 or not n.endswith(THREADS_SUFFIX)]
+    unknown = [n for n in chosen if n not in cases]
+    if unknown:
+        raise ValueError(f"unknown benchmark case(s) {unknown}; known: {', '.join(cases)}")
+    # warm-up: compile or load every kernel once, for both layout kinds
+    for surface, kind, pitch in (("sinewave2d", "ring", (20.0, 10.0)), ("lens_array", "mesh", (50.0, 50.0))):
+        run_case(Case(surface=surface, layout=program_request(kind=kind, pitch=pitch)))
+    rows = [_row(name, cases[name], repeat, threads) for name in chosen]
+    return {
+        "version": __version__,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "machine": platform.machine(),
+        "processor": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "threads": threads,
+        "rows": rows,
+    }
+
+
+def _row(name: str, case: Case, repeat: int, threads: int) -> dict[str, Any]:
+    """One benchmark row: the best of ``repeat`` runs of ``case``."""
+    best: dict[str, Any] | None = None
+    cache = None
+    if name.endswith(SHARED_SUFFIX):
+        cache = LineCache(SHARED_CACHE_BYTES)
+        run_case(case, lines=cache)  # the earlier case that computes the lines
+    n = threads if name.endswith(THREADS_SUFFIX) else 1
+    for _ in range(repeat):
+        record = run_case(case, lines=cache, threads=n)
+        if best is None or record["seconds"] < best["seconds"]:
+            best = record
+    assert best is not None
+    label = f"{name[: -len(THREADS_SUFFIX)]} ×{n}" if name.endswith(THREADS_SUFFIX) else name
+    row = {"case": label, "n_points": best["n_points"], "pv_nm": best["pv_nm"], "seconds": best["seconds"]}
+    row.update({f"seconds_{s}": best[f"seconds_{s}"] for s in STAGE_TIMERS})
+    row["n_eval"] = best["n_eval"]
+    return row
+
+
+def format_table(result: dict[str, Any]) -> str:
+    """A fixed-width table of a :func:`run_benchmark` result."""
+    head = (
+        f"{'case':24s} {'points':>9s} {'P-V nm':>8s} {'total s':>8s} {'comp.':>7s} "
+        f"{'sampl.':>7s} "
+        f"{'interp.':>7s} {'envel.':>7s} {'metric':>7s} {'eval pts/s':>11s}"
+    )
+    lines = [head, "-" * len(head)]
+    for r in result["rows"]:
+        lines.append(
+            f"{r['case']:24s} {r['n_points']:9,d} {r['pv_nm']:8.2f} {r['seconds']:8.2f} "
+            f"{r['seconds_compensation']:7.2f} {r['seconds_sampling']:7.2f} "
+            f"{r['seconds_interpolation']:7.2f} {r['seconds_envelope']:7.2f} {r['seconds_metrics']:7.2f} "
+            f"{r['n_eval'] / r['seconds']:11.3g}"
+        )
+    lines.append(
+        "compensation: control table + exact commands along the path; sampling: design surface on the "
+        "evaluation grid; compile time excluded (warm-up case first); -shared: the lines (sampling and exact "
+        "commands) computed by an earlier case, as in a sweep whose cases share them; "
+        "×N: on N threads (stage seconds are summed over the threads)."
+    )
+    return "\n".join(lines)
+
+
+# whole-process figures: what a user waits for, start-up and exit included. Each
+# entry: the command's arguments ("{dir}": a scratch folder, "{header}": an exported header of
+# the 950k-point ring case, made first) and its most runs (the slow ones run once)
+_RING_5K = ["--surface", "sinewave2d", "--points", "5000", "--aspect", "8"]
+_RING_950K = ["--surface", "sinewave2d", "--drho-um", "3.04", "--dtheta-deg", "0.125"]
+_DPATH_OUT = ["--json", "--plots", "{dir}", "-o", "{dir}/d.txt", "--force"]
+_CHORD_1M = ["--surface", "sinewave2d", "--layout", "spiral", "--chord-um", "0.0013"]
+WHOLE_PROCESS: dict[str, tuple[list[str], int]] = {
+    "ftsweep --help": (["--help"], 3),
+    "ftsweep predict --help": (["predict", "--help"], 3),
+    "predict 5k-point ring": (["predict", *_RING_5K, "--json"], 3),
+    "predict 950k-point ring, 1 thread": (["predict", *_RING_950K, "--json", "--threads", "1"], 3),
+    "predict 950k-point ring, all cores": (["predict", *_RING_950K, "--json"], 3),
+    "predict 990k-point chord spiral, 1 thread": (["predict", *_CHORD_1M, "--json", "--threads", "1"], 1),
+    "predict 990k-point chord spiral, all cores": (["predict", *_CHORD_1M, "--json"], 1),
+    "verify 950k-point ring header": (["verify", "{header}", "--json"], 3),
+    "ftsweep dpath (seed example)": (["dpath", "--json", "--plots", "{dir}"], 1),
+    "ftsweep dpath -o (+ its 1M-line program)": (["dpath", *_DPATH_OUT], 1),
+    "verify 1M-line D-path program": (["verify", "{dprogram}", "--json"], 3),
+    "ftsweep fresnel (chebyshev_example)": (["fresnel", "--json", "--plots", "{dir}"], 1),
+}  # fmt: skip
+
+# the one-case sweep whose exported header the verify row checks
+_HEADER_SWEEP = """surface: sinewave2d
+layout: ring
+axes: {points: [950000], aspect: [16.0]}
+"""
+
+
+def _command() -> list[str]:
+    """The console script beside this interpreter, else ``python -m ftsweep.cli.main``."""
+    import shutil
+    import sys
+    from pathlib import Path
+
+    script = Path(sys.executable).with_name("ftsweep")
+    found = str(script) if script.exists() else shutil.which("ftsweep")
+    return [found] if found else [sys.executable, "-m", "ftsweep.cli.main"]
+
+
+def _exported_header(head: list[str], folder: str) -> str:
+    """Sweep the 950k-point ring case (synchronously) and export its header into ``folder``."""
+    import subprocess
+    from pathlib import Path
+
+    spec = Path(folder) / "one.yaml"
+    spec.write_text(_HEADER_SWEEP)
+    cube, header = Path(folder) / "one.zarr", Path(folder) / "ring.h"
+    for args in (
+        ["sweep", str(spec), "--out", str(cube), "--scheduler", "synchronous"],
+        ["export", str(cube), "--case", "0", "-o", str(header)],
+    ):
+        done = subprocess.run([*head, *args], capture_output=True, text=True)
+        if done.returncode != 0:
+            raise ValueError(f"preparing the verify row failed: {done.stderr.strip()[-300:]}")
+    return str(header)
+
+
+def _exported_dpath(head: list[str], folder: str) -> str:
+    """Export the seed example's optimised D-path program ([5], ~1M lines) into ``folder``."""
+    import subprocess
+    from pathlib import Path
+
+    program = Path(folder) / "dpath-program.txt"
+    args = ["dpath", "--json", "--plots", folder, "-o", str(program), "--force"]
+    done = subprocess.run([*head, *args], capture_output=True, text=True)
+    if done.returncode != 0:
+        raise ValueError(f"preparing the D-path verify row failed: {done.stderr.strip()[-300:]}")
+    return str(program)
+
+
+def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[str, Any]]:
+    """Seconds of each :data:`WHOLE_PROCESS` command run as its own process, best of
+    ``repeat`` (at most its own count), with the seconds of the case it simulates where its
+    JSON reports them (a predict's case, verify's re-simulation; the rest is start-up,
+    imports, kernel loading, checks and exit)."""
+    import json
+    import subprocess
+    import tempfile
+
+    head = _command()
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="ftsweep-bench-") as folder:
+        made: dict[str, str] = {}
+        for name in names or list(WHOLE_PROCESS):
+            args, most = WHOLE_PROCESS[name]
+            for field, make in (("{header}", _exported_header), ("{dprogram}", _exported_dpath)):
+                if field in args and field not in made:
+                    made[field] = make(head, folder)
+            args = [a.replace("{dir}", folder) for a in args]
+            args = [made.get(a, a) for a in args]
+            best, inside = float("inf"), float("nan")
+            for _ in range(max(1, min(repeat, most))):
+                started = time.perf_counter()
+                done = subprocess.run([*head, *args], capture_output=True, text=True)
+                took = time.perf_counter() - started
+                if done.returncode != 0:
+                    raise ValueError(f"{name} failed: {done.stderr.strip()[-300:]}")
+                if took < best:
+                    best = took
+                    if "--json" in args:
+                        inside = float(json.loads(done.stdout).get("seconds", math.nan))
+            rows.append({"command": name, "seconds": best, "case_seconds": inside})
+    return rows
+
+
+def format_whole_process(rows: list[dict[str, Any]]) -> str:
+    """The whole-process table: seconds per command, and the seconds of the case it simulates."""
+    head = f"{'whole process (best of runs)':44s} {'seconds':>8s} {'case s':>8s}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        case = "" if math.isnan(r["case_seconds"]) else f"{r['case_seconds']:8.2f}"
+        lines.append(f"{r['command']:44s} {r['seconds']:8.2f} {case:>8s}")
+    lines.append(
+        "case s: the simulated case's own seconds (verify: its re-simulation); all cores: --threads default"
+    )
+    if not has_bytecode():
+        lines.append(
+            "note: ftsweep's modules have no bytecode (an editable install where PYTHONDONTWRITEBYTECODE "
+            "is set): every process above compiled them from source, ~0.08 s on the README's machine; "
+            "`python -m compileall pipeline stages` once gives what a wheel install has"
+        )
+    return "\n".join(lines)
+
+
+def has_bytecode() -> bool:
+    """Whether ftsweep's own modules have up-to-date bytecode beside them (without it, with
+    ``PYTHONDONTWRITEBYTECODE`` set, every process compiles them from source)."""
+    import importlib.util
+    import os
+
+    import ftsweep.cli.main
+
+    source = ftsweep.cli.main.__file__
+    cached = importlib.util.cache_from_source(source)
+    return os.path.exists(cached) and os.path.getmtime(cached) >= os.path.getmtime(source)
+
+
+def sweep_throughput(name: str, workers: int, scheduler: str | None = None) -> dict[str, Any]:
+    """Run sweep ``name`` on ``workers`` local worker processes (or on the cluster of the
+    ``scheduler`` address, its workers as it reports them) into a temporary cube and return
+    the wall time, summed case time, cases per second and the efficiency: summed case time
+    over wall time × workers (1: every worker computing cases all the time). The cube is
+    discarded."""
+    import tempfile
+    from pathlib import Path
+
+    from ftsweep.sweeps.run import run_sweep
+
+    with tempfile.TemporaryDirectory(prefix="ftsweep-bench-") as folder:
+        started = time.perf_counter()
+        report = run_sweep(name, Path(folder) / f"{name}.zarr", workers=workers, scheduler=scheduler)
+        whole = time.perf_counter() - started
+    summed = float(sum(row.get("seconds", 0.0) for row in report.rows))
+    wall = report.wall_s
+    return {
+        "sweep": name,
+        "scheduler": scheduler or "local cluster",
+        "workers": report.workers,
+        "cases": len(report.rows),
+        "failed": report.failed,
+        "wall_s": wall,
+        "whole_s": whole,
+        "summed_case_s": summed,
+        "cases_per_s": len(report.rows) / wall if wall > 0 else float("nan"),
+        "efficiency": summed / (wall * report.workers) if wall > 0 else float("nan"),
+    }
+
+
+def format_sweep(sweep: dict[str, Any]) -> str:
+    """One line of a :func:`sweep_throughput` result."""
+    return (
+        f"sweep {sweep['sweep']} on {sweep['workers']} worker(s) ({sweep['scheduler']}): {sweep['cases']} "
+        f"cases in {sweep['wall_s']:.1f} s wall ({sweep['whole_s']:.1f} s with the cube's set-up): "
+        f"{sweep['cases_per_s']:.2f} cases/s, summed case time {sweep['summed_case_s']:.1f} s, "
+        f"efficiency {sweep['efficiency']:.2f}"
+    )

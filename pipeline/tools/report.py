@@ -1,0 +1,213 @@
+"""``ftsweep report``: the figures engineers judge layouts by, and one HTML page with them.
+
+1. P-V against point count, one line per aspect ratio (log axes);
+2. P-V against aspect ratio, one line per point count, the optimum marked;
+3. a heat map of P-V over (point count, aspect ratio);
+4. the error map of a chosen case (default: the best at the largest budget), re-simulated
+   with a fine map, colour bar in nm, P-V and pitches in the title;
+5. the W command spectrum of that case with the servo bandwidth marked.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+
+import ftsweep.tools.accessor  # noqa: F401  (registers ds.ftsweep)
+from ftsweep import kinds
+from ftsweep.engine.planning import control_table, resolve_case
+from ftsweep.engine.simulator import run_case
+from ftsweep.inputs.catalogs import aperture_of
+from ftsweep.kinds.table.kind import build_layout
+from ftsweep.stages import dynamics
+from ftsweep.store import cube
+from ftsweep.store.io import save_figure, write_text_atomic
+from ftsweep.store.storage import PathLike, place
+from ftsweep.tools.accessor import _axes, plot_map
+from ftsweep.tools.select import SelectError, choose, describe, eligible, open_cube, recorded_case
+
+FIGURES = {
+    "pv_vs_points": "P-V against point count, one line per aspect ratio",
+    "pv_vs_aspect": "P-V against aspect ratio, one line per point count, optimum marked",
+    "pv_heatmap": "P-V over point count and aspect ratio",
+    "error_map": "Form error of the chosen case over the part",
+    "w_spectrum": "Spectrum of the W command of the chosen case",
+}
+
+
+def _save(ax: Any, path: Path) -> Path:
+    """Save the figure of ``ax`` atomically, with the umask's permissions (:func:`save_figure`)."""
+    return save_figure(ax.figure, path)
+
+
+def resimulate(
+    cube_path: PathLike,
+    index: int,
+    map_bins: int,
+    progress: Optional[Callable[[int, int], None]] = None,
+    trust_plugins: bool = False,
+) -> tuple[dict[str, Any], Any]:
+    """Re-run case ``index`` of a cube with an error map of ``map_bins`` bins, from the cube's
+    recorded spec and catalog entries. Returns the record and (case, layout, table, specs)."""
+    base, specs = recorded_case(open_cube(cube_path), index, trust_plugins)
+    case = base.model_copy(
+        update={"resolution": base.resolution.model_copy(update={"error_map_bins": map_bins})}
+    )
+    if kinds.kind(case.layout.kind).aspect_range is None:
+        # a path program is planned once, here, and handed to the run as its program
+        rcase = resolve_case(case, specs=specs)
+        assert rcase.values is not None and rcase.gouge is not None
+        layout, table, gouge = rcase.layout, rcase.values, rcase.gouge
+        record = run_case(case, progress=progress, specs=specs, program=(layout, table))
+        record["gouge_points"] = int(np.count_nonzero(gouge))
+        return record, (case, layout, table, specs)
+    layout = build_layout(specs[0], case.layout)
+    # the table is compensated once, here, and handed to the run (which would redo it)
+    table, gouge = control_table(case, layout, specs[0], case.nose_radius_of(specs[2]))
+    record = run_case(case, progress=progress, specs=specs, table=table)
+    record["gouge_points"] = int(np.count_nonzero(gouge))
+    return record, (case, layout, table, specs)
+
+
+def plot_spectrum(record: dict[str, Any], layout: Any, table: np.ndarray, specs: Any) -> Any:
+    """Amplitude spectrum [nm] of one revolution of W inside the part, bandwidth marked."""
+    surface, machine, cutting = specs
+    k = dynamics.commands_per_revolution(machine.command_rate_hz, cutting.spindle_rpm)
+    radius = 0.95 * aperture_of(surface).inner_radius_um
+    w = dynamics.revolution_commands(layout, table, radius, record["feed_um"], k)
+    freq, amp = dynamics.spectrum(w, k, cutting.spindle_rpm)
+    ax = _axes(None, (7.0, 4.4))
+    ax.loglog(
+        freq,
+        np.maximum(amp * 1e3, 1e-6),
+        lw=0.8,
+        color="tab:blue",
+        label=f"one revolution at r = {radius:.0f} µm",
+    )
+    ax.axvline(
+        machine.bandwidth_hz, color="tab:red", ls="--", label=f"servo bandwidth {machine.bandwidth_hz:g} Hz"
+    )
+    ax.axvline(
+        max(record["w_freq_max_hz"], freq[0]),
+        color="tab:green",
+        ls=":",
+        label=f"highest significant content {record['w_freq_max_hz']:.0f} Hz (all radii)",
+    )
+    ax.set_xlabel(f"frequency [Hz] at {cutting.spindle_rpm:g} rpm")
+    ax.set_ylabel("amplitude of W [nm]")
+    ax.set_ylim(bottom=1e-3)
+    verdict = "feasible" if record["feasible"] else "INFEASIBLE"
+    ax.set_title(
+        f"W command spectrum ({k:,} commands/rev at {machine.command_rate_hz / 1e3:g} kHz): {verdict}",
+        fontsize=9,
+    )
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    return ax
+
+
+def make_report(
+    cube_path: PathLike,
+    out_dir: Optional[Path] = None,
+    index: Optional[int] = None,
+    map_bins: int = 160,
+    progress: Optional[Callable[[int, int], None]] = None,
+    trust_plugins: bool = False,
+) -> dict[str, Path]:
+    """Write the figures and ``index.html`` into ``out_dir``; returns their paths."""
+    at = place(cube_path)
+    ds = open_cube(at)
+    if not bool(eligible(ds).any()):
+        raise SelectError(
+            f"{at} has no computed, feasible case to report on yet; run the sweep first "
+            f"(ftsweep sweep ... --out {at})"
+        )
+    stem = at.name.removesuffix(".zarr") + "-report"
+    out = Path(out_dir) if out_dir else (at.path.with_name(stem) if at.local else Path("outputs") / stem)
+    out.mkdir(parents=True, exist_ok=True)
+    paths: dict[str, Path] = {}
+    paths["pv_vs_points"] = _save(ds.ftsweep.plot_pv(), out / "pv_vs_points.png")
+    if "aspect" in ds.dims:  # a spiral cube has no aspect axis to plot over
+        paths["pv_vs_aspect"] = _save(ds.ftsweep.plot_aspect(), out / "pv_vs_aspect.png")
+        paths["pv_heatmap"] = _save(ds.ftsweep.plot_heatmap(), out / "pv_heatmap.png")
+
+    if index is None:
+        budget = int(np.nanmax(ds["points"].values if "points" in ds.dims else ds["n_points"].values))
+        chosen = choose(ds, budget_points=budget)
+    else:
+        chosen = choose(ds, index=index)
+    record, (case, layout, table, specs) = resimulate(
+        at, int(chosen["index"]), map_bins, progress, trust_plugins
+    )
+    shown = dict(describe(ds, int(chosen["index"])), pv_nm=record["pv_nm"])
+    paths["error_map"] = _save(
+        plot_map(record["error_map_x_um"], record["error_map_peak_nm"], shown, "peak"), out / "error_map.png"
+    )
+    if kinds.kind(case.layout.kind).angular_cells is not None:
+        # the W spectrum of one revolution: programs about the spindle (tables, spirals); a D
+        # path's motion is in its record (X feed and accelerations) and `ftsweep dpath`'s plots
+        paths["w_spectrum"] = _save(plot_spectrum(record, layout, table, specs), out / "w_spectrum.png")
+    paths["index"] = write_text_atomic(out / "index.html", _html(ds, chosen, record, paths))
+    return paths
+
+
+def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[str, Path]) -> str:
+    attrs = ds.attrs
+    rows = "".join(
+        f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
+        for k, v in (
+            ("sweep", attrs.get("sweep_name")),
+            ("surface", attrs.get("surface")),
+            ("layout method", attrs.get("layout_method")),
+            ("ftsweep version", attrs.get("ftsweep_version")),
+            ("git revision", attrs.get("git_revision")),
+            ("cube created", attrs.get("created")),
+            (
+                "cases",
+                f"{int(ds['status'].size)} ({int((ds['status'] == cube.DONE).sum())} done, "
+                f"{int((ds['status'] == cube.PRUNED).sum())} pruned)",
+            ),
+        )
+    )
+    case_rows = "".join(
+        f"<tr><th>{html.escape(k)}</th><td>{v:.4g}</td></tr>"
+        if isinstance(v, float) and math.isfinite(v)
+        else f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
+        for k, v in chosen.items()
+    )
+    dyn = (
+        f"stroke {record['stroke_um']:.3g} µm, peak velocity {record['w_velocity_peak_mm_s']:.3g} mm/s, "
+        f"peak acceleration {record['w_accel_peak_m_s2']:.3g} m/s², content up to "
+        f"{record['w_freq_max_hz']:.0f} Hz"
+        if "w_freq_max_hz" in record
+        else "; ".join(line.split(None, 1)[1] for line in kinds.kind(record["layout"]).describe(record))
+    )
+    figs = "".join(
+        f'<figure><img src="{html.escape(paths[k].name)}" alt="{html.escape(t)}"><figcaption>{html.escape(t)}'
+        f"</figcaption></figure>"
+        for k, t in FIGURES.items()
+        if k in paths
+    )
+    spec = html.escape(json.dumps(json.loads(attrs.get("sweep_spec", "{}")), indent=2))
+    title = html.escape(str(attrs.get("sweep_name")))
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>ftsweep report: {title}</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}}
+table{{border-collapse:collapse;margin:1em 0}}th,td{{border:1px solid #ccc;padding:3px 8px;text-align:left}}
+figure{{display:inline-block;margin:1em;vertical-align:top}}img{{max-width:520px}}pre{{background:#f5f5f5;padding:1em}}
+</style></head><body>
+<h1>ftsweep report: {html.escape(str(attrs.get("sweep_name")))}</h1>
+<table>{rows}</table>
+<h2>Chosen case ({html.escape(chosen.get("rule", ""))})</h2>
+<table>{case_rows}</table>
+<p>Re-simulated P-V {record["pv_nm"]:.2f} nm; W motion: {html.escape(dyn)}.</p>
+<h2>Figures</h2>{figs}
+<h2>Sweep spec</h2><pre>{spec}</pre>
+</body></html>
+"""

@@ -1,5 +1,5 @@
 """Bicubic tensor-product B-splines evaluated by numba (the kernel behind height-map surfaces;
-FITPACK fits the coefficients, see ftsweep.usersurfaces). Lengths in µm."""
+FITPACK fits the coefficients, see ftsweep.inputs.usersurfaces). Lengths in µm."""
 
 from __future__ import annotations
 

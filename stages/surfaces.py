@@ -49,7 +49,7 @@ class Param:
     """One catalog parameter of a surface family: its type (a plain annotation: float, int,
     list[list[float]], dict[int, float]), its description with units, its default (``...``:
     required) and constraints (``positive``: > 0; ``min_length`` of a list or mapping). The
-    catalog's validated models are generated from these (ftsweep.catalogs)."""
+    catalog's validated models are generated from these (ftsweep.inputs.catalogs)."""
 
     annotation: Any
     description: str

@@ -11,9 +11,8 @@ import sys
 import pytest
 
 from ftsweep.engine import allocator
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case
-from ftsweep.kinds.requests import program_request
+from ftsweep.engine.spec import Case, program_request
+from ftsweep.simulate import run_case
 
 
 @pytest.mark.skipif(platform.system() != "Linux" or not ctypes.util.find_library("c"), reason="glibc only")

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ftsweep.engine.simulator import run_case
+from ftsweep.simulate import run_case
 from ftsweep.stages import envelope, interpolation, layouts
 from ftsweep.tools.bench import bench_cases
 

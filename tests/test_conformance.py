@@ -13,12 +13,12 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
-from ftsweep import kinds
+from ftsweep import registry
 from ftsweep.cli.main import main
 from ftsweep.engine import result
-from ftsweep.engine.simulator import run_case
 from ftsweep.engine.spec import Case
 from ftsweep.exports.export import format_of_kind
+from ftsweep.simulate import run_case
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.sweeps.spec import case_at, load_sweep
 from ftsweep.tools.select import open_cube, recorded_case
@@ -44,7 +44,7 @@ class KindTests:
         return spec, out, module_catalog_dir
 
     def test_the_kind_is_registered_and_has_a_file_format(self):
-        entry = kinds.kind(self.kind)
+        entry = registry.kind(self.kind)
         assert entry.name == self.kind and entry.axes
         assert self.kind in format_of_kind(self.kind).kinds
 
@@ -53,7 +53,7 @@ class KindTests:
         _, spec = load_sweep(str(spec_path), folder)
         case = case_at(spec, 0)
         assert case.layout.kind == self.kind
-        cost, _ = kinds.kind(self.kind).cost(case, _surface(case, folder), folder)
+        cost, _ = registry.kind(self.kind).cost(case, _surface(case, folder), folder)
         assert cost > 0
 
     def test_a_case_key_is_stable_through_its_spec(self, cube):
@@ -66,7 +66,7 @@ class KindTests:
         _, out, _ = cube
         ds = xr.open_zarr(out)
         declared = set(result.stored(self.kind))
-        others = set().union(*(result.stored(k) for k in kinds.registry())) - declared
+        others = set().union(*(result.stored(k) for k in registry.kinds())) - declared
         assert declared <= set(ds.data_vars) and not others & set(ds.data_vars)
         assert float(ds["pv_nm"].values.ravel()[0]) > 0
 
@@ -182,4 +182,4 @@ class TestFresnel(KindTests):
 
 def test_every_registered_kind_has_a_conformance_subclass():
     covered = {cls.kind for cls in KindTests.__subclasses__()}
-    assert covered == set(kinds.registry())
+    assert covered == set(registry.kinds())

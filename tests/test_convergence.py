@@ -8,10 +8,9 @@ from __future__ import annotations
 
 import pytest
 
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case, Resolution
+from ftsweep.engine.spec import Case, Resolution, program_request
 from ftsweep.inputs import catalogs
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import run_case
 
 REFERENCES = catalogs.entries("references")
 

@@ -11,13 +11,12 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case, CaseError
+from ftsweep.engine.spec import Case, CaseError, program_request
 from ftsweep.exports.export import ExportError, verify
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds import path_programs as program
 from ftsweep.kinds.dpath import study as dstudy
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import run_case
 from ftsweep.stages import dpath, kinematics
 
 # [5]'s example: l = s = 20 mm, zone centre 30 mm from the C axis (outer edge 40 mm), 40 rpm
@@ -224,8 +223,8 @@ def d_case(surface: str = "concave_sphere", **options) -> Case:
 def test_both_transitions_share_their_compensated_cuts_and_nothing_else(monkeypatch):
     # the D-path study plans both transitions in shared_cuts: one compensation of the common
     # cuts, values bit for bit those of plans made apart; another part is solved anew
-    from ftsweep.engine.planning import resolve_case
     from ftsweep.kinds.dpath import kind as dpath_kind
+    from ftsweep.simulate import resolve_case
 
     apart = {t: resolve_case(d_case(spacing_um=100.0, transition=t)) for t in dstudy.TRANSITIONS}
     calls = []

@@ -12,12 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case
+from ftsweep.engine.spec import Case, program_request
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError, SurfaceSpec, load_catalog
 from ftsweep.inputs.usersurfaces import SurfaceLoadError, height_map_surface
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import run_case
 from ftsweep.stages.surfaces import Aperture, noll_to_nm, radial_section, sinewave2d
 
 ALL = [

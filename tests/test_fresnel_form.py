@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from ftsweep import kinds
+from ftsweep import registry
 from ftsweep.cli.main import main
-from ftsweep.engine.planning import resolve_case
+from ftsweep.engine.contract import Simulating
 from ftsweep.engine.record import Timer
-from ftsweep.engine.simulator import run_case
 from ftsweep.engine.spec import Case
+from ftsweep.simulate import resolve_case, run_case
 
 # a coarse program of the example: K = 90 points a turn at 4 µm a turn (cusp 50 nm at Rc 40 µm)
 COARSE = dict(surface="chebyshev_example", machine="xyzc-nanoform", cutting="fresnel-finish")
@@ -29,7 +29,7 @@ def _case(**kw) -> Case:  # type: ignore[no-untyped-def]
 def _worst_below_design(case: Case) -> float:
     """The lowest z_exact − design [µm] over the evaluated nodes: the exact commands' arcs."""
     rcase = resolve_case(case)
-    sim = kinds.kind("fresnel").simulation(kinds.Simulating(rcase, None, None, 400_000, 1e12, None), Timer())
+    sim = registry.kind("fresnel").simulation(Simulating(rcase, None, None, 400_000, 1e12, None), Timer())
     low = math.inf
     for b in range(sim.n_batches):
         m = sim.batch(b, Timer())

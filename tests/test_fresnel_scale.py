@@ -15,11 +15,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
-from ftsweep.engine.simulator import run_case
 from ftsweep.engine.spec import Case
 from ftsweep.exports.export import verify
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds.fresnel import study as fstudy
+from ftsweep.simulate import run_case
 from ftsweep.stages import fresnel as ff
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.sweeps.spec import load_sweep

@@ -16,11 +16,10 @@ from typing import Any
 
 import pytest
 
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case, Resolution
+from ftsweep.engine.spec import Case, Resolution, program_request
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.fresnel import study as fstudy
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import run_case
 
 GOLDEN = Path(__file__).parent / "data" / "golden_cases.json"
 # same code, same platform: identical bits; the bound admits libm/SIMD last digits elsewhere

@@ -13,10 +13,9 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case, Resolution
+from ftsweep.engine.spec import Case, Resolution, program_request
 from ftsweep.exports.export import export, verify
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import run_case
 from ftsweep.stages import envelope
 from ftsweep.sweeps.run import run_sweep
 

@@ -22,7 +22,7 @@ if lazy:
     startup.install()  # what the command line and every sweep worker do
 from pathlib import Path
 import numba
-from ftsweep.engine.simulator import run_case
+from ftsweep.simulate import run_case
 from ftsweep.sweeps.spec import case_at, load_sweep
 folder, sweeps = Path(sys.argv[2]), json.loads(sys.argv[3])
 records = []

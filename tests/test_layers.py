@@ -13,12 +13,11 @@ from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
 from ftsweep.engine.lines import LinePlan, _line_data, _machined, _table_of
-from ftsweep.engine.planning import layer_plan, resolve_case
+from ftsweep.engine.planning import layer_plan
 from ftsweep.engine.record import Timer
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case
+from ftsweep.engine.spec import Case, program_request
 from ftsweep.exports.export import export, verify
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import dynamics, interpolation, layers
 from ftsweep.stages.surfaces import FAMILIES
 from ftsweep.sweeps.run import run_sweep

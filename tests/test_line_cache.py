@@ -13,9 +13,8 @@ from hypothesis import strategies as st
 
 from ftsweep.engine.cost import ladder_rung
 from ftsweep.engine.lines import LineCache
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case, Resolution
-from ftsweep.kinds.requests import program_request
+from ftsweep.engine.spec import Case, Resolution, program_request
+from ftsweep.simulate import run_case
 from ftsweep.store.cube import TIMING_VARS
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.sweeps.spec import case_lines, load_sweep, plan_tasks
@@ -213,7 +212,8 @@ def test_passes_left_out_beyond_a_rectangle_change_nothing(case, catalog_dir, mo
 
 
 def test_layered_passes_of_a_grid_left_out_are_those_of_the_whole_grid(catalog_dir):
-    from ftsweep.engine.planning import control_table, layer_plan, resolve_case
+    from ftsweep.engine.planning import control_table, layer_plan
+    from ftsweep.simulate import resolve_case
     from ftsweep.stages import interpolation, layers
 
     case = Case(

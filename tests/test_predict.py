@@ -15,10 +15,9 @@ from click.testing import CliRunner
 from pydantic import ValidationError
 
 from ftsweep.cli.main import main
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case, CaseError, Resolution
+from ftsweep.engine.spec import Case, CaseError, Resolution, program_request
 from ftsweep.inputs.catalogs import CatalogError
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import run_case
 from ftsweep.sweeps.spec import load_sweep
 
 REQUIRED = {"surface", "layout", "n_points", "pv_nm", "rms_nm", "pv_interp_nm", "seconds"}

@@ -27,8 +27,8 @@ NEW_FAMILY = textwrap.dedent(
 
     from pydantic import TypeAdapter
     from ftsweep.inputs import catalogs
-    from ftsweep.engine.simulator import run_case
-    from ftsweep.kinds.requests import program_request
+    from ftsweep.simulate import run_case
+    from ftsweep.engine.spec import program_request
     from ftsweep.engine.spec import Case
 
     entry = {"family": "tilted_plane", "layout": "mesh", "aperture": {"shape": "circle", "radius_um": 300.0},
@@ -70,10 +70,10 @@ def test_every_registered_family_has_a_generated_catalog_model():
 def test_the_commands_offer_every_registered_kind():
     # the --layout choices are spelled out (the CLI starts without importing the kinds); they
     # must name every registered kind
-    from ftsweep import kinds
+    from ftsweep import registry
     from ftsweep.cli.predict import predict
     from ftsweep.cli.tools import optimize as optimize_command
 
     for command in (predict, optimize_command):
         layout = next(p for p in command.params if p.name == "layout")
-        assert set(layout.type.choices) == set(kinds.registry()), command.name
+        assert set(layout.type.choices) == set(registry.kinds()), command.name

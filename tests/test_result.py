@@ -11,9 +11,8 @@ from click.testing import CliRunner
 
 from ftsweep.cli.main import main
 from ftsweep.engine import result
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case
-from ftsweep.kinds.requests import program_request
+from ftsweep.engine.spec import Case, program_request
+from ftsweep.simulate import run_case
 from ftsweep.store import cube
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.tools.query import describe

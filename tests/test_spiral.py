@@ -11,11 +11,9 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from ftsweep.engine.planning import resolve_case
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case, CaseError, Resolution
+from ftsweep.engine.spec import Case, CaseError, Resolution, program_request
 from ftsweep.inputs.catalogs import CatalogError
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import interpolation, spiral
 from ftsweep.stages.interpolation import path_grid
 

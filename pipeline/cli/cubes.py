@@ -46,9 +46,9 @@ def _one_criterion(**options: Any) -> None:
 
 
 def _selection_text(chosen: dict[str, Any]) -> str:
-    from ftsweep import kinds
+    from ftsweep import registry
 
-    pitch = kinds.kind(chosen["layout"]).pitch_text(chosen)
+    pitch = registry.kind(chosen["layout"]).pitch_text(chosen)
     interp = (
         f"interpolation alone {chosen['pv_interp_nm']:.2f} nm"
         if math.isfinite(chosen["pv_interp_nm"])

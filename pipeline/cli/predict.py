@@ -181,10 +181,10 @@ def predict(**opts: Any) -> None:
       ftsweep predict --surface chebyshev_example --layout fresnel --facet-height-um 10 \\
           --machine xyzc-nanoform --cutting fresnel-finish
     """
-    from ftsweep.engine.simulator import run_case
     from ftsweep.engine.spec import CaseError
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.inputs.usersurfaces import SurfaceLoadError
+    from ftsweep.simulate import run_case
 
     case = _build_case(opts)
     as_json = opts["as_json"]
@@ -206,7 +206,7 @@ def _build_case(opts: dict[str, Any]) -> Case:
     value is validated by the spec models, whose errors are reported by option name."""
     from pydantic import ValidationError
 
-    from ftsweep import kinds
+    from ftsweep import registry
     from ftsweep.engine import result
     from ftsweep.engine.spec import Case, Resolution
     from ftsweep.inputs import catalogs
@@ -216,17 +216,17 @@ def _build_case(opts: dict[str, Any]) -> Case:
     try:
         spec = catalogs.entry("surfaces", surface)
         kind = layout or spec.layout
-        machine = opts["machine"] or kinds.kind(kind).machine
-        cutting = opts["cutting"] or kinds.kind(kind).cutting
+        machine = opts["machine"] or registry.kind(kind).machine
+        cutting = opts["cutting"] or registry.kind(kind).cutting
         catalogs.entry("machines", machine)
         catalogs.entry("cutting", cutting)
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
     try:
-        request, notices = kinds.request_from_options(kind, opts)
+        request, notices = registry.request_from_options(kind, opts)
     except ValueError as exc:
         fail(str(exc))
-    own = result.pitch_names(kind) if kinds.kind(kind).aspect_range is not None else ()
+    own = result.pitch_names(kind) if registry.kind(kind).aspect_range is not None else ()
     try:
         # validated as part of the case, so that an error's location names the option
         case = Case(
@@ -257,13 +257,13 @@ def _build_case(opts: dict[str, Any]) -> Case:
 def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
     """A spec model's validation errors, each named by the option that gave the value
     (``layout.pitch.0`` is the first pitch option, ``resolution.n_theta`` is --n-theta)."""
-    from ftsweep import kinds
+    from ftsweep import registry
     from ftsweep.inputs import catalogs
 
     parts = []
     for e in exc.errors():
         loc = [str(p) for p in e["loc"]]
-        if loc[:1] == ["layout"] and len(loc) > 1 and loc[1] in kinds.registry():
+        if loc[:1] == ["layout"] and len(loc) > 1 and loc[1] in registry.kinds():
             del loc[1]  # the request model's tag (its kind)
         if loc[:2] == ["layout", "pitch"] and len(loc) > 2:
             name = pitch_names[int(loc[2])]
@@ -277,11 +277,11 @@ def _option_errors(exc: ValidationError, pitch_names: tuple[str, ...]) -> str:
 
 
 def summary_text(r: dict[str, Any]) -> str:
-    from ftsweep import kinds
+    from ftsweep import registry
 
     lines = [
         f"surface      {r['surface']}",
-        *kinds.kind(r["layout"]).describe(r),
+        *registry.kind(r["layout"]).describe(r),
         f"cutting      feed {r['feed_um']:g} µm/rev, nose radius {r['nose_radius_um']:g} µm, "
         f"compensation {r['compensation']}",
         f"resolution   {r['n_theta']:,} angles × {r['points_per_feed']} points/feed "

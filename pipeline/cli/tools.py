@@ -176,7 +176,7 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
     """
     import numpy as np
 
-    from ftsweep import kinds
+    from ftsweep import registry
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.kinds.table.estimate import agreement, best_aspect, estimate_sweep
     from ftsweep.store.cube import CubeError
@@ -212,7 +212,7 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
     if as_json:
         echo_json(out)
         return
-    _print_estimate(out, name, kinds.kind(spec.layout).aspect_units.replace("um", "µm").replace("1", ""))
+    _print_estimate(out, name, registry.kind(spec.layout).aspect_units.replace("um", "µm").replace("1", ""))
 
 
 def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:

@@ -7,9 +7,9 @@ change, before anything is planned, compensated or allocated.
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, Optional
 
-from ftsweep import kinds
 from ftsweep.defaults import MAX_NODES
 from ftsweep.engine.spec import Case, CaseError, Resolution
 from ftsweep.inputs import catalogs
@@ -17,17 +17,18 @@ from ftsweep.stages import spiral
 from ftsweep.stages.interpolation import Program
 
 
-def angular_samples(layout: Program, rho0_um: float, resolution: Resolution) -> int:
+def angular_samples(
+    cells: Optional[Callable[[Any, float], float]], layout: Program, rho0_um: float, resolution: Resolution
+) -> int:
     """Spindle angles sampled over 360° (even): ``n_theta`` if set, else ``samples_per_cell``
     per table cell along the outer circumference (Np cells for rings, 2πρ0/max(Δx, Δy) for
     meshes: bilinear error grows as the pitch squared, so the coarse direction's cells carry
     the error that must be resolved; for a spiral program, the segments of its most densely
-    sampled revolution); with ``angular_ladder``, the rule's count rounded up to
-    the ladder's next rung (:func:`ladder_rung`)."""
+    sampled revolution), as its kind's ``cells(layout, ρ0)`` counts them; with
+    ``angular_ladder``, the rule's count rounded up to the ladder's next rung (:func:`ladder_rung`)."""
     if resolution.n_theta is not None:
         n = resolution.n_theta
     else:
-        cells = kinds.kind(layout.kind).angular_cells
         if cells is None:
             raise ValueError(f"a {layout.kind} program is not sampled on spindle angles")
         n = resolution.samples_per_cell * int(cells(layout, rho0_um))

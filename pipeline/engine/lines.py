@@ -18,21 +18,15 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import kinds
+from ftsweep.engine.contract import Simulating
 from ftsweep.engine.cost import angular_samples, check_cost, ray_nodes
 from ftsweep.engine.planning import ResolvedCase, control_table, layer_plan, z_error_of
 from ftsweep.engine.record import Timer, record_of
 from ftsweep.engine.simulator import Machined, require_finite, require_finite_passes
 from ftsweep.engine.spec import CaseError
 from ftsweep.inputs import catalogs
-from ftsweep.kinds import Simulating
 from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers
-from ftsweep.stages.interpolation import Program
 from ftsweep.stages.surfaces import radial_section
-
-
-def _layout_point(layout: Program, flat: int) -> str:
-    return kinds.kind(layout.kind).point_text(layout, flat)
 
 
 def _xy(r: float, theta: float) -> str:
@@ -74,7 +68,7 @@ class LinePlan:
     def of(cls, rcase: ResolvedCase, batch_nodes: int, max_nodes: float) -> LinePlan:
         """The plan of a resolved case; refuses one too costly to run (:func:`check_cost`)."""
         res = rcase.case.resolution
-        n_theta = angular_samples(rcase.layout, rcase.rho0_um, res)
+        n_theta = angular_samples(rcase.kind.angular_cells, rcase.layout, rcase.rho0_um, res)
         window = compensation.contact_window_um(rcase.gradient_bound, rcase.nose_radius_um)
         margin = window + 2.0 * rcase.feed_um
         nodes_per_ray = ray_nodes(rcase.rho0_um, margin, res.points_per_feed, rcase.feed_um)
@@ -130,7 +124,7 @@ def _table_of(
         if table.shape != shape:
             raise CaseError(f"the given table has shape {table.shape}, the layout {shape}")
         gouge = np.zeros(shape, dtype=bool)
-    require_finite(table, "the control table", lambda i: _layout_point(layout, i))
+    require_finite(table, "the control table", lambda i: rcase.kind.point_text(layout, i))
     return table, gouge
 
 
@@ -315,7 +309,7 @@ class ExactLines:
 
 class LineSimulation:
     """The batches of feed-plane lines of a table or spiral case (the simulation of its kind,
-    :class:`ftsweep.kinds.Simulating`): its compensated commands, line plan and layering
+    :class:`ftsweep.engine.contract.Simulating`): its compensated commands, line plan and layering
     (timed as compensation and interpolation), the layout-independent work of each batch
     taken from (and kept in) a :class:`LineCache` when given."""
 

@@ -13,7 +13,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import kinds
+from ftsweep.engine.contract import Planning, ProgramKind
 from ftsweep.engine.cost import check_capacity, check_cost, ray_nodes
 from ftsweep.engine.spec import Case, CaseError
 from ftsweep.engine.threads import compensate_in_parts
@@ -30,6 +30,7 @@ class ResolvedCase:
     commands [µm] and their gouge flags, planned with it (``plan_seconds``)."""
 
     case: Case
+    kind: ProgramKind
     surface_spec: Any
     machine: Any
     cutting: Any
@@ -54,6 +55,7 @@ class ResolvedCase:
 
 def resolve_case(
     case: Case,
+    kind: ProgramKind,
     catalog_folder: Any = None,
     specs: Optional[tuple[Any, Any, Any]] = None,
     program: Optional[tuple[Any, np.ndarray]] = None,
@@ -63,24 +65,24 @@ def resolve_case(
     feed not below 2·Rc (model §5), a layout the aperture or the
     controller's capacity rules out, a surface without a finite slope bound.
 
-    The case's kind (:mod:`ftsweep.kinds`) sets its feed and plans its program: a table's
+    The case's ``kind`` sets its feed and plans its program: a table's
     layout, a spiral's points by its rule and their compensated commands ([4]), a D path
     ([5]); a given ``program`` (path, commands [µm]), e.g. read back from an exported file,
     is taken as it stands instead. ``progress(done, total)`` follows a long planning (a
     Fresnel program's timing)."""
     surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
     rc = case.nose_radius_of(cutting)
-    kind = kinds.kind(case.layout.kind)
     feed = kind.feed(case, cutting, rc, surface_spec, catalog_folder, program)
     bound = _checked_bounds(case, surface_spec, catalog_folder, feed, rc)
     surface = catalogs.surface_callable(surface_spec, catalog_folder)
-    planning = kinds.Planning(
+    planning = Planning(
         case, surface_spec, machine, cutting, surface, feed, rc, bound, catalog_folder, program, progress
     )
     layout, extra = kind.plan(planning)
     check_capacity(case, kind.noun, layout.n_points, machine.capacity_points)
     return ResolvedCase(
         case=case,
+        kind=kind,
         surface_spec=surface_spec,
         machine=machine,
         cutting=cutting,

@@ -11,7 +11,6 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import kinds
 from ftsweep.engine import result
 from ftsweep.engine.planning import ResolvedCase, layer_change_of, z_error_of
 from ftsweep.engine.result import STAGES
@@ -160,7 +159,7 @@ def record_of(
         needed = layers.layers_needed(dyn.stroke_um, machine.travel_um, machine.layer_margin_um)
         reason += f" (layers off; layered machining would cut it in {needed} layers)"
     record: dict[str, Any] = {"surface": case.surface, "layout": layout.kind, "n_points": layout.n_points}
-    record.update(kinds.kind(layout.kind).record_fields(rcase))
+    record.update(rcase.kind.record_fields(rcase))
     record["aspect_actual"] = layout.aspect
     record.update(simulated(rcase, errors, plan.n_theta, rcase.feed_um + plan.window_um, gouge))
     record.update(

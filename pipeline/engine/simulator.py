@@ -2,7 +2,7 @@
 controller's interpolation along the tool's path, the arc envelope and the metrics, in the
 order of docs/architecture.md, on batches of rays so memory stays bounded whatever the program.
 
-A kind says how its program is sampled (its :class:`ftsweep.kinds.Simulation`: the rays of
+A kind says how its program is sampled (its :class:`ftsweep.engine.contract.Simulation`: the rays of
 a batch, the passes crossing them with their commands, the design they are judged by, and the
 record it adds); :func:`run_case` runs every kind's batches through the same accumulation of
 the metrics (model §6) and error maps.
@@ -20,7 +20,7 @@ from typing import Any, NamedTuple, Optional, Protocol
 
 import numpy as np
 
-from ftsweep import kinds
+from ftsweep.engine.contract import ProgramKind, Simulating, Simulation
 from ftsweep.engine.cost import MAX_NODES
 from ftsweep.engine.planning import ResolvedCase, resolve_case
 from ftsweep.engine.record import ErrorMap, Timer, timed
@@ -124,6 +124,7 @@ class Machined(NamedTuple):
 
 def run_case(
     case: Case,
+    kind: ProgramKind,
     catalog_folder: Any = None,
     progress: Optional[Callable[[int, int], None]] = None,
     batch_nodes: int = BATCH_NODES,
@@ -135,7 +136,7 @@ def run_case(
     threads: Optional[int] = None,
     resolved: Optional[ResolvedCase] = None,
 ) -> dict[str, Any]:
-    """Predict the form error of one case of any program kind (model §1–§6).
+    """Predict the form error of one case of program kind ``kind`` (model §1–§6).
 
     Returns a flat record whose fields :mod:`ftsweep.engine.result` declares (names, units, order):
     the resolved inputs (surface, program, n_points, its pitches or steps, cutting
@@ -163,10 +164,10 @@ def run_case(
     t_start = time.perf_counter()
     timer = Timer()
     with using_threads(threads):  # planning and a table's compensation split their work too
-        rcase = resolved or resolve_case(case, catalog_folder, specs, program)
+        rcase = resolved or resolve_case(case, kind, catalog_folder, specs, program)
         timer.seconds["compensation"] = rcase.plan_seconds
-        inputs = kinds.Simulating(rcase, table, catalog_folder, batch_nodes, max_nodes, lines)
-        sim = kinds.kind(case.layout.kind).simulation(inputs, timer)
+        inputs = Simulating(rcase, table, catalog_folder, batch_nodes, max_nodes, lines)
+        sim = kind.simulation(inputs, timer)
     bins = case.resolution.error_map_bins
     emap = ErrorMap.over(rcase.aperture, bins) if bins else None
     stats = metrics.empty_stats()
@@ -183,7 +184,7 @@ def run_case(
     return timed(record, timer, t_start)
 
 
-def _batches(sim: kinds.Simulation, timer: Timer, threads: int) -> Iterator[Machined]:
+def _batches(sim: Simulation, timer: Timer, threads: int) -> Iterator[Machined]:
     """The machined batches of ``sim`` in order, computed on ``threads`` threads with at most
     two batches per thread in flight, so memory stays a few batches whatever the case."""
     if threads == 1 or sim.n_batches < 2:

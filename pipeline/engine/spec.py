@@ -1,25 +1,80 @@
 """The spec of one case: an immutable, validated value with a stable key (its canonical JSON's
-hash). A case names its surface, program request (one model per kind,
-:mod:`ftsweep.kinds.requests`), machine, cutting conditions and resolution; every combination
-rule is checked once, when the spec is built (CLI options, sweep YAML and sidecars alike).
+hash). A case names its surface, program request (one model per kind, each a
+:class:`Request` declared in its kind's package and found by its ``kind`` through
+:mod:`ftsweep.registry`), machine, cutting conditions and resolution; every combination rule
+is checked once, when the spec is built (CLI options, sweep YAML and sidecars alike).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-from typing import Any, Literal, Optional
+from typing import Any, ClassVar, Literal, Optional
 
-from pydantic import Field, PositiveFloat, PositiveInt, field_validator, model_serializer
+from pydantic import (
+    Field,
+    PositiveFloat,
+    PositiveInt,
+    SerializeAsAny,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
+from ftsweep import registry
 from ftsweep.defaults import POINTS_PER_FEED, SAMPLES_PER_CELL
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import Strict
-from ftsweep.kinds.requests import ProgramRequest
 
 
 class CaseError(ValueError):
     """A case cannot be run as specified; the message says what to change."""
+
+
+class Request(Strict):
+    """Base of the program requests, one model per kind tagged by ``kind``, like xarray's
+    backend entrypoints each own their options: a field of another kind is refused naming
+    the kinds it belongs to (a null one, as stored cube specs carry, is dropped).
+
+    ``null_fields``: fields a kind's dump writes as null though it has none of them, so that
+    case keys written before the requests were split stay the same.
+    """
+
+    kind: str
+    null_fields: ClassVar[tuple[str, ...]] = ()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _own_fields(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        own = cls.model_fields
+        foreign = [k for k, v in data.items() if k not in own and v is not None]
+        if foreign:
+            raise ValueError(
+                f"a {registry.noun(data.get('kind'))} takes no {', '.join(foreign)}: "
+                f"{registry.owners(foreign[0])}"
+            )
+        return {k: v for k, v in data.items() if k in own}
+
+    def stable_dump(self, dumped: dict[str, Any], optional: tuple[str, ...]) -> dict[str, Any]:
+        """``dumped`` without the ``optional`` fields left unset, after the kind's null fields."""
+        return {
+            **dict.fromkeys(self.null_fields),
+            **catalogs.without_defaults(dumped, dict.fromkeys(optional)),
+        }
+
+    def label(self) -> str:
+        """Short text of the request for progress and error lines."""
+        given = self.model_dump(exclude_none=True, exclude={"kind"})
+        return " ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in given.items())
+
+
+def program_request(**fields: Any) -> Any:
+    """The validated request of ``fields``: ``kind`` picks the registered kind's model
+    (ValueError naming an unknown kind, pydantic's ValidationError a bad field)."""
+    model: Any = registry.kind(fields.get("kind")).request
+    return model.model_validate(fields)
 
 
 class Resolution(Strict):
@@ -89,7 +144,7 @@ class Case(Strict):
     """Everything that determines one prediction. ``key()`` is stable across processes."""
 
     surface: str
-    layout: ProgramRequest
+    layout: SerializeAsAny[Request]
     machine: str = "fts-1m"
     cutting: str = "reference"
     feed_um: Optional[PositiveFloat] = Field(None, description="overrides the cutting entry [µm/rev]")
@@ -110,6 +165,16 @@ class Case(Strict):
         description="time per layer segment to stop the spindle, move Z and restart [s]; overrides the "
         "machine's",
     )
+
+    @field_validator("layout", mode="before")
+    @classmethod
+    def _request_of_its_kind(cls, value: Any) -> Any:
+        if isinstance(value, Request):
+            return value
+        if not isinstance(value, dict) or "kind" not in value:
+            raise ValueError("a program request is a mapping with its kind")
+        model: Any = registry.kind(value["kind"]).request
+        return model.model_validate(value)
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:

@@ -23,8 +23,6 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.engine.planning import resolve_case
-from ftsweep.engine.simulator import run_case
 from ftsweep.engine.spec import Case
 from ftsweep.exports.files import (
     DataLines,
@@ -42,6 +40,7 @@ from ftsweep.exports.files import (
     sidecar_path,
     write_program,
 )
+from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages.spiral import SpiralPath
 from ftsweep.version import __version__
 

@@ -25,12 +25,12 @@ from typing import Any, Optional
 
 import dask
 
-from ftsweep import kinds
+from ftsweep import registry
 from ftsweep.defaults import WORKER_WAIT_S
 from ftsweep.engine import allocator, startup
 from ftsweep.engine.lines import LineCache
-from ftsweep.engine.simulator import run_case
 from ftsweep.engine.spec import Case
+from ftsweep.simulate import run_case
 from ftsweep.store.caselog import CaseLog
 from ftsweep.store.storage import Place
 from ftsweep.sweeps.spec import SweepSpec, case_at, case_lines
@@ -210,7 +210,7 @@ def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> fl
     startup.install()  # numba's set-up imports no scipy.linalg (ftsweep.engine.startup)
     try:
         run_case(
-            Case(surface=surface, layout=kinds.kind(kind).warm_request()),
+            Case(surface=surface, layout=registry.kind(kind).warm_request()),
             Path(catalog_folder) if catalog_folder else None,
         )
     except Exception:  # noqa: BLE001

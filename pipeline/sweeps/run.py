@@ -16,7 +16,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import kinds
+from ftsweep import registry
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
 from ftsweep.engine.spec import CaseError
 from ftsweep.inputs import catalogs
@@ -282,7 +282,7 @@ def _wanted_cases(
     """The cases this run computes (after pruning, if asked) and the cube's status then."""
     retry_failed, prune = rerun
     if prune is not None:
-        if kinds.kind(spec.layout).aspect_range is None:
+        if registry.kind(spec.layout).aspect_range is None:
             raise CaseError(
                 f"--prune estimates tables over their aspect ratios; a {spec.layout} sweep has none"
             )

@@ -26,7 +26,7 @@ from pydantic import (
     model_validator,
 )
 
-from ftsweep import kinds
+from ftsweep import registry
 from ftsweep.engine.spec import Case, Resolution
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError, Strict
@@ -74,6 +74,10 @@ class SweepAxes(Strict):
     compensation: Optional[Annotated[list[Literal["exact", "slope", "none"]], Field(min_length=1)]] = Field(
         None, description="tool-nose compensations, a list of exact, slope, none (instead of the sweep's one)"
     )
+
+    def get(self, name: str) -> Any:
+        """The spec of axis ``name``, or None where the sweep does not span it."""
+        return getattr(self, name, None)
 
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
@@ -170,9 +174,9 @@ class SweepSpec(Strict):
     @model_validator(mode="after")
     def _axes_of_the_program(self) -> SweepSpec:
         if self.layout is not None:
-            kinds.check_sweep_axes(self)  # only its kind's axes, and its kind's rules
+            registry.check_sweep_axes(self)  # only its kind's axes, and its kind's rules
         else:
-            kinds.check_options_keys(self)
+            registry.check_options_keys(self)
         return self
 
     @model_validator(mode="after")
@@ -184,6 +188,10 @@ class SweepSpec(Strict):
                 if np.unique(values).size != values.size:
                     raise ValueError(f"axes.{name} repeats a value: {values.tolist()}")
         return self
+
+    def options_of(self, key: str) -> Optional[dict[str, Any]]:
+        """The options every case of a kind's sweep takes under ``key`` (``dpath:``), if given."""
+        return getattr(self, key, None)
 
     def spec_hash(self) -> str:
         """Stable hash of the resolved spec: a cube belongs to exactly one spec."""
@@ -318,7 +326,7 @@ def case_at(spec: SweepSpec, index: int) -> Case:
     pos = dict(zip(coords, np.unravel_index(index, shape), strict=True))
     value = {name: float(coords[name][pos[name]]) for name in coords if name not in NAMED_AXES}
     assert spec.layout is not None
-    request = kinds.kind(spec.layout).request_at(spec, value)
+    request = registry.kind(spec.layout).request_at(spec, value)
     return Case(
         surface=spec.surface,
         layout=request,
@@ -345,7 +353,7 @@ def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) 
     A case whose layout cannot be built costs 0 and shares nothing (key None)."""
     case = case_at(spec, index)
     surface = catalogs.entry("surfaces", case.surface, catalog_folder)
-    return kinds.kind(case.layout.kind).cost(case, surface, catalog_folder)
+    return registry.kind(case.layout.kind).cost(case, surface, catalog_folder)
 
 
 def plan_tasks(

@@ -23,12 +23,12 @@ from ftsweep.store.io import new_axes as _axes
 
 def aspect_label(ds: xr.Dataset) -> str:
     """Axis label of the aspect ratio, with its unit for the cube's layout method."""
-    from ftsweep import kinds
+    from ftsweep import registry
     from ftsweep.engine import result
 
     kind = str(ds.attrs.get("layout_method"))
     first, second = (n.split("_")[0][1:] for n in result.pitch_names(kind))
-    units = kinds.kind(kind).aspect_units.replace("um", "µm")
+    units = registry.kind(kind).aspect_units.replace("um", "µm")
     return f"aspect ratio α = Δ{_greek(first)}/Δ{_greek(second)} [{units}]"
 
 
@@ -224,9 +224,9 @@ def plot_map(
     lim = float(np.nanmax(np.abs(values_nm))) if np.any(np.isfinite(values_nm)) else 1.0
     im = ax.imshow(values_nm, origin="lower", extent=extent, cmap="RdBu_r", vmin=-lim, vmax=lim)
     ax.figure.colorbar(im, ax=ax, label=f"{kind} form error e = z − f [nm]")
-    from ftsweep import kinds
+    from ftsweep import registry
 
-    pitch = kinds.kind(str(case.get("layout"))).pitch_text(case)
+    pitch = registry.kind(str(case.get("layout"))).pitch_text(case)
     ax.set_title(f"P-V {case['pv_nm']:.1f} nm, {case['n_points']:,} points, {pitch}", fontsize=9)
     ax.set_xlabel("x [µm]")
     ax.set_ylabel("y [µm]")

@@ -14,10 +14,10 @@ import time
 from typing import Any
 
 from ftsweep.engine.lines import LineCache
-from ftsweep.engine.simulator import STAGE_TIMERS, run_case
-from ftsweep.engine.spec import Case, Resolution
+from ftsweep.engine.simulator import STAGE_TIMERS
+from ftsweep.engine.spec import Case, Resolution, program_request
 from ftsweep.inputs import catalogs
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import run_case
 from ftsweep.version import __version__
 
 MILLION_CASES = {

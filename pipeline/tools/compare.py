@@ -19,7 +19,7 @@ import json
 from collections.abc import Callable
 from typing import Any, Optional
 
-from ftsweep import kinds
+from ftsweep import registry
 from ftsweep.store.storage import PathLike, Place, place
 from ftsweep.tools import query
 from ftsweep.tools.select import SelectError, open_cube, recorded_case
@@ -29,7 +29,7 @@ def label_of(ds: Any, path: PathLike) -> str:
     """``kind: rule`` of a cube, e.g. ``ring table`` or ``spiral (chord_um)``."""
     kind = ds.attrs.get("layout_method", "?")
     stem = place(path).name.removesuffix(".zarr")
-    if kinds.kind(kind).aspect_range is None:  # a path program: its rule or spacing axis
+    if registry.kind(kind).aspect_range is None:  # a path program: its rule or spacing axis
         return f"{kind} ({ds['status'].dims[0]}) {stem}"
     return f"{kind} table {stem}"
 
@@ -159,9 +159,9 @@ def common_sampling(
     ``n_theta`` then hold that sampling's, ``pv_recorded_nm`` the cube's. Returns the count
     (None when fewer than two such rows). Each case is re-planned from its cube's recorded
     spec and entries."""
-    from ftsweep.engine.simulator import run_case
+    from ftsweep.simulate import run_case
 
-    spindle = [r for r in rows if kinds.kind(r["kind"]).angular_cells is not None and r["n_theta"]]
+    spindle = [r for r in rows if registry.kind(r["kind"]).angular_cells is not None and r["n_theta"]]
     if len(spindle) < 2:
         return None
     n_theta = max(int(r["n_theta"]) for r in spindle)

@@ -26,11 +26,10 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-from ftsweep import kinds
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case, CaseError, Resolution
+from ftsweep import registry
+from ftsweep.engine.spec import Case, CaseError, Resolution, program_request
 from ftsweep.inputs import catalogs
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import run_case
 from ftsweep.store import cube
 from ftsweep.store.cube import SCHEMA_VERSION, CubeError, CubeWriter, git_revision
 from ftsweep.store.lock import cube_lock
@@ -41,7 +40,7 @@ from ftsweep.version import __version__
 
 def _aspect_range(layout: str) -> tuple[float, float]:
     """The aspect ratios a search spans (the kind's; tables only)."""
-    span = kinds.kind(layout).aspect_range
+    span = registry.kind(layout).aspect_range
     if span is None:
         raise ValueError(
             f"optimize searches aspect ratios of tables (ring, mesh); a {layout} program has none"

@@ -20,11 +20,11 @@ from typing import Any, Optional
 import numpy as np
 
 import ftsweep.tools.accessor  # noqa: F401  (registers ds.ftsweep)
-from ftsweep import kinds
-from ftsweep.engine.planning import control_table, resolve_case
-from ftsweep.engine.simulator import run_case
+from ftsweep import registry
+from ftsweep.engine.planning import control_table
 from ftsweep.inputs.catalogs import aperture_of
 from ftsweep.kinds.table.kind import build_layout
+from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import dynamics
 from ftsweep.store import cube
 from ftsweep.store.io import save_figure, write_text_atomic
@@ -59,7 +59,7 @@ def resimulate(
     case = base.model_copy(
         update={"resolution": base.resolution.model_copy(update={"error_map_bins": map_bins})}
     )
-    if kinds.kind(case.layout.kind).aspect_range is None:
+    if registry.kind(case.layout.kind).aspect_range is None:
         # a path program is planned once, here, and handed to the run as its program
         rcase = resolve_case(case, specs=specs)
         assert rcase.values is not None and rcase.gouge is not None
@@ -149,7 +149,7 @@ def make_report(
     paths["error_map"] = _save(
         plot_map(record["error_map_x_um"], record["error_map_peak_nm"], shown, "peak"), out / "error_map.png"
     )
-    if kinds.kind(case.layout.kind).angular_cells is not None:
+    if registry.kind(case.layout.kind).angular_cells is not None:
         # the W spectrum of one revolution: programs about the spindle (tables, spirals); a D
         # path's motion is in its record (X feed and accelerations) and `ftsweep dpath`'s plots
         paths["w_spectrum"] = _save(plot_spectrum(record, layout, table, specs), out / "w_spectrum.png")
@@ -186,7 +186,7 @@ def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[s
         f"peak acceleration {record['w_accel_peak_m_s2']:.3g} m/s², content up to "
         f"{record['w_freq_max_hz']:.0f} Hz"
         if "w_freq_max_hz" in record
-        else "; ".join(line.split(None, 1)[1] for line in kinds.kind(record["layout"]).describe(record))
+        else "; ".join(line.split(None, 1)[1] for line in registry.kind(record["layout"]).describe(record))
     )
     figs = "".join(
         f'<figure><img src="{html.escape(paths[k].name)}" alt="{html.escape(t)}"><figcaption>{html.escape(t)}'

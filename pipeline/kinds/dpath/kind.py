@@ -15,12 +15,12 @@ from typing import Any, Optional
 
 import numpy as np
 
+from ftsweep.engine.contract import Planning, ProgramKind
 from ftsweep.engine.planning import compensator
 from ftsweep.engine.spec import Case, CaseError
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
-from ftsweep.kinds import Planning, ProgramKind
-from ftsweep.kinds.requests import DPathRequest
+from ftsweep.kinds.dpath.request import DPathRequest
 
 AXES = ("spacing_um", "points_per_cut")
 

@@ -263,7 +263,7 @@ def n_rays(path: dpath.DPath, resolution: Any) -> int:
 
 class DPathSimulation:
     """The batches of rays of a D-path case (module docstring; model §5–§6), the simulation
-    of its kind (:class:`ftsweep.kinds.Simulation`): rays across the zone, on each the passes
+    of its kind (:class:`ftsweep.engine.contract.Simulation`): rays across the zone, on each the passes
     of the program crossing it, the machined nodes between the cuts (``points_per_feed`` per
     spacing) off an edge band of one spacing plus the nose's contact window, and the part's
     surface in its frame."""

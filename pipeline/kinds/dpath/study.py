@@ -19,13 +19,12 @@ from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 
-from ftsweep.engine.planning import ResolvedCase, resolve_case
-from ftsweep.engine.simulator import run_case
-from ftsweep.engine.spec import Case, Resolution
+from ftsweep.engine.planning import ResolvedCase
+from ftsweep.engine.spec import Case, Resolution, program_request
 from ftsweep.engine.threads import current as current_threads
 from ftsweep.kinds.dpath import kind as dpath_kind
 from ftsweep.kinds.dpath import program as dprog
-from ftsweep.kinds.requests import program_request
+from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import dpath
 
 if TYPE_CHECKING:

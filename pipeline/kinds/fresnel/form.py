@@ -28,7 +28,7 @@ import numpy as np
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.engine.spec import CaseError
 from ftsweep.inputs import catalogs
-from ftsweep.stages import dpath, envelope, metrics
+from ftsweep.stages import dpath, envelope, kinematics, metrics
 from ftsweep.stages import fresnel as ff
 
 RAYS_PER_BATCH = 64
@@ -43,7 +43,7 @@ def walls_band_um(nose_radius_um: float, facet_height_um: float, feed_um: float)
 
 class FresnelSimulation:
     """The batches of rays of a Fresnel case (module docstring), the simulation of its kind
-    (:class:`ftsweep.kinds.Simulation`)."""
+    (:class:`ftsweep.engine.contract.Simulation`)."""
 
     def __init__(self, s: Any, timer: Any) -> None:
         rcase = s.rcase
@@ -152,9 +152,8 @@ class FresnelSimulation:
 
     def record(self, errors: dict[str, float], timer: Any) -> dict[str, Any]:
         """The record: the shared fields, the program's own and its axis motion against the
-        machine's limits (:func:`ftsweep.kinds.fresnel.kind.record_fields`)."""
+        machine's limits (:func:`record_fields`)."""
         from ftsweep.engine.record import non_finite, simulated
-        from ftsweep.kinds.fresnel.kind import record_fields
 
         rcase = self.rcase
         bad = non_finite(rcase, errors)
@@ -207,3 +206,39 @@ def _one_facet(
         lo, hi = np.clip(lo, 0, nv - 1), np.clip(hi, 0, nv - 1)
         out[a] = ok & (changes[hi] == changes[lo]) & (lv[lo] == level[a])
     return out
+
+
+def record_fields(rcase: Any) -> dict[str, Any]:
+    """The Fresnel fields of a case record ([2]; declared in :mod:`ftsweep.engine.result`): the
+    program, its Z motion (the servo's W fields) and its axes against the machine's limits
+    (the kinematics stage), machining times with adaptive and constant timesteps."""
+    from ftsweep.kinds.fresnel import program as fresnel
+
+    prog = rcase.layout
+    fplan, steps = prog.plan, prog.steps
+    q = fplan.axes_si()
+    m = kinematics.over_steps(q, steps.steps)  # the optimiser's steps are all positive
+    reason = kinematics.limits_reason(q, steps.steps, fresnel.limits_of(rcase.machine, rcase.case.machine))
+    z_acc = m.accel[:, 3]
+    time_adaptive = float(steps.steps.sum())
+    time_constant = steps.constant * (q.shape[0] - 1)
+    step_c = np.diff(fplan.phi)
+    return {
+        "facet_height_um": fplan.facet_height_um,
+        "points_per_turn": fplan.path.points_per_turn,
+        "deviation_deg": math.degrees(fplan.deviation_rad),
+        "n_facets": fplan.path.n_facets,
+        "revolutions": float(fplan.path.xy.shape[0] - 1) / fplan.path.points_per_turn,
+        "dphi_deg": float(np.degrees(np.abs(step_c).mean())),
+        "ds_um": float(np.hypot(*np.diff(fplan.path.xy, axis=0).T).mean()),
+        **{k: v for k, v in fresnel.ez_on_part(fplan, rcase.aperture).items() if k != "ez_difference_max_nm"},
+        "stroke_um": float(np.ptp(fplan.tool_z_um)),
+        "w_velocity_peak_mm_s": float(np.abs(m.velocity[:, 3]).max() * 1e3),
+        "w_accel_peak_m_s2": float(np.abs(z_acc).max()),
+        "w_accel_rms_m_s2": float(np.sqrt(np.mean(z_acc**2))),
+        "feasible": int(not reason),
+        "infeasible_reason": reason,
+        "machining_s": time_adaptive,
+        "time_constant_s": time_constant,
+        "speedup": time_constant / time_adaptive,
+    }

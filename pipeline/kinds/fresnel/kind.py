@@ -8,17 +8,15 @@ its compensation selects [2]'s: exact (eq. 10), slope (the straight line of eq. 
 
 from __future__ import annotations
 
-import math
 import time
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ftsweep.engine.contract import Planning, ProgramKind
 from ftsweep.engine.spec import Case, CaseError
 from ftsweep.inputs import catalogs
-from ftsweep.kinds import Planning, ProgramKind
-from ftsweep.kinds.requests import FRESNEL_FIELDS, FresnelRequest
-from ftsweep.stages import kinematics
+from ftsweep.kinds.fresnel.request import FRESNEL_FIELDS, FresnelRequest
 
 if TYPE_CHECKING:
     from ftsweep.kinds.fresnel import program as fresnel
@@ -93,39 +91,10 @@ def _plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
 
 
 def record_fields(rcase: Any) -> dict[str, Any]:
-    """The Fresnel fields of a case record ([2]; declared in :mod:`ftsweep.engine.result`): the
-    program, its Z motion (the servo's W fields) and its axes against the machine's limits
-    (the kinematics stage), machining times with adaptive and constant timesteps."""
-    from ftsweep.kinds.fresnel import program as fresnel
+    """The Fresnel fields of a case record (:func:`ftsweep.kinds.fresnel.form.record_fields`)."""
+    from ftsweep.kinds.fresnel.form import record_fields as fields
 
-    prog = rcase.layout
-    fplan, steps = prog.plan, prog.steps
-    q = fplan.axes_si()
-    m = kinematics.over_steps(q, steps.steps)  # the optimiser's steps are all positive
-    reason = kinematics.limits_reason(q, steps.steps, fresnel.limits_of(rcase.machine, rcase.case.machine))
-    z_acc = m.accel[:, 3]
-    time_adaptive = float(steps.steps.sum())
-    time_constant = steps.constant * (q.shape[0] - 1)
-    step_c = np.diff(fplan.phi)
-    return {
-        "facet_height_um": fplan.facet_height_um,
-        "points_per_turn": fplan.path.points_per_turn,
-        "deviation_deg": math.degrees(fplan.deviation_rad),
-        "n_facets": fplan.path.n_facets,
-        "revolutions": float(fplan.path.xy.shape[0] - 1) / fplan.path.points_per_turn,
-        "dphi_deg": float(np.degrees(np.abs(step_c).mean())),
-        "ds_um": float(np.hypot(*np.diff(fplan.path.xy, axis=0).T).mean()),
-        **{k: v for k, v in fresnel.ez_on_part(fplan, rcase.aperture).items() if k != "ez_difference_max_nm"},
-        "stroke_um": float(np.ptp(fplan.tool_z_um)),
-        "w_velocity_peak_mm_s": float(np.abs(m.velocity[:, 3]).max() * 1e3),
-        "w_accel_peak_m_s2": float(np.abs(z_acc).max()),
-        "w_accel_rms_m_s2": float(np.sqrt(np.mean(z_acc**2))),
-        "feasible": int(not reason),
-        "infeasible_reason": reason,
-        "machining_s": time_adaptive,
-        "time_constant_s": time_constant,
-        "speedup": time_constant / time_adaptive,
-    }
+    return fields(rcase)
 
 
 def _record_fields(rcase: Any) -> dict[str, Any]:

@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Optional
 
 import numpy as np
 
-from ftsweep.engine.planning import resolve_case
 from ftsweep.engine.spec import Case, CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.fresnel import program as fp
-from ftsweep.kinds.requests import FresnelRequest
+from ftsweep.kinds.fresnel.request import FresnelRequest
+from ftsweep.simulate import resolve_case
 from ftsweep.stages import fresnel as ff
 from ftsweep.store.io import save_figure
 from ftsweep.version import __version__
@@ -544,9 +544,8 @@ def verify_case(
     """Check a Fresnel program exported from a cube case: every line within the machine's
     limits, every header and data line as its recorded case plans and times it again, and the
     part re-simulated from the lines' own C, X, Y and Z (eq. 9 back to the part's frame)."""
-    from ftsweep.engine.planning import resolve_case
-    from ftsweep.engine.simulator import run_case
     from ftsweep.exports import files
+    from ftsweep.simulate import resolve_case, run_case
 
     case, specs = files.recorded_case_of(meta, files.sidecar_path(path), trust_plugins)
     reason = lines_reason(doc.data, fp.limits_of(specs[1], case.machine))

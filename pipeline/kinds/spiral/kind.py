@@ -13,14 +13,14 @@ from typing import Any, Optional
 
 import numpy as np
 
+from ftsweep.engine.contract import Planning, ProgramKind
 from ftsweep.engine.cost import check_capacity, spiral_points
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.planning import compensator
 from ftsweep.engine.spec import Case, CaseError
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
-from ftsweep.kinds import Planning, ProgramKind
-from ftsweep.kinds.requests import SpiralRequest
+from ftsweep.kinds.spiral.request import SpiralRequest
 from ftsweep.stages import spiral
 
 AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")

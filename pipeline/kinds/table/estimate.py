@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from ftsweep.engine.spec import program_request
 from ftsweep.inputs import catalogs
-from ftsweep.kinds.requests import program_request
 from ftsweep.kinds.table.kind import build_layout
 from ftsweep.stages import estimate as est
 from ftsweep.store.cube import DONE

@@ -24,8 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.engine.planning import control_table, resolve_case
-from ftsweep.engine.simulator import run_case
+from ftsweep.engine.planning import control_table
 from ftsweep.engine.spec import Case
 from ftsweep.exports.files import (
     ExportError,
@@ -37,6 +36,7 @@ from ftsweep.exports.files import (
 )
 from ftsweep.kinds.table.c_view import read_c
 from ftsweep.kinds.table.kind import build_layout
+from ftsweep.simulate import resolve_case, run_case
 from ftsweep.store.io import check_sidecar_text, dumps_json, read_regular, read_sidecar, write_texts_atomic
 from ftsweep.version import __version__
 

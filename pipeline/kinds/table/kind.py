@@ -11,12 +11,13 @@ from typing import Any
 import numpy as np
 
 from ftsweep.engine import result
+from ftsweep.engine.contract import Planning, ProgramKind
 from ftsweep.engine.cost import angular_samples
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.spec import Case, CaseError
 from ftsweep.inputs import catalogs
-from ftsweep.kinds import Planning, ProgramKind, flag
-from ftsweep.kinds.requests import TableRequest
+from ftsweep.kinds.table.request import TableRequest
+from ftsweep.registry import flag
 from ftsweep.stages import layouts
 from ftsweep.stages.layouts import Layout
 
@@ -78,7 +79,8 @@ def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
     rho0 = catalogs.aperture_of(surface).outer_radius_um
     cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
     feed = case.feed_of(cutting)
-    n_theta = angular_samples(layout, rho0, case.resolution)
+    cells = _ring_cells if case.layout.kind == "ring" else _mesh_cells
+    n_theta = angular_samples(cells, layout, rho0, case.resolution)
     nodes = n_theta * rho0 / feed * case.resolution.points_per_feed
     return 8.0 * layout.n_points + nodes, (n_theta, feed, case.nose_radius_of(cutting))
 

@@ -1,0 +1,129 @@
+"""The program-kind contract (docs/architecture.md, "The program-kind contract").
+
+A program kind is one :class:`ProgramKind` value, in the spirit of flox's ``Aggregation``
+table and xarray's backend entrypoints: it names its sweep axes and says how a sweep point
+becomes its request, how its feed is set, how it is planned into a program, which record
+fields it adds, what a case of it costs, how the one simulator samples its program, and
+which file format exports it. The engine is handed a kind's value and never looks one up by
+name; :mod:`ftsweep.registry` finds the installed kinds through entry points.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, NamedTuple, Optional, Protocol
+
+
+class Planning(NamedTuple):
+    """What a kind's ``plan`` receives: the case, its entries, the surface callable, the feed
+    [µm/rev] and nose radius [µm] in force, the slope bound, the catalog folder, a given
+    program (path, commands [µm]) read back from a file, or None to plan one, and a progress
+    callback ``(done, total)`` for a long planning (None: silent)."""
+
+    case: Any
+    surface_spec: Any
+    machine: Any
+    cutting: Any
+    surface: Callable[..., Any]
+    feed_um: float
+    nose_radius_um: float
+    gradient_bound: float
+    catalog_folder: Any
+    program: Optional[tuple[Any, Any]]
+    progress: Optional[Callable[[int, int], None]] = None
+
+
+class Simulating(NamedTuple):
+    """What a kind's ``simulation`` receives: the resolved case, a given table [µm] (the
+    controller's as stored) or None, the catalog folder, the nodes per batch, the largest
+    number of nodes a case may have, and a cache of shared work (or None). It is made in
+    the case's thread context (:mod:`ftsweep.engine.threads`): work it does up front, such as
+    compensating a table, may split over the threads; :func:`ftsweep.engine.simulator.run_case` spreads
+    the batches."""
+
+    rcase: Any
+    table: Any
+    catalog_folder: Any
+    batch_nodes: int
+    max_nodes: float
+    lines: Any
+
+
+class Simulation(Protocol):
+    """How the one simulator (:func:`ftsweep.engine.simulator.run_case`) samples a kind's program: its
+    batches of rays, each machined into a :class:`ftsweep.engine.simulator.Machined`, the inner/outer
+    zone boundary [µm], and the record of the finished case from its metrics (the kind's
+    fields, its axis motion against the machine's limits). ``batch`` may run on several
+    threads at once (``run_case(threads=N)``): it must not change shared state, or only in
+    a way ``record`` reads back in batch order, so results do not depend on N."""
+
+    n_batches: int
+    zone_split_um: float
+
+    def batch(self, b: int, timer: Any) -> Any: ...
+
+    def record(self, errors: dict[str, float], timer: Any) -> dict[str, Any]: ...
+
+
+@dataclass(frozen=True)
+class ProgramKind:
+    """One program kind.
+
+    name : the request's ``kind``, the record's ``layout``.
+    noun : what a program of it is called in messages (``ring layout``, ``spiral program``).
+    axes : its own sweep axes (beside the feed and nose-radius axes every kind may sweep).
+    request : its request model (an :class:`ftsweep.engine.spec.Request`), which validates its fields
+        and their combination rules once, when a request is built.
+    request_at : ``(sweep spec, {axis: value}) -> request`` of one sweep point.
+    feed : ``(case, cutting, nose radius, surface spec, catalog folder, program) -> F [µm/rev]``.
+    plan : ``(Planning) -> (program, extra fields of the resolved case)``.
+    record_fields : ``(resolved case) -> its fields of the record`` (:mod:`ftsweep.engine.result`).
+    cost : ``(case, surface spec, catalog folder) -> (relative cost, key of shared lines)``.
+    simulation : ``(Simulating, timer) -> Simulation``: how the one simulator samples its
+        program (:mod:`ftsweep.engine.lines` for spindle programs, tables and spirals).
+    pitch_text : ``(record) -> text`` of a program's pitches or mean steps, with units.
+    point_text : ``(program, flat index) -> text`` naming where a point lies, for errors.
+    angular_cells : ``(program, ρ0 [µm]) -> cells`` along the outer circumference that set
+        the spindle angles the line engine samples (:func:`ftsweep.engine.cost.angular_samples`).
+    warm_request : a coarse request of the kind that compiles its kernels in a new worker.
+    aspect_range : the aspect ratios [its units] a sweep or search may span, for kinds swept
+        over aspect ratios (tables); None for path programs.
+    aspect_units : units of its aspect ratio (model §2).
+    describe : ``(record) -> lines`` that describe a predicted program (``predict``).
+    check_sweep : ``(sweep spec) -> None``, raising ValueError naming the key, for the rules
+        of its sweep beyond "only its own axes" (one rule axis, a feed set twice, ...).
+    sweeps : how its sweeps are called in messages (``spiral sweeps``).
+    options : the command-line options (``predict``'s keys) that belong to it.
+    from_options : ``(options) -> (request fields, notices)`` of ``predict``'s options,
+        raising ValueError naming the option for a combination it refuses.
+    machine, cutting : the catalog entries ``predict`` takes when none is given: a machine
+        that can run the kind (a Fresnel program needs X, Y, Z, C limits) and its cutting.
+    options_key : the sweep spec's key of options for every case of its sweeps (``dpath:``),
+        if it has one.
+    """
+
+    name: str
+    noun: str
+    request: type
+    axes: tuple[str, ...]
+    request_at: Callable[[Any, dict[str, float]], Any]
+    feed: Callable[..., float]
+    plan: Callable[[Planning], tuple[Any, dict[str, Any]]]
+    record_fields: Callable[[Any], dict[str, Any]]
+    cost: Callable[[Any, Any, Any], tuple[float, Any]]
+    simulation: Callable[[Simulating, Any], Simulation]
+    pitch_text: Callable[[dict[str, Any]], str]
+    point_text: Callable[[Any, int], str]
+    angular_cells: Optional[Callable[[Any, float], float]]
+    warm_request: Callable[[], Any]
+    describe: Callable[[dict[str, Any]], list[str]] = lambda r: []
+    check_sweep: Callable[[Any], None] = lambda spec: None
+    sweeps: str = "table sweeps"
+    options: tuple[str, ...] = ()
+    from_options: Callable[[dict[str, Any]], tuple[dict[str, Any], list[str]]] = lambda o: ({}, [])
+    aspect_range: Optional[tuple[float, float]] = None
+    aspect_units: str = "um/deg"
+    machine: str = "fts-1m"
+    cutting: str = "reference"
+    options_key: Optional[str] = None

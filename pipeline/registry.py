@@ -30,7 +30,7 @@ class RegistryError(ValueError):
 @functools.cache
 def _installed() -> dict[str, ProgramKind]:
     found: dict[str, ProgramKind] = {}
-    for point in sorted(entry_points(group=GROUP), key=lambda p: p.name):
+    for point in entry_points(group=GROUP):
         try:
             value = point.load()
         except Exception as exc:  # a broken plug-in names itself, not a bare ImportError
@@ -46,7 +46,8 @@ def _installed() -> dict[str, ProgramKind]:
 
 
 def kinds() -> dict[str, ProgramKind]:
-    """Every program kind by name: the installed ones (by name), then those registered."""
+    """Every program kind by name: the installed ones (in their entry points' order), then
+    those registered."""
     return {**_installed(), **_added}
 
 
@@ -73,8 +74,9 @@ def kind(name: Any) -> ProgramKind:
 
 
 def names() -> tuple[str, ...]:
-    """The registered kinds' names, for command-line choices and messages."""
-    return tuple(kinds())
+    """The registered kinds' names, for command-line choices and messages: read from the
+    entry points without loading them (the command line starts without the kinds' kernels)."""
+    return tuple(dict.fromkeys([*(p.name for p in entry_points(group=GROUP)), *_added]))
 
 
 def noun(name: Any) -> str:
@@ -96,7 +98,7 @@ def check_sweep_axes(spec: Any) -> None:
     (ValueError naming the key)."""
     own = kind(spec.layout)
     for other in kinds().values():
-        foreign = [n for n in other.axes if n not in own.axes and spec.axes.get(n) is not None]
+        foreign = [n for n in other.axis_names if n not in own.axis_names and spec.axes.get(n) is not None]
         if foreign:
             raise ValueError(f"axes.{foreign[0]} belongs to {other.sweeps}, not to a {own.name} sweep")
     check_options_keys(spec, own)

@@ -68,8 +68,8 @@ def test_every_registered_family_has_a_generated_catalog_model():
 
 
 def test_the_commands_offer_every_registered_kind():
-    # the --layout choices are spelled out (the CLI starts without importing the kinds); they
-    # must name every registered kind
+    # the --layout choices are the registry's names, read from the entry points without
+    # importing the kinds (the CLI starts without their kernels)
     from ftsweep import registry
     from ftsweep.cli.predict import predict
     from ftsweep.cli.tools import optimize as optimize_command

@@ -9,6 +9,7 @@ import pytest
 import xarray as xr
 from click.testing import CliRunner
 
+from ftsweep import registry
 from ftsweep.cli.main import main
 from ftsweep.engine import result
 from ftsweep.engine.spec import Case, program_request
@@ -39,34 +40,39 @@ KIND_CASES = {
 }
 
 
-@pytest.mark.parametrize("kind", result.KINDS)
+def _names(kind: str) -> list[str]:
+    return result.result_names(registry.kind(kind))
+
+
+@pytest.mark.parametrize("kind", list(KIND_CASES))
 def test_run_case_returns_exactly_the_declared_fields(kind, catalog_dir):
     record = run_case(KIND_CASES[kind], catalog_dir)
-    assert list(record) == [n for n in result.result_names(kind) if n in record]  # declared order
-    assert set(record) == set(result.result_names(kind))
+    assert list(record) == [n for n in _names(kind) if n in record]  # declared order
+    assert set(record) == set(_names(kind))
     other = "mesh" if kind == "ring" else "ring"
-    assert not set(record) & (set(result.result_names(other)) - set(result.result_names(kind)))
+    assert not set(record) & (set(_names(other)) - set(_names(kind)))
 
 
 def test_every_declared_field_has_a_long_name_and_numbers_have_units():
-    for q in result.RESULT:
-        assert q.long_name, q.name
-        for kind in q.kinds:
-            if q.dtype is not None:
-                assert q.units_for(kind), q.name
+    for kind in registry.kinds().values():
+        names = [q.name for q in result.declared(kind)]
+        assert len(names) == len(set(names)), kind.name  # no field declared twice
+        for q in result.declared(kind):
+            assert q.long_name, q.name
+            assert q.dtype is None or q.units, q.name
 
 
 def test_predict_json_and_the_cube_use_the_declared_names_and_units(tmp_path, catalog_dir):
     args = ["predict", "--surface", "small_sine", "--drho-um", "10", "--dtheta-deg", "4", "--json"]
     r = CliRunner().invoke(main, args, env={"FTSWEEP_CATALOGS": str(catalog_dir)})
     assert r.exit_code == 0, r.output
-    assert set(json.loads(r.stdout)) == set(result.result_names("ring"))
+    assert set(json.loads(r.stdout)) == set(_names("ring"))
     spec = tmp_path / "s.yaml"
     spec.write_text("surface: small_sine\naxes: {points: [8000], aspect: [2.0]}\n")
     out = tmp_path / "s.zarr"
     run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
     ds = xr.open_zarr(out)
-    stored = result.stored("ring")
+    stored = result.stored(registry.kind("ring"))
     assert set(stored) <= set(ds.data_vars)
     assert set(ds.data_vars) - set(stored) == {"status", *cube.TEXT}
     for name, (_, units, long_name, _) in stored.items():

@@ -442,7 +442,7 @@ def test_a_consistent_forgery_of_the_recorded_surface_is_refused_against_the_cat
     # every hash: consistent, so only the catalog (or a signature) can tell
     from ftsweep.exports.files import recorded_case_of
     from ftsweep.kinds.table.header import planned_ints
-    from ftsweep.kinds.table.kind import build_layout
+    from ftsweep.kinds.table.layout import build_layout
 
     header = copies["fts"]
     side = header.with_suffix(".json")

@@ -179,66 +179,23 @@ def progress_done(bar: Any) -> None:
     progress.done(bar)
 
 
+class KindChoice(click.Choice):
+    """The registered program kinds as a choice (:func:`ftsweep.registry.names`), read when
+    the command runs or shows its help, so a kind registered later is offered too."""
+
+    def __init__(self) -> None:
+        super().__init__(())
+
+    @property  # type: ignore[override]
+    def choices(self) -> tuple[str, ...]:
+        from ftsweep import registry
+
+        return registry.names()
+
+    @choices.setter
+    def choices(self, value: Any) -> None:
+        pass  # click sets its choices once; these are the registry's
+
+
 def flag(name: str) -> str:
     return "--" + name.replace("_", "-")
-
-
-def dpath_options(f: Any) -> Any:
-    """The options of a D-path program ([5]) shared by ``dpath`` and ``predict --layout dpath``."""
-    options = [
-        click.option(
-            "--spacing-um", type=POSITIVE, help="D path: spacing h between cuts [µm]. Default: the feed."
-        ),
-        click.option(
-            "--points-per-cut", type=click.IntRange(min=2), help="D path: points on every cut. Default: 201."
-        ),
-        click.option(
-            "--zones", type=click.Choice(["1", "2", "4"]), help="D path: zones per revolution. Default: 1."
-        ),
-        click.option(
-            "--offaxis-mm",
-            type=POSITIVE,
-            help="D path: distance of the part's centre from the C axis [mm]. Default: 30.",
-        ),
-        click.option(
-            "--cut-angle-deg",
-            type=FINITE,
-            help="D path: direction of the cuts [deg from +x]. Default: 90 (along y).",
-        ),
-        click.option(
-            "--transition-step-deg",
-            type=POSITIVE,
-            help="D path: largest C step in a transition [deg]. Default: 1.",
-        ),
-    ]
-    for option in reversed(options):
-        f = option(f)
-    return f
-
-
-def fresnel_options(f: Any) -> Any:
-    """The options of a Fresnel program ([2]) for ``predict --layout fresnel``."""
-    options = [
-        click.option("--facet-height-um", type=POSITIVE, help="Fresnel: facet height h [µm]. Default: 10."),
-        click.option(
-            "--points-per-turn",
-            type=click.IntRange(min=8),
-            help="Fresnel: control points K per turn. Default: 360.",
-        ),
-        click.option(
-            "--deviation-deg",
-            type=FINITE,
-            help="Fresnel: rake face from the cutting direction [deg]. Default: 0.",
-        ),
-        click.option(
-            "--safety", type=FINITE, help="Fresnel: safety factor K_s on the axis limits. Default: 1.25."
-        ),
-        click.option(
-            "--control-points",
-            type=click.Choice(["auto", "polar", "arc"]),
-            help="Fresnel: control points polar about centroids (eqs. 5-6), by arc length (A.3), auto.",
-        ),
-    ]
-    for option in reversed(options):
-        f = option(f)
-    return f

@@ -10,16 +10,17 @@ import click
 from ftsweep.cli.common import (
     FINITE,
     POSITIVE,
-    dpath_options,
+    KindChoice,
     echo_json,
     fail,
     flag,
-    fresnel_options,
     progress_done,
     stderr_progress,
     threads_option,
 )
 from ftsweep.defaults import MAX_NODES, POINTS_PER_FEED, SAMPLES_PER_CELL
+from ftsweep.kinds.dpath.options import dpath_options
+from ftsweep.kinds.fresnel.options import fresnel_options
 
 if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
     from pydantic import ValidationError
@@ -31,7 +32,7 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
 @click.option("--surface", required=True, metavar="NAME", help="Surface from catalogs/surfaces.yaml.")
 @click.option(
     "--layout",
-    type=click.Choice(["ring", "mesh", "spiral", "dpath", "fresnel"]),
+    type=KindChoice(),
     default=None,
     help="Program: a ring (polar grid) or mesh (Cartesian grid) table for an independent FTS "
     "controller, a spiral path program (points along the tool path, linear between them), a "
@@ -207,7 +208,6 @@ def _build_case(opts: dict[str, Any]) -> Case:
     from pydantic import ValidationError
 
     from ftsweep import registry
-    from ftsweep.engine import result
     from ftsweep.engine.spec import Case, Resolution
     from ftsweep.inputs import catalogs
     from ftsweep.inputs.catalogs import CatalogError
@@ -226,7 +226,7 @@ def _build_case(opts: dict[str, Any]) -> Case:
         request, notices = registry.request_from_options(kind, opts)
     except ValueError as exc:
         fail(str(exc))
-    own = result.pitch_names(kind) if registry.kind(kind).aspect_range is not None else ()
+    own = registry.kind(kind).pitches if registry.kind(kind).aspect_range is not None else ()
     try:
         # validated as part of the case, so that an error's location names the option
         case = Case(

@@ -13,7 +13,6 @@ from ftsweep.cli.common import (
     POSITIVE,
     SIGN_KEY,
     FiniteRange,
-    dpath_options,
     echo_json,
     one_line,
     progress_done,
@@ -24,6 +23,7 @@ from ftsweep.cli.common import (
 if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
     from ftsweep.engine.spec import Case
     from ftsweep.kinds.dpath.figures import Plots
+from ftsweep.kinds.dpath.options import dpath_options
 
 
 @click.command("dpath")

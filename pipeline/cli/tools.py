@@ -11,7 +11,7 @@ from typing import Any, Optional
 
 import click
 
-from ftsweep.cli.common import COUNT, FINITE, POSITIVE, echo_json, fail
+from ftsweep.cli.common import COUNT, FINITE, POSITIVE, KindChoice, echo_json, fail
 
 
 @click.command()
@@ -24,7 +24,7 @@ from ftsweep.cli.common import COUNT, FINITE, POSITIVE, echo_json, fail
 )
 @click.option(
     "--layout",
-    type=click.Choice(["ring", "mesh", "spiral", "dpath", "fresnel"]),
+    type=KindChoice(),
     help="Program kind. Default: the surface's table method. The search spans aspect ratios, so "
     "it takes tables; a path program is refused saying so.",
 )

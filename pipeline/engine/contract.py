@@ -67,12 +67,37 @@ class Simulation(Protocol):
 
 
 @dataclass(frozen=True)
+class Axis:
+    """One sweep axis of a kind: its key under a sweep spec's ``axes:`` and the cube's
+    coordinate of the same name.
+
+    units : units a unit library parses (pint, UDUNITS), for the cube's coordinate.
+    long_name : what the coordinate is, for the cube and ``--help``.
+    signed : its values may be zero or negative (given as a list, never a log range).
+    dumped_unset : a sweep spec's dump writes it as null when unset, so that the hashes of
+        specs written when it was the only program axis stay the same.
+    """
+
+    name: str
+    units: str
+    long_name: str
+    signed: bool = False
+    dumped_unset: bool = False
+
+
+@dataclass(frozen=True)
 class ProgramKind:
     """One program kind.
 
     name : the request's ``kind``, the record's ``layout``.
     noun : what a program of it is called in messages (``ring layout``, ``spiral program``).
-    axes : its own sweep axes (beside the feed and nose-radius axes every kind may sweep).
+    axes : its own sweep axes, :class:`Axis` values (beside the feed, nose-radius and
+        compensation axes every kind may sweep).
+    fields : the fields its records add to every kind's (:mod:`ftsweep.engine.result`), in
+        the order a record lists them: :class:`ftsweep.engine.result.Quantity` values.
+    pitches : the names of its two pitch fields (Δρ, Δθ of a ring; a path's mean steps).
+    file_format : ``() -> FileFormat`` (:class:`ftsweep.exports.files.FileFormat`): how a case
+        of it is exported and verified; called when a file is written or read.
     request : its request model (an :class:`ftsweep.engine.spec.Request`), which validates its fields
         and their combination rules once, when a request is built.
     request_at : ``(sweep spec, {axis: value}) -> request`` of one sweep point.
@@ -101,12 +126,20 @@ class ProgramKind:
         that can run the kind (a Fresnel program needs X, Y, Z, C limits) and its cutting.
     options_key : the sweep spec's key of options for every case of its sweeps (``dpath:``),
         if it has one.
+    estimate : ``(sweep spec, catalog folder) -> Dataset`` of a first-order P-V estimate over
+        its sweep's axes (``pv_estimate_nm``), which ``sweep --prune`` uses; None where the
+        kind has none.
+    options_dumped_unset : a sweep spec's dump writes its options key as null when unset, so
+        that the hashes of specs written when the key was declared for every sweep stay the same.
     """
 
     name: str
     noun: str
     request: type
-    axes: tuple[str, ...]
+    axes: tuple[Axis, ...]
+    fields: tuple[Any, ...]
+    pitches: tuple[str, str]
+    file_format: Callable[[], Any]
     request_at: Callable[[Any, dict[str, float]], Any]
     feed: Callable[..., float]
     plan: Callable[[Planning], tuple[Any, dict[str, Any]]]
@@ -127,3 +160,10 @@ class ProgramKind:
     machine: str = "fts-1m"
     cutting: str = "reference"
     options_key: Optional[str] = None
+    options_dumped_unset: bool = False
+    estimate: Optional[Callable[[Any, Any], Any]] = None
+
+    @property
+    def axis_names(self) -> tuple[str, ...]:
+        """The names of its own sweep axes, in their order in a cube."""
+        return tuple(a.name for a in self.axes)

@@ -203,9 +203,9 @@ def simulated(
     }
 
 
-def timed(record: dict[str, Any], timer: Timer, t_start: float) -> dict[str, Any]:
-    """``record`` with the wall time of each stage and in all, in declared order."""
+def timed(record: dict[str, Any], timer: Timer, t_start: float, kind: Any) -> dict[str, Any]:
+    """``record`` with the wall time of each stage and in all, in ``kind``'s declared order."""
     for name in STAGES:
         record[f"seconds_{name}"] = timer.seconds.get(name, 0.0)
     record["seconds"] = time.perf_counter() - t_start
-    return result.in_declared_order(record)
+    return result.in_declared_order(record, kind)

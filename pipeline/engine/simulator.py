@@ -181,7 +181,7 @@ def run_case(
     record = sim.record(errors, timer)
     if emap is not None:
         record.update(emap.as_record())
-    return timed(record, timer, t_start)
+    return timed(record, timer, t_start, kind)
 
 
 def _batches(sim: Simulation, timer: Timer, threads: int) -> Iterator[Machined]:

@@ -1,19 +1,17 @@
-"""One export and one verify for every program kind: a table of file formats (flox's
-``Aggregation`` table, xarray's backend entrypoints), each naming the kinds it writes, how to
-recognise its files, and its write, verify and report functions. Generic code asks the
-table; the formats live with their kinds (:mod:`ftsweep.kinds.table.header`,
-:mod:`ftsweep.kinds.path_programs`, :mod:`ftsweep.kinds.fresnel.study`) and share
-:mod:`ftsweep.exports.files`.
+"""One export and one verify for every program kind: each kind names its file format
+(:class:`ftsweep.exports.files.FileFormat`: how to recognise its files, and its write, verify
+and report functions), and generic code asks the registry for them. The formats live with
+their kinds (:mod:`ftsweep.kinds.table.header`, :mod:`ftsweep.kinds.path_programs`,
+:mod:`ftsweep.kinds.fresnel.format`) and share :mod:`ftsweep.exports.files`.
 """
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ftsweep import registry
+from ftsweep.exports.files import FileFormat, Progress
 from ftsweep.exports.origin import sign, signature_path, signing_key
 from ftsweep.freetext import TextError, check_text
 from ftsweep.store.io import (
@@ -27,137 +25,23 @@ from ftsweep.store.io import (
 )
 from ftsweep.store.storage import PathLike
 
-Progress = Callable[[int, int], None] | None
 
-
-@dataclass(frozen=True)
-class FileFormat:
-    """How one kind of exported file is written, recognised, verified and reported.
-
-    kinds : the cube case kinds (a request's ``kind``) it exports (a Fresnel program is also
-        written by its study, ``ftsweep fresnel -o``).
-    magic : how its first line starts (None: the default format, read when no other's
-        first line matches).
-    export : ``(out, side, case, specs, chosen, extra, name) -> sidecar``.
-    verify : ``(path, progress, pv_tolerance_nm, trust_plugins) -> record``.
-    exported : the lines that say what ``export`` wrote (``(out, sidecar) -> lines``).
-    verified : the lines that say what ``verify`` found (``record -> lines``).
-    """
-
-    name: str
-    kinds: tuple[str, ...]
-    magic: str | None
-    export: Callable[..., dict[str, Any]] | None
-    verify: Callable[..., dict[str, Any]]
-    exported: Callable[[Path, dict[str, Any]], list[str]]
-    verified: Callable[[dict[str, Any]], list[str]]
-
-
-def _header_format() -> FileFormat:
-    from ftsweep.kinds.table import header
-
-    def exported(out: Path, meta: dict[str, Any]) -> list[str]:
-        return [
-            f"header       {out} ({meta['shape'][0]} × {meta['shape'][1]} {meta['int_type']}, "
-            f"unit {meta['unit_nm']} nm, CRC-32 0x{meta['crc32']:08x})"
-        ]
-
-    def verified(record: dict[str, Any]) -> list[str]:
-        return [
-            f"checksum     {record['checksum']} (macros and table) ok; sidecar and file hashes ok",
-            f"table        {record['layout']}: {record['n_points']:,} points, "
-            "every macro and cell as re-planned",
-            *_pv_lines(record, "the stored integers"),
-        ]
-
-    return FileFormat(
-        "controller header",
-        ("ring", "mesh"),
-        None,
-        header.export_header,
-        header.verify_header,
-        exported,
-        verified,
-    )
-
-
-def _pv_lines(record: dict[str, Any], source: str) -> list[str]:
-    return [
-        f"P-V          {record['pv_nm']:.2f} nm re-simulated from {source} "
-        f"(predicted at export: {record['predicted_pv_nm']:.2f} nm, "
-        f"tolerance {record['pv_tolerance_nm']:.2f} nm) ok"
-    ]
-
-
-def _program_format(title: str, kind: str, magic: str, columns: str, write: Any, check: Any) -> FileFormat:
-    def exported(out: Path, meta: dict[str, Any]) -> list[str]:
-        return [f"program      {out} ({meta['n_points']:,} lines {columns}, CRC-32 0x{meta['crc32']:08x})"]
-
-    def verified(record: dict[str, Any]) -> list[str]:
-        return [
-            f"checksum     {record['checksum']} (every line) ok; sidecar and file hashes ok",
-            f"program      {record['layout']}: {record['n_points']:,} points, every line as re-planned",
-            *_pv_lines(record, "the program's lines"),
-        ]
-
-    def export(*args: Any, name: str | None = None) -> dict[str, Any]:
-        return dict(write(*args))  # a program's lines need no C identifiers
-
-    return FileFormat(title, (kind,), magic, export, check, exported, verified)
-
-
-def _fresnel_format() -> FileFormat:
-    from ftsweep.kinds.fresnel import study as fstudy
-
-    def export(*args: Any, name: str | None = None) -> dict[str, Any]:
-        return dict(fstudy.export_case(*args))
-
-    def verify(path: Path, progress: Progress, pv_tolerance_nm: float | None, trust: bool) -> dict[str, Any]:
-        return fstudy.verify(path, trust, progress, pv_tolerance_nm)
-
-    def exported(out: Path, meta: dict[str, Any]) -> list[str]:
-        return [f"program      {out} ({meta['n_points']:,} lines t C X Y Z, CRC-32 0x{meta['crc32']:08x})"]
-
-    def verified(record: dict[str, Any]) -> list[str]:
-        if "pv_nm" not in record:  # a study's program (ftsweep fresnel -o): no prediction recorded
-            return [
-                f"checksum     {record['checksum']} (every line) ok; sidecar and program hashes ok",
-                f"program      fresnel: {record['lines']:,} lines t C X Y Z, {record['machining_s']:.1f} s; "
-                "every line within the machine's limits and as re-planned (t, C, X, Y, Z)",
-            ]
-        return [
-            f"checksum     {record['checksum']} (every line) ok; sidecar and file hashes ok",
-            f"program      fresnel: {record['n_points']:,} points, every line within the machine's limits "
-            "and as re-planned",
-            *_pv_lines(record, "the program's lines"),
-        ]
-
-    return FileFormat("Fresnel program", ("fresnel",), fstudy.F_MAGIC, export, verify, exported, verified)
-
-
-@functools.cache
 def formats() -> tuple[FileFormat, ...]:
-    """Every registered file format (built once); the first is the default."""
-    from ftsweep.kinds import path_programs as program
-
-    return (
-        _header_format(),
-        _program_format(
-            "spiral program", "spiral", program.MAGIC, "C X Z", program.export_program, program.verify_program
-        ),  # fmt: skip
-        _program_format(
-            "D-path program", "dpath", program.D_MAGIC, "t C X Z", program.export_dpath, program.verify_dpath
-        ),  # fmt: skip
-        _fresnel_format(),
-    )
+    """Every registered kind's file format, once each; the first is the default (the one
+    whose files no first line announces)."""
+    found: dict[str, FileFormat] = {}
+    for kind in registry.kinds().values():
+        fmt = kind.file_format()
+        found.setdefault(fmt.name, fmt)
+    return tuple(sorted(found.values(), key=lambda f: f.magic is not None))
 
 
 def format_of_kind(kind: str) -> FileFormat:
-    """The format a cube case of ``kind`` is exported in."""
-    for fmt in formats():
-        if kind in fmt.kinds:
-            return fmt
-    raise ExportError(f"a {kind} case has no export format")
+    """The format a cube case of ``kind`` is exported in (its kind's)."""
+    try:
+        return registry.kind(kind).file_format()  # type: ignore[no-any-return]
+    except ValueError:
+        raise ExportError(f"a {kind} case has no export format") from None
 
 
 def format_of_file(path: Path) -> FileFormat:

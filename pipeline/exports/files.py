@@ -14,6 +14,8 @@ import json
 import math
 import time
 import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -89,7 +91,7 @@ def recorded_case_of(
 ) -> tuple[Case, tuple[Any, Any, Any]]:
     """The case and (surface, machine, cutting) specs a sidecar ``side`` recorded;
     :class:`ExportError` if they cannot be read. A plug-in the sidecar names must be one of
-    the local catalog's unless ``trust_plugins`` (:func:`~ftsweep.inputs.catalogs.specs_from_entries`)."""
+    the local catalog's unless ``trust_plugins`` (:func:`~ftsweep.inputs.trust.specs_from_entries`)."""
     try:
         entries = meta["catalog_entries"]
         parts = (entries["surface"], entries["machine"], entries["cutting"])
@@ -433,3 +435,34 @@ def checked_pv(
             f"{predicted:.3f} nm (tolerance {tol:.3f} nm); do not run it"
         )
     return record
+
+
+Progress = Callable[[int, int], None] | None
+
+
+@dataclass(frozen=True)
+class FileFormat:
+    """How one kind of exported file is written, recognised, verified and reported.
+
+    magic : how its first line starts (None: the default format, read when no other's
+        first line matches).
+    export : ``(out, side, case, specs, chosen, extra, name) -> sidecar``.
+    verify : ``(path, progress, pv_tolerance_nm, trust_plugins) -> record``.
+    exported : the lines that say what ``export`` wrote (``(out, sidecar) -> lines``).
+    verified : the lines that say what ``verify`` found (``record -> lines``).
+    """
+
+    name: str
+    magic: str | None
+    export: Callable[..., dict[str, Any]] | None
+    verify: Callable[..., dict[str, Any]]
+    exported: Callable[[Path, dict[str, Any]], list[str]]
+    verified: Callable[[dict[str, Any]], list[str]]
+
+
+def pv_lines(record: dict[str, Any], source: str) -> list[str]:
+    return [
+        f"P-V          {record['pv_nm']:.2f} nm re-simulated from {source} "
+        f"(predicted at export: {record['predicted_pv_nm']:.2f} nm, "
+        f"tolerance {record['pv_tolerance_nm']:.2f} nm) ok"
+    ]

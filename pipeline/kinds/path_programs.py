@@ -16,6 +16,7 @@ column, the sidecar's claims with the re-derived ones.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -26,6 +27,7 @@ import numpy as np
 from ftsweep.engine.spec import Case
 from ftsweep.exports.files import (
     DataLines,
+    FileFormat,
     ProgramError,
     case_meta,
     check_document,
@@ -33,6 +35,7 @@ from ftsweep.exports.files import (
     checked_sidecar,
     layer_schedule,
     now,
+    pv_lines,
     read_program_file,
     recorded_case_of,
     recorded_entries,
@@ -300,3 +303,32 @@ def verify_dpath(
             f"{record['infeasible_reason']}; do not run it"
         )
     return checked_pv(path, meta, record, pv_tolerance_nm)
+
+
+def _program_format(title: str, magic: str, columns: str, write: Any, check: Any) -> FileFormat:
+    def exported(out: Path, meta: dict[str, Any]) -> list[str]:
+        return [f"program      {out} ({meta['n_points']:,} lines {columns}, CRC-32 0x{meta['crc32']:08x})"]
+
+    def verified(record: dict[str, Any]) -> list[str]:
+        return [
+            f"checksum     {record['checksum']} (every line) ok; sidecar and file hashes ok",
+            f"program      {record['layout']}: {record['n_points']:,} points, every line as re-planned",
+            *pv_lines(record, "the program's lines"),
+        ]
+
+    def export(*args: Any, name: str | None = None) -> dict[str, Any]:
+        return dict(write(*args))  # a program's lines need no C identifiers
+
+    return FileFormat(title, magic, export, check, exported, verified)
+
+
+@functools.cache
+def spiral_format() -> FileFormat:
+    """The spiral program's file format ([4]): one line C X Z per point."""
+    return _program_format("spiral program", MAGIC, "C X Z", export_program, verify_program)
+
+
+@functools.cache
+def dpath_format() -> FileFormat:
+    """The D-path program's file format ([5]): one line t C X Z per point."""
+    return _program_format("D-path program", D_MAGIC, "t C X Z", export_dpath, verify_dpath)

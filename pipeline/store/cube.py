@@ -34,6 +34,7 @@ import numpy as np
 import xarray as xr
 import zarr
 
+from ftsweep import registry
 from ftsweep.engine import result
 from ftsweep.store.storage import PathLike, Place, place
 from ftsweep.sweeps.spec import SweepSpec, axis_attrs, coordinates
@@ -49,7 +50,7 @@ SCHEMA_VERSION = 2
 def metrics_for(kind: str) -> dict[str, tuple[str, Any, str, Any]]:
     """The per-case numeric variables of a cube of layout ``kind``: name → (dtype, units,
     long_name, fill), as :mod:`ftsweep.engine.result` declares them."""
-    return result.stored(kind)
+    return result.stored(registry.kind(kind))
 
 
 MAP_VARS = {
@@ -64,7 +65,7 @@ TEXT = {
 # variables that differ between otherwise identical runs: every wall time (units "s") and the
 # run id; derived from the declared result so a new timer cannot be forgotten
 # wall times (which differ run to run), not the predicted machining times
-TIMING_VARS = (*(q.name for q in result.RESULT if q.dtype and q.name.startswith("seconds")), "run_id")
+TIMING_VARS = (*result.TIMING, "run_id")
 
 
 class CubeError(ValueError):

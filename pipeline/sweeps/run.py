@@ -233,7 +233,7 @@ def run_sweep(
         address of a running dask scheduler (also read from ``DASK_SCHEDULER_ADDRESS``).
     retry_failed : also recompute cases recorded as failed.
     prune : leave out (status ``pruned``, not computed) every pending case whose estimated
-        P-V (:mod:`ftsweep.kinds.table.estimate`) exceeds ``prune`` times the best estimate among the
+        P-V (its kind's ``estimate``) exceeds ``prune`` times the best estimate among the
         aspect ratios of its point count. A run without ``prune`` computes earlier pruned cases.
     line_cache_mb : memory [MiB] per worker for the lines that cases share (0: none); the
         results are the same either way.
@@ -282,9 +282,10 @@ def _wanted_cases(
     """The cases this run computes (after pruning, if asked) and the cube's status then."""
     retry_failed, prune = rerun
     if prune is not None:
-        if registry.kind(spec.layout).aspect_range is None:
+        if registry.kind(spec.layout).estimate is None:
             raise CaseError(
-                f"--prune estimates tables over their aspect ratios; a {spec.layout} sweep has none"
+                f"--prune needs a first-order estimate of the P-V (tables have one); a {spec.layout} "
+                "sweep has none"
             )
         prune_cases(spec, out, status, prune, run_id, catalog_folder)
         status = cube.read_status(out).ravel()
@@ -408,11 +409,11 @@ def prune_cases(
 ) -> int:
     """Mark pending cases hopeless by the estimate as pruned (see :func:`run_sweep`); returns
     how many this call pruned."""
-    from ftsweep.kinds.table.estimate import estimate_sweep
-
     if not factor > 1.0:
         raise CubeError(f"the prune factor must be above 1, got {factor:g}")
-    est = estimate_sweep(spec, catalog_folder)["pv_estimate_nm"]
+    estimate = registry.kind(spec.layout).estimate
+    assert estimate is not None
+    est = estimate(spec, catalog_folder)["pv_estimate_nm"]
     values = est.transpose(*coordinates(spec)).values
     finite = np.where(np.isfinite(values), values, np.inf)
     best = finite.min(axis=1, keepdims=True)  # over the aspect ratios of each row

@@ -16,9 +16,11 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 import numpy as np
 from pydantic import (
+    ConfigDict,
     Field,
     PositiveFloat,
     PositiveInt,
+    TypeAdapter,
     ValidationError,
     ValidationInfo,
     field_validator,
@@ -27,6 +29,7 @@ from pydantic import (
 )
 
 from ftsweep import registry
+from ftsweep.engine.contract import Axis
 from ftsweep.engine.spec import Case, Resolution
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError, Strict
@@ -47,44 +50,87 @@ class AxisRange(Strict):
 AxisSpec = Union[Annotated[list[PositiveFloat], Field(min_length=1)], AxisRange]
 
 
-class SweepAxes(Strict):
-    """The sweep axes: ``points`` and ``aspect`` for tables; for spiral programs exactly one
-    rule axis (``points_per_rev``, ``arc_um`` or ``chord_um``) and optionally ``residual_um``;
-    ``feed_um`` and ``nose_radius_um`` optional for both."""
+_POSITIVE = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+_VALUES: TypeAdapter[Any] = TypeAdapter(Annotated[list[_POSITIVE], Field(min_length=1)])
+_SIGNED: TypeAdapter[Any] = TypeAdapter(
+    Annotated[list[Annotated[float, Field(allow_inf_nan=False)]], Field(min_length=1)]
+)
 
-    points: Optional[AxisSpec] = Field(None, description="target numbers of control points N (tables)")
-    aspect: Optional[AxisSpec] = Field(
-        None, description="target aspect ratios α (Δρ/Δθ µm/deg for rings, Δx/Δy for meshes)"
-    )
-    points_per_rev: Optional[AxisSpec] = Field(None, description="spiral: points per revolution")
-    arc_um: Optional[AxisSpec] = Field(None, description="spiral: path length between points [µm]")
-    chord_um: Optional[AxisSpec] = Field(None, description="spiral: chord-error budgets [µm]")
-    residual_um: Optional[AxisSpec] = Field(
-        None, description="spiral: residual budgets that set the feed [µm]"
-    )
-    spacing_um: Optional[AxisSpec] = Field(None, description="D path: spacing h between cuts [µm]")
-    points_per_cut: Optional[AxisSpec] = Field(None, description="D path: points on every cut")
-    facet_height_um: Optional[AxisSpec] = Field(None, description="Fresnel: facet heights h [µm]")
-    points_per_turn: Optional[AxisSpec] = Field(None, description="Fresnel: control points K per turn")
-    deviation_deg: Optional[Annotated[list[float], Field(min_length=1)]] = Field(
-        None, description="Fresnel: rake-face deviations Δφ from the cutting direction [deg], a list"
-    )
+
+def _kind_axes() -> dict[str, Axis]:
+    """Every registered kind's sweep axes by name (kinds may share one, as rings and meshes do)."""
+    return {a.name: a for k in registry.kinds().values() for a in k.axes}
+
+
+class SweepAxes(Strict):
+    """The sweep axes: each kind's own (``ProgramKind.axes``: ``points`` and ``aspect`` for
+    tables, one rule axis and optionally ``residual_um`` for spirals, ...) and those every
+    kind may sweep: ``feed_um``, ``nose_radius_um`` and ``compensation``. A kind's axis is a
+    list of positive values or a range (a signed axis: a list); an axis no kind declares is
+    refused by name."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
     feed_um: Optional[AxisSpec] = Field(None, description="feeds per revolution [µm/rev]")
     nose_radius_um: Optional[AxisSpec] = Field(None, description="tool nose radii [µm]")
     compensation: Optional[Annotated[list[Literal["exact", "slope", "none"]], Field(min_length=1)]] = Field(
         None, description="tool-nose compensations, a list of exact, slope, none (instead of the sweep's one)"
     )
 
+    @model_validator(mode="before")
+    @classmethod
+    def _axes_of_the_kinds(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        known = _kind_axes()
+        out = {}
+        for name, value in data.items():
+            if name in cls.model_fields:
+                out[name] = value
+                continue
+            axis = known.get(name)
+            if axis is None:
+                names = ", ".join(sorted({*known, *cls.model_fields}))
+                raise ValueError(f"axes.{name}: unknown axis; the axes are {names}")
+            if value is not None:
+                out[name] = _axis_value(axis, value)
+        return out
+
     def get(self, name: str) -> Any:
         """The spec of axis ``name``, or None where the sweep does not span it."""
         return getattr(self, name, None)
 
+    def given(self) -> dict[str, Any]:
+        """Every axis the sweep spans, by name."""
+        return {k: v for k, v in {**dict(self), **(self.model_extra or {})}.items() if v is not None}
+
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
-        # table, spiral and D-path sweep specs keep their hashes
-        return catalogs.without_defaults(
-            handler(self), dict.fromkeys((*SPIRAL_AXES, *DPATH_AXES, *FRESNEL_AXES, "compensation"))
-        )
+        # specs written before an axis existed keep their hashes; the first program axes
+        # (the tables') were always written, null when unset
+        dumped = catalogs.without_defaults(handler(self), {"compensation": None})
+        unset = {a.name: None for a in _kind_axes().values() if a.dumped_unset}
+        return {**unset, **dumped}
+
+
+def _axis_value(axis: Axis, value: Any) -> Any:
+    """A kind's axis validated: positive values or a range, or any finite list if signed;
+    ValueError naming the axis, the key within it and the problem."""
+    try:
+        if isinstance(value, dict) and not axis.signed:
+            return AxisRange.model_validate(value)
+        return (_SIGNED if axis.signed else _VALUES).validate_python(value)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(["axes", axis.name, *(str(p) for p in first["loc"] if isinstance(p, str))])
+        if first["type"] == "too_short":
+            raise ValueError(f"{where}: the axis is empty; give at least one value") from None
+        if first["type"] == "extra_forbidden":
+            raise ValueError(f"{where}: unknown key") from None
+        if first["type"] == "missing":
+            raise ValueError(f"{where}: required key is missing") from None
+        got = catalogs.short_repr(value)
+        raise ValueError(f"{where}: {catalogs.error_text(first)} (got {got})") from None
 
 
 CATALOG_KIND = {"surface": "surfaces", "machine": "machines", "cutting": "cutting"}
@@ -110,17 +156,9 @@ class SweepSpec(Strict):
 
     description: str = ""
     surface: str
-    layout: Optional[Literal["ring", "mesh", "spiral", "dpath", "fresnel"]] = Field(
-        None, description="default: the surface's"
-    )
-    dpath: Optional[dict[str, Any]] = Field(
-        None,
-        description="D path options for every case (transition, zones, offaxis_um, cut_angle_deg, "
-        "transition_step_deg)",
-    )
-    fresnel: Optional[dict[str, Any]] = Field(
-        None, description="Fresnel options for every case (deviation_deg, safety, control_points)"
-    )
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
+    layout: Optional[str] = Field(None, description="the program kind; default: the surface's")
     machine: str = "fts-1m"
     cutting: str = "reference"
     compensation: Literal["exact", "slope", "none"] = "exact"
@@ -129,6 +167,31 @@ class SweepSpec(Strict):
     cases_per_task: Optional[PositiveInt] = Field(
         None, description="cases a Dask task runs; default automatic"
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _options_of_the_kinds(cls, data: Any) -> Any:
+        """A key beside the declared ones is a kind's options for every case of its sweeps
+        (``dpath:``, a mapping); any other is refused by name."""
+        if not isinstance(data, dict):
+            return data
+        keys = {k.options_key for k in registry.kinds().values() if k.options_key}
+        for name, value in data.items():
+            if name in cls.model_fields:
+                continue
+            if name not in keys:
+                raise ValueError(f"{name}: unknown key")
+            if value is not None and not isinstance(value, dict):
+                got = type(value).__name__
+                raise ValueError(f"{name}: the options of every case are a mapping (got {got})")
+        return data
+
+    @field_validator("layout")
+    @classmethod
+    def _a_registered_kind(cls, name: Optional[str]) -> Optional[str]:
+        if name is not None:
+            registry.kind(name)  # ValueError naming the known kinds
+        return name
 
     @model_validator(mode="before")
     @classmethod
@@ -181,17 +244,22 @@ class SweepSpec(Strict):
 
     @model_validator(mode="after")
     def _no_duplicate_values(self) -> SweepSpec:
-        for name in AXIS_ORDER:
-            spec = getattr(self.axes, name)
-            if spec is not None:
-                values = axis_values(spec)
-                if np.unique(values).size != values.size:
-                    raise ValueError(f"axes.{name} repeats a value: {values.tolist()}")
+        for name, spec in self.axes.given().items():
+            values = axis_values(spec)
+            if np.unique(values).size != values.size:
+                raise ValueError(f"axes.{name} repeats a value: {values.tolist()}")
         return self
 
     def options_of(self, key: str) -> Optional[dict[str, Any]]:
         """The options every case of a kind's sweep takes under ``key`` (``dpath:``), if given."""
-        return getattr(self, key, None)
+        return (self.model_extra or {}).get(key)
+
+    @model_serializer(mode="wrap")
+    def _stable_dump(self, handler: Any) -> Any:
+        # the options keys of the first path kinds were always written, null when unset
+        kinds = registry.kinds().values()
+        unset = {k.options_key: None for k in kinds if k.options_key and k.options_dumped_unset}
+        return {**unset, **handler(self)}
 
     def spec_hash(self) -> str:
         """Stable hash of the resolved spec: a cube belongs to exactly one spec."""
@@ -199,46 +267,29 @@ class SweepSpec(Strict):
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-SPIRAL_RULE_AXES = ("points_per_rev", "arc_um", "chord_um")
-SPIRAL_AXES = (*SPIRAL_RULE_AXES, "residual_um")
-DPATH_AXES = ("spacing_um", "points_per_cut")
-FRESNEL_AXES = ("facet_height_um", "points_per_turn", "deviation_deg")
-AXIS_ORDER = (
-    "points",
-    "aspect",
-    *SPIRAL_AXES,
-    *DPATH_AXES,
-    *FRESNEL_AXES,
-    "feed_um",
-    "nose_radius_um",
-    "compensation",
-)
+# the axes every kind may sweep, after its own in a cube
+COMMON_AXES = ("feed_um", "nose_radius_um", "compensation")
 # axes whose values are names, not numbers (a cube's coordinate of strings, without units)
 NAMED_AXES = ("compensation",)
-AXIS_ATTRS = {
-    "points": {"units": "1", "long_name": "target number of control points"},
-    "points_per_rev": {"units": "1", "long_name": "points per revolution of the spiral"},
-    "arc_um": {"units": "um", "long_name": "path length between the spiral's points"},
-    "chord_um": {"units": "um", "long_name": "chord-error budget of the spiral"},
-    "residual_um": {"units": "um", "long_name": "residual (cusp) budget that sets the feed"},
-    "spacing_um": {"units": "um", "long_name": "spacing between the D path's cuts"},
-    "points_per_cut": {"units": "1", "long_name": "points on every cut of the D path"},
-    "facet_height_um": {"units": "um", "long_name": "height of every Fresnel facet"},
-    "points_per_turn": {"units": "1", "long_name": "control points on every turn of the quasi-spiral"},
-    "deviation_deg": {"units": "deg", "long_name": "rake face turned from the cutting direction"},
+COMMON_ATTRS = {
     "compensation": {"long_name": "tool-nose compensation: exact, slope or none"},
     "feed_um": {"units": "um", "long_name": "feed per spindle revolution"},
     "nose_radius_um": {"units": "um", "long_name": "tool nose radius"},
 }
-ASPECT_ATTRS = {
-    "ring": {"units": "um/deg", "long_name": "target aspect ratio Δρ/Δθ of the pitches"},
-    "mesh": {"units": "1", "long_name": "target aspect ratio Δx/Δy of the pitches"},
-}
+
+
+def axis_order(spec: SweepSpec) -> tuple[str, ...]:
+    """The order of the cube's dimensions: the kind's own axes, then the common ones."""
+    own = registry.kind(spec.layout).axis_names if spec.layout is not None else ()
+    return (*own, *COMMON_AXES)
 
 
 def axis_attrs(axis: str, kind: str) -> dict[str, str]:
-    """Units (parseable by pint/UDUNITS) and long name of a sweep axis for layout ``kind``."""
-    return dict(ASPECT_ATTRS[kind] if axis == "aspect" else AXIS_ATTRS[axis])
+    """Units (parseable by pint/UDUNITS) and long name of a sweep axis of kind ``kind``."""
+    if axis in COMMON_ATTRS:
+        return dict(COMMON_ATTRS[axis])
+    declared = {a.name: a for a in registry.kind(kind).axes}[axis]
+    return {"units": declared.units, "long_name": declared.long_name}
 
 
 def axis_values(spec: Any) -> np.ndarray:
@@ -303,19 +354,17 @@ def _sweep_error(path: Path, exc: ValidationError) -> str:
             lines.append(f"  - {loc}: the axis is empty; give at least one value")
         elif e["loc"] and e["loc"][0] in CATALOG_KIND:
             lines.append(f"  - key '{loc}': {catalogs.error_text(e)}")
-        elif not loc:
-            lines.append(f"  - {catalogs.error_text(e)}")
+        elif not loc or catalogs.error_text(e).startswith(f"{loc}."):
+            lines.append(f"  - {catalogs.error_text(e)}")  # the message names its key itself
         else:
             lines.append(f"  - {loc}: {catalogs.error_text(e)} (got {catalogs.short_repr(e.get('input'))})")
     return "\n".join(dict.fromkeys(lines))  # union members can repeat the same complaint
 
 
 def coordinates(spec: SweepSpec) -> dict[str, np.ndarray]:
-    """The cube's dimension coordinates, in :data:`AXIS_ORDER` (optional axes if given)."""
+    """The cube's dimension coordinates, in :func:`axis_order` (optional axes if given)."""
     return {
-        name: axis_values(getattr(spec.axes, name))
-        for name in AXIS_ORDER
-        if getattr(spec.axes, name) is not None
+        name: axis_values(spec.axes.get(name)) for name in axis_order(spec) if spec.axes.get(name) is not None
     }
 
 

@@ -24,10 +24,9 @@ from ftsweep.store.io import new_axes as _axes
 def aspect_label(ds: xr.Dataset) -> str:
     """Axis label of the aspect ratio, with its unit for the cube's layout method."""
     from ftsweep import registry
-    from ftsweep.engine import result
 
     kind = str(ds.attrs.get("layout_method"))
-    first, second = (n.split("_")[0][1:] for n in result.pitch_names(kind))
+    first, second = (n.split("_")[0][1:] for n in registry.kind(kind).pitches)
     units = registry.kind(kind).aspect_units.replace("um", "µm")
     return f"aspect ratio α = Δ{_greek(first)}/Δ{_greek(second)} [{units}]"
 

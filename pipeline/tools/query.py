@@ -14,7 +14,7 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
-from ftsweep.engine import result
+from ftsweep import registry
 from ftsweep.store import cube
 
 
@@ -87,7 +87,7 @@ def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
     # a named axis (the compensation) keeps its names
     out.update({f"{d}_target": _plain(ds[d].values[i]) for d, i in pos.items()})
     layout = ds.attrs.get("layout_method", "")
-    names = result.pitch_names(layout)
+    names = registry.kind(layout).pitches
     out["layout"] = layout
     out["n_points"] = int(point["n_points"])
     out[names[0]] = float(point[names[0]])

@@ -23,7 +23,6 @@ import ftsweep.tools.accessor  # noqa: F401  (registers ds.ftsweep)
 from ftsweep import registry
 from ftsweep.engine.planning import control_table
 from ftsweep.inputs.catalogs import aperture_of
-from ftsweep.kinds.table.kind import build_layout
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import dynamics
 from ftsweep.store import cube
@@ -59,17 +58,16 @@ def resimulate(
     case = base.model_copy(
         update={"resolution": base.resolution.model_copy(update={"error_map_bins": map_bins})}
     )
-    if registry.kind(case.layout.kind).aspect_range is None:
-        # a path program is planned once, here, and handed to the run as its program
-        rcase = resolve_case(case, specs=specs)
-        assert rcase.values is not None and rcase.gouge is not None
-        layout, table, gouge = rcase.layout, rcase.values, rcase.gouge
+    rcase = resolve_case(case, specs=specs)
+    layout = rcase.layout
+    if rcase.values is not None and rcase.gouge is not None:
+        # a path program is planned with its commands once, here, and handed to the run
+        table, gouge = rcase.values, rcase.gouge
         record = run_case(case, progress=progress, specs=specs, program=(layout, table))
         record["gouge_points"] = int(np.count_nonzero(gouge))
         return record, (case, layout, table, specs)
-    layout = build_layout(specs[0], case.layout)
-    # the table is compensated once, here, and handed to the run (which would redo it)
-    table, gouge = control_table(case, layout, specs[0], case.nose_radius_of(specs[2]))
+    # a table is compensated once, here, and handed to the run (which would redo it)
+    table, gouge = control_table(case, layout, specs[0], rcase.nose_radius_um)
     record = run_case(case, progress=progress, specs=specs, table=table)
     record["gouge_points"] = int(np.count_nonzero(gouge))
     return record, (case, layout, table, specs)

@@ -94,7 +94,7 @@ def choose(
 def recorded_case(ds: xr.Dataset, flat: int, trust_plugins: bool = False) -> tuple[Any, tuple[Any, Any, Any]]:
     """The case at flat index ``flat`` of a cube and the (surface, machine, cutting) entries
     the cube recorded for it. A cube is data: a plug-in surface it names must be one of the
-    local catalog's unless ``trust_plugins`` (:func:`~ftsweep.inputs.catalogs.specs_from_entries`)."""
+    local catalog's unless ``trust_plugins`` (:func:`~ftsweep.inputs.trust.specs_from_entries`)."""
     from ftsweep.freetext import TextError, check_strings
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.inputs.trust import specs_from_entries

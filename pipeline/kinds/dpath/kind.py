@@ -15,7 +15,8 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.engine.contract import Planning, ProgramKind
+from ftsweep.engine import result
+from ftsweep.engine.contract import Axis, Planning, ProgramKind
 from ftsweep.engine.planning import compensator
 from ftsweep.engine.spec import Case, CaseError
 from ftsweep.engine.threads import compensate_in_parts
@@ -110,7 +111,7 @@ def plan_dpath(
 def _request_at(spec: Any, value: dict[str, float]) -> DPathRequest:
     return DPathRequest(
         kind="dpath",
-        **(spec.dpath or {}),
+        **(spec.options_of("dpath") or {}),
         **{k: (int(round(v)) if k == "points_per_cut" else v) for k, v in value.items() if k in AXES},
     )
 
@@ -181,11 +182,11 @@ def _describe(r: dict[str, Any]) -> list[str]:
 
 def _check_sweep(spec: Any) -> None:
     """An axis of its own; the spacing is its feed, so not both; the D-path options valid."""
-    if not any(getattr(spec.axes, n) is not None for n in AXES):
+    if not any(spec.axes.get(n) is not None for n in AXES):
         raise ValueError("a D-path sweep needs an axis: spacing_um and/or points_per_cut")
-    if spec.axes.spacing_um is not None and spec.axes.feed_um is not None:
+    if spec.axes.get("spacing_um") is not None and spec.axes.feed_um is not None:
         raise ValueError("axes.spacing_um is the D path's feed: give it or axes.feed_um, not both")
-    DPathRequest(kind="dpath", **(spec.dpath or {}))  # names a bad option
+    DPathRequest(kind="dpath", **(spec.options_of("dpath") or {}))  # names a bad option
 
 
 # its command-line options: the request's fields, the off-axis distance in mm
@@ -214,11 +215,54 @@ def _simulation(inputs: Any, timer: Any) -> Any:
     return DPathSimulation(inputs, timer)
 
 
+def _file_format() -> Any:
+    from ftsweep.kinds.path_programs import dpath_format
+
+    return dpath_format()
+
+
+_f, _given = result.number, result.given
+FIELDS = (
+    *result.PATH,
+    # its options are inputs (a D-path cube's axes)
+    _given("spacing_um", "um", "spacing h between the D path's cuts"),
+    _given("points_per_cut", "1", "points on every cut of the D path"),
+    _given("transition", None, "turn-round between cuts: traditional (arc) or optimised (quintic)"),
+    _given("zones", "1", "cutting zones per revolution"),
+    _given("offaxis_um", "um", "distance of the part's centre from the C axis"),
+    _given("cut_angle_deg", "deg", "direction of the cuts in the part's frame"),
+    result.count("n_cuts", "cuts over all zones"),
+    _f("cut_length_um", "um", "length l of the cuts (the zone along them)"),
+    _f("cut_width_um", "um", "width s of the cutting zone across the cuts"),
+    _f("cut_step_um", "um", "distance between consecutive points of a cut"),
+    # the X axis at constant spindle speed ([5] eqs. 5-6)
+    _f("x_min_um", "um", "smallest X (polar radius) of the path"),
+    _f("x_max_um", "um", "largest X (polar radius) of the path, transitions included"),
+    _f("x_feed_peak_mm_s", "mm/s", "peak X feed-rate at the spindle speed"),
+    _f(
+        "x_accel_peak_m_s2",
+        "m/s^2",
+        "peak X acceleration at the spindle speed, formed over the controller's command period",
+    ),
+    _f("accel_period_s", "s", "controller command period the D path's accelerations are formed over"),
+    _f("accel_step_deg", "deg", "C step of one command period at the spindle speed"),
+    _f("x_accel_cut_m_s2", "m/s^2", "peak X acceleration on the cuts"),
+    _f("x_accel_transition_m_s2", "m/s^2", "peak X acceleration in the transitions"),
+    _f("slope_jump_um_rad", "um/rad", "largest jump of d(rho)/d(theta) at a junction of cut and transition"),
+)
+
+
 DPATH = ProgramKind(
     name="dpath",
     noun="D-path program",
     request=DPathRequest,
-    axes=AXES,
+    axes=(
+        Axis("spacing_um", "um", "spacing between the D path's cuts"),
+        Axis("points_per_cut", "1", "points on every cut of the D path"),
+    ),
+    fields=FIELDS,
+    pitches=("dphi_deg", "ds_um"),
+    file_format=_file_format,
     request_at=_request_at,
     feed=_feed,
     plan=_plan,
@@ -237,4 +281,5 @@ DPATH = ProgramKind(
     machine="sts-xzc",
     cutting="dpath-finish",
     options_key="dpath",
+    options_dumped_unset=True,
 )

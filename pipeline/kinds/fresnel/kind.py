@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ftsweep.engine.contract import Planning, ProgramKind
+from ftsweep.engine import result
+from ftsweep.engine.contract import Axis, Planning, ProgramKind
 from ftsweep.engine.spec import Case, CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.fresnel.request import FRESNEL_FIELDS, FresnelRequest
@@ -41,7 +42,7 @@ def _request_at(spec: Any, value: dict[str, float]) -> FresnelRequest:
     return FresnelRequest(
         kind="fresnel",
         **{
-            **(spec.fresnel or {}),
+            **(spec.options_of("fresnel") or {}),
             **{k: (int(round(v)) if k == "points_per_turn" else v) for k, v in value.items() if k in AXES},
         },
     )
@@ -135,16 +136,16 @@ def _describe(r: dict[str, Any]) -> list[str]:
 
 def _check_sweep(spec: Any) -> None:
     """An axis of its own or of the compensation; the Fresnel options valid and not swept too."""
-    if not any(getattr(spec.axes, n) is not None for n in (*AXES, "compensation")):
+    if not any(spec.axes.get(n) is not None for n in (*AXES, "compensation")):
         raise ValueError(
             "a Fresnel sweep needs an axis: facet_height_um, points_per_turn, deviation_deg and/or "
             "compensation"
         )
-    given = spec.fresnel or {}
+    given = spec.options_of("fresnel") or {}
     for name in AXES:
-        if name in given and getattr(spec.axes, name) is not None:
+        if name in given and spec.axes.get(name) is not None:
             raise ValueError(f"fresnel.{name} is also a sweep axis (axes.{name}): give one of them")
-    for value in spec.axes.deviation_deg or []:
+    for value in spec.axes.get("deviation_deg") or []:
         FresnelRequest(kind="fresnel", deviation_deg=value)  # names a deviation out of range
     FresnelRequest(kind="fresnel", **given)  # names a bad option
 
@@ -155,11 +156,40 @@ def _simulation(inputs: Any, timer: Any) -> Any:
     return FresnelSimulation(inputs, timer)
 
 
+def _file_format() -> Any:
+    from ftsweep.kinds.fresnel.format import fresnel_format
+
+    return fresnel_format()
+
+
+_f = result.number
+FIELDS = (
+    *result.PATH,
+    # its options are inputs (a Fresnel cube's axes)
+    result.given("facet_height_um", "um", "height h of every Fresnel facet"),
+    result.given("points_per_turn", "1", "control points K on every turn of the quasi-spiral"),
+    result.given("deviation_deg", "deg", "rake face turned from the cutting direction"),
+    result.count("n_facets", "Fresnel facets the surface is sliced into", "int32"),
+    _f("ez_exact_max_nm", "nm", "largest tool-edge compensation by [2] eq. 10 on the part"),
+    _f("ez_straight_max_nm", "nm", "largest tool-edge compensation by [2] eq. 12 on the part"),
+    result.text("facets", "P-V and RMS of every facet's interior, outermost first (predict, not cubes)"),
+    _f("time_constant_s", "s", "machining time at the least constant timestep within the limits"),
+    _f("speedup", "1", "machining time at the constant timestep over that of the adaptive ones"),
+)
+
+
 FRESNEL = ProgramKind(
     name="fresnel",
     noun="Fresnel program",
     request=FresnelRequest,
-    axes=AXES,
+    axes=(
+        Axis("facet_height_um", "um", "height of every Fresnel facet"),
+        Axis("points_per_turn", "1", "control points on every turn of the quasi-spiral"),
+        Axis("deviation_deg", "deg", "rake face turned from the cutting direction", signed=True),
+    ),
+    fields=FIELDS,
+    pitches=("dphi_deg", "ds_um"),
+    file_format=_file_format,
     request_at=_request_at,
     feed=_feed,
     plan=_plan,
@@ -181,4 +211,5 @@ FRESNEL = ProgramKind(
     machine="xyzc-nanoform",
     cutting="fresnel-finish",
     options_key="fresnel",
+    options_dumped_unset=True,
 )

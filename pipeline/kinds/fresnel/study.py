@@ -483,7 +483,7 @@ def case_document(
     verify re-derives them. The sidecar records the case (the kind's request) as for every
     path program."""
     from ftsweep.exports.files import case_meta
-    from ftsweep.kinds.fresnel.kind import record_fields
+    from ftsweep.kinds.fresnel.form import record_fields
 
     rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     prog = rcase.layout

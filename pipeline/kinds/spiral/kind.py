@@ -13,7 +13,8 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.engine.contract import Planning, ProgramKind
+from ftsweep.engine import result
+from ftsweep.engine.contract import Axis, Planning, ProgramKind
 from ftsweep.engine.cost import check_capacity, spiral_points
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.planning import compensator
@@ -225,21 +226,51 @@ def _describe(r: dict[str, Any]) -> list[str]:
 
 def _check_sweep(spec: Any) -> None:
     """Exactly one rule axis; the residual budget sets the feed, so not both."""
-    rules = [n for n in AXES[:3] if getattr(spec.axes, n) is not None]
+    rules = [n for n in AXES[:3] if spec.axes.get(n) is not None]
     if len(rules) != 1:
         raise ValueError(
             "a spiral sweep needs exactly one rule axis: points_per_rev, arc_um or chord_um "
             f"(got {', '.join(rules) or 'none'})"
         )
-    if spec.axes.residual_um is not None and spec.axes.feed_um is not None:
+    if spec.axes.get("residual_um") is not None and spec.axes.feed_um is not None:
         raise ValueError("axes.residual_um sets the feed: give it or axes.feed_um, not both")
+
+
+def _file_format() -> Any:
+    from ftsweep.kinds.path_programs import spiral_format
+
+    return spiral_format()
 
 
 SPIRAL = ProgramKind(
     name="spiral",
     noun="spiral program",
     request=SpiralRequest,
-    axes=AXES,
+    axes=(
+        Axis("points_per_rev", "1", "points per revolution of the spiral"),
+        Axis("arc_um", "um", "path length between the spiral's points"),
+        Axis("chord_um", "um", "chord-error budget of the spiral"),
+        Axis("residual_um", "um", "residual (cusp) budget that sets the feed"),
+    ),
+    fields=(
+        result.text("spiral_rule", "spiral sampling rule: angle, arc or chord"),
+        # the rule's parameters are inputs (a spiral cube's axes), not stored per case
+        result.given("points_per_rev", "1", "points per revolution of the constant-angle rule"),
+        result.given("arc_um", "um", "path length between points of the constant-arc rule"),
+        result.given("chord_um", "um", "chord-error budget of the chord rule"),
+        result.given("residual_um", "um", "residual (cusp) budget that set the feed"),
+        *result.PATH,
+        result.number("chord_error_nm", "nm", "largest chord deviation from the compensated path"),
+        result.number(
+            "residual_error_nm",
+            "nm",
+            "largest residual (cusp) height from the feed and the section curvature",
+        ),
+        result.aspect_actual("um/deg"),
+        *result.SPINDLE,
+    ),
+    pitches=("dphi_deg", "ds_um"),
+    file_format=_file_format,
     request_at=_request_at,
     feed=_feed,
     plan=_plan,

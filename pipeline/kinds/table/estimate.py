@@ -13,7 +13,7 @@ import xarray as xr
 
 from ftsweep.engine.spec import program_request
 from ftsweep.inputs import catalogs
-from ftsweep.kinds.table.kind import build_layout
+from ftsweep.kinds.table.layout import build_layout
 from ftsweep.stages import estimate as est
 from ftsweep.store.cube import DONE
 from ftsweep.sweeps.spec import SweepSpec, coordinates

@@ -13,6 +13,7 @@ one and re-simulates the machined surface from the stored integers.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import re
@@ -28,14 +29,16 @@ from ftsweep.engine.planning import control_table
 from ftsweep.engine.spec import Case
 from ftsweep.exports.files import (
     ExportError,
+    FileFormat,
     layer_schedule,
+    pv_lines,
     recorded_case_of,
     recorded_entries,
     sidecar_digest,
     sidecar_path,
 )
 from ftsweep.kinds.table.c_view import read_c
-from ftsweep.kinds.table.kind import build_layout
+from ftsweep.kinds.table.layout import build_layout
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.store.io import check_sidecar_text, dumps_json, read_regular, read_sidecar, write_texts_atomic
 from ftsweep.version import __version__
@@ -531,4 +534,32 @@ def _difference(path: Path, number: int, got: str, want: str, prefix: str) -> st
     return (
         f"{path}: line {number} reads {got[:120]!r} where export writes {want[:120]!r}: the header was "
         "edited; do not load it"
+    )
+
+
+@functools.cache
+def header_format() -> FileFormat:
+    """The controller header's file format (ring and mesh tables)."""
+
+    def exported(out: Path, meta: dict[str, Any]) -> list[str]:
+        return [
+            f"header       {out} ({meta['shape'][0]} × {meta['shape'][1]} {meta['int_type']}, "
+            f"unit {meta['unit_nm']} nm, CRC-32 0x{meta['crc32']:08x})"
+        ]
+
+    def verified(record: dict[str, Any]) -> list[str]:
+        return [
+            f"checksum     {record['checksum']} (macros and table) ok; sidecar and file hashes ok",
+            f"table        {record['layout']}: {record['n_points']:,} points, "
+            "every macro and cell as re-planned",
+            *pv_lines(record, "the stored integers"),
+        ]
+
+    return FileFormat(
+        "controller header",
+        None,
+        export_header,
+        verify_header,
+        exported,
+        verified,
     )

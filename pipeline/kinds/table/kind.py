@@ -11,35 +11,16 @@ from typing import Any
 import numpy as np
 
 from ftsweep.engine import result
-from ftsweep.engine.contract import Planning, ProgramKind
+from ftsweep.engine.contract import Axis, Planning, ProgramKind
 from ftsweep.engine.cost import angular_samples
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.spec import Case, CaseError
 from ftsweep.inputs import catalogs
+from ftsweep.kinds.table.layout import build_layout
 from ftsweep.kinds.table.request import TableRequest
 from ftsweep.registry import flag
 from ftsweep.stages import layouts
 from ftsweep.stages.layouts import Layout
-
-
-def build_layout(surface: Any, request: Any) -> Layout:
-    """The control-point table of ``request`` covering the surface's aperture (model §2).
-
-    Rings cover the aperture's circumscribed radius; meshes its bounding box.
-    """
-    if request.kind not in ("ring", "mesh"):
-        raise ValueError(f"a {request.kind} program is planned with its commands, not as a table")
-    ap = catalogs.aperture_of(surface)
-    if request.kind == "ring":
-        radius = ap.outer_radius_um
-        if request.pitch is not None:
-            return layouts.ring_layout(radius, *request.pitch)
-        return layouts.ring_layout_for(radius, *request.target())
-    half_w, half_h = ap.half_extent_um
-    width, height = 2.0 * half_w, 2.0 * half_h
-    if request.pitch is not None:
-        return layouts.mesh_layout(width, height, *request.pitch)
-    return layouts.mesh_layout_for(width, height, *request.target())
 
 
 def _request_at(spec: Any, value: dict[str, float]) -> TableRequest:
@@ -59,7 +40,7 @@ def _plan(p: Planning) -> tuple[Layout, dict[str, Any]]:
 
 def _record_fields(rcase: Any) -> dict[str, Any]:
     layout = rcase.layout
-    pitch_names = result.pitch_names(layout.kind)
+    pitch_names = PITCHES[layout.kind]
     return {
         "table_rows": layout.shape[0],
         "table_cols": layout.shape[1],
@@ -134,12 +115,12 @@ def _describe(r: dict[str, Any]) -> list[str]:
 
 def _check_sweep(spec: Any) -> None:
     for name in AXES:
-        if getattr(spec.axes, name) is None:
+        if spec.axes.get(name) is None:
             raise ValueError(f"axes.{name}: required key is missing for a {spec.layout} sweep")
 
 
 def _table_options(kind: str, opts: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
-    own = result.pitch_names(kind)
+    own = PITCHES[kind]
     given = [k for k in own if opts.get(k) is not None]
     points, aspect = opts.get("points"), opts.get("aspect")
     if given and (points is not None or aspect is not None):
@@ -164,12 +145,42 @@ def _table_options(kind: str, opts: dict[str, Any]) -> tuple[dict[str, Any], lis
     return {"kind": kind, "pitch": (first, second)}, notices
 
 
+def _file_format() -> Any:
+    from ftsweep.kinds.table.header import header_format
+
+    return header_format()
+
+
+def _estimate(spec: Any, folder: Any) -> Any:
+    from ftsweep.kinds.table.estimate import estimate_sweep
+
+    return estimate_sweep(spec, folder)
+
+
+PITCHES = {"ring": ("drho_um", "dtheta_deg"), "mesh": ("dx_um", "dy_um")}
 AXES = ("points", "aspect")
+POINTS = Axis("points", "1", "target number of control points", dumped_unset=True)
+
+
+def _aspect(units: str, long_name: str) -> Axis:
+    return Axis("aspect", units, long_name, dumped_unset=True)
+
+
 RING = ProgramKind(
     name="ring",
     noun="ring layout",
     request=TableRequest,
-    axes=AXES,
+    axes=(POINTS, _aspect("um/deg", "target aspect ratio Δρ/Δθ of the pitches")),
+    fields=(
+        *result.TABLE,
+        result.number("drho_um", "um", "ring pitch Δρ"),
+        result.number("dtheta_deg", "deg", "angular pitch Δθ"),
+        result.aspect_actual("um/deg"),
+        *result.SPINDLE,
+    ),
+    pitches=PITCHES["ring"],
+    file_format=_file_format,
+    estimate=_estimate,
     request_at=_request_at,
     feed=_feed,
     plan=_plan,
@@ -193,6 +204,15 @@ MESH = dataclasses.replace(
     RING,
     name="mesh",
     noun="mesh layout",
+    axes=(POINTS, _aspect("1", "target aspect ratio Δx/Δy of the pitches")),
+    fields=(
+        *result.TABLE,
+        result.number("dx_um", "um", "mesh pitch Δx"),
+        result.number("dy_um", "um", "mesh pitch Δy"),
+        result.aspect_actual("1"),
+        *result.SPINDLE,
+    ),
+    pitches=PITCHES["mesh"],
     pitch_text=_mesh_pitch,
     point_text=_mesh_point,
     angular_cells=_mesh_cells,

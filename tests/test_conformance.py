@@ -53,7 +53,10 @@ class KindTests:
         _, spec = load_sweep(str(spec_path), folder)
         case = case_at(spec, 0)
         assert case.layout.kind == self.kind
-        cost, _ = registry.kind(self.kind).cost(case, _surface(case, folder), folder)
+        kind, surface = registry.kind(self.kind), _surface(case, folder)
+        cutting = _cutting(case, folder)
+        feed = kind.feed(case, cutting, case.nose_radius_of(cutting), surface, folder, None)
+        cost, _ = kind.cost(case, surface, folder, feed)
         assert cost > 0
 
     def test_a_case_key_is_stable_through_its_spec(self, cube):
@@ -118,6 +121,12 @@ class KindTests:
         spec_path, out, folder = cube
         report = run_sweep(str(spec_path), out, scheduler="synchronous", catalog_folder=folder)
         assert report.queued == 0 and not report.damaged and report.skipped == 1
+
+
+def _cutting(case: Case, folder):  # type: ignore[no-untyped-def]
+    from ftsweep.inputs import catalogs
+
+    return catalogs.entry("cutting", case.cutting, folder)
 
 
 def _surface(case: Case, folder):  # type: ignore[no-untyped-def]

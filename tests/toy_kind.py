@@ -52,10 +52,9 @@ def _cells(layout: Layout, rho0_um: float) -> float:
     return math.ceil(2.0 * math.pi * rho0_um / layout.pitch[0])
 
 
-def _cost(case: Case, surface: Any, folder: Any) -> tuple[float, Any]:
+def _cost(case: Case, surface: Any, folder: Any, feed: float) -> tuple[float, Any]:
     layout = _layout(surface, case.layout.pitch_um)
     rho0 = catalogs.aperture_of(surface).outer_radius_um
-    feed = case.feed_of(catalogs.entry("cutting", case.cutting, folder))
     n_theta = angular_samples(_cells, layout, rho0, case.resolution)
     return 8.0 * layout.n_points + n_theta * rho0 / feed * case.resolution.points_per_feed, None
 

@@ -104,7 +104,8 @@ class ProgramKind:
     feed : ``(case, cutting, nose radius, surface spec, catalog folder, program) -> F [µm/rev]``.
     plan : ``(Planning) -> (program, extra fields of the resolved case)``.
     record_fields : ``(resolved case) -> its fields of the record`` (:mod:`ftsweep.engine.result`).
-    cost : ``(case, surface spec, catalog folder) -> (relative cost, key of shared lines)``.
+    cost : ``(case, surface spec, catalog folder, feed [µm/rev]) -> (relative cost, key of
+        shared lines)``, handed the feed its ``feed`` set.
     simulation : ``(Simulating, timer) -> Simulation``: how the one simulator samples its
         program (:mod:`ftsweep.engine.lines` for spindle programs, tables and spirals).
     pitch_text : ``(record) -> text`` of a program's pitches or mean steps, with units.
@@ -144,7 +145,7 @@ class ProgramKind:
     feed: Callable[..., float]
     plan: Callable[[Planning], tuple[Any, dict[str, Any]]]
     record_fields: Callable[[Any], dict[str, Any]]
-    cost: Callable[[Any, Any, Any], tuple[float, Any]]
+    cost: Callable[[Any, Any, Any, float], tuple[float, Any]]
     simulation: Callable[[Simulating, Any], Simulation]
     pitch_text: Callable[[dict[str, Any]], str]
     point_text: Callable[[Any, int], str]

@@ -402,7 +402,13 @@ def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) 
     A case whose layout cannot be built costs 0 and shares nothing (key None)."""
     case = case_at(spec, index)
     surface = catalogs.entry("surfaces", case.surface, catalog_folder)
-    return registry.kind(case.layout.kind).cost(case, surface, catalog_folder)
+    kind = registry.kind(case.layout.kind)
+    cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
+    try:
+        feed = kind.feed(case, cutting, case.nose_radius_of(cutting), surface, catalog_folder, None)
+    except ValueError:  # refused when it runs, with the reason; it costs nothing to plan
+        return 0.0, None
+    return kind.cost(case, surface, catalog_folder, feed)
 
 
 def plan_tasks(

@@ -144,15 +144,14 @@ def _record_fields(rcase: Any) -> dict[str, Any]:
     return {}  # the D-path engine writes its own fields (:func:`ftsweep.kinds.dpath.program.record_fields`)
 
 
-def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
+def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
     """The evaluated nodes (rays × cuts × points per feed); its lines are its own."""
     from ftsweep.kinds.dpath import program as dpath_program
 
-    cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
     ap = catalogs.aperture_of(surface)
-    spacing = case.layout.spacing_um or case.feed_of(cutting)
     ppc = case.layout.points_per_cut or dpath_program.DEFAULTS["points_per_cut"]
-    return 3.0 * ppc * 2.0 * ap.half_extent_um[0] / spacing * case.resolution.points_per_feed, None
+    # its feed is its spacing between cuts (_feed)
+    return 3.0 * ppc * 2.0 * ap.half_extent_um[0] / feed * case.resolution.points_per_feed, None
 
 
 def _pitch(r: dict[str, Any]) -> str:

@@ -102,10 +102,9 @@ def _record_fields(rcase: Any) -> dict[str, Any]:
     return {}  # the Fresnel simulation writes its own fields (record_fields)
 
 
-def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
+def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
     """Its rays × nodes (3 rays per point of a turn, points_per_feed per feed over the part's
     radius) and the points it times; its lines are its own."""
-    feed = case.feed_of(catalogs.entry("cutting", case.cutting, catalog_folder))
     k = int(option(case.layout, "points_per_turn"))
     turns = catalogs.aperture_of(surface).outer_radius_um / feed
     return 3.0 * k * turns * case.resolution.points_per_feed + 50.0 * k * turns, None

@@ -182,12 +182,11 @@ def _record_fields(rcase: Any) -> dict[str, Any]:
     }
 
 
-def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
+def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
     """A spiral's points (and with a chord budget its angular sampling) are only known once
     planned: its cost is its simulated nodes at the part's outer circumference, and its lines
     are its own."""
     rho0 = catalogs.aperture_of(surface).outer_radius_um
-    feed = case.feed_of(catalogs.entry("cutting", case.cutting, catalog_folder))
     return 3.0 * 2.0 * math.pi * rho0 * rho0 / feed, None
 
 

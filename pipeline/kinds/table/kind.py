@@ -49,7 +49,7 @@ def _record_fields(rcase: Any) -> dict[str, Any]:
     }
 
 
-def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
+def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
     """Control points plus simulated nodes; cases of equal angular samples, feed and nose
     radius simulate the same lines and share them (:class:`ftsweep.engine.lines.LineCache`). A case
     whose layout cannot be built costs 0 and shares nothing."""
@@ -59,7 +59,6 @@ def _cost(case: Case, surface: Any, catalog_folder: Any) -> tuple[float, Any]:
         return 0.0, None
     rho0 = catalogs.aperture_of(surface).outer_radius_um
     cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
-    feed = case.feed_of(cutting)
     cells = _ring_cells if case.layout.kind == "ring" else _mesh_cells
     n_theta = angular_samples(cells, layout, rho0, case.resolution)
     nodes = n_theta * rho0 / feed * case.resolution.points_per_feed

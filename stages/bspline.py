@@ -10,7 +10,7 @@ from .geometry import evaluate_flat
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _span(t, k, u):  # pragma: no cover - jit
+def _span(t: np.ndarray, k: int, u: float) -> int:  # pragma: no cover - jit
     """Knot span l with t[l] ≤ u < t[l+1], clamped to the spline's domain."""
     lo, hi = k, t.size - k - 2
     if u >= t[hi + 1]:
@@ -27,7 +27,16 @@ def _span(t, k, u):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _cubic_basis(t, span, u, n, dn, left, right, b):  # pragma: no cover - jit
+def _cubic_basis(
+    t: np.ndarray,
+    span: int,
+    u: float,
+    n: np.ndarray,
+    dn: np.ndarray,
+    left: np.ndarray,
+    right: np.ndarray,
+    b: np.ndarray,
+) -> None:  # pragma: no cover - jit
     """Values n[0..3] and derivatives dn[0..3] of the cubic B-splines span−3..span at u (de Boor);
     ``left``, ``right``, ``b`` are scratch arrays of 4 (allocated once by the caller)."""
     for r in range(4):
@@ -57,7 +66,16 @@ def _cubic_basis(t, span, u, n, dn, left, right, b):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _bspline2d_kernel(x, y, tx, ty, coef, f, fx, fy):  # pragma: no cover - jit
+def _bspline2d_kernel(
+    x: np.ndarray,
+    y: np.ndarray,
+    tx: np.ndarray,
+    ty: np.ndarray,
+    coef: np.ndarray,
+    f: np.ndarray,
+    fx: np.ndarray,
+    fy: np.ndarray,
+) -> None:  # pragma: no cover - jit
     nx_ = np.empty(4)
     dnx = np.empty(4)
     ny_ = np.empty(4)

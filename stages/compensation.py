@@ -25,6 +25,7 @@ approximation) and ``none`` (w = f).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -59,6 +60,15 @@ def slope_compensation(f: np.ndarray, slope: np.ndarray, nose_radius_um: float) 
 SCAN_TOL_UM = 1e-5
 MAX_SCAN = 4097
 SOLVERS = ("auto", "newton", "scan")
+
+
+def _check_arguments(mode: str, solver: str, nose_radius_um: float) -> None:
+    if mode not in MODES:
+        raise ValueError(f"unknown compensation mode {mode!r}; expected one of {MODES}")
+    if solver not in SOLVERS:
+        raise ValueError(f"unknown compensation solver {solver!r}; expected one of {SOLVERS}")
+    if not nose_radius_um > 0.0:
+        raise ValueError(f"nose_radius_um must be positive, got {nose_radius_um!r}")
 
 
 def compensate(
@@ -102,16 +112,10 @@ def compensate(
         a radius of curvature below Rc, so no single contact exists (§4). With K·Rc < 1 no
         section can be, and none is flagged.
     """
-    if mode not in MODES:
-        raise ValueError(f"unknown compensation mode {mode!r}; expected one of {MODES}")
-    if solver not in SOLVERS:
-        raise ValueError(f"unknown compensation solver {solver!r}; expected one of {SOLVERS}")
-    if not nose_radius_um > 0.0:
-        raise ValueError(f"nose_radius_um must be positive, got {nose_radius_um!r}")
+    _check_arguments(mode, solver, nose_radius_um)
     rho, theta = np.broadcast_arrays(np.asarray(rho, dtype=np.float64), np.asarray(theta, dtype=np.float64))
     shape = rho.shape
-    rho = np.ascontiguousarray(rho).reshape(-1)
-    theta = np.ascontiguousarray(theta).reshape(-1)
+    rho, theta = (np.ascontiguousarray(a).reshape(-1) for a in (rho, theta))
     ct, st = cos_sin(theta)
     if mode != "exact":
         f, gp = radial_section(surface, rho, ct, st)
@@ -120,9 +124,8 @@ def compensate(
 
     rc = float(nose_radius_um)
     half = contact_window_um(gradient_bound, rc)
-    if solver == "auto":
-        solver = "newton" if curvature_bound * rc < 1.0 else "scan"
-    if solver == "newton" and half > 0.0:
+    newton = solver == "newton" or (solver == "auto" and curvature_bound * rc < 1.0)
+    if newton and half > 0.0:
         w = _secant_max(surface, rho, ct, st, rc, half, (gradient_bound, curvature_bound), tol_um, max_iter)
         return w.reshape(shape), np.zeros(shape, dtype=bool)
     count = scan_samples(half, rc, curvature_bound, n_scan)
@@ -157,7 +160,17 @@ def _check_slope(gp: np.ndarray, gradient_bound: float) -> None:
     _check_steepest(float(np.max(np.abs(gp))) if gp.size else 0.0, gradient_bound)
 
 
-def _secant_max(surface, rho, ct, st, rc, half, bounds, tol_um, max_iter):
+def _secant_max(
+    surface: SurfaceFn,
+    rho: np.ndarray,
+    ct: np.ndarray,
+    st: np.ndarray,
+    rc: float,
+    half: float,
+    bounds: tuple[Any, ...],
+    tol_um: float,
+    max_iter: int,
+) -> np.ndarray:
     """Maximise h(s) = g(ρ+s) − arc(s) over |s| ≤ half where h is strictly concave: the root
     of the decreasing h'(s) = g'(ρ+s) − s/sqrt(Rc² − s²) by secant steps, bracketed by
     [−half, half] (where h' ≥ 0 ≥ h' because |g'| ≤ G) and bisected when a step leaves the
@@ -180,7 +193,7 @@ def _secant_max(surface, rho, ct, st, rc, half, bounds, tol_um, max_iter):
             break
         f, fx, fy = surface(x[:n], y[:n])
         n, worst, steepest = _secant_update(
-            f, fx, fy, rho, ct, st, rc, tol_um, curvature_bound, *state, best, x, y
+            f, fx, fy, rho, ct, st, rc, tol_um, curvature_bound, state, best, x, y
         )
         _check_steepest(steepest, gradient_bound)
         if worst > 0.0:
@@ -202,7 +215,26 @@ def _check_steepest(steepest: float, gradient_bound: float) -> None:
 
 
 @njit(nogil=True, cache=True)
-def _secant_start(f0, fx0, fy0, rho, ct, st, rc, half, best, idx, s, s_prev, d_prev, gp_prev, a, b, x, y):  # noqa: E501  # pragma: no cover - jit
+def _secant_start(
+    f0: np.ndarray,
+    fx0: np.ndarray,
+    fy0: np.ndarray,
+    rho: np.ndarray,
+    ct: np.ndarray,
+    st: np.ndarray,
+    rc: float,
+    half: float,
+    best: np.ndarray,
+    idx: np.ndarray,
+    s: np.ndarray,
+    s_prev: np.ndarray,
+    d_prev: np.ndarray,
+    gp_prev: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+) -> tuple[Any, ...]:  # noqa: E501  # pragma: no cover - jit
     """The state of :func:`_secant_max` after its evaluation at s = 0 (heights ``f0`` and
     gradients at ρ on sections (ct, st)): h(0) in ``best``; the points whose slope g' is not
     0 packed to the front of the state arrays with their bracket, h'(0) = g', the
@@ -230,7 +262,9 @@ def _secant_start(f0, fx0, fy0, rho, ct, st, rc, half, best, idx, s, s_prev, d_p
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _place(rho, ct, st, p, s, i, x, y):  # pragma: no cover - jit
+def _place(
+    rho: np.ndarray, ct: np.ndarray, st: np.ndarray, p: int, s: float, i: int, x: np.ndarray, y: np.ndarray
+) -> None:  # pragma: no cover - jit
     """x[i], y[i] [µm]: point ``p`` moved by s [µm] along its section (as radial_section)."""
     r = rho[p] + s
     x[i] = r * ct[p]
@@ -239,8 +273,20 @@ def _place(rho, ct, st, p, s, i, x, y):  # pragma: no cover - jit
 
 @njit(nogil=True, cache=True)
 def _secant_update(
-    f, fx, fy, rho, ct, st, rc, tol_um, curvature_bound, idx, s, s_prev, d_prev, gp_prev, a, b, best, x, y
-):  # pragma: no cover - jit
+    f: np.ndarray,
+    fx: np.ndarray,
+    fy: np.ndarray,
+    rho: np.ndarray,
+    ct: np.ndarray,
+    st: np.ndarray,
+    rc: float,
+    tol_um: float,
+    curvature_bound: float,
+    state: tuple[np.ndarray, ...],
+    best: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+) -> tuple[Any, ...]:  # pragma: no cover - jit
     """One secant iteration of :func:`_secant_max` on its ``f.size`` active points, in place:
     forms each point's radial slope g' from the gradient (fx, fy) on its section, records h
     at s in ``best``, moves s, and packs the points still moving to the front of the state
@@ -249,6 +295,7 @@ def _secant_update(
     theorem it is at most sup|g''| ≤ K, so a larger one proves the declared bound, and the
     concavity the solver relies on, wrong), and the largest |g'| (for the gradient bound's
     check)."""
+    idx, s, s_prev, d_prev, gp_prev, a, b = state
     n_keep = 0
     worst = 0.0
     steepest = 0.0
@@ -287,7 +334,18 @@ def _secant_update(
     return n_keep, worst, steepest
 
 
-def _scan_max(surface, rho, ct, st, rc, half, count, gradient_bound, tol_um, max_iter):
+def _scan_max(
+    surface: SurfaceFn,
+    rho: np.ndarray,
+    ct: np.ndarray,
+    st: np.ndarray,
+    rc: float,
+    half: float,
+    count: int,
+    gradient_bound: float,
+    tol_um: float,
+    max_iter: int,
+) -> tuple[Any, ...]:
     """Scan-and-refine: ``count`` samples of h over |s| ≤ half, streamed so that memory stays
     O(points) however dense the scan; the bracket around the best sample is refined by
     :func:`_illinois_max` where h' changes sign in it. Also flags gouging (§4): concave
@@ -323,24 +381,25 @@ def _scan_max(surface, rho, ct, st, rc, half, count, gradient_bound, tol_um, max
     b = offsets[np.minimum(best_q + 1, count - 1)]
     # only a sign change of h' brackets an interior maximum; elsewhere the scan value stands
     active = np.flatnonzero((dh_lo > 0.0) & (dh_hi < 0.0))
-    refined = _illinois_max(
-        surface,
-        rho[active],
-        ct[active],
-        st[active],
-        rc,
-        a[active],
-        b[active],
-        dh_lo[active],
-        dh_hi[active],
-        tol_um,
-        max_iter,
-    )
+    bracket = (a[active], b[active], dh_lo[active], dh_hi[active])
+    refined = _illinois_max(surface, rho[active], ct[active], st[active], rc, *bracket, tol_um, max_iter)
     w[active] = np.maximum(w[active], refined)
     return w, gouge
 
 
-def _illinois_max(surface, rho, ct, st, rc, a, b, fa, fb, tol_um, max_iter):
+def _illinois_max(
+    surface: SurfaceFn,
+    rho: np.ndarray,
+    ct: np.ndarray,
+    st: np.ndarray,
+    rc: float,
+    a: np.ndarray,
+    b: np.ndarray,
+    fa: np.ndarray,
+    fb: np.ndarray,
+    tol_um: float,
+    max_iter: int,
+) -> np.ndarray:
     """Maximise h(s) = g(ρ+s) − arc(s) on [a, b] where h'(a) > 0 > h'(b) (vectorised Illinois)."""
     best_h = np.full(rho.size, -np.inf)
     s_prev = np.full(rho.size, np.nan)
@@ -368,138 +427,3 @@ def _illinois_max(surface, rho, ct, st, rc, a, b, fa, fb, tol_um, max_iter):
         keep = ~done
         idx, a, b, fa, fb = idx[keep], a[keep], b[keep], fa[keep], fb[keep]
     return best_h
-
-
-@njit(nogil=True, cache=True)
-def _lift_table(spacing_um, nose_radius_um):  # pragma: no cover - jit
-    """arc(j·spacing) = Rc − sqrt(Rc² − (j·spacing)²) [µm] for j = 0 … Rc/spacing − 1: the
-    arc heights at the grid's offsets, computed once instead of at every hill-climbing step."""
-    rc = nose_radius_um
-    jmax = int(rc / spacing_um) - 1
-    lift = np.empty(max(jmax, 0) + 2)
-    for j in range(lift.size):
-        d = j * spacing_um
-        lift[j] = rc - math.sqrt(max(rc * rc - d * d, 0.0))
-    return lift
-
-
-@njit(nogil=True, cache=True)
-def _on_ray(g, gp, spacing_um, rc, nodes, mode, lift, out, from_passes):  # pragma: no cover - jit
-    """:func:`compensate_on_ray` with the arc heights ``lift`` of :func:`_lift_table`."""
-    n_nodes = g.size
-    jmax = int(rc / spacing_um) - 1
-    per_node = 1.0 / spacing_um
-    # the contact offsets of the last two passes, whose line predicts the next one's
-    j1 = j2 = 0
-    for p in range(nodes.size):
-        n = nodes[p]
-        if mode == 2:
-            out[p] = g[n]
-            continue
-        if mode == 1:
-            out[p] = g[n] + rc * (math.sqrt(1.0 + gp[n] * gp[n]) - 1.0)
-            continue
-        jlo = max(-jmax, -n)
-        jhi = min(jmax, n_nodes - 1 - n)
-        if from_passes and p >= 2:
-            # consecutive passes touch at offsets that change smoothly, so the line through
-            # the last two lands on (or next to) the contact: ~0.3 steps a pass on the
-            # reference mesh and ring cases, where the slope's prediction below misses by
-            # several nodes on a curved section (the contact moves by Rc·g'·K·Rc/(1 − K·Rc))
-            # and each miss costs the climb a mispredicted branch
-            j = 2 * j1 - j2
-        else:
-            # contact offset s = rc·sinβ lies outwards (s > 0, smaller n) where g rises
-            # outwards. Below slope 1/4 the series of β's sine stands in for the square root
-            # and division (within 2e-5·Rc of it: 2 nm at Rc 83 µm, a fraction of a node)
-            q = gp[n]
-            q2 = q * q
-            if q2 < 0.0625:
-                s0 = rc * q * (1.0 - q2 * (0.5 - 0.375 * q2))
-            else:
-                s0 = rc * q / math.sqrt(1.0 + q2)
-            j = int(math.floor(0.5 - s0 * per_node))
-        # either start only starts the climb, which ends on the same sample from any start on
-        # a single-peaked section
-        j = min(max(j, jlo), jhi)
-        hj = g[n + j] - lift[abs(j)]
-        # the neighbours' h at the final j are what the climb compared last: kept for the
-        # parabola instead of evaluated again
-        while True:
-            hp = g[n + j + 1] - lift[abs(j + 1)] if j + 1 <= jhi else -math.inf
-            if hp > hj:
-                j += 1
-                hj = hp
-                continue
-            hm = g[n + j - 1] - lift[abs(j - 1)] if j - 1 >= jlo else -math.inf
-            if hm > hj:
-                j -= 1
-                hj = hm
-                continue
-            break
-        best = hj
-        if jlo < j < jhi:
-            curv = hm - 2.0 * hj + hp
-            if curv < 0.0:
-                best = hj - (hp - hm) * (hp - hm) / (8.0 * curv)
-        out[p] = best
-        j2, j1 = j1, j
-
-
-@njit(nogil=True, cache=True)
-def compensate_on_ray(g, gp, spacing_um, nose_radius_um, nodes, mode, out, from_passes):  # noqa: E501  # pragma: no cover - jit
-    """Control values along one sampled radial section (model §4), in place.
-
-    g, gp : section height [µm] and radial slope [-] at nodes r_n = r_0 − n·spacing.
-    spacing_um : node spacing [µm] (positive; node index grows inwards).
-    nodes : int64 node indices of the tool passes whose commands are wanted, in order.
-    mode : 0 exact, 1 slope, 2 none (see ``MODE_CODES``).
-    out : float64 array receiving w [µm] for each entry of ``nodes``.
-    from_passes : start each climb (after the first two) on the line through the last two
-        passes' contacts instead of the slope-predicted contact; only where the section is
-        single-peaked (curvature below 1/Rc), where every start ends on the same sample.
-
-    For ``exact`` the sampled h_j = g[n+j] − arc(j·spacing) is hill-climbed from the start
-    and refined by the parabola through the best three samples.
-    """
-    lift = _lift_table(spacing_um, nose_radius_um)
-    _on_ray(g, gp, spacing_um, nose_radius_um, nodes, mode, lift, out, from_passes)
-
-
-@njit(nogil=True, cache=True)
-def _commands_kernel(g, gp, spacing_um, rc, pass_nodes, n_passes, mode, from_passes, out):  # noqa: E501  # pragma: no cover - jit
-    lift = _lift_table(spacing_um, rc)
-    for a in range(g.shape[0]):
-        k = n_passes[a]
-        _on_ray(g[a], gp[a], spacing_um, rc, pass_nodes[:k], mode, lift, out[a, :k], from_passes)
-
-
-def commands_on_rays(
-    g: np.ndarray,
-    gp: np.ndarray,
-    spacing_um: float,
-    nose_radius_um: float,
-    pass_nodes: np.ndarray,
-    n_passes: np.ndarray,
-    mode: int,
-    single_peaked: bool = False,
-) -> np.ndarray:
-    """Commands w [µm] at every pass of every ray of a path grid (model §4): the section
-    samples ``g``, ``gp`` (R, G) along each ray, the passes at node indices ``pass_nodes``
-    (Kmax,), the same on every ray, ``n_passes`` (R,) of them on each ray. Returns (R, Kmax),
-    NaN past the passes. ``single_peaked``: the caller knows every section's h to be
-    single-peaked (the surface's curvature bound below 1/Rc), so each climb may start from the
-    passes before it (:func:`compensate_on_ray`); the same commands, found in fewer steps."""
-    out = np.full((g.shape[0], pass_nodes.size), np.nan)
-    _commands_kernel(
-        np.ascontiguousarray(g),
-        np.ascontiguousarray(gp),
-        float(spacing_um),
-        float(nose_radius_um),
-        np.ascontiguousarray(pass_nodes, dtype=np.int64),
-        np.ascontiguousarray(n_passes, dtype=np.int64),
-        int(mode),
-        bool(single_peaked),
-        out,
-    )
-    return out

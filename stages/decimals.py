@@ -17,7 +17,7 @@ one correctly rounded division), which :func:`printed` returns without parsing a
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -29,7 +29,7 @@ _LOW40 = (1 << 40) - 1
 
 
 @njit(nogil=True, cache=True)
-def _scaled(v, p10):  # pragma: no cover - jit
+def _scaled(v: np.ndarray, p10: int) -> int | np.int64:  # pragma: no cover - jit
     """round_half_even(v·p10) for finite 0 ≤ v with v·p10 < 2^62 and p10 < 2^30, exactly."""
     if v == 0.0:
         return 0
@@ -66,7 +66,9 @@ def _scaled(v, p10):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _scale_all(values, p10, units, negative):  # pragma: no cover - jit
+def _scale_all(
+    values: np.ndarray, p10: int, units: np.ndarray, negative: np.ndarray
+) -> int:  # pragma: no cover - jit
     """Units of the last decimal and signs of every value; returns the flat index of the
     first value that is not finite or too large (−1 if none)."""
     flat = values.reshape(-1)
@@ -80,7 +82,7 @@ def _scale_all(values, p10, units, negative):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _digits(n):  # pragma: no cover - jit
+def _digits(n: int) -> int:  # pragma: no cover - jit
     count = 1
     while n >= 10:
         n //= 10
@@ -89,7 +91,7 @@ def _digits(n):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _put_digits(out, pos, n, width):  # pragma: no cover - jit
+def _put_digits(out: np.ndarray, pos: int, n: int, width: int) -> int:  # pragma: no cover - jit
     """The ``width`` lowest decimal digits of ``n`` ≥ 0 (zero-padded) at ``out[pos:]``;
     returns the position after them."""
     for j in range(width - 1, -1, -1):
@@ -99,7 +101,9 @@ def _put_digits(out, pos, n, width):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _render(units, negative, cols, decimals, p10, out):  # pragma: no cover - jit
+def _render(
+    units: np.ndarray, negative: np.ndarray, cols: int, decimals: int, p10: int, out: np.ndarray
+) -> int:  # pragma: no cover - jit
     """Write the rows of ``cols`` numbers (single spaces between, newlines between rows, none
     after the last) into ``out`` (uint8); returns the bytes written. With ``out`` empty, only
     counts them."""
@@ -189,49 +193,68 @@ def printed(values: np.ndarray | Fixed, decimals: int = 9) -> np.ndarray:
     return out.reshape(f.shape)
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _read_digits(
+    buf: np.ndarray, pos: int, max_digits: int, cap: int | np.int64
+) -> tuple[Any, ...]:  # pragma: no cover - jit
+    """Read at most ``max_digits`` decimal digits from ``pos``: (position after them, their
+    value, False as soon as the value passes ``cap``)."""
+    n = buf.size
+    start = pos
+    value = np.int64(0)
+    while pos < n and 48 <= buf[pos] <= 57 and pos - start < max_digits:
+        value = value * 10 + (buf[pos] - 48)
+        pos += 1
+        if value > cap:
+            return pos, value, False
+    return pos, value, True
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _read_number(
+    buf: np.ndarray, pos: int, decimals: int, p10: int, most: int | np.int64
+) -> tuple[Any, ...]:  # pragma: no cover - jit
+    """One number as :func:`_render` writes it, from ``pos``: (position after it, its value,
+    True), or (the position where the text leaves that form, 0, False)."""
+    neg = buf[pos] == 45
+    if neg:
+        pos += 1
+    start = pos
+    pos, whole, ok = _read_digits(buf, pos, buf.size, most)
+    if not ok or pos == start or pos >= buf.size or buf[pos] != 46:
+        return pos, 0.0, False
+    first = pos + 1
+    pos, frac, _ = _read_digits(buf, first, decimals, np.int64(1) << 62)
+    if pos == first:
+        return pos, 0.0, False
+    units = whole * p10 + frac * np.int64(10) ** (decimals - (pos - first))
+    if units >= np.int64(1) << 53:
+        return pos, 0.0, False
+    # both exact in a double: one correctly rounded division, the nearest double to the text
+    v = np.float64(units) / p10
+    return pos, -v if neg else v, True
+
+
 @njit(nogil=True, cache=True)
-def _parse(buf, cols, decimals, p10, out):  # pragma: no cover - jit
+def _parse(
+    buf: np.ndarray, cols: int, decimals: int, p10: int, out: np.ndarray
+) -> int:  # pragma: no cover - jit
     """Read rows of ``cols`` numbers written as :func:`_render` writes them ('-'? digits '.'
     1..``decimals`` digits, single spaces between, newlines between rows, none after the last)
     into ``out`` as :func:`printed` reads them back (N/10^d, N < 2^53); returns how many
     numbers were read, or −1 − the byte position where the text leaves that form or a number
     needs N ≥ 2^53 (the caller then reads the text as general text)."""
     n = buf.size
-    cap = out.size
     most = (np.int64(1) << 53) // p10  # whole parts up to this keep N below 2^53 (checked below)
     pos = 0
     k = 0
     while pos < n:
-        if k >= cap:
+        if k >= out.size:
             return -1 - pos
-        neg = buf[pos] == 45
-        if neg:
-            pos += 1
-        start = pos
-        whole = np.int64(0)
-        while pos < n and 48 <= buf[pos] <= 57:
-            whole = whole * 10 + (buf[pos] - 48)
-            pos += 1
-            if whole > most:
-                return -1 - pos
-        if pos == start or pos >= n or buf[pos] != 46:
+        pos, value, ok = _read_number(buf, pos, decimals, p10, most)
+        if not ok:
             return -1 - pos
-        pos += 1
-        first = pos
-        frac = np.int64(0)
-        while pos < n and 48 <= buf[pos] <= 57 and pos - first < decimals:
-            frac = frac * 10 + (buf[pos] - 48)
-            pos += 1
-        if pos == first:
-            return -1 - pos
-        for _ in range(decimals - (pos - first)):
-            frac *= 10
-        units = whole * p10 + frac
-        if units >= np.int64(1) << 53:
-            return -1 - pos
-        # both exact in a double: one correctly rounded division, the nearest double to the text
-        v = np.float64(units) / p10
-        out[k] = -v if neg else v
+        out[k] = value
         k += 1
         if pos == n:
             break
@@ -263,8 +286,38 @@ def parse_rows(text: bytes | memoryview, cols: int, decimals: int = 9) -> np.nda
     return out.reshape(rows, cols)
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _skip_digits(buf: np.ndarray, pos: int, max_digits: int) -> int:  # pragma: no cover - jit
+    """The position after at most ``max_digits`` decimal digits from ``pos``."""
+    start = pos
+    while pos < buf.size and 48 <= buf[pos] <= 57 and pos - start < max_digits:
+        pos += 1
+    return pos
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _number_fault(buf: np.ndarray, pos: int, decimals: int) -> tuple[Any, ...]:  # pragma: no cover - jit
+    """One number from ``pos`` in export's form ('-'? ('0' | [1-9][0-9]*) '.' exactly
+    ``decimals`` digits): (the position after it, −1), or (where it stops, where it leaves the form)."""
+    if buf[pos] == 45:
+        pos += 1
+    start = pos
+    pos = _skip_digits(buf, pos, buf.size)
+    if pos == start:
+        return pos, start
+    if buf[start] == 48 and pos - start > 1:
+        return pos, start + 1
+    if pos >= buf.size or buf[pos] != 46:
+        return pos, pos
+    first = pos + 1
+    pos = _skip_digits(buf, first, decimals)
+    if pos - first != decimals:
+        return pos, pos
+    return pos, -1
+
+
 @njit(nogil=True, cache=True)
-def _fault(buf, cols, decimals):  # pragma: no cover - jit
+def _fault(buf: np.ndarray, cols: int, decimals: int) -> int:  # pragma: no cover - jit
     """−1 when ``buf`` is rows of ``cols`` numbers exactly as :func:`_render` writes them
     ('-'? ('0' | [1-9][0-9]*) '.' exactly ``decimals`` digits; single spaces between numbers,
     one LF between rows, none after the last); else the byte position where it leaves that
@@ -273,21 +326,9 @@ def _fault(buf, cols, decimals):  # pragma: no cover - jit
     pos = 0
     k = 0
     while pos < n:
-        if buf[pos] == 45:
-            pos += 1
-        start = pos
-        while pos < n and 48 <= buf[pos] <= 57:
-            pos += 1
-        if pos == start or (buf[start] == 48 and pos - start > 1):
-            return start if pos == start else start + 1
-        if pos >= n or buf[pos] != 46:
-            return pos
-        pos += 1
-        first = pos
-        while pos < n and 48 <= buf[pos] <= 57 and pos - first < decimals:
-            pos += 1
-        if pos - first != decimals:
-            return pos
+        pos, bad = _number_fault(buf, pos, decimals)
+        if bad >= 0:
+            return bad
         k += 1
         if pos == n:
             break

@@ -20,13 +20,14 @@ extremes can still move.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _crossing(pa, wa, pb, wb, rc):  # pragma: no cover - jit
+def _crossing(pa: float, wa: float, pb: float, wb: float, rc: float) -> float:  # pragma: no cover - jit
     """Position where arc b (pb > pa) starts to lie below arc a; ±inf when they never cross."""
     dp = pb - pa
     dw = wb - wa
@@ -39,7 +40,9 @@ def _crossing(pa, wa, pb, wb, rc):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _hull(pos, w, rc, stack, breaks):  # pragma: no cover - jit
+def _hull(
+    pos: np.ndarray, w: np.ndarray, rc: float, stack: np.ndarray, breaks: np.ndarray
+) -> int:  # pragma: no cover - jit
     """The winning arcs of :func:`lower_envelope`, in order, into ``stack[:n]`` with where
     each takes over in ``breaks[1:n]``; returns n."""
     top = -1
@@ -64,7 +67,16 @@ def _hull(pos, w, rc, stack, breaks):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _arc_at(r, m, n_arcs, pos, w, rc, stack, breaks):  # pragma: no cover - jit
+def _arc_at(
+    r: np.ndarray,
+    m: int,
+    n_arcs: int,
+    pos: np.ndarray,
+    w: np.ndarray,
+    rc: float,
+    stack: np.ndarray,
+    breaks: np.ndarray,
+) -> tuple[Any, ...]:  # pragma: no cover - jit
     """Height of the envelope at ``r`` [µm] ≥ the previous query, the winning arc's slot
     ``m`` advanced to it; returns (height, m)."""
     while m < n_arcs - 1 and breaks[m + 1] <= r:
@@ -75,7 +87,15 @@ def _arc_at(r, m, n_arcs, pos, w, rc, stack, breaks):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover - jit
+def lower_envelope(
+    pos: np.ndarray,
+    w: np.ndarray,
+    rc: float,
+    query: np.ndarray,
+    out: np.ndarray,
+    stack: np.ndarray,
+    breaks: np.ndarray,
+) -> int:  # pragma: no cover - jit
     """Lower envelope of arcs at ``pos`` [µm] (ascending) with lowest points ``w`` [µm],
     evaluated at ``query`` [µm] (ascending) into ``out`` [µm] (model §5).
 
@@ -91,7 +111,16 @@ def lower_envelope(pos, w, rc, query, out, stack, breaks):  # pragma: no cover -
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _line_passes(node_r, pass_w, n_passes, node_offset, ppf, line, pos, w):  # pragma: no cover - jit
+def _line_passes(
+    node_r: np.ndarray,
+    pass_w: np.ndarray,
+    n_passes: np.ndarray,
+    node_offset: int,
+    ppf: int,
+    line: int,
+    pos: np.ndarray,
+    w: np.ndarray,
+) -> int:  # pragma: no cover - jit
     """The passes of ``line`` (rays 2·line, at θ, and 2·line + 1, at θ + π) in ascending
     position into ``pos``, ``w``: the opposite ray's at −ρ', then the own ray's; returns their
     number."""
@@ -109,14 +138,14 @@ def _line_passes(node_r, pass_w, n_passes, node_offset, ppf, line, pos, w):  # p
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _line_scratch(kmax):  # pragma: no cover - jit
+def _line_scratch(kmax: int) -> tuple[Any, ...]:  # pragma: no cover - jit
     """Scratch arrays for a line of up to 2·``kmax`` passes: positions, commands, and the
     hull's stack and breaks (:func:`_hull`)."""
     return np.empty(2 * kmax), np.empty(2 * kmax), np.empty(2 * kmax, dtype=np.int64), np.empty(2 * kmax)
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _line_span(node_r, first, line):  # pragma: no cover - jit
+def _line_span(node_r: np.ndarray, first: int, line: int) -> tuple[Any, ...]:  # pragma: no cover - jit
     """The evaluation nodes of ``line``: from ``first`` inwards while r ≥ 0 on each ray;
     returns the end (exclusive) on the opposite and on the own ray."""
     n_nodes = node_r.shape[1]
@@ -130,7 +159,18 @@ def _line_span(node_r, first, line):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z, cusp_r, cusp_z):  # noqa: E501  # pragma: no cover - jit
+def envelope_lines(
+    node_r: np.ndarray,
+    pass_w: np.ndarray,
+    n_passes: np.ndarray,
+    node_offset: int,
+    ppf: int,
+    eval_start: int,
+    rc: float,
+    z: np.ndarray,
+    cusp_r: np.ndarray,
+    cusp_z: np.ndarray,
+) -> None:  # noqa: E501  # pragma: no cover - jit
     """Machined height z [µm] on the node grids of a batch of feed-plane lines (§5).
 
     node_r : (R, G) node radii [µm]; rays 2l (θ) and 2l+1 (θ + π) form line l.
@@ -174,7 +214,18 @@ def envelope_lines(node_r, pass_w, n_passes, node_offset, ppf, eval_start, rc, z
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _line_cusps(stack, breaks, n_arcs, pos, w, rc, r_opp, r_own, opp_rows, own_rows):  # noqa: E501  # pragma: no cover - jit
+def _line_cusps(
+    stack: np.ndarray,
+    breaks: np.ndarray,
+    n_arcs: int,
+    pos: np.ndarray,
+    w: np.ndarray,
+    rc: float,
+    r_opp: float,
+    r_own: float,
+    opp_rows: tuple[Any, ...],
+    own_rows: tuple[Any, ...],
+) -> None:  # noqa: E501  # pragma: no cover - jit
     """The cusp peaks of a line's hull (:func:`envelope_lines`) into its rays' rows (radius,
     height), each NaN-padded: the takeovers at −r_opp ≤ x < 0 on the opposite ray (at −x),
     those at 0 ≤ x ≤ r_own on the own ray. The breaks ascend, so each ray's are one run of
@@ -199,7 +250,18 @@ def _line_cusps(stack, breaks, n_arcs, pos, w, rc, r_opp, r_own, opp_rows, own_r
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _cusp_run(stack, breaks, pos, w, rc, lo, hi, sign, out_r, out_z):  # pragma: no cover - jit
+def _cusp_run(
+    stack: np.ndarray,
+    breaks: np.ndarray,
+    pos: np.ndarray,
+    w: np.ndarray,
+    rc: float,
+    lo: int,
+    hi: int,
+    sign: float,
+    out_r: np.ndarray,
+    out_z: np.ndarray,
+) -> int:  # pragma: no cover - jit
     """Cusp peaks of hull slots lo … hi−1 into ``out_r`` (at sign·x [µm]) and ``out_z`` (the
     height where arc stack[m] takes over [µm]) from index 0; returns their number."""
     for m in range(lo, hi):
@@ -214,7 +276,7 @@ def machined_lines(
     node_r: np.ndarray,
     pass_w: np.ndarray,
     n_passes: np.ndarray,
-    node_offset: np.ndarray,
+    node_offset: int,
     ppf: int,
     eval_start: int,
     nose_radius_um: float,
@@ -229,7 +291,9 @@ def machined_lines(
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _row_arcs(pos, w, a, n, rc, stack, breaks):  # pragma: no cover - jit
+def _row_arcs(
+    pos: np.ndarray, w: np.ndarray, a: int, n: int, rc: float, stack: np.ndarray, breaks: np.ndarray
+) -> tuple[Any, ...]:  # pragma: no cover - jit
     """The first ``n`` passes of row ``a`` (positions, commands) and their hull's arc count
     (:func:`_hull`, into ``stack`` and ``breaks``)."""
     p = pos[a, :n]
@@ -238,7 +302,16 @@ def _row_arcs(pos, w, a, n, rc, stack, breaks):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def envelope_rows(pos, w, n_valid, rc, query, z, cusp_r, cusp_z):  # pragma: no cover - jit
+def envelope_rows(
+    pos: np.ndarray,
+    w: np.ndarray,
+    n_valid: np.ndarray,
+    rc: float,
+    query: np.ndarray,
+    z: np.ndarray,
+    cusp_r: np.ndarray,
+    cusp_z: np.ndarray,
+) -> None:  # pragma: no cover - jit
     """Machined height z [µm] along a batch of rays whose passes are given directly (§5):
     the same lower envelope as :func:`envelope_lines`, for programs whose passes do not
     follow the spiral (e.g. the cuts of a D path, [5]).
@@ -312,7 +385,9 @@ _BOUND_TOL_REL = 1e-12
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _delta_range(w, exact_w, n, lo, hi, big):  # pragma: no cover - jit
+def _delta_range(
+    w: np.ndarray, exact_w: np.ndarray, n: int, lo: float, hi: float, big: float
+) -> tuple[Any, ...]:  # pragma: no cover - jit
     """(lo, hi, big) extended by the first ``n`` passes of one row: the least and greatest
     δ = w − exact_w [µm] and the largest |w| or |exact_w| [µm]."""
     for k in range(n):
@@ -330,7 +405,9 @@ def _delta_range(w, exact_w, n, lo, hi, big):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _difference_range(pos, w, exact_w, n, rc, q_lo, q_hi):  # pragma: no cover - jit
+def _difference_range(
+    pos: np.ndarray, w: np.ndarray, exact_w: np.ndarray, n: int, rc: float, q_lo: float, q_hi: float
+) -> tuple[Any, ...]:  # pragma: no cover - jit
     """(min δ, max δ, scale) of the first ``n`` passes at ``pos`` [µm], δ = w − exact_w [µm],
     with scale the largest |w| + Rc; (−inf, inf, scale) where the bound does not hold: passes
     Rc or more apart, or evaluation nodes [q_lo, q_hi] [µm] beyond Rc/2 of the outermost."""
@@ -345,7 +422,16 @@ def _difference_range(pos, w, exact_w, n, rc, q_lo, q_hi):  # pragma: no cover -
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _line_difference_range(node_r, pass_w, exact_w, n_passes, node_offset, ppf, line, rc):  # noqa: E501  # pragma: no cover - jit
+def _line_difference_range(
+    node_r: np.ndarray,
+    pass_w: np.ndarray,
+    exact_w: np.ndarray,
+    n_passes: np.ndarray,
+    node_offset: int,
+    ppf: int,
+    line: int,
+    rc: float,
+) -> tuple[Any, ...]:  # noqa: E501  # pragma: no cover - jit
     """:func:`_difference_range` of a line of a path grid, read from its rays' rows: along a
     ray the passes lie ``ppf`` nodes apart, the innermost ones of the two rays face each other
     across the axis, and the evaluation nodes lie inside both rays' first passes."""
@@ -364,14 +450,16 @@ def _line_difference_range(node_r, pass_w, exact_w, n_passes, node_offset, ppf, 
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _worth_evaluating(lo_b, hi_b, tol, ext):  # pragma: no cover - jit
+def _worth_evaluating(
+    lo_b: float, hi_b: float, tol: float, ext: np.ndarray
+) -> bool:  # pragma: no cover - jit
     """Whether a line or row with commands' differences in [lo_b, hi_b] [µm] can extend the
     extremes ``ext`` = [min, max] of d found so far."""
     return lo_b - tol < ext[0] or hi_b + tol > ext[1]
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _evaluation_order(lo_b, hi_b):  # pragma: no cover - jit
+def _evaluation_order(lo_b: np.ndarray, hi_b: np.ndarray) -> np.ndarray:  # pragma: no cover - jit
     """Lines (or rows) in the order that settles the extremes soonest: the one of the lowest
     δ first, then by descending highest δ."""
     order = np.argsort(-hi_b)
@@ -387,7 +475,19 @@ def _evaluation_order(lo_b, hi_b):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def interp_extrema_lines(node_r, pass_w, exact_w, n_passes, node_offset, ppf, eval_start, rc, z, inside, ext):  # noqa: E501  # pragma: no cover - jit
+def interp_extrema_lines(
+    node_r: np.ndarray,
+    pass_w: np.ndarray,
+    exact_w: np.ndarray,
+    n_passes: np.ndarray,
+    node_offset: int,
+    ppf: int,
+    eval_start: int,
+    rc: float,
+    z: np.ndarray,
+    inside: np.ndarray,
+    ext: np.ndarray,
+) -> int:  # noqa: E501  # pragma: no cover - jit
     """Extremes of the interpolation-only error d = z − z_exact [µm] (model §6) over the
     ``inside`` evaluation nodes of a batch of lines, z_exact being the envelope (§5) of the
     exact commands ``exact_w`` on the grid of :func:`envelope_lines` (same arguments; ``z``
@@ -432,7 +532,17 @@ def interp_extrema_lines(node_r, pass_w, exact_w, n_passes, node_offset, ppf, ev
 
 
 @njit(nogil=True, cache=True)
-def interp_extrema_rows(pos, pass_w, exact_w, n_valid, rc, query, z, inside, ext):  # pragma: no cover - jit
+def interp_extrema_rows(
+    pos: np.ndarray,
+    pass_w: np.ndarray,
+    exact_w: np.ndarray,
+    n_valid: np.ndarray,
+    rc: float,
+    query: np.ndarray,
+    z: np.ndarray,
+    inside: np.ndarray,
+    ext: np.ndarray,
+) -> int:  # pragma: no cover - jit
     """:func:`interp_extrema_lines` for rows whose passes are given directly, on the grid of
     :func:`envelope_rows` (same ``pos``, ``n_valid``, ``rc``, ``query``; ``z`` the envelope
     of ``pass_w``): the extremes of d = z − z_exact [µm] over the ``inside`` nodes into

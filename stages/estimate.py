@@ -72,7 +72,9 @@ def mesh_second_derivatives(
 
 
 @njit(nogil=True, cache=True)
-def _span_kernel(d11, d22, p1, p2, out):  # pragma: no cover - jit
+def _span_kernel(
+    d11: np.ndarray, d22: np.ndarray, p1: np.ndarray, p2: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - jit
     for k in range(p1.size):
         w1 = p1[k] * p1[k] / 8.0
         w2 = p2[k] * p2[k] / 8.0

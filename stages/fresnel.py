@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -362,7 +362,9 @@ def compensation_exact(
 
 # --------------------------------------------------------------------------- accelerations
 @njit(nogil=True, cache=True)
-def _turn_relative_into(steps, deltas, inv_limit, first, rel):  # pragma: no cover - jit
+def _turn_relative_into(
+    steps: np.ndarray, deltas: np.ndarray, inv_limit: np.ndarray, first: np.ndarray, rel: np.ndarray
+) -> float:  # pragma: no cover - jit
     """Relative accelerations a/a_lim over one turn (eq. 14) into ``rel[:K]`` (K, A) and their
     largest magnitude; the other arguments as :func:`ftsweep.stages.turnopt.turn_cost_into`'s."""
     k_n = steps.size
@@ -383,7 +385,9 @@ def _turn_relative_into(steps, deltas, inv_limit, first, rel):  # pragma: no cov
 
 
 @njit(nogil=True, cache=True)
-def _turn_relative(steps, deltas, inv_limit, first):  # pragma: no cover - jit
+def _turn_relative(
+    steps: np.ndarray, deltas: np.ndarray, inv_limit: np.ndarray, first: np.ndarray
+) -> tuple[Any, ...]:  # pragma: no cover - jit
     """Relative accelerations a/a_lim (K, A) over one turn (eq. 14) and their largest
     magnitude."""
     rel = np.zeros((steps.size, deltas.shape[1]))
@@ -391,7 +395,9 @@ def _turn_relative(steps, deltas, inv_limit, first):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def turn_peak(steps, deltas, inv_limit, first):  # pragma: no cover - jit
+def turn_peak(
+    steps: np.ndarray, deltas: np.ndarray, inv_limit: np.ndarray, first: np.ndarray
+) -> float:  # pragma: no cover - jit
     """Largest relative acceleration max |a/a_lim| over one turn (arguments of
     :func:`ftsweep.stages.turnopt.turn_cost_into`)."""
     return _turn_relative(steps, deltas, inv_limit, first)[1]

@@ -109,7 +109,9 @@ def radial_section(
 
 # --------------------------------------------------------------------------- apertures
 @njit(nogil=True, cache=True)
-def _inside_rectangle_rows(r, ct, st, hw, hh, out):  # pragma: no cover - jit
+def _inside_rectangle_rows(
+    r: np.ndarray, ct: np.ndarray, st: np.ndarray, hw: float, hh: float, out: np.ndarray
+) -> None:  # pragma: no cover - jit
     for i in range(r.shape[0]):
         c, s = ct[i], st[i]
         for j in range(r.shape[1]):
@@ -118,7 +120,7 @@ def _inside_rectangle_rows(r, ct, st, hw, hh, out):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _inside_circle_flat(r, radius, out):  # pragma: no cover - jit
+def _inside_circle_flat(r: np.ndarray, radius: float, out: np.ndarray) -> None:  # pragma: no cover - jit
     for i in range(r.size):
         out[i] = abs(r[i]) <= radius
 

@@ -15,7 +15,7 @@ sampled exactly, and the same nodes serve the exact compensation along the path.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -29,7 +29,7 @@ Program = Layout | SpiralPath
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _first_index(u, n0):  # pragma: no cover - jit
+def _first_index(u: float, n0: int) -> tuple[Any, ...]:  # pragma: no cover - jit
     """Cell i and fraction t of the first index ``u``, clamped to a table of ``n0`` rows
     (the controller holds the edge value)."""
     # floored as a float (np.floor; math.floor's int would be converted back for u − i)
@@ -44,7 +44,7 @@ def _first_index(u, n0):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _second_index(v, n1, periodic):  # pragma: no cover - jit
+def _second_index(v: float, n1: int, periodic: bool) -> tuple[Any, ...]:  # pragma: no cover - jit
     """Columns j, j1 and fraction s of the second index ``v``: wrapped when ``periodic``
     (column n1−1 neighbours column 0), else clamped."""
     fj = np.floor(v)
@@ -60,7 +60,7 @@ def _second_index(v, n1, periodic):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _blend(table, i, t, j, j1, s):  # pragma: no cover - jit
+def _blend(table: np.ndarray, i: int, t: float, j: int, j1: int, s: float) -> float:  # pragma: no cover - jit
     """Eq. (2) in cell (i, j) at fractions (t, s)."""
     return (
         (1.0 - t) * (1.0 - s) * table[i, j]
@@ -71,7 +71,7 @@ def _blend(table, i, t, j, j1, s):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _bilinear_at(table, u, v, periodic):  # pragma: no cover - jit
+def _bilinear_at(table: np.ndarray, u: float, v: float, periodic: bool) -> float:  # pragma: no cover - jit
     """Eq. (2) at fractional indices (u, v): u clamped, v wrapped when ``periodic``."""
     n0, n1 = table.shape
     i, t = _first_index(u, n0)
@@ -80,13 +80,29 @@ def _bilinear_at(table, u, v, periodic):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _bilinear_kernel(table, u, v, periodic, out):  # pragma: no cover - jit
+def _bilinear_kernel(
+    table: np.ndarray, u: np.ndarray, v: np.ndarray, periodic: bool, out: np.ndarray
+) -> None:  # pragma: no cover - jit
     for p in range(u.size):
         out[p] = _bilinear_at(table, u[p], v[p], periodic)
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def _pass_commands_kernel(table, polar, o0, o1, p0, p1, periodic, first, k0, step, ray_a, ray_b, out):  # noqa: E501  # pragma: no cover - jit
+def _pass_commands_kernel(
+    table: np.ndarray,
+    polar: bool,
+    o0: float,
+    o1: float,
+    p0: float,
+    p1: float,
+    periodic: bool,
+    first: np.ndarray,
+    k0: int,
+    step: float,
+    ray_a: np.ndarray,
+    ray_b: np.ndarray,
+    out: np.ndarray,
+) -> None:  # noqa: E501  # pragma: no cover - jit
     # the tool positions ρ_k = max(first − (k + k0)·step, 0) (column k is the spiral's pass
     # k + k0, see path_grid) and their table indices are formed here, ray by ray, instead of
     # as (rays × passes) arrays; the arithmetic is that of pass_rho and table_indices, so the
@@ -250,7 +266,15 @@ class PathGrid(NamedTuple):
 
 
 @njit(nogil=True, cache=True, error_model="numpy")
-def _hermite_kernel(g, gp, first_pass, node_offset, spacing, r, out):  # pragma: no cover - jit
+def _hermite_kernel(
+    g: np.ndarray,
+    gp: np.ndarray,
+    first_pass: np.ndarray,
+    node_offset: int,
+    spacing: float,
+    r: np.ndarray,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - jit
     n_rays, n_nodes = g.shape
     top = n_nodes - 2.0
     n_c = r.shape[1]
@@ -282,7 +306,7 @@ def _hermite_kernel(g, gp, first_pass, node_offset, spacing, r, out):  # pragma:
 
 
 @njit(nogil=True, cache=True)
-def nonfinite_passes(w, n_passes):  # pragma: no cover - jit
+def nonfinite_passes(w: np.ndarray, n_passes: np.ndarray) -> tuple[Any, ...]:  # pragma: no cover - jit
     """NaN or inf among the passes of (rays, passes) commands ``w`` [µm], the first
     ``n_passes[a]`` of row a (the rest is padding): (their number, the flat index of the
     first, −1 when none), read in place."""

@@ -31,7 +31,7 @@ _ROTARY = (("°", 180.0 / math.pi), ("rpm", 60.0 / (2.0 * math.pi)), ("rad/s²",
 
 
 @njit(nogil=True, cache=True)
-def accelerations(q, steps):  # pragma: no cover - jit
+def accelerations(q: np.ndarray, steps: np.ndarray) -> np.ndarray:  # pragma: no cover - jit
     """Accelerations a (P, A) [q's unit/s²] of positions q (P, A) over timesteps ``steps``
     (P − 1) [s]: the velocity change at each point over the mean of its two steps ([2] eq. 14);
     zero at the first and last point."""
@@ -45,7 +45,16 @@ def accelerations(q, steps):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def turn_peaks(q, steps, accel_limit, velocity_limit, k, which, peak_a, peak_v):  # pragma: no cover - jit
+def turn_peaks(
+    q: np.ndarray,
+    steps: np.ndarray,
+    accel_limit: np.ndarray,
+    velocity_limit: np.ndarray,
+    k: int,
+    which: np.ndarray,
+    peak_a: np.ndarray,
+    peak_v: np.ndarray,
+) -> None:  # pragma: no cover - jit
     """Largest relative acceleration |a|/a_lim over the points of each turn in ``which`` (K
     points from turn·K on; eq. 14 as :func:`accelerations`, the same arithmetic) and largest
     relative velocity |v|/v_lim over its K steps, into ``peak_a`` and ``peak_v`` at the turn's
@@ -67,7 +76,7 @@ def turn_peaks(q, steps, accel_limit, velocity_limit, k, which, peak_a, peak_v):
 
 
 @njit(nogil=True, cache=True)
-def _velocities(q, steps, out):  # pragma: no cover - jit
+def _velocities(q: np.ndarray, steps: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - jit
     for i in range(out.shape[0]):
         for j in range(out.shape[1]):
             out[i, j] = (q[i + 1, j] - q[i, j]) / steps[i]
@@ -144,7 +153,19 @@ class Extremes(NamedTuple):
 
 
 @njit(nogil=True, cache=True)
-def _extremes_start(q0, low, low_at, high, high_at, speed, speed_at, accel, accel_at, accel_group, accel_sq):  # noqa: E501  # pragma: no cover - jit
+def _extremes_start(
+    q0: np.ndarray,
+    low: np.ndarray,
+    low_at: np.ndarray,
+    high: np.ndarray,
+    high_at: np.ndarray,
+    speed: np.ndarray,
+    speed_at: np.ndarray,
+    accel: np.ndarray,
+    accel_at: np.ndarray,
+    accel_group: np.ndarray,
+    accel_sq: np.ndarray,
+) -> None:  # noqa: E501  # pragma: no cover - jit
     """The :class:`Extremes` before any point: positions at the first point ``q0`` (A,)."""
     for j in range(q0.size):
         low[j] = high[j] = q0[j]
@@ -156,24 +177,24 @@ def _extremes_start(q0, low, low_at, high, high_at, speed, speed_at, accel, acce
 
 @njit(nogil=True, cache=True)
 def _extremes_span(
-    q,
-    steps,
-    group,
-    i0,
-    i1,
-    base,
-    n,
-    low,
-    low_at,
-    high,
-    high_at,
-    speed,
-    speed_at,
-    accel,
-    accel_at,
-    accel_group,
-    accel_sq,
-):  # pragma: no cover - jit
+    q: np.ndarray,
+    steps: np.ndarray,
+    group: np.ndarray,
+    i0: int,
+    i1: int,
+    base: int,
+    n: int,
+    low: np.ndarray,
+    low_at: np.ndarray,
+    high: np.ndarray,
+    high_at: np.ndarray,
+    speed: np.ndarray,
+    speed_at: np.ndarray,
+    accel: np.ndarray,
+    accel_at: np.ndarray,
+    accel_group: np.ndarray,
+    accel_sq: np.ndarray,
+) -> None:  # pragma: no cover - jit
     """The extremes carried over points i0 … i1 − 1 of a stretch q (S, A) whose point i is
     point ``base`` + i of ``n``: the stretch holds the neighbours i ± 1 a point's velocity and
     acceleration need, ``steps`` (S − 1) and ``group`` (S) alike. Points in order, so the
@@ -188,31 +209,31 @@ def _extremes_span(
         k = base + i
         for j in range(m):
             x = q[i, j]
-            if x < low[j]:
-                low[j] = x
-                low_at[j] = k
-            if x > high[j]:
-                high[j] = x
-                high_at[j] = k
+            _extreme(x, k, j, low, low_at, -1.0)
+            _extreme(x, k, j, high, high_at, 1.0)
             if k < n - 1:
                 # the arithmetic of _velocities and accelerations, so the same values
                 after = (q[i + 1, j] - x) / steps[i]
-                v = abs(after)
-                if v > speed[j]:
-                    speed[j] = v
-                    speed_at[j] = k
+                _extreme(abs(after), k, j, speed, speed_at, 1.0)
                 if k > 0:
-                    t0, t1 = steps[i - 1], steps[i]
-                    a = 2.0 * (after - before[j]) / (t0 + t1)
+                    a = 2.0 * (after - before[j]) / (steps[i - 1] + steps[i])
                     accel_sq[j] += a * a
                     a = abs(a)
-                    if a > accel[j]:
-                        accel[j] = a
-                        accel_at[j] = k
-                    g = group[i]
-                    if a > accel_group[g, j]:
-                        accel_group[g, j] = a
+                    _extreme(a, k, j, accel, accel_at, 1.0)
+                    if a > accel_group[group[i], j]:
+                        accel_group[group[i], j] = a
                 before[j] = after
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _extreme(
+    x: float, k: int, j: int, value: np.ndarray, at: np.ndarray, sign: float
+) -> None:  # pragma: no cover - jit
+    """Keep ``x`` of point ``k`` as axis ``j``'s extreme where it passes it: the highest with
+    ``sign`` +1, the lowest with −1 (the first point of the extreme kept on a tie)."""
+    if sign * x > sign * value[j]:
+        value[j] = x
+        at[j] = k
 
 
 class ExtremesOver:

@@ -118,14 +118,14 @@ class LayerPlan(NamedTuple):
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _cross(phi1, w1, phi2, w2, level):  # pragma: no cover - jit
+def _cross(phi1: float, w1: float, phi2: float, w2: float, level: float) -> float:  # pragma: no cover - jit
     # where the linear command between two samples reaches ``level``; the same arithmetic for
     # a zone's top and the next zone's bottom, so one layer exits exactly where the next enters
     return phi1 + (level - w1) / (w2 - w1) * (phi2 - phi1)
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _zone_of(w, levels):  # pragma: no cover - jit
+def _zone_of(w: float, levels: np.ndarray) -> int:  # pragma: no cover - jit
     nz = levels.size - 1
     j = int(math.floor((w - levels[0]) / (levels[1] - levels[0])))
     return min(max(j, 0), nz - 1)
@@ -133,8 +133,22 @@ def _zone_of(w, levels):  # pragma: no cover - jit
 
 @njit(nogil=True, cache=True)
 def _plan_kernel(
-    phi, w, start, levels, in_run, started, seg_open, last_ge, lo, hi, dips, out_z, out_a, out_b, count
-):  # noqa: E501  # pragma: no cover - jit
+    phi: np.ndarray,
+    w: np.ndarray,
+    start: int,
+    levels: np.ndarray,
+    in_run: np.ndarray,
+    started: np.ndarray,
+    seg_open: np.ndarray,
+    last_ge: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    dips: np.ndarray,
+    out_z: np.ndarray,
+    out_a: np.ndarray,
+    out_b: np.ndarray,
+    count: np.ndarray,
+) -> int:  # noqa: E501  # pragma: no cover - jit
     """Segments of every zone over samples ``start..`` of one chunk (state carried in the
     arrays between chunks). Returns the sample it stopped at (the output was full) or -1."""
     nz = levels.size - 1
@@ -146,44 +160,106 @@ def _plan_kernel(
         if count[0] + (j_hi - j_lo + 1) > cap:
             return i
         for j in range(j_lo, j_hi + 1):
-            b, t = levels[j], levels[j + 1]
-            # a step through the zone is cut between its crossings even with no sample inside
-            if min(w1, w2) <= b <= max(w1, w2) and w1 != w2:
-                lo[j] = min(lo[j], b)
-            if min(w1, w2) <= t <= max(w1, w2) and w1 != w2:
-                hi[j] = max(hi[j], t)
-            if in_run[j]:
-                if w2 <= t:
-                    if not started[j]:
-                        if w2 >= b:
-                            started[j] = True
-                            seg_open[j] = _cross(p1, w1, p2, w2, b) if w1 < b else p1
-                            last_ge[j] = p2
-                    elif w2 >= b:
-                        last_ge[j] = p2
-                    elif w1 >= b:
-                        last_ge[j] = _cross(p1, w1, p2, w2, b)
-                        dips[j] = True
-                else:
-                    # exit on the upper limit
-                    if not started[j]:
-                        seg_open[j] = _cross(p1, w1, p2, w2, b) if w1 < b else p1
-                    out_z[count[0]] = j
-                    out_a[count[0]] = seg_open[j]
-                    out_b[count[0]] = _cross(p1, w1, p2, w2, t)
-                    count[0] += 1
-                    started[j] = False
-                    in_run[j] = False
-            elif w2 <= t:
-                # re-entry on the upper limit
-                in_run[j] = True
-                started[j] = True
-                seg_open[j] = _cross(p1, w1, p2, w2, t)
-                last_ge[j] = p2 if w2 >= b else _cross(p1, w1, p2, w2, b)
+            _zone_step(
+                j,
+                p1,
+                w1,
+                p2,
+                w2,
+                levels,
+                in_run,
+                started,
+                seg_open,
+                last_ge,
+                lo,
+                hi,
+                dips,
+                out_z,
+                out_a,
+                out_b,
+                count,
+            )  # noqa: E501
         j2 = _zone_of(w2, levels)
         lo[j2] = min(lo[j2], w2)
         hi[j2] = max(hi[j2], w2)
     return -1
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _zone_step(
+    j: int,
+    p1: float,
+    w1: float,
+    p2: float,
+    w2: float,
+    levels: np.ndarray,
+    in_run: np.ndarray,
+    started: np.ndarray,
+    seg_open: np.ndarray,
+    last_ge: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    dips: np.ndarray,
+    out_z: np.ndarray,
+    out_a: np.ndarray,
+    out_b: np.ndarray,
+    count: np.ndarray,
+) -> None:  # noqa: E501  # pragma: no cover - jit
+    """Zone ``j`` over the step (φ1, w1) → (φ2, w2): its reach, and a segment opened, carried
+    or closed (written to the outputs) as the commands enter and leave the zone."""
+    b, t = levels[j], levels[j + 1]
+    # a step through the zone is cut between its crossings even with no sample inside
+    if min(w1, w2) <= b <= max(w1, w2) and w1 != w2:
+        lo[j] = min(lo[j], b)
+    if min(w1, w2) <= t <= max(w1, w2) and w1 != w2:
+        hi[j] = max(hi[j], t)
+    if not in_run[j]:
+        if w2 <= t:
+            # re-entry on the upper limit
+            in_run[j] = True
+            started[j] = True
+            seg_open[j] = _cross(p1, w1, p2, w2, t)
+            last_ge[j] = p2 if w2 >= b else _cross(p1, w1, p2, w2, b)
+        return
+    if w2 <= t:
+        _within(j, p1, w1, p2, w2, b, started, seg_open, last_ge, dips)
+        return
+    # exit on the upper limit
+    if not started[j]:
+        seg_open[j] = _cross(p1, w1, p2, w2, b) if w1 < b else p1
+    out_z[count[0]] = j
+    out_a[count[0]] = seg_open[j]
+    out_b[count[0]] = _cross(p1, w1, p2, w2, t)
+    count[0] += 1
+    started[j] = False
+    in_run[j] = False
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _within(
+    j: int,
+    p1: float,
+    w1: float,
+    p2: float,
+    w2: float,
+    b: float,
+    started: np.ndarray,
+    seg_open: np.ndarray,
+    last_ge: np.ndarray,
+    dips: np.ndarray,
+) -> None:  # pragma: no cover - jit
+    """A step of a run that stays below zone ``j``'s upper limit: the segment starts where the
+    commands first reach its lower limit ``b``; the last φ at or above it is carried."""
+    if not started[j]:
+        if w2 >= b:
+            started[j] = True
+            seg_open[j] = _cross(p1, w1, p2, w2, b) if w1 < b else p1
+            last_ge[j] = p2
+    elif w2 >= b:
+        last_ge[j] = p2
+    elif w1 >= b:
+        last_ge[j] = _cross(p1, w1, p2, w2, b)
+        dips[j] = True
 
 
 class _Planner:
@@ -319,7 +395,20 @@ def command_stream(
 
 
 @njit(nogil=True, cache=True)
-def _cut_kernel(theta, k0, n_passes, w, ptr, seg_a, seg_b, offsets, shifts, travel, phi_end, out):  # noqa: E501  # pragma: no cover - jit
+def _cut_kernel(
+    theta: np.ndarray,
+    k0: int,
+    n_passes: np.ndarray,
+    w: np.ndarray,
+    ptr: np.ndarray,
+    seg_a: np.ndarray,
+    seg_b: np.ndarray,
+    offsets: np.ndarray,
+    shifts: np.ndarray,
+    travel: float,
+    phi_end: float,
+    out: np.ndarray,
+) -> None:  # noqa: E501  # pragma: no cover - jit
     two_pi = 2.0 * math.pi
     n_layers = offsets.size
     for r in range(w.shape[0]):

@@ -72,7 +72,14 @@ def merge_stats(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @njit(nogil=True, cache=True)
-def accumulate(z, g, inside, node_r, zone_split_um, stats):  # pragma: no cover - jit
+def accumulate(
+    z: np.ndarray,
+    g: np.ndarray,
+    inside: np.ndarray,
+    node_r: np.ndarray,
+    zone_split_um: float,
+    stats: np.ndarray,
+) -> None:  # pragma: no cover - jit
     """Add the form errors of one batch of node grids to ``stats`` in place (model §6); the
     interpolation-only error's extremes come from the envelope
     (:func:`ftsweep.stages.envelope.interp_extrema_lines`).
@@ -118,7 +125,9 @@ def accumulate(z, g, inside, node_r, zone_split_um, stats):  # pragma: no cover 
 
 
 @njit(nogil=True, cache=True)
-def accumulate_extrema(z, f, inside, r, zone_split_um, stats):  # pragma: no cover - jit
+def accumulate_extrema(
+    z: np.ndarray, f: np.ndarray, inside: np.ndarray, r: np.ndarray, zone_split_um: float, stats: np.ndarray
+) -> None:  # pragma: no cover - jit
     """Add points that bound the error but are not area samples (the cusp peaks) to the
     extrema of ``stats`` only: min/max and zone min/max, not count, mean or RMS.
 
@@ -148,7 +157,19 @@ def accumulate_extrema(z, f, inside, r, zone_split_um, stats):  # pragma: no cov
 
 
 @njit(nogil=True, cache=True)
-def accumulate_map_xy(z, g, inside, x, y, x0, y0, bin_um, total, count, peak):  # pragma: no cover - jit
+def accumulate_map_xy(
+    z: np.ndarray,
+    g: np.ndarray,
+    inside: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    x0: float,
+    y0: float,
+    bin_um: float,
+    total: np.ndarray,
+    count: np.ndarray,
+    peak: np.ndarray,
+) -> None:  # pragma: no cover - jit
     """Bin the form error e = z − g [µm] at points x, y [µm] of the part's frame (a batch of
     rays' nodes) into a coarse (y, x) map.
 

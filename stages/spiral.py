@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -159,7 +159,7 @@ def constant_angle(rho0_um: float, feed_um: float, points_per_rev: int) -> Spira
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _newton_step(r, t, b, rho0_um):  # pragma: no cover - jit
+def _newton_step(r: float, t: float, b: float, rho0_um: float) -> tuple[Any, ...]:  # pragma: no cover - jit
     """One Newton step on the length from the centre, (b/2)·(u·sqrt(1+u²) + asinh u) with
     u = r/b, towards the length ``t``: (the new radius, the step)."""
     u = r / b
@@ -169,7 +169,9 @@ def _newton_step(r, t, b, rho0_um):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _arc_angles(total, arc_um, b, rho0_um, iterations, tol, phi):  # pragma: no cover - jit
+def _arc_angles(
+    total: float, arc_um: float, b: float, rho0_um: float, iterations: int, tol: float, phi: np.ndarray
+) -> None:  # pragma: no cover - jit
     """Angles φ = (ρ0 − ρ)/b [rad] where the spiral has run j·``arc_um`` [µm] from the edge
     (``total`` [µm] long), into ``phi[:n]`` (n = phi.size − 1; the last slot is left for the
     end): each ρ by Newton on the length from the centre until a step is below ``tol`` [µm]
@@ -189,7 +191,7 @@ def _arc_angles(total, arc_um, b, rho0_um, iterations, tol, phi):  # pragma: no 
 
 
 @njit(nogil=True, cache=True)
-def _close_and_cap(phi, n, end, max_step):  # pragma: no cover - jit
+def _close_and_cap(phi: np.ndarray, n: int, end: float, max_step: float) -> int:  # pragma: no cover - jit
     """The ascending angles ``phi[:n]`` [rad] with those within 1e-12 of the end Φ dropped,
     Φ appended and every gap wider than ``max_step`` split into equal steps, written in place
     into ``phi[:count]`` from the back (an angle only moves up the array, past the ones not
@@ -253,7 +255,9 @@ def constant_arc(
 
 
 @njit(nogil=True, cache=True)
-def _segment_ok(phi, w, j, i, budget):  # pragma: no cover - jit
+def _segment_ok(
+    phi: np.ndarray, w: np.ndarray, j: int, i: int, budget: float
+) -> bool:  # pragma: no cover - jit
     # largest deviation of the dense samples strictly between j and i from the chord j–i
     slope = (w[i] - w[j]) / (phi[i] - phi[j])
     for m in range(j + 1, i):
@@ -263,7 +267,9 @@ def _segment_ok(phi, w, j, i, budget):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _greedy_chords(phi, w, budget, max_step, keep):  # pragma: no cover - jit
+def _greedy_chords(
+    phi: np.ndarray, w: np.ndarray, budget: float, max_step: float, keep: np.ndarray
+) -> None:  # pragma: no cover - jit
     """Mark in ``keep`` the dense samples a greedy chord walk keeps: from each kept sample,
     the farthest sample (by galloping, then bisection) whose chord stays within ``budget``
     of every dense sample in between and spans at most ``max_step`` rad. Every accepted
@@ -303,7 +309,9 @@ def _greedy_chords(phi, w, budget, max_step, keep):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _chord_errors(phi, w, keep_idx, out):  # pragma: no cover - jit
+def _chord_errors(
+    phi: np.ndarray, w: np.ndarray, keep_idx: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - jit
     for s in range(keep_idx.size - 1):
         j, i = keep_idx[s], keep_idx[s + 1]
         slope = (w[i] - w[j]) / (phi[i] - phi[j])
@@ -314,7 +322,7 @@ def _chord_errors(phi, w, keep_idx, out):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _cubic(phi, w, a, x):  # pragma: no cover - jit
+def _cubic(phi: np.ndarray, w: np.ndarray, a: int, x: float) -> float:  # pragma: no cover - jit
     """The cubic through (phi[a + k], w[a + k]), k = 0..3, at ``x`` (Lagrange form)."""
     x0, x1, x2, x3 = phi[a], phi[a + 1], phi[a + 2], phi[a + 3]
     return (
@@ -326,7 +334,7 @@ def _cubic(phi, w, a, x):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _interval_smooth(phi, w, i, tol):  # pragma: no cover - jit
+def _interval_smooth(phi: np.ndarray, w: np.ndarray, i: int, tol: float) -> bool:  # pragma: no cover - jit
     """Whether the centred cubic through samples i − 1 … i + 2 reproduces the path within
     ``tol`` [µm] on [φ_i, φ_i+1]: at the interval's middle it must agree within ``tol`` with
     the cubics shifted one sample either way. For a smooth path (uniform step h, fourth
@@ -342,7 +350,9 @@ def _interval_smooth(phi, w, i, tol):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _smooth_intervals(phi, w, tol, out):  # pragma: no cover - jit
+def _smooth_intervals(
+    phi: np.ndarray, w: np.ndarray, tol: float, out: np.ndarray
+) -> int:  # pragma: no cover - jit
     """:func:`_interval_smooth` of every interval of (phi, w) into ``out``; returns how many
     are not."""
     rough = 0
@@ -353,7 +363,15 @@ def _smooth_intervals(phi, w, tol, out):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _subdivide(phi_c, w_c, smooth, m, phi, w, exact):  # pragma: no cover - jit
+def _subdivide(
+    phi_c: np.ndarray,
+    w_c: np.ndarray,
+    smooth: np.ndarray,
+    m: int,
+    phi: np.ndarray,
+    w: np.ndarray,
+    exact: np.ndarray,
+) -> None:  # pragma: no cover - jit
     """Every interval of the coarse samples (phi_c, w_c) split into ``m`` equal steps in φ,
     into ``phi`` ((n − 1)·m + 1): the coarse samples keep their values, the others take the
     centred cubic where the interval is ``smooth``; the indices of the rest go into
@@ -421,6 +439,15 @@ DENSE_MARGIN = 1.0 / 16.0
 INTERP_TOL = 1e-3
 
 
+def _check_samples(needed: float, max_samples: int, chord_um: float, step_um: float) -> None:
+    """Refuse a dense sampling of ``needed`` points at ``step_um`` [µm] over ``max_samples``."""
+    if needed > max_samples:
+        raise ValueError(
+            f"the chord budget {chord_um:g} µm needs a dense sampling of about {needed:.3g} points "
+            f"(at {step_um:.3g} µm), more than {max_samples:,}: use a larger chord budget"
+        )
+
+
 def chord_budget(
     rho0_um: float,
     feed_um: float,
@@ -460,12 +487,7 @@ def chord_budget(
     coarse: tuple[np.ndarray, np.ndarray] | None = None
     m = 1
     for attempt in range(max_refine + 1):
-        needed = first * m
-        if needed > max_samples:
-            raise ValueError(
-                f"the chord budget {chord_um:g} µm needs a dense sampling of about {needed:.3g} points "
-                f"(at {step / m:.3g} µm), more than {max_samples:,}: use a larger chord budget"
-            )
+        _check_samples(first * m, max_samples, chord_um, step / m)
         if coarse is None:
             dense = constant_arc(rho0_um, feed_um, step, floor).phi
             w = np.ascontiguousarray(commands(dense), dtype=np.float64)
@@ -494,7 +516,7 @@ def spiral_commands(path: SpiralPath, values: np.ndarray, phi: np.ndarray) -> np
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _interval_from(xp, x, j, jump):  # pragma: no cover - jit
+def _interval_from(xp: np.ndarray, x: float, j: int, jump: int) -> int:  # pragma: no cover - jit
     """The largest j with xp[j] ≤ x (xp ascending, xp[0] ≤ x ≤ xp[-1]), searched from the
     guess ``j + jump`` outwards by doubling steps, then by bisection."""
     n = xp.size
@@ -525,7 +547,9 @@ def _interval_from(xp, x, j, jump):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def pass_commands_kernel(xp, fp, ray_theta, first_revolution, out):  # pragma: no cover - jit
+def pass_commands_kernel(
+    xp: np.ndarray, fp: np.ndarray, ray_theta: np.ndarray, first_revolution: int, out: np.ndarray
+) -> None:  # pragma: no cover - jit
     """:func:`spiral_commands` at the passes φ = 2π·(k + ``first_revolution``) + θ of each ray
     (row of ``out``, one column a pass), value for value what ``np.interp`` gives (its
     interval, slope and end rules). Passes of a ray are a revolution apart, so each search
@@ -565,91 +589,3 @@ def phi_on_path(path: SpiralPath, rho: np.ndarray, theta: np.ndarray) -> np.ndar
     theta = np.mod(theta, 2.0 * math.pi)
     k = np.rint((path.rho0_um - path.feed_um * theta / (2.0 * math.pi) - rho) / path.feed_um)
     return 2.0 * math.pi * np.maximum(k, 0.0) + theta
-
-
-# ------------------------------------------------------------------ residual budget (eqs. 1–3)
-def signed_radius_um(slope: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """Radius of curvature [µm] of a radial section z = g(r) ([4] eq. 1), signed as g'':
-    positive where the section is concave (a valley, curving up towards the tool), negative
-    where convex; ±inf where flat."""
-    with np.errstate(divide="ignore"):
-        return (1.0 + np.square(slope)) ** 1.5 / np.asarray(second, dtype=np.float64)
-
-
-def feed_for_cusp(
-    cusp_um: float, nose_radius_um: float, radius_um: np.ndarray, slope: np.ndarray
-) -> np.ndarray:
-    """Largest feed per revolution [µm] (X-slide advance) whose cusp stays within
-    ``cusp_um`` = Δres on a section of signed radius ``radius_um`` (:func:`signed_radius_um`)
-    and slope ``slope`` ([4] eqs. 2–3, derived for the tool-centre spacing).
-
-    Consecutive tool positions touch the section (locally a circle of radius |R| about O)
-    with their arc centres on the offset circle of radius A = |R| + r (convex) or |R| − r
-    (concave). With centres d apart and the residual height h between the arcs, the law of
-    cosines in the triangle (O, arc centre, cusp) gives
-
-        convex  (R < 0): d = sqrt(h(2r − h)(2|R| + h)(2|R| + 2r + h)) / (|R| + h)
-        concave (R > 0): d = sqrt(h(2r − h)(2R − h)(2R − 2r − h)) / (R − h)
-        flat    (R = ∞): d = 2·sqrt(h(2r − h))
-
-    (the seed's f3, f2 and f1 with their signs made explicit; both curved forms tend to f1
-    as |R| → ∞, and F²/(8r) ≈ h for small h). The centres lie along the section, inclined by
-    its slope β, so the X feed is d·cos β. Concave sections of radius R ≤ r + h/2 leave no
-    feed (the arc cannot follow them): 0 there.
-    """
-    h, r = float(cusp_um), float(nose_radius_um)
-    R = np.abs(np.asarray(radius_um, dtype=np.float64))
-    concave = np.asarray(radius_um) > 0.0
-    flat = 2.0 * math.sqrt(h * (2.0 * r - h))
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        convex_d = np.sqrt(h * (2.0 * r - h) * (2.0 * R + h) * (2.0 * R + 2.0 * r + h)) / (R + h)
-        concave_d = np.sqrt(np.maximum(h * (2.0 * r - h) * (2.0 * R - h) * (2.0 * R - 2.0 * r - h), 0.0)) / (
-            R - h
-        )
-    d = np.where(concave, concave_d, convex_d)
-    d = np.where(np.isfinite(R), d, flat)
-    d = np.where(concave & (R <= r + 0.5 * h), 0.0, d)
-    return d / np.sqrt(1.0 + np.square(slope))
-
-
-def cusp_for_feed(
-    feed_um: float, nose_radius_um: float, radius_um: np.ndarray, slope: np.ndarray
-) -> np.ndarray:
-    """Residual (cusp) height [µm] that feed ``feed_um`` leaves on a section of signed radius
-    ``radius_um`` and slope ``slope``: the inverse of :func:`feed_for_cusp`. The cusp is the
-    intersection of the two arcs, on the bisector at distance A·cosγ ± sqrt(r² − A²sin²γ)
-    from the section's centre of curvature, sin γ = d/(2A); NaN where the arcs do not meet."""
-    r = float(nose_radius_um)
-    d = feed_um * np.sqrt(1.0 + np.square(slope))
-    R = np.abs(np.asarray(radius_um, dtype=np.float64))
-    concave = np.asarray(radius_um) > 0.0
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        a = np.where(concave, R - r, R + r)
-        half = d / (2.0 * a)
-        lateral = np.sqrt(r * r - np.square(a * half))
-        along = a * np.sqrt(1.0 - np.square(half))
-        h = np.where(concave, R - (along + lateral), (along - lateral) - R)
-    flat = r - np.sqrt(np.maximum(r * r - 0.25 * d * d, 0.0))
-    # beyond a million nose radii the section is flat to a part in 1e6, and the difference of
-    # large radii above would lose the cusp to rounding
-    return np.where(R < 1e6 * r, h, flat)
-
-
-def section_curvature(
-    surface: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]],
-    rho: np.ndarray,
-    ct: np.ndarray,
-    st: np.ndarray,
-    step_um: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Slope g' [-] and second derivative g'' [1/µm] of radial sections g(r) = f(r cosθ,
-    r sinθ) at radii ``rho`` [µm] (directions cos θ = ``ct``, sin θ = ``st``): g' from the
-    surface's gradient, g'' by a central difference of g' over ±``step_um``."""
-
-    def slope(r: np.ndarray) -> np.ndarray:
-        _, fx, fy = surface(r * ct, r * st)
-        return fx * ct + fy * st
-
-    g1 = slope(rho)
-    g2 = (slope(rho + step_um) - slope(rho - step_um)) / (2.0 * step_um)
-    return g1, g2

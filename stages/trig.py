@@ -15,6 +15,7 @@ reduction's product n·P1 would no longer be exact, and a kernel takes those few
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -45,7 +46,7 @@ _C6 = -1.13596475577881948265e-11
 
 
 @njit(nogil=True, cache=True, inline="always")
-def sincos(x):  # pragma: no cover - jit
+def sincos(x: float) -> tuple[Any, ...]:  # pragma: no cover - jit
     """(sin x, cos x) of ``x`` [rad], |x| ≤ :data:`REACH` (beyond it, meaningless: callers
     test the reach and use ``math.sin``/``math.cos`` there). No branch and no conversion to
     an integer, so that a loop calling it vectorises and a NaN stays NaN: the quadrant n mod 4
@@ -69,13 +70,13 @@ def sincos(x):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def within_reach(x):  # pragma: no cover - jit
+def within_reach(x: float) -> bool:  # pragma: no cover - jit
     """True where :func:`sincos` is valid for ``x`` (False for NaN and ±inf too)."""
     return abs(x) <= REACH
 
 
 @njit(nogil=True, cache=True)
-def _cos_sin_kernel(x, c, s):  # pragma: no cover - jit
+def _cos_sin_kernel(x: np.ndarray, c: np.ndarray, s: np.ndarray) -> None:  # pragma: no cover - jit
     far = False
     for i in range(x.size):
         far |= not within_reach(x[i])

@@ -20,6 +20,7 @@ Times s, accelerations relative to their limits.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -38,7 +39,7 @@ TINY = 1e-290
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _weight(x, power, squarings):  # pragma: no cover - jit
+def _weight(x: float, power: float, squarings: int) -> float:  # pragma: no cover - jit
     """x^(p−1) for x > 0: where p = 2^squarings (``squarings`` > 0) x^p by squaring and one
     division, a few cycles where pow() costs tens; pow() otherwise."""
     if squarings <= 0:
@@ -50,7 +51,7 @@ def _weight(x, power, squarings):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _squarings_of(power):  # pragma: no cover - jit
+def _squarings_of(power: float) -> int:  # pragma: no cover - jit
     """n where power = 2^n (1 ≤ n ≤ MAX_SQUARINGS), else 0."""
     p = 2.0
     for n in range(1, MAX_SQUARINGS + 1):
@@ -61,7 +62,7 @@ def _squarings_of(power):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def softmax_steps(u, total):  # pragma: no cover - jit
+def softmax_steps(u: np.ndarray, total: float) -> np.ndarray:  # pragma: no cover - jit
     """Timesteps T = total·softmax(u) [s] of a turn, no step shorter than e^-20 of the longest
     (which keeps a line search off T = 0)."""
     out = np.empty(u.size)
@@ -70,7 +71,7 @@ def softmax_steps(u, total):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _softmax_into(u, total, out):  # pragma: no cover - jit
+def _softmax_into(u: np.ndarray, total: float, out: np.ndarray) -> None:  # pragma: no cover - jit
     top = u.max()
     norm = 0.0
     for i in range(u.size):
@@ -81,7 +82,16 @@ def _softmax_into(u, total, out):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def turn_cost_into(steps, deltas, inv_limit, power, first, rel, weight, grad):  # pragma: no cover - jit
+def turn_cost_into(
+    steps: np.ndarray,
+    deltas: np.ndarray,
+    inv_limit: np.ndarray,
+    power: float,
+    first: np.ndarray,
+    rel: np.ndarray,
+    weight: np.ndarray,
+    grad: np.ndarray,
+) -> float:  # pragma: no cover - jit
     """Log of the p-norm of the relative accelerations |a/a_lim| over one turn ([2] eq. 15,
     its max replaced by the p-norm) and, into ``grad`` (K,), its gradient with respect to the
     K timesteps; ``rel`` and ``weight`` (K + 1, A) are scratch.
@@ -132,7 +142,16 @@ def turn_cost_into(steps, deltas, inv_limit, power, first, rel, weight, grad):  
 
 
 @njit(nogil=True, cache=True)
-def _u_cost(u, total, deltas, inv_limit, power, first, work, grad_u):  # pragma: no cover - jit
+def _u_cost(
+    u: np.ndarray,
+    total: float,
+    deltas: np.ndarray,
+    inv_limit: np.ndarray,
+    power: float,
+    first: np.ndarray,
+    work: tuple[Any, ...],
+    grad_u: np.ndarray,
+) -> float:  # pragma: no cover - jit
     """The cost of :func:`turn_cost_into` at T = total·softmax(u) and its gradient in u (the
     chain rule through the softmax) into ``grad_u``; ``work``: (steps, grad_T, rel, weight)."""
     steps, grad_t, rel, weight = work
@@ -147,7 +166,7 @@ def _u_cost(u, total, deltas, inv_limit, power, first, work, grad_u):  # pragma:
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _dot(a, b):  # pragma: no cover - jit
+def _dot(a: np.ndarray, b: np.ndarray) -> float:  # pragma: no cover - jit
     out = 0.0
     for i in range(a.size):
         out += a[i] * b[i]
@@ -155,7 +174,7 @@ def _dot(a, b):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _largest(a):  # pragma: no cover - jit
+def _largest(a: np.ndarray) -> float:  # pragma: no cover - jit
     out = 0.0
     for i in range(a.size):
         out = max(out, abs(a[i]))
@@ -163,14 +182,23 @@ def _largest(a):  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _axpy(a, x, y):  # pragma: no cover - jit
+def _axpy(a: float, x: np.ndarray, y: np.ndarray) -> None:  # pragma: no cover - jit
     """y += a·x in place (no temporary array)."""
     for i in range(y.size):
         y[i] += a * x[i]
 
 
 @njit(nogil=True, cache=True)
-def _direction(g, s_mem, y_mem, rho, alpha, count, newest, d):  # pragma: no cover - jit
+def _direction(
+    g: np.ndarray,
+    s_mem: np.ndarray,
+    y_mem: np.ndarray,
+    rho: np.ndarray,
+    alpha: np.ndarray,
+    count: int,
+    newest: int,
+    d: np.ndarray,
+) -> None:  # pragma: no cover - jit
     """d = −H·g by the two-loop recursion over the ``count`` stored pairs (``newest`` the last
     written row), H0 = s·y/y·y of the newest pair."""
     memory = rho.size
@@ -191,7 +219,9 @@ def _direction(g, s_mem, y_mem, rho, alpha, count, newest, d):  # pragma: no cov
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _trial_step(a_lo, f_lo, d_lo, a_hi, f_hi, d_hi):  # pragma: no cover - jit
+def _trial_step(
+    a_lo: float, f_lo: float, d_lo: float, a_hi: float, f_hi: float, d_hi: float
+) -> float:  # pragma: no cover - jit
     """The next trial step inside the bracket [a_lo, a_hi]: the minimiser of the cubic through
     both ends' values and slopes, kept a tenth of the bracket away from its ends (bisection
     where the cubic has none)."""
@@ -210,8 +240,31 @@ def _trial_step(a_lo, f_lo, d_lo, a_hi, f_hi, d_hi):  # pragma: no cover - jit
     return a_lo + 0.5 * width
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _next_step(
+    a: float, a_lo: float, f_lo: float, d_lo: float, a_hi: float, f_hi: float, d_hi: float
+) -> float:  # pragma: no cover - jit
+    """The next trial step of :func:`_line_search`: extrapolated while no upper end brackets
+    the minimiser, halved towards an upper end of non-finite cost, else interpolated."""
+    if math.isnan(a_hi):
+        return 4.0 * a  # still descending: extrapolate
+    if not math.isfinite(f_hi):
+        return a_lo + 0.5 * (a_hi - a_lo)
+    return _trial_step(a_lo, f_lo, d_lo, a_hi, f_hi, d_hi)
+
+
 @njit(nogil=True, cache=True)
-def _line_search(x, f0, gd0, d, a, args, work, trial, best):  # pragma: no cover - jit
+def _line_search(
+    x: np.ndarray,
+    f0: float,
+    gd0: float,
+    d: np.ndarray,
+    a: float,
+    args: tuple[Any, ...],
+    work: tuple[Any, ...],
+    trial: tuple[Any, ...],
+    best: tuple[Any, ...],
+) -> tuple[Any, ...]:  # pragma: no cover - jit
     """A step along ``d`` from ``x`` (cost f0, slope gd0 < 0) meeting the strong Wolfe
     conditions, starting with step ``a``. ``trial`` and ``best`` are (u, grad) pairs of
     scratch; on return ``best`` holds the point taken. Returns (taken: False
@@ -240,19 +293,24 @@ def _line_search(x, f0, gd0, d, a, args, work, trial, best):  # pragma: no cover
             elif dt * (a_hi - a_lo) >= 0.0:
                 a_hi, f_hi, d_hi = a_lo, f_lo, d_lo
             a_lo, f_lo, d_lo = a, ft, dt
-        if math.isnan(a_hi):
-            a = 4.0 * a  # still descending: extrapolate
-        elif not math.isfinite(f_hi):
-            a = a_lo + 0.5 * (a_hi - a_lo)
-        else:
-            a = _trial_step(a_lo, f_lo, d_lo, a_hi, f_hi, d_hi)
+        a = _next_step(a, a_lo, f_lo, d_lo, a_hi, f_hi, d_hi)
         if abs(a - a_lo) <= 1e-15 * max(abs(a_lo), 1e-300):
             break
     return a_lo > 0.0, f_lo, evals
 
 
 @njit(nogil=True, cache=True)
-def minimise_turn(u0, total, deltas, inv_limit, first, power, max_iter, ftol, gtol):  # pragma: no cover - jit
+def minimise_turn(
+    u0: np.ndarray,
+    total: float,
+    deltas: np.ndarray,
+    inv_limit: np.ndarray,
+    first: np.ndarray,
+    power: float,
+    max_iter: int,
+    ftol: float,
+    gtol: float,
+) -> tuple[Any, ...]:  # pragma: no cover - jit
     """Minimise the p-norm cost of one turn over u (T = total·softmax(u)), from ``u0``, by
     L-BFGS with strong-Wolfe line searches (module docstring) for at most ``max_iter``
     iterations; stops when an iteration lowers the cost by at most ``ftol`` relative to

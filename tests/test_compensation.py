@@ -10,7 +10,7 @@ import pytest
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
-from ftsweep.stages import compensation
+from ftsweep.stages import ray_commands
 from ftsweep.stages.compensation import SCAN_TOL_UM, arc_lift, compensate, contact_window_um
 from ftsweep.stages.surfaces import FAMILIES, lens_array, radial_section, sinewave2d
 
@@ -124,11 +124,11 @@ def test_on_ray_solver_agrees_with_point_solver():
     g, gp = radial_section(surface, r, math.cos(theta), math.sin(theta))
     nodes = np.arange(20, 980, 2, dtype=np.int64)
     out = np.empty(nodes.size)
-    compensation.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out, False)
+    ray_commands.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out, False)
     ref, _ = compensate(surface, r[nodes], np.full(nodes.size, theta), rc, "exact", bound)
     np.testing.assert_allclose(out, ref, atol=0.05e-3)  # 0.05 nm
     for code, mode in ((1, "slope"), (2, "none")):
-        compensation.compensate_on_ray(g, gp, spacing, rc, nodes, code, out, False)
+        ray_commands.compensate_on_ray(g, gp, spacing, rc, nodes, code, out, False)
         want, _ = compensate(surface, r[nodes], np.full(nodes.size, theta), rc, mode)
         np.testing.assert_allclose(out, want, atol=1e-12)
 
@@ -288,6 +288,6 @@ def test_on_ray_climb_finds_the_sampled_maximum(slope, curvature, rc, seed, from
     else:
         nodes = np.sort(rng.choice(np.arange(1, 1599), 60, replace=False)).astype(np.int64)
     out = np.empty(nodes.size)
-    compensation.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out, from_passes)
+    ray_commands.compensate_on_ray(g, gp, spacing, rc, nodes, 0, out, from_passes)
     want = np.array([_sampled_maximum(g, spacing, rc, int(n)) for n in nodes])
     np.testing.assert_array_equal(out, want)

@@ -17,7 +17,7 @@ from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds import path_programs as program
 from ftsweep.kinds.dpath import study as dstudy
 from ftsweep.simulate import run_case
-from ftsweep.stages import dpath, kinematics
+from ftsweep.stages import dpath, dpath_motion, kinematics
 
 # [5]'s example: l = s = 20 mm, zone centre 30 mm from the C axis (outer edge 40 mm), 40 rpm
 SEED = {"length_um": 20000.0, "width_um": 20000.0, "outer_um": 40000.0, "zones": 1}
@@ -29,7 +29,9 @@ def seed_path(transition: str, spacing_um: float = 100.0, ppc: int = 201) -> dpa
 
 def x_motion(path: dpath.DPath, rpm: float = 40.0) -> dict[str, np.ndarray]:
     z = np.zeros(path.n_points)
-    return dpath.axis_motion(dpath.point_times(path.phi, path.rho, z, "spindle", rpm), path.phi, path.rho, z)
+    return dpath_motion.axis_motion(
+        dpath_motion.point_times(path.phi, path.rho, z, "spindle", rpm), path.phi, path.rho, z
+    )
 
 
 def test_seed_example_optimised_acceleration_is_a_fraction_of_the_traditional_and_on_the_cuts():
@@ -47,7 +49,7 @@ def test_seed_example_optimised_acceleration_is_a_fraction_of_the_traditional_an
     omega = 40.0 * 2.0 * math.pi / 60.0
     end = int(np.flatnonzero(trad.cut == 0)[-1])
     span = trad.phi[end + 1] - trad.phi[end - 1]
-    jump = abs(dpath.junctions(trad)["jump_d1"][0])
+    jump = abs(dpath_motion.junctions(trad)["jump_d1"][0])
     expected = omega**2 * jump / (0.5 * span) * 1e-6
     assert abs(a_trad[end] - expected) <= 0.1 * expected
     # the cuts' analytic acceleration, ω²·d(sec tan² + sec³), bounds the optimised peak
@@ -72,10 +74,10 @@ def test_planned_z_is_exact_for_z_quadratic_along_the_cuts(a, b, c, transition, 
     on = path.cut >= 0
     i = path.cut[on]
     u = path.cut_d[i] * np.tan(path.phi[on] - path.cut_centre[i])
-    z = dpath.transition_z(path, a + b * u + c * u**2)
+    z = dpath_motion.transition_z(path, a + b * u + c * u**2)
     phi = np.linspace(path.phi[0], path.phi[-1], 5001)
     rho, _, _, on_cut = dpath.evaluate(path, phi)
-    got = dpath.planned_z(path, z, phi)
+    got = dpath_motion.planned_z(path, z, phi)
     seg = np.clip(np.searchsorted(path.bounds, phi[on_cut], side="right") - 1, 0, path.bounds.size - 1)
     k = np.minimum(seg // 2, path.n_cuts - 1)
     uu = path.cut_d[k] * np.tan(phi[on_cut] - path.cut_centre[k])
@@ -95,8 +97,8 @@ def test_period_times_a_stretch_at_a_time_are_linspace_own(first, length, n, cut
     whole = np.linspace(first, first + length, n)
     cut = min(cut, n)
     parts = [
-        dpath.period_times(first, first + length, n, 0, cut),
-        dpath.period_times(first, first + length, n, cut, n),
+        dpath_motion.period_times(first, first + length, n, 0, cut),
+        dpath_motion.period_times(first, first + length, n, cut, n),
     ]
     np.testing.assert_array_equal(np.concatenate(parts), whole)
 
@@ -109,8 +111,8 @@ def test_motion_extremes_taken_a_stretch_at_a_time_are_those_of_the_samples(monk
 
     path = seed_path(transition, spacing_um=500.0, ppc=21)
     z = 1e-3 * (path.rho - path.rho.mean()) ** 2 / 1e4
-    t = dpath.point_times(path.phi, path.rho, z, "spindle", 40.0)
-    s = dpath.at_period(path, z, t, 1e-3)
+    t = dpath_motion.point_times(path.phi, path.rho, z, "spindle", 40.0)
+    s = dpath_motion.at_period(path, z, t, 1e-3)
     want = kinematics.extremes(dprog.axes_of(s), kinematics.steps_of(s.t), s.on_cut, 2)
     monkeypatch.setattr(dprog, "SAMPLE_BLOCK", 1000)
     samples, got, (x_min, x_max) = dprog.sampled_extremes(path, z, t, 1e-3)
@@ -128,8 +130,8 @@ def test_motion_at_the_controller_period_samples_the_planned_path():
     path = seed_path("optimised", spacing_um=500.0, ppc=21)
     z = np.zeros(path.n_points)
     omega = 40.0 * 2.0 * math.pi / 60.0
-    t = dpath.point_times(path.phi, path.rho, z, "spindle", 40.0)
-    s = dpath.at_period(path, z, t, 1e-3)
+    t = dpath_motion.point_times(path.phi, path.rho, z, "spindle", 40.0)
+    s = dpath_motion.at_period(path, z, t, 1e-3)
     assert np.diff(s.t).max() <= 1e-3 + 1e-12
     assert np.allclose(np.diff(s.phi), omega * np.diff(s.t), rtol=1e-9)
     assert np.allclose(s.rho, dpath.evaluate(path, s.phi)[0])
@@ -164,7 +166,7 @@ def test_optimised_junctions_are_continuous_to_third_order(length, width, gap, s
     except ValueError:
         return  # zones that do not fit are refused, tested below
     path = dpath.plan(g, 5, 5.0)
-    j = dpath.junctions(path)
+    j = dpath_motion.junctions(path)
     for name in ("rho", "d1", "d2"):
         scale = max(float(np.abs(j[name]).max()), 1e-300)
         assert float(np.abs(j[f"jump_{name}"]).max()) <= 1e-9 * scale
@@ -175,7 +177,7 @@ def test_optimised_junctions_are_continuous_to_third_order(length, width, gap, s
 
 def test_traditional_junctions_keep_the_radius_and_jump_in_slope():
     path = seed_path("traditional")
-    j = dpath.junctions(path)
+    j = dpath_motion.junctions(path)
     assert np.abs(j["jump_rho"]).max() <= 1e-9 * j["rho"].max()
     # the slope of the cut at its end, ρ·tan a, against the arc's (nearly) zero
     assert np.abs(j["jump_d1"]).min() > 0.9 * 40000.0 * 0.25
@@ -204,7 +206,7 @@ def test_zone_geometry_is_checked():
 def test_transition_z_is_linear_between_cuts():
     path = seed_path("optimised", spacing_um=2000.0, ppc=5)
     on = path.cut >= 0
-    z = dpath.transition_z(path, np.arange(on.sum(), dtype=float))
+    z = dpath_motion.transition_z(path, np.arange(on.sum(), dtype=float))
     first = int(np.flatnonzero(~on)[0])
     a, b = first - 1, int(np.flatnonzero(on[first:])[0]) + first
     expected = z[a] + (z[b] - z[a]) * (path.phi[first:b] - path.phi[a]) / (path.phi[b] - path.phi[a])
@@ -489,7 +491,7 @@ def test_peak_acceleration_at_a_step_is_the_largest_of_the_points(transition, st
     path = seed_path(transition, spacing_um=500.0, ppc=21)
     h = math.radians(step_deg)
     want, any_point = _every_points_peak(path, h)
-    assert dpath.x_accel_peak_at_step(path, 40.0, h) == want
+    assert dpath_motion.x_accel_peak_at_step(path, 40.0, h) == want
     assert (want > 0.0) == any_point
 
 
@@ -524,8 +526,8 @@ def _segment_bound(path: dpath.DPath, s: int, h: float) -> float:
     b, i = path.bounds, s // 2
     reach = max(abs(path.phi[0]), abs(path.phi[-1])) + h
     if s % 2 == 0:
-        return dpath._cut_difference_bound(h, b[s], b[s + 1], path.cut_d[i], path.cut_centre[i], reach)
-    return dpath._transition_difference_bound(h, b[s + 1] - b[s], path.coeffs[i], reach)
+        return dpath_motion._cut_difference_bound(h, b[s], b[s + 1], path.cut_d[i], path.cut_centre[i], reach)
+    return dpath_motion._transition_difference_bound(h, b[s + 1] - b[s], path.coeffs[i], reach)
 
 
 PATHS = {
@@ -572,7 +574,7 @@ def test_peak_at_a_step_leaves_out_only_points_that_cannot_reach_it(step_deg, **
     # of every point's, to the last bit, on any geometry and step
     path = _random_path(**geometry)
     h = math.radians(step_deg)
-    assert dpath.x_accel_peak_at_step(path, 40.0, h) == _every_points_peak(path, h)[0]
+    assert dpath_motion.x_accel_peak_at_step(path, 40.0, h) == _every_points_peak(path, h)[0]
 
 
 @pytest.mark.parametrize("transition", ["traditional", "optimised"])
@@ -616,7 +618,7 @@ def test_crossings_are_where_the_path_passes_each_ray(steps, start, rays):
     phi = start + np.concatenate([[0.0], np.cumsum(steps)])
     rho = 1000.0 + 10.0 * np.sin(phi)
     z = np.cos(3.0 * phi)
-    pos, w, seg = dpath.crossings(phi, rho, z, np.sort(np.array(rays)))
+    pos, w, seg = dpath_motion.crossings(phi, rho, z, np.sort(np.array(rays)))
     base = math.floor(phi[0] / (2.0 * math.pi)) * 2.0 * math.pi
     for a, theta in enumerate(np.sort(np.array(rays))):
         for c in range(pos.shape[1]):

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep.inputs import catalogs
-from ftsweep.stages import dpath, dynamics, kinematics
+from ftsweep.stages import dpath_motion, dynamics, kinematics
 
 
 @settings(max_examples=50, deadline=None)
@@ -84,7 +84,7 @@ def test_every_kind_forms_accelerations_by_the_same_scheme():
     # (fresnel.relative_peaks) all go through kinematics.over_steps: the same numbers
     t = np.linspace(0.0, 1.0, 41) ** 1.3
     x = 1e3 * np.cos(3.0 * t)  # µm
-    m = dpath.axis_motion(t, np.zeros_like(t), x, x)
+    m = dpath_motion.axis_motion(t, np.zeros_like(t), x, x)
     ref = kinematics.motion(t, (x * 1e-6)[:, None])
     np.testing.assert_array_equal(m["x_accel_m_s2"], ref.accel[:, 0])
     np.testing.assert_array_equal(m["z_velocity_mm_s"], ref.velocity[:, 0] * 1e3)

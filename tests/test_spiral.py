@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from ftsweep.engine.spec import Case, CaseError, Resolution, program_request
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import interpolation, spiral
+from ftsweep.stages import cusp_budget, interpolation, spiral
 from ftsweep.stages.interpolation import path_grid
 
 # ----------------------------------------------------------------- sampling rules
@@ -123,30 +123,30 @@ def test_feed_for_cusp_inverts_cusp_for_feed(h, r, radius):
         # wide the feed, so no feed gives h (hypothesis found h = 5, R = −0.5 µm; the
         # sections of a real part are millimetres to metres)
         return
-    f = spiral.feed_for_cusp(h, r, np.array([radius]), np.array([0.0]))
+    f = cusp_budget.feed_for_cusp(h, r, np.array([radius]), np.array([0.0]))
     assert f[0] > 0
-    assert spiral.cusp_for_feed(float(f[0]), r, np.array([radius]), np.array([0.0]))[0] == pytest.approx(
+    assert cusp_budget.cusp_for_feed(float(f[0]), r, np.array([radius]), np.array([0.0]))[0] == pytest.approx(
         h, rel=1e-6, abs=1e-9
     )
 
 
 def test_feed_for_cusp_flat_limit_and_order():
     h, r = 0.5, 496.0
-    flat = spiral.feed_for_cusp(h, r, np.array([np.inf]), np.array([0.0]))[0]
+    flat = cusp_budget.feed_for_cusp(h, r, np.array([np.inf]), np.array([0.0]))[0]
     assert flat == pytest.approx(2 * math.sqrt(h * (2 * r - h)), rel=1e-12)
     # F²/(8·Rc) ≈ Δres for a small budget (model §6)
     assert flat**2 / (8 * r) == pytest.approx(h, rel=1e-3)
     for big in (1e7, -1e7):
-        assert spiral.feed_for_cusp(h, r, np.array([big]), np.array([0.0]))[0] == pytest.approx(
+        assert cusp_budget.feed_for_cusp(h, r, np.array([big]), np.array([0.0]))[0] == pytest.approx(
             flat, rel=1e-4
         )
-    concave = spiral.feed_for_cusp(h, r, np.array([2000.0]), np.array([0.0]))[0]
-    convex = spiral.feed_for_cusp(h, r, np.array([-2000.0]), np.array([0.0]))[0]
+    concave = cusp_budget.feed_for_cusp(h, r, np.array([2000.0]), np.array([0.0]))[0]
+    convex = cusp_budget.feed_for_cusp(h, r, np.array([-2000.0]), np.array([0.0]))[0]
     # with the tool-centre spacing as the feed, a valley leaves higher cusps than a crest
     assert concave < flat < convex
-    assert spiral.feed_for_cusp(h, r, np.array([r]), np.array([0.0]))[0] == 0.0
+    assert cusp_budget.feed_for_cusp(h, r, np.array([r]), np.array([0.0]))[0] == 0.0
     # on a slope the centres are further apart than the X advance
-    assert spiral.feed_for_cusp(h, r, np.array([np.inf]), np.array([0.5]))[0] == pytest.approx(
+    assert cusp_budget.feed_for_cusp(h, r, np.array([np.inf]), np.array([0.5]))[0] == pytest.approx(
         flat / math.sqrt(1.25)
     )
 

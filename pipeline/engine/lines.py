@@ -25,7 +25,7 @@ from ftsweep.engine.record import Timer, record_of
 from ftsweep.engine.simulator import Machined, require_finite, require_finite_passes
 from ftsweep.engine.spec import CaseError
 from ftsweep.inputs import catalogs
-from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers
+from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers, ray_commands
 from ftsweep.stages.surfaces import radial_section
 
 
@@ -267,7 +267,7 @@ def _line_data(rcase: ResolvedCase, plan: LinePlan, lines: np.ndarray, timer: Ti
     if not res.interp_error:
         return LineData(grid, ct, st, g, gp, inside, None)
     mode = compensation.MODE_CODES[rcase.case.compensation]
-    w_exact = compensation.commands_on_rays(
+    w_exact = ray_commands.commands_on_rays(
         g, gp, grid.spacing_um, rc, grid.pass_node_index, grid.n_passes, mode, single_peaked(rcase)
     )
     timer.add("compensation", t)

@@ -28,7 +28,7 @@ from ftsweep.engine.record import non_finite, simulated
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.engine.spec import CaseError
 from ftsweep.inputs import catalogs
-from ftsweep.stages import compensation, dpath, envelope, kinematics
+from ftsweep.stages import compensation, dpath, dpath_motion, envelope, kinematics
 
 DEFAULTS: dict[str, Any] = {
     "points_per_cut": 201,
@@ -57,7 +57,7 @@ def geometry_of(request: Any, aperture: Any, spacing_um: float) -> dpath.DGeomet
     """The zone of a part: its extent along and across the cuts (the part fills it, [5]),
     centred ``offaxis_um`` from the C axis."""
     half_w, half_h = aperture.half_extent_um
-    along, across = dpath.zone_of(half_w, half_h, rotation_of(request))
+    along, across = dpath_motion.zone_of(half_w, half_h, rotation_of(request))
     return dpath.DGeometry(
         length_um=along,
         width_um=across,
@@ -70,7 +70,7 @@ def geometry_of(request: Any, aperture: Any, spacing_um: float) -> dpath.DGeomet
 
 def part_surface(request: Any, geometry: dpath.DGeometry, surface: Callable[..., Any]) -> Callable[..., Any]:
     """The part's surface callable in the spindle frame (zone 0)."""
-    return dpath.placed(surface, geometry.centre_um, rotation_of(request))
+    return dpath_motion.placed(surface, geometry.centre_um, rotation_of(request))
 
 
 def plan(
@@ -104,14 +104,14 @@ def plan(
     z_cut, gouge_cut = compensate(part_surface(request, geometry, surface), path.rho[on], local)
     gouge = np.zeros(path.n_points, dtype=bool)
     gouge[on] = gouge_cut
-    return path, {"values": dpath.transition_z(path, z_cut), "gouge": gouge}
+    return path, {"values": dpath_motion.transition_z(path, z_cut), "gouge": gouge}
 
 
 def times(
     path: dpath.DPath, z_um: np.ndarray, rpm: float, mode: str = "spindle", feed_mm_min: float = math.nan
 ) -> np.ndarray:
     """Time [s] of every point (:func:`ftsweep.stages.dpath.point_times`)."""
-    return dpath.point_times(path.phi, path.rho, z_um, mode, rpm, feed_mm_min)
+    return dpath_motion.point_times(path.phi, path.rho, z_um, mode, rpm, feed_mm_min)
 
 
 # the axes of a D-path program, in the order of the kinematics stage's columns
@@ -126,16 +126,16 @@ def period_of(machine: Any) -> float:
 
 def sampled_motion(
     path: dpath.DPath, z_um: np.ndarray, t_points: np.ndarray, period_s: float, until_s: float = math.inf
-) -> tuple[dpath.Sampled, np.ndarray, kinematics.Motion]:
+) -> tuple[dpath_motion.Sampled, np.ndarray, kinematics.Motion]:
     """The program's planned path sampled every controller period up to ``until_s`` [s]
     (:func:`ftsweep.stages.dpath.at_period`), its axes q (:func:`axes_of`) and their motion
     by the kinematics stage."""
-    s = dpath.at_period(path, z_um, t_points, period_s, until_s)
+    s = dpath_motion.at_period(path, z_um, t_points, period_s, until_s)
     q = axes_of(s)
     return s, q, kinematics.motion(s.t, q)
 
 
-def axes_of(s: dpath.Sampled) -> np.ndarray:
+def axes_of(s: dpath_motion.Sampled) -> np.ndarray:
     """The axes q (C [rad], X, Z [m]) of samples ``s``, the columns of :data:`AXES`."""
     q = np.empty((s.t.size, 3))
     q[:, 0] = s.phi
@@ -162,11 +162,11 @@ class PeriodSamples(NamedTuple):
 
     def time(self, i: int) -> float:
         """Time of sample ``i`` [s] (that of ``Sampled.t[i]``)."""
-        return float(dpath.period_times(self.first, self.last, self.n, i, i + 1)[0])
+        return float(dpath_motion.period_times(self.first, self.last, self.n, i, i + 1)[0])
 
     def line(self, i: int) -> int:
         """The program line (0-based point) sample ``i`` follows."""
-        return dpath.line_at(self.t_points, self.time(i))
+        return dpath_motion.line_at(self.t_points, self.time(i))
 
 
 def sampled_extremes(
@@ -178,14 +178,14 @@ def sampled_extremes(
     each stretch with its neighbours, and their extremes carried from one to the next
     (:class:`ftsweep.stages.kinematics.ExtremesOver`): the values and first points of one
     pass over every sample, without the millions of samples' arrays."""
-    first, last, n = dpath.period_grid(t_points, period_s)
-    z = dpath.z_plan(path, z_um)
+    first, last, n = dpath_motion.period_grid(t_points, period_s)
+    z = dpath_motion.z_plan(path, z_um)
     over = kinematics.ExtremesOver(n, len(AXES), 2)
     x_low, x_high = math.inf, -math.inf
     for lo in range(0, n, SAMPLE_BLOCK):
         hi = min(lo + SAMPLE_BLOCK, n)
         a, b = max(lo - 1, 0), min(hi + 1, n)
-        s = dpath.sample_path(path, z, t_points, dpath.period_times(first, last, n, a, b))
+        s = dpath_motion.sample_path(path, z, t_points, dpath_motion.period_times(first, last, n, a, b))
         over.add(axes_of(s), kinematics.steps_of(s.t), s.on_cut, lo - a, hi - a, a)
         own = s.rho[lo - a : hi - a]
         x_low, x_high = min(x_low, float(own.min())), max(x_high, float(own.max()))
@@ -205,7 +205,7 @@ def motion_summary(
     t = times(path, z_um, rpm) if path.t_s is None else path.t_s
     period = period_of(machine)
     s, e, (x_min, x_max) = sampled_extremes(path, z_um, t, period)
-    jumps = dpath.junctions(path)
+    jumps = dpath_motion.junctions(path)
     summary = {
         "x_min_um": x_min,
         "x_max_um": x_max,
@@ -230,7 +230,7 @@ NO_AXES = "the machine declares no X, Z, C axis limits (axes:) for a slow-tool-s
 
 
 def limits_reason(
-    machine: Any, s: dpath.Sampled | PeriodSamples, e: kinematics.Extremes, slack: float = 1e-9
+    machine: Any, s: dpath_motion.Sampled | PeriodSamples, e: kinematics.Extremes, slack: float = 1e-9
 ) -> str:
     """The machine's X, Z and C limits the sampled motion of samples ``s`` (extremes ``e``)
     exceeds, checked by the kinematics stage on every sample and named by the program line
@@ -303,7 +303,7 @@ class DPathSimulation:
         # ends, where the turn-round's arcs overhang the part
         side = np.abs(self.d_nodes[None, :] * (st / ct)) <= 0.5 * g.length_um - self.band
         query = np.where(self.machined[None, :] & side, self.d_nodes[None, :] / ct, np.nan)
-        px, py = dpath.to_part(query * ct, query * st, g.centre_um, self.rotation)
+        px, py = dpath_motion.to_part(query * ct, query * st, g.centre_um, self.rotation)
         inside = rcase.aperture.contains(px, py) & np.isfinite(query)
         f = np.zeros(query.shape)
         f[inside] = rcase.surface(px[inside], py[inside])[0]
@@ -342,7 +342,7 @@ class DPathSimulation:
         """The design at the cusp peaks between passes, which lie inside the fully machined
         part, and their distance from the part's centre [µm]."""
         rcase, g = self.rcase, self.path.geometry
-        cx, cy = dpath.to_part(cusp_r * ct, cusp_r * st, g.centre_um, self.rotation)
+        cx, cy = dpath_motion.to_part(cusp_r * ct, cusp_r * st, g.centre_um, self.rotation)
         d_cusp = cusp_r * ct
         cusp_in = (
             rcase.aperture.contains(cx, cy)
@@ -377,7 +377,7 @@ class DPathSimulation:
 def _crossings(path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, ...]:
     """The passes crossing each ray, sorted by position: positions [µm], commands [µm],
     validity and whether each lies on a cut (both neighbouring points on it)."""
-    pos, w, seg = dpath.crossings(path.phi, path.rho, z_prog, theta)
+    pos, w, seg = dpath_motion.crossings(path.phi, path.rho, z_prog, theta)
     order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
     pos = np.take_along_axis(pos, order, axis=1)
     w = np.take_along_axis(w, order, axis=1)

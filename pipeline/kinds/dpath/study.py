@@ -25,7 +25,7 @@ from ftsweep.engine.threads import current as current_threads
 from ftsweep.kinds.dpath import kind as dpath_kind
 from ftsweep.kinds.dpath import program as dprog
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import dpath
+from ftsweep.stages import dpath, dpath_motion
 
 if TYPE_CHECKING:
     from ftsweep.kinds.dpath.figures import Plots
@@ -57,8 +57,8 @@ def spiral_motion(case: Case, resolved: Optional[ResolvedCase] = None) -> dict[s
     rcase = resolved or resolve_case(case)
     path = rcase.layout
     rpm = rcase.cutting.spindle_rpm
-    t = dpath.point_times(path.phi, path.rho, rcase.values, "spindle", rpm)
-    motion = dpath.axis_motion(t, path.phi, path.rho, rcase.values)
+    t = dpath_motion.point_times(path.phi, path.rho, rcase.values, "spindle", rpm)
+    motion = dpath_motion.axis_motion(t, path.phi, path.rho, rcase.values)
     return {"t": t, "phi": path.phi, "x": path.rho, "z": rcase.values, **motion}
 
 
@@ -70,7 +70,7 @@ def feed_mode(
     whole path, or with ``cuts_only`` on the cuts alone, the transitions at the C cap ``rpm``
     (docs/kinds.md, "D-shaped slow-tool-servo paths": [5]'s DIFFSYS figures)."""
     on = (path.cut[1:] >= 0) & (path.cut[1:] == path.cut[:-1])
-    t = dpath.point_times(path.phi, path.rho, z, "feed", rpm, feed_mm_min, on if cuts_only else None)
+    t = dpath_motion.point_times(path.phi, path.rho, z, "feed", rpm, feed_mm_min, on if cuts_only else None)
     c = np.diff(path.phi) / np.diff(t) * 60.0 / (2.0 * math.pi)
     return {
         "time_s": float(t[-1]),
@@ -86,7 +86,7 @@ def continuity(path: dpath.DPath) -> dict[str, float]:
     """Largest relative jump of ρ, dρ/dθ and d²ρ/dθ² over the junctions (relative to the
     largest magnitude of each on the cut side; the dρ/dθ jump itself [µm/rad] is the case
     record's ``slope_jump_um_rad``)."""
-    j = dpath.junctions(path)
+    j = dpath_motion.junctions(path)
     out = {}
     for name in ("rho", "d1", "d2"):
         scale = float(np.abs(j[name]).max()) if j[name].size else 1.0
@@ -238,7 +238,7 @@ def accel_by_step(programs: dict[str, Any], rpm: float, machine_step_deg: float)
     curve = {k: dpath.radius_at(programs[k][0], programs[k][0].phi)[0] for k in both}
     for deg in sorted({*STEPS_DEG, machine_step_deg}):
         h = math.radians(deg)
-        trad, opt = (dpath.x_accel_peak_at_step(programs[k][0], rpm, h, curve[k]) for k in both)
+        trad, opt = (dpath_motion.x_accel_peak_at_step(programs[k][0], rpm, h, curve[k]) for k in both)
         rows.append(
             {
                 "step_deg": deg,
@@ -277,7 +277,7 @@ def x_motion_curves(
     (the traditional acceleration is a spike over one period)."""
     out = {}
     for kind, (path, z) in programs.items():
-        t = dpath.point_times(path.phi, path.rho, z, "spindle", rpm)
+        t = dpath_motion.point_times(path.phi, path.rho, z, "spindle", rpm)
         s, _, m = dprog.sampled_motion(path, z, t, period_s, until_s=cycles * 60.0 / rpm)
         out[kind] = {
             "deg": np.degrees(s.phi),
@@ -306,8 +306,8 @@ def z_motion_curves(
     mid = 0.5 * phi[-1]
     sel = (phi >= mid) & (phi < mid + 2.0 * math.pi)
     path, z = program
-    t = dpath.point_times(path.phi, path.rho, z, "spindle", rpm)
-    m = dpath.axis_motion(t, path.phi, path.rho, z)
+    t = dpath_motion.point_times(path.phi, path.rho, z, "spindle", rpm)
+    m = dpath_motion.axis_motion(t, path.phi, path.rho, z)
     cycle = path.n_cuts // 2
     dsel = (path.phi >= path.cut_centre[cycle] - math.pi) & (path.phi < path.cut_centre[cycle] + math.pi)
 

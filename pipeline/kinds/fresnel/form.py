@@ -28,7 +28,7 @@ import numpy as np
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.engine.spec import CaseError
 from ftsweep.inputs import catalogs
-from ftsweep.stages import dpath, envelope, kinematics, metrics
+from ftsweep.stages import dpath_motion, envelope, kinematics, metrics
 from ftsweep.stages import fresnel as ff
 
 RAYS_PER_BATCH = 64
@@ -124,7 +124,7 @@ class FresnelSimulation:
     def _crossings(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
         """The passes crossing each ray, sorted outwards: distance from the lowest point [µm],
         tool tip Z [µm], facet level, and how many there are."""
-        pos, w, seg = dpath.crossings(self.psi, self.r, self.z, theta)
+        pos, w, seg = dpath_motion.crossings(self.psi, self.r, self.z, theta)
         order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
         pos = np.take_along_axis(pos, order, axis=1)
         w = np.take_along_axis(w, order, axis=1)

@@ -22,7 +22,7 @@ from ftsweep.engine.spec import Case, CaseError
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.spiral.request import SpiralRequest
-from ftsweep.stages import spiral
+from ftsweep.stages import cusp_budget, spiral
 
 AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")
 
@@ -87,9 +87,9 @@ def _section_samples(spec_json: str, folder: Optional[str]) -> tuple[np.ndarray,
     theta = (np.arange(SECTION_ANGLES) * (2.0 * math.pi / SECTION_ANGLES))[:, None]
     rho = np.repeat((np.arange(1, SECTION_RADII) * step)[None, :], SECTION_ANGLES, axis=0)
     ct, st = np.cos(theta), np.sin(theta)
-    slope, second = spiral.section_curvature(surface, rho, ct, st, 0.25 * step)
+    slope, second = cusp_budget.section_curvature(surface, rho, ct, st, 0.25 * step)
     inside = aperture.contains_polar(rho, ct, st)
-    radius = spiral.signed_radius_um(slope, second)
+    radius = cusp_budget.signed_radius_um(slope, second)
     x, y = rho * ct, rho * st
     return radius[inside], slope[inside], x[inside], y[inside]
 
@@ -104,12 +104,12 @@ def section_samples(surface_spec: Any, catalog_folder: Any = None) -> tuple[np.n
 
 def residual_feed_um(sections: tuple[np.ndarray, ...], residual_um: float, rc: float, name: str) -> float:
     """The feed [µm/rev] of a residual budget Δres [µm] ([4] eqs. 2–3): the smallest
-    over the part of :func:`ftsweep.stages.spiral.feed_for_cusp`. Refuses a part with a
+    over the part of :func:`ftsweep.stages.cusp_budget.feed_for_cusp`. Refuses a part with a
     concave section tighter than the nose radius, where no feed meets the budget."""
     radius, slope, x, y = sections
     if not residual_um < rc:
         raise CaseError(f"the residual budget {residual_um:g} µm must be below the nose radius {rc:g} µm")
-    feeds = spiral.feed_for_cusp(residual_um, rc, radius, slope)
+    feeds = cusp_budget.feed_for_cusp(residual_um, rc, radius, slope)
     worst = int(np.argmin(feeds))
     if not feeds[worst] > 0.0:
         raise CaseError(
@@ -122,9 +122,9 @@ def residual_feed_um(sections: tuple[np.ndarray, ...], residual_um: float, rc: f
 
 def residual_error_um(sections: tuple[np.ndarray, ...], feed_um: float, rc: float) -> float:
     """Largest residual (cusp) height [µm] the feed leaves over the part, from each section's
-    curvature (the inverse of [4] eq. 2, :func:`ftsweep.stages.spiral.cusp_for_feed`)."""
+    curvature (the inverse of [4] eq. 2, :func:`ftsweep.stages.cusp_budget.cusp_for_feed`)."""
     radius, slope, _, _ = sections
-    cusp = spiral.cusp_for_feed(feed_um, rc, radius, slope)
+    cusp = cusp_budget.cusp_for_feed(feed_um, rc, radius, slope)
     return float(np.nanmax(cusp)) if np.isfinite(cusp).any() else math.nan
 
 

@@ -68,7 +68,7 @@ def _hull(
 
 @njit(nogil=True, cache=True, inline="always")
 def _arc_at(
-    r: np.ndarray,
+    r: float,
     m: int,
     n_arcs: int,
     pos: np.ndarray,

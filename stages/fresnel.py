@@ -363,7 +363,7 @@ def compensation_exact(
 # --------------------------------------------------------------------------- accelerations
 @njit(nogil=True, cache=True)
 def _turn_relative_into(
-    steps: np.ndarray, deltas: np.ndarray, inv_limit: np.ndarray, first: np.ndarray, rel: np.ndarray
+    steps: np.ndarray, deltas: np.ndarray, inv_limit: np.ndarray, first: bool, rel: np.ndarray
 ) -> float:  # pragma: no cover - jit
     """Relative accelerations a/a_lim over one turn (eq. 14) into ``rel[:K]`` (K, A) and their
     largest magnitude; the other arguments as :func:`ftsweep.stages.turnopt.turn_cost_into`'s."""
@@ -386,7 +386,7 @@ def _turn_relative_into(
 
 @njit(nogil=True, cache=True)
 def _turn_relative(
-    steps: np.ndarray, deltas: np.ndarray, inv_limit: np.ndarray, first: np.ndarray
+    steps: np.ndarray, deltas: np.ndarray, inv_limit: np.ndarray, first: bool
 ) -> tuple[Any, ...]:  # pragma: no cover - jit
     """Relative accelerations a/a_lim (K, A) over one turn (eq. 14) and their largest
     magnitude."""
@@ -396,7 +396,7 @@ def _turn_relative(
 
 @njit(nogil=True, cache=True)
 def turn_peak(
-    steps: np.ndarray, deltas: np.ndarray, inv_limit: np.ndarray, first: np.ndarray
+    steps: np.ndarray, deltas: np.ndarray, inv_limit: np.ndarray, first: bool
 ) -> float:  # pragma: no cover - jit
     """Largest relative acceleration max |a/a_lim| over one turn (arguments of
     :func:`ftsweep.stages.turnopt.turn_cost_into`)."""

@@ -1,7 +1,7 @@
 """Defaults and limits the command line shows in its help, in a module that imports nothing,
 so that ``ftsweep --help`` and every command's ``--help`` answer at once; the modules that
 apply them (:mod:`ftsweep.engine.cost`, :mod:`ftsweep.engine.lines`, :mod:`ftsweep.sweeps.spec`,
-:mod:`ftsweep.engine.spec`) take them from here."""
+:mod:`ftsweep.engine.case`) take them from here."""
 
 # the largest simulation a case may cost, in evaluation nodes: about two hours of one core
 MAX_NODES = 2.0e10
@@ -14,7 +14,7 @@ LINE_CACHE_MB = 512.0
 # every case costs seconds of a core: beyond this many cases a sweep is refused unless the
 # caller raises the limit (CLI: --max-cases)
 MAX_CASES = 100_000
-# the simulation's resolution (model §5; converged, see ftsweep.engine.spec.Resolution)
+# the simulation's resolution (model §5; converged, see ftsweep.engine.case.Resolution)
 SAMPLES_PER_CELL = 3
 POINTS_PER_FEED = 2
 

@@ -10,8 +10,8 @@ from typing import Any
 
 from ftsweep import registry
 from ftsweep.engine import planning, simulator
+from ftsweep.engine.case import Case
 from ftsweep.engine.planning import ResolvedCase
-from ftsweep.engine.spec import Case
 
 
 def run_case(case: Case, *args: Any, **options: Any) -> dict[str, Any]:

@@ -11,7 +11,7 @@ import sys
 import pytest
 
 from ftsweep.engine import allocator
-from ftsweep.engine.spec import Case, program_request
+from ftsweep.engine.case import Case, program_request
 from ftsweep.simulate import run_case
 
 

@@ -16,7 +16,7 @@ from click.testing import CliRunner
 from ftsweep import registry
 from ftsweep.cli.main import main
 from ftsweep.engine import result
-from ftsweep.engine.spec import Case
+from ftsweep.engine.case import Case
 from ftsweep.exports.export import format_of_kind, formats
 from ftsweep.simulate import run_case
 from ftsweep.sweeps.run import run_sweep

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from ftsweep.engine.spec import Case, Resolution, program_request
+from ftsweep.engine.case import Case, Resolution, program_request
 from ftsweep.inputs import catalogs
 from ftsweep.simulate import run_case
 

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from ftsweep.engine.spec import Case, CaseError, program_request
+from ftsweep.engine.case import Case, CaseError, program_request
 from ftsweep.exports.export import ExportError, verify
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds import path_programs as program

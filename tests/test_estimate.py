@@ -85,7 +85,7 @@ def test_cli_estimate_prints_the_optimum_per_point_count():
 def test_estimate_agrees_with_the_simulated_lens_array_sweep(tmp_path):
     """Issue 10, item 3, on the mesh reference sweep (about three minutes on two cores; the
     ring reference sweep is checked in the default suite, tests/test_reference_sweep.py)."""
-    from ftsweep.kinds.table.estimate import agreement, estimate_sweep
+    from ftsweep.kinds.table.sweep_estimate import agreement, estimate_sweep
     from ftsweep.sweeps.run import run_sweep
     from ftsweep.sweeps.spec import load_sweep
     from ftsweep.tools.select import open_cube

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
-from ftsweep.engine.spec import Case, program_request
+from ftsweep.engine.case import Case, program_request
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError, SurfaceSpec, load_catalog
 from ftsweep.inputs.usersurfaces import SurfaceLoadError, height_map_surface

@@ -12,9 +12,9 @@ from click.testing import CliRunner
 
 from ftsweep import registry
 from ftsweep.cli.main import main
+from ftsweep.engine.case import Case
 from ftsweep.engine.contract import Simulating
 from ftsweep.engine.record import Timer
-from ftsweep.engine.spec import Case
 from ftsweep.simulate import resolve_case, run_case
 
 # a coarse program of the example: K = 90 points a turn at 4 µm a turn (cusp 50 nm at Rc 40 µm)

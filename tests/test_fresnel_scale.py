@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
-from ftsweep.engine.spec import Case
+from ftsweep.engine.case import Case
 from ftsweep.exports.export import verify
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds.fresnel import study as fstudy

@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 
-from ftsweep.engine.spec import Case, Resolution, program_request
+from ftsweep.engine.case import Case, Resolution, program_request
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.fresnel import study as fstudy
 from ftsweep.simulate import run_case

@@ -13,7 +13,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
-from ftsweep.engine.spec import Case, Resolution, program_request
+from ftsweep.engine.case import Case, Resolution, program_request
 from ftsweep.exports.export import export, verify
 from ftsweep.simulate import run_case
 from ftsweep.stages import envelope

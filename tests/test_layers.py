@@ -12,10 +12,10 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
+from ftsweep.engine.case import Case, program_request
 from ftsweep.engine.lines import LinePlan, _line_data, _machined, _table_of
 from ftsweep.engine.planning import layer_plan
 from ftsweep.engine.record import Timer
-from ftsweep.engine.spec import Case, program_request
 from ftsweep.exports.export import export, verify
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import dynamics, interpolation, layers

@@ -11,9 +11,9 @@ import xarray as xr
 from hypothesis import given
 from hypothesis import strategies as st
 
+from ftsweep.engine.case import Case, Resolution, program_request
 from ftsweep.engine.cost import ladder_rung
 from ftsweep.engine.lines import LineCache
-from ftsweep.engine.spec import Case, Resolution, program_request
 from ftsweep.simulate import run_case
 from ftsweep.store.cube import TIMING_VARS
 from ftsweep.sweeps.run import run_sweep

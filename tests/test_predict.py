@@ -15,7 +15,7 @@ from click.testing import CliRunner
 from pydantic import ValidationError
 
 from ftsweep.cli.main import main
-from ftsweep.engine.spec import Case, CaseError, Resolution, program_request
+from ftsweep.engine.case import Case, CaseError, Resolution, program_request
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.simulate import run_case
 from ftsweep.sweeps.spec import load_sweep

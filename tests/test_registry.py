@@ -28,8 +28,8 @@ NEW_FAMILY = textwrap.dedent(
     from pydantic import TypeAdapter
     from ftsweep.inputs import catalogs
     from ftsweep.simulate import run_case
-    from ftsweep.engine.spec import program_request
-    from ftsweep.engine.spec import Case
+    from ftsweep.engine.case import program_request
+    from ftsweep.engine.case import Case
 
     entry = {"family": "tilted_plane", "layout": "mesh", "aperture": {"shape": "circle", "radius_um": 300.0},
              "params": {"slope_x": 0.0, "offset_um": 2.0}}

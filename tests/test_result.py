@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from ftsweep import registry
 from ftsweep.cli.main import main
 from ftsweep.engine import result
-from ftsweep.engine.spec import Case, program_request
+from ftsweep.engine.case import Case, program_request
 from ftsweep.simulate import run_case
 from ftsweep.store import cube
 from ftsweep.sweeps.run import run_sweep

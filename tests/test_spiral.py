@@ -11,7 +11,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from ftsweep.engine.spec import Case, CaseError, Resolution, program_request
+from ftsweep.engine.case import Case, CaseError, Resolution, program_request
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import cusp_budget, interpolation, spiral

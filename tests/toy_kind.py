@@ -15,11 +15,11 @@ import numpy as np
 from pydantic import PositiveFloat
 
 from ftsweep.engine import result
+from ftsweep.engine.case import Case, Request
 from ftsweep.engine.contract import Axis, Planning, ProgramKind
 from ftsweep.engine.cost import angular_samples
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.planning import control_table
-from ftsweep.engine.spec import Case, Request
 from ftsweep.exports import files
 from ftsweep.inputs import catalogs
 from ftsweep.simulate import resolve_case, run_case

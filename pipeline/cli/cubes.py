@@ -231,7 +231,7 @@ def verify(
       local catalog's (--accept-recorded verifies against the recorded ones instead).
     The output's origin line says which of the two was proved.
     """
-    from ftsweep.engine.spec import CaseError
+    from ftsweep.engine.case import CaseError
     from ftsweep.exports import export as exp
     from ftsweep.inputs.catalogs import CatalogError
 
@@ -288,7 +288,7 @@ def report(
     the error map of the chosen case over the part and its W command spectrum with the servo
     bandwidth. The error map needs a re-simulation of that case, which shows progress.
     """
-    from ftsweep.engine.spec import CaseError
+    from ftsweep.engine.case import CaseError
     from ftsweep.store.cube import CubeError
     from ftsweep.tools.report import make_report
     from ftsweep.tools.select import SelectError
@@ -367,7 +367,7 @@ def compare(
       ftsweep sweep sinewave-ring && ftsweep sweep sinewave-spiral
       ftsweep compare outputs/sinewave-ring.zarr outputs/sinewave-spiral.zarr -o outputs/compare.png
     """
-    from ftsweep.engine.spec import CaseError
+    from ftsweep.engine.case import CaseError
     from ftsweep.store.cube import CubeError
     from ftsweep.store.io import save_figure
     from ftsweep.tools.compare import common_sampling, compare_rows, plot_compare

@@ -21,11 +21,13 @@ from ftsweep.cli.common import (
 from ftsweep.defaults import MAX_NODES, POINTS_PER_FEED, SAMPLES_PER_CELL
 from ftsweep.kinds.dpath.options import dpath_options
 from ftsweep.kinds.fresnel.options import fresnel_options
+from ftsweep.kinds.spiral.options import spiral_options
+from ftsweep.kinds.table.options import table_options
 
 if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
     from pydantic import ValidationError
 
-    from ftsweep.engine.spec import Case
+    from ftsweep.engine.case import Case
 
 
 @click.command()
@@ -41,27 +43,8 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
 )
 @dpath_options
 @fresnel_options
-@click.option("--drho-um", type=FINITE, help="Ring pitch Δρ [µm] (ring layout).")
-@click.option(
-    "--dtheta-deg",
-    type=FINITE,
-    help="Angular pitch Δθ [deg] (ring); rounded to the nearest 360/Np with a notice unless --strict.",
-)
-@click.option("--dx-um", type=FINITE, help="Mesh pitch Δx [µm] (mesh layout).")
-@click.option("--dy-um", type=FINITE, help="Mesh pitch Δy [µm] (mesh layout).")
-@click.option("--points", type=FINITE, help="Target number of control points N (with --aspect).")
-@click.option("--aspect", type=FINITE, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh).")
-@click.option("--points-per-rev", type=int, help="Spiral: constant-angle rule, points per revolution.")
-@click.option("--arc-um", type=FINITE, help="Spiral: constant-arc rule, path length between points [µm].")
-@click.option(
-    "--chord-um", type=FINITE, help="Spiral: chord-error budget Δcho [µm] that places each next point."
-)
-@click.option(
-    "--residual-um",
-    type=FINITE,
-    help="Spiral: residual (cusp) budget Δres [µm]; the feed is the largest that keeps every cusp "
-    "within it, from each radial section's curvature (instead of --feed-um).",
-)
+@table_options
+@spiral_options
 @click.option("--feed-um", type=FINITE, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
 @click.option("--nose-radius-um", type=FINITE, help="Tool nose radius Rc [µm]. Default: cutting entry.")
 @click.option(
@@ -182,7 +165,7 @@ def predict(**opts: Any) -> None:
       ftsweep predict --surface chebyshev_example --layout fresnel --facet-height-um 10 \\
           --machine xyzc-nanoform --cutting fresnel-finish
     """
-    from ftsweep.engine.spec import CaseError
+    from ftsweep.engine.case import CaseError
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.inputs.usersurfaces import SurfaceLoadError
     from ftsweep.simulate import run_case
@@ -208,7 +191,7 @@ def _build_case(opts: dict[str, Any]) -> Case:
     from pydantic import ValidationError
 
     from ftsweep import registry
-    from ftsweep.engine.spec import Case, Resolution
+    from ftsweep.engine.case import Case, Resolution
     from ftsweep.inputs import catalogs
     from ftsweep.inputs.catalogs import CatalogError
 

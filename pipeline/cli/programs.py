@@ -21,7 +21,7 @@ from ftsweep.cli.common import (
 )
 
 if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
-    from ftsweep.engine.spec import Case
+    from ftsweep.engine.case import Case
     from ftsweep.kinds.dpath.figures import Plots
 from ftsweep.kinds.dpath.options import dpath_options
 
@@ -116,7 +116,7 @@ def _dpath_study(opts: dict[str, Any], plots: Plots) -> tuple[dict[str, Any], Ca
     from; bad options and entries are the command's errors."""
     from pydantic import ValidationError
 
-    from ftsweep.engine.spec import CaseError
+    from ftsweep.engine.case import CaseError
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.kinds.dpath import kind as dpath_kind
     from ftsweep.kinds.dpath import study as dstudy
@@ -148,8 +148,8 @@ def _export_dpath(base: Case, record: dict[str, Any], opts: dict[str, Any], plan
     """Export the optimised program of ``dpath`` to ``opts["out"]`` (refusing to replace files
     without --force; signed with --sign-key), as the study planned it (``planned``, from the
     same entries)."""
+    from ftsweep.engine.case import CaseError
     from ftsweep.engine.planning import resolve_specs
-    from ftsweep.engine.spec import CaseError
     from ftsweep.exports.export import signed
     from ftsweep.exports.origin import signature_path, signing_key
     from ftsweep.kinds import path_programs as program

@@ -178,7 +178,7 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
 
     from ftsweep import registry
     from ftsweep.inputs.catalogs import CatalogError
-    from ftsweep.kinds.table.estimate import agreement, best_aspect, estimate_sweep
+    from ftsweep.kinds.table.sweep_estimate import agreement, best_aspect, estimate_sweep
     from ftsweep.store.cube import CubeError
     from ftsweep.sweeps.spec import load_sweep
     from ftsweep.tools.select import open_cube

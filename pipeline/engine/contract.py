@@ -98,7 +98,7 @@ class ProgramKind:
     pitches : the names of its two pitch fields (Δρ, Δθ of a ring; a path's mean steps).
     file_format : ``() -> FileFormat`` (:class:`ftsweep.exports.files.FileFormat`): how a case
         of it is exported and verified; called when a file is written or read.
-    request : its request model (an :class:`ftsweep.engine.spec.Request`), which validates its fields
+    request : its request model (an :class:`ftsweep.engine.case.Request`), which validates its fields
         and their combination rules once, when a request is built.
     request_at : ``(sweep spec, {axis: value}) -> request`` of one sweep point.
     feed : ``(case, cutting, nose radius, surface spec, catalog folder, program) -> F [µm/rev]``.

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from typing import Any, Optional
 
 from ftsweep.defaults import MAX_NODES
-from ftsweep.engine.spec import Case, CaseError, Resolution
+from ftsweep.engine.case import Case, CaseError, Resolution
 from ftsweep.inputs import catalogs
 from ftsweep.stages import spiral
 from ftsweep.stages.interpolation import Program

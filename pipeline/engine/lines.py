@@ -18,12 +18,12 @@ from typing import Any, Optional
 
 import numpy as np
 
+from ftsweep.engine.case import CaseError
 from ftsweep.engine.contract import Simulating
 from ftsweep.engine.cost import angular_samples, check_cost, ray_nodes
 from ftsweep.engine.planning import ResolvedCase, control_table, layer_plan, z_error_of
 from ftsweep.engine.record import Timer, record_of
 from ftsweep.engine.simulator import Machined, require_finite, require_finite_passes
-from ftsweep.engine.spec import CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers, ray_commands
 from ftsweep.stages.surfaces import radial_section

@@ -13,9 +13,9 @@ from typing import Any, Optional
 
 import numpy as np
 
+from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.contract import Planning, ProgramKind
 from ftsweep.engine.cost import check_capacity, check_cost, ray_nodes
-from ftsweep.engine.spec import Case, CaseError
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
 from ftsweep.stages import compensation, dynamics, layers, layouts, spiral

@@ -12,9 +12,9 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep.engine import result
+from ftsweep.engine.case import CaseError
 from ftsweep.engine.planning import ResolvedCase, layer_change_of, z_error_of
 from ftsweep.engine.result import STAGES
-from ftsweep.engine.spec import CaseError
 from ftsweep.stages import dynamics, layers, metrics, spiral
 
 

@@ -20,12 +20,12 @@ from typing import Any, NamedTuple, Optional, Protocol
 
 import numpy as np
 
+from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.contract import ProgramKind, Simulating, Simulation
 from ftsweep.engine.cost import MAX_NODES
 from ftsweep.engine.planning import ResolvedCase, resolve_case
 from ftsweep.engine.record import ErrorMap, Timer, timed
 from ftsweep.engine.result import STAGES
-from ftsweep.engine.spec import Case, CaseError
 from ftsweep.engine.threads import current as current_threads
 from ftsweep.engine.threads import using_threads
 from ftsweep.stages import envelope, interpolation, metrics

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from ftsweep.engine.case import Case
 from ftsweep.engine.planning import ResolvedCase, layer_plan
-from ftsweep.engine.spec import Case
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.inputs.trust import specs_from_entries
 from ftsweep.stages import decimals

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.engine.spec import Case
+from ftsweep.engine.case import Case
 from ftsweep.exports.files import (
     DataLines,
     FileFormat,

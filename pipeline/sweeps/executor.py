@@ -28,8 +28,8 @@ import dask
 from ftsweep import registry
 from ftsweep.defaults import WORKER_WAIT_S
 from ftsweep.engine import allocator, startup
+from ftsweep.engine.case import Case
 from ftsweep.engine.lines import LineCache
-from ftsweep.engine.spec import Case
 from ftsweep.simulate import run_case
 from ftsweep.store.caselog import CaseLog
 from ftsweep.store.storage import Place

@@ -18,7 +18,7 @@ import numpy as np
 
 from ftsweep import registry
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
-from ftsweep.engine.spec import CaseError
+from ftsweep.engine.case import CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.store import caselog, cube
 from ftsweep.store.cube import CubeError

@@ -29,8 +29,8 @@ from pydantic import (
 )
 
 from ftsweep import registry
+from ftsweep.engine.case import Case, Resolution
 from ftsweep.engine.contract import Axis
-from ftsweep.engine.spec import Case, Resolution
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError, Strict
 

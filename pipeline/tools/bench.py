@@ -13,9 +13,9 @@ import platform
 import time
 from typing import Any
 
+from ftsweep.engine.case import Case, Resolution, program_request
 from ftsweep.engine.lines import LineCache
 from ftsweep.engine.simulator import STAGE_TIMERS
-from ftsweep.engine.spec import Case, Resolution, program_request
 from ftsweep.inputs import catalogs
 from ftsweep.simulate import run_case
 from ftsweep.version import __version__

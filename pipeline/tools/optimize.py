@@ -27,7 +27,7 @@ import numpy as np
 import xarray as xr
 
 from ftsweep import registry
-from ftsweep.engine.spec import Case, CaseError, Resolution, program_request
+from ftsweep.engine.case import Case, CaseError, Resolution, program_request
 from ftsweep.inputs import catalogs
 from ftsweep.simulate import run_case
 from ftsweep.store import cube
@@ -306,12 +306,12 @@ def _seeded(
 ) -> tuple[float, float, Any]:
     """The point count, aspect ratio and record the point-count search starts from: a log scan
     of nine aspect ratios at ``start_points`` refined around the best (``scan``), or the
-    layout :func:`ftsweep.kinds.table.estimate.seed_layout` predicts for the tolerance, refined
+    layout :func:`ftsweep.kinds.table.sweep_estimate.seed_layout` predicts for the tolerance, refined
     (``estimate``)."""
     lo, hi = _aspect_range(opt.layout)
     cap = float(opt.capacity)
     if seed == "estimate":
-        from ftsweep.kinds.table.estimate import seed_layout
+        from ftsweep.kinds.table.sweep_estimate import seed_layout
         from ftsweep.stages.estimate import cusp_nm
 
         cut = catalogs.entry("cutting", opt.cutting, opt.folder)
@@ -345,8 +345,9 @@ def optimize(
     """Find the smallest layout meeting ``tolerance_nm``; returns the answer and the log.
 
     ``seed``: ``scan`` starts with a log scan of nine aspect ratios at ``start_points``;
-    ``estimate`` starts at the point count and aspect ratio :func:`ftsweep.kinds.table.estimate.seed_layout`
-    predicts for the tolerance (no simulation), refined from there.
+    ``estimate`` starts at the point count and aspect ratio
+    :func:`ftsweep.kinds.table.sweep_estimate.seed_layout` predicts for the tolerance (no
+    simulation), refined from there.
     """
     if seed not in ("scan", "estimate"):
         raise ValueError(f"unknown seed {seed!r}; expected 'scan' or 'estimate'")

@@ -16,9 +16,9 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep.engine import result
+from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.contract import Axis, Planning, ProgramKind
 from ftsweep.engine.planning import compensator
-from ftsweep.engine.spec import Case, CaseError
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.dpath.request import DPathRequest

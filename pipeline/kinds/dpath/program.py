@@ -24,9 +24,9 @@ from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
+from ftsweep.engine.case import CaseError
 from ftsweep.engine.record import non_finite, simulated
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
-from ftsweep.engine.spec import CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.stages import compensation, dpath, dpath_motion, envelope, kinematics
 

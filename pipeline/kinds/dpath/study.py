@@ -19,8 +19,8 @@ from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 
+from ftsweep.engine.case import Case, Resolution, program_request
 from ftsweep.engine.planning import ResolvedCase
-from ftsweep.engine.spec import Case, Resolution, program_request
 from ftsweep.engine.threads import current as current_threads
 from ftsweep.kinds.dpath import kind as dpath_kind
 from ftsweep.kinds.dpath import program as dprog

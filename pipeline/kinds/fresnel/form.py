@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from ftsweep.engine.case import CaseError
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
-from ftsweep.engine.spec import CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.stages import dpath_motion, envelope, kinematics, metrics
 from ftsweep.stages import fresnel as ff

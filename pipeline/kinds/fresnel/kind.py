@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ftsweep.engine import result
+from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.contract import Axis, Planning, ProgramKind
-from ftsweep.engine.spec import Case, CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.fresnel.request import FRESNEL_FIELDS, FresnelRequest
 

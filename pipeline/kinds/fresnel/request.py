@@ -6,7 +6,7 @@ from typing import Any, Literal, Optional
 
 from pydantic import Field, PositiveFloat, model_serializer
 
-from ftsweep.engine.spec import Request
+from ftsweep.engine.case import Request
 
 
 class FresnelRequest(Request):

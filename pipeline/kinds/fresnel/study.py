@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Optional
 
 import numpy as np
 
-from ftsweep.engine.spec import Case, CaseError
+from ftsweep.engine.case import Case, CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel.request import FresnelRequest

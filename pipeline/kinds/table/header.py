@@ -25,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from ftsweep.engine.case import Case
 from ftsweep.engine.planning import control_table
-from ftsweep.engine.spec import Case
 from ftsweep.exports.files import (
     ExportError,
     FileFormat,

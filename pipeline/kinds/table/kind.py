@@ -11,10 +11,10 @@ from typing import Any
 import numpy as np
 
 from ftsweep.engine import result
+from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.contract import Axis, Planning, ProgramKind
 from ftsweep.engine.cost import angular_samples
 from ftsweep.engine.lines import LineSimulation
-from ftsweep.engine.spec import Case, CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.table.layout import build_layout
 from ftsweep.kinds.table.request import TableRequest
@@ -151,7 +151,7 @@ def _file_format() -> Any:
 
 
 def _estimate(spec: Any, folder: Any) -> Any:
-    from ftsweep.kinds.table.estimate import estimate_sweep
+    from ftsweep.kinds.table.sweep_estimate import estimate_sweep
 
     return estimate_sweep(spec, folder)
 

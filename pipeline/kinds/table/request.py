@@ -6,7 +6,7 @@ from typing import Literal, Optional
 
 from pydantic import PositiveFloat, model_validator
 
-from ftsweep.engine.spec import Request
+from ftsweep.engine.case import Request
 
 
 class TableRequest(Request):

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ftsweep.engine.spec import program_request
+from ftsweep.engine.case import program_request
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.table.layout import build_layout
 from ftsweep.stages import estimate as est

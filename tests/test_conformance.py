@@ -86,6 +86,31 @@ class KindTests:
         assert record["layout"] == self.kind
         assert abs(record["pv_nm"] - record["predicted_pv_nm"]) <= record["pv_tolerance_nm"]
 
+    def test_the_same_case_exported_twice_is_the_same_file(self, cube, tmp_path, monkeypatch):
+        """Exports at two different times: the exported file is the same, byte for byte (its
+        sidecar differs in its time stamp alone), and both verify."""
+        import itertools
+        import time
+
+        _, out, folder = cube
+        clock = itertools.count(1_700_000_000, 3600)
+        monkeypatch.setattr(time, "strftime", lambda fmt, t=None: time.asctime(time.gmtime(next(clock))))
+        path, env = tmp_path / f"again{self.suffix}", {"FTSWEEP_CATALOGS": str(folder)}
+        files, sidecars = [], []
+        for _ in range(2):
+            args = ["export", str(out), "--case", "0", "-o", str(path), "--force"]
+            res = CliRunner().invoke(main, args, env=env)
+            assert res.exit_code == 0, res.output
+            files.append(path.read_bytes())
+            sidecars.append(json.loads(path.with_suffix(".json").read_text()))
+        assert files[0] == files[1]
+        assert sidecars[0]["created"] != sidecars[1]["created"]
+        assert {k: v for k, v in sidecars[0].items() if k != "created"} == {
+            k: v for k, v in sidecars[1].items() if k != "created"
+        }
+        res = CliRunner().invoke(main, ["verify", str(path), "--json"], env=env)
+        assert res.exit_code == 0, res.output
+
     def test_select_and_report_read_its_cube(self, cube, tmp_path):
         _, out, folder = cube
         env = {"FTSWEEP_CATALOGS": str(folder)}

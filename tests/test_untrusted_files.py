@@ -132,7 +132,7 @@ def forge_program(path: Path, edit) -> None:  # type: ignore[no-untyped-def]
     side.write_text(json.dumps(meta, indent=2))
 
 
-INJECTED = "2026-01-01T00:00:00+0000 */\n#\tdefine FTS_H\n#\tdefine FTS_PITCH0 7.63\n/*"
+INJECTED = "ftsweep 0.0.0 a forged o */\n#\tdefine FTS_H\n#\tdefine FTS_PITCH0 7.63\n/*"
 
 
 def c_macros(header: Path) -> dict[str, str]:
@@ -149,12 +149,12 @@ def c_macros(header: Path) -> dict[str, str]:
 def test_free_text_in_the_sidecar_cannot_rewrite_the_header(copies):
     header = copies["fts"]
     good_pitch = c_macros(header)["FTS_PITCH0"]
-    forge_header_from_sidecar(header, lambda m: m.update(created=INJECTED))
+    forge_header_from_sidecar(header, lambda m: m.update(generator=INJECTED))
     # the attack is real: C reads the injected pitch and skips the real definitions
     assert c_macros(header)["FTS_PITCH0"] == "7.63" != good_pitch
     with pytest.raises(ExportError, match="line 13: a conditional other than the include guard"):
         verify(header)  # C's reading of the header refuses it
-    with pytest.raises(ExportError, match=r"fts.json: fts.json.created holds '\*' at character 26"):
+    with pytest.raises(ExportError, match=r"fts.json: fts.json.generator holds '\*' at character 26"):
         read_sidecar(header)  # and the sidecar's text is refused where it enters, on its own
 
 
@@ -299,9 +299,9 @@ def test_mutated_headers_are_refused_whenever_c_would_read_other_values(
 # ------------------------------------------------------------------ programs
 def test_a_line_end_in_the_sidecar_never_becomes_a_motion_line(copies):
     program = copies["prog"]
-    forge_program(program, lambda m: m.update(created=m["created"] + "\r0.000 0.5 -0.1"))
+    forge_program(program, lambda m: m.update(generator=m["generator"] + "\r0.000 0.5 -0.1"))
     assert b"\r0.000 0.5 -0.1\n" in program.read_bytes()  # a CR-splitting controller runs this line
-    with pytest.raises(ExportError, match="carriage return|created holds"):
+    with pytest.raises(ExportError, match="carriage return|generator holds"):
         verify(program)
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import time
 import zlib
 from collections.abc import Callable
@@ -38,12 +39,17 @@ from ftsweep.store.io import (
     write_texts_atomic,
 )
 
+# the export's time stamp: provenance beside the file, not part of what the machine runs, so
+# the same case exported twice gives the same file, byte for byte (a signature covers it)
+STAMP_FIELDS = ("created",)
+
 
 def sidecar_digest(sidecar: dict[str, Any], text_fields: tuple[str, ...] = ("crc32", "header_sha256")) -> str:
     """SHA-256 of a sidecar's content without the fields that depend on the exported text
-    (``text_fields``: for a header ``crc32`` and ``header_sha256``): the header's
-    ``SIDECAR_SHA256`` macro (a program's ``# sidecar:`` line) holds it."""
-    core = {k: v for k, v in sidecar.items() if k not in text_fields}
+    (``text_fields``: for a header ``crc32`` and ``header_sha256``) and without its time stamp
+    (:data:`STAMP_FIELDS`): the header's ``SIDECAR_SHA256`` macro (a program's ``# sidecar:``
+    line) holds it."""
+    core = {k: v for k, v in sidecar.items() if k not in text_fields and k not in STAMP_FIELDS}
     text = dumps_json(core, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
@@ -209,8 +215,15 @@ class DataLines:
 
 
 def now() -> str:
-    """The local time an export is stamped with (ISO 8601 with its UTC offset)."""
-    return time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    """The time an export's sidecar is stamped with (ISO 8601 with its UTC offset): the
+    local time, or ``SOURCE_DATE_EPOCH`` [s since 1970, UTC] where set (the reproducible-builds
+    convention), which makes the sidecar reproducible too. The exported file holds no time."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    if epoch is None:
+        return time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    if not epoch.strip().isdigit():
+        raise ExportError(f"SOURCE_DATE_EPOCH={epoch[:40]!r} is not a whole number of seconds since 1970")
+    return time.strftime("%Y-%m-%dT%H:%M:%S+0000", time.gmtime(int(epoch)))
 
 
 def closing_lines(side_name: str, meta: dict[str, Any]) -> list[str]:

@@ -99,7 +99,7 @@ def spiral_document(
     unit = {"angle": "points/rev", "arc": "um of path", "chord": "um chord budget"}[rule]
     head = [
         f"{MAGIC} (linear interpolation of X and Z in C between consecutive lines)",
-        f"# generator: {generator}; created {created}",
+        f"# generator: {generator}",
         f"# surface: {case.surface}; compensation: {case.compensation}",
         f"# tool: nose radius {rcase.nose_radius_um:.6g} um; feed {rcase.feed_um:.9g} um/rev; "
         f"spindle {specs[2].spindle_rpm:g} rpm",
@@ -231,7 +231,7 @@ def dpath_document(
     meta = case_meta("dpath", case, specs, chosen, extra, (created, generator), path.n_points, own)
     head = [
         f"{D_MAGIC} (X, Z and C move linearly in time between consecutive lines)",
-        f"# generator: {generator}; created {created}",
+        f"# generator: {generator}",
         f"# surface: {case.surface}; compensation: {case.compensation}; machine: {case.machine}",
         f"# zone: {g.length_um / 1e3:.6g} x {g.width_um / 1e3:.6g} mm, centre {g.centre_um / 1e3:.6g} mm off-axis; "  # noqa: E501
         f"{g.zones} zone(s) per revolution",

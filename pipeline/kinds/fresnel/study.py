@@ -6,7 +6,6 @@ adaptive timesteps), plot it ([2] figs. 10, 12, 13) and export it as position-ti
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, Optional
@@ -373,7 +372,7 @@ def document(
     }
     head = [
         f"{F_MAGIC} (C, X, Y, Z move linearly in time between consecutive lines)",
-        f"# generator: {generator}; created {created}",
+        f"# generator: {generator}",
         f"# surface: {inp.surface}, Fresnel facets of {inp.facet_height_um:g} um ({s['n_facets']}); "
         f"machine: {inp.machine}",
         f"# path: quasi-spiral, {s['n_turns']} turns of {s['points_per_turn']} points, "
@@ -393,7 +392,7 @@ def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, A
     refused (nothing written) if any line leaves the machine's limits."""
     from ftsweep.exports import files
 
-    created = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    created = files.now()
     head, lines, meta = document(s, inp, created, f"ftsweep {__version__}")
     data = lines.printed  # as the machine reads the lines
     reason = lines_reason(data, fp.limits_of(s["_specs"][1], inp.machine))
@@ -494,7 +493,7 @@ def case_document(
     meta = case_meta("fresnel", case, specs, chosen, extra, (created, generator), prog.n_points, own)
     head = [
         f"{F_MAGIC} (C, X, Y, Z move linearly in time between consecutive lines)",
-        f"# generator: {generator}; created {created}",
+        f"# generator: {generator}",
         f"# surface: {case.surface}, Fresnel facets of {fplan.facet_height_um:g} um ({fplan.path.n_facets}); "
         f"machine: {case.machine}",
         f"# path: quasi-spiral, {fplan.path.n_turns} turns of {fplan.path.points_per_turn} points, feed "

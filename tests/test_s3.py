@@ -275,3 +275,53 @@ def test_a_writer_paused_past_its_lease_writes_no_block_after_the_takeover(s3, s
     clean = tmp_path / "clean.zarr"
     run_sweep(str(spec), clean, scheduler="synchronous", catalog_folder=catalog_dir)
     xr.testing.assert_equal(_data(url), _data(clean))
+
+
+def test_the_readme_cluster_example_runs_with_workers_that_lack_the_endpoint(
+    s3, s3_env, tmp_path, catalog_dir
+):
+    """FSSPEC_S3_ENDPOINT_URL set where `ftsweep sweep` runs, an external scheduler and two
+    workers started without it (their own credentials only): the endpoint travels with the
+    tasks and every case is done. Workers without credentials are refused before any task
+    runs, in one line that says what is missing."""
+    from clusters import external_cluster
+
+    spec = _spec(tmp_path)
+    base = {k: v for k, v in os.environ.items() if not k.startswith(("FSSPEC_", "AWS_"))}
+    base["FTSWEEP_CATALOGS"] = str(catalog_dir)
+    creds = {k: s3_env[k] for k in ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY", "AWS_DEFAULT_REGION")}
+    driver = {**base, **s3_env}
+    for n, worker_env in ((0, {**base, **creds}), (1, base)):
+        with external_cluster(tmp_path, worker_env) as cluster:
+            for _ in range(2):
+                cluster.add_worker(cwd=tmp_path)
+            cluster.wait_for_workers(2)
+            url = f"{s3}/readme{n}.zarr"
+            cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", url, "--scheduler", cluster.address]
+            run = subprocess.run(cmd, env=driver, capture_output=True, text=True, timeout=600)
+        if n == 0:
+            assert run.returncode == 0, run.stderr[-2000:]
+            assert done_count(place(url)) == 6
+        else:
+            assert run.returncode == 1, run.stderr[-2000:]
+            assert "cannot reach the cube" in run.stderr and "NoCredentialsError" in run.stderr
+            assert run.stderr.strip().splitlines()[-1].startswith("Error: ")
+
+
+def test_what_the_driver_resolves_travels_and_credentials_stay(s3, s3_env, monkeypatch):
+    import fsspec
+
+    from ftsweep.store.storage import with_configured
+
+    monkeypatch.setitem(
+        fsspec.config.conf, "s3", {"endpoint_url": "http://here:1", "secret": "s", "key": "k"}
+    )
+    monkeypatch.setenv("AWS_REGION", "eu-west-3")
+    given = place("s3://b/c.zarr", {"endpoint_url": "http://given:2", "token": "t"})
+    assert with_configured(given).options == {
+        "endpoint_url": "http://given:2",  # explicit options win
+        "token": "t",  # and explicit credentials travel
+        "client_kwargs": {"region_name": "eu-west-3"},
+    }
+    assert with_configured(place("s3://b/c.zarr")).options["endpoint_url"] == "http://here:1"
+    assert with_configured(place("/tmp/c.zarr")).options == {}

@@ -8,7 +8,9 @@ import time
 import numpy as np
 import pytest
 import xarray as xr
+from click.testing import CliRunner
 
+from ftsweep.cli.main import main
 from ftsweep.store import caselog, cube
 from ftsweep.store.lock import Lease, LockError
 from ftsweep.store.storage import StorageError, parse_options, place
@@ -157,3 +159,29 @@ def test_a_bad_worker_log_is_moved_aside_and_its_case_computed_again(
     assert len(kept) == 1 and not caselog.place(out).listing(caselog.LOG)
     again = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
     assert again.done == 0 and again.skipped == 4  # never fails over and over on one file
+
+
+@pytest.mark.parametrize(
+    "url, words",
+    [
+        ("gs://bucket/c.zarr", "not gs://"),
+        ("abfs://box/c.zarr", "not abfs://"),
+        ("memory://c.zarr", "cannot reach"),
+    ],
+)
+def test_a_cube_a_sweep_cannot_write_is_a_usage_error(url, words, tmp_path, catalog_dir):
+    """Refused before anything runs, with exit 2 (a usage error: a scheduler must not retry),
+    saying why: stores without a writer's lock, and memory:// with worker processes."""
+    spec = tmp_path / "s.yaml"
+    spec.write_text("surface: small_sine\naxes: {points: [8000], aspect: [2.0]}\n")
+    res = CliRunner().invoke(
+        main, ["sweep", str(spec), "--out", url], env={"FTSWEEP_CATALOGS": str(catalog_dir)}
+    )
+    assert res.exit_code == 2, res.output
+    assert words in res.output and "--out" in res.output
+    ok = CliRunner().invoke(
+        main,
+        ["sweep", str(spec), "--out", "memory://ok.zarr", "--scheduler", "synchronous"],
+        env={"FTSWEEP_CATALOGS": str(catalog_dir)},
+    )
+    assert ok.exit_code == 0, ok.output

@@ -4,6 +4,7 @@ and an end-of-run summary."""
 from __future__ import annotations
 
 import math
+import os
 import signal
 import sys
 import time
@@ -26,8 +27,9 @@ EXIT_DONE, EXIT_INCOMPLETE, EXIT_LOCKED = 0, 1, 75
 @click.option(
     "--out",
     metavar="PATH|URL",
-    help="Cube to write: a Zarr folder, or an fsspec URL (s3://bucket/c.zarr, gs://, abfs://, "
-    "memory://) that every worker reaches. Default: outputs/<sweep>.zarr.",
+    help="Cube to write: a Zarr folder every worker sees, or s3://bucket/c.zarr (the endpoint, "
+    "region and fsspec options this machine has travel to the workers), or memory:// with "
+    "--scheduler synchronous. Default: outputs/<sweep>.zarr.",
 )
 @click.option(
     "--scheduler",
@@ -119,10 +121,13 @@ def sweep(
         name, spec = load_sweep(sweep_name)
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
+    where = None if out is None else cube_place(out, storage_options)
+    if where is not None:
+        _check_destination(where, scheduler)
     click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
     report = _run(
         sweep_name,
-        None if out is None else cube_place(out, storage_options),
+        where,
         scheduler,
         workers,
         restart,
@@ -136,6 +141,17 @@ def sweep(
     counts = _print_sweep_summary(report)
     if counts["pending"] or counts["failed"]:
         sys.exit(EXIT_INCOMPLETE)
+
+
+def _check_destination(where: Any, scheduler: Optional[str]) -> None:
+    """A cube the sweep cannot write is a usage error (exit 2), refused before anything runs."""
+    from ftsweep.store.storage import StorageError
+    from ftsweep.sweeps.run import check_destination
+
+    try:
+        check_destination(where, scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None)
+    except StorageError as exc:
+        raise click.BadParameter(str(exc), param_hint="--out") from None
 
 
 def _run(*args: Any, **kwargs: Any) -> Any:

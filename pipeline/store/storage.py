@@ -5,8 +5,13 @@ need: read, replace atomically, create only if absent, list, remove.
 Storage options come from the usual places: the protocol's own (AWS_* variables and
 ``~/.aws`` for s3fs, ...), fsspec's configuration (``~/.config/fsspec/*.json`` and
 ``FSSPEC_<PROTOCOL>_<OPTION>`` variables, e.g. ``FSSPEC_S3_ENDPOINT_URL``), and options given
-explicitly (``--storage-option KEY=VALUE``), which win. Explicit options travel with a
-sweep's tasks to its workers; the others are each machine's own.
+explicitly (``--storage-option KEY=VALUE``), which win. What the driver resolves travels with
+a sweep's tasks to its workers (:func:`with_configured`: the endpoint, the region, fsspec's
+configured options), credentials only when given explicitly: workers otherwise use their own.
+
+Cubes are written where a writer's lock can be built (:data:`WRITABLE`): a folder, ``s3://``
+(conditional writes) and ``memory://`` within one process; ``gs://`` and ``abfs://`` are read
+but not written (their fsspec drivers expose no conditional write to build the lease on).
 """
 
 from __future__ import annotations
@@ -26,6 +31,15 @@ _MEMORY_SWAP = threading.Lock()
 
 class StorageError(ValueError):
     """A location cannot be used as asked; the message says what to do."""
+
+
+# the protocols a sweep may write a cube to (a lock file, or a lease by conditional writes)
+WRITABLE = ("file", "local", "s3", "s3a", "memory")
+# option names that carry secrets: they travel to workers only when the user passed them
+CREDENTIALS = frozenset(
+    {"key", "secret", "token", "password", "session_token", "account_key", "sas_token",
+     "client_secret", "connection_string", "credentials", "anon_credentials"}
+)  # fmt: skip
 
 
 def is_url(text: Union[str, Path]) -> bool:
@@ -270,3 +284,50 @@ def parse_options(pairs: tuple[str, ...]) -> dict[str, Any]:
         except ValueError:
             options[key] = value
     return options
+
+
+def check_writable(where: Place) -> None:
+    """Refuse, naming why, a place a sweep cannot write: a protocol without a writer's lock."""
+    if where.protocol not in WRITABLE:
+        raise StorageError(
+            f"ftsweep writes cubes to a folder, s3:// or memory://, not {where.protocol}:// (its fsspec "
+            "driver offers no conditional write to build a writer's lock on); write it to a folder or "
+            "s3:// and copy it"
+        )
+
+
+def with_configured(where: Place) -> Place:
+    """``where`` with what this process resolves for its protocol added to its options, so
+    that workers elsewhere reach the same store: fsspec's configuration (files and
+    ``FSSPEC_<PROTOCOL>_<OPTION>`` variables) and, for s3, the endpoint of
+    ``AWS_ENDPOINT_URL_S3``/``AWS_ENDPOINT_URL`` and the region of ``AWS_REGION``/
+    ``AWS_DEFAULT_REGION``. Explicit options win; credentials are never added (a worker uses
+    its own unless they were passed explicitly)."""
+    if where.local or where.protocol == "memory":
+        return where
+    import fsspec.config
+
+    found = dict(fsspec.config.conf.get(where.protocol, {}))
+    if where.protocol in ("s3", "s3a"):
+        endpoint = os.environ.get("AWS_ENDPOINT_URL_S3") or os.environ.get("AWS_ENDPOINT_URL")
+        region = os.environ.get("AWS_REGION") or os.environ.get("AWS_DEFAULT_REGION")
+        if endpoint and "endpoint_url" not in found:
+            found["endpoint_url"] = endpoint
+        if region:
+            kwargs = dict(found.get("client_kwargs") or {})
+            kwargs.setdefault("region_name", region)
+            found["client_kwargs"] = kwargs
+    shared = {k: v for k, v in found.items() if k not in CREDENTIALS}
+    return Place(where.url, json.dumps({**shared, **where.options}, sort_keys=True))
+
+
+def reach_error(where: Place) -> Optional[str]:
+    """None when this process reaches the cube at ``where`` (it exists and can be listed);
+    else what went wrong, in one line. A worker runs it before any task is sent."""
+    try:
+        fs, path = where.fs()
+        if not fs.exists(path):
+            return f"{where.url} does not exist from this worker"
+    except Exception as exc:  # any driver's error: it is reported, not raised on the worker
+        return f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"
+    return None

@@ -282,6 +282,7 @@ def execute(
             return
         if on_cluster is not None:
             on_cluster(got)
+        _check_reach(client, spec, scheduler)
         if warm is not None:
             client.run(warm)
         _run_distributed(client, groups, spec, (task, on_error), on_result, worker_wait_s)
@@ -312,11 +313,37 @@ def _cluster_of(client: Any, scheduler: Optional[str], wait_s: float) -> Cluster
             "worker's environment"
         )
     threads = client.nthreads()
-    return Cluster(workers=len(threads), threads=sum(threads.values()), dashboard=_dashboard(client))
+    return Cluster(
+        workers=len(threads), threads=sum(threads.values()), dashboard=_dashboard(client, scheduler)
+    )
 
 
-def _dashboard(client: Any) -> Optional[str]:
-    """The dashboard's address, or None when the scheduler runs none (bokeh not installed)."""
+def _check_reach(client: Any, spec: TaskSpec, scheduler: Optional[str]) -> None:
+    """One worker opens the cube before any task is sent: a worker that cannot reach it (an
+    endpoint or credentials it lacks, a folder it does not see) stops the run in one line."""
+    from ftsweep.store.storage import Place, reach_error
+
+    try:
+        answer = client.submit(reach_error, Place(spec.cube, spec.storage_options), pure=False).result(
+            timeout=CONNECT_TIMEOUT_S
+        )
+    except Exception as exc:  # the probe itself could not run or answer in time
+        answer = f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"
+    if answer:
+        raise ExecutorError(
+            f"a worker of {scheduler or 'the local cluster'} cannot reach the cube {spec.cube} ({answer}); "
+            "pass the store's options with --storage-option KEY=VALUE (they travel to the workers, "
+            "credentials too), or give the workers the configuration this machine has"
+        )
+
+
+def _dashboard(client: Any, scheduler: Optional[str] = None) -> Optional[str]:
+    """The dashboard's address, or None when the scheduler runs none, or when the local
+    cluster's would only say that Dask needs bokeh (not installed here)."""
+    import importlib.util
+
+    if scheduler is None and importlib.util.find_spec("bokeh") is None:
+        return None
     try:
         link = client.dashboard_link
     except (KeyError, AttributeError):  # no "dashboard" among the scheduler's services

@@ -23,7 +23,7 @@ from ftsweep.inputs import catalogs
 from ftsweep.store import caselog, cube
 from ftsweep.store.cube import CubeError
 from ftsweep.store.lock import Lease, LeaseLost, cube_lock
-from ftsweep.store.storage import PathLike, Place, place
+from ftsweep.store.storage import PathLike, Place, StorageError, check_writable, place, with_configured
 from ftsweep.sweeps import grow
 from ftsweep.sweeps.executor import Cluster, TaskSpec, execute, run_task, warm_up
 from ftsweep.sweeps.spec import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
@@ -249,6 +249,8 @@ def run_sweep(
     # workers may run in another folder (an external scheduler's): they get absolute paths
     out = place(out if out is not None else default_cube_path(name), storage_options)
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    check_destination(out, scheduler)
+    out = with_configured(out)  # what this process resolved reaches the workers too
     workers = 1 if scheduler == "synchronous" else (workers or default_workers())
     with cube_lock(out, command=f"ftsweep sweep {name_or_path}") as lease:
         return _run_locked(
@@ -260,6 +262,17 @@ def run_sweep(
             (retry_failed, prune),
             catalog_folder,
             (progress, announce, lease),
+        )
+
+
+def check_destination(out: Place, scheduler: Optional[str]) -> None:
+    """Refuse before anything runs a cube a sweep cannot write (:func:`check_writable`), and a
+    ``memory://`` cube with worker processes, which cannot see this process's memory."""
+    check_writable(out)
+    if out.protocol == "memory" and scheduler != "synchronous":
+        raise StorageError(
+            f"{out.url} lives in this process's memory, which the cluster's worker processes cannot "
+            "reach; run with --scheduler synchronous, or write the cube to a folder or s3://"
         )
 
 

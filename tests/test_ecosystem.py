@@ -83,15 +83,20 @@ def test_every_accessor_result_carries_units_pint_reads(cubes, kind):
     optimum = ds.ftsweep.optimum().pint.quantify()
     assert optimum.pint.units == pint.Unit(ds["aspect"].attrs["units"])
     assert optimum.pint.units == pint.Unit("um/deg" if kind == "ring" else "1")
-    # best() is a plain dict (JSON like `ftsweep select --json`): a value named after a cube
-    # variable is that variable's value, so the name's unit suffix must be the variable's unit
+    # best() is a selection of the cube: its dimensions kept (length 1), coordinates and units
+    # intact, so units libraries read it as they read the cube; a variable's unit suffix is
+    # its unit
     best = ds.ftsweep.best(budget_points=20000)
+    assert dict(best.sizes) == dict.fromkeys(ds["status"].dims, 1)
+    assert best["points"].attrs == ds["points"].attrs and best.pint.quantify()[
+        "pv_nm"
+    ].pint.units == pint.Unit("nm")
     suffixes = {"nm": "nm", "um": "um", "deg": "deg"}
     checked = 0
-    for key in best:
-        suffix = key.rsplit("_", 1)[-1]
-        if key in ds and suffix in suffixes:
-            assert pint.Unit(ds[key].attrs["units"]) == pint.Unit(suffixes[suffix]), key
+    for key in best.data_vars:
+        suffix = str(key).rsplit("_", 1)[-1]
+        if suffix in suffixes and "units" in best[key].attrs:
+            assert pint.Unit(best[key].attrs["units"]) == pint.Unit(suffixes[suffix]), key
             checked += 1
     assert checked >= 6
 
@@ -99,7 +104,7 @@ def test_every_accessor_result_carries_units_pint_reads(cubes, kind):
 def test_import_ftsweep_registers_the_accessor(cubes):
     code = (
         "import sys, xarray as xr, ftsweep; ds = xr.open_zarr(sys.argv[1]); "
-        "print(ds.ftsweep.best(budget_points=20000)['dtheta_deg'])"
+        "print(ds.ftsweep.best(budget_points=20000)['dtheta_deg'].item())"
     )
     out = subprocess.run([sys.executable, "-c", code, str(cubes["ring"])], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr

@@ -95,7 +95,7 @@ def test_summary_optimum_and_select_agree(mixed_cube):
     found = [r for r in summary if r["index"] is not None]
     best = choose(ds, budget_points=int(np.nanmax(ds["n_points"].values)))
     assert best["pv_nm"] == min(r["pv_nm"] for r in found)
-    assert ds.ftsweep.best(budget_points=10**6)["index"] == best["index"]
+    assert ds.ftsweep.best(budget_points=10**6).attrs["index"] == best["index"]
 
 
 def test_summary_never_names_a_case_select_refuses(mixed_cube):

@@ -57,7 +57,7 @@ def test_report_writes_every_figure_and_an_html_page(small_cube, tmp_path):
 def test_accessor_best_optimum_and_plots(small_cube):
     ds = xr.open_zarr(small_cube)
     best = ds.ftsweep.best(budget_points=16000)
-    assert best["pv_nm"] == pytest.approx(float(ds["pv_nm"].where(ds["n_points"] <= 16000).min()))
+    assert best["pv_nm"].item() == pytest.approx(float(ds["pv_nm"].where(ds["n_points"] <= 16000).min()))
     optimum = ds.ftsweep.optimum()
     assert set(optimum.values) <= set(ds["aspect"].values)
     for plot in (

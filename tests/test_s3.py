@@ -147,7 +147,9 @@ def test_a_sweep_into_s3_reads_back_like_a_local_one(s3, tmp_path, catalog_dir):
     ds = xr.open_zarr(url)  # what a notebook does: storage options from fsspec's configuration
     import ftsweep  # noqa: F401  (the accessor)
 
-    assert ds.ftsweep.best(budget_points=16000)["index"] == int(__import__("json").loads(sel.stdout)["index"])
+    assert ds.ftsweep.best(budget_points=16000).attrs["index"] == int(
+        __import__("json").loads(sel.stdout)["index"]
+    )
     # a program goes to a local file: a URL is refused, saying so
     refused = _cli(["export", url, "--budget-points", "16000", "-o", f"{s3}/best.h"], catalog_dir)
     assert refused.exit_code == 2 and "written to a local path" in refused.output

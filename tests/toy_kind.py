@@ -81,7 +81,7 @@ def _document(
         "case": case.model_dump(mode="json"),
         "catalog_entries": files.recorded_entries(specs),
     }
-    head = [f"{MAGIC} (bilinear in X and Y)", f"# created {created}", f"# points: {layout.n_points}"]
+    head = [f"{MAGIC} (bilinear in X and Y)", f"# points: {layout.n_points}"]
     return head, lines, meta
 
 

@@ -253,6 +253,7 @@ def verify(
 @click.command()
 @click.argument("cube_path", metavar="CUBE", type=CUBE)
 @click.option(
+    "-o",
     "--out",
     "out_dir",
     type=click.Path(file_okay=False),

@@ -304,7 +304,8 @@ def summary_text(r: dict[str, Any]) -> str:
             f"gouge        {r['gouge_points']:,} control points where the concave radius is below Rc"
         )
     lines.append(
-        f"time         {r['seconds']:.2f} s  (compensation {r['seconds_compensation']:.2f}, sampling "
+        f"time         {r['seconds']:.2f} s wall  (stages summed over the threads that ran them: "
+        f"compensation {r['seconds_compensation']:.2f}, sampling "
         f"{r['seconds_sampling']:.2f}, interpolation {r['seconds_interpolation']:.2f}, envelope "
         f"{r['seconds_envelope']:.2f}, metrics {r['seconds_metrics']:.2f})"
     )

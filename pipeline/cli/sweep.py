@@ -25,6 +25,7 @@ EXIT_DONE, EXIT_INCOMPLETE, EXIT_LOCKED = 0, 1, 75
 @click.command()
 @click.argument("sweep_name", metavar="NAME|PATH")
 @click.option(
+    "-o",
     "--out",
     metavar="PATH|URL",
     help="Cube to write: a Zarr folder every worker sees, or s3://bucket/c.zarr (the endpoint, "

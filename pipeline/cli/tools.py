@@ -39,6 +39,7 @@ from ftsweep.cli.common import COUNT, FINITE, POSITIVE, KindChoice, echo_json, f
 @click.option("--machine", default="fts-1m", show_default=True, help="Machine from catalogs/machines.yaml.")
 @click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
 @click.option(
+    "-o",
     "--out",
     type=click.Path(file_okay=False),
     help="Cube recording every evaluation (a folder, or an fsspec URL with storage options from "
@@ -237,6 +238,7 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
 @click.option("--case", "names", multiple=True, metavar="NAME", help="Only this case (repeatable).")
 @click.option("--repeat", type=int, default=1, show_default=True, help="Runs per case; the fastest counts.")
 @click.option(
+    "-o",
     "--json",
     "json_path",
     type=click.Path(dir_okay=False, writable=True),

@@ -76,6 +76,8 @@ class Axis:
     signed : its values may be zero or negative (given as a list, never a log range).
     dumped_unset : a sweep spec's dump writes it as null when unset, so that the hashes of
         specs written when it was the only program axis stay the same.
+    count : its values count things (points): a cube's coordinate holds them as integers
+        when they are whole.
     """
 
     name: str
@@ -83,6 +85,7 @@ class Axis:
     long_name: str
     signed: bool = False
     dumped_unset: bool = False
+    count: bool = False
 
 
 @dataclass(frozen=True)

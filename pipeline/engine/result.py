@@ -129,7 +129,7 @@ TAIL: tuple[Quantity, ...] = (
         "s",
         "machining time: the path at the spindle speed (spiral: plus the stops of the layers)",
     ),
-    *(_f(f"seconds_{stage}", "s", f"wall time of {stage}") for stage in STAGES),
+    *(_f(f"seconds_{stage}", "s", f"time of {stage}, summed over the case's threads") for stage in STAGES),
     _f("seconds", "s", "wall time of the case"),
 )
 TIMING = tuple(q.name for q in TAIL if q.name.startswith("seconds"))

@@ -37,7 +37,7 @@ import zarr
 from ftsweep import registry
 from ftsweep.engine import result
 from ftsweep.store.storage import PathLike, Place, place
-from ftsweep.sweeps.spec import SweepSpec, axis_attrs, coordinates
+from ftsweep.sweeps.spec import SweepSpec, axis_attrs, axis_counts, coordinates
 from ftsweep.version import __version__
 
 PENDING, DONE, FAILED, PRUNED = 0, 1, 2, 3
@@ -110,6 +110,14 @@ def case_variables(dims: tuple[str, ...], shape: tuple[int, ...], kind: str) -> 
     return data
 
 
+def counted(axis: str, values: np.ndarray, kind: str) -> np.ndarray:
+    """An axis of counts (target points, points per revolution, ...) as integers when every
+    value is whole, so a cube's ``points`` reads 950000, not 9.5e+05; else as given."""
+    if axis_counts(axis, kind) and values.dtype.kind == "f" and np.all(values == np.round(values)):
+        return values.astype(np.int64)
+    return values
+
+
 def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.Dataset:
     """The empty cube of a sweep: variables at fill values, status pending, provenance attrs."""
     coords = coordinates(spec)
@@ -117,7 +125,7 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
     shape = tuple(v.size for v in coords.values())
     assert spec.layout is not None
     data = case_variables(dims, shape, spec.layout)
-    coord_vars = {k: (k, v, axis_attrs(k, spec.layout)) for k, v in coords.items()}
+    coord_vars = {k: (k, counted(k, v, spec.layout), axis_attrs(k, spec.layout)) for k, v in coords.items()}
     bins = spec.resolution.error_map_bins
     if bins:
         from pydantic import TypeAdapter

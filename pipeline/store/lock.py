@@ -94,6 +94,17 @@ def _describe(holder: dict[str, Any] | None) -> str:
     )
 
 
+def _what_to_do(holder: dict[str, Any] | None, path: Path) -> str:
+    """What the refused writer can do: a holder on this machine is alive (a dead one's lock is
+    taken over), so wait; one on another host cannot be checked from here."""
+    if holder is not None and holder.get("host") not in (None, socket.gethostname()):
+        return (
+            f"this machine cannot see {holder.get('host')}'s processes: wait for it to finish, or, if "
+            f"that process is gone, delete {path}"
+        )
+    return "wait for it to finish (a lock whose process has ended is taken over by the next run)"
+
+
 def acquire(cube: PathLike, command: str = "") -> Path:
     """Create the lock of a local ``cube`` or raise :class:`LockError`; a stale lock is
     replaced."""
@@ -126,8 +137,7 @@ def acquire(cube: PathLike, command: str = "") -> Path:
                 grave.unlink(missing_ok=True)
                 continue
             raise LockError(
-                f"{cube} is being written by {_describe(holder)}; wait for it to finish, or, if "
-                f"that process is gone, delete {path}"
+                f"{cube} is being written by {_describe(holder)}; {_what_to_do(holder, path)}"
             ) from None
         with os.fdopen(fd, "w") as fh:
             fh.write(json.dumps(record))

@@ -284,6 +284,11 @@ def axis_order(spec: SweepSpec) -> tuple[str, ...]:
     return (*own, *COMMON_AXES)
 
 
+def axis_counts(axis: str, kind: str) -> bool:
+    """Whether a sweep axis of kind ``kind`` counts things (its values whole numbers)."""
+    return axis not in COMMON_ATTRS and {a.name: a for a in registry.kind(kind).axes}[axis].count
+
+
 def axis_attrs(axis: str, kind: str) -> dict[str, str]:
     """Units (parseable by pint/UDUNITS) and long name of a sweep axis of kind ``kind``."""
     if axis in COMMON_ATTRS:

@@ -62,14 +62,17 @@ class FtsweepAccessor:
 
         return query.best_pv_over_aspect(self._ds)
 
-    def best(
-        self, budget_points: Optional[int] = None, tolerance_nm: Optional[float] = None
-    ) -> dict[str, Any]:
-        """The selection of ``ftsweep select``: best under a budget, or fewest points meeting a
-        tolerance (see :mod:`ftsweep.tools.select`)."""
+    def best(self, budget_points: Optional[int] = None, tolerance_nm: Optional[float] = None) -> xr.Dataset:
+        """The case ``ftsweep select`` chooses (best under a budget, or fewest points meeting
+        a tolerance; :mod:`ftsweep.tools.select`) as a selection of the cube: every variable,
+        every dimension kept at length 1 with its coordinate (units and names intact), its
+        flat index in ``attrs["index"]``. ``best(...).pv_nm.item()`` is the P-V [nm]."""
+        from ftsweep.tools import query
         from ftsweep.tools.select import choose
 
-        return choose(self._ds, budget_points=budget_points, tolerance_nm=tolerance_nm)
+        index = int(choose(self._ds, budget_points=budget_points, tolerance_nm=tolerance_nm)["index"])
+        at = {d: [i] for d, i in query.position(self._ds, index).items()}
+        return self._ds.isel(at).compute().assign_attrs(index=index)
 
     def _need_aspect(self, what: str) -> None:
         if "aspect" not in self._ds.dims:
@@ -199,7 +202,7 @@ class FtsweepAccessor:
                 "or use `ftsweep report`, which re-simulates the chosen case"
             )
         if index is None:
-            index = self.best(budget_points=int(self._ds["n_points"].max()))["index"]
+            index = self.best(budget_points=int(self._ds["n_points"].max())).attrs["index"]
         from ftsweep.tools import query
 
         emap = self._ds[var].isel(query.position(self._ds, index))

@@ -257,7 +257,7 @@ DPATH = ProgramKind(
     request=DPathRequest,
     axes=(
         Axis("spacing_um", "um", "spacing between the D path's cuts"),
-        Axis("points_per_cut", "1", "points on every cut of the D path"),
+        Axis("points_per_cut", "1", "points on every cut of the D path", count=True),
     ),
     fields=FIELDS,
     pitches=("dphi_deg", "ds_um"),

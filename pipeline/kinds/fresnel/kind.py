@@ -183,7 +183,7 @@ FRESNEL = ProgramKind(
     request=FresnelRequest,
     axes=(
         Axis("facet_height_um", "um", "height of every Fresnel facet"),
-        Axis("points_per_turn", "1", "control points on every turn of the quasi-spiral"),
+        Axis("points_per_turn", "1", "control points on every turn of the quasi-spiral", count=True),
         Axis("deviation_deg", "deg", "rake face turned from the cutting direction", signed=True),
     ),
     fields=FIELDS,

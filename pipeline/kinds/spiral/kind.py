@@ -246,7 +246,7 @@ SPIRAL = ProgramKind(
     noun="spiral program",
     request=SpiralRequest,
     axes=(
-        Axis("points_per_rev", "1", "points per revolution of the spiral"),
+        Axis("points_per_rev", "1", "points per revolution of the spiral", count=True),
         Axis("arc_um", "um", "path length between the spiral's points"),
         Axis("chord_um", "um", "chord-error budget of the spiral"),
         Axis("residual_um", "um", "residual (cusp) budget that sets the feed"),

@@ -158,7 +158,7 @@ def _estimate(spec: Any, folder: Any) -> Any:
 
 PITCHES = {"ring": ("drho_um", "dtheta_deg"), "mesh": ("dx_um", "dy_um")}
 AXES = ("points", "aspect")
-POINTS = Axis("points", "1", "target number of control points", dumped_unset=True)
+POINTS = Axis("points", "1", "target number of control points", dumped_unset=True, count=True)
 
 
 def _aspect(units: str, long_name: str) -> Axis:

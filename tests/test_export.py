@@ -202,7 +202,7 @@ def test_existing_header_needs_force(ring_cube, tmp_path):
 def test_failed_and_infeasible_cases_are_refused(tmp_path, catalog_dir, monkeypatch):
     monkeypatch.setenv("FTSWEEP_CATALOGS", str(catalog_dir))
     failing = make_cube(tmp_path, catalog_dir, RING.replace("[15000, 30000]", "[15000, 5000000]"), "over")
-    with pytest.raises(SelectError, match="failed in the sweep.*over the capacity"):
+    with pytest.raises(SelectError, match="refused in the sweep.*over the capacity"):
         export(failing, tmp_path / "a.h", index=3)
     sluggish = make_cube(tmp_path, catalog_dir, RING + "machine: sluggish-fts\n", "sluggish")
     ds = open_cube(sluggish)

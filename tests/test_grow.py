@@ -127,10 +127,11 @@ def test_a_scheduled_run_whose_spec_grows_and_its_exit_statuses(tmp_path, catalo
     with cube_lock(out, "a long run"):
         locked = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert locked.returncode == 75 and "is being written by" in locked.stderr
-    # failures: 1 (a point count over the machine's capacity fails its cases)
+    # cases that cannot run: 1 (a point count over the machine's capacity is refused, not run)
     _spec(tmp_path, "[8000, 20000, 40000, 3000000]")
     failing = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
-    assert failing.returncode == 1 and "2 failed" in failing.stdout
+    assert failing.returncode == 1 and "0 failed, 2 refused" in failing.stdout
+    assert "refused      2 case(s), e.g." in failing.stdout and "capacity" in failing.stdout
     r = CliRunner().invoke(main, ["sweep", str(spec), "--out", str(out), "--workers", "0"], env=env)
     assert r.exit_code == 2  # a usage error
     assert np.sum(cube.read_status(out) == cube.DONE) == 6

@@ -64,7 +64,9 @@ picky-fts:
 
 def test_the_cube_holds_infeasible_and_over_capacity_cases(mixed_cube):
     ds = open_cube(mixed_cube)
-    assert np.all(ds["status"].values[2] == cube.FAILED)  # over the capacity
+    # over the controller's capacity: refused before they were sent, saying why
+    assert np.all(ds["status"].values[2] == cube.REFUSED)
+    assert all("capacity" in str(m) for m in ds["message"].values[2])
     row = ds.isel(points=1)
     raw_best = int(np.nanargmin(row["pv_nm"].values))
     assert int(row["feasible"].values[raw_best]) == 0  # the lowest P-V is infeasible
@@ -108,3 +110,10 @@ def test_summary_never_names_a_case_select_refuses(mixed_cube):
     assert best_per_point_count(mixed_cube)[1]["pv_nm"] > float(
         raw.min()
     )  # the infeasible one is passed over
+
+
+def test_a_count_axis_is_an_integer_coordinate(mixed_cube):
+    """Target point counts read as the integers they are (950000, not 9.5e+05), with their units."""
+    ds = xr.open_zarr(mixed_cube)
+    assert ds["points"].dtype.kind == "i" and ds["points"].values.tolist() == [8000, 20000, 60000]
+    assert ds["points"].attrs["units"] == "1" and ds["aspect"].dtype.kind == "f"

@@ -300,20 +300,22 @@ def holey(tmp_path, catalog_dir, monkeypatch):
     return catalog_dir
 
 
-def test_nan_off_the_test_grid_fails_the_case_and_nothing_is_exported(tmp_path, holey):
+def test_nan_off_the_test_grid_refuses_the_case_and_nothing_is_exported(tmp_path, holey):
     r = cli(["predict", "--surface", "holey", "--drho-um", "5", "--dtheta-deg", "2"], holey)
     assert_one_line_error(r, "not finite")
     assert "µm" in r.output  # names where
     spec = write(tmp_path, "holey.yaml", ONE_CASE.replace("small_sine", "holey"))
     out = tmp_path / "holey.zarr"
     report = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=holey)
-    assert report.failed == 1 and "not finite" in report.rows[0]["message"]
+    # the surface gives NaN off its test grid: every run of the case would, so it is refused
+    assert report.refused_now == 1 and report.rows[0]["status"] == "refused"
+    assert "not finite" in report.rows[0]["message"]
     ds = open_cube(out)
-    assert int(ds["status"].values.ravel()[0]) == cube.FAILED
+    assert int(ds["status"].values.ravel()[0]) == cube.REFUSED
     with pytest.raises(SelectError, match="no computed, feasible case"):
         choose(ds, budget_points=10**6)
     header = tmp_path / "holey.h"
-    assert_one_line_error(cli(["export", str(out), "--case", "0", "-o", str(header)], holey), "failed")
+    assert_one_line_error(cli(["export", str(out), "--case", "0", "-o", str(header)], holey), "refused")
     assert_one_line_error(cli(["select", str(out), "--budget-points", "100000"], holey), "no computed")
     assert not header.exists() and not header.with_suffix(".json").exists()
 
@@ -596,12 +598,12 @@ missing_map:
 
 @pytest.fixture(scope="module")
 def nothing_done(tmp_path_factory, module_catalog_dir):
-    """A cube whose only case failed (over the capacity of the tiny controller)."""
+    """A cube whose only case was refused (over the capacity of the tiny controller)."""
     folder = tmp_path_factory.mktemp("nothing")
     spec = write(folder, "n.yaml", ONE_CASE.replace("[15000]", "[500000]") + "machine: tiny-fts\n")
     out = folder / "nothing.zarr"
     run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=module_catalog_dir)
-    assert int(cube.read_status(out).ravel()[0]) == cube.FAILED
+    assert int(cube.read_status(out).ravel()[0]) == cube.REFUSED
     return out
 
 

@@ -229,33 +229,69 @@ def test_torn_status_chunk_reads_as_pending(reference_cube, tmp_path, catalog_di
     assert np.all(cube.read_status(reference_cube) == cube.DONE)
 
 
-def test_failed_case_is_recorded_and_the_rest_run_on(tmp_path, catalog_dir):
+def test_refused_cases_are_listed_not_run_and_never_retried(tmp_path, catalog_dir):
+    """Cases over the controller's capacity are refused before any is sent (their reason
+    recorded, nothing computed); neither a re-run nor --retry-failed runs them again."""
     text = SMALL.replace("points: [8000, 20000]", "points: [8000, 3000000]")  # over capacity
-    out = tmp_path / "fail.zarr"
+    out = tmp_path / "refused.zarr"
     report = run_sweep(
         str(write_spec(tmp_path, text)), out, scheduler="synchronous", catalog_folder=catalog_dir
     )
-    assert report.done == 3 and report.failed == 3
+    assert report.done == 3 and report.failed == 0 and len(report.refused) == 3
+    assert report.queued == 3 and len(report.rows) == 3  # the refused ones were never sent
     ds = xr.open_zarr(out)
     assert np.all(ds["status"].values[0] == cube.DONE)
-    assert np.all(ds["status"].values[1] == cube.FAILED)
+    assert np.all(ds["status"].values[1] == cube.REFUSED)
     assert all("over the capacity" in m for m in ds["message"].values[1])
     assert np.all(np.isnan(ds["pv_nm"].values[1]))
-    # failed cases are not retried by a plain re-run, but are with retry_failed
+    for retry in (False, True):
+        again = run_sweep(
+            str(write_spec(tmp_path, text)),
+            out,
+            scheduler="synchronous",
+            catalog_folder=catalog_dir,
+            retry_failed=retry,
+        )
+        assert again.rows == [] and again.refused == {}
+    best = best_per_point_count(out)
+    assert best[0]["pv_nm"] is not None and best[1]["pv_nm"] is None
+
+
+def test_failed_case_is_recorded_and_the_rest_run_on(tmp_path, catalog_dir, monkeypatch):
+    """A case that breaks (not one its planning refuses) is recorded failed; a plain re-run
+    leaves it, --retry-failed runs it again."""
+    from ftsweep.sweeps import executor
+
+    real = executor.run_case
+
+    def flaky(case, *args, **kw):  # type: ignore[no-untyped-def]
+        if case.layout.points == 20000:
+            raise MemoryError("the worker ran out of memory")
+        return real(case, *args, **kw)
+
+    monkeypatch.setattr(executor, "run_case", flaky)
+    out = tmp_path / "fail.zarr"
+    report = run_sweep(
+        str(write_spec(tmp_path, SMALL)), out, scheduler="synchronous", catalog_folder=catalog_dir
+    )
+    assert report.done == 3 and report.failed == 3
+    ds = xr.open_zarr(out)
+    assert np.all(ds["status"].values[1] == cube.FAILED)
+    assert all("MemoryError" in m for m in ds["message"].values[1])
     again = run_sweep(
-        str(write_spec(tmp_path, text)), out, scheduler="synchronous", catalog_folder=catalog_dir
+        str(write_spec(tmp_path, SMALL)), out, scheduler="synchronous", catalog_folder=catalog_dir
     )
     assert again.rows == []
+    monkeypatch.setattr(executor, "run_case", real)
     retry = run_sweep(
-        str(write_spec(tmp_path, text)),
+        str(write_spec(tmp_path, SMALL)),
         out,
         scheduler="synchronous",
         catalog_folder=catalog_dir,
         retry_failed=True,
     )
-    assert len(retry.rows) == 3
-    best = best_per_point_count(out)
-    assert best[0]["pv_nm"] is not None and best[1]["pv_nm"] is None
+    assert len(retry.rows) == 3 and retry.done == 3
+    assert all(row["pv_nm"] is not None for row in best_per_point_count(out))
 
 
 def test_existing_cube_is_never_silently_overwritten(tmp_path, catalog_dir, reference_cube):

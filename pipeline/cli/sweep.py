@@ -140,7 +140,7 @@ def sweep(
     )
     _report_problems(report)
     counts = _print_sweep_summary(report)
-    if counts["pending"] or counts["failed"]:
+    if counts["pending"] or counts["failed"] or counts["refused"]:
         sys.exit(EXIT_INCOMPLETE)
 
 
@@ -251,6 +251,18 @@ def _eta_text(report: Any, rows_all: list[dict], remaining: int) -> str:
     return f"ETA {per_case * remaining / max(report.workers, 1):6.0f} s"
 
 
+def _print_refused(report: Any) -> None:
+    """This run's refused cases, grouped by reason (the numbers in a reason set aside)."""
+    import re
+
+    reasons = [*report.refused.values(), *(r["message"] for r in report.rows if r["status"] == "refused")]
+    groups: dict[str, list[str]] = {}
+    for reason in reasons:
+        groups.setdefault(re.sub(r"[\d.,]+", "#", reason), []).append(reason)
+    for same in sorted(groups.values(), key=len, reverse=True)[:5]:
+        click.echo(f"refused      {len(same)} case(s), e.g. {one_line(same[0], 300)}")
+
+
 def _print_sweep_summary(report: Any) -> dict[str, int]:
     """The end-of-run summary on stdout: counts, throughput, failures, best per point count."""
     from ftsweep.sweeps.run import best_per_point_count, cube_counts
@@ -261,8 +273,8 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
         click.echo(f"spec         {report.note}")
     click.echo(
         f"cases        {report.total} in all: {counts['done']} done, {counts['failed']} failed, "
-        f"{counts['pending']} pending, {counts['pruned']} pruned ({report.skipped} were done already, "
-        f"{len(report.rows)} run now)"
+        f"{counts['refused']} refused, {counts['pending']} pending, {counts['pruned']} pruned "
+        f"({report.skipped} were done already, {len(report.rows)} run now)"
     )
     busy = sum(r.get("seconds", 0.0) for r in report.rows)
     rate = len(report.rows) / report.wall_s if report.wall_s > 0 else float("nan")
@@ -277,8 +289,9 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
             f"shared lines {sum(1 for n in reused if n)} case(s) reused {sum(reused):,} batches of lines "
             "computed by an earlier case on the same worker"
         )
-    for r in [r for r in report.rows if r["status"] != "done"][:5]:
+    for r in [r for r in report.rows if r["status"] == "failed"][:5]:
         click.echo(f"failed       {_case_label(r)}: {one_line(r['message'], 300)}")
+    _print_refused(report)
     click.echo("best P-V per point count (among the cases select may choose):")
     rows = best_per_point_count(report.cube)
     # tables are swept over aspect ratios; a path program's best is named by its case

@@ -108,7 +108,9 @@ class ProgramKind:
     plan : ``(Planning) -> (program, extra fields of the resolved case)``.
     record_fields : ``(resolved case) -> its fields of the record`` (:mod:`ftsweep.engine.result`).
     cost : ``(case, surface spec, catalog folder, feed [µm/rev]) -> (relative cost, key of
-        shared lines)``, handed the feed its ``feed`` set.
+        shared lines)``, handed the feed its ``feed`` set; raises CaseError for a case its
+        planning would refuse where that is known without planning (over the controller's
+        capacity, a layout the aperture rules out), so a sweep refuses it before it is sent.
     simulation : ``(Simulating, timer) -> Simulation``: how the one simulator samples its
         program (:mod:`ftsweep.engine.lines` for spindle programs, tables and spirals).
     pitch_text : ``(record) -> text`` of a program's pitches or mean steps, with units.

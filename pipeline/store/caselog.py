@@ -127,8 +127,8 @@ def checked_cases(data: bytes, shapes: dict[str, tuple[int, ...]]) -> list[tuple
             by_case[int(flat)][var] = value.item() if value.ndim == 0 else value
     for flat, case_values in by_case.items():
         status = case_values.get("status")
-        if status not in (cube.DONE, cube.FAILED):
-            raise BadLog(f"case {flat}: status {status!r} is not one a worker writes (done, failed)")
+        if status not in (cube.DONE, cube.FAILED, cube.REFUSED):
+            raise BadLog(f"case {flat}: status {status!r} is not one a worker writes (done, failed, refused)")
         if status == cube.DONE:
             _check_done(flat, case_values)
     return list(by_case.items())
@@ -161,6 +161,9 @@ class CaseLog:
 
     def write_failed(self, flat: int, message: str, run_id: str) -> None:
         self._add(flat, cube.ended_values(cube.FAILED, message, run_id))
+
+    def write_refused(self, flat: int, message: str, run_id: str) -> None:
+        self._add(flat, cube.ended_values(cube.REFUSED, message, run_id))
 
 
 def _latest(keys: list[str]) -> dict[str, tuple[int, list[str]]]:

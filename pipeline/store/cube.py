@@ -40,8 +40,10 @@ from ftsweep.store.storage import PathLike, Place, place
 from ftsweep.sweeps.spec import SweepSpec, axis_attrs, axis_counts, coordinates
 from ftsweep.version import __version__
 
-PENDING, DONE, FAILED, PRUNED = 0, 1, 2, 3
-STATUS_MEANINGS = "pending done failed pruned"
+# refused: planning refuses the case as specified (over the machine's capacity, a layout the
+# aperture rules out, ...): known before it is sent, or raised by its planning; never retried
+PENDING, DONE, FAILED, PRUNED, REFUSED = 0, 1, 2, 3, 4
+STATUS_MEANINGS = "pending done failed pruned refused"
 
 # cubes written before the variables were named per layout kind and carried parseable units
 SCHEMA_VERSION = 2
@@ -101,7 +103,7 @@ def case_variables(dims: tuple[str, ...], shape: tuple[int, ...], kind: str) -> 
         np.zeros(shape, dtype="int8"),
         {
             "long_name": "case status",
-            "flag_values": [PENDING, DONE, FAILED, PRUNED],
+            "flag_values": [PENDING, DONE, FAILED, PRUNED, REFUSED],
             "flag_meanings": STATUS_MEANINGS,
         },
     )
@@ -362,6 +364,10 @@ class CubeWriter:
     def write_failed(self, flat: int, message: str, run_id: str) -> None:
         """Record a case that raised, with its message."""
         self.write([(flat, ended_values(FAILED, message, run_id))])
+
+    def write_refused(self, flat: int, message: str, run_id: str) -> None:
+        """Record a case its planning refuses as specified, with the reason."""
+        self.write([(flat, ended_values(REFUSED, message, run_id))])
 
 
 # ----------------------------------------------------------------------------- integrity

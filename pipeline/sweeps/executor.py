@@ -28,7 +28,7 @@ import dask
 from ftsweep import registry
 from ftsweep.defaults import WORKER_WAIT_S
 from ftsweep.engine import allocator, startup
-from ftsweep.engine.case import Case
+from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.lines import LineCache
 from ftsweep.simulate import run_case
 from ftsweep.store.caselog import CaseLog
@@ -173,16 +173,12 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
         try:
             record = run_case(case, folder, lines=cache if index in sharing else None)
         except Exception as exc:  # a failing case is recorded and the rest run on
-            message = f"{type(exc).__name__}: {exc}"
-            writer.write_failed(index, message, run_id)
-            out.append(
-                {
-                    "index": index,
-                    "status": "failed",
-                    "message": message,
-                    "request": case.layout.label(),
-                }
-            )
+            # a case its planning refuses fails the same way every time: refused, not retried
+            refused = isinstance(exc, CaseError)
+            message = str(exc) if refused else f"{type(exc).__name__}: {exc}"
+            (writer.write_refused if refused else writer.write_failed)(index, message, run_id)
+            status = "refused" if refused else "failed"
+            out.append({"index": index, "status": status, "message": message, "request": case.layout.label()})
             publish(task, out[-1])
             continue
         writer.write_done(index, record, run_id)
@@ -244,6 +240,7 @@ def execute(
     on_error: Optional[ErrorFn] = None,
     on_cluster: Optional[Callable[[Cluster], None]] = None,
     worker_wait_s: float = WORKER_WAIT_S,
+    check_reach: bool = False,
 ) -> None:
     """Run ``task(spec, group)`` for every group of case indices and call ``on_result`` with
     each task's summaries as it finishes.
@@ -260,6 +257,7 @@ def execute(
     on_cluster : told the cluster's workers, threads and dashboard once connected.
     worker_wait_s : seconds to wait for a first worker, and for one to come back once every
         worker left; then :class:`ExecutorError` (finished cases are written already).
+    check_reach : one worker opens ``spec.cube`` before any task is sent (a sweep's run).
     """
     on_error = on_error or task_failure
     if scheduler == SYNCHRONOUS:
@@ -282,7 +280,8 @@ def execute(
             return
         if on_cluster is not None:
             on_cluster(got)
-        _check_reach(client, spec, scheduler)
+        if check_reach:
+            _check_reach(client, spec, scheduler)
         if warm is not None:
             client.run(warm)
         _run_distributed(client, groups, spec, (task, on_error), on_result, worker_wait_s)

@@ -26,7 +26,7 @@ from ftsweep.store.lock import Lease, LeaseLost, cube_lock
 from ftsweep.store.storage import PathLike, Place, StorageError, check_writable, place, with_configured
 from ftsweep.sweeps import grow
 from ftsweep.sweeps.executor import Cluster, TaskSpec, execute, run_task, warm_up
-from ftsweep.sweeps.spec import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks
+from ftsweep.sweeps.spec import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks, refusal
 
 
 def default_cube_path(name: str) -> Path:
@@ -88,6 +88,7 @@ class SweepReport:
     tasks: int = 0
     damaged: dict[int, str] = field(default_factory=dict)
     pruned: int = 0  # cases left out by --prune (this run's and earlier ones kept)
+    refused: dict[int, str] = field(default_factory=dict)  # refused before dispatch, by reason
     queued: int = 0  # cases this run computes
     note: str = ""  # what the run changed in the cube beyond its cases (it grew)
 
@@ -97,7 +98,12 @@ class SweepReport:
 
     @property
     def failed(self) -> int:
-        return sum(r["status"] != "done" for r in self.rows)
+        return sum(r["status"] == "failed" for r in self.rows)
+
+    @property
+    def refused_now(self) -> int:
+        """Cases refused this run: before dispatch, and by their planning on a worker."""
+        return len(self.refused) + sum(r["status"] == "refused" for r in self.rows)
 
 
 # what a run tells as it goes: each finished case (progress), the cluster once connected
@@ -362,6 +368,7 @@ def _compute(
         warm=functools.partial(warm_up, spec.surface, spec.layout, folder),
         on_cluster=on_cluster,
         worker_wait_s=where.worker_wait_s,
+        check_reach=True,
     )
 
 
@@ -396,6 +403,8 @@ def _run_locked(
         cube=out, total=n_cases(spec), skipped=already, workers=where.workers, damaged=damaged
     )
     report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
+    report.refused = refuse_cases(spec, out, pending, run_id, catalog_folder)
+    pending = [i for i in pending if i not in report.refused]
     report.queued = len(pending)
     report.note = note
     start = time.perf_counter()
@@ -410,6 +419,22 @@ def _run_locked(
             pass
     report.wall_s = time.perf_counter() - start
     return report
+
+
+def refuse_cases(
+    spec: SweepSpec, out: Place, pending: list[int], run_id: str, catalog_folder: Optional[Path]
+) -> dict[int, str]:
+    """Mark ``refused`` the pending cases whose planning would refuse them, known before any
+    is sent (:func:`ftsweep.sweeps.spec.refusal`: over the controller's capacity, a layout the
+    aperture rules out, ...), with the reason; returns them by index."""
+    refused = {}
+    writer = cube.CubeWriter(out)
+    for index in pending:
+        reason = refusal(spec, index, catalog_folder)
+        if reason is not None:
+            writer.write_refused(index, reason, run_id)
+            refused[index] = reason
+    return refused
 
 
 def prune_cases(
@@ -481,13 +506,14 @@ def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
 
 
 def cube_counts(path: PathLike) -> dict[str, int]:
-    """Cases pending, done, failed and pruned in a cube."""
+    """Cases pending, done, failed, pruned and refused in a cube."""
     status = cube.read_status(path)
     return {
         "pending": int(np.sum(status == cube.PENDING)),
         "done": int(np.sum(status == cube.DONE)),
         "failed": int(np.sum(status == cube.FAILED)),
         "pruned": int(np.sum(status == cube.PRUNED)),
+        "refused": int(np.sum(status == cube.REFUSED)),
     }
 
 

@@ -29,7 +29,7 @@ from pydantic import (
 )
 
 from ftsweep import registry
-from ftsweep.engine.case import Case, Resolution
+from ftsweep.engine.case import Case, CaseError, Resolution
 from ftsweep.engine.contract import Axis
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError, Strict
@@ -405,15 +405,32 @@ def case_lines(spec: SweepSpec, index: int, catalog_folder: Path | None = None) 
     the key of the lines it simulates: cases of one sweep with equal keys (angular samples,
     feed, nose radius) share their layout-independent work (:class:`ftsweep.engine.lines.LineCache`).
     A case whose layout cannot be built costs 0 and shares nothing (key None)."""
+    try:
+        return _cost(spec, index, catalog_folder)
+    except ValueError:  # refused when it runs, with the reason; it costs nothing to plan
+        return 0.0, None
+
+
+def _cost(spec: SweepSpec, index: int, catalog_folder: Path | None) -> tuple[float, Any]:
     case = case_at(spec, index)
     surface = catalogs.entry("surfaces", case.surface, catalog_folder)
     kind = registry.kind(case.layout.kind)
     cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
-    try:
-        feed = kind.feed(case, cutting, case.nose_radius_of(cutting), surface, catalog_folder, None)
-    except ValueError:  # refused when it runs, with the reason; it costs nothing to plan
-        return 0.0, None
+    feed = kind.feed(case, cutting, case.nose_radius_of(cutting), surface, catalog_folder, None)
     return kind.cost(case, surface, catalog_folder, feed)
+
+
+def refusal(spec: SweepSpec, index: int, catalog_folder: Path | None = None) -> Optional[str]:
+    """Why the case at ``index`` cannot run as specified, where that is known before it is
+    planned (its feed, a layout the aperture rules out, over the controller's capacity: its
+    kind's ``feed`` and ``cost``); None when nothing refuses it yet."""
+    try:
+        _cost(spec, index, catalog_folder)
+    except CaseError as exc:
+        return str(exc)
+    except ValueError as exc:  # a feed or spec rule refuses it
+        return str(exc)
+    return None
 
 
 def plan_tasks(

@@ -169,6 +169,8 @@ def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[s
             (
                 "cases",
                 f"{int(ds['status'].size)} ({int((ds['status'] == cube.DONE).sum())} done, "
+                f"{int((ds['status'] == cube.FAILED).sum())} failed, "
+                f"{int((ds['status'] == cube.REFUSED).sum())} refused, "
                 f"{int((ds['status'] == cube.PRUNED).sum())} pruned)",
             ),
         )

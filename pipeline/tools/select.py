@@ -125,6 +125,11 @@ def check_exportable(ds: xr.Dataset, flat: int) -> None:
         raise SelectError(
             f"case {flat} failed in the sweep ({point['message'].values}); it cannot be exported"
         )
+    if status == cube.REFUSED:
+        raise SelectError(
+            f"case {flat} was refused in the sweep as specified ({point['message'].values}); it was "
+            "never computed and cannot be exported"
+        )
     if status == cube.PRUNED:
         raise SelectError(
             f"case {flat} was pruned by the estimate ({point['message'].values}); run the sweep "

@@ -148,14 +148,19 @@ def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, p
     return case.feed_of(cutting)
 
 
+def _check_estimate(case: Case, surface_spec: Any, feed_um: float, capacity: int) -> None:
+    """Refuse a spiral whose rule's estimated point count is over the controller's capacity."""
+    note = " (estimated: a tenth of the count the curvature bound allows)" if case.layout.chord_um else ""
+    estimate = spiral_points(case, surface_spec, feed_um)
+    check_capacity(case, "spiral program", estimate, capacity, note)
+
+
 def _plan(p: Planning) -> tuple[spiral.SpiralPath, dict[str, Any]]:
     """The points and commands, refused up front when the rule's estimated count is over the
     controller's capacity; the residual error the feed leaves."""
     t = time.perf_counter()
     case = p.case
-    note = " (estimated: a tenth of the count the curvature bound allows)" if case.layout.chord_um else ""
-    estimate = spiral_points(case, p.surface_spec, p.feed_um)
-    check_capacity(case, "spiral program", estimate, p.machine.capacity_points, note)
+    _check_estimate(case, p.surface_spec, p.feed_um, p.machine.capacity_points)
     path, extra = plan_spiral(
         case, p.surface_spec, p.surface, p.feed_um, p.nose_radius_um, p.gradient_bound, p.program
     )
@@ -185,7 +190,10 @@ def _record_fields(rcase: Any) -> dict[str, Any]:
 def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
     """A spiral's points (and with a chord budget its angular sampling) are only known once
     planned: its cost is its simulated nodes at the part's outer circumference, and its lines
-    are its own."""
+    are its own. Refused (CaseError) when the rule's estimated count is over the controller's
+    capacity, as its planning would refuse it."""
+    machine = catalogs.entry("machines", case.machine, catalog_folder)
+    _check_estimate(case, surface, feed, machine.capacity_points)
     rho0 = catalogs.aperture_of(surface).outer_radius_um
     return 3.0 * 2.0 * math.pi * rho0 * rho0 / feed, None
 

@@ -13,7 +13,7 @@ import numpy as np
 from ftsweep.engine import result
 from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.contract import Axis, Planning, ProgramKind
-from ftsweep.engine.cost import angular_samples
+from ftsweep.engine.cost import angular_samples, check_capacity
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.table.layout import build_layout
@@ -52,11 +52,14 @@ def _record_fields(rcase: Any) -> dict[str, Any]:
 def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
     """Control points plus simulated nodes; cases of equal angular samples, feed and nose
     radius simulate the same lines and share them (:class:`ftsweep.engine.lines.LineCache`). A case
-    whose layout cannot be built costs 0 and shares nothing."""
+    whose layout cannot be built, or holds more points than the machine's controller, is
+    refused (CaseError), as its planning would refuse it."""
     try:
         layout = build_layout(surface, case.layout)
-    except ValueError:
-        return 0.0, None
+    except ValueError as exc:
+        raise CaseError(f"layout: {exc}") from None
+    machine = catalogs.entry("machines", case.machine, catalog_folder)
+    check_capacity(case, NOUNS[case.layout.kind], layout.n_points, machine.capacity_points)
     rho0 = catalogs.aperture_of(surface).outer_radius_um
     cutting = catalogs.entry("cutting", case.cutting, catalog_folder)
     cells = _ring_cells if case.layout.kind == "ring" else _mesh_cells
@@ -157,6 +160,7 @@ def _estimate(spec: Any, folder: Any) -> Any:
 
 
 PITCHES = {"ring": ("drho_um", "dtheta_deg"), "mesh": ("dx_um", "dy_um")}
+NOUNS = {"ring": "ring layout", "mesh": "mesh layout"}
 AXES = ("points", "aspect")
 POINTS = Axis("points", "1", "target number of control points", dumped_unset=True, count=True)
 
@@ -167,7 +171,7 @@ def _aspect(units: str, long_name: str) -> Axis:
 
 RING = ProgramKind(
     name="ring",
-    noun="ring layout",
+    noun=NOUNS["ring"],
     request=TableRequest,
     axes=(POINTS, _aspect("um/deg", "target aspect ratio Δρ/Δθ of the pitches")),
     fields=(
@@ -202,7 +206,7 @@ RING = ProgramKind(
 MESH = dataclasses.replace(
     RING,
     name="mesh",
-    noun="mesh layout",
+    noun=NOUNS["mesh"],
     axes=(POINTS, _aspect("1", "target aspect ratio Δx/Δy of the pitches")),
     fields=(
         *result.TABLE,

@@ -4,6 +4,7 @@ a growth killed midway finishes on the next run; exit statuses a scheduler can a
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 
@@ -121,6 +122,17 @@ def test_a_scheduled_run_whose_spec_grows_and_its_exit_statuses(tmp_path, catalo
     assert night2.returncode == 0, night2.stderr
     assert "grown: points +1, aspect +0 values; 2 new case(s), 4 kept" in night2.stdout
     assert "(4 were done already, 2 run now)" in night2.stdout
+    status = subprocess.run(
+        [str(BIN / "ftsweep"), "status", str(out), "--json"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    found = json.loads(status.stdout)
+    assert status.returncode == 0 and found["complete"] and found["counts"]["done"] == 6
+    assert [g["added"] for g in found["grown"]] == ["points +1, aspect +0"]
+    assert found["last_run"]["cases"] == {"done": 2, "failed": 0, "refused": 0, "pruned": 0}
     # another run holds the lock: 75, try later
     from ftsweep.store.lock import cube_lock
 

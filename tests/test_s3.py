@@ -224,6 +224,28 @@ def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refuse
     assert 2 <= logged < 48, "the kill came too late to test a resume"
     refused = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
     assert refused.returncode == 75 and "lease" in refused.stderr  # the killed run's lease still runs
+    # status of the killed cube: its logged cases counted, incomplete, the dead run's lease held
+    status = subprocess.run(
+        [str(BIN / "ftsweep"), "status", url, "--json"], capture_output=True, text=True, env=env, timeout=120
+    )
+    found = json.loads(status.stdout)
+    assert status.returncode == 1 and not found["complete"], status.stderr
+    assert found["counts"]["done"] == logged and found["counts"]["pending"] == 48 - logged
+    assert found["writer"]["kind"] == "lease" and found["writer"]["expired"] is False
+    select = subprocess.run(
+        [str(BIN / "ftsweep"), "select", url, "--budget-points", "200000"],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    assert select.returncode == 1 and "incomplete" in select.stderr and "--allow-incomplete" in select.stderr
+    select = subprocess.run(
+        [str(BIN / "ftsweep"), "select", url, "--budget-points", "200000", "--allow-incomplete"],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    assert select.returncode == 0 and "note: the cube is incomplete" in select.stderr, select.stderr
     _wait_lease_out(f"{url}.lock")
     resumed = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
@@ -234,6 +256,8 @@ def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refuse
     run_sweep(str(spec), clean, scheduler="synchronous", catalog_folder=catalog_dir)
     xr.testing.assert_equal(_data(url), _data(clean))
     assert place(f"{url}.lock").exists() is False
+    done = subprocess.run([str(BIN / "ftsweep"), "status", url], capture_output=True, text=True, env=env)
+    assert done.returncode == 0 and "48 done, 0 pending" in done.stdout and "writer       none" in done.stdout
 
 
 def _block_tags(url: str) -> dict[str, str]:

@@ -74,6 +74,27 @@ class CubeLocation(click.ParamType):
 CUBE = CubeLocation()
 
 # storage options of a cube given as a URL; the usual places come first (fsspec's configuration)
+ALLOW_INCOMPLETE = click.option(
+    "--allow-incomplete",
+    is_flag=True,
+    help="Choose from a cube whose cases are not all computed (pending, failed or pruned ones "
+    "could change the choice); it is said on stderr.",
+)
+
+
+def guard_complete(ds: Any, allow: bool) -> None:
+    """Refuse a choice from an incomplete cube unless ``allow`` (then say how incomplete, on
+    stderr, in one line)."""
+    from ftsweep.tools.select import SelectError, check_complete
+
+    try:
+        note = check_complete(ds, allow)
+    except SelectError as exc:
+        raise click.ClickException(str(exc)) from None
+    if note is not None:
+        click.echo(f"note: {note}", err=True)
+
+
 STORAGE_OPTIONS = click.option(
     "--storage-option",
     "storage_options",

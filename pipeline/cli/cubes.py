@@ -11,6 +11,7 @@ from typing import Any, Optional
 import click
 
 from ftsweep.cli.common import (
+    ALLOW_INCOMPLETE,
     COUNT,
     CUBE,
     NON_NEGATIVE,
@@ -20,6 +21,7 @@ from ftsweep.cli.common import (
     TRUST_PLUGINS,
     cube_place,
     echo_json,
+    guard_complete,
     local_output,
     progress_done,
     stderr_progress,
@@ -77,12 +79,14 @@ def _selection_text(chosen: dict[str, Any]) -> str:
 @click.option("--budget-points", type=COUNT, help="Best aspect ratio at or under this many points.")
 @click.option("--tolerance-nm", type=POSITIVE, help="Fewest points whose P-V meets this tolerance [nm].")
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+@ALLOW_INCOMPLETE
 @STORAGE_OPTIONS
 def select(
     cube_path: str,
     budget_points: Optional[int],
     tolerance_nm: Optional[float],
     as_json: bool,
+    allow_incomplete: bool,
     storage_options: tuple[str, ...],
 ) -> None:
     """Choose the layout for production from a sweep's cube (a folder or a URL).
@@ -96,7 +100,9 @@ def select(
     from ftsweep.tools.select import SelectError, choose, open_cube
 
     try:
-        chosen = choose(open_cube(cube_place(cube_path, storage_options)), budget_points, tolerance_nm)
+        ds = open_cube(cube_place(cube_path, storage_options))
+        guard_complete(ds, allow_incomplete)
+        chosen = choose(ds, budget_points, tolerance_nm)
     except (SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     if as_json:
@@ -125,6 +131,7 @@ def select(
 @click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
 @SIGN_KEY
 @TRUST_PLUGINS
+@ALLOW_INCOMPLETE
 @STORAGE_OPTIONS
 def export(
     cube_path: str,
@@ -136,6 +143,7 @@ def export(
     force: bool,
     sign_key: Optional[str],
     trust_plugins: bool,
+    allow_incomplete: bool,
     storage_options: tuple[str, ...],
 ) -> None:
     """Export the chosen case of a cube: a ring or mesh table (layered or not) as a C header
@@ -153,12 +161,14 @@ def export(
     _one_criterion(budget_points=budget_points, tolerance_nm=tolerance_nm, case=index)
     from ftsweep.exports import export as exp
     from ftsweep.store.cube import CubeError
-    from ftsweep.tools.select import SelectError
+    from ftsweep.tools.select import SelectError, open_cube
 
     target = local_output(out, "the exported program")
     assert target is not None
     cube = cube_place(cube_path, storage_options)
     try:
+        if index is None:  # a case given by its index is the same case whatever else is computed
+            guard_complete(open_cube(cube), allow_incomplete)
         meta = exp.export(
             cube, target, budget_points, tolerance_nm, index, force, name, trust_plugins, sign_key
         )
@@ -274,6 +284,7 @@ def verify(
     help="Bins per side of the error map.",
 )
 @TRUST_PLUGINS
+@ALLOW_INCOMPLETE
 @STORAGE_OPTIONS
 def report(
     cube_path: str,
@@ -281,6 +292,7 @@ def report(
     index: Optional[int],
     map_bins: int,
     trust_plugins: bool,
+    allow_incomplete: bool,
     storage_options: tuple[str, ...],
 ) -> None:
     """Figures of a sweep's cube and one HTML page that shows them with its metadata.
@@ -292,8 +304,12 @@ def report(
     from ftsweep.engine.case import CaseError
     from ftsweep.store.cube import CubeError
     from ftsweep.tools.report import make_report
-    from ftsweep.tools.select import SelectError
+    from ftsweep.tools.select import SelectError, open_cube
 
+    try:
+        guard_complete(open_cube(cube_place(cube_path, storage_options)), allow_incomplete)
+    except (CubeError, SelectError) as exc:
+        raise click.ClickException(str(exc)) from None
     progress = stderr_progress("error map")
     click.echo("plotting the cube; re-simulating the chosen case for its error map ...", err=True)
     try:
@@ -340,6 +356,7 @@ def report(
     "simulating the tables' and spirals' rows again on the finest sampling among them.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object (the rows) on stdout.")
+@ALLOW_INCOMPLETE
 @STORAGE_OPTIONS
 def compare(
     cubes: tuple[str, ...],
@@ -347,6 +364,7 @@ def compare(
     allow_different: bool,
     as_recorded: bool,
     as_json: bool,
+    allow_incomplete: bool,
     storage_options: tuple[str, ...],
 ) -> None:
     """Compare program kinds on one part: tables (ring, mesh), spiral, D-path and Fresnel programs.
@@ -372,10 +390,12 @@ def compare(
     from ftsweep.store.cube import CubeError
     from ftsweep.store.io import save_figure
     from ftsweep.tools.compare import common_sampling, compare_rows, plot_compare
-    from ftsweep.tools.select import SelectError
+    from ftsweep.tools.select import SelectError, open_cube
 
     progress = stderr_progress("re-simulating", as_json)
     try:
+        for c in cubes:
+            guard_complete(open_cube(cube_place(c, storage_options)), allow_incomplete)
         rows, per_cube = compare_rows([cube_place(c, storage_options) for c in cubes], allow_different)
         n_theta = None if as_recorded else common_sampling(rows, progress=progress)
     except (SelectError, CubeError, CaseError) as exc:

@@ -22,6 +22,7 @@ from ftsweep.version import __version__
 COMMANDS = {
     "predict": ("ftsweep.cli.predict", "predict"),
     "sweep": ("ftsweep.cli.sweep", "sweep"),
+    "status": ("ftsweep.cli.status", "status"),
     "select": ("ftsweep.cli.cubes", "select"),
     "export": ("ftsweep.cli.cubes", "export"),
     "verify": ("ftsweep.cli.cubes", "verify"),

@@ -225,19 +225,39 @@ def pending_logs(where: PathLike) -> int:
     return len(_latest(place(where).listing(LOG)))
 
 
+def logged_cases(where: PathLike) -> list[tuple[int, cube.Values]]:
+    """The cases the logs hold, oldest run first, as the next merge would write them (read
+    only: for reading a cube a run is writing, or one a killed run left, from elsewhere)."""
+    at = place(where)
+    shapes = cube.variable_shapes(at)
+    found: list[tuple[int, cube.Values]] = []
+    for _, (_, keys) in sorted(_latest(at.listing(LOG)).items()):
+        try:
+            found.extend(checked_cases(at.read(keys[-1]), shapes))
+        except (FileNotFoundError, BadLog):  # replaced just now, or one the merge will reject
+            continue
+    return found
+
+
 def current_status(where: PathLike) -> np.ndarray:
     """Every case's status as the next merge will make it: the cube's, with what the logs
     hold laid over (read only; for watching a running sweep from another process)."""
     at = place(where)
     status = cube.read_status(at)
-    shapes = cube.variable_shapes(at)
     flat = status.reshape(-1)
-    for _, (_, keys) in sorted(_latest(at.listing(LOG)).items()):
-        try:
-            cases = checked_cases(at.read(keys[-1]), shapes)
-        except (FileNotFoundError, BadLog):  # replaced just now, or one the merge will reject
-            continue
-        for index, values in cases:
-            if "status" in values:
-                flat[index] = int(values["status"])
+    for index, values in logged_cases(at):
+        if "status" in values:
+            flat[index] = int(values["status"])
     return status
+
+
+def with_logged(ds: Any, where: PathLike) -> Any:
+    """A loaded cube ``ds`` with the cases its logs hold laid over, in memory (nothing is
+    written): what the cube will hold once they are merged."""
+    shape = ds["status"].shape
+    for index, values in logged_cases(where):
+        pos = np.unravel_index(index, shape)
+        for var, value in values.items():
+            if var in ds:
+                ds[var].values[pos] = value
+    return ds

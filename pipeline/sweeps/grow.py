@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from typing import Any, Optional
 
 import numpy as np
@@ -77,6 +78,11 @@ def grow(out: Place, spec: SweepSpec, name: str, plan: dict[str, Any]) -> None:
             values[index] = old[var].values
             new[var].values = values
     new.attrs["grown_from"] = old.attrs.get("sweep_spec_hash", "")
+    history = json.loads(old.attrs.get("growth_history", "[]"))
+    history.append(
+        {"at": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "added": describe(plan), "from": new.attrs["grown_from"]}
+    )
+    new.attrs["growth_history"] = json.dumps(history)
     new.attrs["created"] = old.attrs.get("created", new.attrs["created"])
     staging = out.sibling(STAGING)
     staging.remove_all()

@@ -21,6 +21,31 @@ class SelectError(ValueError):
     """Nothing can be selected as asked; the message says why."""
 
 
+def completeness(ds: xr.Dataset) -> Optional[str]:
+    """One line saying how incomplete a cube is where a choice from it could still change
+    (cases pending, failed or pruned, which a run computes), or None when none can: done,
+    refused and infeasible cases are final."""
+    status = np.asarray(ds["status"].values).ravel()
+    open_ = {
+        name: int(np.sum(status == value))
+        for name, value in (("pending", cube.PENDING), ("failed", cube.FAILED), ("pruned", cube.PRUNED))
+    }
+    if not any(open_.values()):
+        return None
+    done = int(np.sum(status == cube.DONE))
+    rest = ", ".join(f"{n} {name}" for name, n in open_.items() if n)
+    return f"the cube is incomplete: {done} of {status.size} cases done, {rest}; the choice could change"
+
+
+def check_complete(ds: xr.Dataset, allow: bool) -> Optional[str]:
+    """Refuse (:class:`SelectError`) to choose from an incomplete cube unless ``allow``;
+    returns the line that says how incomplete it is (None when complete)."""
+    note = completeness(ds)
+    if note is not None and not allow:
+        raise SelectError(f"{note}: run the sweep to finish it, or pass --allow-incomplete to choose anyway")
+    return note
+
+
 def open_cube(path: PathLike) -> xr.Dataset:
     """Open a cube (a path or URL) for reading and load it: checks it is an ftsweep cube and
     that every chunk can be read, naming the chunks that cannot (a cube is small: a few MB)."""
@@ -29,10 +54,14 @@ def open_cube(path: PathLike) -> xr.Dataset:
         raise cube.CubeError(f"no cube at {at}")
     cube.read_attrs(at)
     try:
-        return cube.open_dataset(at).load()
+        ds = cube.open_dataset(at).load()
     except Exception:  # codecs raise many types for a damaged chunk: name the files instead
         cube.check_readable(at)
         raise
+    from ftsweep.store import caselog
+
+    # cases a running (or killed) run logged but has not merged yet count as they will
+    return caselog.with_logged(ds, at)
 
 
 def select_budget(ds: xr.Dataset, budget_points: int) -> dict[str, Any]:

@@ -155,7 +155,7 @@ def test_external_dask_scheduler_and_workers_give_the_same_cube(tmp_path, catalo
     assert not (worker_dir / "outputs").exists()
     xr.testing.assert_equal(data_of(client_dir / "outputs" / "remote.zarr"), data_of(reference_cube))
     # the summary counts the cluster's workers, not this machine's cores
-    assert "2 worker(s), 2 thread(s)" in result.stderr and "with 2 worker(s)" in result.stdout
+    assert "2 worker(s), 2 thread(s)" in result.stderr and "on 2 worker(s), 2 thread(s)" in result.stdout
 
 
 # ----------------------------------------------------------------------------- crash safety

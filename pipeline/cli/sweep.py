@@ -3,12 +3,10 @@ and an end-of-run summary."""
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import sys
 import time
-from collections.abc import Callable
 from typing import Any, Optional
 
 import click
@@ -126,7 +124,13 @@ def sweep(
     if where is not None:
         _check_destination(where, scheduler)
     click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
+    started = time.perf_counter()
+    from ftsweep.engine.startup import kernels_cached
+
+    if not kernels_cached():
+        click.echo("compiling    numba's kernels: the first run on this machine (about 20 s) ...", err=True)
     report = _run(
+        SweepProgress(started),
         sweep_name,
         where,
         scheduler,
@@ -139,7 +143,7 @@ def sweep(
         worker_wait_s=worker_wait,
     )
     _report_problems(report)
-    counts = _print_sweep_summary(report)
+    counts = _print_sweep_summary(report, time.perf_counter() - started)
     if counts["pending"] or counts["failed"] or counts["refused"]:
         sys.exit(EXIT_INCOMPLETE)
 
@@ -155,17 +159,15 @@ def _check_destination(where: Any, scheduler: Optional[str]) -> None:
         raise click.BadParameter(str(exc), param_hint="--out") from None
 
 
-def _run(*args: Any, **kwargs: Any) -> Any:
-    """:func:`ftsweep.sweeps.run.run_sweep` with progress lines, its errors as one-line messages, and
+def _run(progress: SweepProgress, *args: Any, **kwargs: Any) -> Any:
+    """:func:`ftsweep.sweeps.run.run_sweep` with progress, its errors as one-line messages, and
     a word on stderr when a signal ends it (its lock is released on the way out)."""
     from ftsweep.store.lock import LockError
     from ftsweep.sweeps.executor import ExecutorError
     from ftsweep.sweeps.run import run_sweep
 
     try:
-        return run_sweep(
-            *args, progress=_sweep_progress(time.perf_counter()), announce=_announce_cluster, **kwargs
-        )
+        return run_sweep(*args, progress=progress, announce=_announce_cluster, **kwargs)
     except LockError as exc:  # another run writes the cube: a scheduler should try again later
         click.echo(f"Error: {exc}", err=True)
         sys.exit(EXIT_LOCKED)
@@ -179,6 +181,8 @@ def _run(*args: Any, **kwargs: Any) -> Any:
                 err=True,
             )
         raise
+    finally:
+        progress.close()
 
 
 def _announce_cluster(report: Any) -> None:
@@ -209,35 +213,60 @@ def _case_label(row: dict[str, Any]) -> str:
     return f"case {row['index']} ({row['request']})" if row.get("request") else f"case {row['index']}"
 
 
-# progress lines come as cases finish, at most one a second (a failure or the last case at once)
-PROGRESS_EVERY_S = 1.0
+class SweepProgress:
+    """A sweep's progress on stderr, on the command's clock (``started``, as the summary's
+    wall time): on a terminal one live bar (tqdm) with the cases done, failed, refused and
+    pending and the time left; in a log or pipe one line at most every
+    :data:`ftsweep.progress.LOG_INTERVAL_S` seconds, and the last."""
 
+    def __init__(self, started: float) -> None:
+        from ftsweep.progress import LOG_INTERVAL_S
 
-def _sweep_progress(started: float) -> Callable[[Any, list[dict]], None]:
-    """A progress line on stderr as cases finish (the first at once, then at most one per
-    :data:`PROGRESS_EVERY_S`): cases done, failures, time, ETA, last case."""
-    shown = [-math.inf]
+        self.started = started
+        self.tty = sys.stderr.isatty()
+        self.interval_s = LOG_INTERVAL_S
+        self.shown = 0.0  # the command's start: a first line after an interval, not at once
+        self.bar: Any = None
 
-    def progress(report: Any, rows: list[dict]) -> None:
-        total_now = report.queued
-        done = len(report.rows)
-        elapsed = time.perf_counter() - started
-        failed_now = any(r["status"] != "done" for r in rows)
-        if elapsed - shown[0] < PROGRESS_EVERY_S and done < total_now and not failed_now:
+    def __call__(self, report: Any, rows: list[dict]) -> None:
+        done, total = len(report.rows), report.queued
+        failed = sum(r["status"] == "failed" for r in report.rows)
+        state = f"{failed} failed, {report.refused_now} refused, {total - done} pending"
+        eta = _eta_text(report, rows_all=report.rows, remaining=total - done)
+        if self.tty:
+            self._draw(len(rows), total, f"{state}; {eta}")
             return
-        shown[0] = elapsed
-        eta = _eta_text(report, rows_all=report.rows, remaining=total_now - done)
+        elapsed = time.perf_counter() - self.started
+        if elapsed - self.shown < self.interval_s and done < total:
+            return
+        self.shown = elapsed
         last = rows[-1]
         what = f"{_case_label(last)}: " + (
             f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else one_line(last["message"], 300)
         )
-        click.echo(
-            f"[{done:>{len(str(total_now))}}/{total_now}] {report.failed} failed | {elapsed:6.1f} s, "
-            f"{eta} | {what}",
-            err=True,
-        )
+        width = len(str(total))
+        click.echo(f"[{done:>{width}}/{total}] {state} | {elapsed:6.1f} s, {eta} | {what}", err=True)
 
-    return progress
+    def _draw(self, new: int, total: int, postfix: str) -> None:
+        if self.bar is None:
+            import shutil
+
+            from tqdm import tqdm
+
+            # a terminal that reports no size (0 × 0, as a fresh pseudo-terminal) gets 100 × 24:
+            # tqdm would hide a bar below a screen of no rows
+            size = shutil.get_terminal_size((100, 24))
+            self.bar = tqdm(
+                total=total, file=sys.stderr, unit="case", desc="sweep", ncols=size.columns, nrows=size.lines
+            )
+        self.bar.update(new)
+        self.bar.set_postfix_str(postfix, refresh=True)
+
+    def close(self) -> None:
+        """End the bar (on a terminal), so the summary starts on its own line."""
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
 
 def _eta_text(report: Any, rows_all: list[dict], remaining: int) -> str:
@@ -263,8 +292,9 @@ def _print_refused(report: Any) -> None:
         click.echo(f"refused      {len(same)} case(s), e.g. {one_line(same[0], 300)}")
 
 
-def _print_sweep_summary(report: Any) -> dict[str, int]:
-    """The end-of-run summary on stdout: counts, throughput, failures, best per point count."""
+def _print_sweep_summary(report: Any, wall_s: float) -> dict[str, int]:
+    """The end-of-run summary on stdout: counts, throughput, failures, best per point count;
+    ``wall_s`` the command's time so far (the clock progress shows)."""
     from ftsweep.sweeps.run import best_per_point_count, cube_counts
 
     counts = cube_counts(report.cube)
@@ -276,13 +306,15 @@ def _print_sweep_summary(report: Any) -> dict[str, int]:
         f"{counts['refused']} refused, {counts['pending']} pending, {counts['pruned']} pruned "
         f"({report.skipped} were done already, {len(report.rows)} run now)"
     )
-    busy = sum(r.get("seconds", 0.0) for r in report.rows)
-    rate = len(report.rows) / report.wall_s if report.wall_s > 0 else float("nan")
-    click.echo(
-        f"wall time    {report.wall_s:.1f} s with {report.workers} worker(s) ({report.threads} thread(s)): "
-        f"{rate:.3g} cases/s; "
-        f"summed case time {busy:.1f} s"
-    )
+    if not report.queued:
+        click.echo(f"nothing to do: no case is pending (wall time {wall_s:.1f} s; no cluster was started)")
+    else:
+        busy = sum(r.get("seconds", 0.0) for r in report.rows)
+        rate = len(report.rows) / report.wall_s if report.wall_s > 0 else float("nan")
+        click.echo(
+            f"wall time    {wall_s:.1f} s ({report.wall_s:.1f} s on {report.workers} worker(s), "
+            f"{report.threads} thread(s)): {rate:.3g} cases/s; summed case time {busy:.1f} s"
+        )
     reused = [r.get("reused_batches", 0) for r in report.rows if r["status"] == "done"]
     if any(reused):
         click.echo(

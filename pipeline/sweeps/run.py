@@ -329,6 +329,8 @@ def _compute(
     tasks are planned for the threads of the cluster the run got."""
     progress, announce, lease = watchers
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
+    if not pending:  # nothing to compute: no cluster is started
+        return
 
     merged = [time.monotonic()]
 

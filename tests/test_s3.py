@@ -351,3 +351,40 @@ def test_what_the_driver_resolves_travels_and_credentials_stay(s3, s3_env, monke
     }
     assert with_configured(place("s3://b/c.zarr")).options["endpoint_url"] == "http://here:1"
     assert with_configured(place("/tmp/c.zarr")).options == {}
+
+
+def test_the_notebook_tour_runs_on_a_local_cube_and_its_copy_on_s3(
+    s3, s3_env, tmp_path, catalog_dir, monkeypatch
+):
+    """docs/tour.ipynb in a real kernel: every cell runs, and its answers are the cube's."""
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    spec = _spec(tmp_path)
+    local = tmp_path / "tour.zarr"
+    run_sweep(str(spec), local, scheduler="synchronous", catalog_folder=catalog_dir)
+    run_sweep(str(spec), f"{s3}/tour.zarr", scheduler="synchronous", catalog_folder=catalog_dir)
+    for key, value in {
+        "FTSWEEP_TOUR_CUBE": str(local),
+        "FTSWEEP_TOUR_S3": f"{s3}/tour.zarr",
+        "FTSWEEP_CATALOGS": str(catalog_dir),
+    }.items():
+        monkeypatch.setenv(key, value)
+    monkeypatch.delenv("MPLBACKEND", raising=False)  # the kernel draws inline, as a user's does
+    notebook = nbformat.read(Path(__file__).parents[1] / "docs" / "tour.ipynb", as_version=4)
+    nbclient.NotebookClient(notebook, timeout=600, kernel_name="python3").execute()
+    code = [c for c in notebook.cells if c.cell_type == "code"]
+
+    def text(cell) -> str:  # type: ignore[no-untyped-def]
+        return "".join(o.get("text", "") + o.get("data", {}).get("text/plain", "") for o in cell.outputs)
+
+    assert "({'pending': 0, 'done': 6, 'failed': 0, 'refused': 0, 'pruned': 0}, True)" in text(code[1])
+    chosen = cube.open_dataset(local).load()
+    from ftsweep.tools.select import choose
+
+    best = choose(chosen, budget_points=16000)
+    assert f"{best['index']})" in text(code[2]) and "um/deg" in text(code[2])
+    images = [c for c in code if any("image/png" in o.get("data", {}) for o in c.outputs)]
+    assert len(images) == 3  # the three plots shown inline
+    assert text(code[-2]).strip() == "(True, True)"  # verified, and the same bytes twice
+    assert text(code[-1]).strip() == "s3 True True"

@@ -103,8 +103,8 @@ def sweep(
     runs.
 
     \b
-    Exit status: 0 every case done; 1 cases failed or pending, or the run could not go on (the
-    message says why); 2 a usage error; 75 another run holds the cube's lock (try later).
+    Exit status: 0 every case done; 1 cases failed, refused or pending, or the run could not go
+    on (the message says why); 2 a usage error; 75 another run holds the cube's lock (try later).
 
     \b
     Examples:
@@ -112,23 +112,8 @@ def sweep(
       ftsweep sweep my-sweep.yaml --out outputs/my.zarr --workers 2
       ftsweep sweep lens-array-mesh --scheduler tcp://127.0.0.1:8786
     """
-    from ftsweep.inputs.catalogs import CatalogError
-    from ftsweep.sweeps.run import axis_summary
-    from ftsweep.sweeps.spec import load_sweep
-
-    try:
-        name, spec = load_sweep(sweep_name)
-    except CatalogError as exc:
-        raise click.ClickException(str(exc)) from None
-    where = None if out is None else cube_place(out, storage_options)
-    if where is not None:
-        _check_destination(where, scheduler)
-    click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
     started = time.perf_counter()
-    from ftsweep.engine.startup import kernels_cached
-
-    if not kernels_cached():
-        click.echo("compiling    numba's kernels: the first run on this machine (about 20 s) ...", err=True)
+    where = _prepare(sweep_name, out, storage_options, scheduler)
     report = _run(
         SweepProgress(started),
         sweep_name,
@@ -146,6 +131,30 @@ def sweep(
     counts = _print_sweep_summary(report, time.perf_counter() - started)
     if counts["pending"] or counts["failed"] or counts["refused"]:
         sys.exit(EXIT_INCOMPLETE)
+
+
+def _prepare(
+    sweep_name: str, out: Optional[str], storage_options: tuple[str, ...], scheduler: Optional[str]
+) -> Any:
+    """Load the spec (naming what is wrong with it), refuse a cube the sweep cannot write, and
+    say what runs, and when the kernels compile first; returns the cube's place (None: the
+    default)."""
+    from ftsweep.engine.startup import kernels_cached
+    from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.sweeps.run import axis_summary
+    from ftsweep.sweeps.spec import load_sweep
+
+    try:
+        name, spec = load_sweep(sweep_name)
+    except CatalogError as exc:
+        raise click.ClickException(str(exc)) from None
+    where = None if out is None else cube_place(out, storage_options)
+    if where is not None:
+        _check_destination(where, scheduler)
+    click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
+    if not kernels_cached():
+        click.echo("compiling    numba's kernels: the first run on this machine (about 20 s) ...", err=True)
+    return where
 
 
 def _check_destination(where: Any, scheduler: Optional[str]) -> None:

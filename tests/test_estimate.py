@@ -158,3 +158,8 @@ def test_the_extreme_samples_give_the_span_of_all_samples_bit_for_bit(seed, n):
     est._span_kernel(d11, d22, p1, p2, full)
     np.testing.assert_array_equal(est.interp_span_nm(d11, d22, p1, p2), full * 1e3)
     assert est.extreme_samples(d11, d22)[0].size <= n
+
+
+def test_a_sweep_whose_kind_has_no_estimate_is_refused_by_name():
+    res = CliRunner().invoke(main, ["estimate", "sinewave-spiral"])
+    assert res.exit_code == 1 and "a spiral sweep has none" in res.output

@@ -179,7 +179,7 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
 
     from ftsweep import registry
     from ftsweep.inputs.catalogs import CatalogError
-    from ftsweep.kinds.table.sweep_estimate import agreement, best_aspect, estimate_sweep
+    from ftsweep.kinds.table.sweep_estimate import agreement, best_aspect
     from ftsweep.store.cube import CubeError
     from ftsweep.sweeps.spec import load_sweep
     from ftsweep.tools.select import open_cube
@@ -188,8 +188,14 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
         name, spec = load_sweep(sweep_name)
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
+    estimate = registry.kind(spec.layout).estimate
+    if estimate is None:
+        raise click.ClickException(
+            f"ftsweep estimate needs a first-order estimate of the P-V (tables have one); a {spec.layout} "
+            "sweep has none: run it (ftsweep sweep) or predict a case"
+        )
     started = time.perf_counter()
-    ds = estimate_sweep(spec)
+    ds = estimate(spec, None)
     seconds = time.perf_counter() - started
     pv = ds["pv_estimate_nm"]
     while pv.ndim > 2:  # optional feed/nose-radius axes: their first values

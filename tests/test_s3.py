@@ -388,3 +388,17 @@ def test_the_notebook_tour_runs_on_a_local_cube_and_its_copy_on_s3(
     assert len(images) == 3  # the three plots shown inline
     assert text(code[-2]).strip() == "(True, True)"  # verified, and the same bytes twice
     assert text(code[-1]).strip() == "s3 True True"
+
+
+def test_status_of_a_grown_cube_on_s3(s3, tmp_path, catalog_dir):
+    """A cube on S3 whose spec gained a point count: status names the growth and the run."""
+    spec = _spec(tmp_path)
+    url = f"{s3}/grown.zarr"
+    run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog_dir)
+    spec.write_text(SPEC.replace("[8000, 16000]", "[8000, 16000, 24000]"))
+    run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog_dir)
+    res = _cli(["status", url, "--json"], catalog_dir)
+    found = json.loads(res.stdout)
+    assert res.exit_code == 0 and found["complete"] and found["counts"]["done"] == 9
+    assert [g["added"] for g in found["grown"]] == ["points +1, aspect +0"]
+    assert found["last_run"]["cases"]["done"] == 3 and found["writer"] is None

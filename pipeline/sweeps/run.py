@@ -526,5 +526,11 @@ def axis_summary(spec: SweepSpec) -> str:
         if axis in NAMED_AXES:
             parts.append(f"{axis} ×{values.size} [{', '.join(map(str, values))}]")
         else:
-            parts.append(f"{axis} ×{values.size} [{values.min():.4g} … {values.max():.4g}]")
+            low, high = (_number(v) for v in (values.min(), values.max()))
+            parts.append(f"{axis} ×{values.size} [{low} … {high}]")
     return ", ".join(parts)
+
+
+def _number(value: float) -> str:
+    """A whole number with thousands separators (counts: 950,000), else 4 significant digits."""
+    return f"{value:,.0f}" if float(value).is_integer() and abs(value) < 1e15 else f"{value:.4g}"

@@ -479,14 +479,11 @@ def test_progress_in_a_log_is_plain_periodic_lines():
 
 
 def test_eta_comes_from_measured_case_times_once_two_finished():
-    from types import SimpleNamespace
-
     from ftsweep.cli.sweep import _eta_text
 
-    report = SimpleNamespace(workers=2)
-    assert _eta_text(report, [{"seconds": 5.0}], remaining=10) == "ETA –"
+    assert _eta_text(5.0, 1, remaining=10, workers=2) == "ETA –"
     # 4 s a case over 2 workers, 10 cases left: 20 s, whatever the wall time so far
-    assert _eta_text(report, [{"seconds": 3.0}, {"seconds": 5.0}], remaining=10).split() == ["ETA", "20", "s"]
+    assert _eta_text(3.0 + 5.0, 2, remaining=10, workers=2).split() == ["ETA", "20", "s"]
 
 
 def test_figures_and_files_respect_the_umask_and_write_errors_name_the_file(tmp_path, monkeypatch):

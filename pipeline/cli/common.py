@@ -82,13 +82,13 @@ ALLOW_INCOMPLETE = click.option(
 )
 
 
-def guard_complete(ds: Any, allow: bool) -> None:
-    """Refuse a choice from an incomplete cube unless ``allow`` (then say how incomplete, on
-    stderr, in one line)."""
+def guard_complete(status: Any, allow: bool) -> None:
+    """Refuse a choice from a cube whose case ``status`` is incomplete unless ``allow`` (then
+    say how incomplete, on stderr, in one line)."""
     from ftsweep.tools.select import SelectError, check_complete
 
     try:
-        note = check_complete(ds, allow)
+        note = check_complete(status, allow)
     except SelectError as exc:
         raise click.ClickException(str(exc)) from None
     if note is not None:
@@ -216,7 +216,3 @@ class KindChoice(click.Choice):
     @choices.setter
     def choices(self, value: Any) -> None:
         pass  # click sets its choices once; these are the registry's
-
-
-def flag(name: str) -> str:
-    return "--" + name.replace("_", "-")

@@ -101,7 +101,7 @@ def select(
 
     try:
         ds = open_cube(cube_place(cube_path, storage_options))
-        guard_complete(ds, allow_incomplete)
+        guard_complete(ds["status"].values, allow_incomplete)
         chosen = choose(ds, budget_points, tolerance_nm)
     except (SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
@@ -161,14 +161,14 @@ def export(
     _one_criterion(budget_points=budget_points, tolerance_nm=tolerance_nm, case=index)
     from ftsweep.exports import export as exp
     from ftsweep.store.cube import CubeError
-    from ftsweep.tools.select import SelectError, open_cube
+    from ftsweep.tools.select import SelectError, current_status
 
     target = local_output(out, "the exported program")
     assert target is not None
     cube = cube_place(cube_path, storage_options)
     try:
         if index is None:  # a case given by its index is the same case whatever else is computed
-            guard_complete(open_cube(cube), allow_incomplete)
+            guard_complete(current_status(cube), allow_incomplete)
         meta = exp.export(
             cube, target, budget_points, tolerance_nm, index, force, name, trust_plugins, sign_key
         )
@@ -304,10 +304,10 @@ def report(
     from ftsweep.engine.case import CaseError
     from ftsweep.store.cube import CubeError
     from ftsweep.tools.report import make_report
-    from ftsweep.tools.select import SelectError, open_cube
+    from ftsweep.tools.select import SelectError, current_status
 
     try:
-        guard_complete(open_cube(cube_place(cube_path, storage_options)), allow_incomplete)
+        guard_complete(current_status(cube_place(cube_path, storage_options)), allow_incomplete)
     except (CubeError, SelectError) as exc:
         raise click.ClickException(str(exc)) from None
     progress = stderr_progress("error map")
@@ -390,12 +390,12 @@ def compare(
     from ftsweep.store.cube import CubeError
     from ftsweep.store.io import save_figure
     from ftsweep.tools.compare import common_sampling, compare_rows, plot_compare
-    from ftsweep.tools.select import SelectError, open_cube
+    from ftsweep.tools.select import SelectError, current_status
 
     progress = stderr_progress("re-simulating", as_json)
     try:
         for c in cubes:
-            guard_complete(open_cube(cube_place(c, storage_options)), allow_incomplete)
+            guard_complete(current_status(cube_place(c, storage_options)), allow_incomplete)
         rows, per_cube = compare_rows([cube_place(c, storage_options) for c in cubes], allow_different)
         n_theta = None if as_recorded else common_sampling(rows, progress=progress)
     except (SelectError, CubeError, CaseError) as exc:

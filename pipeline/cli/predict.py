@@ -13,7 +13,6 @@ from ftsweep.cli.common import (
     KindChoice,
     echo_json,
     fail,
-    flag,
     progress_done,
     stderr_progress,
     threads_option,
@@ -23,6 +22,7 @@ from ftsweep.kinds.dpath.options import dpath_options
 from ftsweep.kinds.fresnel.options import fresnel_options
 from ftsweep.kinds.spiral.options import spiral_options
 from ftsweep.kinds.table.options import table_options
+from ftsweep.registry import flag
 
 if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
     from pydantic import ValidationError

@@ -236,17 +236,26 @@ class SweepProgress:
         self.interval_s = LOG_INTERVAL_S
         self.shown = 0.0  # the command's start: a first line after an interval, not at once
         self.bar: Any = None
+        # counted as rows arrive: a sweep of 10⁵ cases must not rescan every row on each one
+        self.failed = self.refused = self.timed = 0
+        self.case_s = 0.0
 
     def __call__(self, report: Any, rows: list[dict]) -> None:
+        for r in rows:
+            self.failed += r["status"] == "failed"
+            self.refused += r["status"] == "refused"
+            if r.get("seconds"):
+                self.timed += 1
+                self.case_s += r["seconds"]
         done, total = len(report.rows), report.queued
-        failed = sum(r["status"] == "failed" for r in report.rows)
-        state = f"{failed} failed, {report.refused_now} refused, {total - done} pending"
-        eta = _eta_text(report, rows_all=report.rows, remaining=total - done)
+        elapsed = time.perf_counter() - self.started
+        if not self.tty and elapsed - self.shown < self.interval_s and done < total:
+            return
+        refused = len(report.refused) + self.refused
+        state = f"{self.failed} failed, {refused} refused, {total - done} pending"
+        eta = _eta_text(self.case_s, self.timed, total - done, report.workers)
         if self.tty:
             self._draw(len(rows), total, f"{state}; {eta}")
-            return
-        elapsed = time.perf_counter() - self.started
-        if elapsed - self.shown < self.interval_s and done < total:
             return
         self.shown = elapsed
         last = rows[-1]
@@ -278,27 +287,22 @@ class SweepProgress:
             self.bar = None
 
 
-def _eta_text(report: Any, rows_all: list[dict], remaining: int) -> str:
-    """The time left, from the measured times of the cases finished so far (their summed
-    case seconds over the workers), not from the wall time, which holds the cluster's start
-    and the kernels' compilation; none until two cases have finished."""
-    times = [r.get("seconds", 0.0) for r in rows_all if r.get("seconds")]
-    if len(times) < 2 or remaining <= 0:
+def _eta_text(case_s: float, timed: int, remaining: int, workers: int) -> str:
+    """The time left, from the measured times of the ``timed`` cases finished so far (their
+    summed case seconds ``case_s`` over the workers), not from the wall time, which holds the
+    cluster's start and the kernels' compilation; none until two cases have finished."""
+    if timed < 2 or remaining <= 0:
         return "ETA –" if remaining > 0 else "ETA 0 s"
-    per_case = sum(times) / len(times)
-    return f"ETA {per_case * remaining / max(report.workers, 1):6.0f} s"
+    return f"ETA {case_s / timed * remaining / max(workers, 1):6.0f} s"
 
 
 def _print_refused(report: Any) -> None:
-    """This run's refused cases, grouped by reason (the numbers in a reason set aside)."""
-    import re
+    """This run's refused cases, grouped by reason (as ``ftsweep status`` groups them)."""
+    from ftsweep.tools.status import grouped_reasons
 
     reasons = [*report.refused.values(), *(r["message"] for r in report.rows if r["status"] == "refused")]
-    groups: dict[str, list[str]] = {}
-    for reason in reasons:
-        groups.setdefault(re.sub(r"[\d.,]+", "#", reason), []).append(reason)
-    for same in sorted(groups.values(), key=len, reverse=True)[:5]:
-        click.echo(f"refused      {len(same)} case(s), e.g. {one_line(same[0], 300)}")
+    for group in grouped_reasons(reasons):
+        click.echo(f"refused      {group['count']} case(s), e.g. {one_line(group['example'], 300)}")
 
 
 def _print_sweep_summary(report: Any, wall_s: float) -> dict[str, int]:

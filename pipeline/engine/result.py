@@ -52,43 +52,42 @@ def given(name: str, units: Optional[str], long_name: str) -> Quantity:
     return Quantity(name, long_name, units)
 
 
-_f, _i, _text, _input = number, count, text, given
-
-
 STAGES = ("sampling", "compensation", "interpolation", "envelope", "metrics", "dynamics")
 
 # what was simulated: every record begins so
 HEAD: tuple[Quantity, ...] = (
-    _text("surface", "surface catalog entry"),
-    _text("layout", "program kind: ring or mesh table, spiral path, D path or Fresnel program"),
-    _text("compensation", "tool-nose compensation of the table: exact, slope or none"),
-    _text("machine", "machine catalog entry"),
-    _input("feed_um", "um", "feed per spindle revolution"),
-    _input("nose_radius_um", "um", "tool nose radius"),
-    _input("spindle_rpm", "1/min", "spindle speed"),
-    _input("points_per_feed", "1", "evaluation points per feed along each angle"),
-    _input("edge_band_um", "um", "band at the aperture's edge outside the fully machined zone"),
-    _i("n_points", "number of control points of the program"),
+    text("surface", "surface catalog entry"),
+    text("layout", "program kind: ring or mesh table, spiral path, D path or Fresnel program"),
+    text("compensation", "tool-nose compensation of the table: exact, slope or none"),
+    text("machine", "machine catalog entry"),
+    given("feed_um", "um", "feed per spindle revolution"),
+    given("nose_radius_um", "um", "tool nose radius"),
+    given("spindle_rpm", "1/min", "spindle speed"),
+    given("points_per_feed", "1", "evaluation points per feed along each angle"),
+    given("edge_band_um", "um", "band at the aperture's edge outside the fully machined zone"),
+    count("n_points", "number of control points of the program"),
 )
 # the groups of fields kinds share, which a kind names among its own (ProgramKind.fields)
 TABLE: tuple[Quantity, ...] = (
-    _i("table_rows", "table rows (rings M or mesh nx)", "int32"),
-    _i("table_cols", "table columns (points per ring Np or mesh ny)", "int32"),
+    count("table_rows", "table rows (rings M or mesh nx)", "int32"),
+    count("table_cols", "table columns (points per ring Np or mesh ny)", "int32"),
 )
 PATH: tuple[Quantity, ...] = (
-    _f("revolutions", "1", "revolutions of the path (spiral: from the edge to the centre)"),
-    _f("dphi_deg", "deg", "mean spindle-angle step between points"),
-    _f("ds_um", "um", "mean path length between points"),
+    number("revolutions", "1", "revolutions of the path (spiral: from the edge to the centre)"),
+    number("dphi_deg", "deg", "mean spindle-angle step between points"),
+    number("ds_um", "um", "mean path length between points"),
 )
 # programs on the spiral about the spindle axis: the W spectrum and layered machining ([3])
 SPINDLE: tuple[Quantity, ...] = (
-    _f("w_freq_max_hz", "Hz", "highest significant frequency of the W command"),
-    _i("n_layers", "layers the part is cut in (1: one pass)", "int32"),
-    _i("layer_segments", "spiral segments cut over all layers (each begins with a stop and a Z move)"),
-    _f("layer_zone_um", "um", "height of a layer's stroke zone (travel less margin; one pass: the travel)"),
-    _f("layer_stroke_um", "um", "largest W range within one layer"),
-    _f("z_error_um", "um", "Z positioning error per retraction between layers"),
-    _f("single_pass_s", "s", "machining time of one uninterrupted spiral"),
+    number("w_freq_max_hz", "Hz", "highest significant frequency of the W command"),
+    count("n_layers", "layers the part is cut in (1: one pass)", "int32"),
+    count("layer_segments", "spiral segments cut over all layers (each begins with a stop and a Z move)"),
+    number(
+        "layer_zone_um", "um", "height of a layer's stroke zone (travel less margin; one pass: the travel)"
+    ),
+    number("layer_stroke_um", "um", "largest W range within one layer"),
+    number("z_error_um", "um", "Z positioning error per retraction between layers"),
+    number("single_pass_s", "s", "machining time of one uninterrupted spiral"),
     Quantity("layer_change_s", "time per layer segment to stop the spindle, move Z and restart", "s"),
     Quantity("layer_change_share", "share of the machining time spent changing segments", "1"),
     Quantity("layers", "layer schedule: offsets, start radii, strokes, lengths and times per layer"),
@@ -98,39 +97,42 @@ SPINDLE: tuple[Quantity, ...] = (
 def aspect_actual(units: str) -> Quantity:
     """The aspect ratio of a spindle program's realised pitches, in its kind's units."""
     long_name = "aspect ratio of the realised pitches (spiral: feed over mean angular step)"
-    return _f("aspect_actual", units, long_name)
+    return number("aspect_actual", units, long_name)
 
 
 # every record ends so: the form error (model §6), the W motion ([2] dynamics), the machine's
 # verdict, the machining time and the wall times
 TAIL: tuple[Quantity, ...] = (
-    _f("pv_nm", "nm", "peak-to-valley form error"),
-    _f("rms_nm", "nm", "RMS form error about its mean"),
-    _f("mean_nm", "nm", "mean form error"),
-    _f("error_min_nm", "nm", "lowest form error"),
-    _f("error_max_nm", "nm", "highest form error"),
-    _f("pv_inner_nm", "nm", "P-V in the inner zone"),
-    _f("pv_outer_nm", "nm", "P-V in the outer zone"),
-    _f("pv_interp_nm", "nm", "P-V of the interpolation-only error"),
-    _f("cusp_nm", "nm", "feed cusp height of a flat surface F^2/(8 Rc)"),
-    _i("gouge_points", "control points whose section is concave with radius below Rc"),
-    _i("n_theta", "simulated spindle angles"),
-    _i("n_eval", "evaluation points"),
-    _f("stroke_um", "um", "W stroke used (range of the table)"),
-    _f("w_velocity_peak_mm_s", "mm/s", "peak W velocity at the spindle speed"),
-    _f("w_accel_peak_m_s2", "m/s^2", "peak W acceleration at the spindle speed"),
-    _f("w_accel_rms_m_s2", "m/s^2", "RMS W acceleration at the spindle speed"),
+    number("pv_nm", "nm", "peak-to-valley form error"),
+    number("rms_nm", "nm", "RMS form error about its mean"),
+    number("mean_nm", "nm", "mean form error"),
+    number("error_min_nm", "nm", "lowest form error"),
+    number("error_max_nm", "nm", "highest form error"),
+    number("pv_inner_nm", "nm", "P-V in the inner zone"),
+    number("pv_outer_nm", "nm", "P-V in the outer zone"),
+    number("pv_interp_nm", "nm", "P-V of the interpolation-only error"),
+    number("cusp_nm", "nm", "feed cusp height of a flat surface F^2/(8 Rc)"),
+    count("gouge_points", "control points whose section is concave with radius below Rc"),
+    count("n_theta", "simulated spindle angles"),
+    count("n_eval", "evaluation points"),
+    number("stroke_um", "um", "W stroke used (range of the table)"),
+    number("w_velocity_peak_mm_s", "mm/s", "peak W velocity at the spindle speed"),
+    number("w_accel_peak_m_s2", "m/s^2", "peak W acceleration at the spindle speed"),
+    number("w_accel_rms_m_s2", "m/s^2", "RMS W acceleration at the spindle speed"),
     Quantity(
         "feasible", "1 if the W motion fits the machine's travel, acceleration and bandwidth", "1", "int8", -1
     ),
-    _text("infeasible_reason", "machine limits the W motion exceeds (empty when feasible)"),
-    _f(
+    text("infeasible_reason", "machine limits the W motion exceeds (empty when feasible)"),
+    number(
         "machining_s",
         "s",
         "machining time: the path at the spindle speed (spiral: plus the stops of the layers)",
     ),
-    *(_f(f"seconds_{stage}", "s", f"time of {stage}, summed over the case's threads") for stage in STAGES),
-    _f("seconds", "s", "wall time of the case"),
+    *(
+        number(f"seconds_{stage}", "s", f"time of {stage}, summed over the case's threads")
+        for stage in STAGES
+    ),
+    number("seconds", "s", "wall time of the case"),
 )
 TIMING = tuple(q.name for q in TAIL if q.name.startswith("seconds"))
 

@@ -44,6 +44,8 @@ from ftsweep.version import __version__
 # aperture rules out, ...): known before it is sent, or raised by its planning; never retried
 PENDING, DONE, FAILED, PRUNED, REFUSED = 0, 1, 2, 3, 4
 STATUS_MEANINGS = "pending done failed pruned refused"
+# the statuses a later run may still change (a choice from a cube holding them could change)
+UNSETTLED = {"pending": PENDING, "failed": FAILED, "pruned": PRUNED}
 
 # cubes written before the variables were named per layout kind and carried parseable units
 SCHEMA_VERSION = 2

@@ -79,10 +79,16 @@ def _is_stale(holder: dict[str, Any] | None, path: Path) -> bool:
             return True
     if holder.get("host") != socket.gethostname():
         return False
+    return not holder_alive(holder)
+
+
+def holder_alive(holder: dict[str, Any]) -> bool:
+    """Whether the process a lock's holder names runs on this machine (a holder without a
+    usable pid does not)."""
     try:
-        return not _pid_alive(int(holder["pid"]))
+        return _pid_alive(int(holder["pid"]))
     except (KeyError, TypeError, ValueError):
-        return True
+        return False
 
 
 def _describe(holder: dict[str, Any] | None) -> str:

@@ -26,7 +26,16 @@ from ftsweep.store.lock import Lease, LeaseLost, cube_lock
 from ftsweep.store.storage import PathLike, Place, StorageError, check_writable, place, with_configured
 from ftsweep.sweeps import grow
 from ftsweep.sweeps.executor import Cluster, TaskSpec, execute, run_task, warm_up
-from ftsweep.sweeps.spec import NAMED_AXES, SweepSpec, coordinates, load_sweep, n_cases, plan_tasks, refusal
+from ftsweep.sweeps.spec import (
+    NAMED_AXES,
+    Costs,
+    SweepSpec,
+    case_costs,
+    coordinates,
+    load_sweep,
+    n_cases,
+    plan_tasks,
+)
 
 
 def default_cube_path(name: str) -> Path:
@@ -319,14 +328,16 @@ def _wanted_cases(
 def _compute(
     report: SweepReport,
     spec: SweepSpec,
-    pending: list[int],
+    costs: Costs,
     where: Where,
     run_id: str,
     catalog_folder: Optional[Path],
     watchers: Watchers,
 ) -> None:
-    """Run ``pending`` on the cluster ``where`` says, each case written as it finishes; the
-    tasks are planned for the threads of the cluster the run got."""
+    """Run the cases of ``costs`` (by index, with their costs) on the cluster ``where`` says,
+    each case written as it finishes; the tasks are planned for the threads of the cluster the
+    run got."""
+    pending = list(costs)
     progress, announce, lease = watchers
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
     if not pending:  # nothing to compute: no cluster is started
@@ -343,7 +354,7 @@ def _compute(
             progress(report, rows)
 
     def plan(threads: int) -> list[list[int]]:
-        tasks = plan_tasks(spec, pending, threads, catalog_folder)
+        tasks = plan_tasks(spec, pending, threads, catalog_folder, costs)
         report.tasks = len(tasks)
         return tasks
 
@@ -405,13 +416,13 @@ def _run_locked(
         cube=out, total=n_cases(spec), skipped=already, workers=where.workers, damaged=damaged
     )
     report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
-    report.refused = refuse_cases(spec, out, pending, run_id, catalog_folder)
-    pending = [i for i in pending if i not in report.refused]
-    report.queued = len(pending)
+    # the cases sent: every wanted one not refused, with its cost for planning the tasks
+    report.refused, costs = refuse_cases(spec, out, pending, run_id, catalog_folder)
+    report.queued = len(costs)
     report.note = note
     start = time.perf_counter()
     try:
-        _compute(report, spec, pending, where, run_id, catalog_folder, watchers)
+        _compute(report, spec, costs, where, run_id, catalog_folder, watchers)
     finally:
         # also on an error or a signal: what the workers finished goes into the blocks now,
         # unless another writer took over the lease (its next run merges these logs)
@@ -425,18 +436,16 @@ def _run_locked(
 
 def refuse_cases(
     spec: SweepSpec, out: Place, pending: list[int], run_id: str, catalog_folder: Optional[Path]
-) -> dict[int, str]:
+) -> tuple[dict[int, str], Costs]:
     """Mark ``refused`` the pending cases whose planning would refuse them, known before any
-    is sent (:func:`ftsweep.sweeps.spec.refusal`: over the controller's capacity, a layout the
-    aperture rules out, ...), with the reason; returns them by index."""
-    refused = {}
+    is sent (:func:`ftsweep.sweeps.spec.case_costs`: over the controller's capacity, a layout
+    the aperture rules out, ...), with the reason; returns them by index, and the costs of the
+    others, which plan the tasks."""
+    costs, refused = case_costs(spec, pending, catalog_folder)
     writer = cube.CubeWriter(out)
-    for index in pending:
-        reason = refusal(spec, index, catalog_folder)
-        if reason is not None:
-            writer.write_refused(index, reason, run_id)
-            refused[index] = reason
-    return refused
+    for index, reason in refused.items():
+        writer.write_refused(index, reason, run_id)
+    return refused, costs
 
 
 def prune_cases(

@@ -29,7 +29,7 @@ from pydantic import (
 )
 
 from ftsweep import registry
-from ftsweep.engine.case import Case, CaseError, Resolution
+from ftsweep.engine.case import Case, Resolution
 from ftsweep.engine.contract import Axis
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError, Strict
@@ -420,21 +420,32 @@ def _cost(spec: SweepSpec, index: int, catalog_folder: Path | None) -> tuple[flo
     return kind.cost(case, surface, catalog_folder, feed)
 
 
-def refusal(spec: SweepSpec, index: int, catalog_folder: Path | None = None) -> Optional[str]:
-    """Why the case at ``index`` cannot run as specified, where that is known before it is
-    planned (its feed, a layout the aperture rules out, over the controller's capacity: its
-    kind's ``feed`` and ``cost``); None when nothing refuses it yet."""
-    try:
-        _cost(spec, index, catalog_folder)
-    except CaseError as exc:
-        return str(exc)
-    except ValueError as exc:  # a feed or spec rule refuses it
-        return str(exc)
-    return None
+Costs = dict[int, tuple[float, Any]]
+
+
+def case_costs(
+    spec: SweepSpec, indices: list[int], catalog_folder: Path | None = None
+) -> tuple[Costs, dict[int, str]]:
+    """One pass over cases ``indices``: the cost and shared-lines key of each (as
+    :func:`case_lines`), and why a case cannot run as specified where that is known before it
+    is planned (its feed, a layout the aperture rules out, over the controller's capacity: its
+    kind's ``feed`` and ``cost`` refuse it, a CaseError or another ValueError)."""
+    costs: Costs = {}
+    refused: dict[int, str] = {}
+    for index in indices:
+        try:
+            costs[index] = _cost(spec, index, catalog_folder)
+        except ValueError as exc:
+            refused[index] = str(exc)
+    return costs, refused
 
 
 def plan_tasks(
-    spec: SweepSpec, indices: list[int], workers: int, catalog_folder: Path | None = None
+    spec: SweepSpec,
+    indices: list[int],
+    workers: int,
+    catalog_folder: Path | None = None,
+    costs: Optional[Costs] = None,
 ) -> list[list[int]]:
     """Group case indices into tasks, the costliest first (longest-processing-time order),
     each task's cases cheapest first.
@@ -451,7 +462,7 @@ def plan_tasks(
     cost: dict[int, float] = {}
     shared: dict[Any, list[int]] = {}
     for i in indices:
-        cost[i], key = case_lines(spec, i, catalog_folder)
+        cost[i], key = costs[i] if costs is not None and i in costs else case_lines(spec, i, catalog_folder)
         shared.setdefault(key if key is not None else ("alone", i), []).append(i)
     groups = [sorted(g, key=lambda i: -cost[i]) for g in shared.values()]
     alone = sorted((g[0] for g in groups if len(g) == 1), key=lambda i: -cost[i])

@@ -21,15 +21,12 @@ class SelectError(ValueError):
     """Nothing can be selected as asked; the message says why."""
 
 
-def completeness(ds: xr.Dataset) -> Optional[str]:
-    """One line saying how incomplete a cube is where a choice from it could still change
-    (cases pending, failed or pruned, which a run computes), or None when none can: done,
-    refused and infeasible cases are final."""
-    status = np.asarray(ds["status"].values).ravel()
-    open_ = {
-        name: int(np.sum(status == value))
-        for name, value in (("pending", cube.PENDING), ("failed", cube.FAILED), ("pruned", cube.PRUNED))
-    }
+def completeness(status: np.ndarray) -> Optional[str]:
+    """One line saying how incomplete a cube of case ``status`` is where a choice from it
+    could still change (cases pending, failed or pruned, which a run computes), or None when
+    none can: done, refused and infeasible cases are final."""
+    status = np.asarray(status).ravel()
+    open_ = {name: int(np.sum(status == value)) for name, value in cube.UNSETTLED.items()}
     if not any(open_.values()):
         return None
     done = int(np.sum(status == cube.DONE))
@@ -37,13 +34,25 @@ def completeness(ds: xr.Dataset) -> Optional[str]:
     return f"the cube is incomplete: {done} of {status.size} cases done, {rest}; the choice could change"
 
 
-def check_complete(ds: xr.Dataset, allow: bool) -> Optional[str]:
-    """Refuse (:class:`SelectError`) to choose from an incomplete cube unless ``allow``;
-    returns the line that says how incomplete it is (None when complete)."""
-    note = completeness(ds)
+def check_complete(status: np.ndarray, allow: bool) -> Optional[str]:
+    """Refuse (:class:`SelectError`) to choose from a cube whose case ``status`` is incomplete
+    unless ``allow``; returns the line that says how incomplete it is (None when complete)."""
+    note = completeness(status)
     if note is not None and not allow:
         raise SelectError(f"{note}: run the sweep to finish it, or pass --allow-incomplete to choose anyway")
     return note
+
+
+def current_status(path: PathLike) -> np.ndarray:
+    """The case status of the cube at ``path`` (checked to be a cube), its unmerged logs
+    counted as they will be: what :func:`check_complete` reads without loading the cube."""
+    at = place(path)
+    if not at.exists():
+        raise cube.CubeError(f"no cube at {at}")
+    cube.read_attrs(at)
+    from ftsweep.store import caselog
+
+    return caselog.current_status(at)
 
 
 def open_cube(path: PathLike) -> xr.Dataset:

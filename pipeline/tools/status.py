@@ -9,12 +9,13 @@ import json
 import re
 import socket
 import time
+from collections.abc import Iterable
 from typing import Any, Optional
 
 import numpy as np
 
 from ftsweep.store import caselog, cube
-from ftsweep.store.lock import lock_path, read_holder
+from ftsweep.store.lock import holder_alive, lock_path, read_holder
 from ftsweep.store.storage import PathLike, Place, place
 from ftsweep.sweeps.spec import SweepSpec, n_cases
 
@@ -48,9 +49,9 @@ def cube_status(where: PathLike) -> dict[str, Any]:
         "axes": {name: list(map(_plain, values)) for name, values in _axes(ds).items()},
         "cases": n_cases(spec),
         "counts": counts,
-        "complete": counts["pending"] + counts["failed"] + counts["pruned"] == 0,
+        "complete": not any(counts[name] for name in cube.UNSETTLED),
         "reasons": {
-            name: _grouped(messages[status == value])
+            name: grouped_reasons(messages[status == value])
             for value, name in STATUS_NAMES.items()
             if value in (cube.FAILED, cube.REFUSED, cube.PRUNED) and np.any(status == value)
         },
@@ -70,8 +71,9 @@ def _plain(value: Any) -> Any:
     return value.item() if hasattr(value, "item") else value
 
 
-def _grouped(messages: np.ndarray, most: int = 5) -> list[dict[str, Any]]:
-    """The reasons, numbers set aside, most frequent first: how many, and one in full."""
+def grouped_reasons(messages: Iterable[Any], most: int = 5) -> list[dict[str, Any]]:
+    """Reasons of cases, grouped with the numbers in them set aside, the ``most`` frequent
+    first: how many, and one in full (at most 300 characters)."""
     groups: dict[str, list[str]] = {}
     for text in (str(m) for m in messages):
         groups.setdefault(re.sub(r"[\d.,]+", "#", text), []).append(text)
@@ -103,7 +105,7 @@ def writer_of(at: Place) -> Optional[dict[str, Any]]:
         if holder is None:
             return None
         here = holder.get("host") == socket.gethostname()
-        return {**holder, "kind": "lock file", "alive": _alive(holder) if here else None}
+        return {**holder, "kind": "lock file", "alive": holder_alive(holder) if here else None}
     lock = at.sibling(".lock")
     if not lock.exists():
         return None
@@ -118,15 +120,3 @@ def writer_of(at: Place) -> Optional[dict[str, Any]]:
         "lease_until": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(until)),
         "expired": until < time.time(),
     }
-
-
-def _alive(holder: dict[str, Any]) -> bool:
-    import os
-
-    try:
-        os.kill(int(holder["pid"]), 0)
-    except (KeyError, TypeError, ValueError, ProcessLookupError):
-        return False
-    except PermissionError:
-        return True
-    return True

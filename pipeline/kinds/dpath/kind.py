@@ -220,34 +220,37 @@ def _file_format() -> Any:
     return dpath_format()
 
 
-_f, _given = result.number, result.given
 FIELDS = (
     *result.PATH,
     # its options are inputs (a D-path cube's axes)
-    _given("spacing_um", "um", "spacing h between the D path's cuts"),
-    _given("points_per_cut", "1", "points on every cut of the D path"),
-    _given("transition", None, "turn-round between cuts: traditional (arc) or optimised (quintic)"),
-    _given("zones", "1", "cutting zones per revolution"),
-    _given("offaxis_um", "um", "distance of the part's centre from the C axis"),
-    _given("cut_angle_deg", "deg", "direction of the cuts in the part's frame"),
+    result.given("spacing_um", "um", "spacing h between the D path's cuts"),
+    result.given("points_per_cut", "1", "points on every cut of the D path"),
+    result.given("transition", None, "turn-round between cuts: traditional (arc) or optimised (quintic)"),
+    result.given("zones", "1", "cutting zones per revolution"),
+    result.given("offaxis_um", "um", "distance of the part's centre from the C axis"),
+    result.given("cut_angle_deg", "deg", "direction of the cuts in the part's frame"),
     result.count("n_cuts", "cuts over all zones"),
-    _f("cut_length_um", "um", "length l of the cuts (the zone along them)"),
-    _f("cut_width_um", "um", "width s of the cutting zone across the cuts"),
-    _f("cut_step_um", "um", "distance between consecutive points of a cut"),
+    result.number("cut_length_um", "um", "length l of the cuts (the zone along them)"),
+    result.number("cut_width_um", "um", "width s of the cutting zone across the cuts"),
+    result.number("cut_step_um", "um", "distance between consecutive points of a cut"),
     # the X axis at constant spindle speed ([5] eqs. 5-6)
-    _f("x_min_um", "um", "smallest X (polar radius) of the path"),
-    _f("x_max_um", "um", "largest X (polar radius) of the path, transitions included"),
-    _f("x_feed_peak_mm_s", "mm/s", "peak X feed-rate at the spindle speed"),
-    _f(
+    result.number("x_min_um", "um", "smallest X (polar radius) of the path"),
+    result.number("x_max_um", "um", "largest X (polar radius) of the path, transitions included"),
+    result.number("x_feed_peak_mm_s", "mm/s", "peak X feed-rate at the spindle speed"),
+    result.number(
         "x_accel_peak_m_s2",
         "m/s^2",
         "peak X acceleration at the spindle speed, formed over the controller's command period",
     ),
-    _f("accel_period_s", "s", "controller command period the D path's accelerations are formed over"),
-    _f("accel_step_deg", "deg", "C step of one command period at the spindle speed"),
-    _f("x_accel_cut_m_s2", "m/s^2", "peak X acceleration on the cuts"),
-    _f("x_accel_transition_m_s2", "m/s^2", "peak X acceleration in the transitions"),
-    _f("slope_jump_um_rad", "um/rad", "largest jump of d(rho)/d(theta) at a junction of cut and transition"),
+    result.number(
+        "accel_period_s", "s", "controller command period the D path's accelerations are formed over"
+    ),
+    result.number("accel_step_deg", "deg", "C step of one command period at the spindle speed"),
+    result.number("x_accel_cut_m_s2", "m/s^2", "peak X acceleration on the cuts"),
+    result.number("x_accel_transition_m_s2", "m/s^2", "peak X acceleration in the transitions"),
+    result.number(
+        "slope_jump_um_rad", "um/rad", "largest jump of d(rho)/d(theta) at a junction of cut and transition"
+    ),
 )
 
 

@@ -161,7 +161,6 @@ def _file_format() -> Any:
     return fresnel_format()
 
 
-_f = result.number
 FIELDS = (
     *result.PATH,
     # its options are inputs (a Fresnel cube's axes)
@@ -169,11 +168,11 @@ FIELDS = (
     result.given("points_per_turn", "1", "control points K on every turn of the quasi-spiral"),
     result.given("deviation_deg", "deg", "rake face turned from the cutting direction"),
     result.count("n_facets", "Fresnel facets the surface is sliced into", "int32"),
-    _f("ez_exact_max_nm", "nm", "largest tool-edge compensation by [2] eq. 10 on the part"),
-    _f("ez_straight_max_nm", "nm", "largest tool-edge compensation by [2] eq. 12 on the part"),
+    result.number("ez_exact_max_nm", "nm", "largest tool-edge compensation by [2] eq. 10 on the part"),
+    result.number("ez_straight_max_nm", "nm", "largest tool-edge compensation by [2] eq. 12 on the part"),
     result.text("facets", "P-V and RMS of every facet's interior, outermost first (predict, not cubes)"),
-    _f("time_constant_s", "s", "machining time at the least constant timestep within the limits"),
-    _f("speedup", "1", "machining time at the constant timestep over that of the adaptive ones"),
+    result.number("time_constant_s", "s", "machining time at the least constant timestep within the limits"),
+    result.number("speedup", "1", "machining time at the constant timestep over that of the adaptive ones"),
 )
 
 

@@ -180,13 +180,16 @@ def pass_commands(layout: Program, table: np.ndarray, grid: PathGrid) -> np.ndar
     grid.ray_theta[:, None])`` (model §1, §3). Entries k ≥ n_passes are meaningless.
 
     For a spiral program (``table`` its commands at its points), pass k of the ray at θ is
-    the tool at accumulated angle φ = 2πk + θ, where the controller interpolates linearly
-    between the points around φ."""
+    the tool at accumulated angle φ = 2πk + θ, where the controller interpolates between the
+    points around φ: linearly, or by the path's cubic segments (:mod:`ftsweep.stages.segments`)."""
     if isinstance(layout, SpiralPath):
         out = np.empty((grid.ray_theta.size, int(grid.n_passes.max())))
+        none = np.empty(0)
         pass_commands_kernel(
             np.ascontiguousarray(layout.phi, dtype=np.float64),
             np.ascontiguousarray(table, dtype=np.float64),
+            none if layout.d0 is None else np.ascontiguousarray(layout.d0, dtype=np.float64),
+            none if layout.d1 is None else np.ascontiguousarray(layout.d1, dtype=np.float64),
             np.ascontiguousarray(grid.ray_theta, dtype=np.float64),
             int(grid.first_revolution),
             out,

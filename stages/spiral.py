@@ -29,10 +29,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 from numba import njit
+
+from . import segments
 
 # revolutions: the rounding slack of angles printed to 1e-9° (2.8e-12 rev), with room to spare
 REV_SLACK = 1e-9
@@ -53,6 +55,10 @@ class SpiralPath(NamedTuple):
     rule : sampling rule, one of :data:`RULES`.
     parameter : the rule's parameter: points per revolution, arc length [µm] or chord
         budget [µm].
+    interpolation : how the controller forms the command between points: ``"linear"``,
+        ``"pvt"`` or ``"spline1"`` (:mod:`ftsweep.stages.segments`).
+    d0, d1 : (N − 1,) the segments' end tangents [µm per segment] of a cubic
+        interpolation (None: linear segments).
     """
 
     kind: str
@@ -61,6 +67,9 @@ class SpiralPath(NamedTuple):
     feed_um: float
     rule: str
     parameter: float
+    interpolation: str = "linear"
+    d0: Optional[np.ndarray] = None
+    d1: Optional[np.ndarray] = None
 
     @property
     def n_points(self) -> int:
@@ -256,19 +265,27 @@ def constant_arc(
 
 @njit(nogil=True, cache=True)
 def _segment_ok(
-    phi: np.ndarray, w: np.ndarray, j: int, i: int, budget: float
+    phi: np.ndarray, w: np.ndarray, dw: np.ndarray, j: int, i: int, budget: float
 ) -> bool:  # pragma: no cover - jit
-    # largest deviation of the dense samples strictly between j and i from the chord j–i
-    slope = (w[i] - w[j]) / (phi[i] - phi[j])
+    # largest deviation of the dense samples strictly between j and i from the segment j–i:
+    # the chord, or with slopes ``dw`` the cubic Hermite through the path's own slopes
+    span = phi[i] - phi[j]
+    if dw.size == 0:
+        slope = (w[i] - w[j]) / span
+        for m in range(j + 1, i):
+            if abs(w[j] + slope * (phi[m] - phi[j]) - w[m]) > budget:
+                return False
+        return True
+    d0, d1 = dw[j] * span, dw[i] * span
     for m in range(j + 1, i):
-        if abs(w[j] + slope * (phi[m] - phi[j]) - w[m]) > budget:
+        if abs(segments.hermite(w[j], w[i], d0, d1, (phi[m] - phi[j]) / span) - w[m]) > budget:
             return False
     return True
 
 
 @njit(nogil=True, cache=True)
 def _greedy_chords(
-    phi: np.ndarray, w: np.ndarray, budget: float, max_step: float, keep: np.ndarray
+    phi: np.ndarray, w: np.ndarray, dw: np.ndarray, budget: float, max_step: float, keep: np.ndarray
 ) -> None:  # pragma: no cover - jit
     """Mark in ``keep`` the dense samples a greedy chord walk keeps: from each kept sample,
     the farthest sample (by galloping, then bisection) whose chord stays within ``budget``
@@ -287,7 +304,7 @@ def _greedy_chords(
                 cand = n - 1
             if cand <= good:
                 break
-            if phi[cand] - phi[j] <= max_step and _segment_ok(phi, w, j, cand, budget):
+            if phi[cand] - phi[j] <= max_step and _segment_ok(phi, w, dw, j, cand, budget):
                 good = cand
                 width *= 2
                 if cand == n - 1:
@@ -299,7 +316,7 @@ def _greedy_chords(
             lo, hi = good, bad
             while hi - lo > 1:
                 mid = (lo + hi) // 2
-                if phi[mid] - phi[j] <= max_step and _segment_ok(phi, w, j, mid, budget):
+                if phi[mid] - phi[j] <= max_step and _segment_ok(phi, w, dw, j, mid, budget):
                     lo = mid
                 else:
                     hi = mid
@@ -457,6 +474,7 @@ def chord_budget(
     min_points_per_rev: int = MIN_POINTS_PER_REV,
     max_refine: int = 5,
     max_samples: int = MAX_DENSE_SAMPLES,
+    cubic: bool = False,
 ) -> tuple[SpiralPath, np.ndarray, np.ndarray]:
     """Points placed by the chord-error budget Δcho = ``chord_um`` [µm] ([4] eq. 4).
 
@@ -474,6 +492,14 @@ def chord_budget(
     ``commands``) and the largest sampled chord deviation of each segment [µm]. A dense
     sampling of more than ``max_samples`` points is refused (ValueError) before it is
     allocated.
+
+    With ``cubic`` the controller interpolates by cubic segments (PVT, SPLINE1;
+    docs/controllers.md) and the rule is the matching one: the walk checks the cubic Hermite
+    through the path's own slopes (three-point slopes of the dense samples) instead of the
+    chord, and the kept points' segments are then those of the natural spline through them
+    (:func:`ftsweep.stages.segments.natural_spline`, what the program's velocities or control
+    points carry): any segment whose deviation from the dense samples passes Δcho is split at
+    its middle sample until none does. The errors returned are those of these segments.
     """
     _check("chord_um", chord_um)
     step = dense_um if dense_um is not None else feed_um
@@ -495,7 +521,10 @@ def chord_budget(
         else:
             dense, w, _ = subdivided(coarse, m, commands, INTERP_TOL * chord_um)
         keep = np.zeros(dense.size, dtype=np.bool_)
-        _greedy_chords(dense, w, budget, max_step, keep)
+        dw = np.empty(dense.size if cubic else 0)
+        if cubic:
+            segments.dense_slopes(dense, w, dw)
+        _greedy_chords(dense, w, dw, budget, max_step, keep)
         idx = np.flatnonzero(keep)
         # the last segment ends at the centre wherever it falls: it sets no spacing
         per_segment = float(np.min(np.diff(idx)[:-1])) if idx.size > 2 else math.inf
@@ -503,16 +532,43 @@ def chord_budget(
             break
         # segments scale little with the dense step, so one refinement usually suffices
         m = int(math.ceil(m * DENSE_PER_SEGMENT / (0.9 * per_segment)))
-    errors = np.empty(idx.size - 1)
-    _chord_errors(dense, w, idx, errors)
+    if cubic:
+        idx, errors = _spline_split(dense, w, idx, chord_um)
+    else:
+        errors = np.empty(idx.size - 1)
+        _chord_errors(dense, w, idx, errors)
     path = SpiralPath("spiral", dense[idx], rho0_um, feed_um, "chord", float(chord_um))
     return path, w[idx], errors
 
 
+# splits of the cubic chord rule's over-budget segments: each halves a segment, and the
+# greedy walk's segments already hold the budget with the path's own slopes
+MAX_SPLITS = 12
+
+
+def _spline_split(
+    dense: np.ndarray, w: np.ndarray, idx: np.ndarray, chord_um: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The kept samples ``idx`` with every segment of the natural spline through them whose
+    deviation from the dense samples passes ``chord_um`` split at its middle sample, until
+    none does (or a segment can no longer be split); the final segments' deviations [µm]."""
+    for _ in range(MAX_SPLITS):
+        d0, d1 = segments.natural_spline(dense[idx], w[idx])
+        errors = segments.deviations(dense, w, idx, d0, d1)
+        over = np.flatnonzero((errors > chord_um) & (np.diff(idx) > 1))
+        if over.size == 0:
+            break
+        idx = np.union1d(idx, (idx[over] + idx[over + 1]) // 2)
+    return idx, errors
+
+
 def spiral_commands(path: SpiralPath, values: np.ndarray, phi: np.ndarray) -> np.ndarray:
     """The controller's command w [µm] at accumulated spindle angles ``phi`` [rad]: linear
-    interpolation in φ between consecutive control points, the end values held outside."""
-    return np.interp(phi, path.phi, values)
+    interpolation in φ between consecutive control points, or the path's cubic segments
+    (:mod:`ftsweep.stages.segments`), the end values held outside."""
+    if path.d0 is None or path.d1 is None:
+        return np.interp(phi, path.phi, values)
+    return segments.evaluate(path.phi, values, path.d0, path.d1, phi)
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -546,15 +602,39 @@ def _interval_from(xp: np.ndarray, x: float, j: int, jump: int) -> int:  # pragm
     return lo
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _segment_value(
+    xp: np.ndarray, fp: np.ndarray, d0: np.ndarray, d1: np.ndarray, j: int, x: float
+) -> float:  # pragma: no cover - jit
+    """The command at ``x`` in segment j (xp[j] < x < xp[j + 1]): linear as ``np.interp``
+    computes it (no tangents), else the cubic Hermite of the segment's tangents."""
+    if d0.size:
+        return segments.hermite(fp[j], fp[j + 1], d0[j], d1[j], (x - xp[j]) / (xp[j + 1] - xp[j]))
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    value = slope * (x - xp[j]) + fp[j]
+    if value != value:
+        value = slope * (x - xp[j + 1]) + fp[j + 1]
+        if value != value and fp[j] == fp[j + 1]:
+            value = fp[j]
+    return value
+
+
 @njit(nogil=True, cache=True)
 def pass_commands_kernel(
-    xp: np.ndarray, fp: np.ndarray, ray_theta: np.ndarray, first_revolution: int, out: np.ndarray
+    xp: np.ndarray,
+    fp: np.ndarray,
+    d0: np.ndarray,
+    d1: np.ndarray,
+    ray_theta: np.ndarray,
+    first_revolution: int,
+    out: np.ndarray,
 ) -> None:  # pragma: no cover - jit
     """:func:`spiral_commands` at the passes φ = 2π·(k + ``first_revolution``) + θ of each ray
-    (row of ``out``, one column a pass), value for value what ``np.interp`` gives (its
-    interval, slope and end rules). Passes of a ray are a revolution apart, so each search
-    starts a revolution's worth of points on from the last (O(1) a pass where a bisection
-    over the whole path takes ~20 cache-missing steps)."""
+    (row of ``out``, one column a pass): with empty tangents ``d0``, ``d1`` value for value
+    what ``np.interp`` gives (its interval, slope and end rules), else the cubic segments.
+    Passes of a ray are a revolution apart, so each search starts a revolution's worth of
+    points on from the last (O(1) a pass where a bisection over the whole path takes ~20
+    cache-missing steps)."""
     n = xp.size
     for a in range(out.shape[0]):
         j = 0
@@ -571,16 +651,7 @@ def pass_commands_kernel(
                 found = _interval_from(xp, x, j, jump)
                 jump = found - j if k > 0 else 0
                 j = found
-                if xp[j] == x:
-                    out[a, k] = fp[j]
-                else:
-                    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
-                    value = slope * (x - xp[j]) + fp[j]
-                    if value != value:
-                        value = slope * (x - xp[j + 1]) + fp[j + 1]
-                        if value != value and fp[j] == fp[j + 1]:
-                            value = fp[j]
-                    out[a, k] = value
+                out[a, k] = fp[j] if xp[j] == x else _segment_value(xp, fp, d0, d1, j, x)
 
 
 def phi_on_path(path: SpiralPath, rho: np.ndarray, theta: np.ndarray) -> np.ndarray:

@@ -128,6 +128,13 @@ def select(
     help="Header file to write (FILE.h, a local path); the sidecar FILE.json is written beside it.",
 )
 @click.option("--name", help="Prefix of the C identifiers. Default: the file name.")
+@click.option(
+    "--dialect",
+    type=click.Choice(["text", "iso-sts", "linuxcnc", "pmac-pvt", "pmac-spline"]),
+    help="Language of a spiral program: ftsweep's text lines, ISO STS G-code (Moore Nanotech), "
+    "LinuxCNC G-code, Delta Tau PMAC PVT or SPLINE1 (docs/controllers.md). Default: the machine's "
+    "controller entry's dialect (text when it declares none).",
+)
 @click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
 @SIGN_KEY
 @TRUST_PLUGINS
@@ -140,6 +147,7 @@ def export(
     index: Optional[int],
     out: str,
     name: Optional[str],
+    dialect: Optional[str],
     force: bool,
     sign_key: Optional[str],
     trust_plugins: bool,
@@ -151,6 +159,9 @@ def export(
     C [deg] X [mm] Z [mm], or a D-path program as lines t [s] C [deg] X [mm] Z [mm] (-o
     FILE.txt), each under a header of units, surface, tool, budgets and predicted P-V. Fresnel
     programs are exported by `ftsweep fresnel -o FILE.txt`; `ftsweep verify FILE` checks any.
+    A spiral program can be written in a controller's dialect (--dialect: ISO STS or LinuxCNC
+    G-code under G93 inverse time, PMAC PVT or SPLINE1); its sidecar records the P-V of the
+    program as written, at the controller's decimals.
 
     The table is stored as fixed-point integers (unit and type from the machine catalog) in
     the order the controller indexes it, with macros for the layout, pitches, origin, units,
@@ -170,7 +181,7 @@ def export(
         if index is None:  # a case given by its index is the same case whatever else is computed
             guard_complete(current_status(cube), allow_incomplete)
         meta = exp.export(
-            cube, target, budget_points, tolerance_nm, index, force, name, trust_plugins, sign_key
+            cube, target, budget_points, tolerance_nm, index, force, name, trust_plugins, sign_key, dialect
         )
     except (exp.ExportError, SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None

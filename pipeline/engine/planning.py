@@ -49,8 +49,10 @@ class ResolvedCase:
 
     @property
     def rho0_um(self) -> float:
-        """Start radius of the spiral: the aperture's circumscribed radius [µm] (model §1)."""
-        return float(self.aperture.outer_radius_um)
+        """Start radius of the spiral [µm] (model §1): the aperture's circumscribed radius, or
+        that of a spiral program read from a file (where its X sets it)."""
+        own = getattr(self.layout, "rho0_um", None)
+        return float(self.aperture.outer_radius_um if own is None else own)
 
 
 def resolve_case(

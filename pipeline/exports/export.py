@@ -50,6 +50,10 @@ def format_of_file(path: Path) -> FileFormat:
     # the largest file any format reads is a program's; a device or FIFO is refused, never read
     head = read_regular(path, MAX_PROGRAM_BYTES, head=200)
     first = head.split(b"\n", 1)[0].decode("utf-8", errors="replace")
+    from ftsweep.exports import nc
+
+    if nc.is_dialect_file(first):
+        return nc.dialect_format()  # type: ignore[no-any-return]
     found = [f for f in formats() if f.magic is not None and first.startswith(f.magic)]
     return found[0] if found else formats()[0]
 
@@ -64,13 +68,16 @@ def export(
     name: str | None = None,
     trust_plugins: bool = False,
     sign_key: str | None = None,
+    dialect: str | None = None,
 ) -> dict[str, Any]:
     """Choose a case of a cube (a path or URL; ``select``'s rules), plan it again from the cube's recorded
     spec and catalog entries and write it in its kind's format with its sidecar, atomically
     (a table as a C header, a spiral or D-path program as plain-text lines). Returns the
     sidecar's content. A plug-in surface the cube names must be in the local catalog unless
     ``trust_plugins``. Signed (``FILE.sig``) when a signing key is configured
-    (:func:`ftsweep.exports.origin.signing_key` of ``sign_key``)."""
+    (:func:`ftsweep.exports.origin.signing_key` of ``sign_key``). A path program is written in
+    ``dialect`` (default: the machine's controller's, :mod:`ftsweep.exports.nc`)."""
+    from ftsweep.exports import nc
     from ftsweep.tools.select import check_exportable, choose, open_cube, recorded_case
 
     out = Path(out)
@@ -96,6 +103,14 @@ def export(
     check_exportable(ds, flat)
     case, specs = recorded_case(ds, flat, trust_plugins)
     extra = {"cube": str(cube_path), "cube_git_revision": ds.attrs.get("git_revision")}
+    dialect = dialect or nc.default_dialect(specs[1])
+    if dialect != "text":
+        return signed(out, key, nc.export(out, side, case, specs, chosen, extra, dialect))
+    if specs[1].interpolation != "linear":
+        raise ExportError(
+            f"machine '{case.machine}' interpolates {specs[1].interpolation}; ftsweep's text programs are "
+            f"linear: export --dialect {specs[1].controller.dialect}"
+        )
     fmt = format_of_kind(case.layout.kind)
     assert fmt.export is not None
     meta = fmt.export(out, side, case, specs, chosen, extra, name=name)

@@ -22,7 +22,7 @@ from ftsweep.engine.planning import compensator
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.spiral.request import SpiralRequest
-from ftsweep.stages import cusp_budget, spiral
+from ftsweep.stages import cusp_budget, segments, spiral
 
 AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")
 
@@ -35,14 +35,22 @@ def plan_spiral(
     rc: float,
     bound: float,
     program: Optional[tuple[spiral.SpiralPath, np.ndarray]] = None,
+    machine: Any = None,
+    rpm: float = 0.0,
 ) -> tuple[spiral.SpiralPath, dict[str, Any]]:
     """The spiral program of a case ([4]): its points by the request's rule from the
     aperture's circumscribed radius to the centre, and their commands compensated as a
-    table's (model §4); or the given ``program`` as it stands (no gouge flags)."""
+    table's (model §4), with the segments ``machine``'s controller forms between them at
+    ``rpm`` (:func:`controller_form`); or the given ``program`` as it stands (no gouge flags)."""
     rho0 = float(catalogs.aperture_of(surface_spec).outer_radius_um)
     if program is not None:
         path, values = program
         values = np.asarray(values, dtype=np.float64)
+        if path.rho0_um < rho0 * (1.0 - 1e-9):
+            raise CaseError(
+                f"the program's spiral starts at radius {path.rho0_um / 1e3:.6g} mm, inside the part's "
+                f"circumscribed radius {rho0 / 1e3:.6g} mm: its outer ring is never cut"
+            )
         return path, {"values": values, "gouge": np.zeros(values.shape, dtype=bool)}
 
     solve = compensator(case, surface_spec, surface, rc, bound)
@@ -54,18 +62,68 @@ def plan_spiral(
 
     rule, value = case.layout.spiral_rule()
     extra: dict[str, Any] = {}
+    mode = machine.interpolation if machine is not None else "linear"
     try:
         if rule == "angle":
             path = spiral.constant_angle(rho0, feed_um, int(value))
         elif rule == "arc":
             path = spiral.constant_arc(rho0, feed_um, value)
         else:
-            path, _, errors = spiral.chord_budget(rho0, feed_um, value, lambda phi: compensated(phi)[0])
+            path, _, errors = spiral.chord_budget(
+                rho0, feed_um, value, lambda phi: compensated(phi)[0], cubic=mode != "linear"
+            )
             extra["chord_error_um"] = float(errors.max()) if errors.size else 0.0
+        if mode == "pvt":
+            path = path._replace(phi=_on_time_steps(path, machine.controller, rpm))
     except ValueError as exc:
         raise CaseError(f"spiral program: {exc}") from None
     values, gouge = compensated(path.phi)
+    if mode != "linear":
+        path, values = controller_form(path, values, machine, rpm)
     return path, {"values": values, "gouge": gouge, **extra}
+
+
+def _on_time_steps(path: spiral.SpiralPath, controller: Any, rpm: float) -> np.ndarray:
+    """The points' angles [rad] on whole time steps of a PVT controller (its time quantum at
+    the spindle's angular speed), so every segment's time is a whole number of steps
+    (docs/controllers.md); the last point never passes the centre."""
+    step = controller.time_quantum_s * rpm * math.pi / 30.0
+    phi = segments.quantised(path.phi[:-1], step)
+    last = math.floor(float(path.phi[-1]) / step) * step
+    if phi.size and not last > phi[-1]:
+        raise ValueError("the last two points fall within one controller time step: a slower spindle")
+    return np.append(phi, last)
+
+
+def controller_form(
+    path: spiral.SpiralPath, values: np.ndarray, machine: Any, rpm: float
+) -> tuple[spiral.SpiralPath, np.ndarray]:
+    """The path with the segments the machine's controller forms between its points
+    (docs/controllers.md) and the commands [µm] it passes through: PVT the natural spline
+    through the points (the velocities export writes), SPLINE1 the uniform B-spline whose
+    way-points are the points (its control points are what export writes). Refuses (CaseError)
+    a segment time the controller cannot run: over its longest, or for SPLINE1 not one
+    whole time step (TA is whole milliseconds) or not the same for every segment."""
+    ctrl = machine.controller
+    seconds = np.diff(path.phi) / (rpm * math.pi / 30.0)
+    longest = float(seconds.max(initial=0.0))
+    if longest > ctrl.max_segment_s:
+        raise CaseError(
+            f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's "
+            f"{ctrl.max_segment_s * 1e3:g} ms"
+        )
+    if ctrl.interpolation == "pvt":
+        d0, d1 = segments.natural_spline(path.phi, values)
+        return path._replace(interpolation="pvt", d0=d0, d1=d1), values
+    inner = seconds[:-1]  # the last segment ends at the centre wherever it falls
+    if path.rule != "angle" or not segments.whole_steps(float(inner[0]), ctrl.time_quantum_s):
+        raise CaseError(
+            f"SPLINE1 segments are one time TA of whole {ctrl.time_quantum_s * 1e3:g} ms steps: this "
+            f"spiral's take {float(inner[0]) * 1e3:.6g} ms (use the points_per_rev rule with "
+            "60000/(rpm·TA) points per revolution)"
+        )
+    way, d0, d1 = segments.bspline_segments(segments.control_points(values))
+    return path._replace(interpolation="spline1", d0=d0, d1=d1), way
 
 
 # residual-budget sampling of the radial sections ([4] eq. 1): radii × angles over the
@@ -162,7 +220,15 @@ def _plan(p: Planning) -> tuple[spiral.SpiralPath, dict[str, Any]]:
     case = p.case
     _check_estimate(case, p.surface_spec, p.feed_um, p.machine.capacity_points)
     path, extra = plan_spiral(
-        case, p.surface_spec, p.surface, p.feed_um, p.nose_radius_um, p.gradient_bound, p.program
+        case,
+        p.surface_spec,
+        p.surface,
+        p.feed_um,
+        p.nose_radius_um,
+        p.gradient_bound,
+        p.program,
+        p.machine,
+        p.cutting.spindle_rpm,
     )
     sections = section_samples(p.surface_spec, p.catalog_folder)
     extra["residual_error_um"] = residual_error_um(sections, p.feed_um, p.nose_radius_um)

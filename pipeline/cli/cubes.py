@@ -215,6 +215,13 @@ def export(
     help="Without a trusted key, verify against the entries the sidecar recorded even where the "
     "local catalog differs (proves consistency only).",
 )
+@click.option(
+    "--compiled",
+    is_flag=True,
+    help="Also build ftsweep's C99 reference interpolator with the system's C compiler and check that "
+    "it computes the simulator's commands from the file (a header's bilinear lookup, a PMAC PVT or "
+    "SPLINE1 program's segments) at 10^5 points or more, to 1e-9 µm (docs/controllers.md).",
+)
 @TRUST_PLUGINS
 @threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
@@ -223,6 +230,7 @@ def verify(
     pv_tolerance_nm: Optional[float],
     trusted: tuple[str, ...],
     accept_recorded: bool,
+    compiled: bool,
     trust_plugins: bool,
     as_json: bool,
 ) -> None:
@@ -258,7 +266,7 @@ def verify(
 
     progress = stderr_progress("re-simulating", as_json)
     try:
-        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins, trusted, accept_recorded)
+        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins, trusted, accept_recorded, compiled)
     except (exp.ExportError, CaseError, CatalogError) as exc:
         raise click.ClickException(str(exc)) from None
     finally:
@@ -268,6 +276,12 @@ def verify(
         return
     for line in exp.format_of_file(header).verified(record):
         click.echo(line)
+    if compiled:
+        click.echo(
+            f"compiled     the C reference gives the simulator's commands at {record['compiled_points']:,} "
+            f"{record['compiled_what']}: largest difference {record['compiled_max_diff_um']:.3g} µm "
+            f"(bound {record['compiled_bound_um']:g} µm) ok"
+        )
     click.echo(exp.origin_line(record))
 
 

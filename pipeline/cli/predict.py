@@ -31,7 +31,25 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
 
 
 @click.command()
-@click.option("--surface", required=True, metavar="NAME", help="Surface from catalogs/surfaces.yaml.")
+@click.option(
+    "--surface",
+    metavar="NAME",
+    help="Surface from catalogs/surfaces.yaml (required, but with --program: then only to predict its P-V).",
+)
+@click.option(
+    "--program",
+    type=click.Path(exists=True, dir_okay=False),
+    help="A spiral program in any supported dialect (ISO STS or LinuxCNC G-code under G93, PMAC PVT or "
+    "SPLINE1, ftsweep's): print its points, revolutions, feed per revolution and peak axis motion against "
+    "the machine's limits, and with --surface its predicted form error (docs/controllers.md).",
+)
+@click.option(
+    "--g93-f",
+    type=click.Choice(["inverse_minutes", "seconds"]),
+    default="inverse_minutes",
+    show_default=True,
+    help="With --program: what F means under G93 on the controller the program was written for.",
+)
 @click.option(
     "--layout",
     type=KindChoice(),
@@ -170,6 +188,11 @@ def predict(**opts: Any) -> None:
     from ftsweep.inputs.usersurfaces import SurfaceLoadError
     from ftsweep.simulate import run_case
 
+    if opts["program"] is not None:
+        _predict_program(opts)
+        return
+    if opts["surface"] is None:
+        fail("--surface is required (or --program FILE)")
     case = _build_case(opts)
     as_json = opts["as_json"]
     progress = stderr_progress("simulating", as_json)
@@ -183,6 +206,46 @@ def predict(**opts: Any) -> None:
         echo_json(record)
     else:
         click.echo(summary_text(record))
+
+
+def _predict_program(opts: dict[str, Any]) -> None:
+    """``predict --program``: a program file read, summarised and (with --surface) predicted."""
+    from ftsweep.engine.case import CaseError
+    from ftsweep.exports import nc
+    from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.inputs.usersurfaces import SurfaceLoadError
+
+    progress = stderr_progress("simulating", opts["as_json"]) if opts["surface"] else None
+    try:
+        info = nc.predict_program(
+            opts["program"], opts["surface"], opts["machine"], opts["cutting"], opts["g93_f"], progress
+        )
+    except (nc.ProgramError, CaseError, CatalogError, SurfaceLoadError) as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        if progress is not None:
+            progress_done(progress)
+    if opts["as_json"]:
+        echo_json(info)
+        return
+    feed = info["feed_um_per_rev"]
+    click.echo(f"program      {info['program']} ({info['dialect']}, {info['interpolation']} segments)")
+    click.echo(
+        f"points       {info['n_points']:,} over {info['revolutions']:.4g} revolutions "
+        f"({info['points_per_rev']:.4g} per revolution on average)"
+    )
+    click.echo(
+        f"feed         {feed['min']:.4g} / {feed['median']:.4g} / {feed['max']:.4g} µm/rev (min / median / max); "
+        f"spindle {info['spindle_rpm']:.4g} rpm; {info['machining_s']:.4g} s"
+    )
+    for name, a in info["axes"].items():
+        unit = name.rsplit("_", 2)[-2] + "/" + name.rsplit("_", 1)[-1]
+        limit = "no limit declared" if a["limit"] is None else f"limit {a['limit']:g}: {'ok' if a['ok'] else 'OVER'}"
+        click.echo(f"{name[:7]:<12} peak {a['peak']:.4g} {unit} on machine {info['machine']} ({limit})")
+    for note in info["notes"]:
+        click.echo(f"note         {note}")
+    if "record" in info:
+        click.echo(summary_text(info["record"]))
 
 
 def _build_case(opts: dict[str, Any]) -> Case:

@@ -133,12 +133,15 @@ def verify(
     trust_plugins: bool = False,
     trusted: tuple[str, ...] = (),
     accept_recorded: bool = False,
+    compiled: bool = False,
 ) -> dict[str, Any]:
     """Verify any exported file by its format (:func:`format_of_file`): what the machine
     reads, parsed as the machine parses it, against what the recorded case plans; and its
     origin (:mod:`ftsweep.exports.origin`): with trusted keys (``trusted``, or the config file's)
     its signature, else its recorded catalog entries against the local catalog (unless
-    ``accept_recorded``). The record's ``origin`` says which was proved. Raises
+    ``accept_recorded``). With ``compiled``, the C reference interpolator's commands from
+    the file (:mod:`ftsweep.exports.compiled`) must equal the simulator's. The record's
+    ``origin`` says which was proved. Raises
     :class:`~ftsweep.exports.files.ExportError` naming the first difference."""
     from ftsweep.exports import origin as org
 
@@ -148,6 +151,10 @@ def verify(
     before = _contents(path, side)
     # the file as the machine reads it first (its own errors name what is wrong with it) ...
     record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
+    if compiled:
+        from ftsweep.exports import compiled as reference
+
+        record.update(reference.check_file(path, fmt.name, trust_plugins))
     file_bytes, side_bytes = _contents(path, side)
     if side_bytes is None or (file_bytes, side_bytes) != before:  # judged must be what is proved
         raise ExportError(f"{path} or its sidecar changed while it was verified; verify it again")

@@ -390,3 +390,68 @@ def dialect_format() -> Any:
         raise ProgramError("dialect programs are written by export --dialect")
 
     return FileFormat("dialect program", None, export_fn, verify, exported, verified)
+
+
+def _peaks(moves: Moves) -> dict[str, float]:
+    """Peak X and Z speeds [mm/s] and accelerations [m/s²] of a program's segments (speeds
+    per segment, accelerations between consecutive segments' speeds)."""
+    t = np.asarray(moves.seconds, dtype=np.float64)
+    out: dict[str, float] = {}
+    for axis, values in (("x", moves.x_mm), ("z", moves.z_mm)):
+        v = np.diff(values) / t
+        a = np.diff(v) / (0.5 * (t[:-1] + t[1:])) * 1e-3 if v.size > 1 else np.zeros(0)
+        out[f"{axis}_speed_mm_s"] = float(np.max(np.abs(v), initial=0.0))
+        out[f"{axis}_accel_m_s2"] = float(np.max(np.abs(a), initial=0.0))
+    return out
+
+
+def _against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
+    """The peaks beside the machine's limits (its X-Z axes, or the servo's acceleration)."""
+    axes = machine.axes
+    limits = {
+        "x_speed_mm_s": axes.x_feed_mm_s if axes else None,
+        "x_accel_m_s2": axes.x_accel_m_s2 if axes else None,
+        "z_speed_mm_s": axes.z_velocity_mm_s if axes else None,
+        "z_accel_m_s2": axes.z_accel_m_s2 if axes else machine.peak_accel_m_s2,
+    }
+    return {
+        k: {"peak": v, "limit": limits[k], "ok": limits[k] is None or v <= limits[k]} for k, v in peaks.items()
+    }
+
+
+def predict_program(
+    path: Path,
+    surface: Optional[str],
+    machine: Optional[str],
+    cutting: Optional[str],
+    g93_f: str = "inverse_minutes",
+    progress: Any = None,
+) -> dict[str, Any]:
+    """Read a path program in any supported dialect (ftsweep's or another CAM's), summarise
+    it (points, revolutions, feed per revolution, spindle speed, peak axis speeds and
+    accelerations against the machine's limits) and, with a ``surface``, predict the form
+    error it leaves through the one simulator (docs/controllers.md)."""
+    from ftsweep.inputs import catalogs
+
+    lines = read_lines(Path(path), strict=False)
+    first = lines[0] if lines else ""
+    dialect = dialects.detect(lines)
+    if is_dialect_file(first):
+        dialect = (dialects.comment_text(dialect, first) or "").split("dialect ", 1)[-1].split(":", 1)[0]
+    moves = dialects.read(lines, dialect, g93_f)
+    info: dict[str, Any] = {"program": str(path), "dialect": dialect, "interpolation": moves.interpolation}
+    info.update(dialects.summary(moves))
+    turns = (moves.c_deg[-1] - moves.c_deg[0]) / 360.0
+    info["spindle_rpm"] = float(turns / info["machining_s"] * 60.0) if info["machining_s"] > 0 else math.nan
+    machine = machine or {"linear": "sts-moore", "pvt": "sts-pmac-pvt", "spline1": "sts-pmac-spline"}[moves.interpolation]
+    info["machine"] = machine
+    info["axes"] = _against(_peaks(moves), catalogs.entry("machines", machine))
+    info["notes"] = moves.notes
+    if surface is None:
+        return info
+    case = stand_in_case(surface, machine, cutting or "reference")
+    record = simulate_moves(case, None, moves, progress)
+    info.update({k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "nose_radius_um", "feed_um")})
+    info["surface"] = surface
+    info["record"] = record
+    return info

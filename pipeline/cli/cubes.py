@@ -266,7 +266,9 @@ def verify(
 
     progress = stderr_progress("re-simulating", as_json)
     try:
-        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins, trusted, accept_recorded, compiled)
+        record = exp.verify(
+            header, progress, pv_tolerance_nm, trust_plugins, trusted, accept_recorded, compiled
+        )
     except (exp.ExportError, CaseError, CatalogError) as exc:
         raise click.ClickException(str(exc)) from None
     finally:

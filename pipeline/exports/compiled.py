@@ -85,8 +85,17 @@ def check_header(path: Path, layout: Any, table_um: np.ndarray, seed: int = 0) -
     with tempfile.TemporaryDirectory(prefix="ftsref-") as tmp:
         work = Path(tmp)
         shutil.copyfile(path, work / "table.h")
-        exe = _build(work, ['-DFTS_HEADER="table.h"', f"-DFTS_PREFIX={found.group(1)}", f"-DFTS_TABLE={table.group(1)}_table"])
-        done = subprocess.run([str(exe)], input=np.ascontiguousarray(query).tobytes(), capture_output=True, timeout=600)
+        exe = _build(
+            work,
+            [
+                '-DFTS_HEADER="table.h"',
+                f"-DFTS_PREFIX={found.group(1)}",
+                f"-DFTS_TABLE={table.group(1)}_table",
+            ],
+        )
+        done = subprocess.run(
+            [str(exe)], input=np.ascontiguousarray(query).tobytes(), capture_output=True, timeout=600
+        )
     got = np.frombuffer(done.stdout, dtype=np.float64)
     return _compared(got, want, "table lookups")
 
@@ -100,7 +109,9 @@ def check_program(path: Path, moves: Any) -> dict[str, Any]:
     from ftsweep.stages.spiral import spiral_commands
 
     if moves.interpolation == "linear":
-        raise ExportError("--compiled evaluates PMAC PVT and SPLINE1 programs and headers; this one is linear G-code")
+        raise ExportError(
+            "--compiled evaluates PMAC PVT and SPLINE1 programs and headers; this one is linear G-code"
+        )
     spiral_path, values = program_of(moves)
     segments = spiral_path.n_points - 1
     per = max(1, math.ceil(MIN_POINTS / segments))
@@ -111,7 +122,9 @@ def check_program(path: Path, moves: Any) -> dict[str, Any]:
         exe = _build(Path(tmp), [])
         done = subprocess.run([str(exe), str(path), str(per)], capture_output=True, timeout=600)
     if done.returncode != 0:
-        raise ExportError(f"the reference interpolator refused {path}: {done.stderr.decode(errors='replace')[:300]}")
+        raise ExportError(
+            f"the reference interpolator refused {path}: {done.stderr.decode(errors='replace')[:300]}"
+        )
     got = np.frombuffer(done.stdout, dtype=np.float64) * 1e3
     return _compared(got, want, f"points along the spiral ({per} per segment)")
 
@@ -126,7 +139,12 @@ def _compared(got: np.ndarray, want: np.ndarray, what: str) -> dict[str, Any]:
             f"the compiled reference and the simulator differ by {diff:.3g} µm at {what} #{k} "
             f"(bound {BOUND_UM:g} µm): the controller would not cut what was predicted"
         )
-    return {"compiled_points": int(got.size), "compiled_max_diff_um": diff, "compiled_bound_um": BOUND_UM, "compiled_what": what}
+    return {
+        "compiled_points": int(got.size),
+        "compiled_max_diff_um": diff,
+        "compiled_bound_um": BOUND_UM,
+        "compiled_what": what,
+    }
 
 
 def check_file(path: Path, format_name: str, trust_plugins: bool = False) -> dict[str, Any]:

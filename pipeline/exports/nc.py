@@ -415,7 +415,8 @@ def _against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
         "z_accel_m_s2": axes.z_accel_m_s2 if axes else machine.peak_accel_m_s2,
     }
     return {
-        k: {"peak": v, "limit": limits[k], "ok": limits[k] is None or v <= limits[k]} for k, v in peaks.items()
+        k: {"peak": v, "limit": limits[k], "ok": limits[k] is None or v <= limits[k]}
+        for k, v in peaks.items()
     }
 
 
@@ -443,7 +444,10 @@ def predict_program(
     info.update(dialects.summary(moves))
     turns = (moves.c_deg[-1] - moves.c_deg[0]) / 360.0
     info["spindle_rpm"] = float(turns / info["machining_s"] * 60.0) if info["machining_s"] > 0 else math.nan
-    machine = machine or {"linear": "sts-moore", "pvt": "sts-pmac-pvt", "spline1": "sts-pmac-spline"}[moves.interpolation]
+    machine = (
+        machine
+        or {"linear": "sts-moore", "pvt": "sts-pmac-pvt", "spline1": "sts-pmac-spline"}[moves.interpolation]
+    )
     info["machine"] = machine
     info["axes"] = _against(_peaks(moves), catalogs.entry("machines", machine))
     info["notes"] = moves.notes

@@ -21,7 +21,8 @@ import numpy as np
 from numba import njit
 
 from .layouts import Layout
-from .spiral import SpiralPath, pass_commands_kernel, phi_on_path, spiral_commands
+from .spiral import SpiralPath, phi_on_path, spiral_commands
+from .spiral_passes import pass_commands_kernel
 
 # a program the controller executes: a table (bilinear, model §3) or a spiral path (linear
 # in the spindle angle between consecutive points, [4])

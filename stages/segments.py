@@ -214,6 +214,27 @@ def dense_slopes(x: np.ndarray, y: np.ndarray, out: np.ndarray) -> None:  # prag
     out[n - 1] = (y[n - 1] - y[n - 2]) / (x[n - 1] - x[n - 2])
 
 
+# splits of the cubic chord rule's over-budget segments: each halves a segment, and the
+# greedy walk's segments already hold the budget with the path's own slopes
+MAX_SPLITS = 12
+
+
+def split_until_within(
+    dense: np.ndarray, w: np.ndarray, idx: np.ndarray, chord_um: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The kept samples ``idx`` with every segment of the natural spline through them whose
+    deviation from the dense samples passes ``chord_um`` split at its middle sample, until
+    none does (or a segment can no longer be split); the final segments' deviations [µm]."""
+    for _ in range(MAX_SPLITS):
+        d0, d1 = natural_spline(dense[idx], w[idx])
+        errors = deviations(dense, w, idx, d0, d1)
+        over = np.flatnonzero((errors > chord_um) & (np.diff(idx) > 1))
+        if over.size == 0:
+            break
+        idx = np.union1d(idx, (idx[over] + idx[over + 1]) // 2)
+    return idx, errors
+
+
 def quantised(x: np.ndarray, quantum: float) -> np.ndarray:
     """``x`` rounded to whole multiples of ``quantum`` (a controller's time step as an
     angle), refused (ValueError) if two points then fall on one step."""

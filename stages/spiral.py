@@ -483,23 +483,11 @@ def chord_budget(
     default the feed), the greedy walk of :func:`_greedy_chords` keeps the farthest next
     point whose chord stays within (1 − 1/16)·Δcho of every dense sample in between, and
     the dense sampling is refined (up to ``max_refine`` times) until every kept segment
-    spans at least 8 dense intervals, where the chord's deviation between dense samples is
-    within the margin. The first sampling is compensated exactly; a refinement splits each
-    of its intervals into equal steps in φ, whose samples take the cubic through the first
-    sampling wherever that is proven within 1e-3·Δcho (:func:`subdivided`: on a smooth path
-    all but a few; 28 M exact compensations cut to 3 M), 1/60 of the margin the rule keeps.
-    Returns the path, the commands at its points as sampled [µm] (within 1e-3·Δcho of
-    ``commands``) and the largest sampled chord deviation of each segment [µm]. A dense
-    sampling of more than ``max_samples`` points is refused (ValueError) before it is
-    allocated.
-
-    With ``cubic`` the controller interpolates by cubic segments (PVT, SPLINE1;
-    docs/controllers.md) and the rule is the matching one: the walk checks the cubic Hermite
-    through the path's own slopes (three-point slopes of the dense samples) instead of the
-    chord, and the kept points' segments are then those of the natural spline through them
-    (:func:`ftsweep.stages.segments.natural_spline`, what the program's velocities or control
-    points carry): any segment whose deviation from the dense samples passes Δcho is split at
-    its middle sample until none does. The errors returned are those of these segments.
+    spans at least 8 dense intervals (refined samples: :func:`subdivided`). Returns the path,
+    the commands at its points as sampled [µm] (within 1e-3·Δcho of ``commands``) and the
+    largest sampled deviation of each segment [µm]; refuses (ValueError) a dense sampling of
+    more than ``max_samples`` points before allocating it. With ``cubic`` (PVT, SPLINE1:
+    docs/controllers.md) the segments are cubic: :func:`_kept_errors`.
     """
     _check("chord_um", chord_um)
     step = dense_um if dense_um is not None else feed_um
@@ -521,10 +509,7 @@ def chord_budget(
         else:
             dense, w, _ = subdivided(coarse, m, commands, INTERP_TOL * chord_um)
         keep = np.zeros(dense.size, dtype=np.bool_)
-        dw = np.empty(dense.size if cubic else 0)
-        if cubic:
-            segments.dense_slopes(dense, w, dw)
-        _greedy_chords(dense, w, dw, budget, max_step, keep)
+        _greedy_chords(dense, w, _slopes(dense, w, cubic), budget, max_step, keep)
         idx = np.flatnonzero(keep)
         # the last segment ends at the centre wherever it falls: it sets no spacing
         per_segment = float(np.min(np.diff(idx)[:-1])) if idx.size > 2 else math.inf
@@ -532,33 +517,30 @@ def chord_budget(
             break
         # segments scale little with the dense step, so one refinement usually suffices
         m = int(math.ceil(m * DENSE_PER_SEGMENT / (0.9 * per_segment)))
-    if cubic:
-        idx, errors = _spline_split(dense, w, idx, chord_um)
-    else:
-        errors = np.empty(idx.size - 1)
-        _chord_errors(dense, w, idx, errors)
+    idx, errors = _kept_errors(dense, w, idx, chord_um, cubic)
     path = SpiralPath("spiral", dense[idx], rho0_um, feed_um, "chord", float(chord_um))
     return path, w[idx], errors
 
 
-# splits of the cubic chord rule's over-budget segments: each halves a segment, and the
-# greedy walk's segments already hold the budget with the path's own slopes
-MAX_SPLITS = 12
+def _slopes(dense: np.ndarray, w: np.ndarray, cubic: bool) -> np.ndarray:
+    """The path's own slopes at the dense samples for the cubic rule (empty: the chord's)."""
+    dw = np.empty(dense.size if cubic else 0)
+    if cubic:
+        segments.dense_slopes(dense, w, dw)
+    return dw
 
 
-def _spline_split(
-    dense: np.ndarray, w: np.ndarray, idx: np.ndarray, chord_um: float
+def _kept_errors(
+    dense: np.ndarray, w: np.ndarray, idx: np.ndarray, chord_um: float, cubic: bool
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The kept samples ``idx`` with every segment of the natural spline through them whose
-    deviation from the dense samples passes ``chord_um`` split at its middle sample, until
-    none does (or a segment can no longer be split); the final segments' deviations [µm]."""
-    for _ in range(MAX_SPLITS):
-        d0, d1 = segments.natural_spline(dense[idx], w[idx])
-        errors = segments.deviations(dense, w, idx, d0, d1)
-        over = np.flatnonzero((errors > chord_um) & (np.diff(idx) > 1))
-        if over.size == 0:
-            break
-        idx = np.union1d(idx, (idx[over] + idx[over + 1]) // 2)
+    """The kept samples and each segment's largest deviation [µm] from the dense samples:
+    the chord's, or (``cubic``) the natural spline's through the kept samples after every
+    segment over Δcho is split (:func:`ftsweep.stages.segments.split_until_within`); the
+    greedy walk checked the cubic Hermite through the path's own slopes."""
+    if cubic:
+        return segments.split_until_within(dense, w, idx, chord_um)
+    errors = np.empty(idx.size - 1)
+    _chord_errors(dense, w, idx, errors)
     return idx, errors
 
 
@@ -569,89 +551,6 @@ def spiral_commands(path: SpiralPath, values: np.ndarray, phi: np.ndarray) -> np
     if path.d0 is None or path.d1 is None:
         return np.interp(phi, path.phi, values)
     return segments.evaluate(path.phi, values, path.d0, path.d1, phi)
-
-
-@njit(nogil=True, cache=True, inline="always")
-def _interval_from(xp: np.ndarray, x: float, j: int, jump: int) -> int:  # pragma: no cover - jit
-    """The largest j with xp[j] ≤ x (xp ascending, xp[0] ≤ x ≤ xp[-1]), searched from the
-    guess ``j + jump`` outwards by doubling steps, then by bisection."""
-    n = xp.size
-    g = min(max(j + jump, 0), n - 1)
-    if xp[g] <= x:
-        lo, step = g, 1
-        hi = min(g + step, n - 1)
-        while hi < n - 1 and xp[hi] <= x:
-            lo = hi
-            step *= 2
-            hi = min(hi + step, n - 1)
-        if xp[hi] <= x:
-            return hi
-    else:
-        hi, step = g, 1
-        lo = max(g - step, 0)
-        while lo > 0 and xp[lo] > x:
-            hi = lo
-            step *= 2
-            lo = max(lo - step, 0)
-    while hi - lo > 1:  # xp[lo] ≤ x < xp[hi]
-        mid = (lo + hi) // 2
-        if xp[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    return lo
-
-
-@njit(nogil=True, cache=True, inline="always")
-def _segment_value(
-    xp: np.ndarray, fp: np.ndarray, d0: np.ndarray, d1: np.ndarray, j: int, x: float
-) -> float:  # pragma: no cover - jit
-    """The command at ``x`` in segment j (xp[j] < x < xp[j + 1]): linear as ``np.interp``
-    computes it (no tangents), else the cubic Hermite of the segment's tangents."""
-    if d0.size:
-        return segments.hermite(fp[j], fp[j + 1], d0[j], d1[j], (x - xp[j]) / (xp[j + 1] - xp[j]))
-    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
-    value = slope * (x - xp[j]) + fp[j]
-    if value != value:
-        value = slope * (x - xp[j + 1]) + fp[j + 1]
-        if value != value and fp[j] == fp[j + 1]:
-            value = fp[j]
-    return value
-
-
-@njit(nogil=True, cache=True)
-def pass_commands_kernel(
-    xp: np.ndarray,
-    fp: np.ndarray,
-    d0: np.ndarray,
-    d1: np.ndarray,
-    ray_theta: np.ndarray,
-    first_revolution: int,
-    out: np.ndarray,
-) -> None:  # pragma: no cover - jit
-    """:func:`spiral_commands` at the passes φ = 2π·(k + ``first_revolution``) + θ of each ray
-    (row of ``out``, one column a pass): with empty tangents ``d0``, ``d1`` value for value
-    what ``np.interp`` gives (its interval, slope and end rules), else the cubic segments.
-    Passes of a ray are a revolution apart, so each search starts a revolution's worth of
-    points on from the last (O(1) a pass where a bisection over the whole path takes ~20
-    cache-missing steps)."""
-    n = xp.size
-    for a in range(out.shape[0]):
-        j = 0
-        jump = 0
-        for k in range(out.shape[1]):
-            x = 2.0 * math.pi * (k + first_revolution) + ray_theta[a]
-            if x != x:
-                out[a, k] = x
-            elif x < xp[0]:
-                out[a, k] = fp[0]
-            elif x >= xp[n - 1]:
-                out[a, k] = fp[n - 1]
-            else:
-                found = _interval_from(xp, x, j, jump)
-                jump = found - j if k > 0 else 0
-                j = found
-                out[a, k] = fp[j] if xp[j] == x else _segment_value(xp, fp, d0, d1, j, x)
 
 
 def phi_on_path(path: SpiralPath, rho: np.ndarray, theta: np.ndarray) -> np.ndarray:

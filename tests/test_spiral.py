@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from ftsweep.engine.case import Case, CaseError, Resolution, program_request
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import cusp_budget, interpolation, spiral
+from ftsweep.stages import cusp_budget, interpolation, spiral, spiral_passes
 from ftsweep.stages.interpolation import path_grid
 
 # ----------------------------------------------------------------- sampling rules
@@ -425,7 +425,7 @@ def test_spiral_pass_kernel_is_np_interp_value_for_value(n, seed, rays, revs, fi
     fp = rng.normal(size=n)
     theta = rng.uniform(0.0, 2.0 * math.pi, rays)
     out = np.empty((rays, revs))
-    spiral.pass_commands_kernel(xp, fp, np.empty(0), np.empty(0), theta, first, out)
+    spiral_passes.pass_commands_kernel(xp, fp, np.empty(0), np.empty(0), theta, first, out)
     phi = 2.0 * math.pi * (np.arange(revs) + first)[None, :] + theta[:, None]
     np.testing.assert_array_equal(out, np.interp(phi, xp, fp))
 

@@ -144,9 +144,9 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
 def predict(**opts: Any) -> None:
     """Predict the form error one program leaves on the machined surface.
 
-    Give a table either by explicit pitches (--drho-um and --dtheta-deg for rings,
-    --dx-um and --dy-um for meshes) or by a target point count and aspect ratio
-    (--points and --aspect); the actual point count and pitches are reported.
+    A table by explicit pitches (--drho-um and --dtheta-deg, rings; --dx-um and --dy-um,
+    meshes) or a point count and aspect ratio (--points, --aspect). --program FILE: a spiral
+    program in any dialect read, summarised and (with --surface) predicted.
 
     Commands spanning more than the machine's travel are cut in layers (--layers auto, [3]):
     stroke zones of the travel less the machine's margin, one Z offset each; the JSON's
@@ -172,27 +172,22 @@ def predict(**opts: Any) -> None:
     Examples:
       ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5
       ftsweep predict --surface lens_array --layout mesh --dx-um 4 --dy-um 4 --json
-      ftsweep predict --surface sinewave2d --points 500000 --aspect 8
       ftsweep predict --surface sinewave2d --layout spiral --points-per-rev 500
       ftsweep predict --surface sinusoidal_mesh --layout spiral --chord-um 0.5 --residual-um 0.5 \\
           --cutting seed003 --machine sts-nanoform
-      ftsweep predict --surface microprism --machine fts-5um --cutting microprism --points 250000 \\
-          --aspect 1 --z-error-um 0.1
+      ftsweep predict --program p.nc --surface sinusoidal_mesh --cutting seed003
       ftsweep predict --surface concave_sphere --layout dpath --spacing-um 20 \\
           --machine sts-xzc --cutting dpath-finish
       ftsweep predict --surface chebyshev_example --layout fresnel --facet-height-um 10 \\
           --machine xyzc-nanoform --cutting fresnel-finish
     """
+    if opts["program"] is not None:
+        return _predict_program(opts)
     from ftsweep.engine.case import CaseError
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.inputs.usersurfaces import SurfaceLoadError
     from ftsweep.simulate import run_case
 
-    if opts["program"] is not None:
-        _predict_program(opts)
-        return
-    if opts["surface"] is None:
-        fail("--surface is required (or --program FILE)")
     case = _build_case(opts)
     as_json = opts["as_json"]
     progress = stderr_progress("simulating", as_json)
@@ -256,6 +251,8 @@ def _predict_program(opts: dict[str, Any]) -> None:
 def _build_case(opts: dict[str, Any]) -> Case:
     """The case of ``predict``'s options. The option combinations are checked here; every
     value is validated by the spec models, whose errors are reported by option name."""
+    if opts["surface"] is None:
+        fail("--surface is required (or --program FILE)")
     from pydantic import ValidationError
 
     from ftsweep import registry

@@ -14,13 +14,12 @@ import os
 import reprlib
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal, Optional, Union, cast
 
 import numpy as np
 import yaml
 from pydantic import (
     BaseModel,
-    ConfigDict,
     Field,
     PositiveFloat,
     PositiveInt,
@@ -29,6 +28,8 @@ from pydantic import (
     model_validator,
 )
 
+from ftsweep.inputs.controllers import Controller
+from ftsweep.inputs.strict import Strict
 from ftsweep.stages import kinematics
 from ftsweep.stages.surfaces import FAMILIES, Aperture, Family, SurfaceFn
 
@@ -68,12 +69,6 @@ def read_yaml_file(path: Path) -> Any:
         raise CatalogError(f"{path}: not valid YAML: {' '.join(str(exc).split())[:300]}") from None
     except RecursionError:
         raise CatalogError(f"{path}: nested too deeply to be a catalog or sweep file") from None
-
-
-class Strict(BaseModel):
-    """Base of every spec: unknown keys, mutation and non-finite numbers are refused."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 def without_defaults(data: Any, defaults: dict[str, Any]) -> Any:
@@ -193,7 +188,7 @@ def _surface_model(name: str, family: Family) -> type[BaseModel]:
         family=(tag, ...),
         params=(_params_model(name, family), ...),
     )
-    return model
+    return cast(type[BaseModel], model)
 
 
 @functools.lru_cache(maxsize=8)
@@ -299,54 +294,6 @@ def aperture_of(spec: Any) -> Aperture:
 
 
 # --------------------------------------------------------------------------- machines
-# the interpolation each program dialect commands (docs/controllers.md)
-DIALECT_INTERPOLATION = {
-    "text": "linear",
-    "iso-sts": "linear",
-    "linuxcnc": "linear",
-    "pmac-pvt": "pvt",
-    "pmac-spline": "spline1",
-}
-
-
-class Controller(Strict):
-    """The controller that runs a machine's path programs (docs/controllers.md): the dialect
-    it reads, how it forms the path between points, and its limits."""
-
-    dialect: Literal["text", "iso-sts", "pmac-pvt", "pmac-spline", "linuxcnc"] = Field(
-        "text", description="program dialect export writes by default"
-    )
-    interpolation: Literal["linear", "pvt", "spline1"] = Field(
-        "linear",
-        description="how the path between program points is formed: linear segments, cubic Hermite "
-        "through positions and velocities (PVT), uniform cubic B-spline (SPLINE1)",
-    )
-    g93_f: Literal["inverse_minutes", "seconds"] = Field(
-        "inverse_minutes",
-        description="meaning of F under G93: 1/(block time in minutes) (ISO, LinuxCNC) or the block "
-        "time in seconds",
-    )
-    time_quantum_s: PositiveFloat = Field(
-        1e-6, description="resolution of a segment's time [s] (PMAC PVT: 0.25 µs; SPLINE1: 1 ms)"
-    )
-    max_segment_s: PositiveFloat = Field(60.0, description="longest time one segment may take [s]")
-    decimals: int = Field(6, ge=3, le=9, description="digits after the point of positions (mm, deg)")
-    c_wrap: Literal["revolution", "cumulative"] = Field(
-        "revolution", description="C printed modulo 360 deg (revolution) or accumulated (cumulative)"
-    )
-    max_blocks: PositiveInt = Field(50_000_000, description="most program blocks the controller accepts")
-
-    @model_validator(mode="after")
-    def _dialect_matches(self) -> Controller:
-        want = DIALECT_INTERPOLATION[self.dialect]
-        if self.interpolation != want:
-            raise ValueError(
-                f"dialect {self.dialect} commands {want} interpolation, but interpolation is "
-                f"{self.interpolation}"
-            )
-        return self
-
-
 class AxisLimits(Strict):
     """The X, Z and C limits of a slow-tool-servo lathe ([5]), and the Y axis and C
     acceleration of an X-Y-Z-C lathe ([2]): positions [mm], speeds and accelerations an

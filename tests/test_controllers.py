@@ -312,10 +312,12 @@ def test_the_compiled_reference_sees_a_swapped_tangent(tmp_path):
     path = tmp_path / "p.pmc"
     path.write_text("\n".join(lines) + "\n")
     read = dialects.read(lines, "pmac-pvt")
-    assert compiled.check_program(path, read)["compiled_max_diff_um"] <= 1e-9
+    from ftsweep.kinds.spiral.dialect import ADAPTER
+
+    assert compiled.check_program(path, read, ADAPTER)["compiled_max_diff_um"] <= 1e-9
     read.velocity["Z"] = read.velocity["Z"][::-1].copy()
     with pytest.raises(Exception, match="differ by"):
-        compiled.check_program(path, read)
+        compiled.check_program(path, read, ADAPTER)
 
 
 def _machine(name: str):

@@ -100,24 +100,17 @@ def check_header(path: Path, layout: Any, table_um: np.ndarray, seed: int = 0) -
     return _compared(got, want, "table lookups")
 
 
-def check_program(path: Path, moves: Any) -> dict[str, Any]:
+def check_program(path: Path, moves: Any, adapter: Any) -> dict[str, Any]:
     """A PMAC PVT or SPLINE1 program evaluated by the compiled reference (Hermite in time,
-    B-spline basis) against the simulator's segments (:func:`ftsweep.exports.nc.program_of`,
-    :func:`ftsweep.stages.spiral.spiral_commands`) at the same places along the spiral:
-    ``M`` parameters per segment, at least ``MIN_POINTS`` in all."""
-    from ftsweep.exports.nc import program_of
-    from ftsweep.stages.spiral import spiral_commands
-
-    if moves.interpolation == "linear":
+    B-spline basis) against the segments the simulator forms from the same moves (the kind's
+    adapter's ``commands``) at the same places: ``M`` parameters per segment, at least
+    ``MIN_POINTS`` in all."""
+    if moves.interpolation == "linear" or adapter.commands is None:
         raise ExportError(
-            "--compiled evaluates PMAC PVT and SPLINE1 programs and headers; this one is linear G-code"
+            "--compiled evaluates table headers and PMAC PVT and SPLINE1 programs; this one is linear G-code"
         )
-    spiral_path, values = program_of(moves)
-    segments = spiral_path.n_points - 1
-    per = max(1, math.ceil(MIN_POINTS / segments))
-    u = (np.arange(per) + 0.5) / per
-    phi = spiral_path.phi[:-1, None] + np.diff(spiral_path.phi)[:, None] * u[None, :]
-    want = spiral_commands(spiral_path, values, phi.ravel())
+    per = max(1, math.ceil(MIN_POINTS / (moves.n_points - 1)))
+    want = adapter.commands(moves, per)
     with tempfile.TemporaryDirectory(prefix="ftsref-") as tmp:
         exe = _build(Path(tmp), [])
         done = subprocess.run([str(exe), str(path), str(per)], capture_output=True, timeout=600)
@@ -126,7 +119,7 @@ def check_program(path: Path, moves: Any) -> dict[str, Any]:
             f"the reference interpolator refused {path}: {done.stderr.decode(errors='replace')[:300]}"
         )
     got = np.frombuffer(done.stdout, dtype=np.float64) * 1e3
-    return _compared(got, want, f"points along the spiral ({per} per segment)")
+    return _compared(got, want, f"points along the path ({per} per segment)")
 
 
 def _compared(got: np.ndarray, want: np.ndarray, what: str) -> dict[str, Any]:
@@ -151,11 +144,11 @@ def check_file(path: Path, format_name: str, trust_plugins: bool = False) -> dic
     """:func:`check_header` or :func:`check_program` of a file verify has read already."""
     if format_name == "dialect program":
         from ftsweep.exports import dialects, nc
+        from ftsweep.store.io import read_sidecar
 
         lines = nc.read_lines(Path(path), strict=True)
-        dialect = "pmac-pvt" if lines[0].startswith("; ") else "iso-sts"
-        dialect = (dialects.comment_text(dialect, lines[0]) or "").split("dialect ", 1)[-1].split(":", 1)[0]
-        return check_program(path, dialects.read(lines, dialect))
+        adapter = nc.adapter_of(str(read_sidecar(Path(path)).get("layout")))
+        return check_program(path, dialects.read(lines, nc.dialect_named(lines)), adapter)
     if format_name != "controller header":
         raise ExportError(f"--compiled evaluates table headers and PMAC programs, not a {format_name}")
     from ftsweep.exports.files import recorded_case_of

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterator
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
 from typing import Any, Optional
 
 import numpy as np
@@ -57,6 +57,30 @@ class Moves:
     @property
     def n_points(self) -> int:
         return int(self.c_deg.size)
+
+
+@dataclass(frozen=True)
+class Adapter:
+    """How a path kind's programs go into controllers' dialects and come back (each kind
+    declares its own beside its file format; :mod:`ftsweep.exports.nc` is the generic part).
+
+    planned : ``(case, specs) -> (moves, lines)``: the program its case plans, as moves, and
+        the kind's comment-header lines (tool, spindle, points per revolution …).
+    simulate : ``(case, specs, moves, progress) -> record``: the one simulator on the case
+        with its program as ``moves`` command it.
+    check : ``(case, specs, moves) -> reason``: the machine limits the moves leave ('' none).
+    commands : ``(moves, per) -> values``: the commands [µm] the simulator forms at ``per``
+        parameters u = (j + 0.5)/per of every segment (the compiled reference's check); None:
+        the kind's segments are not checked against the reference.
+    stand_in : ``(surface, machine, cutting) -> case``: the case a program from elsewhere is
+        simulated as (None: only ftsweep's own programs of this kind are read).
+    """
+
+    planned: Callable[..., tuple[Moves, list[str]]]
+    simulate: Callable[..., dict[str, Any]]
+    check: Callable[..., str]
+    commands: Optional[Callable[[Moves, int], np.ndarray]] = None
+    stand_in: Optional[Callable[[str, str, str], Any]] = None
 
 
 # --------------------------------------------------------------------------- writing
@@ -511,6 +535,13 @@ class _PmacReader:
         return Moves(
             cols["C"], cols["X"], cols["Z"], times, None, velocity, interp, self.dialect, self.comments
         )
+
+
+def aligned(moves: Moves, c0_deg: float) -> Moves:
+    """``moves`` with C shifted by whole revolutions so that it starts nearest ``c0_deg``: a C
+    printed modulo 360 gives the angle, not the revolutions turned before the program starts."""
+    turns = round((c0_deg - float(moves.c_deg[0])) / 360.0)
+    return replace(moves, c_deg=moves.c_deg + 360.0 * turns)
 
 
 def blocks(lines: list[str]) -> Iterator[str]:

@@ -463,6 +463,8 @@ class FileFormat:
     verify : ``(path, progress, pv_tolerance_nm, trust_plugins) -> record``.
     exported : the lines that say what ``export`` wrote (``(out, sidecar) -> lines``).
     verified : the lines that say what ``verify`` found (``record -> lines``).
+    dialect : a path kind's :class:`ftsweep.exports.dialects.Adapter` (None: ftsweep's own
+        format only).
     """
 
     name: str
@@ -471,6 +473,8 @@ class FileFormat:
     verify: Callable[..., dict[str, Any]]
     exported: Callable[[Path, dict[str, Any]], list[str]]
     verified: Callable[[dict[str, Any]], list[str]]
+    # how the kind's programs go into controllers' dialects (:class:`ftsweep.exports.dialects.Adapter`)
+    dialect: Any = None
 
 
 def pv_lines(record: dict[str, Any], source: str) -> list[str]:

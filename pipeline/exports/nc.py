@@ -1,6 +1,7 @@
-"""Spiral programs ([4]) in controllers' dialects (:mod:`ftsweep.exports.dialects`): export
-from a cube case, verify against the re-planned program, and any dialect's program (ftsweep's
-or another CAM's) turned into the program the one simulator runs (docs/controllers.md).
+"""Path programs in controllers' dialects (:mod:`ftsweep.exports.dialects`): export from a
+cube case, verify against the re-planned program, and programs from elsewhere predicted
+(docs/controllers.md). What is particular to a kind (its moves, its simulation from them, its
+limits) is the kind's :class:`~ftsweep.exports.dialects.Adapter`, declared beside its format.
 
 A dialect file starts with a comment header (units, tool, spindle, surface, points per
 revolution, ftsweep version, interpolation, the sidecar's digest, a CRC-32 over every other
@@ -18,9 +19,10 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.engine.case import Case, CaseError
+from ftsweep import registry
+from ftsweep.engine.case import Case
 from ftsweep.exports import dialects
-from ftsweep.exports.dialects import DialectError, Moves
+from ftsweep.exports.dialects import Adapter, Moves
 from ftsweep.exports.files import (
     ProgramError,
     check_controller_text,
@@ -31,9 +33,7 @@ from ftsweep.exports.files import (
     sidecar_digest,
 )
 from ftsweep.inputs.catalogs import Controller
-from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import segments
-from ftsweep.stages.spiral import SpiralPath
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     dumps_json,
@@ -44,10 +44,22 @@ from ftsweep.store.io import (
 )
 from ftsweep.version import __version__
 
-MAGIC = "ftsweep spiral program"
 CRC_TEXT = "CRC32: 0x{:08x} over every other line"
 TEXT_FIELDS = ("program", "program_sha256", "crc32")
 DIALECT_OF = {"linear": "iso-sts", "pvt": "pmac-pvt", "spline1": "pmac-spline"}
+HOW = {
+    "linear": "linear segments",
+    "pvt": "PVT cubic Hermite segments",
+    "spline1": "SPLINE1 uniform cubic B-spline",
+}
+
+
+def adapter_of(kind: str) -> Adapter:
+    """The dialect adapter of a path kind (its file format's); refused for a kind without."""
+    fmt = registry.kind(kind).file_format()
+    if fmt.dialect is None:
+        raise ProgramError(f"a {kind} case is written in ftsweep's own format only: --dialect text")
+    return fmt.dialect  # type: ignore[no-any-return]
 
 
 def controller_of(machine: Any, dialect: str) -> Controller:
@@ -65,35 +77,6 @@ def controller_of(machine: Any, dialect: str) -> Controller:
     if ctrl is None or ctrl.dialect != dialect and dialect not in ("iso-sts", "linuxcnc"):
         return Controller(dialect=dialect, interpolation=want) if ctrl is None else ctrl
     return ctrl if ctrl.dialect == dialect else ctrl.model_copy(update={"dialect": dialect})
-
-
-def omega(rpm: float) -> float:
-    """Spindle angular speed [rad/s] of ``rpm``."""
-    return rpm * math.pi / 30.0
-
-
-def moves_of(path: SpiralPath, values_um: np.ndarray, rpm: float) -> Moves:
-    """A planned spiral (points, commands [µm], its segments) as a controller's moves at a
-    constant spindle speed: C accumulated [deg], X [mm], Z [mm], segment times [s]; PVT
-    velocities from the segments' tangents; a SPLINE1 program's Z as its control points."""
-    w = omega(rpm)
-    phi = path.phi
-    seconds = np.diff(phi) / w
-    x = path.rho * 1e-3
-    z = np.asarray(values_um) * 1e-3
-    velocity = None
-    if path.interpolation == "pvt":
-        assert path.d0 is not None and path.d1 is not None
-        dphi = np.diff(phi)
-        slope = np.append(path.d0 / dphi, path.d1[-1] / dphi[-1])  # µm/rad, continuous (C¹)
-        velocity = {
-            "C": np.full(phi.size, math.degrees(w)),
-            "X": np.full(phi.size, -path.feed_um / (2.0 * math.pi) * w * 1e-3),
-            "Z": slope * w * 1e-3,
-        }
-    elif path.interpolation == "spline1":
-        z = segments.control_points(np.asarray(values_um)) * 1e-3
-    return Moves(np.degrees(phi), x, z, seconds, None, velocity, path.interpolation)
 
 
 def _limits(moves: Moves, ctrl: Controller) -> None:
@@ -117,54 +100,33 @@ def _limits(moves: Moves, ctrl: Controller) -> None:
             )
 
 
-def header(
-    case: Case, specs: tuple[Any, Any, Any], path: SpiralPath, rcase: Any, dialect: str, digest: str
-) -> list[str]:
-    """The comment header of a dialect program (every line ASCII, no parentheses)."""
-    rpm = specs[2].spindle_rpm
-    how = {
-        "linear": "linear segments",
-        "pvt": "PVT cubic Hermite segments",
-        "spline1": "SPLINE1 uniform cubic B-spline",
-    }
-    return [
-        f"{MAGIC}, dialect {dialect}: {how[path.interpolation]} between points",
-        f"generator: ftsweep {__version__}",
-        f"surface: {case.surface}, compensation {case.compensation}, machine {case.machine}",
-        f"tool: nose radius {rcase.nose_radius_um:.6g} um, feed {rcase.feed_um:.9g} um/rev",
-        f"spindle: {rpm:g} rpm, C increasing, the spiral runs from the edge to the centre",
-        f"points: {path.n_points}, {path.max_points_per_rev} per revolution at most, "
-        f"{path.revolutions:.6g} revolutions",
-        "units: X Z mm, C deg, G93 F inverse time, PVT segment ms, velocities units/s",
-        f"sidecar sha256: {digest}",
-    ]
-
-
 def _document(
     case: Case, specs: tuple[Any, Any, Any], dialect: str, meta_in: dict[str, Any]
-) -> tuple[list[str], Moves, dict[str, Any], SpiralPath]:
-    """The lines (CRC line not yet filled), moves, sidecar and path of a case's program."""
+) -> tuple[list[str], dict[str, Any], Adapter]:
+    """The lines (CRC line not yet filled), sidecar and adapter of a case's program."""
     ctrl = controller_of(specs[1], dialect)
-    rcase = resolve_case(case, specs=specs)
-    path = rcase.layout
-    if not isinstance(path, SpiralPath):
-        raise ProgramError(
-            f"a {case.layout.kind} case is not written in controller dialects yet: --dialect text"
-        )
-    moves = moves_of(path, rcase.values, specs[2].spindle_rpm)
+    adapter = adapter_of(case.layout.kind)
+    moves, kind_lines = adapter.planned(case, specs)
     _limits(moves, ctrl)
     meta = {
         **meta_in,
-        "layout": "spiral",
+        "layout": case.layout.kind,
         "dialect": dialect,
         "controller": ctrl.model_dump(mode="json"),
-        "n_points": path.n_points,
+        "n_points": moves.n_points,
         "case": case.model_dump(mode="json"),
         "catalog_entries": recorded_entries(specs),
     }
-    digest = sidecar_digest(meta, TEXT_FIELDS)
-    comments = [*header(case, specs, path, rcase, dialect, digest), CRC_TEXT.format(0)]
-    return dialects.render(moves, dialect, comments, ctrl), moves, meta, path
+    comments = [
+        f"ftsweep {case.layout.kind} program, dialect {dialect}: {HOW[moves.interpolation]} between points",
+        f"generator: ftsweep {__version__}",
+        f"surface: {case.surface}, compensation {case.compensation}, machine {case.machine}",
+        *kind_lines,
+        "units: X Y Z mm, C deg, G93 F inverse time, PVT segment ms, velocities units/s",
+        f"sidecar sha256: {sidecar_digest(meta, TEXT_FIELDS)}",
+        CRC_TEXT.format(0),
+    ]
+    return dialects.render(moves, dialect, comments, ctrl), meta, adapter
 
 
 def _with_crc(lines: list[str], dialect: str) -> tuple[list[str], int]:
@@ -197,14 +159,18 @@ def export(
     extra: dict[str, Any],
     dialect: str,
 ) -> dict[str, Any]:
-    """Plan a spiral case again and write it in ``dialect`` with its sidecar, atomically;
-    the sidecar records the P-V of the program as written (re-simulated from its lines)."""
+    """Plan a path case again and write it in ``dialect`` with its sidecar, atomically;
+    refused, named, when the moves as written leave the machine's limits. The sidecar records
+    the P-V of the program as written (re-simulated from its lines as the reader reads them)."""
     meta_in = {"generator": f"ftsweep {__version__}", "pv_nm": chosen["pv_nm"], **extra, "selection": chosen}
-    lines, _, meta, _ = _document(case, specs, dialect, meta_in)
-    # the program as the controller reads it, simulated: its decimals are the controller's
+    lines, meta, adapter = _document(case, specs, dialect, meta_in)
     moves = dialects.read(lines, dialect, meta["controller"]["g93_f"])
-    record = simulate_moves(case, specs, moves)
-    meta["pv_nm_as_written"] = record["pv_nm"]
+    reason = adapter.check(case, specs, moves)
+    if reason:
+        raise ProgramError(
+            f"the program leaves the limits of machine '{case.machine}': {reason}; nothing exported"
+        )
+    meta["pv_nm_as_written"] = adapter.simulate(case, specs, moves)["pv_nm"]
     digest = sidecar_digest(meta, TEXT_FIELDS)  # the header names the sidecar as written
     lines = [_replace_digest(line, dialect, digest) for line in lines]
     lines, crc = _with_crc(lines, dialect)
@@ -219,54 +185,6 @@ def _replace_digest(line: str, dialect: str, digest: str) -> str:
     if text is not None and text.startswith("sidecar sha256: "):
         return _comment_line(dialect, f"sidecar sha256: {digest}")
     return line
-
-
-def simulate_moves(
-    case: Case, specs: Optional[tuple[Any, Any, Any]], moves: Moves, progress: Any = None
-) -> dict[str, Any]:
-    """The record of ``case`` with its program replaced by ``moves`` (:func:`program_of`)."""
-    return run_case(case, specs=specs, progress=progress, program=program_of(moves))
-
-
-# how far a program's X may lie off the Archimedean spiral its first and last points set:
-# half the last printed digit plus a thousandth of the feed
-SPIRAL_SLACK_FEED = 1e-3
-
-
-def program_of(moves: Moves) -> tuple[SpiralPath, np.ndarray]:
-    """The spiral path and commands [µm] a program's moves give the one simulator: φ from C
-    (accumulated), ρ0 and the feed from X (refused unless X follows ρ0 − F·φ/2π), and the
-    segments its interpolation forms (PVT: tangents V·T; SPLINE1: the B-spline of its
-    control points)."""
-    phi = np.radians(moves.c_deg)
-    if moves.n_points < 3 or not np.all(np.diff(phi) > 0.0):
-        raise DialectError("a spiral program needs at least 3 points with C increasing from block to block")
-    x_um = moves.x_mm * 1e3
-    span = float(phi[-1] - phi[0])
-    feed = 2.0 * math.pi * float(x_um[0] - x_um[-1]) / span
-    if not feed > 0.0:
-        raise DialectError(
-            "X does not decrease along the program: not a facing spiral from the edge to the centre"
-        )
-    rho0 = float(x_um[0]) + feed * float(phi[0]) / (2.0 * math.pi)
-    off = np.abs(rho0 - feed * phi / (2.0 * math.pi) - x_um)
-    slack = 0.5 * 10.0 ** (3 - 6) + SPIRAL_SLACK_FEED * feed + 1e-3 * float(np.max(np.abs(x_um))) * 1e-6
-    worst = int(np.argmax(off))
-    if off[worst] > max(slack, 1e-3):
-        raise DialectError(
-            f"point {worst + 1}: X is {off[worst]:.4g} µm off the spiral of constant feed {feed:.6g} µm/rev "
-            "through the first and last points: the one simulator predicts constant-feed spirals only"
-        )
-    z_um = moves.z_mm * 1e3
-    rule = SpiralPath("spiral", phi, rho0, feed, "chord", 0.0)
-    if moves.interpolation == "linear":
-        return rule, z_um
-    if moves.interpolation == "pvt":
-        assert moves.velocity is not None
-        d0, d1 = segments.pvt_tangents(moves.velocity["Z"] * 1e3, moves.seconds)
-        return rule._replace(interpolation="pvt", d0=d0, d1=d1), z_um
-    way, d0, d1 = segments.bspline_segments(z_um)
-    return rule._replace(interpolation="spline1", d0=d0, d1=d1), way
 
 
 def read_lines(path: Path, strict: bool) -> list[str]:
@@ -284,22 +202,21 @@ def read_lines(path: Path, strict: bool) -> list[str]:
 
 def is_dialect_file(first_line: str) -> bool:
     """Whether a first line is that of an ftsweep dialect program."""
-    return any(first_line.startswith(p + MAGIC) for p in ("(", "; "))
+    return first_line.startswith(("(ftsweep ", "; ftsweep ")) and ", dialect " in first_line
 
 
-def verify(
-    path: Path, progress: Any = None, pv_tolerance_nm: Optional[float] = None, trust_plugins: bool = False
-) -> dict[str, Any]:
-    """Check a dialect program: CRC and sidecar, every line equal to the program its recorded
-    case plans again (named by line), then the part re-simulated from what the file commands
-    as the strict reader reads it, against the P-V the export recorded."""
-    path = Path(path)
-    lines = read_lines(path, strict=True)
-    dialect = "pmac-pvt" if lines[0].startswith("; ") else "iso-sts"
-    first = dialects.comment_text(dialect, lines[0]) or ""
-    dialect = first.split("dialect ", 1)[-1].split(":", 1)[0]
+def dialect_named(lines: list[str]) -> str:
+    """The dialect an ftsweep dialect program's first line names."""
+    first = lines[0] if lines else ""
+    text = first[2:] if first.startswith("; ") else first[1:-1]
+    dialect = text.split(", dialect ", 1)[-1].split(":", 1)[0]
     if dialect not in dialects.INTERPOLATION:
-        raise ProgramError(f"{path}: line 1 names no dialect ftsweep writes")
+        raise ProgramError("line 1 names no dialect ftsweep writes")
+    return dialect
+
+
+def _checked_text(path: Path, lines: list[str], dialect: str) -> dict[str, Any]:
+    """The sidecar of a dialect program whose CRC, hashes and sidecar digest check out."""
     at = _crc_index(lines, dialect)
     stored = (dialects.comment_text(dialect, lines[at]) or "").split()[1]
     crc = zlib.crc32("\n".join(lines[:at] + lines[at + 1 :]).encode("ascii")) & 0xFFFFFFFF
@@ -312,17 +229,31 @@ def verify(
     digest = sidecar_digest(meta, TEXT_FIELDS)
     if not any(dialects.comment_text(dialect, ln) == f"sidecar sha256: {digest}" for ln in lines[:at]):
         raise ProgramError(f"{path}: the sidecar was changed (its SHA-256 differs from the header's)")
+    return dict(meta, _digest=digest, _crc=crc)
+
+
+def verify(
+    path: Path, progress: Any = None, pv_tolerance_nm: Optional[float] = None, trust_plugins: bool = False
+) -> dict[str, Any]:
+    """Check a dialect program: CRC and sidecar, every line equal to the program its recorded
+    case plans again (the first difference named by line), the moves within the machine's
+    limits, then the part re-simulated from what the file commands as the strict reader reads
+    it, against the P-V the export recorded."""
+    path = Path(path)
+    lines = read_lines(path, strict=True)
+    dialect = dialect_named(lines)
+    meta = _checked_text(path, lines, dialect)
+    digest, crc = meta.pop("_digest"), meta.pop("_crc")
     case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
-    meta_in = {k: meta[k] for k in ("generator", "pv_nm", "selection") if k in meta}
+    meta_in: dict[str, Any] = {k: meta[k] for k in ("generator", "pv_nm", "selection") if k in meta}
     meta_in.update(recorded_extra(meta))
-    planned, _, expected, _ = _document(case, specs, dialect, meta_in)
+    planned, expected, adapter = _document(case, specs, dialect, meta_in)
     claims = [k for k in expected if k not in TEXT_FIELDS and _json(meta.get(k)) != _json(expected[k])]
     if claims:
         raise ProgramError(
             f"{sidecar_path(path)}: {', '.join(claims[:5])} differ(s) from what the recorded case gives"
         )
-    planned = [_replace_digest(line, dialect, digest) for line in planned]
-    planned, _ = _with_crc(planned, dialect)
+    planned, _ = _with_crc([_replace_digest(line, dialect, digest) for line in planned], dialect)
     for number, (a, b) in enumerate(zip(lines, planned, strict=False), start=1):
         if a != b:
             raise ProgramError(
@@ -334,7 +265,12 @@ def verify(
             f"{path}: {len(lines):,} lines where the recorded case gives {len(planned):,}; do not run it"
         )
     moves = dialects.read(lines, dialect, meta["controller"]["g93_f"])
-    record = simulate_moves(case, specs, moves, progress)
+    reason = adapter.check(case, specs, moves)
+    if reason:
+        raise ProgramError(
+            f"{path}: a block leaves the limits of machine '{case.machine}': {reason}; do not run it"
+        )
+    record = adapter.simulate(case, specs, moves, progress)
     record = checked_pv(path, {**meta, "pv_nm": meta["pv_nm_as_written"]}, record, pv_tolerance_nm)
     record.update(dialect=dialect, cube_pv_nm=float(meta["pv_nm"]), checksum=f"0x{crc:08x}")
     return record
@@ -342,23 +278,6 @@ def verify(
 
 def _json(value: Any) -> str:
     return dumps_json(value, sort_keys=True)
-
-
-def stand_in_case(surface: str, machine: str, cutting: str, compensation: str = "exact") -> Case:
-    """The case a program from elsewhere is simulated as: its surface and entries, a spiral
-    request whose program the file's moves replace."""
-    from ftsweep.engine.case import program_request
-
-    try:
-        return Case(
-            surface=surface,
-            machine=machine,
-            cutting=cutting,
-            compensation=compensation,
-            layout=program_request(kind="spiral", points_per_rev=16),
-        )
-    except ValueError as exc:
-        raise CaseError(str(exc)) from None
 
 
 def default_dialect(machine: Any) -> str:
@@ -420,6 +339,14 @@ def _against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
     }
 
 
+def read_any(path: Path, g93_f: str = "inverse_minutes") -> Moves:
+    """The moves of a program file in any supported dialect (ftsweep's own dialect files by
+    their first line, others by their blocks: :func:`ftsweep.exports.dialects.detect`)."""
+    lines = read_lines(Path(path), strict=False)
+    dialect = dialect_named(lines) if lines and is_dialect_file(lines[0]) else dialects.detect(lines)
+    return dialects.read(lines, dialect, g93_f)
+
+
 def predict_program(
     path: Path,
     surface: Optional[str],
@@ -431,16 +358,16 @@ def predict_program(
     """Read a path program in any supported dialect (ftsweep's or another CAM's), summarise
     it (points, revolutions, feed per revolution, spindle speed, peak axis speeds and
     accelerations against the machine's limits) and, with a ``surface``, predict the form
-    error it leaves through the one simulator (docs/controllers.md)."""
+    error it leaves through the one simulator, as the program kind that reads programs from
+    elsewhere (its adapter's ``stand_in``) simulates it (docs/controllers.md)."""
     from ftsweep.inputs import catalogs
 
-    lines = read_lines(Path(path), strict=False)
-    first = lines[0] if lines else ""
-    dialect = dialects.detect(lines)
-    if is_dialect_file(first):
-        dialect = (dialects.comment_text(dialect, first) or "").split("dialect ", 1)[-1].split(":", 1)[0]
-    moves = dialects.read(lines, dialect, g93_f)
-    info: dict[str, Any] = {"program": str(path), "dialect": dialect, "interpolation": moves.interpolation}
+    moves = read_any(path, g93_f)
+    info: dict[str, Any] = {
+        "program": str(path),
+        "dialect": moves.dialect,
+        "interpolation": moves.interpolation,
+    }
     info.update(dialects.summary(moves))
     turns = (moves.c_deg[-1] - moves.c_deg[0]) / 360.0
     info["spindle_rpm"] = float(turns / info["machining_s"] * 60.0) if info["machining_s"] > 0 else math.nan
@@ -453,9 +380,18 @@ def predict_program(
     info["notes"] = moves.notes
     if surface is None:
         return info
-    case = stand_in_case(surface, machine, cutting or "reference")
-    record = simulate_moves(case, None, moves, progress)
+    kind, adapter = _foreign_reader()
+    case = adapter.stand_in(surface, machine, cutting or "reference")  # type: ignore[misc]
+    record = adapter.simulate(case, None, moves, progress)
     info.update({k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "nose_radius_um", "feed_um")})
-    info["surface"] = surface
-    info["record"] = record
+    info.update(surface=surface, kind=kind, record=record)
     return info
+
+
+def _foreign_reader() -> tuple[str, Adapter]:
+    """The registered kind whose adapter simulates programs from elsewhere (the first)."""
+    for name, kind in registry.kinds().items():
+        adapter = kind.file_format().dialect
+        if adapter is not None and adapter.stand_in is not None:
+            return name, adapter
+    raise ProgramError("no registered program kind reads programs from elsewhere")

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ftsweep.engine.case import Case
+from ftsweep.exports.dialects import Adapter, Moves, aligned
 from ftsweep.exports.files import (
     DataLines,
     FileFormat,
@@ -305,7 +306,54 @@ def verify_dpath(
     return checked_pv(path, meta, record, pv_tolerance_nm)
 
 
-def _program_format(title: str, magic: str, columns: str, write: Any, check: Any) -> FileFormat:
+def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str]]:
+    """A D path's moves as planned ([5]): its lines t, C, X, Z as G93 blocks."""
+    from ftsweep.kinds.dpath import program as dprog
+
+    rcase = resolve_case(case, specs=specs)
+    path, z = rcase.layout, np.asarray(rcase.values)
+    rpm = specs[2].spindle_rpm
+    t = dprog.times(path, z, rpm)
+    g = path.geometry
+    lines = [
+        f"tool: nose radius {rcase.nose_radius_um:.6g} um",
+        f"spindle: {rpm:g} rpm constant, C increasing",
+        f"points: {path.n_points}, {path.n_cuts} cuts of {path.points_per_cut} at spacing "
+        f"{g.spacing_um:.9g} um, {g.zones} zones per revolution, {float(t[-1]):.3f} s",
+    ]
+    moves = Moves(np.degrees(path.phi), path.rho * 1e-3, z * 1e-3, np.diff(t))
+    return moves, lines
+
+
+def _dpath_columns(moves: Moves, path: Any) -> np.ndarray:
+    """A D path's moves as the text program's columns t [s], C [deg], X [mm], Z [mm], C at
+    the planned path's revolutions (:func:`ftsweep.exports.dialects.aligned`)."""
+    moves = aligned(moves, math.degrees(float(path.phi[0])))
+    t = np.concatenate([[0.0], np.cumsum(moves.seconds)])
+    return np.column_stack([t, moves.c_deg, moves.x_mm, moves.z_mm])
+
+
+def _dpath_check(case: Case, specs: tuple[Any, Any, Any], moves: Moves) -> str:
+    path = resolve_case(case, specs=specs).layout
+    return _limits_of_lines(specs[1], specs[2].spindle_rpm, path, _dpath_columns(moves, path))
+
+
+def _dpath_simulate(
+    case: Case, specs: tuple[Any, Any, Any], moves: Moves, progress: Any = None
+) -> dict[str, Any]:
+    rcase = resolve_case(case, specs=specs)
+    data = _dpath_columns(moves, rcase.layout)
+    return run_case(
+        case, specs=specs, progress=progress, program=(_as_run(rcase.layout, data), data[:, 3] * 1e3)
+    )
+
+
+DPATH_ADAPTER = Adapter(planned=_dpath_planned, simulate=_dpath_simulate, check=_dpath_check)
+
+
+def _program_format(
+    title: str, magic: str, columns: str, write: Any, check: Any, dialect: Any = None
+) -> FileFormat:
     def exported(out: Path, meta: dict[str, Any]) -> list[str]:
         return [f"program      {out} ({meta['n_points']:,} lines {columns}, CRC-32 0x{meta['crc32']:08x})"]
 
@@ -319,16 +367,18 @@ def _program_format(title: str, magic: str, columns: str, write: Any, check: Any
     def export(*args: Any, name: str | None = None) -> dict[str, Any]:
         return dict(write(*args))  # a program's lines need no C identifiers
 
-    return FileFormat(title, magic, export, check, exported, verified)
+    return FileFormat(title, magic, export, check, exported, verified, dialect)
 
 
 @functools.cache
 def spiral_format() -> FileFormat:
     """The spiral program's file format ([4]): one line C X Z per point."""
-    return _program_format("spiral program", MAGIC, "C X Z", export_program, verify_program)
+    from ftsweep.kinds.spiral.dialect import ADAPTER
+
+    return _program_format("spiral program", MAGIC, "C X Z", export_program, verify_program, ADAPTER)
 
 
 @functools.cache
 def dpath_format() -> FileFormat:
     """The D-path program's file format ([5]): one line t C X Z per point."""
-    return _program_format("D-path program", D_MAGIC, "t C X Z", export_dpath, verify_dpath)
+    return _program_format("D-path program", D_MAGIC, "t C X Z", export_dpath, verify_dpath, DPATH_ADAPTER)

@@ -125,6 +125,11 @@ def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, p
 
 
 def _plan(p: Planning) -> tuple[Any, dict[str, Any]]:
+    if p.machine.interpolation != "linear":
+        raise CaseError(
+            f"machine '{p.case.machine}' interpolates {p.machine.interpolation}; a D path is simulated with "
+            "X, Z and C linear in time between its points (docs/controllers.md)"
+        )
     t = time.perf_counter()
     path, extra = plan_dpath(
         p.case,

@@ -39,4 +39,6 @@ def fresnel_format() -> FileFormat:
             *pv_lines(record, "the program's lines"),
         ]
 
-    return FileFormat("Fresnel program", fstudy.F_MAGIC, export, verify, exported, verified)
+    return FileFormat(
+        "Fresnel program", fstudy.F_MAGIC, export, verify, exported, verified, fstudy.dialect_adapter()
+    )

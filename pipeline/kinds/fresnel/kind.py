@@ -61,6 +61,11 @@ def _plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
     from ftsweep.kinds.fresnel import program as fresnel
     from ftsweep.kinds.fresnel.form import COMPENSATION
 
+    if p.machine.interpolation != "linear":
+        raise CaseError(
+            f"machine '{p.case.machine}' interpolates {p.machine.interpolation}; a Fresnel program is "
+            "simulated with X, Y, Z and C linear in time between its points (docs/controllers.md)"
+        )
     if p.program is not None:
         prog, values = p.program
         values = np.asarray(values, dtype=np.float64)

@@ -178,10 +178,16 @@ def test_an_independent_gcode_parser_reads_the_same_moves(moore):
 
 
 def test_linuxcnc_rs274_interprets_the_linuxcnc_dialect(moore, tmp_path):
+    """LinuxCNC's own interpreter (rs274, canonical output at 4 decimals) runs the linuxcnc
+    dialect: the same X, Z, C on every inverse-time block as the strict reader, and its feed
+    rate the block's F times its XZ length."""
+    import re
+    import subprocess
+
     rs274 = shutil.which("rs274")
     if rs274 is None:
         pytest.skip(
-            "LinuxCNC's standalone rs274 interpreter is not installed (no Debian package on this machine)"
+            "LinuxCNC's standalone rs274 is not installed (.ci/run installs linuxcnc-uspace where apt is)"
         )
     cube, _ = moore
     out = tmp_path / "p.ngc"
@@ -189,10 +195,23 @@ def test_linuxcnc_rs274_interprets_the_linuxcnc_dialect(moore, tmp_path):
         main, ["export", str(cube), "--case", "0", "--dialect", "linuxcnc", "-o", str(out)]
     )
     assert r.exit_code == 0, r.output
-    import subprocess
-
-    done = subprocess.run([rs274, "-g", str(out)], capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [rs274, "-g", str(out)], capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL
+    )
     assert done.returncode == 0, done.stdout[-500:] + done.stderr[-500:]
+    text = done.stdout
+    start = text.index("feed mode set to inverse time")
+    body = text[start : text.index("feed mode set to units per minute", start)]
+    feeds = [[float(v) for v in m.split(",")] for m in re.findall(r"STRAIGHT_FEED\(([^)]*)\)", body)]
+    rates = [float(v) for v in re.findall(r"SET_FEED_RATE\(([^)]*)\)", body)]
+    moves = dialects.read(out.read_text().split("\n")[:-1], "linuxcnc")
+    assert len(feeds) == moves.n_points - 1 == len(rates)
+    got = np.array(feeds)
+    np.testing.assert_allclose(got[:, 0], moves.x_mm[1:], atol=5.1e-5)
+    np.testing.assert_allclose(got[:, 2], moves.z_mm[1:], atol=5.1e-5)
+    np.testing.assert_allclose(got[:, 5], moves.c_deg[1:], atol=5.1e-5)
+    length = np.hypot(np.diff(moves.x_mm), np.diff(moves.z_mm))
+    np.testing.assert_allclose(rates, 60.0 / moves.seconds * length, atol=5.1e-5, rtol=1e-6)
 
 
 MOORE_STYLE = """%

@@ -135,6 +135,17 @@ def test_an_iso_sts_export_predicts_the_cubes_pv_and_verifies(moore):
     assert v.exit_code == 0, v.output
 
 
+def test_predict_program_draws_its_error_map(moore, tmp_path):
+    _, out = moore
+    png = tmp_path / "map.png"
+    args = ["predict", "--program", str(out), "--surface", "sinusoidal_mesh", "--cutting", "seed003"]
+    r = CliRunner().invoke(main, [*args, "--map", str(png), "--json"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.output)["map"] == str(png) and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    r = CliRunner().invoke(main, ["predict", "--program", str(out), "--map", str(png)])
+    assert r.exit_code != 0 and "--map needs --surface" in r.output
+
+
 def test_one_changed_digit_is_refused(moore, tmp_path):
     _, out = moore
     lines = out.read_text().split("\n")

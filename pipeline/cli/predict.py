@@ -44,6 +44,13 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
     "the machine's limits, and with --surface its predicted form error (docs/controllers.md).",
 )
 @click.option(
+    "--map",
+    "map_png",
+    type=click.Path(dir_okay=False),
+    help="With --program and --surface: also write the program's error map (peak form error over the "
+    "part, nm) as a PNG.",
+)
+@click.option(
     "--g93-f",
     type=click.Choice(["inverse_minutes", "seconds"]),
     default="inverse_minutes",
@@ -213,15 +220,23 @@ def _predict_program(opts: dict[str, Any]) -> None:
     progress = stderr_progress("simulating", opts["as_json"]) if opts["surface"] else None
     try:
         info = nc.predict_program(
-            opts["program"], opts["surface"], opts["machine"], opts["cutting"], opts["g93_f"], progress
+            opts["program"],
+            opts["surface"],
+            opts["machine"],
+            opts["cutting"],
+            opts["g93_f"],
+            progress,
+            map_bins=160 if opts["map_png"] else None,
         )
     except (nc.ProgramError, CaseError, CatalogError, SurfaceLoadError) as exc:
         raise click.ClickException(str(exc)) from None
     finally:
         if progress is not None:
             progress_done(progress)
+    if opts["map_png"]:
+        _save_map(info, opts["map_png"])
     if opts["as_json"]:
-        echo_json(info)
+        echo_json({k: v for k, v in info.items() if not str(k).startswith("error_map")})
         return
     feed = info["feed_um_per_rev"]
     click.echo(f"program      {info['program']} ({info['dialect']}, {info['interpolation']} segments)")
@@ -246,6 +261,21 @@ def _predict_program(opts: dict[str, Any]) -> None:
     if "record" in info:  # the stand-in request's rule lines say nothing of this program
         lines = summary_text(info["record"]).split("\n")
         click.echo("\n".join(x for x in lines if not x.startswith(("program ", "steps "))))
+
+
+def _save_map(info: dict[str, Any], out: str) -> None:
+    """The error map of a predicted program as a PNG (the peak form error per bin [nm])."""
+    from pathlib import Path
+
+    from ftsweep.store.io import save_figure
+    from ftsweep.tools.accessor import plot_map
+
+    if "record" not in info:
+        fail("--map needs --surface: the map is the form error the program leaves on it")
+    record = info["record"]
+    shown = {"layout": record["layout"], "pv_nm": record["pv_nm"], "n_points": record["n_points"], **record}
+    ax = plot_map(record["error_map_x_um"], record["error_map_peak_nm"], shown, "peak")
+    info["map"] = str(save_figure(ax.figure, Path(out)))
 
 
 def _build_case(opts: dict[str, Any]) -> Case:

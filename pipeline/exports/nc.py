@@ -354,12 +354,14 @@ def predict_program(
     cutting: Optional[str],
     g93_f: str = "inverse_minutes",
     progress: Any = None,
+    map_bins: Optional[int] = None,
 ) -> dict[str, Any]:
     """Read a path program in any supported dialect (ftsweep's or another CAM's), summarise
     it (points, revolutions, feed per revolution, spindle speed, peak axis speeds and
     accelerations against the machine's limits) and, with a ``surface``, predict the form
-    error it leaves through the one simulator, as the program kind that reads programs from
-    elsewhere (its adapter's ``stand_in``) simulates it (docs/controllers.md)."""
+    error it leaves (with ``map_bins``, its error map) through the one simulator, as the
+    program kind that reads programs from elsewhere (its adapter's ``stand_in``) simulates it
+    (docs/controllers.md)."""
     from ftsweep.inputs import catalogs
 
     moves = read_any(path, g93_f)
@@ -382,6 +384,9 @@ def predict_program(
         return info
     kind, adapter = _foreign_reader()
     case = adapter.stand_in(surface, machine, cutting or "reference")  # type: ignore[misc]
+    if map_bins:
+        res = case.resolution.model_copy(update={"error_map_bins": map_bins})
+        case = case.model_copy(update={"resolution": res})
     record = adapter.simulate(case, None, moves, progress)
     info.update({k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "nose_radius_um", "feed_um")})
     info.update(surface=surface, kind=kind, record=record)

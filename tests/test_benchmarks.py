@@ -44,3 +44,26 @@ def test_bench_envelope_line(benchmark):
     breaks = np.empty(pos.size)
     benchmark(envelope.lower_envelope, pos, w, 83.0, query, out, stack, breaks)
     assert np.isfinite(out).all()
+
+
+@pytest.mark.bench
+@pytest.mark.parametrize("dialect", ["iso-sts", "pmac-pvt"])
+def test_bench_dialect_1M_blocks(benchmark, dialect):
+    """Writing and reading back a million-block program (docs/controllers.md)."""
+    from ftsweep.exports import dialects
+    from ftsweep.inputs.catalogs import entry
+
+    n = 1_000_000
+    k = np.arange(n)
+    z = np.sin(k * 0.01) * 0.1
+    velocity = (
+        {"C": np.full(n, 50.0), "X": np.zeros(n), "Z": np.cos(k * 0.01)} if dialect == "pmac-pvt" else None
+    )
+    moves = dialects.Moves(k * 0.5, 8.0 - k * 0.5 / 360 * 0.001, z, np.full(n - 1, 0.01), velocity=velocity)
+    ctrl = entry("machines", "sts-moore" if dialect == "iso-sts" else "sts-pmac-pvt").controller
+
+    def both() -> dialects.Moves:
+        return dialects.read(dialects.render(moves, dialect, ["bench"], ctrl), dialect)
+
+    read = benchmark.pedantic(both, rounds=1, iterations=1)
+    np.testing.assert_allclose(read.z_mm, np.round(z, 6), atol=1e-12)

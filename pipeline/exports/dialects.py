@@ -193,6 +193,10 @@ def read(lines: list[str], dialect: str, g93_f: str = "inverse_minutes") -> Move
     return _IsoReader(lines, dialect, g93_f).run()
 
 
+# a cutting block of numbers only (each with its decimal point): read without the tokenizer
+_PLAIN = re.compile(
+    r"^(G0?1 )?C(-?\d+\.\d*) X(-?\d+\.\d*) (?:Y(-?\d+\.\d*) )?Z(-?\d+\.\d*)(?: F(\d+\.\d*))?$"
+)
 _WORD = re.compile(r"([A-Z])\s*(\[[^\]]*\]|#\d+|[-+]?(?:\d+\.?\d*|\.\d+))")
 _NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)")
 _COMMENT = re.compile(r"\([^()]*\)")
@@ -334,6 +338,10 @@ class _IsoReader:
         raise self.fail(n, f"cannot evaluate {head!r}")
 
     def _block(self, n: int, text: str) -> None:
+        plain = _PLAIN.match(text)
+        if plain:  # the common cutting block: numbers only, no word the modal state needs parsed
+            self._plain(n, plain)
+            return
         if not text or text == "%" or re.fullmatch(r"O\d+", text):
             return
         assign = _ASSIGN.match(text)
@@ -350,6 +358,21 @@ class _IsoReader:
         axes = {k: v for k, v in words if k in "CXYZ"}
         if axes:
             self._move(n, axes)
+
+    def _plain(self, n: int, m: re.Match[str]) -> None:
+        """A block of :data:`_PLAIN`'s form: what :meth:`_words`, :meth:`_modes` and
+        :meth:`_move` make of it, without the tokenizer."""
+        self.blocks += 1
+        if self.blocks > MAX_READ_BLOCKS:
+            raise self.fail(n, f"more than {MAX_READ_BLOCKS:,} blocks")
+        if m.group(1):
+            self.motion = 1.0
+        if m.group(6):
+            self.feed = float(m.group(6))
+        axes = {"C": float(m.group(2)), "X": float(m.group(3)), "Z": float(m.group(5))}
+        if m.group(4):
+            axes["Y"] = float(m.group(4))
+        self._move(n, axes)
 
     def _words(self, n: int, text: str) -> list[tuple[str, float]]:
         found, at = [], 0
@@ -450,6 +473,10 @@ def _unwrap(c_deg: np.ndarray) -> np.ndarray:
     return np.concatenate([[c_deg[0]], c_deg[0] + np.cumsum(step)])
 
 
+# a cut block giving all three axes (with their velocities in PVT): read without the tokenizer
+_PMAC_PLAIN = re.compile(
+    r"^C(-?\d+\.\d+)(?::(-?\d+\.\d+))? X(-?\d+\.\d+)(?::(-?\d+\.\d+))? Z(-?\d+\.\d+)(?::(-?\d+\.\d+))?$"
+)
 _PMAC_MOVE = re.compile(r"^([CXZ])(-?\d+\.\d+)(?::(-?\d+\.\d+))?$")
 
 
@@ -475,6 +502,11 @@ class _PmacReader:
         self.times: list[float] = []
 
     def line(self, n: int, line: str) -> None:
+        fast = _PMAC_PLAIN.match(line) if self.points and self.mode in ("PVT", "SPLINE1") else None
+        speeds = (fast.group(2), fast.group(4), fast.group(6)) if fast else ()
+        if fast and all((v is None) == (self.mode == "SPLINE1") for v in speeds):
+            self._plain(fast)
+            return
         text = line.split(";", 1)[0].strip().upper()
         if line.startswith("; "):
             self.comments.append(line[2:])
@@ -490,6 +522,14 @@ class _PmacReader:
             self._segment_time(n, text, found.group(1))
             return
         self._move(n, line, text)
+
+    def _plain(self, m: re.Match[str]) -> None:
+        """A cut block of :data:`_PMAC_PLAIN`'s form: what :meth:`_move` makes of it."""
+        self.pos = {"C": float(m.group(1)), "X": float(m.group(3)), "Z": float(m.group(5))}
+        self.points.append(self.pos)
+        if self.mode == "PVT":
+            self.vel.append({"C": float(m.group(2)), "X": float(m.group(4)), "Z": float(m.group(6))})
+        self.times.append(self.seconds)
 
     def _segment_time(self, n: int, text: str, ms: str) -> None:
         self.mode = "PVT" if text.startswith("PVT") else "SPLINE1"

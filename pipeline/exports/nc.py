@@ -122,11 +122,22 @@ def _document(
         f"generator: ftsweep {__version__}",
         f"surface: {case.surface}, compensation {case.compensation}, machine {case.machine}",
         *kind_lines,
+        _motion_line(moves),
         "units: X Y Z mm, C deg, G93 F inverse time, PVT segment ms, velocities units/s",
         f"sidecar sha256: {sidecar_digest(meta, TEXT_FIELDS)}",
         CRC_TEXT.format(0),
     ]
     return dialects.render(moves, dialect, comments, ctrl), meta, adapter
+
+
+def _motion_line(moves: Moves) -> str:
+    """Revolutions, points per revolution and spindle speed of the moves (averages)."""
+    s = dialects.summary(moves)
+    rpm = s["revolutions"] / s["machining_s"] * 60.0 if s["machining_s"] > 0 else math.nan
+    return (
+        f"motion: {s['revolutions']:.6g} revolutions, {s['points_per_rev']:.6g} points per revolution and "
+        f"{rpm:.6g} rpm on average, {s['machining_s']:.3f} s"
+    )
 
 
 def _with_crc(lines: list[str], dialect: str) -> tuple[list[str], int]:

@@ -116,7 +116,12 @@ def controller_form(
         d0, d1 = segments.natural_spline(path.phi, values)
         return path._replace(interpolation="pvt", d0=d0, d1=d1), values
     inner = seconds[:-1]  # the last segment ends at the centre wherever it falls
-    if path.rule != "angle" or not segments.whole_steps(float(inner[0]), ctrl.time_quantum_s):
+    if path.rule != "angle":
+        raise CaseError(
+            f"SPLINE1 segments all take one time TA, so its points are evenly spaced in C: the {path.rule} "
+            "rule's are not; use the points_per_rev rule with 60000/(rpm·TA) points per revolution"
+        )
+    if not segments.whole_steps(float(inner[0]), ctrl.time_quantum_s):
         raise CaseError(
             f"SPLINE1 segments are one time TA of whole {ctrl.time_quantum_s * 1e3:g} ms steps: this "
             f"spiral's take {float(inner[0]) * 1e3:.6g} ms (use the points_per_rev rule with "

@@ -15,6 +15,7 @@ def fresnel_format() -> FileFormat:
     """The Fresnel program's file format ([2]): one line t C X Y Z per point, written by
     ``export`` from a cube and by the study (``ftsweep fresnel -o``)."""
     from ftsweep.kinds.fresnel import study as fstudy
+    from ftsweep.kinds.fresnel.dialect import dialect_adapter
 
     def export(*args: Any, name: str | None = None) -> dict[str, Any]:
         return dict(fstudy.export_case(*args))
@@ -40,5 +41,5 @@ def fresnel_format() -> FileFormat:
         ]
 
     return FileFormat(
-        "Fresnel program", fstudy.F_MAGIC, export, verify, exported, verified, fstudy.dialect_adapter()
+        "Fresnel program", fstudy.F_MAGIC, export, verify, exported, verified, dialect_adapter()
     )

@@ -6,7 +6,6 @@ adaptive timesteps), plot it ([2] figs. 10, 12, 13) and export it as position-ti
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, Optional
@@ -561,68 +560,3 @@ def verify_case(
     given = rcase.layout._replace(xy=ff.workpiece_of(phi, data[:, 2] * 1e3, data[:, 3] * 1e3))
     record = run_case(case, specs=specs, progress=progress, program=(given, data[:, 4] * 1e3))
     return files.checked_pv(path, meta, record, pv_tolerance_nm)
-
-
-# --------------------------------------------------------------------------- dialects
-def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[str]]:
-    """A Fresnel case's moves as planned and timed ([2]): its four channels at its own
-    adaptive timesteps, one G93 block a point."""
-    from ftsweep.exports.dialects import Moves
-    from ftsweep.kinds.fresnel.form import record_fields
-    from ftsweep.simulate import resolve_case
-
-    rcase = resolve_case(case, specs=specs)
-    prog = rcase.layout
-    fplan, steps = prog.plan, prog.steps
-    fields = record_fields(rcase)
-    lines = [
-        f"tool: nose radius {fplan.nose_radius_um:g} um, compensation {fplan.compensation}",
-        f"spindle: C increasing, adaptive timesteps, {fields['machining_s']:.3f} s in all",
-        f"points: {prog.n_points}, {fplan.path.n_turns} turns of {fplan.path.points_per_turn} points, "
-        f"feed {fplan.feed_um:g} um per turn, Fresnel facets of {fplan.facet_height_um:g} um",
-    ]
-    moves = Moves(
-        np.degrees(fplan.phi),
-        fplan.x_um * 1e-3,
-        fplan.tool_z_um * 1e-3,
-        np.asarray(steps.steps, dtype=np.float64),
-        fplan.y_um * 1e-3,
-    )
-    return moves, lines
-
-
-def _columns(moves: Any, case: Any, specs: tuple[Any, Any, Any]) -> np.ndarray:
-    """Moves as the text program's columns t [s], C [deg], X, Y, Z [mm], C at the planned
-    program's revolutions (:func:`ftsweep.exports.dialects.aligned`)."""
-    from ftsweep.exports.dialects import aligned
-    from ftsweep.simulate import resolve_case
-
-    start = math.degrees(float(resolve_case(case, specs=specs).layout.plan.phi[0]))
-    moves = aligned(moves, start)
-    t = np.concatenate([[0.0], np.cumsum(moves.seconds)])
-    return np.column_stack([t, moves.c_deg, moves.x_mm, moves.y_mm, moves.z_mm])
-
-
-def _dialect_check(case: Any, specs: tuple[Any, Any, Any], moves: Any) -> str:
-    if moves.y_mm is None:
-        return "the program gives no Y: a Fresnel program commands X, Y, Z and C"
-    return lines_reason(_columns(moves, case, specs), fp.limits_of(specs[1], case.machine))
-
-
-def _dialect_simulate(
-    case: Any, specs: tuple[Any, Any, Any], moves: Any, progress: Any = None
-) -> dict[str, Any]:
-    from ftsweep.simulate import resolve_case, run_case
-
-    data = _columns(moves, case, specs)
-    rcase = resolve_case(case, specs=specs)
-    phi = np.radians(data[:, 1])
-    given = rcase.layout._replace(xy=ff.workpiece_of(phi, data[:, 2] * 1e3, data[:, 3] * 1e3))
-    return run_case(case, specs=specs, progress=progress, program=(given, data[:, 4] * 1e3))
-
-
-def dialect_adapter() -> Any:
-    """The Fresnel kind's :class:`ftsweep.exports.dialects.Adapter` (linear G-code dialects)."""
-    from ftsweep.exports.dialects import Adapter
-
-    return Adapter(planned=_dialect_planned, simulate=_dialect_simulate, check=_dialect_check)

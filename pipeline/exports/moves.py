@@ -1,0 +1,91 @@
+"""What a path program commands, whatever its dialect (docs/controllers.md): the moves a
+reader gives and a writer takes, and the adapter by which each path kind's programs go into
+and come out of dialects."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any, Optional
+
+import numpy as np
+
+from ftsweep.store.io import ExportError
+
+
+class DialectError(ExportError):
+    """A program cannot be read or written in its dialect; the message names the line."""
+
+
+@dataclass
+class Moves:
+    """What a path program commands (units in the names; ``seconds`` per segment)."""
+
+    c_deg: np.ndarray
+    x_mm: np.ndarray
+    z_mm: np.ndarray
+    seconds: np.ndarray
+    y_mm: Optional[np.ndarray] = None
+    velocity: Optional[dict[str, np.ndarray]] = None  # PVT: per axis [deg/s or mm/s]
+    interpolation: str = "linear"
+    dialect: str = "text"
+    comments: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # what the reader passed over (M codes, approach)
+
+    @property
+    def n_points(self) -> int:
+        return int(self.c_deg.size)
+
+
+@dataclass(frozen=True)
+class Adapter:
+    """How a path kind's programs go into controllers' dialects and come back (each kind
+    declares its own beside its file format; :mod:`ftsweep.exports.nc` is the generic part).
+
+    planned : ``(case, specs) -> (moves, lines)``: the program its case plans, as moves, and
+        the kind's comment-header lines (tool, spindle, points per revolution …).
+    simulate : ``(case, specs, moves, progress) -> record``: the one simulator on the case
+        with its program as ``moves`` command it.
+    check : ``(case, specs, moves) -> reason``: the machine limits the moves leave ('' none).
+    commands : ``(moves, per) -> values``: the commands [µm] the simulator forms at ``per``
+        parameters u = (j + 0.5)/per of every segment (the compiled reference's check); None:
+        the kind's segments are not checked against the reference.
+    stand_in : ``(surface, machine, cutting) -> case``: the case a program from elsewhere is
+        simulated as (None: only ftsweep's own programs of this kind are read).
+    """
+
+    planned: Callable[..., tuple[Moves, list[str]]]
+    simulate: Callable[..., dict[str, Any]]
+    check: Callable[..., str]
+    commands: Optional[Callable[[Moves, int], np.ndarray]] = None
+    stand_in: Optional[Callable[[str, str, str], Any]] = None
+
+
+def aligned(moves: Moves, c0_deg: float) -> Moves:
+    """``moves`` with C shifted by whole revolutions so that it starts nearest ``c0_deg``: a C
+    printed modulo 360 gives the angle, not the revolutions turned before the program starts."""
+    turns = round((c0_deg - float(moves.c_deg[0])) / 360.0)
+    return replace(moves, c_deg=moves.c_deg + 360.0 * turns)
+
+
+def summary(m: Moves) -> dict[str, Any]:
+    """Points, revolutions, points per revolution and the feed per revolution [µm] (from X's
+    drop per revolution of C) of a spiral program's moves."""
+    turn = (m.c_deg - m.c_deg[0]) / 360.0
+    revs = float(turn[-1])
+    dx = -np.diff(m.x_mm) * 1e3
+    dturn = np.diff(turn)
+    feed = np.divide(dx, dturn, out=np.full(dx.shape, np.nan), where=dturn > 0)
+    feed = feed[np.isfinite(feed)]
+    return {
+        "n_points": m.n_points,
+        "revolutions": revs,
+        "points_per_rev": (m.n_points - 1) / revs if revs > 0 else math.nan,
+        "feed_um_per_rev": {
+            "min": float(feed.min()) if feed.size else math.nan,
+            "median": float(np.median(feed)) if feed.size else math.nan,
+            "max": float(feed.max()) if feed.size else math.nan,
+        },
+        "machining_s": float(np.sum(m.seconds)),
+    }

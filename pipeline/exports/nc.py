@@ -74,8 +74,9 @@ def controller_of(machine: Any, dialect: str) -> Controller:
             f"{DIALECT_OF[machine.interpolation]}"
         )
     ctrl = machine.controller
-    if ctrl is None or ctrl.dialect != dialect and dialect not in ("iso-sts", "linuxcnc"):
-        return Controller(dialect=dialect, interpolation=want) if ctrl is None else ctrl
+    if ctrl is None:
+        return Controller(dialect=dialect, interpolation=want)
+    # the same interpolation: the machine's controller, in the dialect asked (ISO or LinuxCNC)
     return ctrl if ctrl.dialect == dialect else ctrl.model_copy(update={"dialect": dialect})
 
 
@@ -389,8 +390,14 @@ def predict_program(
         or {"linear": "sts-moore", "pvt": "sts-pmac-pvt", "spline1": "sts-pmac-spline"}[moves.interpolation]
     )
     info["machine"] = machine
-    info["axes"] = _against(_peaks(moves), catalogs.entry("machines", machine))
-    info["notes"] = moves.notes
+    entry = catalogs.entry("machines", machine)
+    info["axes"] = _against(_peaks(moves), entry)
+    info["notes"] = list(moves.notes)
+    if entry.interpolation != moves.interpolation:
+        info["notes"].append(
+            f"the file commands {moves.interpolation} segments, machine {machine}'s controller forms "
+            f"{entry.interpolation} ones: predicted as the file commands them"
+        )
     if surface is None:
         return info
     kind, adapter = _foreign_reader()

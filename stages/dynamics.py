@@ -107,8 +107,10 @@ def analyse(
         # one revolution plus its neighbouring commands, so the differences cover all of it
         start = frac * rho0_um
         if isinstance(layout, SpiralPath):
-            # a path program is only defined on its own spiral: start on its revolution nearest
-            start = rho0_um - feed_um * round((rho0_um - start) / feed_um)
+            # a path program is only defined on its own spiral: start on its revolution nearest,
+            # one revolution in at least, so that the command before the first (first=-1) lies
+            # on the program and not a revolution on, across the spiral's start
+            start = rho0_um - feed_um * max(round((rho0_um - start) / feed_um), 1)
         w = revolution_commands(layout, table, start, feed_um, k, k + 2, first=-1)
         m = kinematics.over_steps(w[:, None] * 1e-6, np.full(w.size - 1, dt))
         v = m.velocity[:, 0] * 1e3  # m/s → mm/s

@@ -449,3 +449,22 @@ def test_subdivided_samples_are_interpolated_only_where_proven(kinked):
         assert exact >= 19 * 9  # 19 kinks: the interval around each is computed exactly
     else:
         assert exact < 100
+
+
+def test_the_w_velocity_of_a_spiral_is_that_of_its_segments():
+    """The W motion a spiral program's record reports (model §6 dynamics) is that of its linear
+    segments at the spindle speed: never above the steepest segment's |Δw/Δt| (a command read
+    a revolution on, across the spiral's start, once made it ten times that), and close to it."""
+    from ftsweep.simulate import resolve_case
+
+    case = Case(
+        surface="sinusoidal_mesh",
+        machine="sts-moore",
+        cutting="seed003",
+        layout=program_request(kind="spiral", chord_um=0.5, residual_um=0.5),
+    )
+    rcase = resolve_case(case)
+    omega = 6.63 * math.pi / 30.0
+    steepest = float(np.max(np.abs(np.diff(rcase.values) / np.diff(rcase.layout.phi)))) * omega * 1e-3
+    record = run_case(case)
+    assert 0.5 * steepest <= record["w_velocity_peak_mm_s"] <= steepest * (1 + 1e-9)

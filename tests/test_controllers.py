@@ -411,3 +411,12 @@ def test_the_readmes_dialect_example_runs_as_written(tmp_path):
         )
         assert done.returncode == 0, f"{command}: {done.stdout[-800:]} {done.stderr[-800:]}"
     assert (tmp_path / "outputs" / "seed003-map.png").stat().st_size > 0
+
+
+def test_a_loop_that_does_not_end_is_refused(monkeypatch):
+    from ftsweep.exports import gcode
+
+    monkeypatch.setattr(gcode, "MAX_READ_BLOCKS", 10_000)
+    lines = ["G90 G18", "#1=0", "WHILE [#1 LT 1] DO1", "#2=1", "END1", "M30"]
+    with pytest.raises(dialects.DialectError, match="a loop that does not end"):
+        dialects.read(lines, "iso-sts")

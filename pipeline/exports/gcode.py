@@ -47,7 +47,7 @@ class IsoReader:
         self.out: dict[str, list[float]] = {"C": [], "X": [], "Y": [], "Z": [], "T": []}
         self.start: Optional[dict[str, float]] = None
         self.m_codes: set[str] = set()
-        self.comments: list[str] = []
+        self.comments: dict[int, str] = {}
         self.blocks = 0
 
     def fail(self, n: int, why: str) -> DialectError:
@@ -63,12 +63,23 @@ class IsoReader:
     def _execute(self, first: int, stop: int) -> None:
         n = first
         while n < stop:
+            # every line executed counts (assignments and loop tests too): no loop runs away
+            self.blocks += 1
+            if self.blocks > MAX_READ_BLOCKS:
+                raise self.fail(
+                    n, f"more than {MAX_READ_BLOCKS:,} lines executed (a loop that does not end?)"
+                )
             text = self._clean(n)
             loop = _WHILE.match(text)
             if loop:
                 end = self._loop_end(n, loop.group(2), stop)
                 while self._condition(n, loop.group(1)):
                     self._execute(n + 1, end)
+                    self.blocks += 1
+                    if self.blocks > MAX_READ_BLOCKS:
+                        raise self.fail(
+                            n, f"more than {MAX_READ_BLOCKS:,} lines executed (a loop that does not end?)"
+                        )
                 n = end + 1
                 continue
             if _END.match(text):
@@ -79,7 +90,7 @@ class IsoReader:
     def _clean(self, n: int) -> str:
         raw = self.lines[n].strip()
         if raw.startswith("(") and raw.endswith(")") and raw.count(")") == 1:
-            self.comments.append(raw[1:-1])
+            self.comments[n] = raw[1:-1]  # by line: a loop's comment read again is one comment
         if ";" in raw:
             raw = raw.split(";", 1)[0]
         if "(" in raw or ")" in raw:
@@ -173,9 +184,6 @@ class IsoReader:
             return
         if re.search(r"\b(IF|GOTO|THEN)\b", text):
             raise self.fail(n, "IF/GOTO jumps are not evaluated: unroll them")
-        self.blocks += 1
-        if self.blocks > MAX_READ_BLOCKS:
-            raise self.fail(n, f"more than {MAX_READ_BLOCKS:,} blocks")
         words = self._words(n, text)
         self._modes(n, words)
         axes = {k: v for k, v in words if k in "CXYZ"}
@@ -185,9 +193,6 @@ class IsoReader:
     def _plain(self, n: int, m: re.Match[str]) -> None:
         """A block of :data:`_PLAIN`'s form: what :meth:`_words`, :meth:`_modes` and
         :meth:`_move` make of it, without the tokenizer."""
-        self.blocks += 1
-        if self.blocks > MAX_READ_BLOCKS:
-            raise self.fail(n, f"more than {MAX_READ_BLOCKS:,} blocks")
         if m.group(1):
             self.motion = 1.0
         if m.group(6):
@@ -284,7 +289,7 @@ class IsoReader:
             None,
             "linear",
             self.dialect,
-            self.comments,
+            [self.comments[k] for k in sorted(self.comments)],
             notes,
         )
 

@@ -311,7 +311,7 @@ def dialect_format() -> Any:
     def verified(record: dict[str, Any]) -> list[str]:
         return [
             f"checksum     {record['checksum']} (every other line) ok; sidecar and file hashes ok",
-            f"program      spiral in {record['dialect']}: {record['n_points']:,} points, "
+            f"program      {record['layout']} in {record['dialect']}: {record['n_points']:,} points, "
             "every line as re-planned",
             *pv_lines(record, "the program as the controller reads it"),
             f"cube         P-V {record['cube_pv_nm']:.2f} nm before rounding to the controller's decimals",

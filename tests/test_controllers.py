@@ -420,3 +420,17 @@ def test_a_loop_that_does_not_end_is_refused(monkeypatch):
     lines = ["G90 G18", "#1=0", "WHILE [#1 LT 1] DO1", "#2=1", "END1", "M30"]
     with pytest.raises(dialects.DialectError, match="a loop that does not end"):
         dialects.read(lines, "iso-sts")
+
+
+def test_pvt_segment_times_are_whole_controller_steps(tmp_path):
+    """A PVT program's points lie on whole 0.25 µs steps of the spindle's turn, so every
+    segment time it prints is exact; its C velocity is the spindle's."""
+    cube = _sweep(tmp_path, "p", SPIRAL.format(m="sts-pmac-pvt", c="seed003", axis="chord_um: [1.0]"))
+    out = tmp_path / "p.pmc"
+    assert CliRunner().invoke(main, ["export", str(cube), "--case", "0", "-o", str(out)]).exit_code == 0
+    lines = out.read_text().split("\n")
+    times = [float(line[3:]) for line in lines if line.startswith("PVT")]
+    steps = np.array(times) / 0.00025
+    assert len(times) > 10 and np.all(np.abs(steps - np.round(steps)) < 1e-6)
+    moves = dialects.read(lines[:-1], "pmac-pvt")
+    assert np.allclose(moves.velocity["C"][1:], 6.63 * 6.0)  # deg/s

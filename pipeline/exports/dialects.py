@@ -104,7 +104,7 @@ def _pvt(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     out = _pmac_head(m, d)
     last = ""
     for k in range(1, len(cs)):
-        ms = f"{m.seconds[k - 1] * 1e3:.4f}"
+        ms = f"{m.seconds[k - 1] * 1e3:.5f}"  # 0.01 µs: whole 0.25 µs steps print exactly
         if ms != last:
             out.append(f"PVT{ms}")
             last = ms

@@ -84,12 +84,6 @@ def natural_spline(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return d0, d1
 
 
-def linear_tangents(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The tangents that make every segment the straight line between its ends."""
-    dy = np.diff(np.asarray(y, dtype=np.float64))
-    return dy, dy.copy()
-
-
 def pvt_tangents(velocity: np.ndarray, seconds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Tangents of PVT segments: end velocities ``velocity`` [units/s] at the N points and
     segment times ``seconds`` (N − 1) [s]: d0_k = V_k·T_k, d1_k = V_k+1·T_k."""

@@ -115,6 +115,11 @@ class SpiralPath(NamedTuple):
         return int(np.bincount(rev - rev.min()).max())
 
 
+def angular_speed(rpm: float) -> float:
+    """Spindle angular speed ω [rad/s] of ``rpm`` [rev/min]."""
+    return rpm * math.pi / 30.0
+
+
 def spiral_end_rad(rho0_um: float, feed_um: float) -> float:
     """Accumulated spindle angle Φ = 2π·ρ0/F [rad] where the spiral reaches the centre."""
     return 2.0 * math.pi * rho0_um / feed_um

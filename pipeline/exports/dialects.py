@@ -19,9 +19,10 @@ import numpy as np
 from ftsweep.exports.gcode import IsoReader
 from ftsweep.exports.moves import Adapter, DialectError, Moves, aligned, summary
 from ftsweep.exports.pmac import read_pmac
+from ftsweep.inputs.controllers import DIALECT_INTERPOLATION
 
-DIALECTS = ("text", "iso-sts", "linuxcnc", "pmac-pvt", "pmac-spline")
-INTERPOLATION = {"iso-sts": "linear", "linuxcnc": "linear", "pmac-pvt": "pvt", "pmac-spline": "spline1"}
+# the interpolation each controller dialect commands (the catalog's table, ftsweep's text aside)
+INTERPOLATION = {d: i for d, i in DIALECT_INTERPOLATION.items() if d != "text"}
 # the header every ISO STS program of a Moore Nanotech starts with (metric, XZ plane,
 # absolute; G52 cancels local offsets, G63/G103 the controller's tapping and look-ahead
 # modes), then the work offset, the tool, M78 and M26.1 (C axis to position mode)
@@ -38,7 +39,8 @@ def _num(values: np.ndarray, decimals: int) -> list[str]:
     return [f"{v:.{decimals}f}" for v in rounded.tolist()]
 
 
-def _comment(dialect: str, text: str) -> str:
+def comment(dialect: str, text: str) -> str:
+    """A whole-line comment of ``dialect``, refused if its text would end or open one early."""
     if "(" in text or ")" in text or ";" in text:
         raise DialectError(f"a comment cannot hold '(', ')' or ';': {text[:80]!r}")
     return f"; {text}" if dialect.startswith("pmac") else f"({text})"
@@ -54,7 +56,7 @@ def comment_text(dialect: str, line: str) -> Optional[str]:
 def render(moves: Moves, dialect: str, comments: list[str], ctrl: Any) -> list[str]:
     """The program's lines in ``dialect`` (its comment header first), numbers as the
     controller entry ``ctrl`` says (decimals, G93's F, C wrapped or accumulated)."""
-    head = [_comment(dialect, c) for c in comments]
+    head = [comment(dialect, c) for c in comments]
     body = {"iso-sts": _iso, "linuxcnc": _iso, "pmac-pvt": _pvt, "pmac-spline": _spline}[dialect]
     return head + body(moves, dialect, ctrl)
 
@@ -151,5 +153,6 @@ __all__ = [
     "read",
     "detect",
     "wrapped",
+    "comment",
     "comment_text",
 ]

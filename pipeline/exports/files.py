@@ -420,14 +420,21 @@ def _check_claims(path: Path, meta: dict[str, Any], expected: dict[str, Any]) ->
 def checked_sidecar(path: Path, doc: ProgramFile) -> dict[str, Any]:
     """The sidecar of a program (``doc``, as read from ``path``), refused unless it and the
     program name each other."""
+    return sidecar_naming(path, doc.sha256, doc.fields.get("sidecar", "").split(" sha256 ")[-1])
+
+
+def sidecar_naming(path: Path, sha256: str, stated: str) -> dict[str, Any]:
+    """The sidecar of the program file ``path`` whose bytes have SHA-256 ``sha256`` and whose
+    header states the sidecar's digest ``stated``: refused unless the sidecar names those bytes
+    and has that digest (:func:`sidecar_digest` over all but :data:`TEXT_FIELDS`)."""
     side = sidecar_path(path)
     try:
         meta = read_sidecar(path)
     except ExportError as exc:
         raise ProgramError(str(exc)) from None
-    if meta.get("program_sha256") != doc.sha256:
+    if meta.get("program_sha256") != sha256:
         raise ProgramError(f"{side} does not belong to {path} (SHA-256 of the program differs)")
-    if doc.fields.get("sidecar", "").split(" sha256 ")[-1] != sidecar_digest(meta, TEXT_FIELDS):
+    if stated != sidecar_digest(meta, TEXT_FIELDS):
         raise ProgramError(f"{path}: the sidecar was changed (its SHA-256 differs from the header's)")
     return dict(meta)
 

@@ -43,11 +43,12 @@ class Adapter:
     """How a path kind's programs go into controllers' dialects and come back (each kind
     declares its own beside its file format; :mod:`ftsweep.exports.nc` is the generic part).
 
-    planned : ``(case, specs) -> (moves, lines)``: the program its case plans, as moves, and
-        the kind's comment-header lines (tool, spindle, points per revolution …).
-    simulate : ``(case, specs, moves, progress) -> record``: the one simulator on the case
-        with its program as ``moves`` command it.
-    check : ``(case, specs, moves) -> reason``: the machine limits the moves leave ('' none).
+    planned : ``(case, specs) -> (moves, lines, rcase)``: the program its case plans, as
+        moves, the kind's comment-header lines (tool, spindle, points per revolution …) and the
+        resolved case it planned, which ``check`` and ``simulate`` take instead of planning again.
+    simulate : ``(case, specs, moves, progress, rcase) -> record``: the one simulator on the
+        case with its program as ``moves`` command it (``rcase`` None: a program from elsewhere).
+    check : ``(rcase, moves) -> reason``: the machine limits the moves leave ('' none).
     commands : ``(moves, per) -> values``: the commands [µm] the simulator forms at ``per``
         parameters u = (j + 0.5)/per of every segment (the compiled reference's check); None:
         the kind's segments are not checked against the reference.
@@ -55,7 +56,7 @@ class Adapter:
         simulated as (None: only ftsweep's own programs of this kind are read).
     """
 
-    planned: Callable[..., tuple[Moves, list[str]]]
+    planned: Callable[..., tuple[Moves, list[str], Any]]
     simulate: Callable[..., dict[str, Any]]
     check: Callable[..., str]
     commands: Optional[Callable[[Moves, int], np.ndarray]] = None
@@ -70,10 +71,11 @@ def aligned(moves: Moves, c0_deg: float) -> Moves:
 
 
 def summary(m: Moves) -> dict[str, Any]:
-    """Points, revolutions, points per revolution and the feed per revolution [µm] (from X's
-    drop per revolution of C) of a spiral program's moves."""
+    """Points, revolutions, points per revolution, the feed per revolution [µm] (from X's
+    drop per revolution of C), the time [s] and the mean spindle speed [rpm] of a program's moves."""
     turn = (m.c_deg - m.c_deg[0]) / 360.0
     revs = float(turn[-1])
+    seconds = float(np.sum(m.seconds))
     dx = -np.diff(m.x_mm) * 1e3
     dturn = np.diff(turn)
     feed = np.divide(dx, dturn, out=np.full(dx.shape, np.nan), where=dturn > 0)
@@ -87,5 +89,6 @@ def summary(m: Moves) -> dict[str, Any]:
             "median": float(np.median(feed)) if feed.size else math.nan,
             "max": float(feed.max()) if feed.size else math.nan,
         },
-        "machining_s": float(np.sum(m.seconds)),
+        "machining_s": seconds,
+        "spindle_rpm": revs / seconds * 60.0 if seconds > 0 else math.nan,
     }

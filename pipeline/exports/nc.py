@@ -12,8 +12,6 @@ of the program as written (its numbers rounded to the controller's decimals).
 from __future__ import annotations
 
 import hashlib
-import math
-import zlib
 from pathlib import Path
 from typing import Any, Optional
 
@@ -27,18 +25,19 @@ from ftsweep.exports.files import (
     ProgramError,
     check_controller_text,
     checked_pv,
+    crc_of,
     recorded_case_of,
     recorded_entries,
     recorded_extra,
     sidecar_digest,
+    sidecar_naming,
 )
 from ftsweep.inputs.catalogs import Controller
-from ftsweep.stages import segments
+from ftsweep.stages import kinematics, segments
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     dumps_json,
     read_regular,
-    read_sidecar,
     sidecar_path,
     write_texts_atomic,
 )
@@ -46,7 +45,8 @@ from ftsweep.version import __version__
 
 CRC_TEXT = "CRC32: 0x{:08x} over every other line"
 TEXT_FIELDS = ("program", "program_sha256", "crc32")
-DIALECT_OF = {"linear": "iso-sts", "pvt": "pmac-pvt", "spline1": "pmac-spline"}
+# the dialect to name for a machine's interpolation (G-code's first)
+DIALECT_OF = {i: d for d, i in reversed(dialects.INTERPOLATION.items())}
 HOW = {
     "linear": "linear segments",
     "pvt": "PVT cubic Hermite segments",
@@ -103,11 +103,12 @@ def _limits(moves: Moves, ctrl: Controller) -> None:
 
 def _document(
     case: Case, specs: tuple[Any, Any, Any], dialect: str, meta_in: dict[str, Any]
-) -> tuple[list[str], dict[str, Any], Adapter]:
-    """The lines (CRC line not yet filled), sidecar and adapter of a case's program."""
+) -> tuple[list[str], dict[str, Any], tuple[Adapter, Any]]:
+    """The lines (CRC line not yet filled), sidecar, and the kind's adapter with the resolved
+    case it planned, of a case's program."""
     ctrl = controller_of(specs[1], dialect)
     adapter = adapter_of(case.layout.kind)
-    moves, kind_lines = adapter.planned(case, specs)
+    moves, kind_lines, rcase = adapter.planned(case, specs)
     _limits(moves, ctrl)
     meta = {
         **meta_in,
@@ -128,30 +129,25 @@ def _document(
         f"sidecar sha256: {sidecar_digest(meta, TEXT_FIELDS)}",
         CRC_TEXT.format(0),
     ]
-    return dialects.render(moves, dialect, comments, ctrl), meta, adapter
+    return dialects.render(moves, dialect, comments, ctrl), meta, (adapter, rcase)
 
 
 def _motion_line(moves: Moves) -> str:
     """Revolutions, points per revolution and spindle speed of the moves (averages)."""
     s = dialects.summary(moves)
-    rpm = s["revolutions"] / s["machining_s"] * 60.0 if s["machining_s"] > 0 else math.nan
     return (
         f"motion: {s['revolutions']:.6g} revolutions, {s['points_per_rev']:.6g} points per revolution and "
-        f"{rpm:.6g} rpm on average, {s['machining_s']:.3f} s"
+        f"{s['spindle_rpm']:.6g} rpm on average, {s['machining_s']:.3f} s"
     )
 
 
 def _with_crc(lines: list[str], dialect: str) -> tuple[list[str], int]:
     """The lines with their CRC line (the last comment of the header) filled in."""
     at = _crc_index(lines, dialect)
-    crc = zlib.crc32("\n".join(lines[:at] + lines[at + 1 :]).encode("ascii")) & 0xFFFFFFFF
+    crc = crc_of(lines[:at] + lines[at + 1 :])
     done = list(lines)
-    done[at] = _comment_line(dialect, CRC_TEXT.format(crc))
+    done[at] = dialects.comment(dialect, CRC_TEXT.format(crc))
     return done, crc
-
-
-def _comment_line(dialect: str, text: str) -> str:
-    return f"; {text}" if dialect.startswith("pmac") else f"({text})"
 
 
 def _crc_index(lines: list[str], dialect: str) -> int:
@@ -175,14 +171,14 @@ def export(
     refused, named, when the moves as written leave the machine's limits. The sidecar records
     the P-V of the program as written (re-simulated from its lines as the reader reads them)."""
     meta_in = {"generator": f"ftsweep {__version__}", "pv_nm": chosen["pv_nm"], **extra, "selection": chosen}
-    lines, meta, adapter = _document(case, specs, dialect, meta_in)
+    lines, meta, (adapter, rcase) = _document(case, specs, dialect, meta_in)
     moves = dialects.read(lines, dialect, meta["controller"]["g93_f"])
-    reason = adapter.check(case, specs, moves)
+    reason = adapter.check(rcase, moves)
     if reason:
         raise ProgramError(
             f"the program leaves the limits of machine '{case.machine}': {reason}; nothing exported"
         )
-    meta["pv_nm_as_written"] = adapter.simulate(case, specs, moves)["pv_nm"]
+    meta["pv_nm_as_written"] = adapter.simulate(case, specs, moves, None, rcase)["pv_nm"]
     digest = sidecar_digest(meta, TEXT_FIELDS)  # the header names the sidecar as written
     lines = [_replace_digest(line, dialect, digest) for line in lines]
     lines, crc = _with_crc(lines, dialect)
@@ -195,7 +191,7 @@ def export(
 def _replace_digest(line: str, dialect: str, digest: str) -> str:
     text = dialects.comment_text(dialect, line)
     if text is not None and text.startswith("sidecar sha256: "):
-        return _comment_line(dialect, f"sidecar sha256: {digest}")
+        return dialects.comment(dialect, f"sidecar sha256: {digest}")
     return line
 
 
@@ -220,7 +216,7 @@ def is_dialect_file(first_line: str) -> bool:
 def dialect_named(lines: list[str]) -> str:
     """The dialect an ftsweep dialect program's first line names."""
     first = lines[0] if lines else ""
-    text = first[2:] if first.startswith("; ") else first[1:-1]
+    text = dialects.comment_text("pmac-pvt" if first.startswith("; ") else "iso-sts", first) or ""
     dialect = text.split(", dialect ", 1)[-1].split(":", 1)[0]
     if dialect not in dialects.INTERPOLATION:
         raise ProgramError("line 1 names no dialect ftsweep writes")
@@ -231,16 +227,13 @@ def _checked_text(path: Path, lines: list[str], dialect: str) -> dict[str, Any]:
     """The sidecar of a dialect program whose CRC, hashes and sidecar digest check out."""
     at = _crc_index(lines, dialect)
     stored = (dialects.comment_text(dialect, lines[at]) or "").split()[1]
-    crc = zlib.crc32("\n".join(lines[:at] + lines[at + 1 :]).encode("ascii")) & 0xFFFFFFFF
+    crc = crc_of(lines[:at] + lines[at + 1 :])
     if stored != f"0x{crc:08x}":
         raise ProgramError(f"{path}: CRC32 mismatch (header {stored}): a line was changed; do not run it")
-    meta = read_sidecar(path)
     data = ("\n".join(lines) + "\n").encode("ascii")
-    if meta.get("program_sha256") != hashlib.sha256(data).hexdigest():
-        raise ProgramError(f"{sidecar_path(path)} does not belong to {path} (SHA-256 of the program differs)")
-    digest = sidecar_digest(meta, TEXT_FIELDS)
-    if not any(dialects.comment_text(dialect, ln) == f"sidecar sha256: {digest}" for ln in lines[:at]):
-        raise ProgramError(f"{path}: the sidecar was changed (its SHA-256 differs from the header's)")
+    stated = [t for t in (dialects.comment_text(dialect, ln) for ln in lines[:at]) if t]
+    digest = next((t[len("sidecar sha256: ") :] for t in stated if t.startswith("sidecar sha256: ")), "")
+    meta = sidecar_naming(path, hashlib.sha256(data).hexdigest(), digest)
     return dict(meta, _digest=digest, _crc=crc)
 
 
@@ -259,7 +252,7 @@ def verify(
     case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
     meta_in: dict[str, Any] = {k: meta[k] for k in ("generator", "pv_nm", "selection") if k in meta}
     meta_in.update(recorded_extra(meta))
-    planned, expected, adapter = _document(case, specs, dialect, meta_in)
+    planned, expected, (adapter, rcase) = _document(case, specs, dialect, meta_in)
     claims = [k for k in expected if k not in TEXT_FIELDS and _json(meta.get(k)) != _json(expected[k])]
     if claims:
         raise ProgramError(
@@ -277,12 +270,12 @@ def verify(
             f"{path}: {len(lines):,} lines where the recorded case gives {len(planned):,}; do not run it"
         )
     moves = dialects.read(lines, dialect, meta["controller"]["g93_f"])
-    reason = adapter.check(case, specs, moves)
+    reason = adapter.check(rcase, moves)
     if reason:
         raise ProgramError(
             f"{path}: a block leaves the limits of machine '{case.machine}': {reason}; do not run it"
         )
-    record = adapter.simulate(case, specs, moves, progress)
+    record = adapter.simulate(case, specs, moves, progress, rcase)
     record = checked_pv(path, {**meta, "pv_nm": meta["pv_nm_as_written"]}, record, pv_tolerance_nm)
     record.update(dialect=dialect, cube_pv_nm=float(meta["pv_nm"]), checksum=f"0x{crc:08x}")
     return record
@@ -326,13 +319,11 @@ def dialect_format() -> Any:
 def _peaks(moves: Moves) -> dict[str, float]:
     """Peak X and Z speeds [mm/s] and accelerations [m/s²] of a program's segments (speeds
     per segment, accelerations between consecutive segments' speeds)."""
-    t = np.asarray(moves.seconds, dtype=np.float64)
+    motion = kinematics.over_steps(np.column_stack([moves.x_mm, moves.z_mm]) * 1e-3, moves.seconds)
     out: dict[str, float] = {}
-    for axis, values in (("x", moves.x_mm), ("z", moves.z_mm)):
-        v = np.diff(values) / t
-        a = np.diff(v) / (0.5 * (t[:-1] + t[1:])) * 1e-3 if v.size > 1 else np.zeros(0)
-        out[f"{axis}_speed_mm_s"] = float(np.max(np.abs(v), initial=0.0))
-        out[f"{axis}_accel_m_s2"] = float(np.max(np.abs(a), initial=0.0))
+    for j, axis in enumerate("xz"):
+        out[f"{axis}_speed_mm_s"] = float(np.max(np.abs(motion.velocity[:, j]), initial=0.0)) * 1e3
+        out[f"{axis}_accel_m_s2"] = float(np.max(np.abs(motion.accel[:, j]), initial=0.0))
     return out
 
 
@@ -383,8 +374,6 @@ def predict_program(
         "interpolation": moves.interpolation,
     }
     info.update(dialects.summary(moves))
-    turns = (moves.c_deg[-1] - moves.c_deg[0]) / 360.0
-    info["spindle_rpm"] = float(turns / info["machining_s"] * 60.0) if info["machining_s"] > 0 else math.nan
     machine = (
         machine
         or {"linear": "sts-moore", "pvt": "sts-pmac-pvt", "spline1": "sts-pmac-spline"}[moves.interpolation]
@@ -405,7 +394,7 @@ def predict_program(
     if map_bins:
         res = case.resolution.model_copy(update={"error_map_bins": map_bins})
         case = case.model_copy(update={"resolution": res})
-    record = adapter.simulate(case, None, moves, progress)
+    record = adapter.simulate(case, None, moves, progress, None)
     info.update({k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "nose_radius_um", "feed_um")})
     info.update(surface=surface, kind=kind, record=record)
     return info

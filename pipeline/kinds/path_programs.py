@@ -306,7 +306,7 @@ def verify_dpath(
     return checked_pv(path, meta, record, pv_tolerance_nm)
 
 
-def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str]]:
+def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str], Any]:
     """A D path's moves as planned ([5]): its lines t, C, X, Z as G93 blocks."""
     from ftsweep.kinds.dpath import program as dprog
 
@@ -322,7 +322,7 @@ def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list
         f"{g.spacing_um:.9g} um, {g.zones} zones per revolution, {float(t[-1]):.3f} s",
     ]
     moves = Moves(np.degrees(path.phi), path.rho * 1e-3, z * 1e-3, np.diff(t))
-    return moves, lines
+    return moves, lines, rcase
 
 
 def _dpath_columns(moves: Moves, path: Any) -> np.ndarray:
@@ -333,15 +333,15 @@ def _dpath_columns(moves: Moves, path: Any) -> np.ndarray:
     return np.column_stack([t, moves.c_deg, moves.x_mm, moves.z_mm])
 
 
-def _dpath_check(case: Case, specs: tuple[Any, Any, Any], moves: Moves) -> str:
-    path = resolve_case(case, specs=specs).layout
-    return _limits_of_lines(specs[1], specs[2].spindle_rpm, path, _dpath_columns(moves, path))
+def _dpath_check(rcase: Any, moves: Moves) -> str:
+    path = rcase.layout
+    return _limits_of_lines(rcase.machine, rcase.cutting.spindle_rpm, path, _dpath_columns(moves, path))
 
 
 def _dpath_simulate(
-    case: Case, specs: tuple[Any, Any, Any], moves: Moves, progress: Any = None
+    case: Case, specs: tuple[Any, Any, Any], moves: Moves, progress: Any, rcase: Any
 ) -> dict[str, Any]:
-    rcase = resolve_case(case, specs=specs)
+    """The planned D path (``rcase``) run through the moves' t, C, X and Z."""
     data = _dpath_columns(moves, rcase.layout)
     return run_case(
         case, specs=specs, progress=progress, program=(_as_run(rcase.layout, data), data[:, 3] * 1e3)

@@ -14,7 +14,7 @@ from ftsweep.kinds.fresnel.study import lines_reason
 from ftsweep.stages import fresnel as ff
 
 
-def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[str]]:
+def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[str], Any]:
     """A Fresnel case's moves as planned and timed ([2]): its four channels at its own
     adaptive timesteps, one G93 block a point."""
     from ftsweep.exports.dialects import Moves
@@ -38,34 +38,32 @@ def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[
         np.asarray(steps.steps, dtype=np.float64),
         fplan.y_um * 1e-3,
     )
-    return moves, lines
+    return moves, lines, rcase
 
 
-def _columns(moves: Any, case: Any, specs: tuple[Any, Any, Any]) -> np.ndarray:
+def _columns(moves: Any, rcase: Any) -> np.ndarray:
     """Moves as the text program's columns t [s], C [deg], X, Y, Z [mm], C at the planned
-    program's revolutions (:func:`ftsweep.exports.dialects.aligned`)."""
+    program's (``rcase``'s) revolutions (:func:`ftsweep.exports.dialects.aligned`)."""
     from ftsweep.exports.dialects import aligned
-    from ftsweep.simulate import resolve_case
 
-    start = math.degrees(float(resolve_case(case, specs=specs).layout.plan.phi[0]))
-    moves = aligned(moves, start)
+    moves = aligned(moves, math.degrees(float(rcase.layout.plan.phi[0])))
     t = np.concatenate([[0.0], np.cumsum(moves.seconds)])
     return np.column_stack([t, moves.c_deg, moves.x_mm, moves.y_mm, moves.z_mm])
 
 
-def _dialect_check(case: Any, specs: tuple[Any, Any, Any], moves: Any) -> str:
+def _dialect_check(rcase: Any, moves: Any) -> str:
     if moves.y_mm is None:
         return "the program gives no Y: a Fresnel program commands X, Y, Z and C"
-    return lines_reason(_columns(moves, case, specs), fp.limits_of(specs[1], case.machine))
+    return lines_reason(_columns(moves, rcase), fp.limits_of(rcase.machine, rcase.case.machine))
 
 
 def _dialect_simulate(
-    case: Any, specs: tuple[Any, Any, Any], moves: Any, progress: Any = None
+    case: Any, specs: tuple[Any, Any, Any], moves: Any, progress: Any, rcase: Any
 ) -> dict[str, Any]:
-    from ftsweep.simulate import resolve_case, run_case
+    """The planned program (``rcase``) with the moves' X, Y, Z and C (eq. 9 back to the part)."""
+    from ftsweep.simulate import run_case
 
-    data = _columns(moves, case, specs)
-    rcase = resolve_case(case, specs=specs)
+    data = _columns(moves, rcase)
     phi = np.radians(data[:, 1])
     given = rcase.layout._replace(xy=ff.workpiece_of(phi, data[:, 2] * 1e3, data[:, 3] * 1e3))
     return run_case(case, specs=specs, progress=progress, program=(given, data[:, 4] * 1e3))

@@ -14,12 +14,7 @@ from ftsweep.exports.dialects import Adapter, DialectError, Moves
 from ftsweep.exports.files import layer_schedule
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import segments
-from ftsweep.stages.spiral import SpiralPath, spiral_commands
-
-
-def omega(rpm: float) -> float:
-    """Spindle angular speed [rad/s] of ``rpm``."""
-    return rpm * math.pi / 30.0
+from ftsweep.stages.spiral import SpiralPath, angular_speed, spiral_commands
 
 
 def moves_of(path: SpiralPath, values_um: np.ndarray, rpm: float) -> Moves:
@@ -27,7 +22,7 @@ def moves_of(path: SpiralPath, values_um: np.ndarray, rpm: float) -> Moves:
     constant spindle speed: C accumulated [deg], X [mm], Z [mm], segment times [s]; PVT
     velocities from the segments' tangents (C¹: one velocity a point); a SPLINE1 program's Z
     as its control points."""
-    w = omega(rpm)
+    w = angular_speed(rpm)
     phi = path.phi
     seconds = np.diff(phi) / w
     z = np.asarray(values_um) * 1e-3
@@ -46,7 +41,7 @@ def moves_of(path: SpiralPath, values_um: np.ndarray, rpm: float) -> Moves:
     return Moves(np.degrees(phi), path.rho * 1e-3, z, seconds, None, velocity, path.interpolation)
 
 
-def _planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str]]:
+def _planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str], Any]:
     rcase = resolve_case(case, specs=specs)
     path = rcase.layout
     if layer_schedule(rcase, rcase.values) is not None:
@@ -61,7 +56,7 @@ def _planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str]]
         f"points: {path.n_points}, {path.max_points_per_rev} per revolution at most, "
         f"{path.revolutions:.6g} revolutions",
     ]
-    return moves_of(path, rcase.values, rpm), lines
+    return moves_of(path, rcase.values, rpm), lines, rcase
 
 
 # how far a program's X may lie off the Archimedean spiral its first and last points set [µm]:
@@ -105,8 +100,14 @@ def program_of(moves: Moves) -> tuple[SpiralPath, np.ndarray]:
 
 
 def _simulate(
-    case: Case, specs: Optional[tuple[Any, Any, Any]], moves: Moves, progress: Any = None
+    case: Case,
+    specs: Optional[tuple[Any, Any, Any]],
+    moves: Moves,
+    progress: Any = None,
+    rcase: Any = None,
 ) -> dict[str, Any]:
+    """The case with its program as ``moves`` command it (``rcase`` unused: the moves are the
+    whole program)."""
     return run_case(case, specs=specs, progress=progress, program=program_of(moves))
 
 
@@ -138,7 +139,7 @@ def stand_in_case(surface: str, machine: str, cutting: str) -> Case:
 ADAPTER = Adapter(
     planned=_planned,
     simulate=_simulate,
-    check=lambda case, specs, moves: "",  # the spiral's limits are checked in planning
+    check=lambda rcase, moves: "",  # the spiral's limits are checked in planning
     commands=_commands,
     stand_in=stand_in_case,
 )

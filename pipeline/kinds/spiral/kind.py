@@ -87,7 +87,7 @@ def _on_time_steps(path: spiral.SpiralPath, controller: Any, rpm: float) -> np.n
     """The points' angles [rad] on whole time steps of a PVT controller (its time quantum at
     the spindle's angular speed), so every segment's time is a whole number of steps
     (docs/controllers.md); the last point never passes the centre."""
-    step = controller.time_quantum_s * rpm * math.pi / 30.0
+    step = controller.time_quantum_s * spiral.angular_speed(rpm)
     phi = segments.quantised(path.phi[:-1], step)
     last = math.floor(float(path.phi[-1]) / step) * step
     if phi.size and not last > phi[-1]:
@@ -105,7 +105,7 @@ def controller_form(
     a segment time the controller cannot run: over its longest, or for SPLINE1 not one
     whole time step (TA is whole milliseconds) or not the same for every segment."""
     ctrl = machine.controller
-    seconds = np.diff(path.phi) / (rpm * math.pi / 30.0)
+    seconds = np.diff(path.phi) / spiral.angular_speed(rpm)
     longest = float(seconds.max(initial=0.0))
     if longest > ctrl.max_segment_s:
         raise CaseError(

@@ -124,6 +124,9 @@ class DPath(NamedTuple):
     coeffs : (C − 1, 6) the transition after cut i as a polynomial in τ ∈ [0, 1].
     t_s : (N,) time of each point [s] as a program file gives it, or None: at constant
         spindle speed (:func:`point_times`).
+    tangents : (N − 1, 6) the segments' tangents of C [rad], X and Z [µm] in time when the
+        controller joins the points by cubics (PVT, :mod:`ftsweep.stages.timed_path`), or None:
+        linear segments.
     """
 
     kind: str
@@ -138,6 +141,7 @@ class DPath(NamedTuple):
     cut_centre: np.ndarray
     coeffs: np.ndarray
     t_s: Optional[np.ndarray] = None
+    tangents: Optional[np.ndarray] = None
 
     @property
     def n_points(self) -> int:

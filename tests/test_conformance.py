@@ -17,6 +17,7 @@ from ftsweep import registry
 from ftsweep.cli.main import main
 from ftsweep.engine import result
 from ftsweep.engine.case import Case
+from ftsweep.exports import dialects
 from ftsweep.exports.export import format_of_kind, formats
 from ftsweep.simulate import run_case
 from ftsweep.sweeps.run import run_sweep
@@ -86,11 +87,12 @@ class KindTests:
         assert record["layout"] == self.kind
         assert abs(record["pv_nm"] - record["predicted_pv_nm"]) <= record["pv_tolerance_nm"]
 
-    @pytest.mark.parametrize("dialect", ["iso-sts", "linuxcnc"])
+    @pytest.mark.parametrize("dialect", ["iso-sts", "linuxcnc", "pmac-pvt"])
     def test_its_programs_go_out_in_controller_dialects_and_verify(self, cube, tmp_path, dialect):
-        """A path kind with a dialect adapter exports G-code its strict reader reads back and
-        verify passes, the P-V as written within 1 % of the cube's; a layered program and a
-        kind without an adapter are refused by name."""
+        """A path kind with a dialect adapter exports a program its strict reader reads back
+        and verify passes, the P-V as written within 1 % of the cube's; a dialect whose
+        interpolation is not the machine's, a layered program and a kind without an adapter
+        are refused by name."""
         _, out, folder = cube
         env = {"FTSWEEP_CATALOGS": str(folder)}
         path = tmp_path / f"part-{dialect}.nc"
@@ -99,6 +101,12 @@ class KindTests:
         )
         ds = xr.open_zarr(out)
         layered = int(ds["n_layers"].values.ravel()[0]) > 1 if "n_layers" in ds else False
+        case, _ = recorded_case(open_cube(out), 0)
+        interpolation = _machine(case, folder).interpolation
+        if dialects.INTERPOLATION[dialect] != interpolation:
+            assert res.exit_code == 1 and f"interpolates {interpolation}" in res.output
+            assert not path.exists()
+            return
         if registry.kind(self.kind).file_format().dialect is None or layered:
             assert res.exit_code == 1
             assert ("own format only" in res.output) or ("layered" in res.output)
@@ -179,6 +187,12 @@ def _cutting(case: Case, folder):  # type: ignore[no-untyped-def]
     return catalogs.entry("cutting", case.cutting, folder)
 
 
+def _machine(case: Case, folder):  # type: ignore[no-untyped-def]
+    from ftsweep.inputs import catalogs
+
+    return catalogs.entry("machines", case.machine, folder)
+
+
 def _surface(case: Case, folder):  # type: ignore[no-untyped-def]
     from ftsweep.inputs import catalogs
 
@@ -228,6 +242,22 @@ class TestDPath(KindTests):
     sweep = (
         "surface: concave_sphere\nlayout: dpath\nmachine: sts-xzc\ncutting: dpath-finish\n"
         "dpath: {transition: optimised}\naxes: {spacing_um: [500.0], points_per_cut: [41]}\n"
+    )
+
+
+class TestDPathPvt(KindTests):
+    kind = "dpath"
+    sweep = (
+        "surface: concave_sphere\nlayout: dpath\nmachine: xzc-pmac-pvt\ncutting: dpath-finish\n"
+        "axes: {spacing_um: [500.0], points_per_cut: [41]}\n"
+    )
+
+
+class TestFresnelPvt(KindTests):
+    kind = "fresnel"
+    sweep = (
+        "surface: chebyshev_example\nlayout: fresnel\nmachine: xyzc-pmac-pvt\ncutting: fresnel-finish\n"
+        "axes: {facet_height_um: [10.0], points_per_turn: [60], feed_um: [8.0]}\n"
     )
 
 

@@ -92,34 +92,43 @@ def _iso(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     return out
 
 
+def _axes(m: Moves) -> dict[str, np.ndarray]:
+    """The axes a program commands, in block order (Y only for a four-axis program)."""
+    out = {"C": m.c_deg, "X": m.x_mm}
+    if m.y_mm is not None:
+        out["Y"] = m.y_mm
+    out["Z"] = m.z_mm
+    return out
+
+
 def _pmac_head(m: Moves, d: int) -> list[str]:
     lift = _num(np.array([m.z_mm[0] + CLEARANCE_MM]), d)[0]
-    c0, x0, z0 = _num(m.c_deg[:1], d)[0], _num(m.x_mm[:1], d)[0], _num(m.z_mm[:1], d)[0]
-    return ["CLOSE", "OPEN PROG 1 CLEAR", "ABS", "RAPID", f"Z{lift}", f"C{c0} X{x0}", f"Z{z0}"]
+    start = " ".join(f"{a}{_num(v[:1], d)[0]}" for a, v in _axes(m).items() if a != "Z")
+    return ["CLOSE", "OPEN PROG 1 CLEAR", "ABS", "RAPID", f"Z{lift}", start, f"Z{_num(m.z_mm[:1], d)[0]}"]
 
 
 def _pvt(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     assert m.velocity is not None
     d = ctrl.decimals
-    cs, xs, zs = _num(m.c_deg, d), _num(m.x_mm, d), _num(m.z_mm, d)
-    v = {axis: _num(m.velocity[axis], d) for axis in ("C", "X", "Z")}
+    pos = {a: _num(v, d) for a, v in _axes(m).items()}
+    v = {a: _num(m.velocity[a], d) for a in pos}
     out = _pmac_head(m, d)
     last = ""
-    for k in range(1, len(cs)):
+    for k in range(1, m.n_points):
         ms = f"{m.seconds[k - 1] * 1e3:.5f}"  # 0.01 µs: whole 0.25 µs steps print exactly
         if ms != last:
             out.append(f"PVT{ms}")
             last = ms
-        out.append(f"C{cs[k]}:{v['C'][k]} X{xs[k]}:{v['X'][k]} Z{zs[k]}:{v['Z'][k]}")
+        out.append(" ".join(f"{a}{pos[a][k]}:{v[a][k]}" for a in pos))
     return out + ["CLOSE"]
 
 
 def _spline(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     d = ctrl.decimals
-    cs, xs, zs = _num(m.c_deg, d), _num(m.x_mm, d), _num(m.z_mm, d)
+    pos = {a: _num(v, d) for a, v in _axes(m).items()}
     out = _pmac_head(m, d)
     out.append(f"SPLINE1 TA{int(round(float(m.seconds[0]) * 1e3))}")
-    out += [f"C{cs[k]} X{xs[k]} Z{zs[k]}" for k in range(1, len(cs))]
+    out += [" ".join(f"{a}{pos[a][k]}" for a in pos) for k in range(1, m.n_points)]
     return out + ["CLOSE"]
 
 

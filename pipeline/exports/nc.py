@@ -26,6 +26,7 @@ from ftsweep.exports.files import (
     check_controller_text,
     checked_pv,
     crc_of,
+    now,
     recorded_case_of,
     recorded_entries,
     recorded_extra,
@@ -170,7 +171,13 @@ def export(
     """Plan a path case again and write it in ``dialect`` with its sidecar, atomically;
     refused, named, when the moves as written leave the machine's limits. The sidecar records
     the P-V of the program as written (re-simulated from its lines as the reader reads them)."""
-    meta_in = {"generator": f"ftsweep {__version__}", "pv_nm": chosen["pv_nm"], **extra, "selection": chosen}
+    meta_in = {
+        "generator": f"ftsweep {__version__}",
+        "created": now(),  # the sidecar's time stamp, outside its digest: the program is the same file
+        "pv_nm": chosen["pv_nm"],
+        **extra,
+        "selection": chosen,
+    }
     lines, meta, (adapter, rcase) = _document(case, specs, dialect, meta_in)
     moves = dialects.read(lines, dialect, meta["controller"]["g93_f"])
     reason = adapter.check(rcase, moves)

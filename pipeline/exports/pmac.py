@@ -14,7 +14,7 @@ from ftsweep.exports.moves import DialectError, Moves
 _PMAC_PLAIN = re.compile(
     r"^C(-?\d+\.\d+)(?::(-?\d+\.\d+))? X(-?\d+\.\d+)(?::(-?\d+\.\d+))? Z(-?\d+\.\d+)(?::(-?\d+\.\d+))?$"
 )
-_PMAC_MOVE = re.compile(r"^([CXZ])(-?\d+\.\d+)(?::(-?\d+\.\d+))?$")
+_PMAC_MOVE = re.compile(r"^([CXYZ])(-?\d+\.\d+)(?::(-?\d+\.\d+))?$")
 
 
 def read_pmac(lines: list[str], dialect: str) -> Moves:
@@ -32,7 +32,7 @@ class _PmacReader:
     def __init__(self, dialect: str) -> None:
         self.dialect = dialect
         self.comments: list[str] = []
-        self.pos: dict[str, float] = {"C": math.nan, "X": math.nan, "Z": math.nan}
+        self.pos: dict[str, float] = {"C": math.nan, "X": math.nan, "Y": math.nan, "Z": math.nan}
         self.mode, self.seconds = "", math.nan
         self.points: list[dict[str, float]] = []
         self.vel: list[dict[str, float]] = []
@@ -62,10 +62,12 @@ class _PmacReader:
 
     def _plain(self, m: re.Match[str]) -> None:
         """A cut block of :data:`_PMAC_PLAIN`'s form: what :meth:`_move` makes of it."""
-        self.pos = {"C": float(m.group(1)), "X": float(m.group(3)), "Z": float(m.group(5))}
+        self.pos = {**self.pos, "C": float(m.group(1)), "X": float(m.group(3)), "Z": float(m.group(5))}
         self.points.append(self.pos)
         if self.mode == "PVT":
-            self.vel.append({"C": float(m.group(2)), "X": float(m.group(4)), "Z": float(m.group(6))})
+            self.vel.append(
+                {**self.vel[-1], "C": float(m.group(2)), "X": float(m.group(4)), "Z": float(m.group(6))}
+            )
         self.times.append(self.seconds)
 
     def _segment_time(self, n: int, text: str, ms: str) -> None:
@@ -88,7 +90,7 @@ class _PmacReader:
             return
         if not self.points:
             self.points.append(dict(self.pos))
-            self.vel.append({"C": 0.0, "X": 0.0, "Z": 0.0})  # a RAPID ends at rest
+            self.vel.append({"C": 0.0, "X": 0.0, "Y": 0.0, "Z": 0.0})  # a RAPID ends at rest
         self.pos.update(move)
         self.points.append(dict(self.pos))
         if self.mode == "PVT":
@@ -100,15 +102,18 @@ class _PmacReader:
     def moves(self) -> Moves:
         if not self.points:
             raise DialectError("no PVT or SPLINE1 move: nothing to predict")
-        cols = {a: np.array([p[a] for p in self.points]) for a in "CXZ"}
-        for axis in "CXZ":
-            if not np.all(np.isfinite(cols[axis])):
+        cols = {a: np.array([p[a] for p in self.points]) for a in "CXYZ"}
+        # Y is a four-axis program's: given at the start or never
+        axes = "CXYZ" if np.isfinite(cols["Y"][0]) else "CXZ"
+        for axis in "CXYZ":
+            if axis in axes and not np.all(np.isfinite(cols[axis])):
                 raise DialectError(f"the cut starts before {axis} is given a position")
+            if axis not in axes and np.any(np.isfinite(cols[axis])):
+                raise DialectError(f"{axis} is given during the cut but not at its start")
         velocity = None
         interp = "spline1" if self.mode == "SPLINE1" else "pvt"
         if interp == "pvt":
-            velocity = {a: np.array([v[a] for v in self.vel]) for a in "CXZ"}
+            velocity = {a: np.array([v[a] for v in self.vel]) for a in axes}
         times = np.array(self.times)
-        return Moves(
-            cols["C"], cols["X"], cols["Z"], times, None, velocity, interp, self.dialect, self.comments
-        )
+        y = cols["Y"] if "Y" in axes else None
+        return Moves(cols["C"], cols["X"], cols["Z"], times, y, velocity, interp, self.dialect, self.comments)

@@ -45,6 +45,7 @@ from ftsweep.exports.files import (
     write_program,
 )
 from ftsweep.simulate import resolve_case, run_case
+from ftsweep.stages import timed_path
 from ftsweep.stages.spiral import SpiralPath
 from ftsweep.version import __version__
 
@@ -313,7 +314,7 @@ def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list
     rcase = resolve_case(case, specs=specs)
     path, z = rcase.layout, np.asarray(rcase.values)
     rpm = specs[2].spindle_rpm
-    t = dprog.times(path, z, rpm)
+    t = dprog.times(path, z, rpm) if path.t_s is None else path.t_s
     g = path.geometry
     lines = [
         f"tool: nose radius {rcase.nose_radius_um:.6g} um",
@@ -322,6 +323,10 @@ def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list
         f"{g.spacing_um:.9g} um, {g.zones} zones per revolution, {float(t[-1]):.3f} s",
     ]
     moves = Moves(np.degrees(path.phi), path.rho * 1e-3, z * 1e-3, np.diff(t))
+    if path.tangents is not None:
+        v = timed_path.velocities(path.tangents, moves.seconds)
+        moves.velocity = {"C": np.degrees(v[:, 0]), "X": v[:, 1] * 1e-3, "Z": v[:, 2] * 1e-3}
+        moves.interpolation = "pvt"
     return moves, lines, rcase
 
 
@@ -341,11 +346,15 @@ def _dpath_check(rcase: Any, moves: Moves) -> str:
 def _dpath_simulate(
     case: Case, specs: tuple[Any, Any, Any], moves: Moves, progress: Any, rcase: Any
 ) -> dict[str, Any]:
-    """The planned D path (``rcase``) run through the moves' t, C, X and Z."""
+    """The planned D path (``rcase``) run through the moves' t, C, X and Z (PVT: the
+    segments their velocities form)."""
     data = _dpath_columns(moves, rcase.layout)
-    return run_case(
-        case, specs=specs, progress=progress, program=(_as_run(rcase.layout, data), data[:, 3] * 1e3)
-    )
+    run = _as_run(rcase.layout, data)
+    if moves.velocity is not None:
+        v = moves.velocity
+        velocity = np.column_stack([np.radians(v["C"]), v["X"] * 1e3, v["Z"] * 1e3])
+        run = run._replace(tangents=timed_path.from_velocities(velocity, moves.seconds))
+    return run_case(case, specs=specs, progress=progress, program=(run, data[:, 3] * 1e3))
 
 
 DPATH_ADAPTER = Adapter(planned=_dpath_planned, simulate=_dpath_simulate, check=_dpath_check)

@@ -125,10 +125,16 @@ def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, p
 
 
 def _plan(p: Planning) -> tuple[Any, dict[str, Any]]:
-    if p.machine.interpolation != "linear":
+    """The D path ([5]); on a PVT machine with the segments its controller forms (cubic in
+    time, :func:`ftsweep.kinds.dpath.program.pvt_form`); refused on a SPLINE1 machine, whose
+    one segment time TA a D path's points (closer on the cuts than in the transitions) do
+    not keep."""
+    from ftsweep.kinds.dpath import program as dpath_program
+
+    if p.machine.interpolation == "spline1":
         raise CaseError(
-            f"machine '{p.case.machine}' interpolates {p.machine.interpolation}; a D path is simulated with "
-            "X, Z and C linear in time between its points (docs/controllers.md)"
+            f"machine '{p.case.machine}' interpolates spline1 (one segment time TA for every point); a D "
+            "path's points are not equally spaced in time: a PVT or linear machine (docs/controllers.md)"
         )
     t = time.perf_counter()
     path, extra = plan_dpath(
@@ -141,6 +147,11 @@ def _plan(p: Planning) -> tuple[Any, dict[str, Any]]:
         p.program,
         p.machine.capacity_points,
     )
+    if p.machine.interpolation == "pvt" and p.program is None:
+        try:
+            path = dpath_program.pvt_form(path, extra["values"], p.cutting.spindle_rpm, p.machine.controller)
+        except ValueError as exc:
+            raise CaseError(f"D path (machine '{p.case.machine}'): {exc}") from None
     extra["plan_seconds"] = time.perf_counter() - t
     return path, extra
 

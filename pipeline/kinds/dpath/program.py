@@ -28,7 +28,7 @@ from ftsweep.engine.case import CaseError
 from ftsweep.engine.record import non_finite, simulated
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.inputs import catalogs
-from ftsweep.stages import compensation, dpath, dpath_motion, envelope, kinematics
+from ftsweep.stages import compensation, dpath, dpath_motion, envelope, kinematics, segments, timed_path
 
 DEFAULTS: dict[str, Any] = {
     "points_per_cut": 201,
@@ -112,6 +112,39 @@ def times(
 ) -> np.ndarray:
     """Time [s] of every point (:func:`ftsweep.stages.dpath.point_times`)."""
     return dpath_motion.point_times(path.phi, path.rho, z_um, mode, rpm, feed_mm_min)
+
+
+def pvt_form(path: dpath.DPath, z_um: np.ndarray, rpm: float, controller: Any) -> dpath.DPath:
+    """The D path as a PVT controller runs it (docs/controllers.md): its points where they
+    were planned, their times at the spindle speed rounded to the controller's whole time
+    steps, and each segment the cubic Hermite in time of the natural splines through C, X and
+    Z, one per cut and per transition (:func:`corners`; the velocities export writes,
+    :mod:`ftsweep.stages.timed_path`). Refuses (ValueError) two points within one step or a
+    segment over the controller's longest."""
+    t = segments.quantised(times(path, z_um, rpm), controller.time_quantum_s)
+    longest = float(np.diff(t).max(initial=0.0))
+    if longest > controller.max_segment_s:
+        raise ValueError(
+            f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's "
+            f"{controller.max_segment_s * 1e3:g} ms"
+        )
+    chan = np.column_stack([path.phi, path.rho, z_um])
+    at, left = corners(path)
+    return path._replace(t_s=t, tangents=timed_path.tangents(t, chan, at, left))
+
+
+def corners(path: dpath.DPath) -> tuple[np.ndarray, np.ndarray]:
+    """The points where a cut meets a transition (the cuts' end points, where X and Z may
+    change slope: the transitions' Z is not the cut's, [5] eq. 14), inside the path, and
+    whether each is the end of a cut (its velocity the cut's, before it) or a start."""
+    cut = path.cut
+    ends = np.flatnonzero((cut[:-1] >= 0) & (cut[1:] != cut[:-1]))
+    starts = np.flatnonzero((cut[1:] >= 0) & (cut[1:] != cut[:-1])) + 1
+    at = np.concatenate([ends, starts])
+    left = np.concatenate([np.ones(ends.size, bool), np.zeros(starts.size, bool)])
+    inside = (at > 0) & (at < cut.size - 1)
+    order = np.argsort(at[inside], kind="stable")
+    return at[inside][order], left[inside][order]
 
 
 # the axes of a D-path program, in the order of the kinematics stage's columns
@@ -377,7 +410,11 @@ class DPathSimulation:
 def _crossings(path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, ...]:
     """The passes crossing each ray, sorted by position: positions [µm], commands [µm],
     validity and whether each lies on a cut (both neighbouring points on it)."""
-    pos, w, seg = dpath_motion.crossings(path.phi, path.rho, z_prog, theta)
+    if path.tangents is None:
+        pos, w, seg = dpath_motion.crossings(path.phi, path.rho, z_prog, theta)
+    else:
+        chan = np.column_stack([path.phi, path.rho, z_prog])
+        pos, w, seg = timed_path.crossings(path.phi, chan, path.tangents, theta)
     order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
     pos = np.take_along_axis(pos, order, axis=1)
     w = np.take_along_axis(w, order, axis=1)

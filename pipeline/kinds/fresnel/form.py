@@ -28,7 +28,7 @@ import numpy as np
 from ftsweep.engine.case import CaseError
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.inputs import catalogs
-from ftsweep.stages import dpath_motion, envelope, kinematics, metrics
+from ftsweep.stages import dpath_motion, envelope, kinematics, metrics, timed_path
 from ftsweep.stages import fresnel as ff
 
 RAYS_PER_BATCH = 64
@@ -124,7 +124,16 @@ class FresnelSimulation:
     def _crossings(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
         """The passes crossing each ray, sorted outwards: distance from the lowest point [µm],
         tool tip Z [µm], facet level, and how many there are."""
-        pos, w, seg = dpath_motion.crossings(self.psi, self.r, self.z, theta)
+        tan = self.rcase.layout.tangents
+        if tan is None:
+            pos, w, seg = dpath_motion.crossings(self.psi, self.r, self.z, theta)
+        else:
+            # cubic in time (PVT): the path between points followed exactly through eq. 9
+            p = self.fplan
+            chan = np.column_stack([p.phi, p.x_um, p.y_um, self.rcase.values])[:-1]
+            pos, w, seg = timed_path.crossings(
+                self.psi, chan, tan[:-1], theta, timed_path.TURNED, tuple(self.apex), self.sign
+            )
         order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
         pos = np.take_along_axis(pos, order, axis=1)
         w = np.take_along_axis(w, order, axis=1)

@@ -61,10 +61,10 @@ def _plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
     from ftsweep.kinds.fresnel import program as fresnel
     from ftsweep.kinds.fresnel.form import COMPENSATION
 
-    if p.machine.interpolation != "linear":
+    if p.machine.interpolation == "spline1":
         raise CaseError(
-            f"machine '{p.case.machine}' interpolates {p.machine.interpolation}; a Fresnel program is "
-            "simulated with X, Y, Z and C linear in time between its points (docs/controllers.md)"
+            f"machine '{p.case.machine}' interpolates spline1 (one segment time TA for every point); a "
+            "Fresnel program runs at adaptive timesteps: a PVT or linear machine (docs/controllers.md)"
         )
     if p.program is not None:
         prog, values = p.program
@@ -92,6 +92,11 @@ def _plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
     except ValueError as exc:
         raise CaseError(f"Fresnel program: {exc}") from None
     prog = fresnel.FresnelProgram("fresnel", fplan, steps, fplan.path.xy)
+    if p.machine.interpolation == "pvt":
+        try:
+            prog = fresnel.pvt_form(prog, fplan.tool_z_um, p.machine.controller)
+        except ValueError as exc:
+            raise CaseError(f"Fresnel program: {exc}") from None
     gouge = np.zeros(prog.n_points, dtype=bool)
     return prog, {"values": fplan.tool_z_um, "gouge": gouge, "plan_seconds": time.perf_counter() - t}
 

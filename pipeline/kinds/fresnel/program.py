@@ -37,7 +37,7 @@ from typing import Any, NamedTuple, Optional
 import numpy as np
 
 from ftsweep.stages import fresnel as ff
-from ftsweep.stages import kinematics, turnopt
+from ftsweep.stages import kinematics, segments, timed_path, turnopt
 from ftsweep.stages.kinematics import Limits
 
 DEFAULTS: dict[str, Any] = {
@@ -524,15 +524,35 @@ def timesteps(
     )
 
 
+def pvt_form(prog: FresnelProgram, z_um: np.ndarray, controller: Any) -> FresnelProgram:
+    """The program as a PVT controller runs it (docs/controllers.md): the points' times (the
+    adaptive timesteps summed) rounded to the controller's whole time steps, and the segments
+    the natural splines in time through C, X, Y and Z form (the velocities export writes).
+    Refuses (ValueError) two points within one step or a segment over the controller's longest."""
+    t = segments.quantised(np.concatenate([[0.0], np.cumsum(prog.steps.steps)]), controller.time_quantum_s)
+    steps = np.diff(t)
+    if float(steps.max(initial=0.0)) > controller.max_segment_s:
+        raise ValueError(
+            f"a timestep of {float(steps.max()) * 1e3:.6g} ms is longer than the controller's "
+            f"{controller.max_segment_s * 1e3:g} ms"
+        )
+    p = prog.plan
+    chan = np.column_stack([p.phi, p.x_um, p.y_um, z_um])
+    return prog._replace(steps=prog.steps._replace(steps=steps), tangents=timed_path.tangents(t, chan))
+
+
 class FresnelProgram(NamedTuple):
     """A timed Fresnel program, what the machine runs: its plan, its timesteps, and the path's
     points (X, Y) [µm] in the part's frame the simulator takes (the plan's, or those a program
-    file's lines give back through eq. 9)."""
+    file's lines give back through eq. 9); ``tangents`` (P − 1, 8): when the controller joins
+    the points by cubics in time (PVT), the segments' tangents of C [rad], X, Y, Z [µm]
+    (:mod:`ftsweep.stages.timed_path`), the plan's C, X, Y and the commands the points."""
 
     kind: str
     plan: FresnelPlan
     steps: Timesteps
     xy: np.ndarray
+    tangents: Optional[np.ndarray] = None
 
     @property
     def n_points(self) -> int:

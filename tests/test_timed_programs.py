@@ -222,6 +222,13 @@ def test_a_timed_program_goes_out_in_pvt_and_verifies(tmp_path, name, sweep, axe
     assert record["dialect"] == "pmac-pvt" and record["layout"] == name
     cube_pv = float(xr.open_zarr(cube)["pv_nm"].values.ravel()[0])
     assert record["pv_nm"] == pytest.approx(cube_pv, rel=0.01)
+    machine = "xzc-pmac-pvt" if axes == "CXZ" else "xyzc-pmac-pvt"
+    r = CliRunner().invoke(main, ["predict", "--program", str(out), "--machine", machine, "--json"])
+    assert r.exit_code == 0, r.output
+    info = json.loads(r.stdout)
+    assert info["n_points"] == record["n_points"] and info["interpolation"] == "pvt"
+    named = {k.split("_")[0].upper() for k in info["axes"]}
+    assert named == set(axes) - {"C"} and all(a["ok"] for a in info["axes"].values())
     # one velocity digit changed, the CRC left as it was: refused
     k = lines.index(blocks[len(blocks) // 2])
     pos, vel = lines[k].split()[1].split(":")

@@ -324,11 +324,13 @@ def dialect_format() -> Any:
 
 
 def _peaks(moves: Moves) -> dict[str, float]:
-    """Peak X and Z speeds [mm/s] and accelerations [m/s²] of a program's segments (speeds
-    per segment, accelerations between consecutive segments' speeds)."""
-    motion = kinematics.over_steps(np.column_stack([moves.x_mm, moves.z_mm]) * 1e-3, moves.seconds)
+    """Peak X, (Y of a four-axis program) and Z speeds [mm/s] and accelerations [m/s²] of a
+    program's segments (speeds per segment, accelerations between consecutive segments' speeds)."""
+    cols = {"x": moves.x_mm, "y": moves.y_mm, "z": moves.z_mm}
+    names = [a for a, v in cols.items() if v is not None]
+    motion = kinematics.over_steps(np.column_stack([cols[a] for a in names]) * 1e-3, moves.seconds)
     out: dict[str, float] = {}
-    for j, axis in enumerate("xz"):
+    for j, axis in enumerate(names):
         out[f"{axis}_speed_mm_s"] = float(np.max(np.abs(motion.velocity[:, j]), initial=0.0)) * 1e3
         out[f"{axis}_accel_m_s2"] = float(np.max(np.abs(motion.accel[:, j]), initial=0.0))
     return out
@@ -340,6 +342,8 @@ def _against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
     limits = {
         "x_speed_mm_s": axes.x_feed_mm_s if axes else None,
         "x_accel_m_s2": axes.x_accel_m_s2 if axes else None,
+        "y_speed_mm_s": axes.y_feed_mm_s if axes else None,
+        "y_accel_m_s2": axes.y_accel_m_s2 if axes else None,
         "z_speed_mm_s": axes.z_velocity_mm_s if axes else None,
         "z_accel_m_s2": axes.z_accel_m_s2 if axes else machine.peak_accel_m_s2,
     }

@@ -67,3 +67,26 @@ def test_bench_dialect_1M_blocks(benchmark, dialect):
 
     read = benchmark.pedantic(both, rounds=1, iterations=1)
     np.testing.assert_allclose(read.z_mm, np.round(z, 6), atol=1e-12)
+
+
+@pytest.mark.bench
+@pytest.mark.parametrize("segments", ["linear", "pvt"])
+def test_bench_crossings_1M_points(benchmark, segments):
+    """Crossings of 64 rays (one batch) with a 1M-point, 2,000-revolution timed program:
+    the linear walk against the cubic segments' root per crossing (stages.timed_path)."""
+    from ftsweep.stages import dpath_motion, timed_path
+
+    n = 1_000_000
+    t = np.linspace(0.0, 3000.0, n)
+    phi = 2.0 * np.pi * t / 1.5
+    rho = 20000.0 + 10000.0 * np.abs(np.sin(phi / 7.0))
+    z = 100.0 * np.cos(phi / 3.0)
+    theta = np.linspace(-0.4, 0.4, 64)
+    if segments == "linear":
+        pos, _, _ = benchmark(dpath_motion.crossings, phi, rho, z, theta)
+    else:
+        chan = np.column_stack([phi, rho, z])
+        tan = timed_path.tangents(t, chan)
+        pos, _, _ = benchmark(timed_path.crossings, phi, chan, tan, theta)
+    benchmark.extra_info["crossings"] = int(np.isfinite(pos).sum())
+    assert np.isfinite(pos).sum() >= 64 * 1999

@@ -469,6 +469,19 @@ def at_period(
     return sample_path(path, z_plan(path, z_um), t_points, period_times(first, last, n, 0, n))
 
 
+@njit(nogil=True, cache=True, inline="always")
+def step_of(angle: np.ndarray, q: float, j: int, last: int) -> int:  # pragma: no cover - jit
+    """The step j (from point j to j + 1) of angles ``angle`` holding ``q``: a bisection for a
+    revolution's first ray (j < 0), then a walk on from the previous ray's step. A
+    revolution's rays come in increasing angle: a bisection per crossing cost 20 steps where a
+    revolution holds ~500 points for ~600 rays."""
+    if j < 0:
+        return min(int(np.searchsorted(angle[1:], q)), last)
+    while j < last and angle[j + 1] < q:
+        j += 1
+    return j
+
+
 @njit(nogil=True, cache=True)
 def _crossings(
     phi: np.ndarray,
@@ -485,10 +498,6 @@ def _crossings(
     lo, hi, last = phi[0], phi[-1], phi.size - 2
     for c in range(n_rev):
         j = -1
-        # a revolution's rays in increasing angle: the step j of each crossing is found by a
-        # bisection for the first and a walk of the few points between rays for the rest (a
-        # bisection per crossing cost 20 steps where a revolution holds ~500 points for
-        # ~600 rays)
         for b in range(order.size):
             a = order[b]
             q = ray_theta[a] + period * c
@@ -497,15 +506,34 @@ def _crossings(
                 w[a, c] = math.nan
                 seg[a, c] = -1
                 continue
-            if j < 0:
-                j = min(np.searchsorted(phi[1:], q), last)
-            else:
-                while j < last and phi[j + 1] < q:
-                    j += 1
+            j = step_of(phi, q, j, last)
             s = (q - phi[j]) / (phi[j + 1] - phi[j])
             seg[a, c] = j
             pos[a, c] = rho[j] + s * (rho[j + 1] - rho[j])
             w[a, c] = z[j] + s * (z[j + 1] - z[j])
+
+
+class RayGrid(NamedTuple):
+    """The rays' angles on a program's first revolution, their order, the revolutions to
+    cross, and the (R, revolutions) outputs: radius, Z [µm] and step of every crossing."""
+
+    theta: np.ndarray
+    order: np.ndarray
+    n_rev: int
+    pos: np.ndarray
+    w: np.ndarray
+    seg: np.ndarray
+
+
+def ray_grid(angle: np.ndarray, ray_theta: np.ndarray) -> RayGrid:
+    """The crossings to find of a program whose polar angles are ``angle`` [rad] (increasing)
+    with the rays at ``ray_theta`` [rad]: once per revolution, at θ + 2πc."""
+    n_rev = int(math.ceil((angle[-1] - angle[0]) / (2.0 * math.pi))) + 2
+    base = math.floor(angle[0] / (2.0 * math.pi))
+    theta = np.asarray(ray_theta, dtype=np.float64) + 2.0 * math.pi * base
+    shape = (theta.size, n_rev)
+    order = np.argsort(theta, kind="stable")
+    return RayGrid(theta, order, n_rev, np.empty(shape), np.empty(shape), np.empty(shape, dtype=np.int64))
 
 
 def crossings(
@@ -515,24 +543,19 @@ def crossings(
     revolution, at φ = θ + 2πc; the radius [µm] and Z [µm] there, linear between the program's
     points as the machine moves, and the program step j (between points j and j + 1) it falls
     in. (R, revolutions) arrays, NaN (step −1) where the program does not run."""
-    n_rev = int(math.ceil((phi[-1] - phi[0]) / (2.0 * math.pi))) + 2
-    base = math.floor(phi[0] / (2.0 * math.pi))
-    theta = np.asarray(ray_theta, dtype=np.float64) + 2.0 * math.pi * base
-    pos = np.empty((theta.size, n_rev))
-    w = np.empty((theta.size, n_rev))
-    seg = np.empty((theta.size, n_rev), dtype=np.int64)
+    g = ray_grid(phi, ray_theta)
     _crossings(
         np.asarray(phi, np.float64),
         np.asarray(rho, np.float64),
         np.asarray(z, np.float64),
-        theta,
-        np.argsort(theta, kind="stable"),
-        n_rev,
-        pos,
-        w,
-        seg,
-    )  # noqa: E501
-    return pos, w, seg
+        g.theta,
+        g.order,
+        g.n_rev,
+        g.pos,
+        g.w,
+        g.seg,
+    )
+    return g.pos, g.w, g.seg
 
 
 def placed(

@@ -23,6 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .dpath_motion import ray_grid, step_of
 from .segments import hermite
 
 SPINDLE = 0
@@ -199,8 +200,6 @@ def _crossings(
     lo, hi, last, z = angle[0], angle[-1], angle.size - 2, chan.shape[1] - 1
     for c in range(n_rev):
         j = -1
-        # rays in increasing angle: a bisection finds the first crossing's segment, a walk
-        # over the few points between rays the others (as the linear walk does)
         for b in range(order.size):
             r = order[b]
             q = ray_theta[r] + period * c
@@ -209,11 +208,7 @@ def _crossings(
                 w[r, c] = math.nan
                 seg[r, c] = -1
                 continue
-            if j < 0:
-                j = min(np.searchsorted(angle[1:], q), last)
-            else:
-                while j < last and angle[j + 1] < q:
-                    j += 1
+            j = step_of(angle, q, j, last)
             u = _root(angle, chan, tan, j, q, frame, apex, sign)
             seg[r, c] = j
             pos[r, c] = _polar(chan, tan, j, u, frame, apex, sign, angle[j])[1]
@@ -236,12 +231,7 @@ def crossings(
     Z [µm] and segment j of each crossing, (R, revolutions) arrays, NaN (−1) where the program
     does not run: as :func:`ftsweep.stages.dpath_motion.crossings` for linear segments."""
     angle = np.ascontiguousarray(angle, dtype=np.float64)
-    n_rev = int(math.ceil((angle[-1] - angle[0]) / (2.0 * math.pi))) + 2
-    base = math.floor(angle[0] / (2.0 * math.pi))
-    theta = np.asarray(ray_theta, dtype=np.float64) + 2.0 * math.pi * base
-    pos = np.empty((theta.size, n_rev))
-    w = np.empty((theta.size, n_rev))
-    seg = np.empty((theta.size, n_rev), dtype=np.int64)
+    g = ray_grid(angle, ray_theta)
     _crossings(
         angle,
         np.ascontiguousarray(chan, dtype=np.float64),
@@ -249,11 +239,11 @@ def crossings(
         frame,
         np.asarray(apex, dtype=np.float64),
         float(sign),
-        theta,
-        np.argsort(theta, kind="stable"),
-        n_rev,
-        pos,
-        w,
-        seg,
+        g.theta,
+        g.order,
+        g.n_rev,
+        g.pos,
+        g.w,
+        g.seg,
     )
-    return pos, w, seg
+    return g.pos, g.w, g.seg

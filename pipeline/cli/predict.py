@@ -243,6 +243,7 @@ def _predict_program(opts: dict[str, Any]) -> None:
     click.echo(
         f"points       {info['n_points']:,} over {info['revolutions']:.4g} revolutions "
         f"({info['points_per_rev']:.4g} per revolution on average)"
+        + (f" in {info['cuts']:,} cuts" if info["cuts"] > 1 else "")
     )
     click.echo(
         f"feed         {feed['min']:.4g} / {feed['median']:.4g} / {feed['max']:.4g} µm/rev "

@@ -72,24 +72,39 @@ def _iso(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     c = m.c_deg if dialect == "linuxcnc" or ctrl.c_wrap == "cumulative" else wrapped(m.c_deg, d)
     cs, xs, zs = _num(c, d), _num(m.x_mm, d), _num(m.z_mm, d)
     ys = _num(m.y_mm, d) if m.y_mm is not None else None
+    ws = _num(m.w_mm, d) if m.w_mm is not None else None
     minutes = np.asarray(m.seconds) / 60.0
-    f_values = 1.0 / minutes if g93_f == "inverse_minutes" else np.asarray(m.seconds)
+    with np.errstate(invalid="ignore"):  # a layered program's approach moves have no block time
+        f_values = 1.0 / minutes if g93_f == "inverse_minutes" else np.asarray(m.seconds)
     fs = [f"{v:.6f}" for v in f_values.tolist()]
-    first_y = f" Y{ys[0]}" if ys is not None else ""
+    ends = np.array([[lo, hi - 1] for lo, hi in m.cuts()]).ravel()
+    lift = dict(zip(ends.tolist(), _num(m.z_mm[ends] + CLEARANCE_MM, d), strict=True))
     out = list(ISO_HEADER if dialect == "iso-sts" else LINUXCNC_HEADER)
-    lift = _num(np.array([m.z_mm[0] + CLEARANCE_MM, m.z_mm[-1] + CLEARANCE_MM]), d)
-    out += [
-        f"G94 G01 Z{lift[0]} F100.0",
-        f"G01 X{xs[0]}{first_y} C{cs[0]} F100.0",
-        f"G01 Z{zs[0]} F10.0",
-        "G93",
-    ]
-    for k in range(1, len(cs)):
-        y = f" Y{ys[k]}" if ys is not None else ""
-        out.append(f"G01 C{cs[k]} X{xs[k]}{y} Z{zs[k]} F{fs[k - 1]}")
-    out += ["G94", f"G01 Z{lift[1]} F100.0"]
+    for lo, hi in m.cuts():
+        # a layered program's cut: Z (the slide) holds its layer's offset, W (the servo) cuts
+        first_y = f" Y{ys[lo]}" if ys is not None else ""
+        first_w = f" W{ws[lo]}" if ws is not None else ""
+        out += [
+            f"G94 G01 Z{lift[lo]} F100.0",
+            f"G01 X{xs[lo]}{first_y} C{cs[lo]}{first_w} F100.0",
+            f"G01 Z{zs[lo]} F10.0",
+            "G93",
+        ]
+        for k in range(lo + 1, hi):
+            y = f" Y{ys[k]}" if ys is not None else ""
+            axes = f"X{xs[k]}{y} W{ws[k]}" if ws is not None else f"X{xs[k]}{y} Z{zs[k]}"
+            out.append(f"G01 C{cs[k]} {axes} F{fs[k - 1]}")
+        out += ["G94", f"G01 Z{lift[hi - 1]} F100.0"]
     out += ["M29", "M30"] if dialect == "iso-sts" else ["M2"]
     return out
+
+
+def _one_cut(m: Moves, dialect: str) -> None:
+    if m.cut_starts is not None or m.w_mm is not None:
+        raise DialectError(
+            f"a layered program (cuts of the servo W at the slide's offsets, [3]) is written in G-code "
+            f"(iso-sts, linuxcnc), not {dialect}"
+        )
 
 
 def _axes(m: Moves) -> dict[str, np.ndarray]:
@@ -108,6 +123,7 @@ def _pmac_head(m: Moves, d: int) -> list[str]:
 
 
 def _pvt(m: Moves, dialect: str, ctrl: Any) -> list[str]:
+    _one_cut(m, dialect)
     assert m.velocity is not None
     d = ctrl.decimals
     pos = {a: _num(v, d) for a, v in _axes(m).items()}
@@ -124,6 +140,7 @@ def _pvt(m: Moves, dialect: str, ctrl: Any) -> list[str]:
 
 
 def _spline(m: Moves, dialect: str, ctrl: Any) -> list[str]:
+    _one_cut(m, dialect)
     d = ctrl.decimals
     pos = {a: _num(v, d) for a, v in _axes(m).items()}
     out = _pmac_head(m, d)

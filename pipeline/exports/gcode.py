@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Optional
 
 import numpy as np
 
@@ -31,6 +30,8 @@ _CONDITION = re.compile(r"^(.+?)\s+(LT|LE|GT|GE|EQ|NE)\s+(.+)$")
 KNOWN_G = {0.0, 1.0, 4.0, 17.0, 18.0, 19.0, 21.0, 40.0, 49.0, 52.0, 54.0, 55.0, 56.0, 57.0, 58.0, 59.0}
 KNOWN_G |= {61.0, 63.0, 64.0, 71.0, 90.0, 93.0, 94.0, 103.0}
 FLOW_M = {97.0, 98.0, 99.0}  # subprogram calls and returns: not evaluated
+# the axes a block may move: C, X, Y, Z and a layered program's servo W
+AXES = ("C", "X", "Y", "Z", "W")
 
 
 class IsoReader:
@@ -40,12 +41,13 @@ class IsoReader:
     def __init__(self, lines: list[str], dialect: str, g93_f: str) -> None:
         self.lines, self.dialect, self.g93_f = lines, dialect, g93_f
         self.vars: dict[int, float] = {}
-        self.pos = {"C": math.nan, "X": math.nan, "Y": math.nan, "Z": math.nan}
+        self.pos = {a: math.nan for a in AXES}
         self.g93 = False
+        self.in_cut = False
         self.feed = math.nan
         self.motion = 0.0
-        self.out: dict[str, list[float]] = {"C": [], "X": [], "Y": [], "Z": [], "T": []}
-        self.start: Optional[dict[str, float]] = None
+        # every cut's points; T the time of the block into a point, NaN at a cut's start
+        self.out: dict[str, list[float]] = {a: [] for a in (*AXES, "T")}
         self.m_codes: set[str] = set()
         self.comments: dict[int, str] = {}
         self.blocks = 0
@@ -186,7 +188,7 @@ class IsoReader:
             raise self.fail(n, "IF/GOTO jumps are not evaluated: unroll them")
         words = self._words(n, text)
         self._modes(n, words)
-        axes = {k: v for k, v in words if k in "CXYZ"}
+        axes = {k: v for k, v in words if k in AXES}
         if axes:
             self._move(n, axes)
 
@@ -211,7 +213,7 @@ class IsoReader:
             if raw.startswith(("[", "#")):
                 value = self._expr(n, raw)
             else:
-                if letter in "CXYZ" and "." not in raw:
+                if letter in AXES and "." not in raw:
                     raise self.fail(
                         n,
                         f"{letter}{raw} has no decimal point: controllers read it as mm or as µm "
@@ -234,7 +236,7 @@ class IsoReader:
                 self.m_codes.add(f"M{value:g}")
             elif letter == "F":
                 self.feed = value
-            elif letter not in "CXYZNTS":
+            elif letter not in "CXYZWNTS":
                 raise self.fail(n, f"the word {letter} is not one the reader evaluates")
 
     def _g(self, n: int, value: float) -> None:
@@ -248,49 +250,64 @@ class IsoReader:
             raise self.fail(n, f"G{value:g} is not a code the reader evaluates")
         if value in (93.0, 94.0):
             self.g93 = value == 93.0
+            self.in_cut = self.in_cut and self.g93
             self.feed = math.nan
         elif value in (0.0, 1.0):
             self.motion = value
 
     def _move(self, n: int, axes: dict[str, float]) -> None:
         if self.g93 and self.motion == 1.0:
-            if self.start is None:
-                self.start = dict(self.pos)
+            if not self.in_cut:
+                # a cut starts where the tool stands: a layered program has one per segment
+                self.in_cut = True
+                self._point(math.nan)
             if not self.feed > 0.0:
                 raise self.fail(n, "a G93 block without a positive F: its time is unknown")
             minutes = 1.0 / self.feed if self.g93_f == "inverse_minutes" else self.feed / 60.0
             self.pos.update(axes)
-            for axis in "CXYZ":
-                self.out[axis].append(self.pos[axis])
-            self.out["T"].append(minutes * 60.0)
+            self._point(minutes * 60.0)
             return
-        if self.out["C"]:
-            self.pos.update(axes)  # a move after the cut (the retract) ends it
-            return
+        self.in_cut = False  # a move outside G93 (an approach, the retract) ends a cut
         self.pos.update(axes)
 
+    def _point(self, seconds: float) -> None:
+        for axis in AXES:
+            self.out[axis].append(self.pos[axis])
+        self.out["T"].append(seconds)
+
     def _moves(self) -> Moves:
-        assert self.start is not None
-        cols = {a: np.array([self.start[a], *self.out[a]]) for a in "CXYZ"}
+        cols = {a: np.array(self.out[a]) for a in AXES}
+        t = np.array(self.out["T"])
+        starts = np.flatnonzero(np.isnan(t))
         for axis in "CXZ":
             if not np.all(np.isfinite(cols[axis])):
                 raise DialectError(f"the cut starts before {axis} is given a position")
         c = cols["C"]
         if self.dialect != "linuxcnc":
-            c = _unwrap(c)
+            # C read modulo 360 is made accumulated within each cut
+            c = np.concatenate(
+                [_unwrap(c[lo:hi]) for lo, hi in zip(starts, [*starts[1:], c.size], strict=True)]
+            )
         y = None if not np.all(np.isfinite(cols["Y"])) else cols["Y"]
+        w = None
+        if np.any(np.isfinite(cols["W"])):
+            if not np.all(np.isfinite(cols["W"])):
+                raise DialectError("a cut starts before W (the servo) is given a position")
+            w = cols["W"]
         notes = [f"machine functions passed over: {', '.join(sorted(self.m_codes))}"] if self.m_codes else []
         return Moves(
             c,
             cols["X"],
             cols["Z"],
-            np.array(self.out["T"]),
+            t[1:],
             y,
             None,
             "linear",
             self.dialect,
             [self.comments[k] for k in sorted(self.comments)],
             notes,
+            w,
+            starts[1:] if starts.size > 1 else None,
         )
 
 

@@ -32,10 +32,21 @@ class Moves:
     dialect: str = "text"
     comments: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)  # what the reader passed over (M codes, approach)
+    # a layered program ([3]): the servo's stroke W [mm] beside the slide's Z, and the points
+    # where each cut after the first starts (the segment into such a point is an approach move,
+    # its entry in ``seconds`` NaN)
+    w_mm: Optional[np.ndarray] = None
+    cut_starts: Optional[np.ndarray] = None
 
     @property
     def n_points(self) -> int:
         return int(self.c_deg.size)
+
+    def cuts(self) -> list[tuple[int, int]]:
+        """(first, stop) point indices of every cut, in program order (one for most programs)."""
+        starts = [] if self.cut_starts is None else [int(k) for k in self.cut_starts]
+        edges = [0, *starts, self.n_points]
+        return list(zip(edges[:-1], edges[1:], strict=True))
 
 
 @dataclass(frozen=True)
@@ -72,18 +83,23 @@ def aligned(moves: Moves, c0_deg: float) -> Moves:
 
 def summary(m: Moves) -> dict[str, Any]:
     """Points, revolutions, points per revolution, the feed per revolution [µm] (from X's
-    drop per revolution of C), the time [s] and the mean spindle speed [rpm] of a program's moves."""
-    turn = (m.c_deg - m.c_deg[0]) / 360.0
-    revs = float(turn[-1])
-    seconds = float(np.sum(m.seconds))
-    dx = -np.diff(m.x_mm) * 1e3
-    dturn = np.diff(turn)
-    feed = np.divide(dx, dturn, out=np.full(dx.shape, np.nan), where=dturn > 0)
-    feed = feed[np.isfinite(feed)]
+    drop per revolution of C), the time [s] and the mean spindle speed [rpm] of a program's
+    moves, over its cuts (a layered program's approach moves between cuts left out)."""
+    revs, seconds, feeds = 0.0, 0.0, []
+    for lo, hi in m.cuts():
+        turn = (m.c_deg[lo:hi] - m.c_deg[lo]) / 360.0
+        revs += float(turn[-1])
+        seconds += float(np.sum(m.seconds[lo : hi - 1]))
+        dx = -np.diff(m.x_mm[lo:hi]) * 1e3
+        dturn = np.diff(turn)
+        feed = np.divide(dx, dturn, out=np.full(dx.shape, np.nan), where=dturn > 0)
+        feeds.append(feed[np.isfinite(feed)])
+    feed = np.concatenate(feeds)
     return {
         "n_points": m.n_points,
+        "cuts": len(m.cuts()),
         "revolutions": revs,
-        "points_per_rev": (m.n_points - 1) / revs if revs > 0 else math.nan,
+        "points_per_rev": (m.n_points - len(m.cuts())) / revs if revs > 0 else math.nan,
         "feed_um_per_rev": {
             "min": float(feed.min()) if feed.size else math.nan,
             "median": float(np.median(feed)) if feed.size else math.nan,

@@ -88,7 +88,7 @@ def _limits(moves: Moves, ctrl: Controller) -> None:
         raise ProgramError(
             f"the program has {blocks:,} blocks, more than the controller's {ctrl.max_blocks:,}"
         )
-    longest = float(moves.seconds.max(initial=0.0))
+    longest = float(np.nanmax(moves.seconds, initial=0.0))  # a layered program's approaches: NaN
     if longest > ctrl.max_segment_s:
         raise ProgramError(
             f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's "
@@ -126,7 +126,7 @@ def _document(
         f"surface: {case.surface}, compensation {case.compensation}, machine {case.machine}",
         *kind_lines,
         _motion_line(moves),
-        "units: X Y Z mm, C deg, G93 F inverse time, PVT segment ms, velocities units/s",
+        "units: X Y Z W mm, C deg, G93 F inverse time, PVT segment ms, velocities units/s",
         f"sidecar sha256: {sidecar_digest(meta, TEXT_FIELDS)}",
         CRC_TEXT.format(0),
     ]
@@ -284,7 +284,9 @@ def verify(
         )
     record = adapter.simulate(case, specs, moves, progress, rcase)
     record = checked_pv(path, {**meta, "pv_nm": meta["pv_nm_as_written"]}, record, pv_tolerance_nm)
+    # the file's points (a layered program's cuts repeat the points layers share)
     record.update(dialect=dialect, cube_pv_nm=float(meta["pv_nm"]), checksum=f"0x{crc:08x}")
+    record.update(n_points=moves.n_points, cuts=len(moves.cuts()))
     return record
 
 
@@ -311,8 +313,9 @@ def dialect_format() -> Any:
     def verified(record: dict[str, Any]) -> list[str]:
         return [
             f"checksum     {record['checksum']} (every other line) ok; sidecar and file hashes ok",
-            f"program      {record['layout']} in {record['dialect']}: {record['n_points']:,} points, "
-            "every line as re-planned",
+            f"program      {record['layout']} in {record['dialect']}: {record['n_points']:,} points"
+            + (f" in {record['cuts']:,} cuts" if record.get("cuts", 1) > 1 else "")
+            + ", every line as re-planned",
             *pv_lines(record, "the program as the controller reads it"),
             f"cube         P-V {record['cube_pv_nm']:.2f} nm before rounding to the controller's decimals",
         ]
@@ -324,15 +327,22 @@ def dialect_format() -> Any:
 
 
 def _peaks(moves: Moves) -> dict[str, float]:
-    """Peak X, (Y of a four-axis program) and Z speeds [mm/s] and accelerations [m/s²] of a
-    program's segments (speeds per segment, accelerations between consecutive segments' speeds)."""
-    cols = {"x": moves.x_mm, "y": moves.y_mm, "z": moves.z_mm}
+    """Peak X, (Y of a four-axis program), Z and (W, a layered program's servo) speeds [mm/s]
+    and accelerations [m/s²] of a program's segments (speeds per segment, accelerations between
+    consecutive segments' speeds), over its cuts."""
+    cols = {"x": moves.x_mm, "y": moves.y_mm, "z": moves.z_mm, "w": moves.w_mm}
     names = [a for a, v in cols.items() if v is not None]
-    motion = kinematics.over_steps(np.column_stack([cols[a] for a in names]) * 1e-3, moves.seconds)
-    out: dict[str, float] = {}
-    for j, axis in enumerate(names):
-        out[f"{axis}_speed_mm_s"] = float(np.max(np.abs(motion.velocity[:, j]), initial=0.0)) * 1e3
-        out[f"{axis}_accel_m_s2"] = float(np.max(np.abs(motion.accel[:, j]), initial=0.0))
+    q = np.column_stack([cols[a] for a in names]) * 1e-3
+    out: dict[str, float] = {f"{a}_{k}": 0.0 for a in names for k in ("speed_mm_s", "accel_m_s2")}
+    for lo, hi in moves.cuts():
+        if hi - lo < 2:
+            continue
+        motion = kinematics.over_steps(q[lo:hi], moves.seconds[lo : hi - 1])
+        for j, axis in enumerate(names):
+            v = float(np.max(np.abs(motion.velocity[:, j]), initial=0.0)) * 1e3
+            a = float(np.max(np.abs(motion.accel[:, j]), initial=0.0))
+            out[f"{axis}_speed_mm_s"] = max(out[f"{axis}_speed_mm_s"], v)
+            out[f"{axis}_accel_m_s2"] = max(out[f"{axis}_accel_m_s2"], a)
     return out
 
 
@@ -346,6 +356,8 @@ def _against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
         "y_accel_m_s2": axes.y_accel_m_s2 if axes else None,
         "z_speed_mm_s": axes.z_velocity_mm_s if axes else None,
         "z_accel_m_s2": axes.z_accel_m_s2 if axes else machine.peak_accel_m_s2,
+        "w_speed_mm_s": None,
+        "w_accel_m_s2": machine.peak_accel_m_s2,
     }
     return {
         k: {"peak": v, "limit": limits[k], "ok": limits[k] is None or v <= limits[k]}

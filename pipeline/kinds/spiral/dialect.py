@@ -10,11 +10,11 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep.engine.case import Case, CaseError
+from ftsweep.engine.planning import layer_plan
 from ftsweep.exports.dialects import Adapter, DialectError, Moves
-from ftsweep.exports.files import layer_schedule
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages import segments
-from ftsweep.stages.spiral import SpiralPath, angular_speed, spiral_commands
+from ftsweep.stages.spiral import SpiralPath, angular_speed, spiral_commands, spiral_radius
 
 
 def moves_of(path: SpiralPath, values_um: np.ndarray, rpm: float) -> Moves:
@@ -44,11 +44,6 @@ def moves_of(path: SpiralPath, values_um: np.ndarray, rpm: float) -> Moves:
 def _planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str], Any]:
     rcase = resolve_case(case, specs=specs)
     path = rcase.layout
-    if layer_schedule(rcase, rcase.values) is not None:
-        raise CaseError(
-            "a layered spiral (commands beyond the servo's travel, [3]) is written in ftsweep's text "
-            "only: its layer changes are not blocks of one Z axis"
-        )
     rpm = specs[2].spindle_rpm
     lines = [
         f"tool: nose radius {rcase.nose_radius_um:.6g} um, feed {rcase.feed_um:.9g} um/rev",
@@ -56,7 +51,54 @@ def _planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str],
         f"points: {path.n_points}, {path.max_points_per_rev} per revolution at most, "
         f"{path.revolutions:.6g} revolutions",
     ]
-    return moves_of(path, rcase.values, rpm), lines, rcase
+    plan = layer_plan(rcase, np.asarray(rcase.values, dtype=np.float64))
+    if plan is None:
+        return moves_of(path, rcase.values, rpm), lines, rcase
+    if path.interpolation != "linear":
+        raise CaseError("a layered spiral ([3]) is planned for linear segments only")
+    moves = layered_moves(path, rcase.values, rpm, plan)
+    lines.append(
+        f"layers: {plan.n_layers} of {plan.zone_um:.6g} um, {len(moves.cuts())} cuts, Z the slide's "
+        f"offset in each layer, W the servo's stroke from 0 to {plan.travel_um:.6g} um, the tool at Z + W"
+    )
+    return moves, lines, rcase
+
+
+def layered_moves(path: SpiralPath, values_um: np.ndarray, rpm: float, plan: Any) -> Moves:
+    """A layered spiral ([3], :mod:`ftsweep.stages.layers`) as a controller's cuts, one a
+    segment in the plan's order: the spiral's points inside the segment with its two ends
+    (on the program's linear segments, so the path is the single pass's), C accumulated
+    [deg], X [mm], Z the layer's slide offset [mm], W = clip(w − offset, 0, travel) the
+    servo's stroke [mm], block times [s] at the spindle speed (NaN into a cut's start)."""
+    w = angular_speed(rpm)
+    phi, values = path.phi, np.asarray(values_um, dtype=np.float64)
+    parts: dict[str, list[np.ndarray]] = {"phi": [], "w": [], "z": []}
+    offsets = plan.offsets_um
+    for layer, a, b in zip(
+        plan.seg_layer.tolist(), plan.seg_start.tolist(), plan.seg_end.tolist(), strict=True
+    ):
+        if not b > a:
+            continue  # a segment of no length cuts nothing
+        inside = slice(int(np.searchsorted(phi, a, side="right")), int(np.searchsorted(phi, b, side="left")))
+        ends = spiral_commands(path, values, np.array([a, b]))
+        parts["phi"].append(np.concatenate([[a], phi[inside], [b]]))
+        parts["w"].append(np.concatenate([ends[:1], values[inside], ends[1:]]))
+        parts["z"].append(np.full(parts["w"][-1].size, offsets[layer]))
+    sizes = np.array([p.size for p in parts["phi"]])
+    phi_all, total, slide = (np.concatenate(parts[k]) for k in ("phi", "w", "z"))
+    seconds = np.diff(phi_all) / w
+    starts = np.cumsum(sizes)[:-1]
+    seconds[starts - 1] = np.nan
+    stroke = np.clip(total - slide, 0.0, plan.travel_um)
+    rho = spiral_radius(phi_all, path.rho0_um, path.feed_um)
+    return Moves(
+        np.degrees(phi_all),
+        rho * 1e-3,
+        slide * 1e-3,
+        seconds,
+        w_mm=stroke * 1e-3,
+        cut_starts=starts if starts.size else None,
+    )
 
 
 # how far a program's X may lie off the Archimedean spiral its first and last points set [µm]:
@@ -70,6 +112,11 @@ def program_of(moves: Moves) -> tuple[SpiralPath, np.ndarray]:
     (accumulated), ρ0 and the feed from X (refused unless X follows ρ0 − F·φ/2π), and the
     segments its interpolation forms (PVT: tangents V·T; SPLINE1: the B-spline of its
     control points)."""
+    if moves.cut_starts is not None or moves.w_mm is not None:
+        raise DialectError(
+            "a layered program (several cuts, a servo W at the slide's offsets) is predicted from its "
+            "export: ftsweep verify FILE; predict --program reads single-cut programs"
+        )
     phi = np.radians(moves.c_deg)
     if moves.n_points < 3 or not np.all(np.diff(phi) > 0.0):
         raise DialectError("a spiral program needs at least 3 points with C increasing from block to block")
@@ -106,14 +153,52 @@ def _simulate(
     progress: Any = None,
     rcase: Any = None,
 ) -> dict[str, Any]:
-    """The case with its program as ``moves`` command it (``rcase`` unused: the moves are the
-    whole program)."""
-    return run_case(case, specs=specs, progress=progress, program=program_of(moves))
+    """The case with its program as ``moves`` command it (a layered program's single pass
+    through the planned spiral's ``rcase``: :func:`single_pass`)."""
+    program = program_of(moves) if moves.w_mm is None else single_pass(moves, rcase)
+    return run_case(case, specs=specs, progress=progress, program=program)
+
+
+def single_pass(moves: Moves, rcase: Any) -> tuple[SpiralPath, np.ndarray]:
+    """The single pass a layered program's cuts execute ([3]): every cut on the spiral's
+    revolutions (C printed modulo 360 placed by its X on the planned spiral ``rcase``), the
+    tool at Z + W [µm]; a point several cuts pass takes the command of the cut whose servo
+    was not at an end of its stroke there (a dip below a layer's zone is cut in the air at the
+    zone's bottom), else the lowest. The simulator plans the layers again from it."""
+    if rcase is None:
+        raise DialectError(
+            "a layered program (cuts of a servo W at the slide's offsets) is predicted from its "
+            "export: ftsweep verify FILE; predict --program reads single-cut programs"
+        )
+    assert moves.w_mm is not None
+    rho0, feed = rcase.rho0_um, rcase.feed_um
+    travel = float(rcase.machine.travel_um)
+    phi, x, tool, free = [], [], [], []
+    for lo, hi in moves.cuts():
+        c = moves.c_deg[lo:hi]
+        expected = math.degrees(2.0 * math.pi * (rho0 - moves.x_mm[lo] * 1e3) / feed)
+        phi.append(np.radians(c + 360.0 * round((expected - float(c[0])) / 360.0)))
+        x.append(moves.x_mm[lo:hi])
+        w = moves.w_mm[lo:hi] * 1e3
+        tool.append(moves.z_mm[lo:hi] * 1e3 + w)
+        free.append((w > 0.0) & (w < travel))
+    p, xs, t, f = (np.concatenate(v) for v in (phi, x, tool, free))
+    # per angle: the unclipped command first, then the lowest
+    order = np.lexsort((t, ~f, p))
+    p, xs, t = p[order], xs[order], t[order]
+    first = np.concatenate([[True], np.diff(p) > 0.0])
+    one = Moves(np.degrees(p[first]), xs[first], t[first] * 1e-3, np.diff(p[first]))
+    return program_of(one)
 
 
 def _commands(moves: Moves, per: int) -> np.ndarray:
     """The simulator's commands [µm] at u = (j + 0.5)/per of every segment, by the spiral's
     own evaluation (:func:`ftsweep.stages.spiral.spiral_commands`) at those angles."""
+    if moves.w_mm is not None:
+        raise DialectError(
+            "a layered program's cuts are checked by verify's reader and re-simulation; the compiled "
+            "reference runs single-cut programs"
+        )
     path, values = program_of(moves)
     u = (np.arange(per) + 0.5) / per
     phi = path.phi[:-1, None] + np.diff(path.phi)[:, None] * u[None, :]

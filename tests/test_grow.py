@@ -109,6 +109,7 @@ def test_a_growth_killed_midway_is_finished_by_the_next_run(tmp_path, catalog_di
     assert not place(str(out) + grow.STAGING).exists()
 
 
+@pytest.mark.integration  # runs ftsweep in subprocesses
 def test_a_scheduled_run_whose_spec_grows_and_its_exit_statuses(tmp_path, catalog_dir):
     """The README's cron example: the same command every night; the spec gains a point count."""
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))

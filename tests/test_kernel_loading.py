@@ -9,6 +9,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from tests.test_conformance import KindTests
 
 # every kind's one-case sweep of the conformance suite (spiral rules and layered wrappers too)
@@ -76,6 +78,7 @@ def _run(mode: str, folder, timeout: float = 600) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.integration  # runs ftsweep in subprocesses
 def test_every_kind_loads_its_kernels_lazily_with_the_same_records(catalog_dir):
     full = _run("full", catalog_dir)  # numba's own loader (compiles whatever is not cached)
     lazy = _run("lazy", catalog_dir)

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from .dpath_motion import ray_grid, step_of
-from .segments import hermite
+from .segments import hermite, quantised
 
 SPINDLE = 0
 TURNED = 1
@@ -98,6 +98,19 @@ def tangents(
     channels = np.asarray(channels, dtype=np.float64)
     velocity = np.column_stack([slopes(t, channels[:, k], breaks, left) for k in range(channels.shape[1])])
     return from_velocities(velocity, np.diff(t))
+
+
+def on_time_steps(t: np.ndarray, quantum_s: float, longest_s: float) -> np.ndarray:
+    """The points' times ``t`` [s] rounded to a controller's whole time steps ``quantum_s``
+    [s] (a PVT segment's time is a whole number of them); refused (ValueError) two points
+    within one step or a segment longer than ``longest_s`` [s]."""
+    q = quantised(np.asarray(t, dtype=np.float64), quantum_s)
+    longest = float(np.diff(q).max(initial=0.0))
+    if longest > longest_s:
+        raise ValueError(
+            f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's {longest_s * 1e3:g} ms"
+        )
+    return q
 
 
 def velocities(tan: np.ndarray, seconds: np.ndarray) -> np.ndarray:

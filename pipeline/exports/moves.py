@@ -11,6 +11,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from ftsweep.stages import timed_path
 from ftsweep.store.io import ExportError
 
 
@@ -47,6 +48,28 @@ class Moves:
         starts = [] if self.cut_starts is None else [int(k) for k in self.cut_starts]
         edges = [0, *starts, self.n_points]
         return list(zip(edges[:-1], edges[1:], strict=True))
+
+
+# PVT velocities in a file's units from the simulator's (C rad/s → deg/s, lengths µm/s → mm/s)
+# and back (multiplied both ways, as numpy's degrees and radians do)
+_TO_FILE = {"C": math.degrees(1.0), "X": 1e-3, "Y": 1e-3, "Z": 1e-3}
+_FROM_FILE = {"C": math.radians(1.0), "X": 1e3, "Y": 1e3, "Z": 1e3}
+
+
+def with_pvt(moves: Moves, tangents: np.ndarray, axes: str) -> Moves:
+    """``moves`` as a PVT program whose segments have ``tangents`` (N − 1, 2K) of the axes
+    ``axes`` in the simulator's units (C [rad], lengths [µm]): the velocities a file writes."""
+    v = timed_path.velocities(tangents, moves.seconds)
+    velocity = {a: v[:, k] * _TO_FILE[a] for k, a in enumerate(axes)}
+    return replace(moves, velocity=velocity, interpolation="pvt")
+
+
+def pvt_tangents(moves: Moves, axes: str) -> np.ndarray:
+    """The segments' tangents (N − 1, 2K) a PVT program's velocities of ``axes`` form, in the
+    simulator's units (the inverse of :func:`with_pvt`)."""
+    assert moves.velocity is not None
+    v = np.column_stack([moves.velocity[a] * _FROM_FILE[a] for a in axes])
+    return timed_path.from_velocities(v, moves.seconds)
 
 
 @dataclass(frozen=True)

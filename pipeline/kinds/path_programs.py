@@ -44,8 +44,8 @@ from ftsweep.exports.files import (
     sidecar_path,
     write_program,
 )
+from ftsweep.exports.moves import pvt_tangents, with_pvt
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import timed_path
 from ftsweep.stages.spiral import SpiralPath
 from ftsweep.version import __version__
 
@@ -314,7 +314,7 @@ def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list
     rcase = resolve_case(case, specs=specs)
     path, z = rcase.layout, np.asarray(rcase.values)
     rpm = specs[2].spindle_rpm
-    t = dprog.times(path, z, rpm) if path.t_s is None else path.t_s
+    t = dprog.run_times(path, z, rpm)
     g = path.geometry
     lines = [
         f"tool: nose radius {rcase.nose_radius_um:.6g} um",
@@ -324,9 +324,7 @@ def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list
     ]
     moves = Moves(np.degrees(path.phi), path.rho * 1e-3, z * 1e-3, np.diff(t))
     if path.tangents is not None:
-        v = timed_path.velocities(path.tangents, moves.seconds)
-        moves.velocity = {"C": np.degrees(v[:, 0]), "X": v[:, 1] * 1e-3, "Z": v[:, 2] * 1e-3}
-        moves.interpolation = "pvt"
+        moves = with_pvt(moves, path.tangents, "CXZ")
     return moves, lines, rcase
 
 
@@ -351,9 +349,7 @@ def _dpath_simulate(
     data = _dpath_columns(moves, rcase.layout)
     run = _as_run(rcase.layout, data)
     if moves.velocity is not None:
-        v = moves.velocity
-        velocity = np.column_stack([np.radians(v["C"]), v["X"] * 1e3, v["Z"] * 1e3])
-        run = run._replace(tangents=timed_path.from_velocities(velocity, moves.seconds))
+        run = run._replace(tangents=pvt_tangents(moves, "CXZ"))
     return run_case(case, specs=specs, progress=progress, program=(run, data[:, 3] * 1e3))
 
 

@@ -28,7 +28,7 @@ from ftsweep.engine.case import CaseError
 from ftsweep.engine.record import non_finite, simulated
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.inputs import catalogs
-from ftsweep.stages import compensation, dpath, dpath_motion, envelope, kinematics, segments, timed_path
+from ftsweep.stages import compensation, dpath, dpath_motion, envelope, kinematics, timed_path
 
 DEFAULTS: dict[str, Any] = {
     "points_per_cut": 201,
@@ -114,20 +114,20 @@ def times(
     return dpath_motion.point_times(path.phi, path.rho, z_um, mode, rpm, feed_mm_min)
 
 
+def run_times(path: dpath.DPath, z_um: np.ndarray, rpm: float) -> np.ndarray:
+    """The times [s] a path's points run at: its own (a program file's lines, a PVT
+    controller's whole steps) or those of the constant spindle speed (:func:`times`)."""
+    return times(path, z_um, rpm) if path.t_s is None else path.t_s
+
+
 def pvt_form(path: dpath.DPath, z_um: np.ndarray, rpm: float, controller: Any) -> dpath.DPath:
     """The D path as a PVT controller runs it (docs/controllers.md): its points where they
     were planned, their times at the spindle speed rounded to the controller's whole time
-    steps, and each segment the cubic Hermite in time of the natural splines through C, X and
-    Z, one per cut and per transition (:func:`corners`; the velocities export writes,
-    :mod:`ftsweep.stages.timed_path`). Refuses (ValueError) two points within one step or a
-    segment over the controller's longest."""
-    t = segments.quantised(times(path, z_um, rpm), controller.time_quantum_s)
-    longest = float(np.diff(t).max(initial=0.0))
-    if longest > controller.max_segment_s:
-        raise ValueError(
-            f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's "
-            f"{controller.max_segment_s * 1e3:g} ms"
-        )
+    steps, and each segment the cubic Hermite in time through C, X and Z with each point's
+    local slope on its cut or transition as its velocity, a corner taking the cut's
+    (:func:`corners`; the velocities export writes, :func:`ftsweep.stages.timed_path.tangents`).
+    Refuses (ValueError) two points within one step or a segment over the controller's longest."""
+    t = timed_path.on_time_steps(times(path, z_um, rpm), controller.time_quantum_s, controller.max_segment_s)
     chan = np.column_stack([path.phi, path.rho, z_um])
     at, left = corners(path)
     return path._replace(t_s=t, tangents=timed_path.tangents(t, chan, at, left))
@@ -235,7 +235,7 @@ def motion_summary(
     junction and the machining time; and the machine's limits the motion exceeds ('' when it
     fits them, :func:`limits_reason`). A path with its points' times (``t_s``, a program file's
     lines) is timed by them, and checked with the slack their printed digits need."""
-    t = times(path, z_um, rpm) if path.t_s is None else path.t_s
+    t = run_times(path, z_um, rpm)
     period = period_of(machine)
     s, e, (x_min, x_max) = sampled_extremes(path, z_um, t, period)
     jumps = dpath_motion.junctions(path)
@@ -308,6 +308,8 @@ class DPathSimulation:
         request, res, rc = rcase.case.layout, rcase.case.resolution, rcase.nose_radius_um
         assert rcase.values is not None and rcase.gouge is not None
         self.z_prog = rcase.values
+        # a PVT program's channels C, X, Z for the cubic crossings, stacked once for every batch
+        self.chan = None if path.tangents is None else np.column_stack([path.phi, path.rho, self.z_prog])
         require_finite(
             self.z_prog, "the D-path Z", lambda i: f"point {i} (C {math.degrees(path.phi[i]):.4f}°)"
         )
@@ -329,7 +331,7 @@ class DPathSimulation:
         theta = self.rays[b * RAYS_PER_BATCH : (b + 1) * RAYS_PER_BATCH]
         rcase, g = self.rcase, self.path.geometry
         t = time.perf_counter()
-        pos, w, valid, on_cut = _crossings(self.path, self.z_prog, theta)
+        pos, w, valid, on_cut = _crossings(self.path, self.z_prog, theta, self.chan)
         n_valid = valid.sum(axis=1).astype(np.int64)
         ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
         # the fully machined part: the edge band off the first and last cut and off the cuts'
@@ -407,13 +409,15 @@ class DPathSimulation:
         return record
 
 
-def _crossings(path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+def _crossings(
+    path: dpath.DPath, z_prog: np.ndarray, theta: np.ndarray, chan: Optional[np.ndarray] = None
+) -> tuple[np.ndarray, ...]:
     """The passes crossing each ray, sorted by position: positions [µm], commands [µm],
-    validity and whether each lies on a cut (both neighbouring points on it)."""
-    if path.tangents is None:
+    validity and whether each lies on a cut (both neighbouring points on it). ``chan``: a
+    PVT program's C, X, Z columns, its segments cubic in time (None: linear)."""
+    if chan is None:
         pos, w, seg = dpath_motion.crossings(path.phi, path.rho, z_prog, theta)
     else:
-        chan = np.column_stack([path.phi, path.rho, z_prog])
         pos, w, seg = timed_path.crossings(path.phi, chan, path.tangents, theta)
     order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
     pos = np.take_along_axis(pos, order, axis=1)

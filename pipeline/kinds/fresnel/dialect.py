@@ -9,10 +9,10 @@ from typing import Any
 
 import numpy as np
 
+from ftsweep.exports.moves import pvt_tangents, with_pvt
 from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel.study import lines_reason
 from ftsweep.stages import fresnel as ff
-from ftsweep.stages import timed_path
 
 
 def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[str], Any]:
@@ -40,12 +40,7 @@ def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[
         fplan.y_um * 1e-3,
     )
     if prog.tangents is not None:
-        v = timed_path.velocities(prog.tangents, moves.seconds)
-        moves.velocity = {
-            "C": np.degrees(v[:, 0]),
-            **{a: v[:, i] * 1e-3 for i, a in ((1, "X"), (2, "Y"), (3, "Z"))},
-        }
-        moves.interpolation = "pvt"
+        moves = with_pvt(moves, prog.tangents, "CXYZ")
     return moves, lines, rcase
 
 
@@ -76,10 +71,8 @@ def _dialect_simulate(
     given = rcase.layout._replace(xy=ff.workpiece_of(phi, data[:, 2] * 1e3, data[:, 3] * 1e3))
     if moves.velocity is not None:
         # PVT: the segments the file's C, X, Y and their velocities form
-        v = moves.velocity
-        velocity = np.column_stack([np.radians(v["C"]), *(v[a] * 1e3 for a in "XYZ")])
         fplan = given.plan._replace(phi=phi, x_um=data[:, 2] * 1e3, y_um=data[:, 3] * 1e3)
-        given = given._replace(plan=fplan, tangents=timed_path.from_velocities(velocity, moves.seconds))
+        given = given._replace(plan=fplan, tangents=pvt_tangents(moves, "CXYZ"))
     return run_case(case, specs=specs, progress=progress, program=(given, data[:, 4] * 1e3))
 
 

@@ -65,6 +65,11 @@ class FresnelSimulation:
                 "is not star-shaped about it): its form error cannot be taken along rays from there"
             )
         self.level = np.asarray(fplan.path.level[:-1], dtype=np.int64)
+        # a PVT program's channels C, X, Y, Z (closing point dropped), stacked once for every batch
+        self.tangents = None if prog.tangents is None else prog.tangents[:-1]
+        self.chan = None
+        if self.tangents is not None:
+            self.chan = np.column_stack([fplan.phi, fplan.x_um, fplan.y_um, z])[:-1]
         self.fn = catalogs.base_callable(rcase.surface_spec, s.catalog_folder)
         h, feed, rc = fplan.facet_height_um, rcase.feed_um, rcase.nose_radius_um
         self.band = walls_band_um(rc, h, feed)
@@ -124,15 +129,12 @@ class FresnelSimulation:
     def _crossings(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
         """The passes crossing each ray, sorted outwards: distance from the lowest point [µm],
         tool tip Z [µm], facet level, and how many there are."""
-        tan = self.rcase.layout.tangents
-        if tan is None:
+        if self.chan is None:
             pos, w, seg = dpath_motion.crossings(self.psi, self.r, self.z, theta)
         else:
             # cubic in time (PVT): the path between points followed exactly through eq. 9
-            p = self.fplan
-            chan = np.column_stack([p.phi, p.x_um, p.y_um, self.rcase.values])[:-1]
             pos, w, seg = timed_path.crossings(
-                self.psi, chan, tan[:-1], theta, timed_path.TURNED, tuple(self.apex), self.sign
+                self.psi, self.chan, self.tangents, theta, timed_path.TURNED, tuple(self.apex), self.sign
             )
         order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
         pos = np.take_along_axis(pos, order, axis=1)

@@ -37,7 +37,7 @@ from typing import Any, NamedTuple, Optional
 import numpy as np
 
 from ftsweep.stages import fresnel as ff
-from ftsweep.stages import kinematics, segments, timed_path, turnopt
+from ftsweep.stages import kinematics, timed_path, turnopt
 from ftsweep.stages.kinematics import Limits
 
 DEFAULTS: dict[str, Any] = {
@@ -526,19 +526,15 @@ def timesteps(
 
 def pvt_form(prog: FresnelProgram, z_um: np.ndarray, controller: Any) -> FresnelProgram:
     """The program as a PVT controller runs it (docs/controllers.md): the points' times (the
-    adaptive timesteps summed) rounded to the controller's whole time steps, and the segments
-    the natural splines in time through C, X, Y and Z form (the velocities export writes).
-    Refuses (ValueError) two points within one step or a segment over the controller's longest."""
-    t = segments.quantised(np.concatenate([[0.0], np.cumsum(prog.steps.steps)]), controller.time_quantum_s)
-    steps = np.diff(t)
-    if float(steps.max(initial=0.0)) > controller.max_segment_s:
-        raise ValueError(
-            f"a timestep of {float(steps.max()) * 1e3:.6g} ms is longer than the controller's "
-            f"{controller.max_segment_s * 1e3:g} ms"
-        )
+    adaptive timesteps summed) rounded to the controller's whole time steps, and the cubic
+    segments in time through C, X, Y and Z with each point's local slope as its velocity (the
+    velocities export writes, :func:`ftsweep.stages.timed_path.tangents`). Refuses
+    (ValueError) two points within one step or a segment over the controller's longest."""
+    t = np.concatenate([[0.0], np.cumsum(prog.steps.steps)])
+    t = timed_path.on_time_steps(t, controller.time_quantum_s, controller.max_segment_s)
     p = prog.plan
     chan = np.column_stack([p.phi, p.x_um, p.y_um, z_um])
-    return prog._replace(steps=prog.steps._replace(steps=steps), tangents=timed_path.tangents(t, chan))
+    return prog._replace(steps=prog.steps._replace(steps=np.diff(t)), tangents=timed_path.tangents(t, chan))
 
 
 class FresnelProgram(NamedTuple):

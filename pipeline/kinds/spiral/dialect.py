@@ -101,6 +101,13 @@ def layered_moves(path: SpiralPath, values_um: np.ndarray, rpm: float, plan: Any
     )
 
 
+# why a layered program's P-V is not predicted from the file alone: it does not say the stroke its W
+# was clipped to, nor (C modulo 360) the revolution each cut starts on
+LAYERED_FROM_ELSEWHERE = (
+    "a layered program (several cuts, a servo W at the slide's offsets) is predicted from its "
+    "export: ftsweep verify FILE; predict --program reads single-cut programs"
+)
+
 # how far a program's X may lie off the Archimedean spiral its first and last points set [µm]:
 # the printed digits' rounding and a thousandth of the feed
 SPIRAL_SLACK_UM = 1e-3
@@ -113,10 +120,7 @@ def program_of(moves: Moves) -> tuple[SpiralPath, np.ndarray]:
     segments its interpolation forms (PVT: tangents V·T; SPLINE1: the B-spline of its
     control points)."""
     if moves.cut_starts is not None or moves.w_mm is not None:
-        raise DialectError(
-            "a layered program (several cuts, a servo W at the slide's offsets) is predicted from its "
-            "export: ftsweep verify FILE; predict --program reads single-cut programs"
-        )
+        raise DialectError(LAYERED_FROM_ELSEWHERE)
     phi = np.radians(moves.c_deg)
     if moves.n_points < 3 or not np.all(np.diff(phi) > 0.0):
         raise DialectError("a spiral program needs at least 3 points with C increasing from block to block")
@@ -166,10 +170,7 @@ def single_pass(moves: Moves, rcase: Any) -> tuple[SpiralPath, np.ndarray]:
     was not at an end of its stroke there (a dip below a layer's zone is cut in the air at the
     zone's bottom), else the lowest. The simulator plans the layers again from it."""
     if rcase is None:
-        raise DialectError(
-            "a layered program (cuts of a servo W at the slide's offsets) is predicted from its "
-            "export: ftsweep verify FILE; predict --program reads single-cut programs"
-        )
+        raise DialectError(LAYERED_FROM_ELSEWHERE)
     assert moves.w_mm is not None
     rho0, feed = rcase.rho0_um, rcase.feed_um
     travel = float(rcase.machine.travel_um)

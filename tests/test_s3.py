@@ -402,3 +402,19 @@ def test_status_of_a_grown_cube_on_s3(s3, tmp_path, catalog_dir):
     assert res.exit_code == 0 and found["complete"] and found["counts"]["done"] == 9
     assert [g["added"] for g in found["grown"]] == ["points +1, aspect +0"]
     assert found["last_run"]["cases"]["done"] == 3 and found["writer"] is None
+
+
+def test_an_s3_cube_survives_a_paused_writer_at_each_write_point(s3, tmp_path, catalog_dir, monkeypatch):
+    # the writer paused right before each put of a metric's and the status's blocks
+    # (tests/faults.py; test_fence.py goes through every key point on memory://, whose
+    # conditional writes have S3's semantics) while a second run takes the expired lease and
+    # finishes the cube: every put after the takeover fails its condition (If-Match /
+    # If-None-Match), the first writer stops with LeaseLost, the cube equals a clean run's;
+    # no sleep, so it holds under load. About 15 s a point on moto.
+    from faults import SPEC, check_every_point
+
+    checked = check_every_point(
+        SPEC, lambda at: f"{s3}/p{at}.zarr", tmp_path, catalog_dir, monkeypatch, "pause",
+        puts_of=("pv_nm", "status"),
+    )  # fmt: skip
+    assert checked == 2 * 2  # two merges, two blocks

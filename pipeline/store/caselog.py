@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ftsweep.store import cube
+from ftsweep.store.fenced import write_point
 from ftsweep.store.storage import PathLike, Place, place
 
 LOG = "_log"
@@ -166,24 +167,64 @@ class CaseLog:
         self._add(flat, cube.ended_values(cube.REFUSED, message, run_id))
 
 
-def _latest(keys: list[str]) -> dict[str, tuple[int, list[str]]]:
-    """Per writer: its newest version's key and every key of that writer up to it."""
+# beside the logs of a run whose lease was taken over: none of its logs but those listed
+# before the takeover is read again
+FENCED = "FENCED"
+
+
+def _run_of(key: str) -> str:
+    parts = key.split("/")
+    return parts[1] if len(parts) > 2 else ""
+
+
+def fenced_out(keys: list[str], keep: frozenset[str] = frozenset()) -> tuple[list[str], list[str]]:
+    """``keys`` split into the logs that may be read and those of fenced runs (not in ``keep``),
+    which are deleted unread."""
+    fenced = {_run_of(k) for k in keys if k.endswith(f"/{FENCED}")}
+    usable = [k for k in keys if _run_of(k) not in fenced or k in keep]
+    dropped = [k for k in keys if _run_of(k) in fenced and k not in keep and not k.endswith(FENCED)]
+    return usable, dropped
+
+
+def fence_run(where: PathLike, run_id: str) -> frozenset[str]:
+    """Fence the logs of ``run_id`` (a run whose lease is being taken over): list them, then
+    write the marker that makes every later one unread; returns the listed keys, which the
+    taking writer alone still reads. A log its workers finish between the listing and the
+    takeover is dropped, and its cases are computed again."""
+    at = place(where)
+    listed = frozenset(k for k in at.listing(f"{LOG}/{run_id}") if k.endswith(".npz"))
+    at.write(f"{LOG}/{run_id}/{FENCED}", b"the lease of this run was taken over\n")
+    return listed
+
+
+def _latest(keys: list[str], keep: frozenset[str] = frozenset()) -> dict[str, tuple[int, list[str]]]:
+    """Per writer: its newest version's key and every key of that writer up to it (the logs
+    of fenced runs left out but those in ``keep``, :func:`fenced_out`)."""
     versions: dict[str, list[tuple[int, str]]] = defaultdict(list)
-    for key in keys:
+    for key in fenced_out(keys, keep)[0]:
         stem, _, tail = key.rpartition("-")
         if key.endswith(".npz") and tail[:-4].isdigit():
             versions[stem].append((int(tail[:-4]), key))
     return {stem: (max(v)[0], [k for _, k in sorted(v)]) for stem, v in versions.items()}
 
 
-def merge_logs(where: PathLike, fence: Callable[[], None] | None = None) -> int:
+def merge_logs(
+    where: PathLike, fence: Callable[[], None] | None = None, keep: frozenset[str] = frozenset()
+) -> int:
     """Merge every case log under the cube into its blocks and delete the merged logs; the
     caller holds the cube's lock. Logs are applied oldest run first (a case computed again
-    by a later run takes the later values). ``fence``, called before every block write,
-    raises when this writer may no longer write (:meth:`ftsweep.store.lock.Lease.fence`); nothing
-    is deleted then. Returns the number of cases merged."""
+    by a later run takes the later values). ``fence``: the writer's lease
+    (:meth:`ftsweep.store.lock.Lease.fence`), which makes every block write conditional
+    (:class:`ftsweep.store.cube.CubeWriter`); when it raises, nothing is deleted. Returns the
+    number of cases merged. ``keep``: the logs of a fenced run that this writer may still read
+    (:attr:`ftsweep.store.lock.Lease.inherited`); other logs of fenced runs are deleted unread."""
     at: Place = place(where)
-    writers = _latest(at.listing(LOG))
+    keys = at.listing(LOG)
+    for key in fenced_out(keys, keep)[1]:
+        if fence is not None:
+            fence()
+        at.remove(key)
+    writers = _latest(keys, keep)
     if not writers:
         return 0
     shapes = cube.variable_shapes(at)
@@ -201,7 +242,8 @@ def merge_logs(where: PathLike, fence: Callable[[], None] | None = None) -> int:
             _reject(at, keys[-1], data, str(exc))
         merged.extend(keys)
     if cases:
-        cube.CubeWriter(at).write(cases, fence)
+        cube.CubeWriter(at, fence).write(cases)
+    write_point("commit", LOG)
     for key in merged:
         at.remove(key)
     at.remove_empty_folders(LOG)

@@ -36,6 +36,7 @@ import zarr
 
 from ftsweep import registry
 from ftsweep.engine import result
+from ftsweep.store.fenced import fenced_store, write_point
 from ftsweep.store.storage import PathLike, Place, place
 from ftsweep.sweeps.spec import SweepSpec, axis_attrs, axis_counts, coordinates
 from ftsweep.version import __version__
@@ -270,10 +271,24 @@ def variable_shapes(where: PathLike) -> dict[str, tuple[int, ...]]:
     return {name: tuple(array.shape) for name, array in group.arrays()}
 
 
+# the metrics without which no case counts as done (every kind stores them: the run's record)
+REQUIRED = ("pv_nm", "rms_nm")
+
+
 def read_status(where: PathLike) -> np.ndarray:
-    """Status of every case; a chunk that cannot be read (damaged) counts as pending."""
-    values, _ = _read_array(place(where), "status", PENDING)
-    return values.astype(np.int8)
+    """Status of every case; a chunk that cannot be read (damaged) counts as pending, and so
+    does a case marked done whose P-V or RMS is missing or not finite (a block lost, or
+    written by nobody): status and select never call such a case done, and the next run
+    computes it again."""
+    at = place(where)
+    values, _ = _read_array(at, "status", PENDING)
+    status = values.astype(np.int8)
+    group = open_group(at)
+    for var in REQUIRED:
+        if var in group and np.any(status == DONE):
+            metric, _ = _read_array(at, var, np.nan)
+            status[(status == DONE) & ~np.isfinite(metric.astype(float))] = PENDING
+    return status
 
 
 def metric_values(record: dict[str, Any]) -> dict[str, Any]:
@@ -309,8 +324,14 @@ class CubeWriter:
     driver, which merges its workers' logs, or ``optimize``). Every variable first,
     ``status`` last, so a case counts as done only once all else is written."""
 
-    def __init__(self, where: PathLike) -> None:
-        self.group = open_group(where, mode="r+")
+    def __init__(self, where: PathLike, fence: Optional[Callable[[], None]] = None) -> None:
+        at = place(where)
+        self.fence = fence
+        if fence is not None and not at.local:
+            # every block a writer under a lease puts is a conditional write (ftsweep.store.fenced)
+            self.group = zarr.open_group(fenced_store(at, fence), mode="r+", use_consolidated=None)
+        else:
+            self.group = open_group(at, mode="r+")
         self.shape = self._array("status").shape
 
     def _array(self, name: str) -> zarr.Array:
@@ -325,11 +346,13 @@ class CubeWriter:
     def _index(self, flat: int) -> tuple[int, ...]:
         return tuple(int(i) for i in np.unravel_index(flat, self.shape))
 
-    def write(self, cases: list[tuple[int, Values]], fence: Optional[Callable[[], None]] = None) -> None:
+    def write(self, cases: list[tuple[int, Values]]) -> None:
         """Write ``(flat index, values)`` of many cases: one pass per variable, ``status``
         last. Writing the same values again changes nothing (a merge may be repeated).
-        ``fence`` is called before each variable's blocks are written (it raises to stop a
-        writer that lost its lease)."""
+        The writer's ``fence`` is called before each variable's blocks are written (it raises
+        to stop a writer that lost its lease), and on object storage every block is a
+        conditional write besides (:class:`ftsweep.store.fenced.FencedStore`)."""
+        fence = self.fence
         columns: dict[str, tuple[list[int], list[Any]]] = {}
         for flat, values in cases:
             for var, value in values.items():
@@ -340,6 +363,7 @@ class CubeWriter:
             if var not in self.group:
                 continue  # an error map the cube was made without
             flats, vals = columns[var]
+            write_point("before-var", var)
             if fence is not None:
                 fence()
             array = self._array(var)
@@ -347,9 +371,10 @@ class CubeWriter:
             if array.ndim > len(self.shape):  # error maps: each case's whole map
                 for flat, value in zip(flats, vals, strict=True):
                     array[(*self._index(flat), slice(None), slice(None))] = value  # type: ignore[index]
-                continue
-            data = np.asarray(vals, dtype=object if array.dtype.kind not in "biuf" else array.dtype)
-            array.vindex[coords] = data
+            else:
+                data = np.asarray(vals, dtype=object if array.dtype.kind not in "biuf" else array.dtype)
+                array.vindex[coords] = data
+            write_point("after-var", var)
 
     def write_done(self, flat: int, record: dict[str, Any], run_id: str) -> None:
         """Write a finished case's record, then mark it done."""
@@ -415,13 +440,13 @@ def _stored_chunks(where: Place, var: str) -> set[tuple[int, ...]]:
     return found
 
 
-def repair(where: PathLike) -> dict[int, str]:
+def repair(where: PathLike, fence: Optional[Callable[[], None]] = None) -> dict[int, str]:
     """Make a damaged cube writable again and say which cases lost data: every chunk that
     cannot be read is deleted (its elements read as fill values, a status chunk as pending),
     and every done case with an unreadable block, or a metric block that is missing (the
     writer writes every block of a finished case, fill values included), is marked pending
     so the next run recomputes it. Returns flat index → reason naming the chunk. The caller
-    holds the cube's lock."""
+    holds the cube's lock; ``fence`` is its lease's (:class:`CubeWriter`)."""
     at = place(where)
     group = open_group(at)
     status, status_bad = _read_array(at, "status", PENDING)
@@ -457,9 +482,11 @@ def repair(where: PathLike) -> dict[int, str]:
             full = block + (0,) * (array.ndim - len(shape))
             damaged.setdefault(int(flat), f"{chunk_path(at, var, full)} {found[block]}")
         for block in bad:
+            if fence is not None:
+                fence()
             at.remove(f"{var}/c/{'/'.join(map(str, block))}")
     if damaged:
-        CubeWriter(at).write([(flat, {"status": PENDING}) for flat in damaged])
+        CubeWriter(at, fence).write([(flat, {"status": PENDING}) for flat in damaged])
     return damaged
 
 

@@ -27,7 +27,7 @@ import socket
 import threading
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Optional
@@ -185,8 +185,20 @@ def lease_seconds() -> float:
 class Lease:
     """The writer's lease on a cube in object storage (see the module's description)."""
 
-    def __init__(self, cube: PathLike, command: str = "", lease_s: Optional[float] = None) -> None:
+    def __init__(
+        self,
+        cube: PathLike,
+        command: str = "",
+        lease_s: Optional[float] = None,
+        run_id: str = "",
+        fence_run: Optional[Callable[[str], frozenset[str]]] = None,
+    ) -> None:
         self.cube = place(cube)
+        self.run_id = run_id
+        self.fence_run = fence_run
+        # the case logs of the run this writer took the cube over from, as they were before
+        # the takeover: the only ones of that run ever read (ftsweep.store.caselog)
+        self.inherited: frozenset[str] = frozenset()
         self.lock = self.cube.sibling(".lock")
         if self.lock.protocol not in Place.CONDITIONAL:
             raise LockError(
@@ -213,6 +225,7 @@ class Lease:
                 "host": socket.gethostname(),
                 "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                 "command": self.command,
+                "run_id": self.run_id,
                 "lease_until": time.time() + self.lease_s,
             }
         ).encode()
@@ -237,8 +250,10 @@ class Lease:
                     f"{time.strftime('%H:%M:%S', time.localtime(until))}); wait for it to finish, or, "
                     f"if that run is gone, for its lease to expire (at most {self.lease_s:g} s)"
                 )
+            inherited = self._fence_run(holder)
             try:
                 self.tag = self.lock.replace_if("", self._record(), tag)
+                self.inherited = inherited
                 break
             except FileExistsError:
                 continue  # another writer took the expired lease first
@@ -247,6 +262,14 @@ class Lease:
         self.confirmed = time.monotonic()
         self._renewer = threading.Thread(target=self._renew, name="ftsweep-lease", daemon=True)
         self._renewer.start()
+
+    def _fence_run(self, holder: Optional[dict[str, Any]]) -> frozenset[str]:
+        """Before taking over an expired lease: ``fence_run`` of the run its holder names,
+        which lists the case logs that run wrote so far (the only ones of it this writer will
+        read) and marks it fenced, so that no log it writes from now on is ever read
+        (:func:`ftsweep.store.caselog.fence_run`)."""
+        run = str((holder or {}).get("run_id") or "")
+        return self.fence_run(run) if run and self.fence_run is not None else frozenset()
 
     def _swap(self) -> None:
         """Renew the lease by compare-and-swap on the tag this writer last wrote (the lock
@@ -337,7 +360,12 @@ def _parse(data: bytes) -> Optional[dict[str, Any]]:
 
 
 @contextmanager
-def cube_lock(cube: PathLike, command: str = "") -> Iterator[Optional[Lease]]:
+def cube_lock(
+    cube: PathLike,
+    command: str = "",
+    run_id: str = "",
+    fence_run: Optional[Callable[[str], frozenset[str]]] = None,
+) -> Iterator[Optional[Lease]]:
     """Hold the writer's lock of ``cube`` (a local folder: a lock file; object storage: a
     :class:`Lease`, yielded so the writer can :meth:`Lease.check` it) for the ``with`` block,
     released on any exit, and on SIGTERM, which batch schedulers send to end a job
@@ -351,7 +379,7 @@ def cube_lock(cube: PathLike, command: str = "") -> Iterator[Optional[Lease]]:
         finally:
             release(path)
         return
-    lease = Lease(at, command)
+    lease = Lease(at, command, run_id=run_id, fence_run=fence_run)
     lease.acquire()
     try:
         with terminate_as_exit():

@@ -142,7 +142,12 @@ def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
 
 
 def prepare_cube(
-    name: str, spec: SweepSpec, where: PathLike, restart: bool, catalog_folder: Optional[Path]
+    name: str,
+    spec: SweepSpec,
+    where: PathLike,
+    restart: bool,
+    catalog_folder: Optional[Path],
+    lease: Optional[Lease] = None,
 ) -> tuple[int, str]:
     """Create the cube, or check an existing one belongs to ``spec`` (or grows into it,
     :mod:`ftsweep.sweeps.grow`) and merge the case logs a killed run left; returns the cases already
@@ -150,7 +155,7 @@ def prepare_cube(
 
     An existing cube from another spec is refused unless ``restart``, which discards any
     existing cube and starts over. An unfinished template (a run killed while creating it)
-    is replaced.
+    is replaced. ``lease``: the writer's lease on object storage (its fence guards each write).
     """
     out = place(where)
     grow.finish_interrupted(out)
@@ -162,7 +167,7 @@ def prepare_cube(
         if restart:
             out.remove_all()
         else:
-            caselog.merge_logs(out)
+            _merge_fenced(out, lease)
             _same_catalog(out, spec, attrs, catalog_folder)
             if attrs["sweep_spec_hash"] != spec.spec_hash():
                 note = _grow_or_refuse(name, spec, out, attrs)
@@ -267,9 +272,11 @@ def run_sweep(
     check_destination(out, scheduler)
     out = with_configured(out)  # what this process resolved reaches the workers too
     workers = 1 if scheduler == "synchronous" else (workers or default_workers())
-    with cube_lock(out, command=f"ftsweep sweep {name_or_path}") as lease:
+    run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
+    fence_run = functools.partial(caselog.fence_run, out)  # a run whose lease is taken over
+    with cube_lock(out, f"ftsweep sweep {name_or_path}", run_id, fence_run) as lease:
         return _run_locked(
-            name,
+            (name, run_id),
             spec,
             out,
             Where(scheduler, workers, line_cache_mb, worker_wait_s),
@@ -291,11 +298,11 @@ def check_destination(out: Place, scheduler: Optional[str]) -> None:
         )
 
 
-def _undamaged_status(out: Place) -> tuple[np.ndarray, dict[int, str]]:
+def _undamaged_status(out: Place, lease: Optional[Lease]) -> tuple[np.ndarray, dict[int, str]]:
     """The cube's case status after :func:`ftsweep.store.cube.repair` (unreadable chunks deleted,
     done cases with missing or unreadable data pending again), and those cases with the
     reason."""
-    damaged = cube.repair(out)
+    damaged = _fenced(lease, lambda fence: cube.repair(out, fence))
     return cube.read_status(out).ravel(), damaged
 
 
@@ -306,6 +313,7 @@ def _wanted_cases(
     rerun: tuple[bool, Optional[float]],
     run_id: str,
     catalog_folder: Optional[Path],
+    lease: Optional[Lease] = None,
 ) -> tuple[list[int], np.ndarray]:
     """The cases this run computes (after pruning, if asked) and the cube's status then."""
     retry_failed, prune = rerun
@@ -315,7 +323,7 @@ def _wanted_cases(
                 f"--prune needs a first-order estimate of the P-V (tables have one); a {spec.layout} "
                 "sweep has none"
             )
-        prune_cases(spec, out, status, prune, run_id, catalog_folder)
+        _fenced(lease, lambda fence: prune_cases(spec, out, status, prune, run_id, catalog_folder, fence))
         status = cube.read_status(out).ravel()
     wanted = (
         (status == cube.PENDING)
@@ -385,20 +393,44 @@ def _compute(
     )
 
 
-def _merge_fenced(out: Place, lease: Optional[Lease]) -> None:
-    """Merge the case logs into the blocks, fenced on object storage: the lease is first
-    confirmed by a conditional write on the lock object, and every block write checks that
-    the confirmation is still recent (:meth:`ftsweep.store.lock.Lease.fence`); a writer that lost
-    the lease writes nothing (:class:`~ftsweep.store.lock.LeaseLost`)."""
+# a fenced write that finds an object changed (a stale writer's write landed on it) is redone
+# from the object as it is now this many times before the run gives up
+FENCED_TRIES = 3
+
+
+def _fenced(lease: Optional[Lease], write: Callable[[Optional[Callable[[], None]]], Any]) -> Any:
+    """Run ``write(fence)`` under the writer's lease: locally (no lease) at once; on object
+    storage after confirming the lease by a conditional write on the lock object, with every
+    block a conditional write (:mod:`ftsweep.store.fenced`). An object changed since this
+    writer listed it: the lease is confirmed again, and a writer that still holds it writes
+    again from what is there now (every write is idempotent); one that lost it stops with
+    :class:`~ftsweep.store.lock.LeaseLost` and writes nothing more."""
     if lease is None:
-        caselog.merge_logs(out)
-        return
+        return write(None)
+    from ftsweep.store.fenced import ObjectChanged
+
+    for _ in range(FENCED_TRIES):
+        lease.confirm()
+        try:
+            return write(lease.fence)
+        except ObjectChanged:
+            continue
     lease.confirm()
-    caselog.merge_logs(out, fence=lease.fence)
+    raise LeaseLost(
+        f"objects of {lease.cube} kept changing under this writer's conditional writes although it "
+        "holds the lease: another process writes the cube without its lease; this run stops"
+    )
+
+
+def _merge_fenced(out: Place, lease: Optional[Lease]) -> None:
+    """Merge the case logs into the blocks (:func:`_fenced`); the logs of a run this writer
+    took the cube over from are read as they were before the takeover, never later ones."""
+    keep = lease.inherited if lease is not None else frozenset()
+    _fenced(lease, lambda fence: caselog.merge_logs(out, fence=fence, keep=keep))
 
 
 def _run_locked(
-    name: str,
+    names: tuple[str, str],
     spec: SweepSpec,
     out: Place,
     where: Where,
@@ -407,44 +439,58 @@ def _run_locked(
     catalog_folder: Optional[Path],
     watchers: Watchers,
 ) -> SweepReport:
-    _, note = prepare_cube(name, spec, out, restart, catalog_folder)
-    status, damaged = _undamaged_status(out)
+    name, run_id = names
+    lease = watchers[2]
+    _, note = prepare_cube(name, spec, out, restart, catalog_folder, lease)
+    status, damaged = _undamaged_status(out, lease)
     already = int(np.count_nonzero(status == cube.DONE))
-    run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
-    pending, status = _wanted_cases(spec, out, status, rerun, run_id, catalog_folder)
+    pending, status = _wanted_cases(spec, out, status, rerun, run_id, catalog_folder, lease)
     report = SweepReport(
         cube=out, total=n_cases(spec), skipped=already, workers=where.workers, damaged=damaged
     )
     report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
     # the cases sent: every wanted one not refused, with its cost for planning the tasks
-    report.refused, costs = refuse_cases(spec, out, pending, run_id, catalog_folder)
+    report.refused, costs = _fenced(
+        lease, lambda fence: refuse_cases(spec, out, pending, run_id, catalog_folder, fence)
+    )
     report.queued = len(costs)
     report.note = note
     start = time.perf_counter()
     try:
         _compute(report, spec, costs, where, run_id, catalog_folder, watchers)
-    finally:
-        # also on an error or a signal: what the workers finished goes into the blocks now,
-        # unless another writer took over the lease (its next run merges these logs)
+    except BaseException:
+        # on an error or a signal too: what the workers finished goes into the blocks now,
+        # unless another writer took over the lease (then the first error is the one told)
         try:
-            _merge_fenced(out, watchers[2])
+            _merge_fenced(out, lease)
         except LeaseLost:
             pass
+        raise
+    _merge_fenced(out, lease)
+    if lease is not None:
+        # a writer that lost its lease during its last merge says so (LeaseLost: exit status 75)
+        lease.confirm()
     report.wall_s = time.perf_counter() - start
     return report
 
 
 def refuse_cases(
-    spec: SweepSpec, out: Place, pending: list[int], run_id: str, catalog_folder: Optional[Path]
+    spec: SweepSpec,
+    out: Place,
+    pending: list[int],
+    run_id: str,
+    catalog_folder: Optional[Path],
+    fence: Optional[Callable[[], None]] = None,
 ) -> tuple[dict[int, str], Costs]:
     """Mark ``refused`` the pending cases whose planning would refuse them, known before any
     is sent (:func:`ftsweep.sweeps.spec.case_costs`: over the controller's capacity, a layout
     the aperture rules out, ...), with the reason; returns them by index, and the costs of the
     others, which plan the tasks."""
     costs, refused = case_costs(spec, pending, catalog_folder)
-    writer = cube.CubeWriter(out)
-    for index, reason in refused.items():
-        writer.write_refused(index, reason, run_id)
+    writer = cube.CubeWriter(out, fence)
+    writer.write(
+        [(index, cube.ended_values(cube.REFUSED, reason, run_id)) for index, reason in refused.items()]
+    )
     return refused, costs
 
 
@@ -455,6 +501,7 @@ def prune_cases(
     factor: float,
     run_id: str,
     catalog_folder: Optional[Path],
+    fence: Optional[Callable[[], None]] = None,
 ) -> int:
     """Mark pending cases hopeless by the estimate as pruned (see :func:`run_sweep`); returns
     how many this call pruned."""
@@ -468,15 +515,19 @@ def prune_cases(
     best = finite.min(axis=1, keepdims=True)  # over the aspect ratios of each row
     hopeless = (np.isfinite(values) & (values > factor * best)).ravel()
     targets = np.flatnonzero(hopeless & (status == cube.PENDING))
-    writer = cube.CubeWriter(out)
     best_flat = np.broadcast_to(best, values.shape).ravel()
-    for flat in targets:
-        writer.write_pruned(
+    message = "pruned: estimated P-V {:.4g} nm > {:g} × {:.4g} nm, the best estimate of its point count"
+    cases = [
+        (
             int(flat),
-            f"pruned: estimated P-V {values.ravel()[flat]:.4g} nm > {factor:g} × {best_flat[flat]:.4g} nm, "
-            "the best estimate of its point count",
-            run_id,
+            cube.ended_values(
+                cube.PRUNED, message.format(values.ravel()[flat], factor, best_flat[flat]), run_id
+            ),
         )
+        for flat in targets
+    ]
+    if cases:
+        cube.CubeWriter(out, fence).write(cases)
     return int(targets.size)
 
 

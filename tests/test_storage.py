@@ -3,6 +3,7 @@ lease lock's rules, and what a store without conditional writes gets."""
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
@@ -14,6 +15,7 @@ from ftsweep.cli.main import main
 from ftsweep.store import caselog, cube
 from ftsweep.store.lock import Lease, LockError
 from ftsweep.store.storage import StorageError, parse_options, place
+from ftsweep.sweeps import run
 from ftsweep.sweeps.run import run_sweep
 
 SPEC = """
@@ -121,6 +123,28 @@ def _done_values(out, flat: int) -> dict:  # type: ignore[no-untyped-def,type-ar
     return {v: x.item() if hasattr(x, "item") else x for v, x in out_values.items()}
 
 
+def _bomb(values: dict) -> bytes:  # type: ignore[type-arg]
+    """A log of one case whose ``message`` column deflates 128 MB of zeros into about 130 KB:
+    refused by the sizes its zip directory declares, before anything is unpacked."""
+    import io
+    import zipfile
+
+    buffer = io.BytesIO()
+    good = np.load(io.BytesIO(caselog._encode([(1, values)])))
+    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for name in (n for n in good.files if n != "message.value"):
+            with archive.open(f"{name}.npy", "w") as fh:
+                np.lib.format.write_array(fh, good[name])
+        with archive.open("message.value.npy", "w", force_zip64=True) as fh:
+            np.lib.format.write_array_header_1_0(
+                fh, {"descr": "<U32000000", "fortran_order": False, "shape": (1,)}
+            )
+            zeros = bytes(2**24)
+            for _ in range(8):
+                fh.write(zeros)
+    return buffer.getvalue()
+
+
 @pytest.mark.parametrize(
     ("forge", "reason"),
     [
@@ -132,9 +156,17 @@ def _done_values(out, flat: int) -> dict:  # type: ignore[no-untyped-def,type-ar
         (lambda v: None, "case index"),  # index -1
         (lambda v: None, "case index"),  # index 10^9
         (lambda v: None, "not a readable log"),  # truncated
+        (lambda v: v.update(n_points=float("nan")), "n_points: nan is not a whole number"),
+        (lambda v: v.update(n_points=2.5), "n_points: 2.5 is not a whole number"),
+        (lambda v: v.update(error_min_nm=float("nan"), error_max_nm=float("nan")), "error_min_nm is nan"),
+        (lambda v: v.update(n_points=-4), "n_points = -4 is negative"),
+        (lambda v: None, "unpacks to .* bytes, more than a log of this cube can hold"),  # bomb
     ],
-    ids=["nan-pv", "pv-0.5", "inf-rms", "status", "feasible", "index-negative", "index-huge", "truncated"],
-)
+    ids=[
+        "nan-pv", "pv-0.5", "inf-rms", "status", "feasible", "index-negative", "index-huge", "truncated",
+        "nan-count", "half-count", "nan-extremes", "negative-count", "bomb",
+    ],
+)  # fmt: skip
 def test_a_bad_worker_log_is_moved_aside_and_its_case_computed_again(
     tmp_path, catalog_dir, forge, reason, request
 ):
@@ -150,6 +182,8 @@ def test_a_bad_worker_log_is_moved_aside_and_its_case_computed_again(
     data = caselog._encode([(flat, values)])
     if request.node.callspec.id == "truncated":
         data = data[: len(data) // 2]
+    if request.node.callspec.id == "bomb":
+        data = _bomb(values)
     caselog.place(out).write(f"{caselog.LOG}/20260101T000000-x/abc-000001.npz", data)
     with pytest.warns(UserWarning, match=reason):
         report = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
@@ -185,3 +219,50 @@ def test_a_cube_a_sweep_cannot_write_is_a_usage_error(url, words, tmp_path, cata
         env={"FTSWEEP_CATALOGS": str(catalog_dir)},
     )
     assert ok.exit_code == 0, ok.output
+
+
+def test_a_refusal_a_worker_logs_is_reconsidered_by_retry_failed(tmp_path, catalog_dir):
+    # a log may say "refused" for a case its planning does not refuse: --retry-failed computes it
+    spec = tmp_path / "m.yaml"
+    spec.write_text(SPEC)
+    out = tmp_path / "refused.zarr"
+    run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    good = _done_values(out, 2)
+    cube.CubeWriter(out).write([(2, {"status": cube.PENDING})])
+    forged = cube.ended_values(cube.REFUSED, "refused: forged", "x")
+    caselog.place(out).write(
+        f"{caselog.LOG}/20260101T000000-x/abc-000001.npz", caselog._encode([(2, forged)])
+    )
+    plain = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert plain.done == 0 and run.cube_counts(out)["refused"] == 1
+    retried = run_sweep(
+        str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir, retry_failed=True
+    )
+    assert retried.done == 1 and run.cube_counts(out)["done"] == 4
+    assert _done_values(out, 2)["pv_nm"] == good["pv_nm"]
+
+
+def test_logs_a_taken_over_run_writes_after_the_takeover_are_never_read():
+    url = "memory://ftsweep-tests/fenced-run/c.zarr"
+    first = Lease(url, "first", lease_s=60, run_id="R1")
+    first.acquire()
+    first._stop.set()  # paused: no renewal
+    first._renewer.join()  # type: ignore[union-attr]
+    at = place(url)
+    at.write(f"{caselog.LOG}/R1/a-000001.npz", b"written before the takeover")
+    lock = at.sibling(".lock")
+    record = json.loads(lock.read(""))
+    lock.write("", json.dumps({**record, "lease_until": 0.0}).encode())  # its term has passed
+    second = Lease(url, "second", lease_s=60, run_id="R2", fence_run=lambda run: caselog.fence_run(url, run))
+    second.acquire()
+    try:
+        at.write(f"{caselog.LOG}/R1/b-000001.npz", b"written after the takeover")
+        assert second.inherited == {f"{caselog.LOG}/R1/a-000001.npz"}
+        usable, dropped = caselog.fenced_out(at.listing(caselog.LOG), second.inherited)
+        assert f"{caselog.LOG}/R1/a-000001.npz" in usable and dropped == [f"{caselog.LOG}/R1/b-000001.npz"]
+        # a later run reads neither: the fenced run's logs are dropped unread
+        assert caselog.fenced_out(at.listing(caselog.LOG))[0] == []
+        with pytest.raises(LockError, match="taken over"):
+            first.confirm()
+    finally:
+        second.release()

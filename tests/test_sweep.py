@@ -231,7 +231,8 @@ def test_torn_status_chunk_reads_as_pending(reference_cube, tmp_path, catalog_di
 
 def test_refused_cases_are_listed_not_run_and_never_retried(tmp_path, catalog_dir):
     """Cases over the controller's capacity are refused before any is sent (their reason
-    recorded, nothing computed); neither a re-run nor --retry-failed runs them again."""
+    recorded, nothing computed); neither a re-run nor --retry-failed runs them again
+    (--retry-failed reconsiders them, and the driver's own check refuses them again at once)."""
     text = SMALL.replace("points: [8000, 20000]", "points: [8000, 3000000]")  # over capacity
     out = tmp_path / "refused.zarr"
     report = run_sweep(
@@ -252,7 +253,8 @@ def test_refused_cases_are_listed_not_run_and_never_retried(tmp_path, catalog_di
             catalog_folder=catalog_dir,
             retry_failed=retry,
         )
-        assert again.rows == [] and again.refused == {}
+        assert again.rows == [] and len(again.refused) == (3 if retry else 0)
+    assert all("over the capacity" in m for m in xr.open_zarr(out)["message"].values[1])
     best = best_per_point_count(out)
     assert best[0]["pv_nm"] is not None and best[1]["pv_nm"] is None
 

@@ -42,7 +42,14 @@ EXIT_DONE, EXIT_INCOMPLETE, EXIT_LOCKED = 0, 1, 75
     is_flag=True,
     help="Discard an existing cube and start over (required when the spec changed).",
 )
-@click.option("--retry-failed", is_flag=True, help="Also recompute cases recorded as failed.")
+@click.option(
+    "--retry-failed",
+    is_flag=True,
+    help=(
+        "Also recompute cases recorded as failed, and reconsider refused ones (those the "
+        "machine or layout rules out are refused again, at once)."
+    ),
+)
 @click.option(
     "--max-cases",
     type=COUNT,

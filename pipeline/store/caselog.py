@@ -15,6 +15,7 @@ from __future__ import annotations
 import io
 import uuid
 import warnings
+import zipfile
 from collections import defaultdict
 from collections.abc import Callable
 from typing import Any
@@ -52,10 +53,16 @@ class BadLog(ValueError):
 
 
 def _check_column(
-    var: str, index: np.ndarray, values: np.ndarray, shapes: dict[str, tuple[int, ...]]
+    var: str,
+    index: np.ndarray,
+    values: np.ndarray,
+    shapes: dict[str, tuple[int, ...]],
+    integers: frozenset[str] = frozenset(),
 ) -> None:
     """One variable's columns of a log: a cube variable, int64 flat indices within the cube,
-    one value per index of the cube variable's kind (maps of its shape)."""
+    one value per index of the cube variable's kind (maps of its shape); a variable of
+    ``integers`` gets whole, finite numbers within int64 (a NaN count would stop every
+    merge that converts it)."""
     if var not in shapes:
         raise BadLog(f"variable {var[:60]!r} is not one of the cube's")
     n_cases = int(np.prod(shapes["status"]))
@@ -72,6 +79,32 @@ def _check_column(
     extra = shapes[var][len(shapes["status"]) :]
     if values.shape[1:] != extra:
         raise BadLog(f"{var}: values of shape {values.shape[1:]} where the cube holds {extra}")
+    if var in integers and values.size and values.dtype.kind == "f":
+        whole = np.isfinite(values) & (np.abs(values) < 2.0**63)
+        whole[whole] = values[whole] == np.round(values[whole])
+        if not whole.all():
+            bad = values[~whole].ravel()[0]
+            raise BadLog(f"{var}: {bad} is not a whole number, and the cube holds counts")
+
+
+# every done case has these finite (where the cube holds them): the form error's extremes
+_FINITE_WHEN_DONE = ("error_min_nm", "error_max_nm")
+# bytes a log's member may unpack to per case and value: numbers 8, text up to the longest
+# message a case records (2,000 characters of 4 bytes in numpy's unicode arrays)
+_BYTES_PER_VALUE, _BYTES_PER_TEXT, _HEADER_BYTES = 8, 4 * 2000, 4096
+
+
+def unpacked_cap(shapes: dict[str, tuple[int, ...]]) -> int:
+    """The most bytes a log of a cube of these variable ``shapes`` can hold unpacked: every
+    case with every variable (indices and values), a header each. A log past it is refused
+    before anything is unpacked, so a compressed bomb costs nothing."""
+    n_cases = int(np.prod(shapes["status"]))
+    total = 0
+    for var, shape in shapes.items():
+        per_case = int(np.prod(shape[len(shapes["status"]) :], dtype=np.int64)) if len(shape) > 1 else 1
+        value = _BYTES_PER_TEXT if var in cube.TEXT else _BYTES_PER_VALUE * per_case
+        total += 2 * _HEADER_BYTES + n_cases * (8 + value)
+    return total
 
 
 # stored metrics that cannot be negative; P-V = max - min and RMS <= P-V hold for every case
@@ -90,6 +123,9 @@ def _check_done(flat: int, values: cube.Values) -> None:
             raise BadLog(f"case {flat}: {var} is infinite")
         if var in _NON_NEGATIVE and isinstance(value, (int, float)) and value < 0:
             raise BadLog(f"case {flat}: {var} = {value} is negative")
+    for var in _FINITE_WHEN_DONE:
+        if var in values and not (isinstance(values[var], (int, float)) and np.isfinite(values[var])):
+            raise BadLog(f"case {flat} is done but its {var} is {values[var]}, not a finite number")
     if values.get("feasible", 0) not in (0, 1):
         raise BadLog(f"case {flat}: feasible = {values['feasible']} is not 0 or 1")
     lo, hi = values.get("error_min_nm"), values.get("error_max_nm")
@@ -99,12 +135,27 @@ def _check_done(flat: int, values: cube.Values) -> None:
         raise BadLog(f"case {flat}: RMS {rms} nm exceeds its P-V {pv} nm")
 
 
-def checked_cases(data: bytes, shapes: dict[str, tuple[int, ...]]) -> list[tuple[int, cube.Values]]:
-    """The cases of a log's bytes, every record checked as untrusted input (``shapes``: each
-    cube variable's shape): a readable ``.npz`` without pickles, columns that pair up, indices
-    within the cube, values of the variables' kinds, a status a worker writes, and a done
-    case's metrics finite, in range and consistent (:func:`_check_done`); :class:`BadLog`
-    naming the first problem otherwise."""
+def _check_sizes(data: bytes, cap: int) -> None:
+    """The log's members as its zip directory declares them: each unpacks to at most what
+    the cube can hold (:func:`unpacked_cap`), read before any member is unpacked (zipfile
+    stops a member at its declared size)."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            declared = sum(info.file_size for info in archive.infolist())
+    except (zipfile.BadZipFile, ValueError, OSError) as exc:
+        raise BadLog(f"not a readable log ({type(exc).__name__}: {str(exc)[:120]})") from None
+    if declared > cap:
+        raise BadLog(
+            f"it unpacks to {declared:,} bytes, more than a log of this cube can hold ({cap:,}); "
+            "nothing was unpacked"
+        )
+
+
+def _columns(data: bytes, cap: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """A log's ``(index, value)`` arrays by variable, its sizes checked first (:func:`_check_sizes`)."""
+    if len(data) > cap:
+        raise BadLog(f"it holds {len(data):,} bytes, more than a log of this cube can hold")
+    _check_sizes(data, cap)
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as npz:
             columns = {}
@@ -121,9 +172,22 @@ def checked_cases(data: bytes, shapes: dict[str, tuple[int, ...]]) -> list[tuple
         raise
     except Exception as exc:  # zipfile, numpy and zlib raise many kinds for damaged bytes
         raise BadLog(f"not a readable log ({type(exc).__name__}: {str(exc)[:120]})") from None
+    return columns
+
+
+def checked_cases(
+    data: bytes, shapes: dict[str, tuple[int, ...]], integers: frozenset[str] = frozenset()
+) -> list[tuple[int, cube.Values]]:
+    """The cases of a log's bytes, every record checked as untrusted input (``shapes``: each
+    cube variable's shape): a readable ``.npz`` without pickles, columns that pair up, indices
+    within the cube, values of the variables' kinds, a status a worker writes, and a done
+    case's metrics finite, in range and consistent (:func:`_check_done`); :class:`BadLog`
+    naming the first problem otherwise. ``integers``: the cube's integer variables
+    (:func:`ftsweep.store.cube.integer_variables`)."""
+    columns = _columns(data, unpacked_cap(shapes))
     by_case: dict[int, cube.Values] = defaultdict(dict)
     for var, (index, values) in columns.items():
-        _check_column(var, index, values, shapes)
+        _check_column(var, index, values, shapes, integers)
         for flat, value in zip(index.tolist(), values, strict=True):
             by_case[int(flat)][var] = value.item() if value.ndim == 0 else value
     for flat, case_values in by_case.items():
@@ -227,17 +291,21 @@ def merge_logs(
     writers = _latest(keys, keep)
     if not writers:
         return 0
-    shapes = cube.variable_shapes(at)
+    shapes, integers = cube.variable_shapes(at), cube.integer_variables(at)
     cases: list[tuple[int, cube.Values]] = []
     merged: list[str] = []
     for stem in sorted(writers):  # the run id (a timestamp) leads the stem
         _, keys = writers[stem]
         try:
-            data = at.read(keys[-1])
+            data = at.read_capped(keys[-1], unpacked_cap(shapes))
         except FileNotFoundError:  # its writer replaced it just now: the next merge takes that
             continue
+        except ValueError as exc:  # larger than any log of this cube: never downloaded
+            _reject(at, keys[-1], None, str(exc))
+            merged.extend(keys)
+            continue
         try:
-            cases.extend(checked_cases(data, shapes))
+            cases.extend(checked_cases(data, shapes, integers))
         except BadLog as exc:
             _reject(at, keys[-1], data, str(exc))
         merged.extend(keys)
@@ -250,14 +318,18 @@ def merge_logs(
     return len({flat for flat, _ in cases})
 
 
-def _reject(at: Place, key: str, data: bytes, reason: str) -> None:
+def _reject(at: Place, key: str, data: bytes | None, reason: str) -> None:
     """Move a bad log aside (under ``_log_rejected/``, kept for inspection) with a warning;
-    its cases stay pending, so the run computes them again."""
-    aside = REJECTED + key[len(LOG) :]
-    at.write(aside, data)
+    its cases stay pending, so the run computes them again. ``data`` None: a log too large to
+    read, deleted unread (the merge deletes it with the others)."""
+    if data is None:
+        where = "deleted unread"
+    else:
+        where = f"moved to {REJECTED + key[len(LOG) :]}"
+        at.write(REJECTED + key[len(LOG) :], data)
     warnings.warn(
-        f"case log {key} is not what a worker writes ({reason}); moved to {aside} and its cases "
-        "will be computed again",
+        f"case log {key} is not what a worker writes ({reason}); {where}, and its cases will be "
+        "computed again",
         stacklevel=3,
     )
 
@@ -271,12 +343,12 @@ def logged_cases(where: PathLike) -> list[tuple[int, cube.Values]]:
     """The cases the logs hold, oldest run first, as the next merge would write them (read
     only: for reading a cube a run is writing, or one a killed run left, from elsewhere)."""
     at = place(where)
-    shapes = cube.variable_shapes(at)
+    shapes, integers = cube.variable_shapes(at), cube.integer_variables(at)
     found: list[tuple[int, cube.Values]] = []
     for _, (_, keys) in sorted(_latest(at.listing(LOG)).items()):
         try:
-            found.extend(checked_cases(at.read(keys[-1]), shapes))
-        except (FileNotFoundError, BadLog):  # replaced just now, or one the merge will reject
+            found.extend(checked_cases(at.read_capped(keys[-1], unpacked_cap(shapes)), shapes, integers))
+        except (FileNotFoundError, ValueError):  # replaced just now, or one the merge will reject
             continue
     return found
 

@@ -271,6 +271,20 @@ def variable_shapes(where: PathLike) -> dict[str, tuple[int, ...]]:
     return {name: tuple(array.shape) for name, array in group.arrays()}
 
 
+def integer_variables(where: PathLike) -> frozenset[str]:
+    """The cube's arrays that hold integers (counts, flags): a value written there must be a
+    whole, finite number."""
+    group = open_group(where, mode="r")
+    found = set()
+    for name, array in group.arrays():
+        try:
+            if np.dtype(array.dtype).kind in "biu":
+                found.add(name)
+        except TypeError:  # zarr's variable-length strings
+            continue
+    return frozenset(found)
+
+
 # the metrics without which no case counts as done (every kind stores them: the run's record)
 REQUIRED = ("pv_nm", "rms_nm")
 

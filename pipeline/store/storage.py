@@ -130,6 +130,19 @@ class Place:
         fs, _ = self.fs()
         return bytes(fs.cat_file(self.key(key)))
 
+    def read_capped(self, key: str, cap: int) -> bytes:
+        """The object's bytes if it holds at most ``cap`` (its size asked first, so a larger
+        one is never downloaded); ValueError naming both sizes otherwise."""
+        fs, _ = self.fs()
+        path = self.key(key)
+        size = int(fs.size(path))
+        if size > cap:
+            raise ValueError(f"it holds {size:,} bytes, more than {cap:,}; it was not read")
+        data = bytes(fs.cat_file(path))
+        if len(data) > cap:  # replaced by a larger one in between
+            raise ValueError(f"it grew past {cap:,} bytes while it was read; it was not used")
+        return data
+
     def write(self, key: str, data: bytes) -> None:
         """Replace the object ``key`` whole: a reader sees the old bytes or the new, never a
         torn mix (a temporary file and a rename locally; one PUT on object storage)."""

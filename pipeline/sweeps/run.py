@@ -325,9 +325,11 @@ def _wanted_cases(
             )
         _fenced(lease, lambda fence: prune_cases(spec, out, status, prune, run_id, catalog_folder, fence))
         status = cube.read_status(out).ravel()
+    # a refusal recorded by a worker's log is reconsidered by --retry-failed too: the driver's
+    # own check (refuse_cases) refuses again what it refuses, so a forged one hides nothing
     wanted = (
         (status == cube.PENDING)
-        | (retry_failed & (status == cube.FAILED))
+        | (retry_failed & ((status == cube.FAILED) | (status == cube.REFUSED)))
         | ((prune is None) & (status == cube.PRUNED))
     )
     return [int(i) for i in np.flatnonzero(wanted)], status

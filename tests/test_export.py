@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 import xarray as xr
 from click.testing import CliRunner
+from clusters import BIN
 
 from ftsweep.cli.main import main
 from ftsweep.engine.planning import control_table
@@ -241,3 +243,46 @@ def test_identifiers_are_valid_c_whatever_the_names(ring_cube, tmp_path):
         cwd=tmp_path,
         capture_output=True,
     )
+
+
+def test_a_second_export_to_the_same_name_is_refused_and_writes_nothing(ring_cube, tmp_path):
+    from ftsweep.store.lock import acquire, release
+
+    header = tmp_path / "busy.h"
+    held = acquire(header, command="ftsweep export -o busy.h")  # an export of another process
+    try:
+        with pytest.raises(ExportError, match="busy.h is being written by pid .*nothing exported"):
+            export(ring_cube, header, index=0)
+    finally:
+        release(held)
+    assert not header.exists() and not header.with_suffix(".json").exists()
+    export(ring_cube, header, index=0)  # once the first is done
+    assert header.exists() and not list(tmp_path.glob(".busy.h.*"))
+
+
+def test_a_failed_signing_publishes_nothing(ring_cube, tmp_path):
+    # the file and its sidecar are signed in a staging folder before anything is published:
+    # a key that cannot sign leaves neither an unsigned header nor its sidecar behind
+    bad_key = tmp_path / "not-a-key.key"
+    bad_key.write_text("not a PEM key\n")
+    header = tmp_path / "signed.h"
+    with pytest.raises(ExportError, match="not a PEM private key"):
+        export(ring_cube, header, index=0, sign_key=str(bad_key))
+    assert sorted(p.name for p in tmp_path.glob("signed*")) == []
+    assert not list(tmp_path.glob(".signed.h.*"))
+
+
+def test_two_exports_to_one_name_leave_one_case_whole(ring_cube, tmp_path, catalog_dir):
+    # two processes export cases 0 and 1 to one -o at once: one wins whole, the other is
+    # refused (or, having started after, replaces it whole); header and sidecar always agree
+    header = tmp_path / "race.h"
+    cmd = [str(BIN / "ftsweep"), "export", str(ring_cube), "-o", str(header), "--force"]
+    env = {**os.environ, "FTSWEEP_CATALOGS": str(catalog_dir)}
+    procs = [subprocess.Popen([*cmd, "--case", str(i)], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for i in (0, 1)]  # fmt: skip
+    results = [(p.wait(timeout=300), p.stderr.read()) for p in procs]  # type: ignore[union-attr]
+    assert any(rc == 0 for rc, _ in results), results
+    for rc, err in results:
+        assert rc == 0 or "is being written by pid" in err, err
+    verify(header)  # the pair agrees: one case's header with that case's sidecar
+    assert not list(tmp_path.glob(".race.h.*")) and not (tmp_path / "race.h.lock").exists()

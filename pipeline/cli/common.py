@@ -11,6 +11,7 @@ from typing import Any, Optional
 
 import click
 
+from ftsweep.inputs.strict import check_physical
 from ftsweep.store.io import dumps_json
 
 
@@ -21,6 +22,10 @@ class FiniteRange(click.FloatRange):
         number = super().convert(value, param, ctx)
         if not math.isfinite(number):
             self.fail(f"{number} is not a finite number", param, ctx)
+        if param is not None and param.name:
+            problem = check_physical(param.name, number)  # 1e308 µm, points, a 1e-300 µm radius
+            if problem:
+                self.fail(problem.replace(param.name, f"--{param.name.replace('_', '-')}", 1), param, ctx)
         return number
 
     def _describe_range(self) -> str:

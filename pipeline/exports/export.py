@@ -7,6 +7,11 @@ their kinds (:mod:`ftsweep.kinds.table.header`, :mod:`ftsweep.kinds.path_program
 
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -77,9 +82,6 @@ def export(
     ``trust_plugins``. Signed (``FILE.sig``) when a signing key is configured
     (:func:`ftsweep.exports.origin.signing_key` of ``sign_key``). A path program is written in
     ``dialect`` (default: the machine's controller's, :mod:`ftsweep.exports.nc`)."""
-    from ftsweep.exports import nc
-    from ftsweep.tools.select import check_exportable, choose, open_cube, recorded_case
-
     out = Path(out)
     side = sidecar_path(out)
     try:  # the sidecar names the file and the file its sidecar: both are rendered
@@ -90,8 +92,44 @@ def export(
         raise ExportError(
             f"-o {out}: the sidecar {side.name} would overwrite the file; name it FILE.h or FILE.txt"
         )
-    check_overwrite((out, side, signature_path(out)), force)
     key = signing_key(sign_key)
+    with _export_lock(out):
+        check_overwrite((out, side, signature_path(out)), force)
+        return _export_locked(
+            (cube_path, out), (budget_points, tolerance_nm, index), (name, trust_plugins, key, dialect)
+        )
+
+
+@contextmanager
+def _export_lock(out: Path) -> Iterator[None]:
+    """Hold ``FILE.lock`` beside the exported file (:func:`ftsweep.store.lock.acquire`: a
+    killed export's lock is taken over): a second export to the same name is refused,
+    naming the first, and writes nothing."""
+    from ftsweep.store.lock import LockError, acquire, release
+
+    try:
+        lock = acquire(out, command=f"ftsweep export -o {out.name}")
+    except LockError as exc:
+        raise ExportError(f"{exc}; nothing exported") from None
+    try:
+        yield
+    finally:
+        release(lock)
+
+
+def _export_locked(
+    paths: tuple[PathLike, Path],
+    selection: tuple[int | None, float | None, int | None],
+    options: tuple[str | None, bool, Path | None, str | None],
+) -> dict[str, Any]:
+    """:func:`export` once its lock is held: the files are written and signed in a staging
+    folder beside ``out`` under their final names, then published (:func:`_publish`)."""
+    from ftsweep.exports import nc
+    from ftsweep.tools.select import check_exportable, choose, open_cube, recorded_case
+
+    cube_path, out = paths
+    budget_points, tolerance_nm, index = selection
+    name, trust_plugins, key, dialect = options
     ds = open_cube(cube_path)
     chosen = choose(ds, budget_points, tolerance_nm, index)
     if tolerance_nm is not None and not chosen.get("met", True):
@@ -104,26 +142,50 @@ def export(
     case, specs = recorded_case(ds, flat, trust_plugins)
     extra = {"cube": str(cube_path), "cube_git_revision": ds.attrs.get("git_revision")}
     dialect = dialect or nc.default_dialect(specs[1])
-    if dialect != "text":
-        return signed(out, key, nc.export(out, side, case, specs, chosen, extra, dialect))
-    if specs[1].interpolation != "linear":
+    if dialect == "text" and specs[1].interpolation != "linear":
         raise ExportError(
             f"machine '{case.machine}' interpolates {specs[1].interpolation}; ftsweep's text programs are "
             f"linear: export --dialect {specs[1].controller.dialect}"
         )
-    fmt = format_of_kind(case.layout.kind)
-    assert fmt.export is not None
-    meta = fmt.export(out, side, case, specs, chosen, extra, name=name)
-    return signed(out, key, meta)
+    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".export", dir=out.parent))
+    try:
+        staged, staged_side = stage / out.name, stage / sidecar_path(out).name
+        if dialect != "text":
+            meta = nc.export(staged, staged_side, case, specs, chosen, extra, dialect)
+        else:
+            fmt = format_of_kind(case.layout.kind)
+            assert fmt.export is not None
+            meta = fmt.export(staged, staged_side, case, specs, chosen, extra, name=name)
+        if key is not None:  # signed before anything is published: a failed signing publishes nothing
+            meta = {**meta, "signature": sign(staged, key)}
+        _publish(stage, out)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return meta
 
 
 def signed(out: Path, key: Path | None, meta: dict[str, Any]) -> dict[str, Any]:
-    """``meta`` of a file just written, after signing it with ``key`` (``signature`` then
-    holds the key's ID) or, with no key, removing a signature left by an earlier export."""
+    """``meta`` of a file a study just wrote in place, after signing it with ``key``
+    (``signature`` then holds the key's ID) or, with no key, removing a signature left by an
+    earlier export."""
     if key is None:
         signature_path(out).unlink(missing_ok=True)
         return meta
     return {**meta, "signature": sign(out, key)}
+
+
+def _publish(stage: Path, out: Path) -> None:
+    """Move the staged sidecar, signature and file into place, the file last, each by one
+    ``os.replace`` (a reader sees an old file or the new one whole); a signature left by an
+    earlier export of an unsigned file is removed. A kill between two renames can leave a
+    new sidecar beside the old file, which verify refuses (their hashes name each other)."""
+    side, sig = sidecar_path(out), signature_path(out)
+    os.replace(stage / side.name, side)
+    if (stage / sig.name).exists():
+        os.replace(stage / sig.name, sig)
+    else:
+        sig.unlink(missing_ok=True)
+    os.replace(stage / out.name, out)
 
 
 def verify(

@@ -318,8 +318,11 @@ def resolve_sweep_path(name_or_path: str) -> Path:
     """A sweep name (``catalogs/sweeps/NAME.yaml``) or a path to a YAML file."""
     candidate = Path(name_or_path)
     if candidate.suffix in (".yaml", ".yml") or candidate.exists():
-        if not candidate.is_file():
+        if not candidate.exists():
             raise CatalogError(f"sweep file {candidate} does not exist")
+        if not candidate.is_file():
+            what = "a folder" if candidate.is_dir() else "a device, FIFO or socket"
+            raise CatalogError(f"sweep file {candidate} is {what}, not a YAML file; nothing was read")
         return candidate
     path = sweep_dir() / f"{name_or_path}.yaml"
     if not path.is_file():

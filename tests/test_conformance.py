@@ -132,7 +132,7 @@ class KindTests:
             res = CliRunner().invoke(main, args, env=env)
             assert res.exit_code == 0, res.output
             files.append(path.read_bytes())
-            sidecars.append(json.loads(path.with_suffix(".json").read_text()))
+            sidecars.append(json.loads(path.with_name(path.name + ".json").read_text()))
         assert files[0] == files[1]
         assert sidecars[0]["created"] != sidecars[1]["created"]
         assert {k: v for k, v in sidecars[0].items() if k != "created"} == {

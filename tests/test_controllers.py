@@ -152,7 +152,7 @@ def test_one_changed_digit_is_refused(moore, tmp_path):
     k = next(i for i, line in enumerate(lines) if line.startswith("G01 C") and i > 30)
     for name, fix_crc in (("edited", False), ("recrc", True)):
         bad = tmp_path / f"{name}.nc"
-        shutil.copy(out.with_suffix(".json"), bad.with_suffix(".json"))
+        shutil.copy(out.with_name(out.name + ".json"), bad.with_name(bad.name + ".json"))
         changed = list(lines)
         changed[k] = (
             changed[k].replace("Z-0.", "Z-1.", 1)

@@ -197,7 +197,7 @@ def test_existing_header_needs_force(ring_cube, tmp_path):
     with pytest.raises(ExportError, match="--force"):
         export(ring_cube, header, index=1)
     export(ring_cube, header, index=1, force=True)
-    assert json.loads(header.with_suffix(".json").read_text())["selection"]["index"] == 1
+    assert json.loads(header.with_name(header.name + ".json").read_text())["selection"]["index"] == 1
     assert not list(tmp_path.glob(".t.h.*"))  # no temporary files left behind
 
 
@@ -255,7 +255,7 @@ def test_a_second_export_to_the_same_name_is_refused_and_writes_nothing(ring_cub
             export(ring_cube, header, index=0)
     finally:
         release(held)
-    assert not header.exists() and not header.with_suffix(".json").exists()
+    assert not header.exists() and not header.with_name(header.name + ".json").exists()
     export(ring_cube, header, index=0)  # once the first is done
     assert header.exists() and not list(tmp_path.glob(".busy.h.*"))
 

@@ -73,7 +73,9 @@ def test_a_sweep_can_leave_it_out(tmp_path, catalog_dir, monkeypatch):
     header = tmp_path / "off.h"
     sidecar = export(out, header, budget_points=8000)
     assert sidecar["selection"]["pv_interp_nm"] != sidecar["selection"]["pv_interp_nm"]  # NaN in memory
-    assert json.loads(header.with_suffix(".json").read_text())["selection"]["pv_interp_nm"] is None
+    assert (
+        json.loads(header.with_name(header.name + ".json").read_text())["selection"]["pv_interp_nm"] is None
+    )
     assert verify(header)["pv_nm"] > 0
 
 

@@ -95,7 +95,7 @@ def test_one_changed_servo_digit_is_refused(layered, tmp_path):
     lines[k] = lines[k].replace(" W0.0002", " W0.0003", 1)
     bad = tmp_path / "bad.nc"
     bad.write_text("\n".join(lines) + "\n")
-    (tmp_path / "bad.json").write_text(out.with_suffix(".json").read_text())
+    (tmp_path / "bad.json").write_text(out.with_name(out.name + ".json").read_text())
     r = CliRunner().invoke(main, ["verify", str(bad)], env=env)
     assert r.exit_code == 1 and "CRC" in r.output
 

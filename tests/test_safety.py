@@ -89,8 +89,8 @@ def exported(tmp_path_factory, module_catalog_dir):
 def header_copy(exported, tmp_path, module_catalog_dir, monkeypatch):
     # verify compares the recorded entries with the catalog: the one the header came from
     monkeypatch.setenv("FTSWEEP_CATALOGS", str(module_catalog_dir))
-    for suffix in (".h", ".json"):
-        shutil.copy(exported.with_suffix(suffix), tmp_path / f"fts{suffix}")
+    for suffix in ("", ".json"):
+        shutil.copy(f"{exported}{suffix}", tmp_path / f"fts.h{suffix}")
     return tmp_path / "fts.h"
 
 
@@ -171,7 +171,7 @@ def test_every_edited_macro_fails_verify(header_copy, name):
     ids=["predicted-pv", "feed", "surface-params"],
 )
 def test_edited_sidecar_fails_verify(header_copy, edit):
-    side = header_copy.with_suffix(".json")
+    side = header_copy.with_name(header_copy.name + ".json")
     meta = json.loads(side.read_text())
     edit(meta)
     side.write_text(json.dumps(meta, indent=2))
@@ -200,7 +200,7 @@ def test_table_forged_with_its_crc_fails_on_the_header_hash(header_copy):
     with pytest.raises(ExportError, match="another table|SHA-256 mismatch"):
         verify(header_copy)
     # with the sidecar's CRC forged too, the header's hash still gives it away
-    side = header_copy.with_suffix(".json")
+    side = header_copy.with_name(header_copy.name + ".json")
     meta = json.loads(side.read_text())
     meta["crc32"] = int(dict(read_header(header_copy)[0])[CHECKSUM_MACRO].rstrip("UL"), 16)
     side.write_text(json.dumps(meta, indent=2))
@@ -216,7 +216,7 @@ def _forge_consistently(header: Path, text: str) -> None:
     crc = checksum(macro_list, ints, json.loads(dict(macro_list)["INT_TYPE"]))
     text = _replace_macro(text, CHECKSUM_MACRO, f"0x{crc:08x}UL")
     header.write_text(text)
-    side = header.with_suffix(".json")
+    side = header.with_name(header.name + ".json")
     meta = json.loads(side.read_text())
     meta["header_sha256"] = hashlib.sha256(text.encode()).hexdigest()
     meta["crc32"] = crc
@@ -235,7 +235,7 @@ def test_consistently_forged_table_fails_on_the_replanned_cells(header_copy):
 def test_consistently_forged_prediction_fails_on_the_resimulated_pv(header_copy):
     """The predicted P-V forged in the sidecar and the header, every hash and CRC made to
     agree: only the re-simulation can tell."""
-    side = header_copy.with_suffix(".json")
+    side = header_copy.with_name(header_copy.name + ".json")
     meta = json.loads(side.read_text())
     meta["pv_nm"] = meta["pv_nm"] / 2
     side.write_text(json.dumps(meta, indent=2))
@@ -317,7 +317,7 @@ def test_nan_off_the_test_grid_refuses_the_case_and_nothing_is_exported(tmp_path
     header = tmp_path / "holey.h"
     assert_one_line_error(cli(["export", str(out), "--case", "0", "-o", str(header)], holey), "refused")
     assert_one_line_error(cli(["select", str(out), "--budget-points", "100000"], holey), "no computed")
-    assert not header.exists() and not header.with_suffix(".json").exists()
+    assert not header.exists() and not header.with_name(header.name + ".json").exists()
 
 
 def test_quantisation_refuses_non_finite_values():
@@ -347,11 +347,26 @@ def zarr_array(path: Path, name: str):  # type: ignore[no-untyped-def]
 
 
 # ----------------------------------------------------------------------------- export
-def test_export_refuses_a_name_that_is_its_own_sidecar(exported, tmp_path):
+def test_two_files_of_one_stem_keep_their_own_sidecars(exported, tmp_path, module_catalog_dir, monkeypatch):
+    # sidecars are named from the whole file name: a.h and a.hdr do not share a.json
+    monkeypatch.setenv("FTSWEEP_CATALOGS", str(module_catalog_dir))
     cube_path = exported.parent / "one.zarr"
-    target = tmp_path / "table.json"
-    assert_one_line_error(cli(["export", str(cube_path), "--case", "0", "-o", str(target)]), "sidecar")
-    assert not target.exists()
+    for name in ("a.h", "a.hdr"):
+        assert cli(["export", str(cube_path), "--case", "0", "-o", str(tmp_path / name)]).exit_code == 0
+    assert sorted(p.name for p in tmp_path.glob("a.*.json")) == ["a.h.json", "a.hdr.json"]
+    for name in ("a.h", "a.hdr"):
+        verify(tmp_path / name)
+
+
+def test_a_sidecar_of_the_older_name_is_still_read_with_a_note(exported, tmp_path, module_catalog_dir):
+    shutil.copy(exported, tmp_path / "old.h")
+    shutil.copy(f"{exported}.json", tmp_path / "old.json")  # as exports named it before
+    res = cli(["verify", str(tmp_path / "old.h")], module_catalog_dir)
+    assert res.exit_code == 0, res.output
+    assert (
+        "note         the sidecar has the older name old.json; export again to name it old.h.json"
+        in res.output
+    )
 
 
 def test_outputs_respect_the_umask(exported, tmp_path):
@@ -360,7 +375,7 @@ def test_outputs_respect_the_umask(exported, tmp_path):
         export(exported.parent / "one.zarr", tmp_path / "u.h", index=0)
     finally:
         os.umask(old)
-    for path in (tmp_path / "u.h", tmp_path / "u.json"):
+    for path in (tmp_path / "u.h", tmp_path / "u.h.json"):
         assert stat.S_IMODE(path.stat().st_mode) == 0o644, path
 
 
@@ -563,7 +578,7 @@ PROBES = [
     ([*PREDICT, "--feed-um", "1e6", "--json"], "not below"),
     ([*PREDICT, "--nose-radius-um", "1e9"], "outside the physically meaningful range of --nose-radius-um"),
     ([*PREDICT, "--nose-radius-um", "1e-300"], "(0.001 to 1e+07)"),
-    ([*PREDICT[:5], "1e308", *PREDICT[5:]], "range of --drho-um (at most 1e+07 in magnitude)"),
+    ([*PREDICT[:4], "1e308", *PREDICT[5:]], "range of --drho-um (at most 1e+07 in magnitude)"),
     ([*PREDICT[:2], "sinewave2d", *PREDICT[3:], "--points-per-feed", "100000"], "GiB"),
     ([*PREDICT[:3], "--points", "9e5", "--aspect", "1", "--max-nodes", "1e3"], "max-nodes"),
     (["predict", "--surface", "bad_plugin", "--drho-um", "5", "--dtheta-deg", "2"], "cannot import"),

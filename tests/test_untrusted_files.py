@@ -71,8 +71,8 @@ def copies(originals, tmp_path, module_catalog_dir, monkeypatch):
     monkeypatch.setenv("FTSWEEP_CATALOGS", str(module_catalog_dir))
     out = {}
     for name, path in originals.items():
-        for suffix in (path.suffix, ".json"):
-            shutil.copy(path.with_suffix(suffix), tmp_path / f"{name}{suffix}")
+        for suffix in ("", ".json"):
+            shutil.copy(f"{path}{suffix}", tmp_path / f"{name}{path.suffix}{suffix}")
         out[name] = tmp_path / path.name
     return out
 
@@ -81,7 +81,7 @@ def copies(originals, tmp_path, module_catalog_dir, monkeypatch):
 def forge_header_from_sidecar(header: Path, edit) -> str:  # type: ignore[no-untyped-def]
     """Edit the sidecar, then re-make the header from it with ftsweep's own renderer and
     re-make every digest, CRC and hash: what an attacker with the project's code can do."""
-    side = header.with_suffix(".json")
+    side = header.with_name(header.name + ".json")
     meta = json.loads(side.read_text())
     edit(meta)
     macros, ints = read_header(header)
@@ -105,7 +105,7 @@ def forge_header_text(header: Path, text: str) -> None:
         crc = checksum(macros, ints, json.loads(dict(macros)["INT_TYPE"]))
         text = re.sub(rf"(_{CHECKSUM_MACRO}) 0x[0-9a-f]+UL", rf"\g<1> 0x{crc:08x}UL", text)
         header.write_text(text)
-    side = header.with_suffix(".json")
+    side = header.with_name(header.name + ".json")
     meta = json.loads(side.read_text())
     meta.update(header_sha256=hashlib.sha256(text.encode()).hexdigest(), **({"crc32": crc} if crc else {}))
     side.write_text(json.dumps(meta, indent=2))
@@ -114,7 +114,7 @@ def forge_header_text(header: Path, text: str) -> None:
 def forge_program(path: Path, edit) -> None:  # type: ignore[no-untyped-def]
     """Edit a program's sidecar, re-render the header rows that carry the edited text, and
     re-make the sidecar digest line, the CRC line and the program hash."""
-    side = path.with_suffix(".json")
+    side = path.with_name(path.name + ".json")
     meta = json.loads(side.read_text())
     old = dict(meta)
     edit(meta)
@@ -154,7 +154,7 @@ def test_free_text_in_the_sidecar_cannot_rewrite_the_header(copies):
     assert c_macros(header)["FTS_PITCH0"] == "7.63" != good_pitch
     with pytest.raises(ExportError, match="line 13: a conditional other than the include guard"):
         verify(header)  # C's reading of the header refuses it
-    with pytest.raises(ExportError, match=r"fts.json: fts.json.generator holds '\*' at character 26"):
+    with pytest.raises(ExportError, match=r"fts.h.json: fts.h.json.generator holds '\*' at character 26"):
         read_sidecar(header)  # and the sidecar's text is refused where it enters, on its own
 
 
@@ -244,7 +244,9 @@ def _mutated_copy(data, original: Path, alphabet, factory) -> tuple[bytes, bytes
     folder = factory.mktemp("mutated")
     copy = folder / original.name
     copy.write_bytes(mutated)
-    shutil.copy(original.with_suffix(".json"), folder / original.with_suffix(".json").name)
+    shutil.copy(
+        original.with_name(original.name + ".json"), folder / original.with_name(original.name + ".json").name
+    )
     return text, mutated, copy
 
 
@@ -352,7 +354,7 @@ def test_verify_dev_zero_exits_nonzero_within_a_second(tmp_path):
 
 def test_a_sidecar_number_beyond_a_float_is_named(copies, module_catalog_dir):
     header = copies["fts"]
-    side = header.with_suffix(".json")
+    side = header.with_name(header.name + ".json")
     side.write_text(side.read_text().replace('"crc32": ', '"crc32": 1e400, "x": ', 1))
     res = cli(["verify", str(header)], module_catalog_dir)
     assert res.exit_code == 1 and "does not fit a float" in res.output and "unexpected" not in res.output
@@ -403,7 +405,7 @@ def test_signed_export_verifies_with_its_key_and_any_change_is_refused(
     res = cli(["verify", str(out), "--trusted-key", str(tmp_path / "other.pub")], module_catalog_dir)
     assert res.exit_code == 1 and "not trusted here" in res.output
     # one changed byte anywhere in the file, its sidecar or the signature: refused
-    for target in (out, out.with_suffix(".json"), out.with_name("signed.h.sig")):
+    for target in (out, out.with_name(out.name + ".json"), out.with_name("signed.h.sig")):
         original = target.read_bytes()
         for pos in (0, len(original) // 2, len(original) - 2):
             changed = bytearray(original)
@@ -445,7 +447,7 @@ def test_a_consistent_forgery_of_the_recorded_surface_is_refused_against_the_cat
     from ftsweep.kinds.table.layout import build_layout
 
     header = copies["fts"]
-    side = header.with_suffix(".json")
+    side = header.with_name(header.name + ".json")
     meta = json.loads(side.read_text())
     params = meta["catalog_entries"]["surface"]["params"]
     key = next(k for k in params if k.startswith("amplitude"))
@@ -549,14 +551,13 @@ def test_mutated_programs_are_refused_whenever_the_controller_would_move_otherwi
     # refuses
     original = originals["prog"]
     text, mutated, program = _mutated_copy(data, original, PROGRAM_BYTES, tmp_path_factory)
-    folder = program.parent
     rows = mutated.decode("latin-1").split("\n")
     at = next((i for i, r in enumerate(rows) if r.startswith("# CRC32:")), None)
     if at is not None:  # re-make the CRC over every other line, and the file's hashes
         rows[at] = CRC_LINE.format(crc_of(rows[:at] + rows[at + 1 : -1]))
         forged = "\n".join(rows).encode("latin-1")
         program.write_bytes(forged)
-        side = folder / "prog.json"
+        side = program.with_name(program.name + ".json")
         meta = json.loads(side.read_text())
         meta.update(program_sha256=hashlib.sha256(forged).hexdigest(), crc32=int(rows[at].split()[2], 16))
         side.write_text(json.dumps(meta, indent=2))
@@ -575,7 +576,7 @@ def test_an_export_chosen_by_tolerance_verifies(originals, tmp_path, module_cata
     out = tmp_path / "tol.h"
     res = cli(["export", cube_path, "--tolerance-nm", "1000", "-o", str(out)], module_catalog_dir)
     assert res.exit_code == 0, res.output
-    assert "≤" in json.loads(out.with_suffix(".json").read_text())["selection"]["rule"]
+    assert "≤" in json.loads(out.with_name(out.name + ".json").read_text())["selection"]["rule"]
     res = cli(["verify", str(out)], module_catalog_dir)
     assert res.exit_code == 0, res.output
 
@@ -586,4 +587,4 @@ def test_a_study_program_name_that_would_become_syntax_is_refused(tmp_path, modu
     res = cli(["fresnel", "--points-per-turn", "40", "--facet-height-um", "10", "--plots", str(tmp_path),
                "-o", str(out)], module_catalog_dir)  # fmt: skip
     assert res.exit_code == 1 and "holds '('" in res.output, res.output
-    assert not out.exists() and not out.with_suffix(".json").exists()
+    assert not out.exists() and not out.with_name(out.name + ".json").exists()

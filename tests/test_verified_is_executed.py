@@ -94,8 +94,8 @@ def exports(cubes, tmp_path_factory, catalogs_with_fresnel):
 
 def copy_of(exports: dict[str, Path], kind: str, folder: Path) -> Path:
     src = exports[kind]
-    for suffix in (src.suffix, ".json"):
-        (folder / f"{kind}{suffix}").write_bytes(src.with_suffix(suffix).read_bytes())
+    for suffix in ("", ".json"):
+        (folder / f"{kind}{src.suffix}{suffix}").write_bytes(Path(f"{src}{suffix}").read_bytes())
     return folder / src.name
 
 
@@ -122,7 +122,7 @@ def forge_header(header: Path, text: str) -> None:
     crc = checksum(macros, ints, json.loads(dict(macros)["INT_TYPE"]))
     text = re.sub(rf"(_{CHECKSUM_MACRO}) 0x[0-9a-f]+UL", rf"\g<1> 0x{crc:08x}UL", text)
     header.write_text(text)
-    side = header.with_suffix(".json")
+    side = header.with_name(header.name + ".json")
     meta = json.loads(side.read_text())
     meta.update(crc32=crc, header_sha256=hashlib.sha256(text.encode()).hexdigest())
     side.write_text(json.dumps(meta, indent=2))
@@ -136,7 +136,7 @@ def forge_program(path: Path, rows: list[str]) -> None:
     rows[at] = CRC_LINE.format(crc)
     text = "\n".join(rows) + "\n"
     path.write_text(text)
-    side = path.with_suffix(".json")
+    side = path.with_name(path.name + ".json")
     meta = json.loads(side.read_text())
     meta.update(crc32=crc, program_sha256=hashlib.sha256(text.encode()).hexdigest())
     side.write_text(json.dumps(meta, indent=2))
@@ -291,7 +291,7 @@ def test_a_sidecar_naming_other_bytes_is_refused(kind, exports, tmp_path, catalo
     """The sidecar's SHA-256 of the program must be that of the bytes read (hashed as read,
     the very bytes whose lines are checked)."""
     path = copy_of(exports, kind, tmp_path)
-    side = path.with_suffix(".json")
+    side = path.with_name(path.name + ".json")
     meta = json.loads(side.read_text())
     assert meta["program_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
     meta["program_sha256"] = hashlib.sha256(path.read_bytes() + b"\n").hexdigest()
@@ -310,7 +310,7 @@ def test_a_sidecar_naming_a_plugin_is_refused_without_importing_it(
     (tmp_path / f"{PROBE_MODULE}.py").write_text("import numpy as np\n\ndef f(x, y):\n    return 0.0 * x\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     header = copy_of(exports, "ring", tmp_path)
-    side = header.with_suffix(".json")
+    side = header.with_name(header.name + ".json")
     meta = json.loads(side.read_text())
     surface = meta["catalog_entries"]["surface"]
     surface.update(family="plugin", params={"function": f"{PROBE_MODULE}:f", "params": {}})
@@ -417,7 +417,7 @@ def test_every_probe_is_refused_at_once_in_one_line(args, fragment, exports, cat
     np.save(catalog_dir / "data" / "object_map.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
     listed = tmp_path / "list-sidecar.txt"
     listed.write_bytes(exports["spiral-angle"].read_bytes())
-    listed.with_suffix(".json").write_text("[]")
+    listed.with_name(listed.name + ".json").write_text("[]")
     args = [a.replace("{d}", str(tmp_path)) for a in args]
     invoke(["--help"], catalog_dir)  # imports paid before the clock starts
     start = time.perf_counter()

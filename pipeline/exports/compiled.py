@@ -153,9 +153,9 @@ def check_file(path: Path, format_name: str, trust_plugins: bool = False) -> dic
         raise ExportError(f"--compiled evaluates table headers and PMAC programs, not a {format_name}")
     from ftsweep.exports.files import recorded_case_of
     from ftsweep.kinds.table import header
-    from ftsweep.store.io import sidecar_path
+    from ftsweep.store.io import sidecar_of
 
     _, ints, meta, _, _ = header.check_integrity(Path(path))
-    case, specs = recorded_case_of(meta, sidecar_path(Path(path)), trust_plugins)
+    case, specs = recorded_case_of(meta, sidecar_of(Path(path)), trust_plugins)
     layout = header.build_layout(specs[0], case.layout)
     return check_header(path, layout, ints * specs[1].table_unit_nm * 1e-3)

@@ -26,6 +26,7 @@ from ftsweep.store.io import (
     check_overwrite,
     read_regular,
     read_sidecar,
+    sidecar_of,
     sidecar_path,
 )
 from ftsweep.store.storage import PathLike
@@ -88,10 +89,6 @@ def export(
         check_text(out.name, "the output file's name")
     except TextError as exc:
         raise ExportError(f"-o {str(out)[:200]!r}: {exc}") from None
-    if side == out:
-        raise ExportError(
-            f"-o {out}: the sidecar {side.name} would overwrite the file; name it FILE.h or FILE.txt"
-        )
     key = signing_key(sign_key)
     with _export_lock(out):
         check_overwrite((out, side, signature_path(out)), force)
@@ -209,7 +206,7 @@ def verify(
 
     path = Path(path)
     fmt = format_of_file(path)
-    side = sidecar_path(path)
+    side = sidecar_of(path)
     before = _contents(path, side)
     # the file as the machine reads it first (its own errors name what is wrong with it) ...
     record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
@@ -232,6 +229,10 @@ def verify(
     else:
         catalog = org.check_catalog(read_sidecar(path, side_bytes), side)
         record["origin"] = {"proved": "consistent with this catalog", "catalog": catalog}
+    if side != sidecar_path(path):
+        record["note"] = (
+            f"the sidecar has the older name {side.name}; export again to name it {sidecar_path(path).name}"
+        )
     return record
 
 
@@ -243,7 +244,13 @@ def _contents(path: Path, side: Path) -> tuple[bytes, bytes | None]:
 
 
 def origin_line(record: dict[str, Any]) -> str:
-    """The line that says what verify proved of a file's origin."""
+    """The line that says what verify proved of a file's origin (and a note on its sidecar's
+    older name, where it has one)."""
+    line = _origin(record)
+    return f"{line}\nnote         {record['note']}" if record.get("note") else line
+
+
+def _origin(record: dict[str, Any]) -> str:
     proved = record.get("origin", {})
     if proved.get("key_id"):
         return f"origin       signed by key {proved['key_id']} (trusted)"

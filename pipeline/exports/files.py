@@ -33,8 +33,10 @@ from ftsweep.store.io import (
     ExportError,
     check_sidecar_text,
     dumps_json,
+    older_sidecar_path,
     read_regular,
     read_sidecar,
+    sidecar_of,
     sidecar_path,
     write_texts_atomic,
 )
@@ -367,7 +369,10 @@ def check_document(
     lines leave the re-planned ones by more than :data:`LINE_TOLERANCE`, or whose sidecar
     claims other than the re-derived ones; each message names the line or field."""
     head, lines, expected_meta = planned
-    side_name = sidecar_path(Path(str(meta.get("program", path.name)))).name
+    # the sidecar's name as export rendered it: from the program's recorded name, by the rule
+    # of the sidecar found (an older export's FILE.json)
+    named = sidecar_path if sidecar_of(path) == sidecar_path(path) else older_sidecar_path
+    side_name = named(Path(str(meta.get("program", path.name)))).name
     want = [*head, *closing_lines(side_name, meta)]
     for number, (a, b) in enumerate(zip(doc.rows, want, strict=False), start=1):
         if a != b:
@@ -412,7 +417,7 @@ def _check_claims(path: Path, meta: dict[str, Any], expected: dict[str, Any]) ->
     differ = sorted(k for k in set(got) | set(want) if got.get(k) != want.get(k))
     if differ:
         raise ProgramError(
-            f"{sidecar_path(path)}: {', '.join(differ[:5])} differ(s) from what the recorded case gives; "
+            f"{sidecar_of(path)}: {', '.join(differ[:5])} differ(s) from what the recorded case gives; "
             "do not run it"
         )
 
@@ -427,7 +432,7 @@ def sidecar_naming(path: Path, sha256: str, stated: str) -> dict[str, Any]:
     """The sidecar of the program file ``path`` whose bytes have SHA-256 ``sha256`` and whose
     header states the sidecar's digest ``stated``: refused unless the sidecar names those bytes
     and has that digest (:func:`sidecar_digest` over all but :data:`TEXT_FIELDS`)."""
-    side = sidecar_path(path)
+    side = sidecar_of(path)
     try:
         meta = read_sidecar(path)
     except ExportError as exc:

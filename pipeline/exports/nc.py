@@ -39,7 +39,7 @@ from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     dumps_json,
     read_regular,
-    sidecar_path,
+    sidecar_of,
     write_texts_atomic,
 )
 from ftsweep.version import __version__
@@ -256,14 +256,14 @@ def verify(
     dialect = dialect_named(lines)
     meta = _checked_text(path, lines, dialect)
     digest, crc = meta.pop("_digest"), meta.pop("_crc")
-    case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
+    case, specs = recorded_case_of(meta, sidecar_of(path), trust_plugins)
     meta_in: dict[str, Any] = {k: meta[k] for k in ("generator", "pv_nm", "selection") if k in meta}
     meta_in.update(recorded_extra(meta))
     planned, expected, (adapter, rcase) = _document(case, specs, dialect, meta_in)
     claims = [k for k in expected if k not in TEXT_FIELDS and _json(meta.get(k)) != _json(expected[k])]
     if claims:
         raise ProgramError(
-            f"{sidecar_path(path)}: {', '.join(claims[:5])} differ(s) from what the recorded case gives"
+            f"{sidecar_of(path)}: {', '.join(claims[:5])} differ(s) from what the recorded case gives"
         )
     planned, _ = _with_crc([_replace_digest(line, dialect, digest) for line in planned], dialect)
     for number, (a, b) in enumerate(zip(lines, planned, strict=False), start=1):

@@ -12,6 +12,7 @@ import functools
 import math
 import os
 import reprlib
+import stat
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union, cast
@@ -53,11 +54,31 @@ def error_text(error: Any) -> str:
     return str(error["msg"]).removeprefix("Value error, ")
 
 
+# the largest catalog or sweep file read: the shipped catalogs together are ~100 KB
+MAX_YAML_BYTES = 16 * 2**20
+
+
+def _read_capped(path: Path) -> bytes:
+    """The bytes of a regular file of at most :data:`MAX_YAML_BYTES`, judged by ``fstat`` of
+    the open descriptor before any read (a device or FIFO is never read)."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    with os.fdopen(fd, "rb") as fh:
+        info = os.fstat(fh.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise CatalogError(f"{path} is not a regular file; nothing was read")
+        if info.st_size > MAX_YAML_BYTES:
+            raise CatalogError(
+                f"{path} holds {info.st_size:,} bytes, more than any catalog or sweep file "
+                f"({MAX_YAML_BYTES:,}); nothing was read"
+            )
+        return fh.read(MAX_YAML_BYTES + 1)[:MAX_YAML_BYTES]
+
+
 def read_yaml_file(path: Path) -> Any:
     """Parse a YAML file, turning every way it can be unreadable into a :class:`CatalogError`
     that names the file."""
     try:
-        text = path.read_text(encoding="utf-8")
+        text = _read_capped(path).decode("utf-8")
     except UnicodeDecodeError as exc:
         raise CatalogError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
     except OSError as exc:

@@ -41,7 +41,7 @@ from ftsweep.exports.files import (
     recorded_case_of,
     recorded_entries,
     recorded_extra,
-    sidecar_path,
+    sidecar_of,
     write_program,
 )
 from ftsweep.exports.moves import pvt_tangents, with_pvt
@@ -165,7 +165,7 @@ def verify_program(
     path = Path(path)
     doc = read_program_file(path, MAGIC, COLUMNS)
     meta = checked_sidecar(path, doc)
-    case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
+    case, specs = recorded_case_of(meta, sidecar_of(path), trust_plugins)
     planned = spiral_document(
         case, specs, meta["selection"], recorded_extra(meta), meta["created"], meta["generator"]
     )
@@ -284,7 +284,7 @@ def verify_dpath(
     (:func:`check_document`), and the part re-simulated from the lines' C, X and Z."""
     doc = read_program_file(path, D_MAGIC, D_COLUMNS)
     meta = checked_sidecar(path, doc)
-    case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
+    case, specs = recorded_case_of(meta, sidecar_of(path), trust_plugins)
     # planned once: its lines are compared, its cut geometry carries the file's points
     rcase = resolve_case(case, specs=specs)
     planned = dpath_document(

@@ -75,7 +75,7 @@ def read_sidecar(path: Path, raw: bytes | None = None) -> dict[str, Any]:
     Infinity, no number that overflows a float), an object, and every string that export
     renders held to :func:`ftsweep.freetext.check_text`; :class:`ExportError` naming the
     problem otherwise. ``raw``: the sidecar's bytes, read already."""
-    side = sidecar_path(Path(path))
+    side = sidecar_of(Path(path))
     try:
         raw = read_regular(side, MAX_SIDECAR_BYTES, "sidecar") if raw is None else raw
     except ExportError as exc:
@@ -106,9 +106,28 @@ def check_sidecar_text(meta: dict[str, Any], side: Path, then: str) -> None:
         raise ExportError(f"{side}: {exc}; {then}") from None
 
 
-def sidecar_path(header: Path) -> Path:
-    """``FILE.json`` beside ``FILE.h``."""
-    return header.with_suffix(".json")
+def sidecar_path(path: Path) -> Path:
+    """``FILE.ext.json`` beside ``FILE.ext``, named from the whole file name (``part.nc`` and
+    ``part.pmc`` of one case never share a sidecar), as signatures are (``FILE.ext.sig``)."""
+    return path.with_name(path.name + ".json")
+
+
+def older_sidecar_path(path: Path) -> Path:
+    """``FILE.json`` beside ``FILE.ext``: the sidecar's name before it was named from the
+    whole file name (still read, :func:`sidecar_of`)."""
+    return path.with_suffix(".json")
+
+
+def sidecar_of(path: Path) -> Path:
+    """The sidecar a reader takes for ``path``: ``FILE.ext.json``, or, where only a sidecar of
+    the older name exists (``FILE.json``, exports before the whole name was used), that one;
+    verify says so in a note."""
+    path = Path(path)
+    new = sidecar_path(path)
+    old = older_sidecar_path(path)
+    if not new.exists() and old != path and path.suffix and old.exists():
+        return old
+    return new
 
 
 def check_overwrite(paths: tuple[Path, ...], force: bool) -> None:

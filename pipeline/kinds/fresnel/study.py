@@ -438,7 +438,7 @@ def verify(
     meta = files.checked_sidecar(path, doc)
     if "case" in meta:  # exported from a cube case
         return verify_case(path, doc, meta, trust_plugins, progress, pv_tolerance_nm)
-    side = files.sidecar_path(path)
+    side = files.sidecar_of(path)
     inp = recorded_inputs(meta, side)
     try:
         entries = meta["catalog_entries"]
@@ -546,7 +546,7 @@ def verify_case(
     from ftsweep.exports import files
     from ftsweep.simulate import resolve_case, run_case
 
-    case, specs = files.recorded_case_of(meta, files.sidecar_path(path), trust_plugins)
+    case, specs = files.recorded_case_of(meta, files.sidecar_of(path), trust_plugins)
     reason = lines_reason(doc.data, fp.limits_of(specs[1], case.machine))
     if reason:
         raise files.ProgramError(f"{path}: a line leaves the machine's limits: {reason}; do not run it")

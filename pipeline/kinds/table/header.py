@@ -35,7 +35,7 @@ from ftsweep.exports.files import (
     recorded_case_of,
     recorded_entries,
     sidecar_digest,
-    sidecar_path,
+    sidecar_of,
 )
 from ftsweep.kinds.table.c_view import read_c
 from ftsweep.kinds.table.layout import build_layout
@@ -369,7 +369,7 @@ def check_integrity(path: Path) -> tuple[dict[str, str], np.ndarray, dict[str, A
     macros = dict(macro_list)
     stored = _stored_checksum(macros, macro_list, ints, path)
     meta = read_sidecar(path)
-    side = sidecar_path(path)
+    side = sidecar_of(path)
     try:
         header_sha = meta["header_sha256"]
         recorded_crc = int(meta["crc32"])
@@ -432,7 +432,7 @@ def verify_header(
     """
     path = Path(path)
     macros, ints, meta, prefix, raw = check_integrity(path)
-    case, specs = recorded_case_of(meta, sidecar_path(path), trust_plugins)
+    case, specs = recorded_case_of(meta, sidecar_of(path), trust_plugins)
     surface, machine, _ = specs
     try:
         layout = build_layout(surface, case.layout)

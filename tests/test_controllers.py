@@ -422,6 +422,28 @@ def test_a_loop_that_does_not_end_is_refused(monkeypatch):
         dialects.read(lines, "iso-sts")
 
 
+def test_a_billion_pass_loop_is_refused_within_the_block_budget():
+    # counted work, not time: the reader stops once its loops executed the budget's lines
+    from ftsweep.exports import gcode
+
+    lines = ["G90 G21 G18 G94", "#1 = 0", "G93", "WHILE [#1 LT 1000000000] DO1",
+             "G01 C[#1*0.1] X[10.0-#1*0.00001] Z0.0 F0.001", "#1 = #1 + 1", "END1", "M30"]  # fmt: skip
+    reader = gcode.IsoReader(lines, "iso-sts", "seconds")
+    with pytest.raises(dialects.DialectError, match="loops executed more than 1,000,000 lines"):
+        reader.run()
+    assert reader.blocks == len(lines) + gcode.MAX_READ_BLOCKS + 1
+
+
+@pytest.mark.parametrize(
+    ("line", "words"),
+    [("G01 C[#7] X1.0 Z0.0 F1.0", "#7 is used before it is set"), ("#2 = 1.0/[#1-#1]", "division by zero")],
+)
+def test_an_expression_names_its_unset_variable_or_zero_division(line, words):
+    lines = ["G90 G18", "#1 = 2.0", "G93", line, "M30"]
+    with pytest.raises(dialects.DialectError, match=f"line 4 .*{words}"):
+        dialects.read(lines, "iso-sts")
+
+
 def test_pvt_segment_times_are_whole_controller_steps(tmp_path):
     """A PVT program's points lie on whole 0.25 µs steps of the spindle's turn, so every
     segment time it prints is exact; its C velocity is the spindle's."""

@@ -6,13 +6,16 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 
 import numpy as np
 
 from ftsweep.exports.moves import DialectError, Moves
 
-# blocks a program may hold when read: a WHILE loop cannot make the reader run away
-MAX_READ_BLOCKS = 50_000_000
+# lines a program's loops may execute beyond the file's own lines (about 3 s here at ~3.4 µs
+# a line): a WHILE loop cannot make the reader run away, and a loop-made program of up to
+# ~300,000 points is read; larger programs are written out, as CAM and ftsweep write them
+MAX_READ_BLOCKS = 1_000_000
 
 
 # a cutting block of numbers only (each with its decimal point): read without the tokenizer
@@ -34,6 +37,38 @@ FLOW_M = {97.0, 98.0, 99.0}  # subprogram calls and returns: not evaluated
 AXES = ("C", "X", "Y", "Z", "W")
 
 
+# an expression parsed once: evaluated on the variables set so far (KeyError: one unset)
+Expr = Callable[[dict[int, float]], float]
+
+
+def _constant(c: float) -> Expr:
+    return lambda v: c
+
+
+def _variable(k: int) -> Expr:
+    return lambda v: v[k]
+
+
+def _negative(a: Expr) -> Expr:
+    return lambda v: -a(v)
+
+
+def _plus(a: Expr, b: Expr) -> Expr:
+    return lambda v: a(v) + b(v)
+
+
+def _minus(a: Expr, b: Expr) -> Expr:
+    return lambda v: a(v) - b(v)
+
+
+def _times(a: Expr, b: Expr) -> Expr:
+    return lambda v: a(v) * b(v)
+
+
+def _over(a: Expr, b: Expr) -> Expr:
+    return lambda v: a(v) / b(v)
+
+
 class IsoReader:
     """ISO STS / RS274 G-code as a controller reads it: modal state, macro variables set to
     constants, WHILE loops (their conditions on those constants) and the G93 blocks' points."""
@@ -51,12 +86,17 @@ class IsoReader:
         self.m_codes: set[str] = set()
         self.comments: dict[int, str] = {}
         self.blocks = 0
+        # a loop's lines are read and its expressions parsed once, then evaluated each pass
+        self._cleaned: dict[int, str] = {}
+        self._parsed: dict[int, list[tuple[str, str]]] = {}
+        self._compiled: dict[str, Callable[[dict[int, float]], float]] = {}
 
     def fail(self, n: int, why: str) -> DialectError:
         text = self.lines[n].strip()[:80] if n < len(self.lines) else ""
         return DialectError(f"line {n + 1} ({text!r}): {why}")
 
     def run(self) -> Moves:
+        self.budget = len(self.lines) + MAX_READ_BLOCKS
         self._execute(0, len(self.lines))
         if not self.out["C"]:
             raise DialectError("no cutting block under G93 (inverse time): nothing to predict")
@@ -67,10 +107,8 @@ class IsoReader:
         while n < stop:
             # every line executed counts (assignments and loop tests too): no loop runs away
             self.blocks += 1
-            if self.blocks > MAX_READ_BLOCKS:
-                raise self.fail(
-                    n, f"more than {MAX_READ_BLOCKS:,} lines executed (a loop that does not end?)"
-                )
+            if self.blocks > self.budget:
+                raise self.fail(n, self._over_budget())
             text = self._clean(n)
             loop = _WHILE.match(text)
             if loop:
@@ -78,10 +116,8 @@ class IsoReader:
                 while self._condition(n, loop.group(1)):
                     self._execute(n + 1, end)
                     self.blocks += 1
-                    if self.blocks > MAX_READ_BLOCKS:
-                        raise self.fail(
-                            n, f"more than {MAX_READ_BLOCKS:,} lines executed (a loop that does not end?)"
-                        )
+                    if self.blocks > self.budget:
+                        raise self.fail(n, self._over_budget())
                 n = end + 1
                 continue
             if _END.match(text):
@@ -89,7 +125,19 @@ class IsoReader:
             self._block(n, text)
             n += 1
 
+    def _over_budget(self) -> str:
+        return (
+            f"its loops executed more than {MAX_READ_BLOCKS:,} lines beyond the file's own (a loop "
+            "that does not end, or a program to write out block by block)"
+        )
+
     def _clean(self, n: int) -> str:
+        text = self._cleaned.get(n)
+        if text is None:
+            text = self._cleaned[n] = self._clean_line(n)
+        return text
+
+    def _clean_line(self, n: int) -> str:
         raw = self.lines[n].strip()
         if raw.startswith("(") and raw.endswith(")") and raw.count(")") == 1:
             self.comments[n] = raw[1:-1]  # by line: a loop's comment read again is one comment
@@ -129,48 +177,52 @@ class IsoReader:
 
     def _expr(self, n: int, text: str) -> float:
         """An arithmetic expression of numbers and set variables (+ − * /, [ ] grouping),
-        evaluated by a small parser: never by Python's ``eval``."""
-        tokens = re.findall(r"#\d+|\d+\.?\d*|\.\d+|[-+*/\[\]()]|\S", text)
-        value, rest = self._sum(n, tokens)
-        if rest:
-            raise self.fail(n, f"cannot evaluate {text.strip()[:40]!r}")
-        return value
+        parsed once by a small parser into a tree of closures and evaluated on the variables
+        as they are: never by Python's ``eval``."""
+        compiled = self._compiled.get(text)
+        if compiled is None:
+            tokens = re.findall(r"#\d+|\d+\.?\d*|\.\d+|[-+*/\[\]()]|\S", text)
+            compiled, rest = self._sum(n, tokens)
+            if rest:
+                raise self.fail(n, f"cannot evaluate {text.strip()[:40]!r}")
+            self._compiled[text] = compiled
+        try:
+            return compiled(self.vars)
+        except KeyError as exc:
+            raise self.fail(n, f"#{exc.args[0]} is used before it is set to a constant") from None
+        except ZeroDivisionError:
+            raise self.fail(n, "division by zero") from None
 
-    def _sum(self, n: int, t: list[str]) -> tuple[float, list[str]]:
+    def _sum(self, n: int, t: list[str]) -> tuple[Expr, list[str]]:
         value, t = self._product(n, t)
         while t and t[0] in "+-":
             op, (rhs, t) = t[0], self._product(n, t[1:])
-            value = value + rhs if op == "+" else value - rhs
+            value = _plus(value, rhs) if op == "+" else _minus(value, rhs)
         return value, t
 
-    def _product(self, n: int, t: list[str]) -> tuple[float, list[str]]:
+    def _product(self, n: int, t: list[str]) -> tuple[Expr, list[str]]:
         value, t = self._atom(n, t)
         while t and t[0] in "*/":
             op, (rhs, t) = t[0], self._atom(n, t[1:])
-            if op == "/" and rhs == 0.0:
-                raise self.fail(n, "division by zero")
-            value = value * rhs if op == "*" else value / rhs
+            value = _times(value, rhs) if op == "*" else _over(value, rhs)
         return value, t
 
-    def _atom(self, n: int, t: list[str]) -> tuple[float, list[str]]:
+    def _atom(self, n: int, t: list[str]) -> tuple[Expr, list[str]]:
         if not t:
             raise self.fail(n, "an expression ends early")
         head = t[0]
         if head in "+-":
             value, rest = self._atom(n, t[1:])
-            return (-value if head == "-" else value), rest
+            return (_negative(value) if head == "-" else value), rest
         if head in "[(":
             value, rest = self._sum(n, t[1:])
             if not rest or rest[0] not in "])":
                 raise self.fail(n, "an expression's bracket does not close")
             return value, rest[1:]
         if head.startswith("#"):
-            var = int(head[1:])
-            if var not in self.vars:
-                raise self.fail(n, f"#{var} is used before it is set to a constant")
-            return self.vars[var], t[1:]
+            return _variable(int(head[1:])), t[1:]
         if _NUMBER.fullmatch(head):
-            return float(head), t[1:]
+            return _constant(float(head)), t[1:]
         raise self.fail(n, f"cannot evaluate {head!r}")
 
     def _block(self, n: int, text: str) -> None:
@@ -205,22 +257,24 @@ class IsoReader:
         self._move(n, axes)
 
     def _words(self, n: int, text: str) -> list[tuple[str, float]]:
+        parsed = self._parsed.get(n)
+        if parsed is None:
+            parsed = self._parsed[n] = self._split_words(n, text)
+        return [(letter, self._expr(n, raw) if raw[0] in "[#" else float(raw)) for letter, raw in parsed]
+
+    def _split_words(self, n: int, text: str) -> list[tuple[str, str]]:
+        """A block's words as written (letter, number or expression), checked once."""
         found, at = [], 0
         for match in _WORD.finditer(text):
             if text[at : match.start()].strip():
                 raise self.fail(n, f"cannot read {text[at : match.start()].strip()[:20]!r}")
             letter, raw = match.group(1), match.group(2)
-            if raw.startswith(("[", "#")):
-                value = self._expr(n, raw)
-            else:
-                if letter in AXES and "." not in raw:
-                    raise self.fail(
-                        n,
-                        f"{letter}{raw} has no decimal point: controllers read it as mm or as µm "
-                        "by a parameter",
-                    )
-                value = float(raw)
-            found.append((letter, value))
+            if not raw.startswith(("[", "#")) and letter in AXES and "." not in raw:
+                raise self.fail(
+                    n,
+                    f"{letter}{raw} has no decimal point: controllers read it as mm or as µm by a parameter",
+                )
+            found.append((letter, raw))
             at = match.end()
         if text[at:].strip():
             raise self.fail(n, f"cannot read {text[at:].strip()[:20]!r}")

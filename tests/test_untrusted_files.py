@@ -189,6 +189,19 @@ EDITS = {
     "comment-in-value": ([(D0 + " ", D0 + " /* */ 1.0 + ")], "C reads macro PITCH0"),
     "splice": ([(D0 + " ", D0 + " \\\n")], "C reads macro PITCH0|line"),
     "octal-cell": ([("    {1000, ", "    {01000, ")], "holds '01000', not an integer as export writes one"),
+    # 30 macros each twice the one before: refused at the second, before anything is expanded
+    "expansion-bomb": (
+        [
+            (
+                UNIT,
+                "#define FTS_B0 1\n"
+                + "".join(f"#define FTS_B{k} FTS_B{k - 1}+FTS_B{k - 1}\n" for k in range(1, 31))
+                + UNIT,
+            )
+        ],  # fmt: skip
+        "FTS_B1's replacement names the macro FTS_B0 .*nothing expanded",
+    ),
+    "long-replacement": ([(D0 + " ", D0 + " 1" + " +1" * 40 + " + ")], "more than export writes"),
 }
 
 

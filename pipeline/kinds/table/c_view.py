@@ -120,6 +120,11 @@ def _fault(row: str) -> str:
     return ""
 
 
+# the most tokens a macro export writes has (a string literal is one token, a number with its
+# suffix one, a comment none)
+MAX_REPLACEMENT_TOKENS = 8
+
+
 class _Strict(Preprocessor):  # type: ignore[misc]
     """pcpp refusing, with :class:`ExportError`, every directive export does not write:
     anything but the guard, object-like ``#define``s of new names, ``#include <stdint.h>``
@@ -175,6 +180,23 @@ class _Strict(Preprocessor):  # type: ignore[misc]
             raise self.refuse(line, f"a second definition of {name[:60]}")
         if after == "(":
             raise self.refuse(line, f"{name[:60]} is a function-like macro")
+        # judged before anything is expanded: export's replacements are literals (a number, a
+        # string), so one that names another macro, or runs long, is refused here; chained
+        # macros would otherwise double their expansion at every line
+        body = [w for w in words[1:] if not w.startswith(("/*", "//"))]
+        named = next((w for w in body if w in self.defined or w in self.macros), None)
+        if named is not None:
+            raise self.refuse(
+                line,
+                f"{name[:60]}'s replacement names the macro {named[:60]} (export's are literals); "
+                "nothing expanded",
+            )
+        if len(body) > MAX_REPLACEMENT_TOKENS:
+            raise self.refuse(
+                line,
+                f"{name[:60]}'s replacement has {len(body):,} tokens, more than export writes "
+                f"({MAX_REPLACEMENT_TOKENS})",
+            )
         self.defined[name] = line
 
     def _guard(self, line: int, values: list[str], words: list[str]) -> None:

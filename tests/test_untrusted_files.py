@@ -201,7 +201,6 @@ EDITS = {
         ],  # fmt: skip
         "FTS_B1's replacement names the macro FTS_B0 .*nothing expanded",
     ),
-    "long-replacement": ([(D0 + " ", D0 + " 1" + " +1" * 40 + " + ")], "more than export writes"),
 }
 
 
@@ -601,3 +600,18 @@ def test_a_study_program_name_that_would_become_syntax_is_refused(tmp_path, modu
                "-o", str(out)], module_catalog_dir)  # fmt: skip
     assert res.exit_code == 1 and "holds '('" in res.output, res.output
     assert not out.exists() and not out.with_name(out.name + ".json").exists()
+
+
+@pytest.mark.parametrize(
+    ("name", "words"), [("big.h", "more than any file ftsweep reads"), ("big.nc", "more than any")]
+)
+def test_a_huge_sparse_file_is_refused_before_a_byte_is_read(tmp_path, module_catalog_dir, name, words):
+    # 2 GiB of nothing (a sparse file): refused by its size from fstat, nothing read
+    path = tmp_path / name
+    with path.open("wb") as fh:
+        fh.truncate(2 * 2**30)
+    res = cli(["verify", str(path)], module_catalog_dir)
+    assert res.exit_code != 0 and words in res.output and "nothing was read" in res.output, res.output
+    if name.endswith(".nc"):
+        res = cli(["predict", "--program", str(path)], module_catalog_dir)
+        assert res.exit_code != 0 and "nothing was read" in res.output, res.output

@@ -207,7 +207,7 @@ def verify(
     path = Path(path)
     fmt = format_of_file(path)
     side = sidecar_of(path)
-    before = _contents(path, side)
+    before = _identity(path, side)  # nothing read yet: the format's own cap judges the file first
     # the file as the machine reads it first (its own errors name what is wrong with it) ...
     record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
     if compiled:
@@ -215,7 +215,7 @@ def verify(
 
         record.update(reference.check_file(path, fmt.name, trust_plugins))
     file_bytes, side_bytes = _contents(path, side)
-    if side_bytes is None or (file_bytes, side_bytes) != before:  # judged must be what is proved
+    if side_bytes is None or _identity(path, side) != before:  # judged must be what is proved
         raise ExportError(f"{path} or its sidecar changed while it was verified; verify it again")
     # ... then who made it
     keys = org.trusted_keys(trusted)
@@ -234,6 +234,19 @@ def verify(
             f"the sidecar has the older name {side.name}; export again to name it {sidecar_path(path).name}"
         )
     return record
+
+
+def _identity(path: Path, side: Path) -> tuple[tuple[int, ...], ...]:
+    """What changes when a file or its sidecar is replaced or written (inode, size, time of
+    last change in ns), read from ``stat`` without reading either file."""
+    found = []
+    for each in (path, side):
+        try:
+            info = os.stat(each)
+            found.append((info.st_ino, info.st_size, info.st_mtime_ns, info.st_ctime_ns))
+        except OSError:
+            found.append(())
+    return tuple(found)
 
 
 def _contents(path: Path, side: Path) -> tuple[bytes, bytes | None]:

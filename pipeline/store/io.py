@@ -52,8 +52,9 @@ def read_regular(
     return data
 
 
-# a program holds at most a controller's block count: this bounds what verify reads
-MAX_PROGRAM_BYTES = 2 * 2**30
+# a program holds at most a controller's block count: this bounds what verify and predict read
+# (ftsweep's largest, a 1.85M-point four-axis Fresnel program, is ~110 MB)
+MAX_PROGRAM_BYTES = 256 * 2**20
 # a sidecar holds a case, its catalog entries and at most a controller's layer schedule
 MAX_SIDECAR_BYTES = 64 * 2**20
 

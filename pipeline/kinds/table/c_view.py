@@ -120,11 +120,6 @@ def _fault(row: str) -> str:
     return ""
 
 
-# the most tokens a macro export writes has (a string literal is one token, a number with its
-# suffix one, a comment none)
-MAX_REPLACEMENT_TOKENS = 8
-
-
 class _Strict(Preprocessor):  # type: ignore[misc]
     """pcpp refusing, with :class:`ExportError`, every directive export does not write:
     anything but the guard, object-like ``#define``s of new names, ``#include <stdint.h>``
@@ -180,9 +175,10 @@ class _Strict(Preprocessor):  # type: ignore[misc]
             raise self.refuse(line, f"a second definition of {name[:60]}")
         if after == "(":
             raise self.refuse(line, f"{name[:60]} is a function-like macro")
-        # judged before anything is expanded: export's replacements are literals (a number, a
-        # string), so one that names another macro, or runs long, is refused here; chained
-        # macros would otherwise double their expansion at every line
+        # judged before anything is expanded: export's replacements are literals (numbers,
+        # strings, a brace list of numbers), so one that names another macro is refused here;
+        # chained macros would double their expansion at every line, and without them what C
+        # expands is at most the file's own tokens once per use
         body = [w for w in words[1:] if not w.startswith(("/*", "//"))]
         named = next((w for w in body if w in self.defined or w in self.macros), None)
         if named is not None:
@@ -190,12 +186,6 @@ class _Strict(Preprocessor):  # type: ignore[misc]
                 line,
                 f"{name[:60]}'s replacement names the macro {named[:60]} (export's are literals); "
                 "nothing expanded",
-            )
-        if len(body) > MAX_REPLACEMENT_TOKENS:
-            raise self.refuse(
-                line,
-                f"{name[:60]}'s replacement has {len(body):,} tokens, more than export writes "
-                f"({MAX_REPLACEMENT_TOKENS})",
             )
         self.defined[name] = line
 

@@ -615,3 +615,12 @@ def test_a_huge_sparse_file_is_refused_before_a_byte_is_read(tmp_path, module_ca
     if name.endswith(".nc"):
         res = cli(["predict", "--program", str(path)], module_catalog_dir)
         assert res.exit_code != 0 and "nothing was read" in res.output, res.output
+
+
+def test_a_program_that_is_not_utf8_is_named_as_such(tmp_path, module_catalog_dir):
+    path = tmp_path / "latin1.nc"
+    path.write_bytes(b"(ISO STS \xe9)\nG90 G18\nM30\n")
+    res = cli(["verify", str(path)], module_catalog_dir)
+    assert (
+        res.exit_code != 0 and "not an ftsweep header or program: its first line is not UTF-8" in res.output
+    )

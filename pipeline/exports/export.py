@@ -55,7 +55,18 @@ def format_of_file(path: Path) -> FileFormat:
     whose reader says precisely what is wrong with it)."""
     # the largest file any format reads is a program's; a device or FIFO is refused, never read
     head = read_regular(path, MAX_PROGRAM_BYTES, head=200)
-    first = head.split(b"\n", 1)[0].decode("utf-8", errors="replace")
+    line = head.split(b"\n", 1)[0]
+    try:
+        first = line.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        cut = b"\n" not in head and exc.start >= len(line) - 3  # a character the head cut in two
+        if not cut:
+            what = "header" if path.suffix == ".h" else "header or program"
+            raise ExportError(
+                f"{path} is not an ftsweep {what}: its first line is not UTF-8 text (byte {exc.start}); "
+                "export writes ASCII"
+            ) from None
+        first = line.decode("utf-8", errors="replace")
     from ftsweep.exports import nc
 
     if nc.is_dialect_file(first):

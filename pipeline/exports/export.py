@@ -250,7 +250,7 @@ def verify(
 def _identity(path: Path, side: Path) -> tuple[tuple[int, ...], ...]:
     """What changes when a file or its sidecar is replaced or written (inode, size, time of
     last change in ns), read from ``stat`` without reading either file."""
-    found = []
+    found: list[tuple[int, ...]] = []
     for each in (path, side):
         try:
             info = os.stat(each)

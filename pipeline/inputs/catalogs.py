@@ -12,13 +12,11 @@ import functools
 import math
 import os
 import reprlib
-import stat
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union, cast
 
 import numpy as np
-import yaml
 from pydantic import (
     BaseModel,
     Field,
@@ -31,13 +29,9 @@ from pydantic import (
 
 from ftsweep.inputs.controllers import Controller
 from ftsweep.inputs.strict import Strict
+from ftsweep.inputs.yamlfiles import CatalogError, read_yaml_file
 from ftsweep.stages import kinematics
 from ftsweep.stages.surfaces import FAMILIES, Aperture, Family, SurfaceFn
-
-
-class CatalogError(ValueError):
-    """A catalog file or entry is missing or invalid; the message says what to change."""
-
 
 _SHORT = reprlib.Repr()
 _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxdict, _SHORT.maxstring, _SHORT.maxother = 2, 4, 4, 60, 60
@@ -52,44 +46,6 @@ def short_repr(value: Any) -> str:
 def error_text(error: Any) -> str:
     """The message of one pydantic error without pydantic's "Value error, " prefix."""
     return str(error["msg"]).removeprefix("Value error, ")
-
-
-# the largest catalog or sweep file read: the shipped catalogs together are ~100 KB
-MAX_YAML_BYTES = 16 * 2**20
-
-
-def _read_capped(path: Path) -> bytes:
-    """The bytes of a regular file of at most :data:`MAX_YAML_BYTES`, judged by ``fstat`` of
-    the open descriptor before any read (a device or FIFO is never read)."""
-    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
-    with os.fdopen(fd, "rb") as fh:
-        info = os.fstat(fh.fileno())
-        if not stat.S_ISREG(info.st_mode):
-            raise CatalogError(f"{path} is not a regular file; nothing was read")
-        if info.st_size > MAX_YAML_BYTES:
-            raise CatalogError(
-                f"{path} holds {info.st_size:,} bytes, more than any catalog or sweep file "
-                f"({MAX_YAML_BYTES:,}); nothing was read"
-            )
-        return fh.read(MAX_YAML_BYTES + 1)[:MAX_YAML_BYTES]
-
-
-def read_yaml_file(path: Path) -> Any:
-    """Parse a YAML file, turning every way it can be unreadable into a :class:`CatalogError`
-    that names the file."""
-    try:
-        text = _read_capped(path).decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise CatalogError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
-    except OSError as exc:
-        raise CatalogError(f"{path}: cannot be read ({exc.strerror})") from None
-    try:
-        # libyaml's parser when PyYAML was built with it: the same documents, 8× faster
-        return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-    except yaml.YAMLError as exc:
-        raise CatalogError(f"{path}: not valid YAML: {' '.join(str(exc).split())[:300]}") from None
-    except RecursionError:
-        raise CatalogError(f"{path}: nested too deeply to be a catalog or sweep file") from None
 
 
 def without_defaults(data: Any, defaults: dict[str, Any]) -> Any:

@@ -8,6 +8,9 @@ from __future__ import annotations
 import pytest
 from faults import SPEC, check_every_point
 
+# about 3 minutes on 2 cores: the quick command leaves them to the full one
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize("fault", ["pause", "kill"])
 def test_a_local_cube_survives_a_fault_at_each_write_point(fault, tmp_path, catalog_dir, monkeypatch):

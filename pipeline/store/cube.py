@@ -398,17 +398,9 @@ class CubeWriter:
         """Write further per-case variables (before :meth:`write_done`, which marks it done)."""
         self.write([(flat, values)])
 
-    def write_pruned(self, flat: int, message: str, run_id: str) -> None:
-        """Record a case left out by ``--prune`` (not computed), saying why."""
-        self.write([(flat, ended_values(PRUNED, message, run_id))])
-
     def write_failed(self, flat: int, message: str, run_id: str) -> None:
         """Record a case that raised, with its message."""
         self.write([(flat, ended_values(FAILED, message, run_id))])
-
-    def write_refused(self, flat: int, message: str, run_id: str) -> None:
-        """Record a case its planning refuses as specified, with the reason."""
-        self.write([(flat, ended_values(REFUSED, message, run_id))])
 
 
 # ----------------------------------------------------------------------------- integrity

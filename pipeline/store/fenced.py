@@ -31,7 +31,6 @@ each chunk to a temporary file renamed into place.
 from __future__ import annotations
 
 import asyncio
-import hashlib
 from collections.abc import Callable
 from typing import Any, Optional, cast
 
@@ -39,7 +38,7 @@ from zarr.core.buffer import Buffer
 from zarr.storage import FsspecStore
 
 from ftsweep.store.lock import LockError
-from ftsweep.store.storage import _MEMORY_SWAP, Place
+from ftsweep.store.storage import _MEMORY_SWAP, Place, precondition_failed
 
 
 class ObjectChanged(LockError):
@@ -59,11 +58,6 @@ def write_point(event: str, key: str) -> None:
         WRITE_POINT(event, key)
 
 
-def _precondition_failed(exc: BaseException) -> bool:
-    text = str(exc).lower()
-    return isinstance(exc, FileExistsError) or "pre-condition" in text or "precondition" in text
-
-
 def object_tags(where: Place, prefix: str = "") -> dict[str, str]:
     """Every object under ``where`` (relative key → tag): S3's ETag from one listing, the
     SHA-256 of the bytes on ``memory://``."""
@@ -78,10 +72,10 @@ def object_tags(where: Place, prefix: str = "") -> dict[str, str]:
     tags: dict[str, str] = {}
     for path, info in found.items():
         key = str(path)[start:]
-        if where.protocol == "memory":
-            tags[key] = hashlib.sha256(bytes(fs.cat_file(path))).hexdigest()
-        else:
-            tags[key] = str(info.get("ETag") or info.get("etag") or "")
+        # memory:// keeps no ETag: the place's own tag (a SHA-256 of the bytes) stands in
+        tags[key] = (
+            where.tag(key) if where.protocol == "memory" else str(info.get("ETag") or info.get("etag") or "")
+        )
     return tags
 
 
@@ -110,7 +104,7 @@ class FencedStore(FsspecStore):
             try:
                 out = await self.fs._pipe_file(path, data, **condition)
             except OSError as exc:
-                if _precondition_failed(exc):
+                if precondition_failed(exc):
                     raise ObjectChanged(self._changed(key)) from None
                 raise
             etag = out.get("ETag") if isinstance(out, dict) else None
@@ -119,17 +113,16 @@ class FencedStore(FsspecStore):
             await asyncio.to_thread(WRITE_POINT, "after-put", key)
 
     def _swap_memory(self, key: str, data: bytes, tag: Optional[str]) -> str:
-        fs, _ = self.place.fs()
-        path = self.place.key(key)
-        with _MEMORY_SWAP:
+        with _MEMORY_SWAP:  # memory:// lives in this process: a lock makes the swap atomic
             try:
-                now: Optional[str] = hashlib.sha256(bytes(fs.cat_file(path))).hexdigest()
+                now: Optional[str] = self.place.tag(key)
             except FileNotFoundError:
                 now = None
             if now != tag:
                 raise ObjectChanged(self._changed(key))
-            fs.pipe_file(path, data)
-        return hashlib.sha256(data).hexdigest()
+            fs, _ = self.place.fs()
+            fs.pipe_file(self.place.key(key), data)
+        return self.place.tag(key)
 
     def _changed(self, key: str) -> str:
         return (

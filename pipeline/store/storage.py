@@ -175,8 +175,8 @@ class Place:
         fs, _ = self.fs()
         try:
             out = fs.pipe_file(self.key(key), data, mode="create")
-        except OSError as exc:  # s3fs turns 412 Precondition Failed into EINVAL
-            if isinstance(exc, FileExistsError) or "pre-condition" in str(exc).lower():
+        except OSError as exc:
+            if precondition_failed(exc):
                 raise FileExistsError(self.key(key)) from None
             raise
         etag = out.get("ETag") if isinstance(out, dict) else None
@@ -197,6 +197,11 @@ class Place:
             if self._tag(fs, path) == before:  # not replaced while it was read
                 return data, before
         raise StorageError(f"{self.url}/{key} keeps changing while it is read")
+
+    def tag(self, key: str) -> str:
+        """The tag of the object ``key`` (:meth:`read_tagged`); FileNotFoundError if there is none."""
+        fs, _ = self.fs()
+        return self._tag(fs, self.key(key))
 
     def _tag(self, fs: Any, path: str) -> str:
         if self.protocol == "memory":
@@ -219,8 +224,8 @@ class Place:
                 return self._tag(fs, path)
         try:
             out = fs.pipe_file(path, data, IfMatch=tag)
-        except OSError as exc:  # s3fs turns 412 Precondition Failed into EINVAL
-            if "pre-condition" in str(exc).lower() or "precondition" in str(exc).lower():
+        except OSError as exc:
+            if precondition_failed(exc):
                 raise FileExistsError(path) from None
             raise
         etag = out.get("ETag") if isinstance(out, dict) else None
@@ -269,6 +274,14 @@ class Place:
             fs.rm(root, recursive=True)
         except FileNotFoundError:
             pass
+
+
+def precondition_failed(exc: BaseException) -> bool:
+    """Whether a conditional write was refused because its condition failed (S3's 412
+    Precondition Failed, which s3fs raises as an OSError naming it; FileExistsError from
+    drivers that map it)."""
+    text = str(exc).lower()
+    return isinstance(exc, FileExistsError) or "pre-condition" in text or "precondition" in text
 
 
 def place(where: PathLike, options: Optional[dict[str, Any]] = None) -> Place:

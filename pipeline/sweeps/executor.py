@@ -173,7 +173,8 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
         try:
             record = run_case(case, folder, lines=cache if index in sharing else None)
         except Exception as exc:  # a failing case is recorded and the rest run on
-            # a case its planning refuses fails the same way every time: refused, not retried
+            # a case its planning refuses fails the same way every time: refused, which a plain
+            # re-run leaves (--retry-failed reconsiders it, the driver's own check first)
             refused = isinstance(exc, CaseError)
             message = str(exc) if refused else f"{type(exc).__name__}: {exc}"
             (writer.write_refused if refused else writer.write_failed)(index, message, run_id)

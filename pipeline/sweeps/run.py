@@ -489,10 +489,10 @@ def refuse_cases(
     the aperture rules out, ...), with the reason; returns them by index, and the costs of the
     others, which plan the tasks."""
     costs, refused = case_costs(spec, pending, catalog_folder)
-    writer = cube.CubeWriter(out, fence)
-    writer.write(
-        [(index, cube.ended_values(cube.REFUSED, reason, run_id)) for index, reason in refused.items()]
-    )
+    if refused:  # a writer on object storage lists the cube first: only when there is something to write
+        cube.CubeWriter(out, fence).write(
+            [(index, cube.ended_values(cube.REFUSED, reason, run_id)) for index, reason in refused.items()]
+        )
     return refused, costs
 
 

@@ -24,6 +24,7 @@ import numpy as np
 
 from ftsweep.engine.case import Case
 from ftsweep.engine.planning import ResolvedCase, layer_plan
+from ftsweep.exports.fingerprint import exact_on_this_platform
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.inputs.trust import specs_from_entries
 from ftsweep.stages import decimals
@@ -152,9 +153,10 @@ class ProgramError(ExportError):
 # the one CRC line of a program: it covers every other line of the file
 CRC_LINE = "# CRC32: 0x{:08x} over every other line"
 
-# How far a program line may lie from the re-planned one, per column unit: 1 µs, 1e-6°,
-# 1e-6 mm = 1 nm. Lines are printed to 1 ns, 1e-9° and 1 pm and re-planning is deterministic,
-# so an exported program lies far inside; an edit of a nanometre or more is refused.
+# How far a program line may lie from the re-planned one across platforms, per column unit:
+# 1 µs, 1e-6°, 1e-6 mm = 1 nm (lines are printed to 1 ns, 1e-9° and 1 pm, so a last-bit
+# difference of another platform lies far inside). On the platform a file was planned on
+# every number must equal the re-planned one (ftsweep.exports.fingerprint).
 LINE_TOLERANCE = {"s": 1e-6, "deg": 1e-6, "mm": 1e-6}
 
 
@@ -354,8 +356,9 @@ def _numbers(path: Path, raw: bytes, start: int, n_cols: int) -> np.ndarray:
 
 
 def recorded_extra(meta: dict[str, Any]) -> dict[str, Any]:
-    """The provenance a program's sidecar records beside its case (the cube it came from)."""
-    return {k: meta.get(k) for k in ("cube", "cube_git_revision") if k in meta}
+    """The provenance a program's sidecar records beside its case (the cube it came from,
+    the platform it was planned on)."""
+    return {k: meta.get(k) for k in ("cube", "cube_git_revision", "platform") if k in meta}
 
 
 def check_document(
@@ -366,8 +369,10 @@ def check_document(
     columns: str,
 ) -> None:
     """Refuse a program whose header lines are not exactly the re-planned ones, whose data
-    lines leave the re-planned ones by more than :data:`LINE_TOLERANCE`, or whose sidecar
-    claims other than the re-derived ones; each message names the line or field."""
+    lines differ from the re-planned ones (by more than :data:`LINE_TOLERANCE` where the
+    sidecar's platform is not this machine's:
+    :func:`~ftsweep.exports.fingerprint.exact_on_this_platform`), or whose sidecar claims
+    other than the re-derived ones; each message names the line or field."""
     head, lines, expected_meta = planned
     # the sidecar's name as export rendered it: from the program's recorded name, by the rule
     # of the sidecar found (an older export's FILE.json)
@@ -385,13 +390,17 @@ def check_document(
             f"{path}: the header has {len(doc.rows)} lines where the recorded case gives {len(want)}; "
             "do not run it"
         )
-    check_lines(path, doc.data, lines.printed, columns, len(doc.rows) + 3)
+    exact, _ = exact_on_this_platform(meta.get("platform"))
+    check_lines(path, doc.data, lines.printed, columns, len(doc.rows) + 3, exact)
     _check_claims(path, meta, expected_meta)
 
 
-def check_lines(path: Path, data: np.ndarray, planned: np.ndarray, columns: str, first_line: int) -> None:
-    """Every data line within :data:`LINE_TOLERANCE` of the planned one (``planned``: its
-    numbers as printed, :attr:`DataLines.printed`), column by column."""
+def check_lines(
+    path: Path, data: np.ndarray, planned: np.ndarray, columns: str, first_line: int, exact: bool
+) -> None:
+    """Every data line equal to the planned one (``planned``: its numbers as printed,
+    :attr:`DataLines.printed`), column by column: exactly with ``exact``, else within
+    :data:`LINE_TOLERANCE`."""
     if data.shape[0] != planned.shape[0]:
         raise ProgramError(
             f"{path}: {data.shape[0]:,} data lines, but the recorded case plans {planned.shape[0]:,}; "
@@ -399,7 +408,7 @@ def check_lines(path: Path, data: np.ndarray, planned: np.ndarray, columns: str,
         )
     names = columns.split()
     for col, name in enumerate(names):
-        tol = LINE_TOLERANCE[name.rsplit("_", 1)[1]]
+        tol = 0.0 if exact else LINE_TOLERANCE[name.rsplit("_", 1)[1]]
         off = np.abs(data[:, col] - planned[:, col])
         if not off.max(initial=0.0) <= tol:
             k = int(np.argmax(~(off <= tol)))

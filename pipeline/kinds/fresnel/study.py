@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Optional
 import numpy as np
 
 from ftsweep.engine.case import Case, CaseError
+from ftsweep.exports.fingerprint import fingerprint
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel.request import FresnelRequest
@@ -354,10 +355,11 @@ WALL_TIMES = ("planning_s", "timesteps_s")
 
 
 def document(
-    s: dict[str, Any], inp: Inputs, created: str, generator: str
+    s: dict[str, Any], inp: Inputs, created: str, generator: str, platform: Any = None
 ) -> tuple[list[str], DataLines, dict[str, Any]]:
     """The header lines, data lines and sidecar content of a studied Fresnel program: export
-    writes them and verify re-derives them from the recorded inputs and entries."""
+    writes them and verify re-derives them from the recorded inputs and entries (``platform``:
+    where it was planned, :func:`ftsweep.exports.fingerprint.fingerprint`)."""
     from ftsweep.exports.files import recorded_entries
 
     fplan, steps, specs = s["_plan"], s["_steps"], s["_specs"]
@@ -369,6 +371,7 @@ def document(
         "inputs": inp._asdict(),
         "summary": {k: v for k, v in public(s).items() if k not in WALL_TIMES},
         "catalog_entries": recorded_entries(specs),
+        **({"platform": platform} if platform is not None else {}),
     }
     head = [
         f"{F_MAGIC} (C, X, Y, Z move linearly in time between consecutive lines)",
@@ -393,7 +396,7 @@ def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, A
     from ftsweep.exports import files
 
     created = files.now()
-    head, lines, meta = document(s, inp, created, f"ftsweep {__version__}")
+    head, lines, meta = document(s, inp, created, f"ftsweep {__version__}", fingerprint())
     data = lines.printed  # as the machine reads the lines
     reason = lines_reason(data, fp.limits_of(s["_specs"][1], inp.machine))
     if reason:
@@ -453,7 +456,7 @@ def verify(
     if reason:
         raise files.ProgramError(f"{path}: a line leaves the machine's limits: {reason}; do not run it")
     s = study(inp, progress=progress, specs=specs)
-    planned = document(s, inp, str(meta["created"]), str(meta["generator"]))
+    planned = document(s, inp, str(meta["created"]), str(meta["generator"]), meta.get("platform"))
     files.check_document(path, doc, planned, meta, F_COLUMNS)
     data = doc.data
     return {

@@ -37,6 +37,7 @@ from ftsweep.exports.files import (
     sidecar_digest,
     sidecar_of,
 )
+from ftsweep.exports.fingerprint import exact_on_this_platform
 from ftsweep.kinds.table.c_view import read_c
 from ftsweep.kinds.table.layout import build_layout
 from ftsweep.simulate import resolve_case, run_case
@@ -438,7 +439,8 @@ def verify_header(
         layout = build_layout(surface, case.layout)
     except ValueError as exc:
         raise ExportError(f"{path}: the recorded case plans no table ({exc})") from None
-    check_table(ints, planned_ints(case, specs, layout), path)
+    exact, _ = exact_on_this_platform(meta.get("platform"))
+    check_table(ints, planned_ints(case, specs, layout), path, 0 if exact else TABLE_UNITS_TOLERANCE)
     unit_nm = machine.table_unit_nm
     table = ints * unit_nm * 1e-3
     expected = header_meta(
@@ -466,27 +468,29 @@ def verify_header(
     return record
 
 
-# cells may differ from a re-planned table by one unit: the planned values are rounded to the
-# unit, so floating-point noise at a half-unit boundary can flip the last one
+# across platforms cells may differ from a re-planned table by one unit: the planned values
+# are rounded to the unit, so a last-bit difference at a half-unit boundary can flip one
 TABLE_UNITS_TOLERANCE = 1
 
 
-def check_table(ints: np.ndarray, planned: np.ndarray, path: Path) -> None:
+def check_table(ints: np.ndarray, planned: np.ndarray, path: Path, tolerance: int) -> None:
     """Refuse a table whose shape differs from the re-planned one or any of whose cells lies
-    more than :data:`TABLE_UNITS_TOLERANCE` units from it, naming the first such cell."""
+    more than ``tolerance`` units from it (0 on the platform the file was planned on,
+    :data:`TABLE_UNITS_TOLERANCE` across platforms:
+    :func:`~ftsweep.exports.fingerprint.exact_on_this_platform`), naming the first such cell."""
     if ints.shape != planned.shape:
         raise ExportError(
             f"{path}: the table is {ints.shape[0]} × {ints.shape[1]}, the recorded case plans "
             f"{planned.shape[0]} × {planned.shape[1]}; do not load it"
         )
     diff = np.abs(ints.astype(np.int64) - planned.astype(np.int64))
-    if diff.max(initial=0) > TABLE_UNITS_TOLERANCE:
-        off = diff > TABLE_UNITS_TOLERANCE
+    if diff.max(initial=0) > tolerance:
+        off = diff > tolerance
         i, j = (int(v) for v in np.argwhere(off)[0])
         raise ExportError(
             f"{path}: table cell [{i}][{j}] holds {int(ints[i, j])}, the recorded case plans "
             f"{int(planned[i, j])} ({int(off.sum()):,} cell(s) differ by more than "
-            f"{TABLE_UNITS_TOLERANCE} unit); do not load it"
+            f"{tolerance} unit); do not load it"
         )
 
 

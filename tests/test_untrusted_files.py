@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import THOROUGH
+from forging import forge_header_from_sidecar, forge_header_text, forge_program, mutated_copy
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -27,10 +28,6 @@ from ftsweep.exports.export import ExportError, export, verify
 from ftsweep.exports.files import CRC_LINE, crc_of, sidecar_digest
 from ftsweep.kinds.table.c_view import read_c
 from ftsweep.kinds.table.header import (
-    CHECKSUM_MACRO,
-    TABLE_UNITS_TOLERANCE,
-    checksum,
-    read_header,
     render_header,
 )
 from ftsweep.store.io import read_sidecar
@@ -75,61 +72,6 @@ def copies(originals, tmp_path, module_catalog_dir, monkeypatch):
             shutil.copy(f"{path}{suffix}", tmp_path / f"{name}{path.suffix}{suffix}")
         out[name] = tmp_path / path.name
     return out
-
-
-# ------------------------------------------------------------------ forging as an attacker
-def forge_header_from_sidecar(header: Path, edit) -> str:  # type: ignore[no-untyped-def]
-    """Edit the sidecar, then re-make the header from it with ftsweep's own renderer and
-    re-make every digest, CRC and hash: what an attacker with the project's code can do."""
-    side = header.with_name(header.name + ".json")
-    meta = json.loads(side.read_text())
-    edit(meta)
-    macros, ints = read_header(header)
-    rendered = dict(meta, sidecar_sha256=sidecar_digest(meta))
-    text, crc = render_header(header.stem, rendered, ints, meta["int_type"])
-    meta.update(crc32=crc, header_sha256=hashlib.sha256(text.encode()).hexdigest())
-    header.write_text(text)
-    side.write_text(json.dumps(meta, indent=2))
-    return text
-
-
-def forge_header_text(header: Path, text: str) -> None:
-    """Write ``text`` as the header, with the CRC macro re-made from what C reads of it
-    (when C reads it at all) and the sidecar's CRC and header hash re-made."""
-    header.write_text(text)
-    try:
-        macros, ints = read_header(header)
-    except ExportError:
-        crc = None
-    else:
-        crc = checksum(macros, ints, json.loads(dict(macros)["INT_TYPE"]))
-        text = re.sub(rf"(_{CHECKSUM_MACRO}) 0x[0-9a-f]+UL", rf"\g<1> 0x{crc:08x}UL", text)
-        header.write_text(text)
-    side = header.with_name(header.name + ".json")
-    meta = json.loads(side.read_text())
-    meta.update(header_sha256=hashlib.sha256(text.encode()).hexdigest(), **({"crc32": crc} if crc else {}))
-    side.write_text(json.dumps(meta, indent=2))
-
-
-def forge_program(path: Path, edit) -> None:  # type: ignore[no-untyped-def]
-    """Edit a program's sidecar, re-render the header rows that carry the edited text, and
-    re-make the sidecar digest line, the CRC line and the program hash."""
-    side = path.with_name(path.name + ".json")
-    meta = json.loads(side.read_text())
-    old = dict(meta)
-    edit(meta)
-    text = path.read_bytes().decode()
-    for key in ("created", "generator"):
-        text = text.replace(str(old[key]), str(meta[key]), 1)
-    rows = text.split("\n")
-    rows = [f"# sidecar: {side.name} sha256 {sidecar_digest(meta, ('program', 'program_sha256', 'crc32'))}"
-            if r.startswith("# sidecar:") else r for r in rows]  # fmt: skip
-    at = next(i for i, r in enumerate(rows) if r.startswith("# CRC32:"))
-    rows[at] = CRC_LINE.format(crc_of(rows[:at] + rows[at + 1 : -1]))
-    data = "\n".join(rows).encode()
-    path.write_bytes(data)
-    meta.update(program_sha256=hashlib.sha256(data).hexdigest(), crc32=int(rows[at].split()[2], 16))
-    side.write_text(json.dumps(meta, indent=2))
 
 
 INJECTED = "ftsweep 0.0.0 a forged o */\n#\tdefine FTS_H\n#\tdefine FTS_PITCH0 7.63\n/*"
@@ -245,23 +187,6 @@ def _gcc_cells(header: Path, folder: Path, name: str, int_type: str) -> list[int
     return [int(v) for v in subprocess.run([str(exe)], capture_output=True, text=True).stdout.split()]
 
 
-def _mutated_copy(data, original: Path, alphabet, factory) -> tuple[bytes, bytes, Path]:  # type: ignore[no-untyped-def]
-    """An exported file with one byte inserted, deleted or replaced (drawn from ``alphabet``),
-    copied with its sidecar into a folder of its own: (original bytes, mutated bytes, copy)."""
-    text = original.read_bytes()
-    pos = data.draw(st.integers(0, len(text) - 1))
-    op = data.draw(st.sampled_from(["insert", "delete", "replace"]))
-    byte = data.draw(alphabet)
-    mutated = text[:pos] + (byte if op != "delete" else b"") + text[pos + (op != "insert") :]
-    folder = factory.mktemp("mutated")
-    copy = folder / original.name
-    copy.write_bytes(mutated)
-    shutil.copy(
-        original.with_name(original.name + ".json"), folder / original.with_name(original.name + ".json").name
-    )
-    return text, mutated, copy
-
-
 # the byte-mutation properties draw the same examples every run, so CI never fails by the
 # draw; HYPOTHESIS_PROFILE=thorough draws thousands of fresh ones (tests/conftest.py)
 MUTATIONS = settings(derandomize=not THOROUGH, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -280,7 +205,7 @@ def test_mutated_headers_are_refused_whenever_c_would_read_other_values(
     # any byte inserted, deleted or replaced, inside or outside comments: when the C view
     # accepts the file it agrees with gcc, and verify refuses whenever the values differ
     original = originals["fts"]
-    text, mutated, header = _mutated_copy(data, original, BYTES, tmp_path_factory)
+    text, mutated, header = mutated_copy(data, original, BYTES, tmp_path_factory)
     folder = header.parent
     base = read_c(text, "original")
     try:
@@ -292,14 +217,14 @@ def test_mutated_headers_are_refused_whenever_c_would_read_other_values(
         assert {k: gcc.get(k) for k, _ in view.macros} == dict(view.macros)
         assert _gcc_cells(header, folder, view.name, view.int_type) == view.cells.ravel().tolist()
     forge_header_text(header, mutated.decode("latin-1"))
-    # the same reading, cells within the re-planning tolerance verify allows (one table unit:
-    # planned values are rounded to the unit, so noise at a half unit may flip the last one)
+    # the same reading and the same cells: exported on this platform, so verify allows no
+    # difference from the re-planned table (one unit only across platforms)
     same = (
         view is not None
         and (view.macros, view.name, view.int_type, view.guard)
         == (base.macros, base.name, base.int_type, base.guard)
         and view.cells.shape == base.cells.shape
-        and int(np.abs(view.cells - base.cells).max()) <= TABLE_UNITS_TOLERANCE
+        and bool(np.array_equal(view.cells, base.cells))
     )
     if not same:
         os.environ["FTSWEEP_CATALOGS"] = str(module_catalog_dir)
@@ -541,13 +466,9 @@ def _controller_reading(raw: bytes) -> list[list[float]] | None:
 
 
 def _same_motion(a: list[list[float]] | None, b: list[list[float]]) -> bool:
-    # within the lines' stated tolerance (files.LINE_TOLERANCE: 1e-6 of each column's unit)
-    return (
-        a is not None
-        and len(a) == len(b)
-        and all(len(x) == len(y) and all(abs(u - v) <= 1e-6 for u, v in zip(x, y, strict=True))
-                for x, y in zip(a, b, strict=True))
-    )  # fmt: skip
+    # exactly: the program was exported on this platform, so verify allows no difference from
+    # the re-planned lines (files.LINE_TOLERANCE applies only across platforms)
+    return a is not None and a == b
 
 
 PROGRAM_BYTES = st.sampled_from([b"\r", b"\n", b"#", b" ", b"1", b"9", b"-", b"+", b"e", b".", b"\t", b"0"])
@@ -562,7 +483,7 @@ def test_mutated_programs_are_refused_whenever_the_controller_would_move_otherwi
     # every hash re-made as an attacker would: if a controller would read other motion, verify
     # refuses
     original = originals["prog"]
-    text, mutated, program = _mutated_copy(data, original, PROGRAM_BYTES, tmp_path_factory)
+    text, mutated, program = mutated_copy(data, original, PROGRAM_BYTES, tmp_path_factory)
     rows = mutated.decode("latin-1").split("\n")
     at = next((i for i, r in enumerate(rows) if r.startswith("# CRC32:")), None)
     if at is not None:  # re-make the CRC over every other line, and the file's hashes

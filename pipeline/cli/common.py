@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import math
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any, Optional
 
@@ -49,13 +50,51 @@ TRUST_PLUGINS = click.option(
 )
 
 
-# ftsweep.exports.origin: who made an exported file
-SIGN_KEY = click.option(
-    "--sign-key",
-    type=click.Path(dir_okay=False),
-    help="Sign what is written with this ed25519 private key (FILE.sig beside it; `ftsweep keys new` "
-    "makes one). Default: FTSWEEP_SIGNING_KEY, else signing_key of the config file; none: not signed.",
-)
+class Expiry(click.ParamType):
+    """When a signature stops being valid: a duration from now (``30d``, ``12h``) or a UTC
+    date or time (``2027-01-31``, ``2027-01-31T18:00``); later than now."""
+
+    name = "when"
+
+    def convert(self, value: Any, param: Optional[click.Parameter], ctx: Optional[click.Context]) -> Any:
+        if isinstance(value, datetime):
+            return value
+        text, now = str(value).strip(), datetime.now(UTC)
+        try:
+            if text[-1:] in ("d", "h") and text[:-1].isdigit():
+                hours = int(text[:-1]) * (24 if text[-1] == "d" else 1)
+                if not 0 < hours <= 24 * 3660:
+                    raise ValueError
+                return now + timedelta(hours=hours)
+            when = datetime.fromisoformat(text)
+        except (ValueError, IndexError, OverflowError):
+            self.fail(
+                f"{text[:40]!r} is neither a duration (30d, 12h) nor a date (2027-01-31[T18:00])", param, ctx
+            )
+        when = when if when.tzinfo else when.replace(tzinfo=UTC)
+        if when <= now:
+            self.fail(f"{text} has passed (now {now:%Y-%m-%dT%H:%M}Z)", param, ctx)
+        return when
+
+
+# ftsweep.exports.origin: who made an exported file, and until when its statement holds
+def sign_options(command: Any) -> Any:
+    """``--sign-key`` and ``--expires`` of every command that writes an exported file."""
+    command = click.option(
+        "--expires",
+        type=Expiry(),
+        help="The signed statement expires then: a duration (30d, 12h) or a UTC date or time "
+        "(2027-01-31, 2027-01-31T18:00); verify with a trusted key refuses the file after it. "
+        "Default: no expiry.",
+    )(command)
+    return click.option(
+        "--sign-key",
+        type=click.Path(dir_okay=False),
+        help="Sign a statement of what is written (file name, length, digests, case, surface, machine, "
+        "cutting, compensation, dialect, time) with this ed25519 private key (FILE.sig beside it; "
+        "`ftsweep keys new` makes one). Default: FTSWEEP_SIGNING_KEY, else signing_key of the config "
+        "file; none: not signed.",
+    )(command)
 
 
 class CubeLocation(click.ParamType):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import sys
+from datetime import datetime
 from pathlib import Path
 from typing import Any, Optional
 
@@ -16,7 +17,6 @@ from ftsweep.cli.common import (
     CUBE,
     NON_NEGATIVE,
     POSITIVE,
-    SIGN_KEY,
     STORAGE_OPTIONS,
     TRUST_PLUGINS,
     cube_place,
@@ -24,6 +24,7 @@ from ftsweep.cli.common import (
     guard_complete,
     local_output,
     progress_done,
+    sign_options,
     stderr_progress,
     threads_option,
 )
@@ -136,7 +137,7 @@ def select(
     "controller entry's dialect (text when it declares none).",
 )
 @click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
-@SIGN_KEY
+@sign_options
 @TRUST_PLUGINS
 @ALLOW_INCOMPLETE
 @STORAGE_OPTIONS
@@ -150,6 +151,7 @@ def export(
     dialect: Optional[str],
     force: bool,
     sign_key: Optional[str],
+    expires: Optional[datetime],
     trust_plugins: bool,
     allow_incomplete: bool,
     storage_options: tuple[str, ...],
@@ -180,9 +182,9 @@ def export(
     try:
         if index is None:  # a case given by its index is the same case whatever else is computed
             guard_complete(current_status(cube), allow_incomplete)
-        meta = exp.export(
-            cube, target, budget_points, tolerance_nm, index, force, name, trust_plugins, sign_key, dialect
-        )
+        chosen = {"budget_points": budget_points, "tolerance_nm": tolerance_nm, "index": index}
+        meta = exp.export(cube, target, **chosen, force=force, name=name, trust_plugins=trust_plugins,
+                          sign_key=sign_key, dialect=dialect, expires=expires)  # fmt: skip
     except (exp.ExportError, SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(_selection_text(meta["selection"]))
@@ -222,6 +224,12 @@ def export(
     "it computes the simulator's commands from the file (a header's bilinear lookup, a PMAC PVT or "
     "SPLINE1 program's segments) at 10^5 points or more, to 1e-9 µm (docs/controllers.md).",
 )
+@click.option(
+    "--expect-case",
+    type=click.IntRange(min=0),
+    help="Refuse the file unless it is this case (flat index) of its cube: a swapped file fails.",
+)
+@click.option("--expect-surface", help="Refuse the file unless it is for this catalog surface (by name).")
 @TRUST_PLUGINS
 @threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
@@ -231,6 +239,8 @@ def verify(
     trusted: tuple[str, ...],
     accept_recorded: bool,
     compiled: bool,
+    expect_case: Optional[int],
+    expect_surface: Optional[str],
     trust_plugins: bool,
     as_json: bool,
 ) -> None:
@@ -238,14 +248,19 @@ def verify(
     case plans: a controller header (ring or mesh table, layered or not: FILE.h) or a path
     program (spiral, layered spiral, D path, Fresnel: FILE.txt).
 
+    The first lines say what the file is for (cube and case, surface, machine, cutting,
+    compensation, dialect, points, predicted P-V; who signed it when, until when);
+    --expect-case and --expect-surface refuse another file.
+
     \b
     Exit 0 only if everything the machine will use checks out:
     - the CRC-32 over every line the machine reads, the sidecar's SHA-256 of the file and
       the file's SHA-256 of the sidecar;
     - the file is exactly what export writes for the recorded case: every macro value (no
       comment or expression inside one), every header and layer/segment line; every table
-      cell within one unit of the re-planned table, every program line (t, C, X, Y, Z)
-      within 1 µs, 1e-6° and 1 nm of the re-planned one;
+      cell and every program number equal to the re-planned one when the sidecar's platform
+      (ftsweep, numpy, numba, llvmlite, CPU) is this machine's, else within one table unit
+      and 1 µs, 1e-6° and 1 nm (the re-planned line says which rule applied);
     - a D-path or Fresnel program: every line within the machine's axis limits;
     - a table or spiral/D-path program: the P-V re-simulated from the file as stored within
       the tolerance of the P-V predicted at export.
@@ -255,7 +270,8 @@ def verify(
     \b
     Origin (what the hashes above cannot prove: anyone can re-make them):
     - with a trusted key (--trusted-key, or the config file's trusted_keys): the file must
-      carry FILE.sig, an ed25519 signature of that key over the file and its sidecar;
+      carry FILE.sig, an ed25519 signature of that key over a statement naming this file
+      (name, length, digest), its sidecar's digest and what it is for, not expired;
     - without: the sidecar's recorded surface, machine and cutting entries must equal the
       local catalog's (--accept-recorded verifies against the recorded ones instead).
     The output's origin line says which of the two was proved.
@@ -265,19 +281,28 @@ def verify(
     from ftsweep.inputs.catalogs import CatalogError
 
     progress = stderr_progress("re-simulating", as_json)
+    expect = {"case": expect_case, "surface": expect_surface}
     try:
-        record = exp.verify(
-            header, progress, pv_tolerance_nm, trust_plugins, trusted, accept_recorded, compiled
-        )
+        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins, trusted, accept_recorded,
+                            compiled, expect)  # fmt: skip
     except (exp.ExportError, CaseError, CatalogError) as exc:
         raise click.ClickException(str(exc)) from None
     finally:
         progress_done(progress)
     if as_json:
         echo_json(record)
-        return
-    for line in exp.format_of_file(header).verified(record):
+    else:
+        _print_verified(header, record, compiled)
+
+
+def _print_verified(header: Path, record: dict[str, Any], compiled: bool) -> None:
+    """verify's lines: what the file is for first, then what was checked, the rule that judged
+    its numbers, the compiled reference's agreement and its origin."""
+    from ftsweep.exports import export as exp
+
+    for line in [*exp.purpose_lines(record), *exp.format_of_file(header).verified(record)]:
         click.echo(line)
+    click.echo(exp.replanned_line(record))
     if compiled:
         click.echo(
             f"compiled     the C reference gives the simulator's commands at {record['compiled_points']:,} "

@@ -11,11 +11,11 @@ import click
 from ftsweep.cli.common import (
     FINITE,
     POSITIVE,
-    SIGN_KEY,
     FiniteRange,
     echo_json,
     one_line,
     progress_done,
+    sign_options,
     stderr_progress,
     threads_option,
 )
@@ -60,7 +60,7 @@ from ftsweep.kinds.dpath.options import dpath_options
     help="Export the optimised program here (t C X Z lines + FILE.json sidecar).",
 )  # noqa: E501
 @click.option("--force", is_flag=True, help="Replace an existing program.")
-@SIGN_KEY
+@sign_options
 @threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def dpath_command(**opts: Any) -> None:
@@ -151,6 +151,7 @@ def _export_dpath(base: Case, record: dict[str, Any], opts: dict[str, Any], plan
     from ftsweep.engine.case import CaseError
     from ftsweep.engine.planning import resolve_specs
     from ftsweep.exports.export import signed
+    from ftsweep.exports.fingerprint import fingerprint
     from ftsweep.exports.origin import signature_path, signing_key
     from ftsweep.kinds import path_programs as program
     from ftsweep.kinds.dpath import study as dstudy
@@ -161,8 +162,9 @@ def _export_dpath(base: Case, record: dict[str, Any], opts: dict[str, Any], plan
     try:
         check_overwrite((out, side, signature_path(out)), opts["force"])
         case = dstudy.d_case(base, "optimised")
-        meta = program.export_dpath(out, side, case, resolve_specs(case), record, {}, planned)
-        signed(out, signing_key(opts["sign_key"]), meta)
+        here = {"platform": fingerprint()}  # verify finds every number exactly as re-planned here
+        meta = program.export_dpath(out, side, case, resolve_specs(case), record, here, planned)
+        signed(out, signing_key(opts["sign_key"]), meta, opts["expires"])
     except (ExportError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None
     return {"path": str(out), "sidecar": str(side), "lines": meta["n_points"]}
@@ -219,7 +221,7 @@ def _export_dpath(base: Case, record: dict[str, Any], opts: dict[str, Any], plan
     help="Export the program (t C X Y Z lines).",
 )
 @click.option("--force", is_flag=True, help="Replace an existing program.")
-@SIGN_KEY
+@sign_options
 @threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def fresnel_command(**opts: Any) -> None:
@@ -259,7 +261,7 @@ def fresnel_command(**opts: Any) -> None:
         plots = [str(p) for p in fstudy.plot(summary, opts["plot_dir"])]
         if out is not None:
             meta = fstudy.export(summary, out, sidecar_path(out), inp)
-            signed(out, signing_key(opts["sign_key"]), meta)
+            signed(out, signing_key(opts["sign_key"]), meta, opts["expires"])
     except (CatalogError, ExportError, ValidationError, ValueError) as exc:
         raise click.ClickException(one_line(str(exc))) from None
     finally:

@@ -97,6 +97,7 @@ class Resolution(Strict):
     compensation_scan: int = Field(
         5,
         ge=3,
+        le=256,
         description="coarse-scan samples of the exact compensation where the surface declares no "
         "curvature bound (with one, the solver and its scan density follow from the bound)",
     )

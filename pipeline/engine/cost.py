@@ -7,7 +7,9 @@ change, before anything is planned, compensated or allocated.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any, Optional
 
 from ftsweep.defaults import MAX_NODES
@@ -76,6 +78,39 @@ def check_cost(nodes_per_ray: float, n_theta: int, max_nodes: float = MAX_NODES)
             f"the case needs {total:,.3g} evaluation nodes, about {total / NODES_PER_SECOND / 3600:,.2g} "
             f"hours on one core, over the limit of {max_nodes:,.3g}; lower the resolution, or raise "
             "the limit with --max-nodes"
+        )
+
+
+# a file's re-simulation (verify) may cost at most this many times the evaluation nodes of the
+# converged default resolution for the same case: its own size class. A convergence study's
+# resolution (4x the angular samples, 2x the points per feed) is well inside; a sidecar that
+# records 100,000 samples per cell is refused before any work.
+VERIFY_COST_RATIO = 64.0
+_COST_RATIO: ContextVar[float] = ContextVar("ftsweep_cost_ratio", default=math.inf)
+
+
+@contextmanager
+def bounded_by_default_resolution(ratio: float = VERIFY_COST_RATIO) -> Iterator[None]:
+    """Within this block a case whose resolution costs more than ``ratio`` times the nodes of
+    the default resolution for the same case is refused before any work
+    (:func:`check_relative_cost`): verify judges a recorded resolution by the file's size."""
+    token = _COST_RATIO.set(ratio)
+    try:
+        yield
+    finally:
+        _COST_RATIO.reset(token)
+
+
+def check_relative_cost(nodes: float, default_nodes: float) -> None:
+    """Refuse, inside :func:`bounded_by_default_resolution`, a case of ``nodes`` evaluation
+    nodes when the default resolution gives it ``default_nodes``, naming both."""
+    ratio = _COST_RATIO.get()
+    if nodes > ratio * default_nodes:
+        raise CaseError(
+            f"the recorded resolution needs {nodes:,.3g} evaluation nodes, "
+            f"{nodes / default_nodes:,.3g} times the {default_nodes:,.3g} of the default resolution for "
+            f"this case (limit {ratio:g} times, about {ratio * default_nodes / NODES_PER_SECOND:,.0f} s): a "
+            "file is re-simulated at most at its own size's cost; refused before any work"
         )
 
 

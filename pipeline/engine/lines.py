@@ -18,9 +18,9 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.engine.case import CaseError
+from ftsweep.engine.case import CaseError, Resolution
 from ftsweep.engine.contract import Simulating
-from ftsweep.engine.cost import angular_samples, check_cost, ray_nodes
+from ftsweep.engine.cost import angular_samples, check_cost, check_relative_cost, ray_nodes
 from ftsweep.engine.planning import ResolvedCase, control_table, layer_plan, z_error_of
 from ftsweep.engine.record import Timer, record_of
 from ftsweep.engine.simulator import Machined, require_finite, require_finite_passes
@@ -73,6 +73,10 @@ class LinePlan:
         margin = window + 2.0 * rcase.feed_um
         nodes_per_ray = ray_nodes(rcase.rho0_um, margin, res.points_per_feed, rcase.feed_um)
         check_cost(nodes_per_ray, n_theta, max_nodes)
+        usual = Resolution(n_theta=None if rcase.kind.angular_cells else n_theta)
+        usual_theta = angular_samples(rcase.kind.angular_cells, rcase.layout, rcase.rho0_um, usual)
+        usual_per_ray = ray_nodes(rcase.rho0_um, margin, usual.points_per_feed, rcase.feed_um)
+        check_relative_cost(nodes_per_ray * n_theta, usual_per_ray * usual_theta)
         return cls(
             n_theta=n_theta,
             lines=interpolation.line_angles(n_theta),
@@ -317,9 +321,10 @@ class LineSimulation:
         rcase = s.rcase
         t = time.perf_counter()
         self.rcase = rcase
+        # planned (and refused when too costly) before the table is compensated
+        self.plan = LinePlan.of(rcase, s.batch_nodes, s.max_nodes)
         self.table, self.gouge = _table_of(rcase, s.table, s.catalog_folder)
         timer.add("compensation", t)
-        self.plan = LinePlan.of(rcase, s.batch_nodes, s.max_nodes)
         t = time.perf_counter()
         self.layering = layer_plan(rcase, self.table)
         timer.add("interpolation", t)

@@ -12,6 +12,7 @@ import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -86,12 +87,14 @@ def export(
     trust_plugins: bool = False,
     sign_key: str | None = None,
     dialect: str | None = None,
+    expires: datetime | None = None,
 ) -> dict[str, Any]:
     """Choose a case of a cube (a path or URL; ``select``'s rules), plan it again from the cube's recorded
     spec and catalog entries and write it in its kind's format with its sidecar, atomically
     (a table as a C header, a spiral or D-path program as plain-text lines). Returns the
     sidecar's content. A plug-in surface the cube names must be in the local catalog unless
-    ``trust_plugins``. Signed (``FILE.sig``) when a signing key is configured
+    ``trust_plugins``. Signed (``FILE.sig``: a statement of what the file is for, valid until
+    ``expires`` when given) when a signing key is configured
     (:func:`ftsweep.exports.origin.signing_key` of ``sign_key``). A path program is written in
     ``dialect`` (default: the machine's controller's, :mod:`ftsweep.exports.nc`)."""
     out = Path(out)
@@ -101,10 +104,11 @@ def export(
     except TextError as exc:
         raise ExportError(f"-o {str(out)[:200]!r}: {exc}") from None
     key = signing_key(sign_key)
+    signer = None if key is None else (key, expires)
     with _export_lock(out):
         check_overwrite((out, side, signature_path(out)), force)
         return _export_locked(
-            (cube_path, out), (budget_points, tolerance_nm, index), (name, trust_plugins, key, dialect)
+            (cube_path, out), (budget_points, tolerance_nm, index), (name, trust_plugins, signer, dialect)
         )
 
 
@@ -128,16 +132,17 @@ def _export_lock(out: Path) -> Iterator[None]:
 def _export_locked(
     paths: tuple[PathLike, Path],
     selection: tuple[int | None, float | None, int | None],
-    options: tuple[str | None, bool, Path | None, str | None],
+    options: tuple[str | None, bool, tuple[Path, datetime | None] | None, str | None],
 ) -> dict[str, Any]:
     """:func:`export` once its lock is held: the files are written and signed in a staging
     folder beside ``out`` under their final names, then published (:func:`_publish`)."""
     from ftsweep.exports import nc
+    from ftsweep.exports.fingerprint import fingerprint
     from ftsweep.tools.select import check_exportable, choose, open_cube, recorded_case
 
     cube_path, out = paths
     budget_points, tolerance_nm, index = selection
-    name, trust_plugins, key, dialect = options
+    name, trust_plugins, signer, dialect = options
     ds = open_cube(cube_path)
     chosen = choose(ds, budget_points, tolerance_nm, index)
     if tolerance_nm is not None and not chosen.get("met", True):
@@ -148,7 +153,12 @@ def _export_locked(
     flat = int(chosen["index"])
     check_exportable(ds, flat)
     case, specs = recorded_case(ds, flat, trust_plugins)
-    extra = {"cube": str(cube_path), "cube_git_revision": ds.attrs.get("git_revision")}
+    # the platform decides whether verify must find every number exactly as re-planned
+    extra = {
+        "cube": str(cube_path),
+        "cube_git_revision": ds.attrs.get("git_revision"),
+        "platform": fingerprint(),
+    }
     dialect = dialect or nc.default_dialect(specs[1])
     if dialect == "text" and specs[1].interpolation != "linear":
         raise ExportError(
@@ -164,22 +174,24 @@ def _export_locked(
             fmt = format_of_kind(case.layout.kind)
             assert fmt.export is not None
             meta = fmt.export(staged, staged_side, case, specs, chosen, extra, name=name)
-        if key is not None:  # signed before anything is published: a failed signing publishes nothing
-            meta = {**meta, "signature": sign(staged, key)}
+        if signer is not None:  # signed before anything is published: a failed signing publishes nothing
+            meta = {**meta, "signature": sign(staged, signer[0], signer[1])}
         _publish(stage, out)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return meta
 
 
-def signed(out: Path, key: Path | None, meta: dict[str, Any]) -> dict[str, Any]:
-    """``meta`` of a file a study just wrote in place, after signing it with ``key``
-    (``signature`` then holds the key's ID) or, with no key, removing a signature left by an
-    earlier export."""
+def signed(
+    out: Path, key: Path | None, meta: dict[str, Any], expires: datetime | None = None
+) -> dict[str, Any]:
+    """``meta`` of a file a study just wrote in place, after signing it with ``key`` (valid
+    until ``expires``; ``signature`` then holds the key's ID) or, with no key, removing a
+    signature left by an earlier export."""
     if key is None:
         signature_path(out).unlink(missing_ok=True)
         return meta
-    return {**meta, "signature": sign(out, key)}
+    return {**meta, "signature": sign(out, key, expires)}
 
 
 def _publish(stage: Path, out: Path) -> None:
@@ -204,23 +216,29 @@ def verify(
     trusted: tuple[str, ...] = (),
     accept_recorded: bool = False,
     compiled: bool = False,
+    expect: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Verify any exported file by its format (:func:`format_of_file`): what the machine
     reads, parsed as the machine parses it, against what the recorded case plans; and its
     origin (:mod:`ftsweep.exports.origin`): with trusted keys (``trusted``, or the config file's)
-    its signature, else its recorded catalog entries against the local catalog (unless
+    its signed statement, else its recorded catalog entries against the local catalog (unless
     ``accept_recorded``). With ``compiled``, the C reference interpolator's commands from
-    the file (:mod:`ftsweep.exports.compiled`) must equal the simulator's. The record's
-    ``origin`` says which was proved. Raises
+    the file (:mod:`ftsweep.exports.compiled`) must equal the simulator's. ``expect``: facts
+    of :func:`~ftsweep.exports.origin.purpose` the file must be for (``case``, ``surface``).
+    The record's ``purpose`` says what the file is for, ``replanned`` which rule judged its
+    numbers, ``origin`` what was proved. Raises
     :class:`~ftsweep.exports.files.ExportError` naming the first difference."""
+    from ftsweep.engine.cost import bounded_by_default_resolution
     from ftsweep.exports import origin as org
+    from ftsweep.exports.fingerprint import exact_on_this_platform
 
     path = Path(path)
     fmt = format_of_file(path)
     side = sidecar_of(path)
     before = _identity(path, side)  # nothing read yet: the format's own cap judges the file first
     # the file as the machine reads it first (its own errors name what is wrong with it) ...
-    record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
+    with bounded_by_default_resolution():  # a recorded resolution costs what the file's size warrants
+        record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
     if compiled:
         from ftsweep.exports import compiled as reference
 
@@ -228,23 +246,36 @@ def verify(
     file_bytes, side_bytes = _contents(path, side)
     if side_bytes is None or _identity(path, side) != before:  # judged must be what is proved
         raise ExportError(f"{path} or its sidecar changed while it was verified; verify it again")
+    meta = read_sidecar(path, side_bytes)
+    record["purpose"] = org.purpose(meta)
+    record["replanned"] = exact_on_this_platform(meta.get("platform"))[1]
+    _check_expected(path, record["purpose"], expect or {})
     # ... then who made it
     keys = org.trusted_keys(trusted)
     if keys:
-        record["origin"] = {
-            "proved": "signed",
-            "key_id": org.check_signature(path, file_bytes, side_bytes, keys),
-        }
+        signed = org.check_signature(path, file_bytes, side_bytes, meta, keys)
+        record["origin"] = {"proved": "signed", **signed}
     elif accept_recorded:
         record["origin"] = {"proved": "recorded entries (--accept-recorded): not compared with a catalog"}
     else:
-        catalog = org.check_catalog(read_sidecar(path, side_bytes), side)
+        catalog = org.check_catalog(meta, side)
         record["origin"] = {"proved": "consistent with this catalog", "catalog": catalog}
     if side != sidecar_path(path):
         record["note"] = (
             f"the sidecar has the older name {side.name}; export again to name it {sidecar_path(path).name}"
         )
     return record
+
+
+def _check_expected(path: Path, purpose: dict[str, Any], expect: dict[str, Any]) -> None:
+    """Refuse a file that is not for what the operator expects (``--expect-case``,
+    ``--expect-surface``), naming both."""
+    for key, wanted in expect.items():
+        if wanted is not None and purpose.get(key) != wanted:
+            raise ExportError(
+                f"{path} is for {key} {purpose.get(key)!s:.80}, not the expected {wanted}: a swapped or "
+                "wrong file; do not load it"
+            )
 
 
 def _identity(path: Path, side: Path) -> tuple[tuple[int, ...], ...]:
@@ -265,6 +296,33 @@ def _contents(path: Path, side: Path) -> tuple[bytes, bytes | None]:
     which the format's verify names)."""
     sidecar = read_regular(side, MAX_SIDECAR_BYTES, "sidecar") if side.exists() else None
     return read_regular(path, MAX_PROGRAM_BYTES), sidecar
+
+
+def purpose_lines(record: dict[str, Any]) -> list[str]:
+    """The first lines verify prints: what the file is for (case, surface, machine, cutting,
+    compensation, dialect, points, predicted P-V) and, when its statement was checked, who
+    signed it when, until when."""
+    p = record["purpose"]
+    case = f"case {p['case']} of {p['cube']}" if p["case"] is not None else "a study's program (no cube)"
+    points = f"{p['points']:,} points" if p["points"] is not None else "points not recorded"
+    pv = f"predicted P-V {p['pv_nm']:.2f} nm" if isinstance(p["pv_nm"], (int, float)) else "no P-V recorded"
+    lines = [
+        f"for          {case}",
+        f"             surface {p['surface']}, machine {p['machine']}, cutting {p['cutting']}, "
+        f"compensation {p['compensation']}",
+        f"             {p['dialect']}, {points}, {pv}",
+    ]
+    signed = record.get("origin", {})
+    if signed.get("key_id"):
+        until = f", expires {signed['expires']}" if signed.get("expires") else ", no expiry"
+        when = f"at {signed['signed_at']}{until} (ftsweep {signed['ftsweep']})"
+        lines.append(f"signed       by key {signed['key_id']} {when}")
+    return lines
+
+
+def replanned_line(record: dict[str, Any]) -> str:
+    """The line that says which rule judged the file's numbers against the re-planned ones."""
+    return f"re-planned   {record['replanned']}"
 
 
 def origin_line(record: dict[str, Any]) -> str:

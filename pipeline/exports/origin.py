@@ -4,9 +4,13 @@ Hashes and CRCs prove that a file agrees with its sidecar; anyone with ftsweep c
 them. Two things prove more, and verify says which one it proved:
 
 - **signed by KEY**: export signs what it wrote with an ed25519 key (RFC 8032, through the
-  ``cryptography`` library) when one is configured; ``FILE.sig`` beside the file holds the
-  signature over the SHA-256 of the file's bytes and of its sidecar's bytes. verify with a
-  trusted public key refuses an unsigned file, another key and a wrong signature.
+  ``cryptography`` library) when one is configured. ``FILE.sig`` beside the file holds a
+  signed statement (:func:`statement`, after TUF's signed target metadata) that names the
+  file, its length and SHA-256, its sidecar's SHA-256, the cube and case, surface, machine,
+  cutting, compensation, dialect, points and predicted P-V, the ftsweep version, the time
+  of signing and an optional expiry. verify with a trusted public key refuses an unsigned
+  file, another key, a wrong signature, a file under another name than it was signed as, an
+  expired statement and a statement of the older scheme that named none of these.
 - **consistent with this catalog**: without a trusted key, the catalog entries a sidecar
   recorded (surface, machine, cutting) must equal the local catalog's entries of the same
   names; a difference is refused naming the field (``--accept-recorded`` verifies against
@@ -25,7 +29,10 @@ import base64
 import hashlib
 import json
 import os
+import stat
+import sys
 import tomllib
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -35,13 +42,16 @@ from ftsweep.store.io import (
     ExportError,
     dumps_json,
     read_regular,
+    read_sidecar,
     sidecar_path,
     write_texts_atomic,
 )
 
-# what a signature covers, in this order; the first line names the scheme
-DOMAIN = b"ftsweep export signature v1\n"
+# what a signature covers: this line, then the statement as canonical JSON
+SCHEME = "ftsweep export statement v2"
+DOMAIN = SCHEME.encode("ascii") + b"\n"
 MAX_KEY_BYTES = 64 * 2**10
+TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
 
 
 def signature_path(path: Path) -> Path:
@@ -61,6 +71,8 @@ def _config() -> dict[str, Any]:
     path = config_path()
     if not path.exists():
         return {}
+    # whoever can change the config chooses the keys trusted and the key that signs
+    warn_if_exposed(path, "config file", 0o022)
     try:
         data = tomllib.loads(read_regular(path, MAX_KEY_BYTES, "config file").decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
@@ -129,6 +141,8 @@ def _load(path: Path, private: bool) -> Any:
     from cryptography.hazmat.primitives import serialization
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
+    if private:
+        warn_if_exposed(path, "private key", 0o077)
     data = read_regular(path, MAX_KEY_BYTES, "key file")
     key: Any
     try:
@@ -144,70 +158,198 @@ def _load(path: Path, private: bool) -> Any:
     return key
 
 
-def _message(file_sha: str, side_sha: str) -> bytes:
-    return DOMAIN + f"file {file_sha}\nsidecar {side_sha}\n".encode("ascii")
+def _now() -> datetime:
+    """The time signatures are made and judged at (UTC): one place, so tests can move it."""
+    return datetime.now(UTC)
 
 
-def _signature_text(raw_public: bytes, file_sha: str, side_sha: str, signature: bytes) -> str:
-    """``FILE.sig`` as export writes it: JSON of the algorithm, key ID, public key, both
-    hashes and the signature, indented, one LF at the end."""
-    content = {
+def purpose(meta: dict[str, Any]) -> dict[str, Any]:
+    """What an exported file is for, from its sidecar ``meta`` (read by
+    :func:`~ftsweep.store.io.read_sidecar`): the cube and case index it was exported from
+    (None for a study's program), surface, machine, cutting, compensation, dialect (``header``
+    for a C table, ``text`` for ftsweep's lines), points and the predicted P-V [nm] of the
+    file as written."""
+    raw = meta.get("selection")
+    selection: dict[str, Any] = raw if isinstance(raw, dict) else {}
+    raw = meta.get("case") if isinstance(meta.get("case"), dict) else meta.get("inputs")
+    case: dict[str, Any] = raw if isinstance(raw, dict) else {}
+    index = selection.get("index")
+    points = meta.get("n_points", selection.get("n_points"))
+    return {
+        "cube": meta.get("cube"),
+        "case": index if isinstance(index, int) and not isinstance(index, bool) else None,
+        **entry_names(meta),
+        "compensation": meta.get("compensation", case.get("compensation")),
+        "dialect": meta.get("dialect") or ("header" if "header" in meta else "text"),
+        "points": points if isinstance(points, int) and not isinstance(points, bool) else None,
+        "pv_nm": meta.get("pv_nm_as_written", meta.get("pv_nm")),
+    }
+
+
+def statement(
+    name: str, file_bytes: bytes, side_bytes: bytes, meta: dict[str, Any], stamp: dict[str, Any]
+) -> dict[str, Any]:
+    """The statement export signs for a file named ``name`` with these bytes and this sidecar
+    (its bytes and content ``meta``): the file's name, length [bytes] and SHA-256, the
+    sidecar's SHA-256, :func:`purpose`, and ``stamp``: the ftsweep version, ``signed_at`` and
+    ``expires`` (UTC, :data:`TIME_FORMAT`; ``expires`` None for none)."""
+    return {
+        "file": name,
+        "length": len(file_bytes),
+        "sha256": hashlib.sha256(file_bytes).hexdigest(),
+        "sidecar_sha256": hashlib.sha256(side_bytes).hexdigest(),
+        **purpose(meta),
+        "ftsweep": stamp.get("ftsweep"),
+        "signed_at": stamp.get("signed_at"),
+        "expires": stamp.get("expires"),
+    }
+
+
+def _message(content: dict[str, Any]) -> bytes:
+    """The bytes a signature covers: the scheme's line, then the statement as canonical JSON."""
+    return DOMAIN + json.dumps(content, sort_keys=True, separators=(",", ":")).encode("ascii")
+
+
+def _signature_text(raw_public: bytes, content: dict[str, Any], signature: bytes) -> str:
+    """``FILE.sig`` as export writes it: JSON of the scheme, algorithm, key ID, public key, the
+    statement and the signature, indented, one LF at the end."""
+    document = {
+        "scheme": SCHEME,
         "algorithm": "ed25519",
         "key_id": key_id(raw_public),
         "public_key": base64.b64encode(raw_public).decode("ascii"),
-        "file_sha256": file_sha,
-        "sidecar_sha256": side_sha,
+        "statement": content,
         "signature": base64.b64encode(signature).decode("ascii"),
     }
-    return json.dumps(content, indent=2) + "\n"
+    return json.dumps(document, indent=2) + "\n"
 
 
-def sign(path: Path, key_path: Path) -> str:
+def sign(path: Path, key_path: Path, expires: datetime | None = None) -> str:
     """Sign an exported file and its sidecar as they lie on disk with the private key at
-    ``key_path``; writes ``FILE.sig`` atomically and returns the key's ID."""
+    ``key_path``: the :func:`statement` of them, signed now and valid until ``expires``
+    (None: no expiry); writes ``FILE.sig`` atomically and returns the key's ID."""
+    from ftsweep.version import __version__
+
     key = _load(key_path, private=True)
-    file_sha = hashlib.sha256(read_regular(path, MAX_PROGRAM_BYTES, "exported file")).hexdigest()
-    side_sha = hashlib.sha256(read_regular(sidecar_path(path), MAX_SIDECAR_BYTES, "sidecar")).hexdigest()
+    file_bytes = read_regular(path, MAX_PROGRAM_BYTES, "exported file")
+    side_bytes = read_regular(sidecar_path(path), MAX_SIDECAR_BYTES, "sidecar")
+    meta = read_sidecar(path, side_bytes)  # as verify will read it
+    now = _now()
+    if expires is not None and expires <= now:
+        raise ExportError(f"--expires {expires.strftime(TIME_FORMAT)} has passed; nothing signed")
+    stamp = {
+        "ftsweep": __version__,
+        "signed_at": now.strftime(TIME_FORMAT),
+        "expires": None if expires is None else expires.astimezone(UTC).strftime(TIME_FORMAT),
+    }
+    content = statement(path.name, file_bytes, side_bytes, meta, stamp)
     raw = _raw(key.public_key())
-    text = _signature_text(raw, file_sha, side_sha, key.sign(_message(file_sha, side_sha)))
-    write_texts_atomic({signature_path(path): text})
+    write_texts_atomic({signature_path(path): _signature_text(raw, content, key.sign(_message(content)))})
     return key_id(raw)
 
 
-def check_signature(path: Path, file_bytes: bytes, side_bytes: bytes, keys: list[Path]) -> str:
-    """The ID of the trusted key (one of ``keys``) whose signature ``FILE.sig`` holds over
-    these bytes of the file and its sidecar; :class:`ExportError` for an unsigned file, a
-    key not trusted, a signature that does not match, or a signature file that is not byte
-    for byte what export writes for them."""
+def check_signature(
+    path: Path, file_bytes: bytes, side_bytes: bytes, meta: dict[str, Any], keys: list[Path]
+) -> dict[str, Any]:
+    """The signed statement of ``FILE.sig`` with the ID of the trusted key (one of ``keys``)
+    that signed it (``key_id``); :class:`ExportError` for an unsigned file, a key not trusted,
+    a signature that does not match, a statement of the older scheme, a statement that is
+    not the one of these bytes under this name (a renamed or swapped file: the first field
+    that differs is named), an expired statement, or a signature file that is not byte for
+    byte what export writes."""
     from cryptography.exceptions import InvalidSignature
 
     sig = signature_path(path)
     if not sig.exists():
         raise ExportError(f"{path} is not signed ({sig.name} is missing) and a trusted key is required")
     text = read_regular(sig, MAX_KEY_BYTES, "signature")
-    try:
-        content = json.loads(text.decode("ascii"))
-        signature = base64.b64decode(content["signature"], validate=True)
-        claimed = str(content["key_id"])
-    except (ValueError, KeyError, TypeError) as exc:
-        raise ExportError(f"{sig}: not an ftsweep signature ({type(exc).__name__})") from None
+    content, signature, claimed = _signed_parts(sig, text)
     trusted = {key_id(_raw(k)): k for k in (_load(p, private=False) for p in keys)}
     if claimed not in trusted:
         raise ExportError(
             f"{path} is signed by key {claimed[:16]!r}, which is not trusted here "
             f"(trusted: {', '.join(sorted(trusted)) or 'none'}); do not load it"
         )
-    file_sha, side_sha = hashlib.sha256(file_bytes).hexdigest(), hashlib.sha256(side_bytes).hexdigest()
     try:
-        trusted[claimed].verify(signature, _message(file_sha, side_sha))
+        trusted[claimed].verify(signature, _message(content))
     except InvalidSignature:
         raise ExportError(
-            f"{path}: the signature of key {claimed} does not match the file and its sidecar: one of them "
-            "was changed after it was signed; do not load it"
+            f"{path}: the signature of key {claimed} does not match its statement: {sig.name} was changed "
+            "after it was signed; do not load it"
         ) from None
-    if text.decode("ascii") != _signature_text(_raw(trusted[claimed]), file_sha, side_sha, signature):
+    if text.decode("ascii") != _signature_text(_raw(trusted[claimed]), content, signature):
         raise ExportError(f"{sig}: its fields are not the ones export writes for this file; do not load it")
-    return claimed
+    _check_statement(path, content, statement(path.name, file_bytes, side_bytes, meta, content))
+    return {**content, "key_id": claimed}
+
+
+def _signed_parts(sig: Path, text: bytes) -> tuple[dict[str, Any], bytes, str]:
+    """The statement, signature and claimed key ID of a signature file of this scheme."""
+    try:
+        document = json.loads(text.decode("ascii"))
+        if not isinstance(document, dict):
+            raise TypeError("not an object")
+    except (ValueError, TypeError) as exc:
+        raise ExportError(f"{sig}: not an ftsweep signature ({type(exc).__name__})") from None
+    if document.get("scheme") != SCHEME:
+        raise ExportError(
+            f"{sig}: a signature of an older scheme, which names no file, case or expiry: export the "
+            "file again to sign a statement of what it is for"
+        )
+    try:
+        signature = base64.b64decode(document["signature"], validate=True)
+        claimed, content = str(document["key_id"]), document["statement"]
+        if not isinstance(content, dict):
+            raise TypeError("the statement is not an object")
+    except (ValueError, KeyError, TypeError) as exc:
+        raise ExportError(f"{sig}: not an ftsweep signature ({type(exc).__name__})") from None
+    return content, signature, claimed
+
+
+def _check_statement(path: Path, signed: dict[str, Any], found: dict[str, Any]) -> None:
+    """Refuse a file whose signed statement is not the one of the file as found (its name
+    first: a renamed file), or whose statement has expired."""
+    if signed.get("file") != found["file"]:
+        raise ExportError(
+            f"{path}: signed as {str(signed.get('file'))[:80]!r}, not {found['file']!r}: a renamed or "
+            "copied file is not the file that was signed; do not load it"
+        )
+    differ = [k for k in found if signed.get(k) != found[k]] + [k for k in signed if k not in found]
+    if differ:
+        raise ExportError(
+            f"{path}: the signed statement's {differ[0]} is {str(signed.get(differ[0]))[:80]!r}, the file "
+            f"and its sidecar give {str(found.get(differ[0]))[:80]!r}; do not load it"
+        )
+    if signed["expires"] is not None:
+        try:
+            until = datetime.strptime(str(signed["expires"]), TIME_FORMAT).replace(tzinfo=UTC)
+        except ValueError:
+            raise ExportError(
+                f"{path}: the signed expiry {str(signed['expires'])[:40]!r} is not a time"
+            ) from None
+        if _now() >= until:
+            raise ExportError(
+                f"{path}: its signature expired at {signed['expires']} (signed at {signed['signed_at']}); "
+                "export it again for a new signature; do not load it"
+            )
+
+
+_WARNED: set[tuple[Path, int]] = set()
+
+
+def warn_if_exposed(path: Path, what: str, bits: int) -> None:
+    """One line on stderr when the file at ``path`` grants others ``bits`` of its mode (a
+    private key readable, a config file writable by group or others), naming the fix."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return
+    if mode & bits and (path, bits) not in _WARNED:
+        _WARNED.add((path, bits))
+        sys.stderr.write(
+            f"warning: {what} {path} is {stat.filemode(mode)}: others can "
+            f"{'read' if bits & 0o044 else 'change'} it; chmod {'600' if bits & 0o044 else 'go-w'} {path}\n"
+        )
 
 
 def entry_names(meta: dict[str, Any]) -> dict[str, str]:

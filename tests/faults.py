@@ -157,24 +157,40 @@ def check_every_point(
             i for i in chosen if every[i - 1][0] == "before-put" and every[i - 1][1].split("/")[0] in puts_of
         ]
     for at in chosen:
-        url = make_url(at)
-        found = faulted_run(spec, url, catalog, at, fault, monkeypatch)
-        where = f"{fault} at point {at} {every[at - 1]}"
-        if fault == "kill":
-            assert found["outcome"] == "killed", where
-        elif place(url).local:
-            # a live process's lock is never taken over: the second writer waits (exit 75)
-            assert found["second"] == "refused" and found["outcome"] == "finished", (where, found)
-        else:
-            assert found["second"] == "finished", (where, found)
-            assert found["outcome"] == "lease lost", (where, found)
-            # not one object changed after the takeover finished (a stale write landed nowhere)
-            assert block_tags(url) == found["tags"], where
-        run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog)
-        xr.testing.assert_equal(data(url), expected)
-        counts = run.cube_counts(url)
-        assert counts["done"] == expected["status"].size and counts["pending"] == 0, where
-        assert not caselog.pending_logs(url), where
-        if not place(url).local:
-            place(url).remove_all()  # memory:// lists every object of the process
+        check_point(spec, make_url(at), catalog, (at, fault), monkeypatch, (expected, every))
     return len(chosen)
+
+
+def check_point(
+    spec: Path,
+    url: str,
+    catalog: Path,
+    fault_at: tuple[int, str],
+    monkeypatch: Any,
+    clean: tuple[xr.Dataset, list[tuple[str, str]]],
+) -> None:
+    """The fault ``fault_at`` = (point, "pause" or "kill") in a run of ``spec`` into ``url``,
+    then a plain run; the cube must equal the clean run's data (``clean``: its data and its
+    write points), and on object storage the paused writer must have lost its lease without
+    changing an object after the takeover."""
+    at, fault = fault_at
+    expected, every = clean
+    found = faulted_run(spec, url, catalog, at, fault, monkeypatch)
+    where = f"{fault} at point {at} {every[at - 1]}"
+    if fault == "kill":
+        assert found["outcome"] == "killed", where
+    elif place(url).local:
+        # a live process's lock is never taken over: the second writer waits (exit 75)
+        assert found["second"] == "refused" and found["outcome"] == "finished", (where, found)
+    else:
+        assert found["second"] == "finished", (where, found)
+        assert found["outcome"] == "lease lost", (where, found)
+        # not one object changed after the takeover finished (a stale write landed nowhere)
+        assert block_tags(url) == found["tags"], where
+    run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog)
+    xr.testing.assert_equal(data(url), expected)
+    counts = run.cube_counts(url)
+    assert counts["done"] == expected["status"].size and counts["pending"] == 0, where
+    assert not caselog.pending_logs(url), where
+    if not place(url).local:
+        place(url).remove_all()  # memory:// lists every object of the process

@@ -360,6 +360,7 @@ def test_verify_refuses_lines_beyond_the_machine_from_the_record_of_their_own_mo
         verify(out)
 
 
+@pytest.mark.slow  # 7-15 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_dpath_sweep_is_scheduler_independent_and_compares(tmp_path):
     from ftsweep.sweeps.run import run_sweep
     from ftsweep.tools.compare import compare_rows

@@ -93,6 +93,7 @@ def test_zernike_noll_order():
     ]
 
 
+@pytest.mark.slow  # 7-15 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_height_map_of_the_sinewave_predicts_the_analytic_pv(tmp_path, catalog_dir):
     """Sampled on a 0.5 µm grid, the sine-wave part predicts the analytic P-V within 5 %."""
     g = np.arange(-1010.0, 1010.0001, 0.5)

@@ -247,6 +247,7 @@ def _direct_minimax(deltas: np.ndarray, inv: np.ndarray, first: bool, t0: float)
     return float(ff.turn_peak(np.ascontiguousarray(res.x[:-1]), deltas, inv, first))
 
 
+@pytest.mark.slow  # 7-15 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_the_turn_optimiser_comes_within_5_percent_of_the_direct_minimax(coarse):
     # eq. 15 per turn against a direct minimax solution of the same turn: the first (cold),
     # the next, the turns onto each new facet, the one the optimiser reduced least, the last

@@ -13,6 +13,7 @@ from ftsweep.store.cube import CubeError
 from ftsweep.tools.optimize import optimize
 
 
+@pytest.mark.slow  # 7-15 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_finds_the_smallest_layout_meeting_the_tolerance(tmp_path, catalog_dir):
     out = tmp_path / "opt.zarr"
     result = optimize("small_sine", "ring", 40.0, out, start_points=5000, catalog_folder=catalog_dir)
@@ -54,6 +55,7 @@ def test_capacity_reached_without_meeting_reports_the_best(tmp_path, catalog_dir
     assert result["answer"]["n_points"] <= 30000
 
 
+@pytest.mark.slow  # 7-15 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_same_search_resumes_and_another_needs_restart(tmp_path, catalog_dir):
     out = tmp_path / "o.zarr"
     args = ("small_sine", "ring", 200.0, out)
@@ -88,6 +90,7 @@ def test_same_search_resumes_and_another_needs_restart(tmp_path, catalog_dir):
         optimize("small_sine", "ring", -1.0, tmp_path / "p.zarr", catalog_folder=catalog_dir)
 
 
+@pytest.mark.slow  # 7-15 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_a_search_seeded_by_the_estimate_needs_fewer_evaluations(tmp_path, catalog_dir):
     # the estimate seeds the aspect optimum and the point count
     args = ("small_sine", "ring", 40.0)

@@ -221,6 +221,7 @@ axes:
 """
 
 
+@pytest.mark.slow  # 7-15 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_dir, monkeypatch):
     monkeypatch.setenv("FTSWEEP_CATALOGS", str(catalog_dir))  # verify compares the entries with it
     import xarray as xr

@@ -62,7 +62,7 @@ def test_the_dpath_verify_row_checks_an_exported_program():
 
 @pytest.mark.slow  # 7-15 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_cube_scale_counts_objects_and_times_open_and_select(tmp_path):
-    """Issue 30, item 3: a synthetic cube in blocks holds a few objects per variable, and its
+    """A synthetic cube in blocks holds a few objects per variable, and its
     every case reads back as written (select picks one of them)."""
     from ftsweep.store import cube
     from ftsweep.store.cubescale import build, measure, synthetic_spec

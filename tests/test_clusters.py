@@ -19,7 +19,7 @@ from ftsweep.sweeps.run import run_sweep
 from ftsweep.sweeps.spec import load_sweep, n_cases, plan_tasks
 
 # external Dask schedulers and workers, killed and terminated
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.serial]
 
 # 18 cases: 8 tasks on one thread, 9 on two (this machine's cores)
 SPEC = """
@@ -184,7 +184,7 @@ def test_a_terminated_sweep_releases_its_lock_and_resumes(tmp_path, catalog_dir,
 
 
 def test_a_sweep_survives_losing_one_of_two_external_workers(tmp_path, catalog_dir):
-    """Issue 30, item 5: kill one worker of an external 2-worker cluster mid-sweep; the other
+    """Kill one worker of an external 2-worker cluster mid-sweep; the other
     finishes (Dask reruns the lost worker's task there) and the cube equals a local run."""
     env = _env(catalog_dir)
     out = tmp_path / "survive.zarr"

@@ -66,7 +66,7 @@ def test_cube_quantifies_with_pint_and_converts(cubes, kind):
 
 @pytest.mark.parametrize("kind", ["ring", "mesh"])
 def test_every_accessor_result_carries_units_pint_reads(cubes, kind):
-    """Issue 30, item 7: what ``ds.ftsweep`` returns quantifies with the units of what it is."""
+    """What ``ds.ftsweep`` returns quantifies with the units of what it is."""
     pytest.importorskip("pint_xarray")
     import pint
 

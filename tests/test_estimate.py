@@ -83,7 +83,7 @@ def test_cli_estimate_prints_the_optimum_per_point_count():
 
 @pytest.mark.slow
 def test_estimate_agrees_with_the_simulated_lens_array_sweep(tmp_path):
-    """Issue 10, item 3, on the mesh reference sweep (about three minutes on two cores; the
+    """The first-order estimate against the mesh reference sweep (about three minutes on two cores; the
     ring reference sweep is checked in the default suite, tests/test_reference_sweep.py)."""
     from ftsweep.kinds.table.sweep_estimate import agreement, estimate_sweep
     from ftsweep.sweeps.run import run_sweep
@@ -109,7 +109,7 @@ axes: {points: [8000, 20000], aspect: [0.3, 2.0, 16.0, 128.0]}
 
 
 def test_prune_leaves_out_hopeless_cases_and_keeps_the_optimum(tmp_path, catalog_dir):
-    """Issue 10, item 3: ``sweep --prune FACTOR`` computes only cases the estimate does not
+    """``sweep --prune FACTOR`` computes only cases the estimate does not
     rule out; a later run without it computes the rest, giving the full cube."""
     import xarray as xr
 

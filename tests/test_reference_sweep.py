@@ -64,7 +64,7 @@ def test_cube_has_units_and_provenance(ring_cube):
 
 
 def test_estimate_agrees_with_the_simulated_reference_sweep(ring_cube):
-    """Issue 10, item 3: the first-order estimate against the 84 simulated cases."""
+    """The first-order estimate against the 84 simulated cases."""
     from ftsweep.kinds.table.sweep_estimate import agreement, estimate_sweep
     from ftsweep.sweeps.spec import load_sweep
 

@@ -26,7 +26,7 @@ from ftsweep.store.storage import place
 from ftsweep.sweeps.run import run_sweep
 
 # a moto S3 server, sweeps in subprocesses killed and paused
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.serial]
 
 pytest.importorskip("s3fs")
 pytest.importorskip("moto")

@@ -421,6 +421,7 @@ def _wait_for(condition, seconds: float = 120.0) -> None:  # type: ignore[no-unt
 
 
 @pytest.mark.integration  # two sweep processes
+@pytest.mark.serial
 def test_concurrent_sweeps_are_refused_and_the_cube_equals_a_single_run(tmp_path, catalog_dir):
     # twelve cases keep the first run busy for several seconds after it takes the lock, while
     # the other two start up (a run that ended too early fails this test, never passes it)

@@ -170,6 +170,7 @@ cases_per_task: 1
 
 
 @pytest.mark.integration  # a sweep process killed midway
+@pytest.mark.serial
 def test_killed_sweep_loses_nothing_and_resumes(tmp_path, catalog_dir):
     spec = write_spec(tmp_path, KILL_SPEC, "kill.yaml")
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))

@@ -108,6 +108,7 @@ axes: {points: [8000, 20000], aspect: [0.3, 2.0, 16.0, 128.0]}
 """
 
 
+@pytest.mark.slow  # 5-7 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_prune_leaves_out_hopeless_cases_and_keeps_the_optimum(tmp_path, catalog_dir):
     """``sweep --prune FACTOR`` computes only cases the estimate does not
     rule out; a later run without it computes the rest, giving the full cube."""

@@ -61,6 +61,7 @@ def test_nothing_to_run_starts_nothing():
     execute([], SPEC, "tcp://127.0.0.1:1", 1, lambda rows: pytest.fail("called"), task=square)
 
 
+@pytest.mark.slow  # 5-7 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_local_cluster_gives_the_synchronous_summaries():
     assert _collect(None, square) == _collect(SYNCHRONOUS, square)
     assert _collect(None, fail_on_two, on_error=as_error) == _collect(

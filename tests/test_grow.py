@@ -38,6 +38,7 @@ def _data(path):  # type: ignore[no-untyped-def]
     return xr.open_zarr(path).drop_vars(list(cube.TIMING_VARS)).load()
 
 
+@pytest.mark.slow  # 5-7 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_added_point_counts_and_aspects_compute_only_the_new_cases(tmp_path, catalog_dir):
     out = tmp_path / "g.zarr"
     first = run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)

@@ -115,6 +115,7 @@ def reference_cube(tmp_path, catalog_dir):
     return out
 
 
+@pytest.mark.slow  # 5-7 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_local_cluster_equals_synchronous_value_for_value(tmp_path, catalog_dir, reference_cube):
     out = tmp_path / "cluster.zarr"
     report = run_sweep(str(write_spec(tmp_path)), out, workers=2, catalog_folder=catalog_dir)
@@ -384,6 +385,7 @@ def test_provenance_is_ftsweeps_own_revision_not_the_callers(tmp_path):
     assert cube.git_revision(copy) == git("rev-parse", "HEAD").stdout.strip()
 
 
+@pytest.mark.slow  # 5-7 s on 2 cores: the full command runs it, the quick one leaves it out
 def test_resuming_another_revisions_cube_warns_in_one_line(tmp_path, catalog_dir):
     """The command line prints the warning as one line (pytest would capture it in process)."""
     import zarr

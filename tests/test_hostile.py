@@ -22,6 +22,7 @@ from faults import SPEC, check_point, data, points
 from forging import mutated_copy
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from pcpp.preprocessor import Preprocessor
 
 from ftsweep.cli.main import main
 from ftsweep.exports import dialects, gcode, nc
@@ -169,7 +170,7 @@ def test_a_merge_survives_a_pause_or_kill_at_a_random_write_point(
 # runs every example under one monkeypatch)
 _FDOPEN = os.fdopen
 _DECOMPRESSOBJ = zlib.decompressobj
-_EXPAND = __import__("pcpp.preprocessor", fromlist=["Preprocessor"]).Preprocessor.expand_macros
+_EXPAND = Preprocessor.expand_macros
 
 
 @pytest.fixture(scope="module")
@@ -191,8 +192,6 @@ def header_text(tmp_path_factory, module_catalog_dir):
 @given(depth=st.integers(2, 60), width=st.integers(2, 8), at=st.integers(0, 20))
 def test_a_macro_expansion_bomb_is_refused_before_it_expands(header_text, monkeypatch, depth, width, at):
     # D0 = 1; Dk = D(k-1) repeated `width` times: width^depth tokens if expanded
-    from pcpp.preprocessor import Preprocessor
-
     expanded = {"tokens": 0}
 
     def counting(self, tokens, *args, **kwargs):  # type: ignore[no-untyped-def]

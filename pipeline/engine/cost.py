@@ -101,10 +101,14 @@ def bounded_by_default_resolution(ratio: float = VERIFY_COST_RATIO) -> Iterator[
         _COST_RATIO.reset(token)
 
 
-def check_relative_cost(nodes: float, default_nodes: float) -> None:
+def check_relative_cost(nodes: float, default_nodes_of: Callable[[], float]) -> None:
     """Refuse, inside :func:`bounded_by_default_resolution`, a case of ``nodes`` evaluation
-    nodes when the default resolution gives it ``default_nodes``, naming both."""
+    nodes when the default resolution gives it ``default_nodes_of()``, naming both (outside
+    it, nothing is computed: a sweep's resolution is its own choice)."""
     ratio = _COST_RATIO.get()
+    if math.isinf(ratio):
+        return
+    default_nodes = default_nodes_of()
     if nodes > ratio * default_nodes:
         raise CaseError(
             f"the recorded resolution needs {nodes:,.3g} evaluation nodes, "

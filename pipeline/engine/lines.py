@@ -51,6 +51,14 @@ def _pass_point(grid: Any, ray_theta: np.ndarray) -> Callable[[int], str]:
     return where
 
 
+def _default_nodes(rcase: ResolvedCase, margin_um: float, n_theta: int) -> float:
+    """The evaluation nodes of ``rcase`` at the default resolution (``n_theta`` kept for a
+    kind not sampled per cell), with the same ray margin [µm]."""
+    usual = Resolution(n_theta=None if rcase.kind.angular_cells else n_theta)
+    theta = angular_samples(rcase.kind.angular_cells, rcase.layout, rcase.rho0_um, usual)
+    return ray_nodes(rcase.rho0_um, margin_um, usual.points_per_feed, rcase.feed_um) * theta
+
+
 @dataclass(frozen=True)
 class LinePlan:
     """How the part is sampled (model §5): ``n_theta`` spindle angles as feed-plane lines,
@@ -73,10 +81,7 @@ class LinePlan:
         margin = window + 2.0 * rcase.feed_um
         nodes_per_ray = ray_nodes(rcase.rho0_um, margin, res.points_per_feed, rcase.feed_um)
         check_cost(nodes_per_ray, n_theta, max_nodes)
-        usual = Resolution(n_theta=None if rcase.kind.angular_cells else n_theta)
-        usual_theta = angular_samples(rcase.kind.angular_cells, rcase.layout, rcase.rho0_um, usual)
-        usual_per_ray = ray_nodes(rcase.rho0_um, margin, usual.points_per_feed, rcase.feed_um)
-        check_relative_cost(nodes_per_ray * n_theta, usual_per_ray * usual_theta)
+        check_relative_cost(nodes_per_ray * n_theta, lambda: _default_nodes(rcase, margin, n_theta))
         return cls(
             n_theta=n_theta,
             lines=interpolation.line_angles(n_theta),

@@ -1,7 +1,7 @@
 """ftsweep orchestration: catalogs, case specs, the case runner and the CLI.
 
 This package's source is the repository's ``pipeline/`` folder, installed as ``ftsweep``
-(``pipeline/export.py`` is ``ftsweep.exports.export``); the pure numerical stages are ``stages/``,
+(``pipeline/export.py`` is ``ftsweep.tools.export``); the pure numerical stages are ``stages/``,
 installed as ``ftsweep.stages``. docs/architecture.md draws the layers.
 
 Citations in docstrings, messages and exported headers: "model §N, eq. (k)" is section N and

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from ftsweep import registry
 from ftsweep.engine import planning, simulator
+from ftsweep.engine import plugins as registry
 from ftsweep.engine.case import Case
 from ftsweep.engine.planning import ResolvedCase
 

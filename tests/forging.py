@@ -12,9 +12,9 @@ from pathlib import Path
 
 from hypothesis import strategies as st
 
-from ftsweep.exports.export import ExportError
 from ftsweep.exports.files import CRC_LINE, crc_of, sidecar_digest
 from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum, read_header, render_header
+from ftsweep.tools.export import ExportError
 
 
 def forge_header_from_sidecar(header: Path, edit, cells=None) -> str:  # type: ignore[no-untyped-def]

@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from ftsweep.cli.main import main
-from ftsweep.tools.bench import WHOLE_PROCESS, format_whole_process, whole_process
+from ftsweep.tools.bench import format_whole_process, whole_process, whole_process_rows
 
 
 def test_bench_prints_a_row_per_case_and_writes_json(tmp_path):
@@ -49,7 +49,7 @@ def test_the_whole_process_table_says_when_modules_had_no_bytecode(monkeypatch):
 
 @pytest.mark.slow
 def test_the_verify_row_checks_an_exported_header():
-    name = next(n for n, (args, _) in WHOLE_PROCESS.items() if args[0] == "verify")
+    name = next(n for n, row in whole_process_rows().items() if row.args[0] == "verify")
     (row,) = whole_process(1, [name])
     assert row["seconds"] > row["case_seconds"] > 0  # verify re-simulated the case
 
@@ -65,7 +65,7 @@ def test_cube_scale_counts_objects_and_times_open_and_select(tmp_path):
     """A synthetic cube in blocks holds a few objects per variable, and its
     every case reads back as written (select picks one of them)."""
     from ftsweep.store import cube
-    from ftsweep.store.cubescale import build, measure, synthetic_spec
+    from ftsweep.tools.cubescale import build, measure, synthetic_spec
 
     where = tmp_path / "synthetic.zarr"
     made = build(where, 5000)

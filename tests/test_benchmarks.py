@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from ftsweep.simulate import run_case
-from ftsweep.stages import envelope, interpolation, layouts
+from ftsweep.stages.envelope import arcs as envelope
+from ftsweep.stages.interpolation import tables as interpolation
+from ftsweep.stages.layouts import grids as layouts
 from ftsweep.tools.bench import bench_cases
 
 
@@ -74,7 +76,8 @@ def test_bench_dialect_1M_blocks(benchmark, dialect):
 def test_bench_crossings_1M_points(benchmark, segments):
     """Crossings of 64 rays (one batch) with a 1M-point, 2,000-revolution timed program:
     the linear walk against the cubic segments' root per crossing (stages.timed_path)."""
-    from ftsweep.stages import dpath_motion, timed_path
+    from ftsweep.stages.interpolation import timed_path
+    from ftsweep.stages.paths import dpath_motion
 
     n = 1_000_000
     t = np.linspace(0.0, 3000.0, n)

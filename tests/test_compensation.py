@@ -10,9 +10,9 @@ import pytest
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
-from ftsweep.stages import ray_commands
-from ftsweep.stages.compensation import SCAN_TOL_UM, arc_lift, compensate, contact_window_um
-from ftsweep.stages.surfaces import FAMILIES, lens_array, radial_section, sinewave2d
+from ftsweep.stages.interpolation import ray_commands
+from ftsweep.stages.interpolation.compensation import SCAN_TOL_UM, arc_lift, compensate, contact_window_um
+from ftsweep.stages.sampling.surfaces import FAMILIES, lens_array, radial_section, sinewave2d
 
 LENS = dict(radius_um=252.5, sag_um=5.0, pitch_um=150.0, count_x=11, count_y=11)
 

@@ -18,10 +18,10 @@ from ftsweep.cli.main import main
 from ftsweep.engine import result
 from ftsweep.engine.case import Case
 from ftsweep.exports import dialects
-from ftsweep.exports.export import format_of_kind, formats
 from ftsweep.simulate import run_case
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.sweeps.spec import case_at, load_sweep
+from ftsweep.tools.export import format_of_kind, formats
 from ftsweep.tools.select import open_cube, recorded_case
 
 

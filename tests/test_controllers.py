@@ -19,7 +19,7 @@ from ftsweep.cli.main import main
 from ftsweep.engine.case import Case, program_request
 from ftsweep.exports import dialects, nc
 from ftsweep.simulate import run_case
-from ftsweep.stages import segments
+from ftsweep.stages.interpolation import segments
 
 
 # ----------------------------------------------------------------------- closed forms

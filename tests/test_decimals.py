@@ -1,4 +1,4 @@
-"""Fixed-point text of program lines (ftsweep.stages.decimals): digit for digit what
+"""Fixed-point text of program lines (ftsweep.stages.numerics.decimals): digit for digit what
 Python's ``format(v, ".9f")`` prints, and the numbers read back from it, on random, tied
 (dyadic halves of the last decimal) and extreme values."""
 
@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep.exports.files import DataLines
-from ftsweep.stages import decimals
+from ftsweep.stages.numerics import decimals
 
 
 def _python(values: np.ndarray, d: int) -> str:

@@ -12,12 +12,14 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from ftsweep.engine.case import Case, CaseError, program_request
-from ftsweep.exports.export import ExportError, verify
+from ftsweep.exports.programs import read_program
 from ftsweep.inputs.catalogs import CatalogError
-from ftsweep.kinds import path_programs as program
+from ftsweep.kinds.dpath import format as program
 from ftsweep.kinds.dpath import study as dstudy
 from ftsweep.simulate import run_case
-from ftsweep.stages import dpath, dpath_motion, kinematics
+from ftsweep.stages.kinematics import axes as kinematics
+from ftsweep.stages.paths import dpath, dpath_motion
+from ftsweep.tools.export import ExportError, verify
 
 # [5]'s example: l = s = 20 mm, zone centre 30 mm from the C axis (outer edge 40 mm), 40 rpm
 SEED = {"length_um": 20000.0, "width_um": 20000.0, "outer_um": 40000.0, "zones": 1}
@@ -144,7 +146,7 @@ def test_motion_at_the_controller_period_samples_the_planned_path():
     assert np.allclose(m.accel[inner, 1], omega**2 * d2[inner] * 1e-6, rtol=0.0, atol=2e-3)
     # why the planned path: the polyline of 21 points a cut, sampled a period apart, reads its
     # kinks (the slope change at a point over one period), several times the curve's value
-    from ftsweep.stages import kinematics
+    from ftsweep.stages.kinematics import axes as kinematics
 
     poly = np.interp(s.phi, path.phi, path.rho) * 1e-6
     a_poly = kinematics.motion(s.t, np.column_stack([s.phi, poly, s.z]))[2][:, 1]
@@ -286,7 +288,7 @@ def test_export_lines_stay_within_the_axis_limits_and_verify(tmp_path):
     record = run_case(case)
     out, side = tmp_path / "p.txt", tmp_path / "p.json"
     meta = program.export_dpath(out, side, case, resolve_specs(case), record, {})
-    _, data = program.read_program(out, program.D_MAGIC, program.D_COLUMNS)
+    _, data = read_program(out, program.D_MAGIC, program.D_COLUMNS)
     lim = resolve_specs(case)[1].axes
     assert data.shape == (meta["n_points"], 4)
     assert lim.x_min_mm <= data[:, 2].min() and data[:, 2].max() <= lim.x_max_mm

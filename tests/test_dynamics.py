@@ -9,7 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.stages import dynamics, layouts
+from ftsweep.stages.kinematics import dynamics
+from ftsweep.stages.layouts import grids as layouts
 
 
 @given(st.floats(0.001, 0.05), st.floats(20.0, 200.0), st.floats(200.0, 2000.0))

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftsweep.stages import envelope
+from ftsweep.stages.envelope import arcs as envelope
 
 
 def brute_force(pos, w, rc, query):

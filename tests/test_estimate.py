@@ -13,9 +13,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
-from ftsweep.stages import estimate as est
-from ftsweep.stages.geometry import Aperture
-from ftsweep.stages.interpolation import bilinear
+from ftsweep.stages.interpolation.tables import bilinear
+from ftsweep.stages.layouts import estimate as est
+from ftsweep.stages.sampling.geometry import Aperture
 
 SQUARE = Aperture("rectangle", width_um=200.0, height_um=100.0)
 
@@ -85,16 +85,17 @@ def test_cli_estimate_prints_the_optimum_per_point_count():
 def test_estimate_agrees_with_the_simulated_lens_array_sweep(tmp_path):
     """The first-order estimate against the mesh reference sweep (about three minutes on two cores; the
     ring reference sweep is checked in the default suite, tests/test_reference_sweep.py)."""
-    from ftsweep.kinds.table.sweep_estimate import agreement, estimate_sweep
+    from ftsweep.kinds.table.sweep_estimate import estimate_sweep
     from ftsweep.sweeps.run import run_sweep
-    from ftsweep.sweeps.spec import load_sweep
+    from ftsweep.sweeps.spec import coordinates, load_sweep
+    from ftsweep.tools.query import agreement
     from ftsweep.tools.select import open_cube
 
     out = tmp_path / "lens-array-mesh.zarr"
     report = run_sweep("lens-array-mesh", out, workers=2)
     assert report.done == report.total == 84
     _, spec = load_sweep("lens-array-mesh")
-    found = agreement(estimate_sweep(spec), open_cube(out))
+    found = agreement(estimate_sweep(spec, coordinates(spec)), open_cube(out))
     print("estimate vs simulation, lens-array-mesh:", found)
     assert found["cases"] == 84
     assert found["optimum_aspect_factor_max"] <= 1.5
@@ -115,8 +116,8 @@ def test_prune_leaves_out_hopeless_cases_and_keeps_the_optimum(tmp_path, catalog
     import xarray as xr
 
     from ftsweep.store import cube
-    from ftsweep.sweeps.run import best_per_point_count, run_sweep
-    from ftsweep.tools.query import describe
+    from ftsweep.sweeps.run import run_sweep
+    from ftsweep.tools.query import best_per_point_count, describe
     from ftsweep.tools.select import SelectError, check_exportable
 
     spec = tmp_path / "p.yaml"

@@ -16,13 +16,13 @@ from clusters import BIN
 
 from ftsweep.cli.main import main
 from ftsweep.engine.planning import control_table
-from ftsweep.exports.export import ExportError, export, verify
 from ftsweep.inputs.catalogs import entry
 from ftsweep.kinds.table.header import c_identifier, c_string, read_header
 from ftsweep.kinds.table.layout import build_layout
 from ftsweep.store import cube
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.sweeps.spec import case_at, load_sweep
+from ftsweep.tools.export import ExportError, export, verify
 from ftsweep.tools.select import SelectError, choose, open_cube
 
 RING = """

@@ -17,7 +17,7 @@ from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError, SurfaceSpec, load_catalog
 from ftsweep.inputs.usersurfaces import SurfaceLoadError, height_map_surface
 from ftsweep.simulate import run_case
-from ftsweep.stages.surfaces import Aperture, noll_to_nm, radial_section, sinewave2d
+from ftsweep.stages.sampling.surfaces import Aperture, noll_to_nm, radial_section, sinewave2d
 
 ALL = [
     "sinewave2d",
@@ -226,7 +226,7 @@ c:
 
 
 def test_off_axis_offset_moves_the_freeform():
-    from ftsweep.stages.surfaces import chebyshev_freeform
+    from ftsweep.stages.sampling.surfaces import chebyshev_freeform
 
     kw = dict(
         base_radius_um=5000.0, coefficients_um=[[0.0, 0.0], [0.0, 1.0]], norm_x_um=100.0, norm_y_um=100.0

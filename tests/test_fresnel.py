@@ -18,7 +18,7 @@ from ftsweep.cli.main import main
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel import study as fstudy
-from ftsweep.stages import fresnel as ff
+from ftsweep.stages.paths import fresnel as ff
 
 SURFACE = "chebyshev_example"
 # a coarser program than the CLI's default (K = 360, Δr = 2 µm) so the module runs in seconds
@@ -107,7 +107,7 @@ def test_edges_are_closed_contours_and_both_schemes_agree(cheb):
 
 
 def test_surface_without_interior_minimum_is_refused():
-    from ftsweep.stages.geometry import Aperture
+    from ftsweep.stages.sampling.geometry import Aperture
 
     def tilted(x, y):
         x, y = np.asarray(x, float), np.asarray(y, float)

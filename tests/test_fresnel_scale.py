@@ -16,14 +16,14 @@ from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
 from ftsweep.engine.case import Case
-from ftsweep.exports.export import verify
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds.fresnel import study as fstudy
 from ftsweep.simulate import run_case
-from ftsweep.stages import fresnel as ff
+from ftsweep.stages.paths import fresnel as ff
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.sweeps.spec import load_sweep
 from ftsweep.tools.compare import conditions
+from ftsweep.tools.export import verify
 
 PAPER = "chebyshev_paper_scale"
 

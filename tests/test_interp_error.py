@@ -14,10 +14,10 @@ from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
 from ftsweep.engine.case import Case, Resolution, program_request
-from ftsweep.exports.export import export, verify
 from ftsweep.simulate import run_case
-from ftsweep.stages import envelope
+from ftsweep.stages.envelope import arcs as envelope
 from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.export import export, verify
 
 SMALL = """
 surface: small_sine

@@ -9,7 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftsweep.stages import interpolation, layouts, spiral
+from ftsweep.stages.interpolation import tables as interpolation
+from ftsweep.stages.layouts import grids as layouts
+from ftsweep.stages.paths import spiral
 
 coef = st.floats(-10.0, 10.0)
 

@@ -54,7 +54,7 @@ startup.install()
 import sys
 import numpy as np
 from numba import njit
-from ftsweep.stages import kinematics
+from ftsweep.stages.kinematics import axes as kinematics
 q = np.linspace(0.0, 1.0, 30).reshape(10, 3)
 kinematics.extremes(q, np.full(9, 0.1), np.zeros(10, dtype=np.int64), 1)  # loaded lazily
 before = "numba.cpython.setobj" in sys.modules

@@ -11,7 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ftsweep.inputs import catalogs
-from ftsweep.stages import dpath_motion, dynamics, kinematics
+from ftsweep.stages.kinematics import axes as kinematics
+from ftsweep.stages.kinematics import dynamics
+from ftsweep.stages.paths import dpath_motion
 
 
 @settings(max_examples=50, deadline=None)

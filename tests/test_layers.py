@@ -16,11 +16,13 @@ from ftsweep.engine.case import Case, program_request
 from ftsweep.engine.lines import LinePlan, _line_data, _machined, _table_of
 from ftsweep.engine.planning import layer_plan
 from ftsweep.engine.record import Timer
-from ftsweep.exports.export import export, verify
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import dynamics, interpolation, layers
-from ftsweep.stages.surfaces import FAMILIES
+from ftsweep.stages.interpolation import tables as interpolation
+from ftsweep.stages.kinematics import dynamics
+from ftsweep.stages.paths import layers
+from ftsweep.stages.sampling.surfaces import FAMILIES
 from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.export import export, verify
 
 PRISM = dict(surface="microprism", machine="fts-5um", cutting="microprism")
 

@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ftsweep.inputs import catalogs
-from ftsweep.stages import layouts
+from ftsweep.stages.layouts import grids as layouts
 
 radius = st.floats(50.0, 3000.0)
 pitch_um = st.floats(0.5, 50.0)

@@ -194,7 +194,7 @@ def test_passes_left_out_beyond_a_rectangle_change_nothing(case, catalog_dir, mo
     """A rectangle's rays stop at its edge plus the arc's reach (``lines._reach_um``): the
     record equals the one simulated out to the circumscribed circle, value for value."""
     from ftsweep.engine import lines
-    from ftsweep.stages import interpolation
+    from ftsweep.stages.interpolation import tables as interpolation
 
     held = []
     grid = interpolation.path_grid
@@ -219,7 +219,8 @@ def test_passes_left_out_beyond_a_rectangle_change_nothing(case, catalog_dir, mo
 def test_layered_passes_of_a_grid_left_out_are_those_of_the_whole_grid(catalog_dir):
     from ftsweep.engine.planning import control_table, layer_plan
     from ftsweep.simulate import resolve_case
-    from ftsweep.stages import interpolation, layers
+    from ftsweep.stages.interpolation import tables as interpolation
+    from ftsweep.stages.paths import layers
 
     case = Case(
         surface="lens_array", machine="fts-5um", layout=program_request(kind="mesh", pitch=(16.0, 16.0))

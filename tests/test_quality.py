@@ -139,14 +139,96 @@ def test_the_circle_finder_finds_a_circle():
     assert _circles({"a": {"b"}, "b": set()}) == []
 
 
-def test_the_engine_names_no_kind():
-    """The engine and the generic layers import no kind's module: a kind is handed to the
-    engine, and found by the registry for the layers above it."""
+# the layers of docs/architecture.md, lowest first: a module imports its own layer's modules
+# and those below, never above (function-level imports count); ``ftsweep`` itself is the face
+LAYERS = (
+    ("stages", ("ftsweep.stages",)),
+    ("base", ("ftsweep.version", "ftsweep.defaults", "ftsweep.freetext", "ftsweep.progress")),
+    ("inputs", ("ftsweep.inputs",)),
+    ("engine", ("ftsweep.engine", "ftsweep.simulate")),
+    ("store and export formats", ("ftsweep.store", "ftsweep.exports", "ftsweep.options")),
+    ("kinds", ("ftsweep.kinds",)),
+    ("registry", ("ftsweep.registry",)),
+    ("sweeps", ("ftsweep.sweeps",)),
+    ("tools", ("ftsweep.tools",)),
+    ("cli", ("ftsweep.cli",)),
+)
+GENERIC = ("engine", "store and export formats", "registry", "sweeps", "tools", "cli", "inputs", "base")
+
+
+def _layer(module: str) -> int:
+    """The index of ``module``'s layer in :data:`LAYERS` (the face ``ftsweep`` is above all)."""
+    if module == "ftsweep":
+        return len(LAYERS)
+    found = [
+        (len(p), i)
+        for i, (_, prefixes) in enumerate(LAYERS)
+        for p in prefixes
+        if module == p or module.startswith(p + ".")
+    ]
+    assert found, f"{module} is in no layer of docs/architecture.md"
+    return max(found)[1]
+
+
+def _upward(graph: dict[str, set[str]]) -> list[str]:
+    """Every import that points up a layer, and every import of one kind's subpackage by another's."""
+    found = []
+    for name, targets in graph.items():
+        for target in sorted(targets):
+            if target != "ftsweep" and _layer(target) > _layer(name):
+                found.append(
+                    f"{name} ({LAYERS[_layer(name)][0]}) imports {target} ({LAYERS[_layer(target)][0]})"
+                )
+            own, other = name.split(".")[:3], target.split(".")[:3]
+            if own[:2] == other[:2] == ["ftsweep", "kinds"] and len(own) == len(other) == 3 and own != other:
+                found.append(f"the kind {own[2]} imports the kind {other[2]} ({target})")
+    return found
+
+
+def test_every_import_points_down_the_layers():
+    """docs/architecture.md's layer order holds for every import of every module, those inside
+    functions included: nothing reaches up, and no kind leans on another kind."""
     known = _module_names()
-    generic = ("ftsweep.engine", "ftsweep.store", "ftsweep.sweeps", "ftsweep.registry", "ftsweep.simulate")
-    offenders = {
-        name: sorted(t for t in _imports(name, path, known) if t.startswith("ftsweep.kinds"))
-        for name, path in known.items()
-        if name.startswith(generic)
+    graph = {name: _imports(name, path, known) for name, path in known.items()}
+    assert sum(map(len, graph.values())) > 300  # the walk did find the imports
+    assert not _upward(graph)
+
+
+def test_the_layer_check_finds_an_arrow_up():
+    graph = {
+        "ftsweep.engine.case": {"ftsweep.registry"},
+        "ftsweep.kinds.dpath.kind": {"ftsweep.kinds.spiral.format", "ftsweep.engine.case"},
+        "ftsweep.cli.main": {"ftsweep.stages.envelope.arcs"},
     }
-    assert not {k: v for k, v in offenders.items() if v}
+    assert _upward(graph) == [
+        "ftsweep.engine.case (engine) imports ftsweep.registry (registry)",
+        "the kind dpath imports the kind spiral (ftsweep.kinds.spiral.format)",
+    ]
+
+
+def _kind_names() -> set[str]:
+    from ftsweep import registry
+
+    folders = {p.name for p in (REPO / "pipeline" / "kinds").iterdir() if (p / "__init__.py").exists()}
+    return set(registry.names()) | folders
+
+
+def test_generic_modules_name_no_kind():
+    """No generic module (engine, store, exports, sweeps, tools, cli, inputs, the registry) names
+    a kind, by import or by a string equal to a kind's name or folder: they ask the registry."""
+    import ast
+
+    known = _module_names()
+    names = _kind_names()
+    assert {"ring", "mesh", "spiral", "dpath", "fresnel", "table"} <= names
+    offenders = []
+    for module, path in known.items():
+        if LAYERS[min(_layer(module), len(LAYERS) - 1)][0] not in GENERIC or module == "ftsweep":
+            continue
+        offenders += [
+            f"{module} imports {t}" for t in _imports(module, path, known) if t.startswith("ftsweep.kinds")
+        ]
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in names:
+                offenders.append(f"{module}:{node.lineno} names the kind {node.value!r}")
+    assert not offenders

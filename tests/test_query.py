@@ -11,8 +11,9 @@ import xarray as xr
 
 import ftsweep  # noqa: F401  (registers ds.ftsweep)
 from ftsweep.store import cube
-from ftsweep.sweeps.run import best_per_point_count, run_sweep
+from ftsweep.sweeps.run import run_sweep
 from ftsweep.tools import query
+from ftsweep.tools.query import best_per_point_count
 from ftsweep.tools.select import check_exportable, choose, open_cube
 
 SPEC = """

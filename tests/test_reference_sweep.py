@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from ftsweep.exports.export import export, verify
 from ftsweep.store import cube
 from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.export import export, verify
 from ftsweep.tools.select import choose, open_cube
 
 # the reference sweep on a local cluster
@@ -65,11 +65,12 @@ def test_cube_has_units_and_provenance(ring_cube):
 
 def test_estimate_agrees_with_the_simulated_reference_sweep(ring_cube):
     """The first-order estimate against the 84 simulated cases."""
-    from ftsweep.kinds.table.sweep_estimate import agreement, estimate_sweep
-    from ftsweep.sweeps.spec import load_sweep
+    from ftsweep.kinds.table.sweep_estimate import estimate_sweep
+    from ftsweep.sweeps.spec import coordinates, load_sweep
+    from ftsweep.tools.query import agreement
 
     _, spec = load_sweep("sinewave-ring")
-    found = agreement(estimate_sweep(spec), open_cube(ring_cube))
+    found = agreement(estimate_sweep(spec, coordinates(spec)), open_cube(ring_cube))
     print("estimate vs simulation, sinewave-ring:", found)  # the measured agreement (pytest -s)
     assert found["cases"] == 84
     # the estimated aspect optimum of each point count within a factor 1.5 of the simulated one

@@ -1,5 +1,5 @@
 """Surface families are declared once: the registering decorator of
-ftsweep.stages.surfaces is the only place a family is written; the catalog's validated model
+ftsweep.stages.sampling.surfaces is the only place a family is written; the catalog's validated model
 is generated from it. A new family, registered in a fresh process, is validated, refused
 with named keys when wrong, and predicted, without touching any other module."""
 
@@ -10,12 +10,12 @@ import sys
 import textwrap
 
 from ftsweep.inputs import catalogs
-from ftsweep.stages.surfaces import FAMILIES
+from ftsweep.stages.sampling.surfaces import FAMILIES
 
 NEW_FAMILY = textwrap.dedent(
     """
     import numpy as np
-    from ftsweep.stages.surfaces import Param, surface_family
+    from ftsweep.stages.sampling.surfaces import Param, surface_family
 
     @surface_family("tilted_plane", {
         "slope_x": Param(float, "slope along x [-]"),

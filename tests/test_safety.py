@@ -21,11 +21,11 @@ import xarray as xr
 from click.testing import CliRunner
 
 from ftsweep.cli.main import main
-from ftsweep.exports.export import ExportError, export, verify
 from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum, read_header
 from ftsweep.store import caselog, cube
 from ftsweep.store.lock import LockError, acquire, lock_path, release
 from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.export import ExportError, export, verify
 from ftsweep.tools.select import SelectError, choose, open_cube
 
 BIN = Path(sys.executable).parent

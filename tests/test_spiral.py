@@ -14,8 +14,10 @@ from hypothesis import strategies as st
 from ftsweep.engine.case import Case, CaseError, Resolution, program_request
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import cusp_budget, interpolation, spiral, spiral_passes
-from ftsweep.stages.interpolation import path_grid
+from ftsweep.stages.interpolation import spiral_passes
+from ftsweep.stages.interpolation import tables as interpolation
+from ftsweep.stages.interpolation.tables import path_grid
+from ftsweep.stages.paths import cusp_budget, spiral
 
 # ----------------------------------------------------------------- sampling rules
 
@@ -249,7 +251,7 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     assert [target for target, _ in best_per_points(a)] == [40.0, 90.0]
 
     # export the chosen program as text, verify it, and catch a changed line or sidecar
-    from ftsweep.exports.export import ExportError, export, verify
+    from ftsweep.tools.export import ExportError, export, verify
 
     out = tmp_path / "part.txt"
     meta = export(tmp_path / "a.zarr", out, budget_points=20_000)

@@ -19,9 +19,9 @@ from forging import forge_header_from_sidecar, forge_program
 from ftsweep.cli.main import main
 from ftsweep.engine.case import CaseError
 from ftsweep.exports import origin
-from ftsweep.exports.export import ExportError, export, verify
 from ftsweep.exports.fingerprint import fingerprint
 from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.export import ExportError, export, verify
 
 RING = "surface: small_sine\nlayout: ring\naxes: {points: [15000], aspect: [4.0, 8.0]}\n"
 SPIRAL = "surface: small_sine\nlayout: spiral\naxes: {points_per_rev: [60]}\n"

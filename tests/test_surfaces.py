@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ftsweep.inputs import catalogs
-from ftsweep.stages.surfaces import FAMILIES, Aperture, lens_array, radial_section, sinewave2d
+from ftsweep.stages.sampling.surfaces import FAMILIES, Aperture, lens_array, radial_section, sinewave2d
 
 LENS = dict(radius_um=252.5, sag_um=5.0, pitch_um=150.0, count_x=11, count_y=11)
 SINE = dict(
@@ -168,7 +168,7 @@ def test_line_evaluator_equals_the_section_of_the_pointwise_surface(name, seed, 
     # the line evaluators sample the node grid of path_grid in one pass; sinewave2d carries
     # its sin/cos by rotation between exact anchors, which may move g by a few 1e-15
     # relative, so it is compared to 1e-12 µm (1e-9 nm), lens_array to the last bit
-    from ftsweep.stages.interpolation import path_grid
+    from ftsweep.stages.interpolation.tables import path_grid
 
     rng = np.random.default_rng(seed)
     family, params = FAMILIES[name], LINE_FAMILIES[name]

@@ -18,8 +18,9 @@ from clusters import done_count, external_cluster
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.store import caselog, cube
 from ftsweep.store.cube import CubeError
-from ftsweep.sweeps.run import best_per_point_count, run_sweep
+from ftsweep.sweeps.run import run_sweep
 from ftsweep.sweeps.spec import case_at, load_sweep, n_cases
+from ftsweep.tools.query import best_per_point_count
 
 SMALL = """
 description: a small sweep for tests

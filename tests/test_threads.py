@@ -15,7 +15,7 @@ from ftsweep.engine.threads import (
     using_threads,
 )
 from ftsweep.inputs import catalogs
-from ftsweep.stages import compensation
+from ftsweep.stages.interpolation import compensation
 
 
 def test_a_table_compensated_in_parts_equals_one_call_bit_for_bit():

@@ -19,7 +19,8 @@ from ftsweep.engine.case import Case, CaseError, program_request
 from ftsweep.exports import dialects
 from ftsweep.exports.moves import DialectError
 from ftsweep.simulate import run_case
-from ftsweep.stages import dpath_motion, timed_path
+from ftsweep.stages.interpolation import timed_path
+from ftsweep.stages.paths import dpath_motion
 
 
 # ----------------------------------------------------------------------- closed forms

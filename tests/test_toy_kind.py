@@ -61,3 +61,25 @@ def test_its_axis_units_and_choices_come_from_its_declaration(module_catalog_dir
     spec.write_text("surface: small_lens\nlayout: square\naxes: {pitch_um: [5.0], points: [100]}\n")
     with pytest.raises(Exception, match="points belongs to table sweeps"):
         load_sweep(str(spec), module_catalog_dir)
+
+
+def test_it_adds_its_own_predict_option(module_catalog_dir):
+    """``predict --layout square --square-pitch-um 5`` runs the toy kind: its option comes from
+    its declaration, not from a module of ftsweep; another kind refuses it, naming its owner."""
+    import json
+
+    from click.testing import CliRunner
+
+    from ftsweep.cli.main import main
+
+    env = {"FTSWEEP_CATALOGS": str(module_catalog_dir)}
+    args = ["predict", "--surface", "small_lens", "--layout", "square", "--square-pitch-um", "7.5", "--json"]
+    res = CliRunner().invoke(main, args, env=env)
+    assert res.exit_code == 0, res.output
+    record = json.loads(res.stdout)
+    assert record["layout"] == "square" and record["n_points"] == 61 * 61 and record["pitch_actual_um"] == 7.5
+    help_text = CliRunner().invoke(main, ["predict", "--help"], env=env).output
+    assert "--square-pitch-um" in help_text and "Square mesh: pitch" in help_text
+    ring = ["predict", "--surface", "small_lens", "--layout", "ring", "--drho-um", "20", "--dtheta-deg", "5"]
+    refused = CliRunner().invoke(main, [*ring, "--square-pitch-um", "7.5"], env=env)
+    assert refused.exit_code != 0 and "--square-pitch-um belongs to square mesh" in refused.output

@@ -8,8 +8,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftsweep.stages import trig
-from ftsweep.stages.surfaces import sinewave2d
+from ftsweep.stages.numerics import trig
+from ftsweep.stages.sampling.surfaces import sinewave2d
 
 # 2 ulp of 1: the documented accuracy, in absolute value (|sin|, |cos| ≤ 1)
 TOL = 2.0 * 2.0**-52

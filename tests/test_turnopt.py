@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from ftsweep.stages import fresnel as ff
-from ftsweep.stages import kinematics, turnopt
+from ftsweep.stages.kinematics import axes as kinematics
+from ftsweep.stages.paths import fresnel as ff
+from ftsweep.stages.paths import turnopt
 
 INV = 1.0 / np.array([10.0, 2.0, 2.0, 5.0])  # 1/a_lim of four axes
 

@@ -24,7 +24,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
-from ftsweep.exports.export import ExportError, export, verify
 from ftsweep.exports.files import CRC_LINE, crc_of, sidecar_digest
 from ftsweep.kinds.table.c_view import read_c
 from ftsweep.kinds.table.header import (
@@ -32,6 +31,7 @@ from ftsweep.kinds.table.header import (
 )
 from ftsweep.store.io import read_sidecar
 from ftsweep.sweeps.run import run_sweep
+from ftsweep.tools.export import ExportError, export, verify
 
 CC = shutil.which("cc") or shutil.which("gcc")
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler on this machine")

@@ -347,7 +347,7 @@ def test_angles_read_back_from_a_program_give_the_planned_sampling():
     is the planned path's: a point printed just short of k·360° stays in revolution k."""
     import numpy as np
 
-    from ftsweep.stages import spiral
+    from ftsweep.stages.paths import spiral
 
     path = spiral.constant_angle(296.98484809834997, 2.0, 200)
     printed = np.radians(np.array([float(f"{v:.9f}") for v in np.degrees(path.phi)]))

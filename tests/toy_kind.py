@@ -1,8 +1,9 @@
 """A program kind defined outside the package, as a plug-in would define one: a square mesh
 (equal pitches Δx = Δy) swept over its one pitch, exported as a plain-text program of its
-compensated table (X, Y, Z per control point). It touches no module of ftsweep: the
-registry takes it through :func:`ftsweep.registry.register` (an installed plug-in would
-declare an entry point of group ``ftsweep.kinds`` instead)."""
+compensated table (X, Y, Z per control point). It touches no module of ftsweep and adds its
+own ``predict`` option (``--square-pitch-um``): the registry takes it through
+:func:`ftsweep.registry.register` (an installed plug-in would declare an entry point of group
+``ftsweep.kinds`` instead)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import math
 from pathlib import Path
 from typing import Any, Literal
 
+import click
 import numpy as np
 from pydantic import PositiveFloat
 
@@ -22,9 +24,10 @@ from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.planning import control_table
 from ftsweep.exports import files
 from ftsweep.inputs import catalogs
+from ftsweep.options import POSITIVE
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import layouts
-from ftsweep.stages.layouts import Layout
+from ftsweep.stages.layouts import grids as layouts
+from ftsweep.stages.layouts.grids import Layout
 from ftsweep.store.io import sidecar_path
 
 NAME = "square"
@@ -121,6 +124,17 @@ def _format() -> files.FileFormat:
     )
 
 
+# its one predict option: `ftsweep predict --layout square --square-pitch-um 5`
+square_options = click.option("--square-pitch-um", type=POSITIVE, help="Square mesh: pitch Δx = Δy [µm].")
+
+
+def _from_options(options: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    pitch = options.get("square_pitch_um")
+    if pitch is None:
+        raise ValueError("a square mesh needs --square-pitch-um")
+    return {"kind": NAME, "pitch_um": pitch}, []
+
+
 SQUARE = ProgramKind(
     name=NAME,
     noun="square mesh",
@@ -149,4 +163,7 @@ SQUARE = ProgramKind(
     angular_cells=_cells,
     warm_request=lambda: SquareRequest(kind=NAME, pitch_um=50.0),
     sweeps="square-mesh sweeps",
+    options=("square_pitch_um",),
+    click_options=square_options,
+    from_options=_from_options,
 )

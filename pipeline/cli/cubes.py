@@ -172,8 +172,8 @@ def export(
     Failed, pending, infeasible and over-capacity cases are refused.
     """
     _one_criterion(budget_points=budget_points, tolerance_nm=tolerance_nm, case=index)
-    from ftsweep.exports import export as exp
     from ftsweep.store.cube import CubeError
+    from ftsweep.tools import export as exp
     from ftsweep.tools.select import SelectError, current_status
 
     target = local_output(out, "the exported program")
@@ -277,8 +277,8 @@ def verify(
     The output's origin line says which of the two was proved.
     """
     from ftsweep.engine.case import CaseError
-    from ftsweep.exports import export as exp
     from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.tools import export as exp
 
     progress = stderr_progress("re-simulating", as_json)
     expect = {"case": expect_case, "surface": expect_surface}
@@ -298,7 +298,7 @@ def verify(
 def _print_verified(header: Path, record: dict[str, Any], compiled: bool) -> None:
     """verify's lines: what the file is for first, then what was checked, the rule that judged
     its numbers, the compiled reference's agreement and its origin."""
-    from ftsweep.exports import export as exp
+    from ftsweep.tools import export as exp
 
     for line in [*exp.purpose_lines(record), *exp.format_of_file(header).verified(record)]:
         click.echo(line)

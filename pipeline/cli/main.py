@@ -1,5 +1,6 @@
 """The ``ftsweep`` command line: the group, its error handling and the ``catalogs`` command;
-the other commands live in ``cli_*`` modules by family and are registered here."""
+the other commands live in ``ftsweep.cli``'s modules by family, and the kinds' own commands
+in their subpackages, found through the entry points of group ``ftsweep.commands``."""
 
 from __future__ import annotations
 
@@ -32,15 +33,24 @@ COMMANDS = {
     "bench": ("ftsweep.cli.tools", "bench"),
     "compare": ("ftsweep.cli.cubes", "compare"),
     "keys": ("ftsweep.cli.cubes", "keys"),
-    "dpath": ("ftsweep.cli.programs", "dpath_command"),
-    "fresnel": ("ftsweep.cli.programs", "fresnel_command"),
 }
+GROUP = "ftsweep.commands"
+
+
+def commands() -> dict[str, tuple[str, str]]:
+    """Every command but ``catalogs``: :data:`COMMANDS`, then the kinds' own (``dpath``,
+    ``fresnel``, a plug-in's), read from the entry points of group ``ftsweep.commands``
+    without loading them."""
+    from importlib.metadata import entry_points
+
+    added = {p.name: (p.module, p.attr) for p in entry_points(group=GROUP) if p.name not in COMMANDS}
+    return {**COMMANDS, **added}
 
 
 def short_help(name: str, limit: int = 45) -> str:
     """The one-line summary of command ``name`` as click makes it from the command's docstring,
     read from its module's source without importing the module."""
-    module, function = COMMANDS[name]
+    module, function = commands()[name]
     spec = importlib.util.find_spec(module)
     assert spec is not None and spec.origin is not None
     with open(spec.origin, encoding="utf-8") as f:
@@ -57,7 +67,7 @@ def short_help(name: str, limit: int = 45) -> str:
 class _Group(click.Group):
     """Turns every error into a one-line message and a non-zero exit (no traceback); set
     FTSWEEP_DEBUG=1 to see the traceback of an unexpected one. Its commands are loaded when
-    first asked for (:data:`COMMANDS`)."""
+    first asked for (:func:`commands`)."""
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
         """Run as the console script (no arguments: ``sys.argv``) and leave at once: after
@@ -75,11 +85,12 @@ class _Group(click.Group):
         _leave(code)
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return sorted({*self.commands, *COMMANDS})
+        return sorted({*self.commands, *commands()})
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> Optional[click.Command]:
-        if cmd_name in COMMANDS and cmd_name not in self.commands:
-            module, function = COMMANDS[cmd_name]
+        known = commands()
+        if cmd_name in known and cmd_name not in self.commands:
+            module, function = known[cmd_name]
             self.add_command(getattr(importlib.import_module(module), function), cmd_name)
         return super().get_command(ctx, cmd_name)
 

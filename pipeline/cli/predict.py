@@ -18,11 +18,7 @@ from ftsweep.cli.common import (
     threads_option,
 )
 from ftsweep.defaults import MAX_NODES, POINTS_PER_FEED, SAMPLES_PER_CELL
-from ftsweep.kinds.dpath.options import dpath_options
-from ftsweep.kinds.fresnel.options import fresnel_options
-from ftsweep.kinds.spiral.options import spiral_options
-from ftsweep.kinds.table.options import table_options
-from ftsweep.registry import flag
+from ftsweep.options import flag
 
 if TYPE_CHECKING:  # annotations only: the commands import what they run when they run
     from pydantic import ValidationError
@@ -30,7 +26,21 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
     from ftsweep.engine.case import Case
 
 
-@click.command()
+class _PredictCommand(click.Command):
+    """``predict`` with every registered kind's own options (:func:`ftsweep.registry.predict_options`)
+    after ``--layout``, read when the command parses or shows its help, so a kind registered
+    later, or installed from outside the package, adds its options without touching this module."""
+
+    def get_params(self, ctx: click.Context) -> list[click.Parameter]:
+        from ftsweep import registry
+
+        params = super().get_params(ctx)
+        at = next(i for i, p in enumerate(params) if p.name == "layout") + 1
+        own = {p.name for p in params}
+        return [*params[:at], *(p for p in registry.predict_options() if p.name not in own), *params[at:]]
+
+
+@click.command(cls=_PredictCommand)
 @click.option(
     "--surface",
     metavar="NAME",
@@ -66,10 +76,6 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
     "D-path program ([5]: straight cuts over an off-axis part) or a freeform Fresnel program "
     "([2]: 4-axis, facets cut along a quasi-spiral). Default: the surface's table method.",
 )
-@dpath_options
-@fresnel_options
-@table_options
-@spiral_options
 @click.option("--feed-um", type=FINITE, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
 @click.option("--nose-radius-um", type=FINITE, help="Tool nose radius Rc [µm]. Default: cutting entry.")
 @click.option(

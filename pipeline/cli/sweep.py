@@ -315,7 +315,8 @@ def _print_refused(report: Any) -> None:
 def _print_sweep_summary(report: Any, wall_s: float) -> dict[str, int]:
     """The end-of-run summary on stdout: counts, throughput, failures, best per point count;
     ``wall_s`` the command's time so far (the clock progress shows)."""
-    from ftsweep.sweeps.run import best_per_point_count, cube_counts
+    from ftsweep.sweeps.run import cube_counts
+    from ftsweep.tools.query import best_per_point_count
 
     counts = cube_counts(report.cube)
     click.echo(f"cube         {report.cube}")
@@ -347,7 +348,7 @@ def _print_sweep_summary(report: Any, wall_s: float) -> dict[str, int]:
     click.echo("best P-V per point count (among the cases select may choose):")
     rows = best_per_point_count(report.cube)
     # tables are swept over aspect ratios; a path program's best is named by its case
-    tables = any(r["table"] for r in rows)
+    tables = any(r["swept_aspect"] for r in rows)
     third = "best α" if tables else "case"
     click.echo(f"  {'target':>10s} {'actual N':>10s} {third:>8s} {'P-V nm':>9s}")
     for row in rows:

@@ -179,9 +179,9 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
 
     from ftsweep import registry
     from ftsweep.inputs.catalogs import CatalogError
-    from ftsweep.kinds.table.sweep_estimate import agreement, best_aspect
     from ftsweep.store.cube import CubeError
-    from ftsweep.sweeps.spec import load_sweep
+    from ftsweep.sweeps.spec import coordinates, load_sweep
+    from ftsweep.tools.query import agreement, best_aspect
     from ftsweep.tools.select import open_cube
 
     try:
@@ -195,7 +195,7 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
             "sweep has none: run it (ftsweep sweep) or predict a case"
         )
     started = time.perf_counter()
-    ds = estimate(spec, None)
+    ds = estimate(spec, coordinates(spec), None)
     seconds = time.perf_counter() - started
     pv = ds["pv_estimate_nm"]
     while pv.ndim > 2:  # optional feed/nose-radius axes: their first values
@@ -338,7 +338,7 @@ def bench(
             result["sweeps"].append(sweep_throughput(sweep_name, n, address))
             click.echo(format_sweep(result["sweeps"][-1]))
     if cube_cases:
-        from ftsweep.store.cubescale import cube_scale, format_cube_scale
+        from ftsweep.tools.cubescale import cube_scale, format_cube_scale
 
         result["cube_scale"] = cube_scale(cube_cases)
         click.echo(format_cube_scale(result["cube_scale"]))

@@ -21,8 +21,8 @@ from pydantic import (
     model_validator,
 )
 
-from ftsweep import registry
 from ftsweep.defaults import POINTS_PER_FEED, SAMPLES_PER_CELL
+from ftsweep.engine import plugins as registry
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import Strict
 

@@ -66,6 +66,17 @@ class Simulation(Protocol):
     def record(self, errors: dict[str, float], timer: Any) -> dict[str, Any]: ...
 
 
+class BenchRow(NamedTuple):
+    """A whole-process benchmark row a kind declares (``ftsweep bench --whole``): ``args`` of
+    the ``ftsweep`` command (``{dir}``: a scratch folder shared by the rows), at most ``runs``
+    runs, after the row ``needs`` names has run once (the one that writes its input)."""
+
+    label: str
+    args: tuple[str, ...]
+    runs: int = 1
+    needs: Optional[str] = None
+
+
 @dataclass(frozen=True)
 class Axis:
     """One sweep axis of a kind: its key under a sweep spec's ``axes:`` and the cube's
@@ -126,15 +137,25 @@ class ProgramKind:
         of its sweep beyond "only its own axes" (one rule axis, a feed set twice, ...).
     sweeps : how its sweeps are called in messages (``spiral sweeps``).
     options : the command-line options (``predict``'s keys) that belong to it.
+    click_options : a decorator adding those options to a command (click options, built with
+        :mod:`ftsweep.options`); ``predict`` applies every kind's, each decorator once (the ring
+        and mesh kinds share theirs), so a kind outside the package adds its own.
     from_options : ``(options) -> (request fields, notices)`` of ``predict``'s options,
         raising ValueError naming the option for a combination it refuses.
     machine, cutting : the catalog entries ``predict`` takes when none is given: a machine
         that can run the kind (a Fresnel program needs X, Y, Z, C limits) and its cutting.
     options_key : the sweep spec's key of options for every case of its sweeps (``dpath:``),
         if it has one.
-    estimate : ``(sweep spec, catalog folder) -> Dataset`` of a first-order P-V estimate over
-        its sweep's axes (``pv_estimate_nm``), which ``sweep --prune`` uses; None where the
-        kind has none.
+    estimate : ``(sweep spec, its cube's coordinates, catalog folder) -> Dataset`` of a
+        first-order P-V estimate over its sweep's axes (``pv_estimate_nm``), which
+        ``sweep --prune`` uses; None where the kind has none.
+    seed : ``(surface spec, tolerance [nm], capacity, cusp [nm], aspect range, catalog folder)
+        -> (target N, α, estimated P-V [nm])`` where a tolerance search starts (``optimize
+        --seed estimate``); None where the kind has no estimate.
+    bench_cases : ``() -> {name: (surface, request)}``: its in-process benchmark cases of about
+        a million points (``ftsweep bench``); its ``warm_request`` on the same surface pays the
+        compile first.
+    bench_rows : its whole-process benchmark rows (:class:`BenchRow`).
     options_dumped_unset : a sweep spec's dump writes its options key as null when unset, so
         that the hashes of specs written when the key was declared for every sweep stay the same.
     """
@@ -160,6 +181,7 @@ class ProgramKind:
     check_sweep: Callable[[Any], None] = lambda spec: None
     sweeps: str = "table sweeps"
     options: tuple[str, ...] = ()
+    click_options: Optional[Callable[[Any], Any]] = None
     from_options: Callable[[dict[str, Any]], tuple[dict[str, Any], list[str]]] = lambda o: ({}, [])
     aspect_range: Optional[tuple[float, float]] = None
     aspect_units: str = "um/deg"
@@ -167,7 +189,10 @@ class ProgramKind:
     cutting: str = "reference"
     options_key: Optional[str] = None
     options_dumped_unset: bool = False
-    estimate: Optional[Callable[[Any, Any], Any]] = None
+    estimate: Optional[Callable[[Any, Any, Any], Any]] = None
+    seed: Optional[Callable[..., tuple[float, float, float]]] = None
+    bench_cases: Callable[[], dict[str, tuple[str, Any]]] = lambda: {}
+    bench_rows: tuple[BenchRow, ...] = ()
 
     @property
     def axis_names(self) -> tuple[str, ...]:

@@ -15,8 +15,8 @@ from typing import Any, Optional
 from ftsweep.defaults import MAX_NODES
 from ftsweep.engine.case import Case, CaseError, Resolution
 from ftsweep.inputs import catalogs
-from ftsweep.stages import spiral
-from ftsweep.stages.interpolation import Program
+from ftsweep.stages.interpolation.tables import Program
+from ftsweep.stages.paths import spiral
 
 
 def angular_samples(

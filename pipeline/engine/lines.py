@@ -25,8 +25,12 @@ from ftsweep.engine.planning import ResolvedCase, control_table, layer_plan, z_e
 from ftsweep.engine.record import Timer, record_of
 from ftsweep.engine.simulator import Machined, require_finite, require_finite_passes
 from ftsweep.inputs import catalogs
-from ftsweep.stages import compensation, dynamics, envelope, interpolation, layers, ray_commands
-from ftsweep.stages.surfaces import radial_section
+from ftsweep.stages.envelope import arcs as envelope
+from ftsweep.stages.interpolation import compensation, ray_commands
+from ftsweep.stages.interpolation import tables as interpolation
+from ftsweep.stages.kinematics import dynamics
+from ftsweep.stages.paths import layers
+from ftsweep.stages.sampling.surfaces import radial_section
 
 
 def _xy(r: float, theta: float) -> str:
@@ -243,7 +247,7 @@ def single_peaked(rcase: ResolvedCase) -> bool:
     the surface's curvature bound K below 1/Rc makes it strictly concave (the criterion of
     the table's secant solver). Not for a Fresnel-sliced entry, whose facet walls its base
     surface's bound does not see."""
-    if getattr(rcase.surface_spec, "fresnel", None) is not None:
+    if rcase.surface_spec.fresnel is not None:
         return False
     return catalogs.curvature_bound(rcase.surface_spec) * rcase.nose_radius_um < 1.0
 

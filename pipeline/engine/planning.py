@@ -18,15 +18,18 @@ from ftsweep.engine.contract import Planning, ProgramKind
 from ftsweep.engine.cost import check_capacity, check_cost, ray_nodes
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
-from ftsweep.stages import compensation, dynamics, layers, layouts, spiral
-from ftsweep.stages.layouts import Layout
+from ftsweep.stages.interpolation import compensation
+from ftsweep.stages.kinematics import dynamics
+from ftsweep.stages.layouts import grids as layouts
+from ftsweep.stages.layouts.grids import Layout
+from ftsweep.stages.paths import layers, spiral
 
 
 @dataclass(frozen=True)
 class ResolvedCase:
     """A case with its catalog entries looked up and every rule checked: all the stages need
     (lengths µm). Built by :func:`resolve_case`. For a spiral program, ``layout`` is its
-    :class:`~ftsweep.stages.spiral.SpiralPath` and ``values``/``gouge`` its compensated
+    :class:`~ftsweep.stages.paths.spiral.SpiralPath` and ``values``/``gouge`` its compensated
     commands [µm] and their gouge flags, planned with it (``plan_seconds``)."""
 
     case: Case
@@ -133,7 +136,7 @@ def layer_change_of(rcase: ResolvedCase) -> float:
 
 
 def layer_plan(rcase: ResolvedCase, table: np.ndarray) -> Optional[layers.LayerPlan]:
-    """The layered plan ([3], :mod:`ftsweep.stages.layers`) of a case whose commands span
+    """The layered plan ([3], :mod:`ftsweep.stages.paths.layers`) of a case whose commands span
     more than the machine's travel (the table's range bounds every interpolated command),
     planned on the commands the controller executes along the spiral; None for a single
     pass (the commands fit the travel, or the case asks ``layers: off``)."""

@@ -15,7 +15,9 @@ from ftsweep.engine import result
 from ftsweep.engine.case import CaseError
 from ftsweep.engine.planning import ResolvedCase, layer_change_of, z_error_of
 from ftsweep.engine.result import STAGES
-from ftsweep.stages import dynamics, layers, metrics, spiral
+from ftsweep.stages.kinematics import dynamics
+from ftsweep.stages.metrics import moments as metrics
+from ftsweep.stages.paths import layers, spiral
 
 
 class ErrorMap:
@@ -36,7 +38,7 @@ class ErrorMap:
         self, z: np.ndarray, g: np.ndarray, inside: np.ndarray, x: np.ndarray, y: np.ndarray
     ) -> None:
         """Accumulate the errors z − g [µm] at points x, y [µm] of the part's frame, any
-        kind's nodes (:func:`ftsweep.stages.metrics.accumulate_map_xy`)."""
+        kind's nodes (:func:`ftsweep.stages.metrics.moments.accumulate_map_xy`)."""
         metrics.accumulate_map_xy(
             z, g, inside, x, y, self.x0, self.y0, self.bin_um, self.total, self.count, self.peak
         )
@@ -137,7 +139,7 @@ def record_of(
     layering: Optional[layers.LayerPlan] = None,
 ) -> dict[str, Any]:
     """The flat record of a finished case (see :func:`run_case`); ``errors`` are the metrics
-    of :func:`ftsweep.stages.metrics.finalize`. Refuses non-finite metrics."""
+    of :func:`ftsweep.stages.metrics.moments.finalize`. Refuses non-finite metrics."""
     bad = non_finite(rcase, errors)
     if bad or not math.isfinite(dyn.stroke_um):
         raise CaseError(

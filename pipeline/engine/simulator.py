@@ -28,7 +28,9 @@ from ftsweep.engine.record import ErrorMap, Timer, timed
 from ftsweep.engine.result import STAGES
 from ftsweep.engine.threads import current as current_threads
 from ftsweep.engine.threads import using_threads
-from ftsweep.stages import envelope, interpolation, metrics
+from ftsweep.stages.envelope import arcs as envelope
+from ftsweep.stages.interpolation import tables as interpolation
+from ftsweep.stages.metrics import moments as metrics
 
 
 def require_finite(values: np.ndarray, what: str, where: Callable[[int], str]) -> None:
@@ -78,7 +80,7 @@ class ExactEnvelope(Protocol):
 @dataclass(frozen=True)
 class ExactRows:
     """:class:`ExactEnvelope` of rows whose passes are given directly (the grids of
-    :func:`ftsweep.stages.envelope.envelope_rows`): positions ``pos`` [µm], the executed
+    :func:`ftsweep.stages.envelope.arcs.envelope_rows`): positions ``pos`` [µm], the executed
     commands ``w`` and the exact ones ``w_exact`` [µm], ``n_valid`` passes per row, nose
     radius ``rc`` [µm], the evaluation radii ``query`` [µm] and the machined height ``z``."""
 
@@ -140,7 +142,7 @@ def run_case(
 
     Returns a flat record whose fields :mod:`ftsweep.engine.result` declares (names, units, order):
     the resolved inputs (surface, program, n_points, its pitches or steps, cutting
-    conditions), the metrics of :func:`ftsweep.stages.metrics.finalize` in nm, the points
+    conditions), the metrics of :func:`ftsweep.stages.metrics.moments.finalize` in nm, the points
     flagged as gouging, the feed cusp height, the axis motion against the machine's limits,
     and wall seconds per stage (``seconds_<stage>``) and in total (``seconds``); with
     ``resolution.error_map_bins``, the error maps. ``progress(done, total)`` is called after

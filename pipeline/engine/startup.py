@@ -166,12 +166,15 @@ def lazy_cache_loads() -> bool:
 def kernels_cached() -> bool:
     """Whether numba's cache holds the compiled kernels already (a run then starts at once;
     the first run on a machine compiles them, about 20 s): the index files of the envelope
-    stage, in ``NUMBA_CACHE_DIR`` where set, else beside the stages' sources."""
+    stage (``ftsweep.stages.envelope.arcs``), in ``NUMBA_CACHE_DIR`` where set, else beside the
+    stages' sources."""
     import os
     from pathlib import Path
 
     import ftsweep.stages
 
     where = os.environ.get("NUMBA_CACHE_DIR")
-    root = Path(where) if where else Path(ftsweep.stages.__file__).resolve().parent / "__pycache__"
-    return root.is_dir() and any(root.rglob("envelope.*.nbi"))
+    root = (
+        Path(where) if where else Path(ftsweep.stages.__file__).resolve().parent / "envelope" / "__pycache__"
+    )
+    return root.is_dir() and any(root.rglob("arcs.*.nbi"))

@@ -57,9 +57,9 @@ def _build(work: Path, defines: list[str]) -> Path:
 
 def check_header(path: Path, layout: Any, table_um: np.ndarray, seed: int = 0) -> dict[str, Any]:
     """The header's table looked up by the compiled reference (the header's own macros and
-    table) against the simulator's bilinear lookup (:func:`ftsweep.stages.interpolation.interpolate`)
+    table) against the simulator's bilinear lookup (:func:`ftsweep.stages.interpolation.tables.interpolate`)
     at ``MIN_POINTS`` tool positions spread over the table (and past its edges)."""
-    from ftsweep.stages import interpolation
+    from ftsweep.stages.interpolation import tables as interpolation
 
     text = Path(path).read_text(encoding="ascii")
     found = re.search(r"^#define ([A-Z0-9_]+)_LAYOUT_IS_RING ", text, re.M)
@@ -138,24 +138,3 @@ def _compared(got: np.ndarray, want: np.ndarray, what: str) -> dict[str, Any]:
         "compiled_bound_um": BOUND_UM,
         "compiled_what": what,
     }
-
-
-def check_file(path: Path, format_name: str, trust_plugins: bool = False) -> dict[str, Any]:
-    """:func:`check_header` or :func:`check_program` of a file verify has read already."""
-    if format_name == "dialect program":
-        from ftsweep.exports import dialects, nc
-        from ftsweep.store.io import read_sidecar
-
-        lines = nc.read_lines(Path(path), strict=True)
-        adapter = nc.adapter_of(str(read_sidecar(Path(path)).get("layout")))
-        return check_program(path, dialects.read(lines, nc.dialect_named(lines)), adapter)
-    if format_name != "controller header":
-        raise ExportError(f"--compiled evaluates table headers and PMAC programs, not a {format_name}")
-    from ftsweep.exports.files import recorded_case_of
-    from ftsweep.kinds.table import header
-    from ftsweep.store.io import sidecar_of
-
-    _, ints, meta, _, _ = header.check_integrity(Path(path))
-    case, specs = recorded_case_of(meta, sidecar_of(Path(path)), trust_plugins)
-    layout = header.build_layout(specs[0], case.layout)
-    return check_header(path, layout, ints * specs[1].table_unit_nm * 1e-3)

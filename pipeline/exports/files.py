@@ -2,9 +2,8 @@
 and entries), the layer schedule a layered file carries, atomic writing with ``--force``, and
 for plain-text programs their CRC over every line, reading, and the line-by-line comparison
 with the program the recorded case plans again (:func:`check_document`). The formats
-themselves live with their kinds (:mod:`ftsweep.kinds.table.header`,
-:mod:`ftsweep.kinds.path_programs`, :mod:`ftsweep.kinds.fresnel.study`);
-:mod:`ftsweep.exports.export` dispatches between them.
+themselves live with their kinds (``ftsweep.kinds.<kind>``), above this layer;
+:mod:`ftsweep.tools.export` dispatches between them.
 """
 
 from __future__ import annotations
@@ -27,8 +26,8 @@ from ftsweep.engine.planning import ResolvedCase, layer_plan
 from ftsweep.exports.fingerprint import exact_on_this_platform
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.inputs.trust import specs_from_entries
-from ftsweep.stages import decimals
-from ftsweep.stages.spiral import spiral_radius
+from ftsweep.stages.numerics import decimals
+from ftsweep.stages.paths.spiral import spiral_radius
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     ExportError,
@@ -176,7 +175,7 @@ DECIMALS = 9
 class DataLines:
     """A program's data lines: one row of numbers a line (planned values, shape (lines,
     columns)), each printed with :data:`DECIMALS` decimals as Python's ``format(v, ".9f")``
-    would, single spaces between (:mod:`ftsweep.stages.decimals`, at compiled speed).
+    would, single spaces between (:mod:`ftsweep.stages.numerics.decimals`, at compiled speed).
     ``printed``: the numbers as the machine reads them back from the text."""
 
     def __init__(self, values: np.ndarray) -> None:
@@ -296,7 +295,7 @@ def check_controller_text(path: Path, raw: bytes) -> None:
 def read_program_file(path: Path, magic: str, columns: str) -> ProgramFile:
     """A program file read as a controller reads it: only a regular file, every line as
     export writes it in form (:func:`check_controller_text`; data lines byte for byte in
-    :data:`DECIMALS`-decimal form, :func:`ftsweep.stages.decimals.fault`), its CRC (over
+    :data:`DECIMALS`-decimal form, :func:`ftsweep.stages.numerics.decimals.fault`), its CRC (over
     every line but the CRC line) checked."""
     raw = read_regular(path, MAX_PROGRAM_BYTES, "program")
     if not raw.startswith(magic.encode("utf-8")):
@@ -339,7 +338,7 @@ def _crc_without(raw: bytes, rows: list[str], skip: int) -> int:
 
 def _numbers(path: Path, raw: bytes, start: int, n_cols: int) -> np.ndarray:
     """The data lines (``raw[start:]``, after the column line) as an (lines, columns) array,
-    refused unless byte for byte in export's form (:func:`ftsweep.stages.decimals.fault`,
+    refused unless byte for byte in export's form (:func:`ftsweep.stages.numerics.decimals.fault`,
     naming line and column); read at compiled speed (a million lines in ~0.08 s)."""
     body = memoryview(raw)[start : len(raw) - 1] if start < len(raw) else memoryview(b"")
     off = decimals.fault(body, n_cols, DECIMALS)
@@ -486,6 +485,8 @@ class FileFormat:
     verified : the lines that say what ``verify`` found (``record -> lines``).
     dialect : a path kind's :class:`ftsweep.exports.dialects.Adapter` (None: ftsweep's own
         format only).
+    compiled : ``(path, trust_plugins) -> record fields`` of the compiled C reference's check
+        of a file verify has read (:mod:`ftsweep.exports.compiled`); None: no reference.
     """
 
     name: str
@@ -496,6 +497,7 @@ class FileFormat:
     verified: Callable[[dict[str, Any]], list[str]]
     # how the kind's programs go into controllers' dialects (:class:`ftsweep.exports.dialects.Adapter`)
     dialect: Any = None
+    compiled: Callable[[Path, bool], dict[str, Any]] | None = None
 
 
 def pv_lines(record: dict[str, Any], source: str) -> list[str]:

@@ -11,7 +11,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.stages import timed_path
+from ftsweep.stages.interpolation import timed_path
 from ftsweep.store.io import ExportError
 
 

@@ -17,7 +17,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep import registry
+from ftsweep.engine import plugins as registry
 from ftsweep.engine.case import Case
 from ftsweep.exports import dialects
 from ftsweep.exports.dialects import Adapter, Moves
@@ -34,7 +34,8 @@ from ftsweep.exports.files import (
     sidecar_naming,
 )
 from ftsweep.inputs.catalogs import Controller
-from ftsweep.stages import kinematics, segments
+from ftsweep.stages.interpolation import segments
+from ftsweep.stages.kinematics import axes as kinematics
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     dumps_json,
@@ -323,7 +324,9 @@ def dialect_format() -> Any:
     def export_fn(*args: Any, name: Optional[str] = None) -> dict[str, Any]:
         raise ProgramError("dialect programs are written by export --dialect")
 
-    return FileFormat("dialect program", None, export_fn, verify, exported, verified)
+    return FileFormat(
+        "dialect program", None, export_fn, verify, exported, verified, compiled=check_dialect_file
+    )
 
 
 def _peaks(moves: Moves) -> dict[str, float]:
@@ -430,3 +433,14 @@ def _foreign_reader() -> tuple[str, Adapter]:
         if adapter is not None and adapter.stand_in is not None:
             return name, adapter
     raise ProgramError("no registered program kind reads programs from elsewhere")
+
+
+def check_dialect_file(path: Path, trust_plugins: bool = False) -> dict[str, Any]:
+    """:func:`check_program` of a dialect program verify has read already, through its
+    kind's adapter (the ``compiled`` check of :func:`dialect_format`)."""
+    from ftsweep.exports.compiled import check_program
+    from ftsweep.store.io import read_sidecar
+
+    lines = read_lines(Path(path), strict=True)
+    adapter = adapter_of(str(read_sidecar(Path(path)).get("layout")))
+    return check_program(path, dialects.read(lines, dialect_named(lines)), adapter)

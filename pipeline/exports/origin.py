@@ -387,3 +387,15 @@ def check_catalog(meta: dict[str, Any], side: Path, folder: Path | None = None) 
                 "against the recorded entries, or --trusted-key to prove who exported it"
             )
     return str(folder)
+
+
+def signed(
+    out: Path, key: Path | None, meta: dict[str, Any], expires: datetime | None = None
+) -> dict[str, Any]:
+    """``meta`` of a file a study just wrote in place, after signing it with ``key`` (valid
+    until ``expires``; ``signature`` then holds the key's ID) or, with no key, removing a
+    signature left by an earlier export."""
+    if key is None:
+        signature_path(out).unlink(missing_ok=True)
+        return meta
+    return {**meta, "signature": sign(out, key, expires)}

@@ -30,8 +30,8 @@ from pydantic import (
 from ftsweep.inputs.controllers import Controller
 from ftsweep.inputs.strict import Strict
 from ftsweep.inputs.yamlfiles import CatalogError, read_yaml_file
-from ftsweep.stages import kinematics
-from ftsweep.stages.surfaces import FAMILIES, Aperture, Family, SurfaceFn
+from ftsweep.stages.kinematics import axes as kinematics
+from ftsweep.stages.sampling.surfaces import FAMILIES, Aperture, Family, SurfaceFn
 
 _SHORT = reprlib.Repr()
 _SHORT.maxlevel, _SHORT.maxlist, _SHORT.maxdict, _SHORT.maxstring, _SHORT.maxother = 2, 4, 4, 60, 60
@@ -60,6 +60,10 @@ def without_defaults(data: Any, defaults: dict[str, Any]) -> Any:
 
 
 # --------------------------------------------------------------------------- apertures
+# a program kind's name, checked against the registry when a case is built (the catalogs sit below it)
+KIND_NAME = r"^[a-z][a-z0-9_]{0,31}$"
+
+
 class CircleAperture(Strict):
     shape: Literal["circle"]
     radius_um: PositiveFloat = Field(description="aperture radius [µm]")
@@ -107,7 +111,7 @@ class _SurfaceBase(Strict):
         None, description="evaluate the surface's Fresnel form: {facet_height_um: h} ([2] eq. 3)"
     )
     aperture: ApertureSpec
-    layout: Literal["ring", "mesh"] = Field(description="layout method used by default")
+    layout: str = Field(pattern=KIND_NAME, description="program kind by default (a table's: ring or mesh)")
     gradient_bound: Optional[PositiveFloat] = Field(
         None, description="upper bound of |∇f| [-]; default analytic, or sampled over the aperture"
     )
@@ -205,11 +209,11 @@ def surface_callable(spec: Any, folder: Path | None = None) -> SurfaceFn:
     """The surface callable ``fn(x, y) -> (f, fx, fy)`` of a catalog entry (µm in, µm out); its
     Fresnel form ([2] eq. 3) when the entry sets ``fresnel``."""
     fn = base_callable(spec, folder)
-    if getattr(spec, "fresnel", None) is None:
+    if spec.fresnel is None:
         return fn
-    from ftsweep.kinds.fresnel import program as fresnel
+    from ftsweep.inputs.facets import sliced_callable
 
-    return fresnel.sliced_callable(fn, aperture_of(spec), spec.fresnel.facet_height_um)
+    return sliced_callable(fn, aperture_of(spec), spec.fresnel.facet_height_um)
 
 
 def base_callable(spec: Any, folder: Path | None = None) -> SurfaceFn:
@@ -225,11 +229,11 @@ def base_callable(spec: Any, folder: Path | None = None) -> SurfaceFn:
 
 def line_sampler(spec: Any) -> Callable[..., tuple[np.ndarray, np.ndarray]] | None:
     """The family's line evaluator ``fn(first, spacing, offset, n_nodes, cos_t, sin_t) -> (g, g')``
-    of a catalog entry (model §4, §5; see :func:`ftsweep.stages.geometry.evaluate_lines`), or
+    of a catalog entry (model §4, §5; see :func:`ftsweep.stages.sampling.geometry.evaluate_lines`), or
     None where the family has none (user surfaces): the case runner then samples the node grid
     through :func:`surface_callable`."""
     family = FAMILIES.get(spec.family)
-    sliced = getattr(spec, "fresnel", None) is not None
+    sliced = spec.fresnel is not None
     if spec.family in USER_FAMILIES or family is None or family.lines is None or sliced:
         return None
     return functools.partial(family.lines, **spec.params.model_dump())
@@ -259,14 +263,14 @@ def curvature_bound(spec: Any) -> float:
 def _sampled_bound(spec_json: str, folder: str) -> float:
     from pydantic import TypeAdapter
 
-    from ftsweep.stages.surfaces import sampled_gradient_bound
+    from ftsweep.stages.sampling.surfaces import sampled_gradient_bound
 
     spec = TypeAdapter(surface_spec()).validate_json(spec_json)
     return sampled_gradient_bound(surface_callable(spec, Path(folder)), aperture_of(spec).outer_radius_um)
 
 
 def aperture_of(spec: Any) -> Aperture:
-    """The stage-level :class:`~ftsweep.stages.surfaces.Aperture` of a catalog entry."""
+    """The stage-level :class:`~ftsweep.stages.sampling.surfaces.Aperture` of a catalog entry."""
     return Aperture(**spec.aperture.model_dump())
 
 
@@ -307,7 +311,7 @@ class AxisLimits(Strict):
 
     def limits(self, names: tuple[str, ...]) -> kinematics.Limits:
         """The limits of the axes ``names`` (of C, X, Y, Z) in SI for the kinematics stage
-        (:mod:`ftsweep.stages.kinematics`); C's position is free, a limit not declared (C's
+        (:mod:`ftsweep.stages.kinematics.axes`); C's position is free, a limit not declared (C's
         acceleration on an X-Z-C lathe) is not checked. ValueError for a Y axis not declared."""
         if "Y" in names and self.y_min_mm is None:
             raise ValueError("the machine declares no Y axis")
@@ -354,7 +358,7 @@ class Machine(Strict):
         1.0, description="value of one integer step in the header table [nm]"
     )
     table_int_type: Literal["int16", "int32"] = Field("int32", description="integer type of the header table")
-    # layered machining of parts deeper than the travel ([3]; ftsweep.stages.layers)
+    # layered machining of parts deeper than the travel ([3]; ftsweep.stages.paths.layers)
     layer_margin_um: float = Field(
         0.0, ge=0.0, description="stroke kept free at the travel's ends in layered machining, in all [µm]"
     )
@@ -413,7 +417,7 @@ class Reference(Strict):
     """A published prediction (model §8) to check the model against."""
 
     surface: str
-    layout: Literal["ring", "mesh"]
+    layout: str = Field(pattern=KIND_NAME, description="the table's kind (ring or mesh)")
     pitch: tuple[PositiveFloat, PositiveFloat] = Field(description="(Δρ µm, Δθ deg) or (Δx µm, Δy µm)")
     points_paper: PositiveInt = Field(description="point count the paper states")
     pv_nm: PositiveFloat = Field(description="published P-V [nm]")

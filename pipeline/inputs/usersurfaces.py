@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.stages.surfaces import Aperture, SurfaceFn, bspline2d
+from ftsweep.stages.sampling.surfaces import Aperture, SurfaceFn, bspline2d
 
 
 class SurfaceLoadError(ValueError):

@@ -23,6 +23,7 @@ import numpy as np
 from ftsweep.store import cube
 from ftsweep.store.storage import Place
 from ftsweep.sweeps.spec import SweepSpec, coordinates
+from ftsweep.sweeps.template import template
 
 STAGING = ".grow"
 
@@ -70,7 +71,7 @@ def grow(out: Place, spec: SweepSpec, name: str, plan: dict[str, Any]) -> None:
     (the caller holds the lock and has merged the case logs)."""
     old = cube.open_dataset(out).load()
     entries = json.loads(old.attrs["catalog_entries"])
-    new = cube.template(spec, name, entries)
+    new = template(spec, name, entries)
     index = np.ix_(*plan["positions"].values())
     for var in new.data_vars:
         if var in old.data_vars:

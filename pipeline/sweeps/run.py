@@ -36,6 +36,7 @@ from ftsweep.sweeps.spec import (
     n_cases,
     plan_tasks,
 )
+from ftsweep.sweeps.template import template
 
 
 def default_cube_path(name: str) -> Path:
@@ -174,7 +175,7 @@ def prepare_cube(
             _warn_other_revision(out, attrs)
             return int(np.count_nonzero(cube.read_status(out) == cube.DONE)), note
     entries = catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, catalog_folder)
-    cube.create(out, cube.template(spec, name, entries))
+    cube.create(out, template(spec, name, entries))
     return 0, note
 
 
@@ -511,7 +512,7 @@ def prune_cases(
         raise CubeError(f"the prune factor must be above 1, got {factor:g}")
     estimate = registry.kind(spec.layout).estimate
     assert estimate is not None
-    est = estimate(spec, catalog_folder)["pv_estimate_nm"]
+    est = estimate(spec, coordinates(spec), catalog_folder)["pv_estimate_nm"]
     values = est.transpose(*coordinates(spec)).values
     finite = np.where(np.isfinite(values), values, np.inf)
     best = finite.min(axis=1, keepdims=True)  # over the aspect ratios of each row
@@ -531,42 +532,6 @@ def prune_cases(
     if cases:
         cube.CubeWriter(out, fence).write(cases)
     return int(targets.size)
-
-
-def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
-    """For each target point count: its best eligible case (:mod:`ftsweep.tools.query`), the one
-    ``select`` and ``ds.ftsweep.optimum()`` name too (None where no case is eligible)."""
-
-    from ftsweep.tools import query
-
-    ds = cube.open_dataset(path).load()
-    rows = []
-    for target, flat in query.best_per_points(ds):
-        if flat is None:
-            rows.append(
-                {
-                    "points": target,
-                    "aspect": None,
-                    "pv_nm": None,
-                    "n_points": None,
-                    "index": None,
-                    "table": "aspect" in ds.dims,
-                }
-            )
-            continue
-        case = query.describe(ds, flat)
-        rows.append(
-            {
-                "points": target,
-                # a table sweep's aspect axis; path programs have none worth naming
-                "aspect": case.get("aspect_target"),
-                "table": "aspect" in ds.dims,
-                "pv_nm": case["pv_nm"],
-                "n_points": case["n_points"],
-                "index": flat,
-            }
-        )
-    return rows
 
 
 def cube_counts(path: PathLike) -> dict[str, int]:

@@ -13,17 +13,19 @@ import platform
 import time
 from typing import Any
 
+from ftsweep import registry
 from ftsweep.engine.case import Case, Resolution, program_request
+from ftsweep.engine.contract import BenchRow
 from ftsweep.engine.lines import LineCache
 from ftsweep.engine.simulator import STAGE_TIMERS
 from ftsweep.inputs import catalogs
 from ftsweep.simulate import run_case
 from ftsweep.version import __version__
 
-MILLION_CASES = {
-    "ring-1M-a8": ("sinewave2d", program_request(kind="ring", points=1_000_000, aspect=8.0)),
-    "mesh-1M-a1": ("lens_array", program_request(kind="mesh", points=1_000_000, aspect=1.0)),
-}
+
+def million_cases() -> dict[str, tuple[str, Any]]:
+    """The kinds' own benchmark cases of about a million points (``bench_cases`` of each)."""
+    return {name: case for kind in registry.kinds().values() for name, case in kind.bench_cases().items()}
 
 
 # "<case>-shared": the case run after another case computed its lines, as in a sweep whose
@@ -42,7 +44,7 @@ def bench_cases() -> dict[str, Case]:
         name: Case(surface=ref.surface, layout=program_request(kind=ref.layout, pitch=ref.pitch))
         for name, ref in catalogs.entries("references").items()
     }
-    for name, (surface, request) in MILLION_CASES.items():
+    for name, (surface, request) in million_cases().items():
         cases[name] = Case(surface=surface, layout=request)
         # the same without the exact-command envelope (pv_interp_nm), as sweeps may run
         cases[f"{name}-nointerp"] = Case(
@@ -61,9 +63,9 @@ def run_benchmark(names: list[str] | None = None, repeat: int = 1, threads: int 
     unknown = [n for n in chosen if n not in cases]
     if unknown:
         raise ValueError(f"unknown benchmark case(s) {unknown}; known: {', '.join(cases)}")
-    # warm-up: compile or load every kernel once, for both layout kinds
-    for surface, kind, pitch in (("sinewave2d", "ring", (20.0, 10.0)), ("lens_array", "mesh", (50.0, 50.0))):
-        run_case(Case(surface=surface, layout=program_request(kind=kind, pitch=pitch)))
+    # warm-up: compile or load every kernel once, for each kind benchmarked
+    for surface, request in million_cases().values():
+        run_case(Case(surface=surface, layout=registry.kind(request.kind).warm_request()))
     rows = [_row(name, cases[name], repeat, threads) for name in chosen]
     return {
         "version": __version__,
@@ -120,31 +122,29 @@ def format_table(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-# whole-process figures: what a user waits for, start-up and exit included. Each
-# entry: the command's arguments ("{dir}": a scratch folder, "{header}": an exported header of
-# the 950k-point ring case, made first) and its most runs (the slow ones run once)
-_RING_5K = ["--surface", "sinewave2d", "--points", "5000", "--aspect", "8"]
-_RING_950K = ["--surface", "sinewave2d", "--drho-um", "3.04", "--dtheta-deg", "0.125"]
-_DPATH_OUT = ["--json", "--plots", "{dir}", "-o", "{dir}/d.txt", "--force"]
-_CHORD_1M = ["--surface", "sinewave2d", "--layout", "spiral", "--chord-um", "0.0013"]
-WHOLE_PROCESS: dict[str, tuple[list[str], int]] = {
-    "ftsweep --help": (["--help"], 3),
-    "ftsweep predict --help": (["predict", "--help"], 3),
-    "predict 5k-point ring": (["predict", *_RING_5K, "--json"], 3),
-    "predict 950k-point ring, 1 thread": (["predict", *_RING_950K, "--json", "--threads", "1"], 3),
-    "predict 950k-point ring, all cores": (["predict", *_RING_950K, "--json"], 3),
-    "predict 990k-point chord spiral, 1 thread": (["predict", *_CHORD_1M, "--json", "--threads", "1"], 1),
-    "predict 990k-point chord spiral, all cores": (["predict", *_CHORD_1M, "--json"], 1),
-    "verify 950k-point ring header": (["verify", "{header}", "--json"], 3),
-    "ftsweep dpath (seed example)": (["dpath", "--json", "--plots", "{dir}"], 1),
-    "ftsweep dpath -o (+ its 1M-line program)": (["dpath", *_DPATH_OUT], 1),
-    "verify 1M-line D-path program": (["verify", "{dprogram}", "--json"], 3),
-    "ftsweep fresnel (chebyshev_example)": (["fresnel", "--json", "--plots", "{dir}"], 1),
-}  # fmt: skip
+# whole-process figures: what a user waits for, start-up and exit included. Each row: the
+# command's arguments ("{dir}": a scratch folder, "{header}": an exported header of the
+# 950k-point case, made first) and its most runs (the slow ones run once); the kinds add theirs
+_RING_5K = ("--surface", "sinewave2d", "--points", "5000", "--aspect", "8")
+_RING_950K = ("--surface", "sinewave2d", "--drho-um", "3.04", "--dtheta-deg", "0.125")
+GENERIC_ROWS = (
+    BenchRow("ftsweep --help", ("--help",), 3),
+    BenchRow("ftsweep predict --help", ("predict", "--help"), 3),
+    BenchRow("predict 5k-point ring", ("predict", *_RING_5K, "--json"), 3),
+    BenchRow("predict 950k-point ring, 1 thread", ("predict", *_RING_950K, "--json", "--threads", "1"), 3),
+    BenchRow("predict 950k-point ring, all cores", ("predict", *_RING_950K, "--json"), 3),
+    BenchRow("verify 950k-point ring header", ("verify", "{header}", "--json"), 3),
+)
+
+
+def whole_process_rows() -> dict[str, BenchRow]:
+    """Every whole-process row by label: the generic ones, then each kind's ``bench_rows``."""
+    rows = [*GENERIC_ROWS, *(r for kind in registry.kinds().values() for r in kind.bench_rows)]
+    return {row.label: row for row in rows}
+
 
 # the one-case sweep whose exported header the verify row checks
 _HEADER_SWEEP = """surface: sinewave2d
-layout: ring
 axes: {points: [950000], aspect: [16.0]}
 """
 
@@ -178,52 +178,51 @@ def _exported_header(head: list[str], folder: str) -> str:
     return str(header)
 
 
-def _exported_dpath(head: list[str], folder: str) -> str:
-    """Export the seed example's optimised D-path program ([5], ~1M lines) into ``folder``."""
-    import subprocess
-    from pathlib import Path
-
-    program = Path(folder) / "dpath-program.txt"
-    args = ["dpath", "--json", "--plots", folder, "-o", str(program), "--force"]
-    done = subprocess.run([*head, *args], capture_output=True, text=True)
-    if done.returncode != 0:
-        raise ValueError(f"preparing the D-path verify row failed: {done.stderr.strip()[-300:]}")
-    return str(program)
-
-
 def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[str, Any]]:
-    """Seconds of each :data:`WHOLE_PROCESS` command run as its own process, best of
+    """Seconds of each row of :func:`whole_process_rows` run as its own process, best of
     ``repeat`` (at most its own count), with the seconds of the case it simulates where its
     JSON reports them (a predict's case, verify's re-simulation; the rest is start-up,
     imports, kernel loading, checks and exit)."""
     import json
-    import subprocess
     import tempfile
 
     head = _command()
-    rows = []
+    known = whole_process_rows()
+    unknown = [n for n in names or [] if n not in known]
+    if unknown:
+        raise ValueError(f"unknown whole-process row(s) {unknown}; known: {', '.join(known)}")
+    rows, ran = [], set()
     with tempfile.TemporaryDirectory(prefix="ftsweep-bench-") as folder:
         made: dict[str, str] = {}
-        for name in names or list(WHOLE_PROCESS):
-            args, most = WHOLE_PROCESS[name]
-            for field, make in (("{header}", _exported_header), ("{dprogram}", _exported_dpath)):
-                if field in args and field not in made:
-                    made[field] = make(head, folder)
-            args = [a.replace("{dir}", folder) for a in args]
-            args = [made.get(a, a) for a in args]
+        for name in names or list(known):
+            row = known[name]
+            if row.needs is not None and row.needs not in ran:
+                _run(head, known[row.needs], folder, made)  # writes this row's input
             best, inside = float("inf"), float("nan")
-            for _ in range(max(1, min(repeat, most))):
-                started = time.perf_counter()
-                done = subprocess.run([*head, *args], capture_output=True, text=True)
-                took = time.perf_counter() - started
-                if done.returncode != 0:
-                    raise ValueError(f"{name} failed: {done.stderr.strip()[-300:]}")
+            for _ in range(max(1, min(repeat, row.runs))):
+                took, stdout = _run(head, row, folder, made)
                 if took < best:
                     best = took
-                    if "--json" in args:
-                        inside = float(json.loads(done.stdout).get("seconds", math.nan))
+                    if "--json" in row.args:
+                        inside = float(json.loads(stdout).get("seconds", math.nan))
+            ran.add(name)
             rows.append({"command": name, "seconds": best, "case_seconds": inside})
     return rows
+
+
+def _run(head: list[str], row: BenchRow, folder: str, made: dict[str, str]) -> tuple[float, str]:
+    """Run one row's command once: its seconds and stdout (ValueError naming it if it fails)."""
+    import subprocess
+
+    if "{header}" in row.args and "{header}" not in made:
+        made["{header}"] = _exported_header(head, folder)
+    args = [made.get(a, a.replace("{dir}", folder)) for a in row.args]
+    started = time.perf_counter()
+    done = subprocess.run([*head, *args], capture_output=True, text=True)
+    took = time.perf_counter() - started
+    if done.returncode != 0:
+        raise ValueError(f"{row.label} failed: {done.stderr.strip()[-300:]}")
+    return took, done.stdout
 
 
 def format_whole_process(rows: list[dict[str, Any]]) -> str:
@@ -251,9 +250,7 @@ def has_bytecode() -> bool:
     import importlib.util
     import os
 
-    import ftsweep.cli.main
-
-    source = ftsweep.cli.main.__file__
+    source = __file__
     cached = importlib.util.cache_from_source(source)
     return os.path.exists(cached) and os.path.getmtime(cached) >= os.path.getmtime(source)
 

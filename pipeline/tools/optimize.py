@@ -306,17 +306,19 @@ def _seeded(
 ) -> tuple[float, float, Any]:
     """The point count, aspect ratio and record the point-count search starts from: a log scan
     of nine aspect ratios at ``start_points`` refined around the best (``scan``), or the
-    layout :func:`ftsweep.kinds.table.sweep_estimate.seed_layout` predicts for the tolerance, refined
+    layout the kind's ``seed`` (its first-order estimate) predicts for the tolerance, refined
     (``estimate``)."""
     lo, hi = _aspect_range(opt.layout)
     cap = float(opt.capacity)
     if seed == "estimate":
-        from ftsweep.kinds.table.sweep_estimate import seed_layout
-        from ftsweep.stages.estimate import cusp_nm
+        from ftsweep.stages.layouts.estimate import cusp_nm
 
+        seed_of = registry.kind(opt.layout).seed
+        if seed_of is None:
+            raise ValueError(f"a {registry.noun(opt.layout)} has no estimate to seed the search: --seed scan")
         cut = catalogs.entry("cutting", opt.cutting, opt.folder)
         cusp = cusp_nm(cut.feed_um, cut.nose_radius_um)
-        n, aspect, _ = seed_layout(spec, opt.layout, opt.tol, cap, cusp, (lo, hi), opt.folder)
+        n, aspect, _ = seed_of(spec, opt.tol, cap, cusp, (lo, hi), opt.folder)
         n = min(n, cap)
         aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 2)
         return n, aspect, rec
@@ -346,7 +348,7 @@ def optimize(
 
     ``seed``: ``scan`` starts with a log scan of nine aspect ratios at ``start_points``;
     ``estimate`` starts at the point count and aspect ratio
-    :func:`ftsweep.kinds.table.sweep_estimate.seed_layout` predicts for the tolerance (no
+    the kind's ``seed`` (its first-order estimate) predicts for the tolerance (no
     simulation), refined from there.
     """
     if seed not in ("scan", "estimate"):

@@ -16,6 +16,8 @@ import xarray as xr
 
 from ftsweep import registry
 from ftsweep.store import cube
+from ftsweep.store.cube import DONE
+from ftsweep.store.storage import PathLike
 
 
 def capacity_of(ds: xr.Dataset) -> int:
@@ -100,3 +102,69 @@ def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
     if "feasible" in ds:
         out["feasible"] = bool(int(point["feasible"]) == 1)
     return out
+
+
+def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
+    """For each target point count: its best eligible case, the one ``select`` and
+    ``ds.ftsweep.optimum()`` name too (None where no case is eligible); ``swept_aspect`` says
+    whether the cube has an aspect axis (a table sweep) to name the best α by."""
+    ds = cube.open_dataset(path).load()
+    rows = []
+    for target, flat in best_per_points(ds):
+        if flat is None:
+            rows.append(
+                {
+                    "points": target,
+                    "aspect": None,
+                    "pv_nm": None,
+                    "n_points": None,
+                    "index": None,
+                    "swept_aspect": "aspect" in ds.dims,
+                }
+            )
+            continue
+        case = describe(ds, flat)
+        rows.append(
+            {
+                "points": target,
+                # a table sweep's aspect axis; path programs have none worth naming
+                "aspect": case.get("aspect_target"),
+                "swept_aspect": "aspect" in ds.dims,
+                "pv_nm": case["pv_nm"],
+                "n_points": case["n_points"],
+                "index": flat,
+            }
+        )
+    return rows
+
+
+def best_aspect(pv: xr.DataArray) -> xr.DataArray:
+    """The aspect ratio of the lowest P-V at each point count (NaN where none is finite)."""
+    filled = pv.fillna(np.inf)
+    index = filled.argmin("aspect")
+    best = pv["aspect"].isel(aspect=index).where(np.isfinite(filled.min("aspect")))
+    return best.drop_vars("aspect", errors="ignore")
+
+
+def agreement(estimate: xr.Dataset, cube: xr.Dataset) -> dict[str, Any]:
+    """How the estimate compares with a simulated cube of the same axes: the ratio
+    estimate/simulated P-V over every computed case, and the aspect optimum per point count."""
+    sim = cube["pv_nm"].where(cube["status"] == DONE)
+    pv_est = estimate["pv_estimate_nm"].reindex_like(sim)  # the same sweep: the same coordinates
+    ratio = (pv_est / sim).values.ravel()
+    ratio = ratio[np.isfinite(ratio)]
+    a_est = best_aspect(pv_est)
+    a_sim = best_aspect(sim)
+    quotient = a_est / a_sim
+    factor = xr.where(quotient >= 1.0, quotient, 1.0 / quotient).values.ravel()
+    factor = factor[np.isfinite(factor)]
+    return {
+        "cases": int(ratio.size),
+        "pv_ratio_min": float(ratio.min()) if ratio.size else math.nan,
+        "pv_ratio_median": float(np.median(ratio)) if ratio.size else math.nan,
+        "pv_ratio_max": float(ratio.max()) if ratio.size else math.nan,
+        "within_factor_2": float(np.mean((ratio >= 0.5) & (ratio <= 2.0))) if ratio.size else math.nan,
+        "optimum_aspect_factor_max": float(factor.max()) if factor.size else math.nan,
+        "optimum_aspect_estimated": a_est.values.tolist(),
+        "optimum_aspect_simulated": a_sim.values.tolist(),
+    }

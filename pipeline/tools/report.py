@@ -24,7 +24,7 @@ from ftsweep import registry
 from ftsweep.engine.planning import control_table
 from ftsweep.inputs.catalogs import aperture_of
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import dynamics
+from ftsweep.stages.kinematics import dynamics
 from ftsweep.store import cube
 from ftsweep.store.io import save_figure, write_text_atomic
 from ftsweep.store.storage import PathLike, place

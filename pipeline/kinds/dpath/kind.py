@@ -17,10 +17,11 @@ import numpy as np
 
 from ftsweep.engine import result
 from ftsweep.engine.case import Case, CaseError
-from ftsweep.engine.contract import Axis, Planning, ProgramKind
+from ftsweep.engine.contract import Axis, BenchRow, Planning, ProgramKind
 from ftsweep.engine.planning import compensator
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
+from ftsweep.kinds.dpath.options import dpath_options
 from ftsweep.kinds.dpath.request import DPathRequest
 
 AXES = ("spacing_um", "points_per_cut")
@@ -231,7 +232,7 @@ def _simulation(inputs: Any, timer: Any) -> Any:
 
 
 def _file_format() -> Any:
-    from ftsweep.kinds.path_programs import dpath_format
+    from ftsweep.kinds.dpath.format import dpath_format
 
     return dpath_format()
 
@@ -270,6 +271,11 @@ FIELDS = (
 )
 
 
+# its whole-process benchmark: the seed example, then its exported program ([5]) verified
+_DPATH_OUT = ("dpath", "-o", "{dir}/d.txt")
+_DPATH_OUT_LABEL = "ftsweep dpath -o (+ its 1M-line program)"
+
+
 DPATH = ProgramKind(
     name="dpath",
     noun="D-path program",
@@ -291,10 +297,18 @@ DPATH = ProgramKind(
     point_text=_point,
     angular_cells=None,
     warm_request=lambda: DPathRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
+    bench_rows=(
+        BenchRow("ftsweep dpath (seed example)", ("dpath", "--json", "--plots", "{dir}")),
+        BenchRow(_DPATH_OUT_LABEL, (*_DPATH_OUT, "--json", "--plots", "{dir}", "--force")),
+        BenchRow(
+            "verify 1M-line D-path program", ("verify", "{dir}/d.txt", "--json"), 3, needs=_DPATH_OUT_LABEL
+        ),
+    ),
     describe=_describe,
     check_sweep=_check_sweep,
     sweeps="D-path sweeps",
     options=OPTIONS,
+    click_options=dpath_options,
     from_options=lambda o: ({"kind": "dpath", **request_options(o)}, []),
     machine="sts-xzc",
     cutting="dpath-finish",

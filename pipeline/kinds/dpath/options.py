@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from ftsweep.cli.common import FINITE, POSITIVE
+from ftsweep.options import FINITE, POSITIVE
 
 
 def dpath_options(f: Any) -> Any:

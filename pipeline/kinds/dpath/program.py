@@ -28,7 +28,10 @@ from ftsweep.engine.case import CaseError
 from ftsweep.engine.record import non_finite, simulated
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.inputs import catalogs
-from ftsweep.stages import compensation, dpath, dpath_motion, envelope, kinematics, timed_path
+from ftsweep.stages.envelope import arcs as envelope
+from ftsweep.stages.interpolation import compensation, timed_path
+from ftsweep.stages.kinematics import axes as kinematics
+from ftsweep.stages.paths import dpath, dpath_motion
 
 DEFAULTS: dict[str, Any] = {
     "points_per_cut": 201,
@@ -110,7 +113,7 @@ def plan(
 def times(
     path: dpath.DPath, z_um: np.ndarray, rpm: float, mode: str = "spindle", feed_mm_min: float = math.nan
 ) -> np.ndarray:
-    """Time [s] of every point (:func:`ftsweep.stages.dpath.point_times`)."""
+    """Time [s] of every point (:func:`ftsweep.stages.paths.dpath.point_times`)."""
     return dpath_motion.point_times(path.phi, path.rho, z_um, mode, rpm, feed_mm_min)
 
 
@@ -125,7 +128,7 @@ def pvt_form(path: dpath.DPath, z_um: np.ndarray, rpm: float, controller: Any) -
     were planned, their times at the spindle speed rounded to the controller's whole time
     steps, and each segment the cubic Hermite in time through C, X and Z with each point's
     local slope on its cut or transition as its velocity, a corner taking the cut's
-    (:func:`corners`; the velocities export writes, :func:`ftsweep.stages.timed_path.tangents`).
+    (:func:`corners`; the velocities export writes, :func:`ftsweep.stages.interpolation.timed_path.tangents`).
     Refuses (ValueError) two points within one step or a segment over the controller's longest."""
     t = timed_path.on_time_steps(times(path, z_um, rpm), controller.time_quantum_s, controller.max_segment_s)
     chan = np.column_stack([path.phi, path.rho, z_um])
@@ -161,7 +164,7 @@ def sampled_motion(
     path: dpath.DPath, z_um: np.ndarray, t_points: np.ndarray, period_s: float, until_s: float = math.inf
 ) -> tuple[dpath_motion.Sampled, np.ndarray, kinematics.Motion]:
     """The program's planned path sampled every controller period up to ``until_s`` [s]
-    (:func:`ftsweep.stages.dpath.at_period`), its axes q (:func:`axes_of`) and their motion
+    (:func:`ftsweep.stages.paths.dpath.at_period`), its axes q (:func:`axes_of`) and their motion
     by the kinematics stage."""
     s = dpath_motion.at_period(path, z_um, t_points, period_s, until_s)
     q = axes_of(s)
@@ -184,7 +187,7 @@ SAMPLE_BLOCK = 65536
 
 
 class PeriodSamples(NamedTuple):
-    """The planned path's samples every controller period, as :class:`ftsweep.stages.dpath.
+    """The planned path's samples every controller period, as :class:`ftsweep.stages.paths.dpath.
     Sampled` names them in messages, without their arrays: ``n`` uniform times from ``first``
     to ``last`` [s] over the program's points at times ``t_points`` [s]."""
 
@@ -209,7 +212,7 @@ def sampled_extremes(
     period (as :func:`sampled_motion`), the samples on a cut in group 1 and the rest in group
     0, and the lowest and highest X [µm]: the samples formed :data:`SAMPLE_BLOCK` at a time,
     each stretch with its neighbours, and their extremes carried from one to the next
-    (:class:`ftsweep.stages.kinematics.ExtremesOver`): the values and first points of one
+    (:class:`ftsweep.stages.kinematics.axes.ExtremesOver`): the values and first points of one
     pass over every sample, without the millions of samples' arrays."""
     first, last, n = dpath_motion.period_grid(t_points, period_s)
     z = dpath_motion.z_plan(path, z_um)

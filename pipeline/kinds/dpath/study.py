@@ -25,7 +25,7 @@ from ftsweep.engine.threads import current as current_threads
 from ftsweep.kinds.dpath import kind as dpath_kind
 from ftsweep.kinds.dpath import program as dprog
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import dpath, dpath_motion
+from ftsweep.stages.paths import dpath, dpath_motion
 
 if TYPE_CHECKING:
     from ftsweep.kinds.dpath.figures import Plots
@@ -53,7 +53,7 @@ def spiral_case(base: Case, record: dict[str, Any]) -> Case:
 
 def spiral_motion(case: Case, resolved: Optional[ResolvedCase] = None) -> dict[str, Any]:
     """The spiral program's axis motion at constant spindle speed: t [s], C [rad], X, Z [µm]
-    and :func:`ftsweep.stages.dpath.axis_motion` (``resolved``: the case planned already)."""
+    and :func:`ftsweep.stages.paths.dpath.axis_motion` (``resolved``: the case planned already)."""
     rcase = resolved or resolve_case(case)
     path = rcase.layout
     rpm = rcase.cutting.spindle_rpm
@@ -231,7 +231,7 @@ PAPER_RATIO = 0.16  # [5]: "16 % of that along the traditional D-shaped toolpath
 def accel_by_step(programs: dict[str, Any], rpm: float, machine_step_deg: float) -> dict[str, Any]:
     """Peak X acceleration [m/s²] of both transitions formed over each C step of
     :data:`STEPS_DEG` and the machine's own (one controller period at the spindle speed,
-    marked ``machine``) on the planned curves (:func:`ftsweep.stages.dpath.x_accel_peak_at_step`),
+    marked ``machine``) on the planned curves (:func:`ftsweep.stages.paths.dpath.x_accel_peak_at_step`),
     their ratio, and the step [deg] at which the ratio is [5]'s 0.16 (log-log interpolation)."""
     rows = []
     both = TRANSITIONS

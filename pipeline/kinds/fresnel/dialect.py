@@ -12,7 +12,7 @@ import numpy as np
 from ftsweep.exports.moves import pvt_tangents, with_pvt
 from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel.study import lines_reason
-from ftsweep.stages import fresnel as ff
+from ftsweep.stages.paths import fresnel as ff
 
 
 def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[str], Any]:

@@ -28,8 +28,12 @@ import numpy as np
 from ftsweep.engine.case import CaseError
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.inputs import catalogs
-from ftsweep.stages import dpath_motion, envelope, kinematics, metrics, timed_path
-from ftsweep.stages import fresnel as ff
+from ftsweep.stages.envelope import arcs as envelope
+from ftsweep.stages.interpolation import timed_path
+from ftsweep.stages.kinematics import axes as kinematics
+from ftsweep.stages.metrics import moments as metrics
+from ftsweep.stages.paths import dpath_motion
+from ftsweep.stages.paths import fresnel as ff
 
 RAYS_PER_BATCH = 64
 # the case's compensation names [2]'s: eq. 10 (exact), eq. 12 (the straight-line "slope"), none

@@ -15,8 +15,9 @@ import numpy as np
 
 from ftsweep.engine import result
 from ftsweep.engine.case import Case, CaseError
-from ftsweep.engine.contract import Axis, Planning, ProgramKind
+from ftsweep.engine.contract import Axis, BenchRow, Planning, ProgramKind
 from ftsweep.inputs import catalogs
+from ftsweep.kinds.fresnel.options import fresnel_options
 from ftsweep.kinds.fresnel.request import FRESNEL_FIELDS, FresnelRequest
 
 if TYPE_CHECKING:
@@ -208,10 +209,12 @@ FRESNEL = ProgramKind(
     point_text=_point,
     angular_cells=None,
     warm_request=lambda: FresnelRequest(kind="fresnel", points_per_turn=16, facet_height_um=50.0),
+    bench_rows=(BenchRow("ftsweep fresnel (chebyshev_example)", ("fresnel", "--json", "--plots", "{dir}")),),
     describe=_describe,
     check_sweep=_check_sweep,
     sweeps="Fresnel sweeps",
     options=FRESNEL_FIELDS,
+    click_options=fresnel_options,
     from_options=lambda o: (
         {"kind": "fresnel", **{k: o[k] for k in FRESNEL_FIELDS if o.get(k) is not None}},
         [],

@@ -1,5 +1,5 @@
 """Freeform Fresnel programs on an X-Y-Z-C lathe ([2]): slicing a catalog surface, planning
-its quasi-spiral path and 4-axis trajectory (:mod:`ftsweep.stages.fresnel`), and choosing the
+its quasi-spiral path and 4-axis trajectory (:mod:`ftsweep.stages.paths.fresnel`), and choosing the
 timesteps (model §6 axis dynamics).
 
 *Timesteps* ([2] §2.5). The positions of every axis along the path are fixed by the plan;
@@ -8,7 +8,7 @@ minimise the largest relative acceleration max |a/a_lim| over the four axes with
 mean held at T0 (eq. 15), warm-started from the previous turn's solution; the step into a
 turn is taken at the turn's own last timestep (adjacent turns are nearly periodic, [2]
 §2.5); the max is replaced by a p-norm so that a quasi-Newton method can follow its gradient
-(L-BFGS, compiled whole: :mod:`ftsweep.stages.turnopt`), and the timesteps are parametrised
+(L-BFGS, compiled whole: :mod:`ftsweep.stages.paths.turnopt`), and the timesteps are parametrised
 as K·T0·softmax(u) so the mean constraint always holds.
 The first turn starts cold (uniform steps) and is solved by continuation, p = 64 then 512,
 up to 2,000 iterations each; later turns start from the previous one's steps, p = 64, 200
@@ -36,9 +36,12 @@ from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
-from ftsweep.stages import fresnel as ff
-from ftsweep.stages import kinematics, timed_path, turnopt
-from ftsweep.stages.kinematics import Limits
+from ftsweep.inputs.facets import surface_range
+from ftsweep.stages.interpolation import timed_path
+from ftsweep.stages.kinematics import axes as kinematics
+from ftsweep.stages.kinematics.axes import Limits
+from ftsweep.stages.paths import fresnel as ff
+from ftsweep.stages.paths import turnopt
 
 DEFAULTS: dict[str, Any] = {
     "facet_height_um": 10.0,
@@ -66,11 +69,11 @@ GTOL = 1e-5
 class FresnelPlan(NamedTuple):
     """A planned Fresnel program: the quasi-spiral and its 4-axis trajectory.
 
-    path : the quasi-spiral (:class:`ftsweep.stages.fresnel.QuasiSpiral`).
+    path : the quasi-spiral (:class:`ftsweep.stages.paths.fresnel.QuasiSpiral`).
     f_ref_um, max_um : the surface's lowest point in the aperture and its highest [µm].
     apex_um : (X, Y) of the lowest point [µm].
     z_um : Z of the sliced surface at every point [µm] ([2] eq. 8), each entry onto a new
-        facet ramped over its first turn (:func:`ftsweep.stages.fresnel.entry_offset`).
+        facet ramped over its first turn (:func:`ftsweep.stages.paths.fresnel.entry_offset`).
     ez_exact_um, ez_straight_um : tool-edge compensation by [2] eq. 10 and eq. 12 [µm].
     ez_um : the compensation applied (``compensation``), z = Z + e_z ([2] eq. 13).
     phi, x_um, y_um : spindle angle [rad] and the tool's global X, Y [µm] ([2] eq. 9).
@@ -125,80 +128,6 @@ def ez_on_part(fplan: FresnelPlan, aperture: Any) -> dict[str, float]:
 
 
 # --------------------------------------------------------------------------- surface
-def surface_range(fn: Callable[..., Any], aperture: Any, samples: int = 241) -> dict[str, Any]:
-    """The surface's lowest point inside the aperture (refined by scipy's bounded L-BFGS-B
-    from the best of a ``samples``² grid) and its highest sampled height [µm]; ``interior``
-    tells whether the lowest point lies inside (a bowl whose contours close about it)."""
-    from scipy.optimize import minimize
-
-    hx, hy = aperture.half_extent_um
-    gx, gy = np.meshgrid(np.linspace(-hx, hx, samples), np.linspace(-hy, hy, samples))
-    inside = aperture.contains(gx, gy)
-    f = fn(gx[inside], gy[inside])[0]
-    edge = _aperture_edge(aperture, 4096)
-    f_edge = fn(edge[:, 0], edge[:, 1])[0]
-    best = int(np.argmin(f))
-    start = np.array([gx[inside][best], gy[inside][best]])
-
-    def fun(p: np.ndarray) -> tuple[float, np.ndarray]:
-        v, dx, dy = fn(p[:1], p[1:])
-        return float(v[0]), np.array([dx[0], dy[0]])
-
-    res = minimize(fun, start, jac=True, method="L-BFGS-B", bounds=[(-hx, hx), (-hy, hy)])
-    apex = _newton_minimum(fn, np.asarray(res.x, dtype=np.float64))
-    f_ref = min(float(fn(apex[:1], apex[1:])[0][0]), float(f.min()))
-    step = 2.0 * max(hx, hy) / (samples - 1)
-    interior = bool(aperture.contains(apex[:1], apex[1:])[0]) and float(f_edge.min()) > f_ref
-    clear = float(np.min(np.hypot(*(edge - apex).T))) > step
-    return {
-        "apex_um": apex,
-        "f_ref_um": f_ref,
-        "max_um": float(max(f.max(), f_edge.max())),
-        "interior": interior and clear,
-        "reach_um": 1.5 * float(np.max(np.hypot(*(edge - apex).T))),
-    }
-
-
-def _newton_minimum(fn: Callable[..., Any], p: np.ndarray, iterations: int = 6) -> np.ndarray:
-    """Newton steps on ∇f = 0 from p [µm] (Hessian by central differences of the analytic
-    gradient): the path closes on this point, where eq. 9 follows the gradient's direction
-    down to radii of nanometres, so the optimiser's tolerance is not enough."""
-    for _ in range(iterations):
-        d = 0.5
-        xs = p[0] + np.array([0.0, d, -d, 0.0, 0.0])
-        ys = p[1] + np.array([0.0, 0.0, 0.0, d, -d])
-        _, gx, gy = fn(xs, ys)
-        hess = np.array([[gx[1] - gx[2], gx[3] - gx[4]], [gy[1] - gy[2], gy[3] - gy[4]]]) / (2.0 * d)
-        try:
-            step = np.linalg.solve(0.5 * (hess + hess.T), np.array([gx[0], gy[0]]))
-        except np.linalg.LinAlgError:
-            return p
-        if not np.all(np.isfinite(step)) or np.hypot(*step) > 10.0 * d:
-            return p
-        p = p - step
-    return p
-
-
-def _aperture_edge(aperture: Any, n: int) -> np.ndarray:
-    """``n`` points along the aperture's boundary [µm]."""
-    t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-    if aperture.shape == "circle":
-        r = aperture.radius_um
-        return np.column_stack([r * np.cos(t), r * np.sin(t)])
-    hx, hy = aperture.half_extent_um
-    # the square's boundary by the unit circle's radial projection
-    c, s = np.cos(t), np.sin(t)
-    scale = 1.0 / np.maximum(np.abs(c) / hx, np.abs(s) / hy)
-    return np.column_stack([c * scale, s * scale])
-
-
-def sliced_callable(fn: Callable[..., Any], aperture: Any, facet_height_um: float) -> Callable[..., Any]:
-    """The Fresnel form of a surface callable ([2] eq. 3), facets counted from the lowest
-    point inside the aperture: the catalog's ``fresnel: {facet_height_um}`` transform."""
-    rng = surface_range(fn, aperture)
-    return ff.fresnel_surface(fn, rng["f_ref_um"], float(facet_height_um))
-
-
 # --------------------------------------------------------------------------- planning
 def _facets(
     fn: Callable[..., Any], aperture: Any, h: float, feed_um: float, points_per_turn: int, max_points: float
@@ -229,7 +158,7 @@ def _commands(
     fn: Callable[..., Any], path: Any, f_ref_um: float, h: float, rc: float
 ) -> tuple[np.ndarray, ...]:
     """At the path's points: the facet heights f_c [µm] ([2] eq. 3) with the entries onto new
-    facets ramped over their first turn (:func:`ftsweep.stages.fresnel.entry_offset`), the exact
+    facets ramped over their first turn (:func:`ftsweep.stages.paths.fresnel.entry_offset`), the exact
     (eq. 10) and straight-line (eq. 12) compensations e_z [µm], and the slopes ∂f/∂x, ∂f/∂y."""
     f, gx, gy = fn(path.xy[:, 0], path.xy[:, 1])
     z = ff.sliced(f, f_ref_um, h, path.level)[0] + ff.entry_offset(path.facet, path.points_per_turn, h)
@@ -315,7 +244,7 @@ def plan(
 
 
 def limits_of(machine: Any, name: str = "machine") -> Limits:
-    """The 4-axis limits (C, X, Y, Z in SI, :mod:`ftsweep.stages.kinematics`) of a machine
+    """The 4-axis limits (C, X, Y, Z in SI, :mod:`ftsweep.stages.kinematics.axes`) of a machine
     entry; raises ``FresnelError`` when it lacks a Y axis or a C acceleration (a Fresnel
     program needs an X-Y-Z-C lathe, [2] §2.3)."""
     ax = machine.axes
@@ -395,7 +324,7 @@ def _optimise_turn(
     stages: tuple[tuple[float, int], ...] = WARM,
 ) -> np.ndarray:
     """Minimise the turn's largest relative acceleration at mean timestep T0 (eq. 15):
-    L-BFGS on the p-norm, in softmax coordinates u (:func:`ftsweep.stages.turnopt.minimise_turn`),
+    L-BFGS on the p-norm, in softmax coordinates u (:func:`ftsweep.stages.paths.turnopt.minimise_turn`),
     for each (p, iterations) of ``stages`` in turn (continuation: each stage starts where the
     last ended)."""
     total = u0.size * t0
@@ -528,7 +457,7 @@ def pvt_form(prog: FresnelProgram, z_um: np.ndarray, controller: Any) -> Fresnel
     """The program as a PVT controller runs it (docs/controllers.md): the points' times (the
     adaptive timesteps summed) rounded to the controller's whole time steps, and the cubic
     segments in time through C, X, Y and Z with each point's local slope as its velocity (the
-    velocities export writes, :func:`ftsweep.stages.timed_path.tangents`). Refuses
+    velocities export writes, :func:`ftsweep.stages.interpolation.timed_path.tangents`). Refuses
     (ValueError) two points within one step or a segment over the controller's longest."""
     t = np.concatenate([[0.0], np.cumsum(prog.steps.steps)])
     t = timed_path.on_time_steps(t, controller.time_quantum_s, controller.max_segment_s)
@@ -542,7 +471,7 @@ class FresnelProgram(NamedTuple):
     points (X, Y) [µm] in the part's frame the simulator takes (the plan's, or those a program
     file's lines give back through eq. 9); ``tangents`` (P − 1, 8): when the controller joins
     the points by cubics in time (PVT), the segments' tangents of C [rad], X, Y, Z [µm]
-    (:mod:`ftsweep.stages.timed_path`), the plan's C, X, Y and the commands the points."""
+    (:mod:`ftsweep.stages.interpolation.timed_path`), the plan's C, X, Y and the commands the points."""
 
     kind: str
     plan: FresnelPlan

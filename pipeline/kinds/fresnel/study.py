@@ -18,7 +18,7 @@ from ftsweep.inputs import catalogs
 from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel.request import FresnelRequest
 from ftsweep.simulate import resolve_case
-from ftsweep.stages import fresnel as ff
+from ftsweep.stages.paths import fresnel as ff
 from ftsweep.store.io import save_figure
 from ftsweep.version import __version__
 
@@ -179,7 +179,7 @@ def speedup_account(
     reach; ``speedup`` is below it by what joining the turns costs); ``reference``: the axis,
     turn and point whose acceleration sets the constant timestep, and whether that turn enters
     a facet; ``plunging``: the constant timestep [s] if every facet were entered by a step of h
-    between two points instead of the ramp (:func:`ftsweep.stages.fresnel.entry_offset`), and
+    between two points instead of the ramp (:func:`ftsweep.stages.paths.fresnel.entry_offset`), and
     the speed-up against it."""
     k, t0 = fplan.path.points_per_turn, steps.reference
     n_steps = fplan.path.xy.shape[0] - 1

@@ -13,8 +13,8 @@ from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.planning import layer_plan
 from ftsweep.exports.dialects import Adapter, DialectError, Moves
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages import segments
-from ftsweep.stages.spiral import SpiralPath, angular_speed, spiral_commands, spiral_radius
+from ftsweep.stages.interpolation import segments
+from ftsweep.stages.paths.spiral import SpiralPath, angular_speed, spiral_commands, spiral_radius
 
 
 def moves_of(path: SpiralPath, values_um: np.ndarray, rpm: float) -> Moves:
@@ -65,7 +65,7 @@ def _planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str],
 
 
 def layered_moves(path: SpiralPath, values_um: np.ndarray, rpm: float, plan: Any) -> Moves:
-    """A layered spiral ([3], :mod:`ftsweep.stages.layers`) as a controller's cuts, one a
+    """A layered spiral ([3], :mod:`ftsweep.stages.paths.layers`) as a controller's cuts, one a
     segment in the plan's order: the spiral's points inside the segment with its two ends
     (on the program's linear segments, so the path is the single pass's), C accumulated
     [deg], X [mm], Z the layer's slide offset [mm], W = clip(w − offset, 0, travel) the
@@ -194,7 +194,7 @@ def single_pass(moves: Moves, rcase: Any) -> tuple[SpiralPath, np.ndarray]:
 
 def _commands(moves: Moves, per: int) -> np.ndarray:
     """The simulator's commands [µm] at u = (j + 0.5)/per of every segment, by the spiral's
-    own evaluation (:func:`ftsweep.stages.spiral.spiral_commands`) at those angles."""
+    own evaluation (:func:`ftsweep.stages.paths.spiral.spiral_commands`) at those angles."""
     if moves.w_mm is not None:
         raise DialectError(
             "a layered program's cuts are checked by verify's reader and re-simulation; the compiled "

@@ -15,14 +15,16 @@ import numpy as np
 
 from ftsweep.engine import result
 from ftsweep.engine.case import Case, CaseError
-from ftsweep.engine.contract import Axis, Planning, ProgramKind
+from ftsweep.engine.contract import Axis, BenchRow, Planning, ProgramKind
 from ftsweep.engine.cost import check_capacity, spiral_points
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.planning import compensator
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
+from ftsweep.kinds.spiral.options import spiral_options
 from ftsweep.kinds.spiral.request import SpiralRequest
-from ftsweep.stages import cusp_budget, segments, spiral
+from ftsweep.stages.interpolation import segments
+from ftsweep.stages.paths import cusp_budget, spiral
 
 AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")
 
@@ -167,7 +169,7 @@ def section_samples(surface_spec: Any, catalog_folder: Any = None) -> tuple[np.n
 
 def residual_feed_um(sections: tuple[np.ndarray, ...], residual_um: float, rc: float, name: str) -> float:
     """The feed [µm/rev] of a residual budget Δres [µm] ([4] eqs. 2–3): the smallest
-    over the part of :func:`ftsweep.stages.cusp_budget.feed_for_cusp`. Refuses a part with a
+    over the part of :func:`ftsweep.stages.paths.cusp_budget.feed_for_cusp`. Refuses a part with a
     concave section tighter than the nose radius, where no feed meets the budget."""
     radius, slope, x, y = sections
     if not residual_um < rc:
@@ -185,7 +187,7 @@ def residual_feed_um(sections: tuple[np.ndarray, ...], residual_um: float, rc: f
 
 def residual_error_um(sections: tuple[np.ndarray, ...], feed_um: float, rc: float) -> float:
     """Largest residual (cusp) height [µm] the feed leaves over the part, from each section's
-    curvature (the inverse of [4] eq. 2, :func:`ftsweep.stages.cusp_budget.cusp_for_feed`)."""
+    curvature (the inverse of [4] eq. 2, :func:`ftsweep.stages.paths.cusp_budget.cusp_for_feed`)."""
     radius, slope, _, _ = sections
     cusp = cusp_budget.cusp_for_feed(feed_um, rc, radius, slope)
     return float(np.nanmax(cusp)) if np.isfinite(cusp).any() else math.nan
@@ -315,9 +317,13 @@ def _check_sweep(spec: Any) -> None:
 
 
 def _file_format() -> Any:
-    from ftsweep.kinds.path_programs import spiral_format
+    from ftsweep.kinds.spiral.format import spiral_format
 
     return spiral_format()
+
+
+# its whole-process benchmark: a chord-budget program of about a million points
+_CHORD_1M = ("predict", "--surface", "sinewave2d", "--layout", "spiral", "--chord-um", "0.0013")
 
 
 SPIRAL = ProgramKind(
@@ -359,9 +365,14 @@ SPIRAL = ProgramKind(
     point_text=_point,
     angular_cells=_cells,
     warm_request=lambda: SpiralRequest(kind="spiral", points_per_rev=16),
+    bench_rows=(
+        BenchRow("predict 990k-point chord spiral, 1 thread", (*_CHORD_1M, "--json", "--threads", "1")),
+        BenchRow("predict 990k-point chord spiral, all cores", (*_CHORD_1M, "--json")),
+    ),
     describe=_describe,
     check_sweep=_check_sweep,
     sweeps="spiral sweeps",
     options=AXES,
+    click_options=spiral_options,
     from_options=lambda o: ({"kind": "spiral", **{k: o[k] for k in AXES if o.get(k) is not None}}, []),
 )

@@ -7,7 +7,7 @@ from typing import Any, ClassVar, Literal, Optional
 from pydantic import Field, PositiveFloat, model_serializer, model_validator
 
 from ftsweep.engine.case import Request
-from ftsweep.stages import spiral
+from ftsweep.stages.paths import spiral
 
 SPIRAL_RULES = ("points_per_rev", "arc_um", "chord_um")
 

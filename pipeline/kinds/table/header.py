@@ -570,4 +570,18 @@ def header_format() -> FileFormat:
         verify_header,
         exported,
         verified,
+        compiled=compiled_check,
     )
+
+
+def compiled_check(path: Path, trust_plugins: bool = False) -> dict[str, Any]:
+    """The compiled C reference's commands from a header verify has read already, against the
+    simulator's (:func:`ftsweep.exports.compiled.check_header`)."""
+    from ftsweep.exports.compiled import check_header
+    from ftsweep.exports.files import recorded_case_of
+    from ftsweep.store.io import sidecar_of
+
+    _, ints, meta, _, _ = check_integrity(Path(path))
+    case, specs = recorded_case_of(meta, sidecar_of(Path(path)), trust_plugins)
+    layout = build_layout(specs[0], case.layout)
+    return check_header(path, layout, ints * specs[1].table_unit_nm * 1e-3)

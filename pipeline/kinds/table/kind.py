@@ -5,6 +5,7 @@ commands compensated over the whole table by the line engine (:mod:`ftsweep.engi
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -17,10 +18,11 @@ from ftsweep.engine.cost import angular_samples, check_capacity
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.table.layout import build_layout
+from ftsweep.kinds.table.options import table_options
 from ftsweep.kinds.table.request import TableRequest
-from ftsweep.registry import flag
-from ftsweep.stages import layouts
-from ftsweep.stages.layouts import Layout
+from ftsweep.options import flag
+from ftsweep.stages.layouts import grids as layouts
+from ftsweep.stages.layouts.grids import Layout
 
 
 def _request_at(spec: Any, value: dict[str, float]) -> TableRequest:
@@ -153,10 +155,16 @@ def _file_format() -> Any:
     return header_format()
 
 
-def _estimate(spec: Any, folder: Any) -> Any:
+def _seed(kind: str, surface_spec: Any, *args: Any) -> tuple[float, float, float]:
+    from ftsweep.kinds.table.sweep_estimate import seed_layout
+
+    return seed_layout(surface_spec, kind, *args)
+
+
+def _estimate(spec: Any, coords: Any, folder: Any) -> Any:
     from ftsweep.kinds.table.sweep_estimate import estimate_sweep
 
-    return estimate_sweep(spec, folder)
+    return estimate_sweep(spec, coords, folder)
 
 
 PITCHES = {"ring": ("drho_um", "dtheta_deg"), "mesh": ("dx_um", "dy_um")}
@@ -193,11 +201,16 @@ RING = ProgramKind(
     pitch_text=_ring_pitch,
     point_text=_ring_point,
     angular_cells=_ring_cells,
+    seed=functools.partial(_seed, "ring"),
     warm_request=lambda: TableRequest(kind="ring", pitch=(50.0, 10.0)),
+    bench_cases=lambda: {
+        "ring-1M-a8": ("sinewave2d", TableRequest(kind="ring", points=1_000_000, aspect=8.0))
+    },
     describe=_describe,
     check_sweep=_check_sweep,
     sweeps="table sweeps",
     options=("drho_um", "dtheta_deg", "points", "aspect"),
+    click_options=table_options,
     from_options=lambda o: _table_options("ring", o),
     aspect_range=(0.3, 400.0),
     aspect_units="um/deg",
@@ -219,8 +232,13 @@ MESH = dataclasses.replace(
     pitch_text=_mesh_pitch,
     point_text=_mesh_point,
     angular_cells=_mesh_cells,
+    seed=functools.partial(_seed, "mesh"),
     warm_request=lambda: TableRequest(kind="mesh", pitch=(50.0, 50.0)),
+    bench_cases=lambda: {
+        "mesh-1M-a1": ("lens_array", TableRequest(kind="mesh", points=1_000_000, aspect=1.0))
+    },
     options=("dx_um", "dy_um", "points", "aspect"),
+    click_options=table_options,
     from_options=lambda o: _table_options("mesh", o),
     aspect_range=(0.08, 16.0),
     aspect_units="1",

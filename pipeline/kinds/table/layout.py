@@ -5,8 +5,8 @@ from __future__ import annotations
 from typing import Any
 
 from ftsweep.inputs import catalogs
-from ftsweep.stages import layouts
-from ftsweep.stages.layouts import Layout
+from ftsweep.stages.layouts import grids as layouts
+from ftsweep.stages.layouts.grids import Layout
 
 
 def build_layout(surface: Any, request: Any) -> Layout:

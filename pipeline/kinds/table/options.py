@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from ftsweep.cli.common import FINITE
+from ftsweep.options import FINITE
 
 
 def table_options(f: Any) -> Any:

@@ -1,5 +1,5 @@
 """``ftsweep estimate``: the first-order P-V of every layout of a sweep plane in milliseconds
-(model §3, §5; :mod:`ftsweep.stages.estimate`), and its measured agreement with a simulated
+(model §3, §5; :mod:`ftsweep.stages.layouts.estimate`), and its measured agreement with a simulated
 cube. The estimate never replaces the simulation: it seeds and prunes it."""
 
 from __future__ import annotations
@@ -14,9 +14,7 @@ import xarray as xr
 from ftsweep.engine.case import program_request
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.table.layout import build_layout
-from ftsweep.stages import estimate as est
-from ftsweep.store.cube import DONE
-from ftsweep.sweeps.spec import SweepSpec, coordinates
+from ftsweep.stages.layouts import estimate as est
 
 
 def second_derivatives(
@@ -81,12 +79,12 @@ def seed_layout(
     return float(points[i]), float(aspects[j]), float(pv[i, j])
 
 
-def estimate_sweep(spec: SweepSpec, folder: Path | None = None) -> xr.Dataset:
-    """The estimated P-V [nm] over the sweep's (points, aspect[, feed_um, nose_radius_um]) axes."""
+def estimate_sweep(spec: Any, coords: dict[str, np.ndarray], folder: Path | None = None) -> xr.Dataset:
+    """The estimated P-V [nm] over the sweep's (points, aspect[, feed_um, nose_radius_um]) axes:
+    a sweep spec (:class:`ftsweep.sweeps.spec.SweepSpec`) and its cube's coordinates."""
     assert spec.layout is not None
     surface_spec = catalogs.entry("surfaces", spec.surface, folder)
     cutting = catalogs.entry("cutting", spec.cutting, folder)
-    coords = coordinates(spec)
     pts, asp = coords["points"], coords["aspect"]
     interp, n_points = interp_plane(surface_spec, spec.layout, pts, asp, folder)
     feeds = coords.get("feed_um", np.array([cutting.feed_um]))
@@ -113,35 +111,3 @@ def estimate_sweep(spec: SweepSpec, folder: Path | None = None) -> xr.Dataset:
     )
     drop = [d for d in ("feed_um", "nose_radius_um") if d not in coords]
     return ds.isel({d: 0 for d in drop}, drop=True)
-
-
-def best_aspect(pv: xr.DataArray) -> xr.DataArray:
-    """The aspect ratio of the lowest P-V at each point count (NaN where none is finite)."""
-    filled = pv.fillna(np.inf)
-    index = filled.argmin("aspect")
-    best = pv["aspect"].isel(aspect=index).where(np.isfinite(filled.min("aspect")))
-    return best.drop_vars("aspect", errors="ignore")
-
-
-def agreement(estimate: xr.Dataset, cube: xr.Dataset) -> dict[str, Any]:
-    """How the estimate compares with a simulated cube of the same axes: the ratio
-    estimate/simulated P-V over every computed case, and the aspect optimum per point count."""
-    sim = cube["pv_nm"].where(cube["status"] == DONE)
-    pv_est = estimate["pv_estimate_nm"].reindex_like(sim)  # the same sweep: the same coordinates
-    ratio = (pv_est / sim).values.ravel()
-    ratio = ratio[np.isfinite(ratio)]
-    a_est = best_aspect(pv_est)
-    a_sim = best_aspect(sim)
-    quotient = a_est / a_sim
-    factor = xr.where(quotient >= 1.0, quotient, 1.0 / quotient).values.ravel()
-    factor = factor[np.isfinite(factor)]
-    return {
-        "cases": int(ratio.size),
-        "pv_ratio_min": float(ratio.min()) if ratio.size else math.nan,
-        "pv_ratio_median": float(np.median(ratio)) if ratio.size else math.nan,
-        "pv_ratio_max": float(ratio.max()) if ratio.size else math.nan,
-        "within_factor_2": float(np.mean((ratio >= 0.5) & (ratio <= 2.0))) if ratio.size else math.nan,
-        "optimum_aspect_factor_max": float(factor.max()) if factor.size else math.nan,
-        "optimum_aspect_estimated": a_est.values.tolist(),
-        "optimum_aspect_simulated": a_sim.values.tolist(),
-    }

@@ -1,0 +1,136 @@
+"""``ftsweep fresnel``: the freeform Fresnel study of the seed ([2]), a command the Fresnel
+kind adds (entry point of group ``ftsweep.commands``): the quasi-spiral program of the part
+timed under the machine's limits, its figures, and its export with ``-o``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ftsweep.options import (
+    FINITE,
+    POSITIVE,
+    FiniteRange,
+    echo_json,
+    one_line,
+    progress_done,
+    refuse_overwrite,
+    sign_options,
+    stderr_progress,
+    threads_option,
+)
+
+
+@click.command("fresnel")
+@click.option("--surface", default="chebyshev_example", show_default=True, help="Surface catalog entry.")
+@click.option(
+    "--facet-height-um",
+    type=POSITIVE,
+    default=10.0,
+    show_default=True,
+    help="Height h of every Fresnel facet [µm] ([2] eq. 3).",
+)
+@click.option(
+    "--machine", default="xyzc-nanoform", show_default=True, help="Machine entry with X, Y, Z, C limits."
+)
+@click.option(
+    "--cutting",
+    default="fresnel-finish",
+    show_default=True,
+    help="Cutting entry: nose radius, feed Δr per turn, rpm (sets T0).",
+)
+@click.option(
+    "--points-per-turn", type=click.IntRange(min=8), help="Control points K per edge. Default: 360."
+)
+@click.option("--deviation-deg", type=FINITE, help="Rake-face deviation Δφ [deg] ([2] eq. 9). Default: 0.")
+@click.option(
+    "--compensation",
+    type=click.Choice(["exact", "straight", "none"]),
+    help="Tool-edge compensation: eq. 10 (exact), eq. 12 (straight) or none. Default: exact.",
+)
+@click.option(
+    "--control",
+    "scheme",
+    type=click.Choice(["auto", "polar", "arc"]),
+    help="Control points: polar about centroids (eqs. 5-6), arc length (appendix A.3), auto. Default: auto.",
+)
+@click.option(
+    "--safety", type=FiniteRange(min=1.0), help="Safety factor K_s on every axis limit. Default: 1.25."
+)
+@click.option(
+    "--plots",
+    "plot_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs"),
+    show_default=True,
+    help="Folder for the plots (fresnel-<surface>-path.png, -axes.png, -timesteps.png).",
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Export the program (t C X Y Z lines).",
+)
+@click.option("--force", is_flag=True, help="Replace an existing program.")
+@sign_options
+@threads_option
+@click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
+def fresnel_command(**opts: Any) -> None:
+    """Plan a freeform Fresnel program for an X-Y-Z-C lathe ([2]) and time it adaptively.
+
+    Slices the surface along its contour lines into facets of the given height, plans the
+    quasi-spiral path along the facets' edges (feed Δr per turn from the cutting entry),
+    the 4-axis trajectory that keeps the rake face on the cutting direction, the tool-edge
+    compensation (eq. 10 and eq. 12, both reported), and the timesteps: per turn optimised
+    (scipy L-BFGS-B) to level the axes' relative accelerations, then scaled by K_s; the
+    machining time is compared with one constant timestep at the global acceleration limit.
+    Progress on stderr; plots in --plots; with -o the program and a JSON sidecar
+    (check it with `ftsweep verify FILE`).
+
+    \b
+    Examples:
+      ftsweep fresnel
+      ftsweep fresnel --surface chebyshev_example --facet-height-um 10 --json
+      ftsweep fresnel -o outputs/fresnel.txt --force
+    """
+    from pydantic import ValidationError
+
+    from ftsweep.exports.files import ExportError, sidecar_path
+    from ftsweep.exports.origin import signed, signing_key
+    from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.kinds.fresnel import study as fstudy
+
+    keys = ("facet_height_um", "points_per_turn", "deviation_deg", "compensation", "scheme", "safety")
+    inp = fstudy.inputs(opts["surface"], opts["machine"], opts["cutting"], **{k: opts[k] for k in keys})
+    out = opts["out"]
+    refuse_overwrite(out, opts["force"])
+    progress = stderr_progress("timesteps (turns)", opts["as_json"])
+    try:
+        summary = fstudy.study(inp, progress=progress)
+        progress_done(progress)
+        plots = [str(p) for p in fstudy.plot(summary, opts["plot_dir"])]
+        if out is not None:
+            meta = fstudy.export(summary, out, sidecar_path(out), inp)
+            signed(out, signing_key(opts["sign_key"]), meta, opts["expires"])
+    except (CatalogError, ExportError, ValidationError, ValueError) as exc:
+        raise click.ClickException(one_line(str(exc))) from None
+    finally:
+        progress_done(progress)
+    result = fstudy.public(summary)
+    result["plots"] = plots
+    if out is not None:
+        result["program"] = {"path": str(out), "sidecar": str(sidecar_path(out)), "lines": result["n_points"]}
+    _print_fresnel(result, fstudy.text_lines(summary), opts["as_json"])
+
+
+def _print_fresnel(result: dict[str, Any], lines: list[str], as_json: bool) -> None:
+    if as_json:
+        echo_json(result)
+        return
+    for line in lines:
+        click.echo(line)
+    click.echo(f"plots        {', '.join(result['plots'])}")
+    if "program" in result:
+        click.echo(f"program      {result['program']['path']} ({result['n_points']:,} lines t C X Y Z)")

@@ -1,0 +1,332 @@
+"""One export and one verify for every program kind: each kind names its file format
+(:class:`ftsweep.exports.files.FileFormat`: how to recognise its files, and its write, verify
+and report functions), and generic code asks the registry for them. The formats live with
+their kinds (``ftsweep.kinds.<kind>``) and share the machinery of :mod:`ftsweep.exports`.
+This is the export command's layer (tools): it selects from cubes and asks the registry.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from ftsweep import registry
+from ftsweep.exports.files import FileFormat, Progress
+from ftsweep.exports.origin import sign, signature_path, signing_key
+from ftsweep.freetext import TextError, check_text
+from ftsweep.store.io import (
+    MAX_PROGRAM_BYTES,
+    MAX_SIDECAR_BYTES,
+    ExportError,
+    check_overwrite,
+    read_regular,
+    read_sidecar,
+    sidecar_of,
+    sidecar_path,
+)
+from ftsweep.store.storage import PathLike
+
+
+def formats() -> tuple[FileFormat, ...]:
+    """Every registered kind's file format, once each; the first is the default (the one
+    whose files no first line announces)."""
+    found: dict[str, FileFormat] = {}
+    for kind in registry.kinds().values():
+        fmt = kind.file_format()
+        found.setdefault(fmt.name, fmt)
+    return tuple(sorted(found.values(), key=lambda f: f.magic is not None))
+
+
+def format_of_kind(kind: str) -> FileFormat:
+    """The format a cube case of ``kind`` is exported in (its kind's)."""
+    try:
+        return registry.kind(kind).file_format()  # type: ignore[no-any-return]
+    except ValueError:
+        raise ExportError(f"a {kind} case has no export format") from None
+
+
+def format_of_file(path: Path) -> FileFormat:
+    """The format of an exported file, by its first line (anything else is read as a header,
+    whose reader says precisely what is wrong with it)."""
+    # the largest file any format reads is a program's; a device or FIFO is refused, never read
+    head = read_regular(path, MAX_PROGRAM_BYTES, head=200)
+    line = head.split(b"\n", 1)[0]
+    try:
+        first = line.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        cut = b"\n" not in head and exc.start >= len(line) - 3  # a character the head cut in two
+        if not cut:
+            what = "header" if path.suffix == ".h" else "header or program"
+            raise ExportError(
+                f"{path} is not an ftsweep {what}: its first line is not UTF-8 text (byte {exc.start}); "
+                "export writes ASCII"
+            ) from None
+        first = line.decode("utf-8", errors="replace")
+    from ftsweep.exports import nc
+
+    if nc.is_dialect_file(first):
+        return nc.dialect_format()  # type: ignore[no-any-return]
+    found = [f for f in formats() if f.magic is not None and first.startswith(f.magic)]
+    return found[0] if found else formats()[0]
+
+
+def export(
+    cube_path: PathLike,
+    out: Path,
+    budget_points: int | None = None,
+    tolerance_nm: float | None = None,
+    index: int | None = None,
+    force: bool = False,
+    name: str | None = None,
+    trust_plugins: bool = False,
+    sign_key: str | None = None,
+    dialect: str | None = None,
+    expires: datetime | None = None,
+) -> dict[str, Any]:
+    """Choose a case of a cube (a path or URL; ``select``'s rules), plan it again from the cube's recorded
+    spec and catalog entries and write it in its kind's format with its sidecar, atomically
+    (a table as a C header, a spiral or D-path program as plain-text lines). Returns the
+    sidecar's content. A plug-in surface the cube names must be in the local catalog unless
+    ``trust_plugins``. Signed (``FILE.sig``: a statement of what the file is for, valid until
+    ``expires`` when given) when a signing key is configured
+    (:func:`ftsweep.exports.origin.signing_key` of ``sign_key``). A path program is written in
+    ``dialect`` (default: the machine's controller's, :mod:`ftsweep.exports.nc`)."""
+    out = Path(out)
+    side = sidecar_path(out)
+    try:  # the sidecar names the file and the file its sidecar: both are rendered
+        check_text(out.name, "the output file's name")
+    except TextError as exc:
+        raise ExportError(f"-o {str(out)[:200]!r}: {exc}") from None
+    key = signing_key(sign_key)
+    signer = None if key is None else (key, expires)
+    with _export_lock(out):
+        check_overwrite((out, side, signature_path(out)), force)
+        return _export_locked(
+            (cube_path, out), (budget_points, tolerance_nm, index), (name, trust_plugins, signer, dialect)
+        )
+
+
+@contextmanager
+def _export_lock(out: Path) -> Iterator[None]:
+    """Hold ``FILE.lock`` beside the exported file (:func:`ftsweep.store.lock.acquire`: a
+    killed export's lock is taken over): a second export to the same name is refused,
+    naming the first, and writes nothing."""
+    from ftsweep.store.lock import LockError, acquire, release
+
+    try:
+        lock = acquire(out, command=f"ftsweep export -o {out.name}")
+    except LockError as exc:
+        raise ExportError(f"{exc}; nothing exported") from None
+    try:
+        yield
+    finally:
+        release(lock)
+
+
+def _export_locked(
+    paths: tuple[PathLike, Path],
+    selection: tuple[int | None, float | None, int | None],
+    options: tuple[str | None, bool, tuple[Path, datetime | None] | None, str | None],
+) -> dict[str, Any]:
+    """:func:`export` once its lock is held: the files are written and signed in a staging
+    folder beside ``out`` under their final names, then published (:func:`_publish`)."""
+    from ftsweep.exports import nc
+    from ftsweep.exports.fingerprint import fingerprint
+    from ftsweep.tools.select import check_exportable, choose, open_cube, recorded_case
+
+    cube_path, out = paths
+    budget_points, tolerance_nm, index = selection
+    name, trust_plugins, signer, dialect = options
+    ds = open_cube(cube_path)
+    chosen = choose(ds, budget_points, tolerance_nm, index)
+    if tolerance_nm is not None and not chosen.get("met", True):
+        raise ExportError(
+            f"no case meets P-V ≤ {tolerance_nm:g} nm (best found: {chosen['pv_nm']:.2f} nm at "
+            f"{chosen['n_points']:,} points); nothing exported"
+        )
+    flat = int(chosen["index"])
+    check_exportable(ds, flat)
+    case, specs = recorded_case(ds, flat, trust_plugins)
+    # the platform decides whether verify must find every number exactly as re-planned
+    extra = {
+        "cube": str(cube_path),
+        "cube_git_revision": ds.attrs.get("git_revision"),
+        "platform": fingerprint(),
+    }
+    dialect = dialect or nc.default_dialect(specs[1])
+    if dialect == "text" and specs[1].interpolation != "linear":
+        raise ExportError(
+            f"machine '{case.machine}' interpolates {specs[1].interpolation}; ftsweep's text programs are "
+            f"linear: export --dialect {specs[1].controller.dialect}"
+        )
+    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".export", dir=out.parent))
+    try:
+        staged, staged_side = stage / out.name, stage / sidecar_path(out).name
+        if dialect != "text":
+            meta = nc.export(staged, staged_side, case, specs, chosen, extra, dialect)
+        else:
+            fmt = format_of_kind(case.layout.kind)
+            assert fmt.export is not None
+            meta = fmt.export(staged, staged_side, case, specs, chosen, extra, name=name)
+        if signer is not None:  # signed before anything is published: a failed signing publishes nothing
+            meta = {**meta, "signature": sign(staged, signer[0], signer[1])}
+        _publish(stage, out)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return meta
+
+
+def _publish(stage: Path, out: Path) -> None:
+    """Move the staged sidecar, signature and file into place, the file last, each by one
+    ``os.replace`` (a reader sees an old file or the new one whole); a signature left by an
+    earlier export of an unsigned file is removed. A kill between two renames can leave a
+    new sidecar beside the old file, which verify refuses (their hashes name each other)."""
+    side, sig = sidecar_path(out), signature_path(out)
+    os.replace(stage / side.name, side)
+    if (stage / sig.name).exists():
+        os.replace(stage / sig.name, sig)
+    else:
+        sig.unlink(missing_ok=True)
+    os.replace(stage / out.name, out)
+
+
+def verify(
+    path: Path,
+    progress: Progress = None,
+    pv_tolerance_nm: float | None = None,
+    trust_plugins: bool = False,
+    trusted: tuple[str, ...] = (),
+    accept_recorded: bool = False,
+    compiled: bool = False,
+    expect: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Verify any exported file by its format (:func:`format_of_file`): what the machine
+    reads, parsed as the machine parses it, against what the recorded case plans; and its
+    origin (:mod:`ftsweep.exports.origin`): with trusted keys (``trusted``, or the config file's)
+    its signed statement, else its recorded catalog entries against the local catalog (unless
+    ``accept_recorded``). With ``compiled``, the C reference interpolator's commands from
+    the file (:mod:`ftsweep.exports.compiled`) must equal the simulator's. ``expect``: facts
+    of :func:`~ftsweep.exports.origin.purpose` the file must be for (``case``, ``surface``).
+    The record's ``purpose`` says what the file is for, ``replanned`` which rule judged its
+    numbers, ``origin`` what was proved. Raises
+    :class:`~ftsweep.exports.files.ExportError` naming the first difference."""
+    from ftsweep.engine.cost import bounded_by_default_resolution
+    from ftsweep.exports import origin as org
+    from ftsweep.exports.fingerprint import exact_on_this_platform
+
+    path = Path(path)
+    fmt = format_of_file(path)
+    side = sidecar_of(path)
+    before = _identity(path, side)  # nothing read yet: the format's own cap judges the file first
+    # the file as the machine reads it first (its own errors name what is wrong with it) ...
+    with bounded_by_default_resolution():  # a recorded resolution costs what the file's size warrants
+        record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
+    if compiled:
+        if fmt.compiled is None:
+            raise ExportError(f"--compiled evaluates table headers and PMAC programs, not a {fmt.name}")
+        record.update(fmt.compiled(path, trust_plugins))
+    file_bytes, side_bytes = _contents(path, side)
+    if side_bytes is None or _identity(path, side) != before:  # judged must be what is proved
+        raise ExportError(f"{path} or its sidecar changed while it was verified; verify it again")
+    meta = read_sidecar(path, side_bytes)
+    record["purpose"] = org.purpose(meta)
+    record["replanned"] = exact_on_this_platform(meta.get("platform"))[1]
+    _check_expected(path, record["purpose"], expect or {})
+    # ... then who made it
+    keys = org.trusted_keys(trusted)
+    if keys:
+        signed = org.check_signature(path, file_bytes, side_bytes, meta, keys)
+        record["origin"] = {"proved": "signed", **signed}
+    elif accept_recorded:
+        record["origin"] = {"proved": "recorded entries (--accept-recorded): not compared with a catalog"}
+    else:
+        catalog = org.check_catalog(meta, side)
+        record["origin"] = {"proved": "consistent with this catalog", "catalog": catalog}
+    if side != sidecar_path(path):
+        record["note"] = (
+            f"the sidecar has the older name {side.name}; export again to name it {sidecar_path(path).name}"
+        )
+    return record
+
+
+def _check_expected(path: Path, purpose: dict[str, Any], expect: dict[str, Any]) -> None:
+    """Refuse a file that is not for what the operator expects (``--expect-case``,
+    ``--expect-surface``), naming both."""
+    for key, wanted in expect.items():
+        if wanted is not None and purpose.get(key) != wanted:
+            raise ExportError(
+                f"{path} is for {key} {purpose.get(key)!s:.80}, not the expected {wanted}: a swapped or "
+                "wrong file; do not load it"
+            )
+
+
+def _identity(path: Path, side: Path) -> tuple[tuple[int, ...], ...]:
+    """What changes when a file or its sidecar is replaced or written (inode, size, time of
+    last change in ns), read from ``stat`` without reading either file."""
+    found: list[tuple[int, ...]] = []
+    for each in (path, side):
+        try:
+            info = os.stat(each)
+            found.append((info.st_ino, info.st_size, info.st_mtime_ns, info.st_ctime_ns))
+        except OSError:
+            found.append(())
+    return tuple(found)
+
+
+def _contents(path: Path, side: Path) -> tuple[bytes, bytes | None]:
+    """The bytes of a file and its sidecar (regular files only, bounded; None: no sidecar,
+    which the format's verify names)."""
+    sidecar = read_regular(side, MAX_SIDECAR_BYTES, "sidecar") if side.exists() else None
+    return read_regular(path, MAX_PROGRAM_BYTES), sidecar
+
+
+def purpose_lines(record: dict[str, Any]) -> list[str]:
+    """The first lines verify prints: what the file is for (case, surface, machine, cutting,
+    compensation, dialect, points, predicted P-V) and, when its statement was checked, who
+    signed it when, until when."""
+    p = record["purpose"]
+    case = f"case {p['case']} of {p['cube']}" if p["case"] is not None else "a study's program (no cube)"
+    points = f"{p['points']:,} points" if p["points"] is not None else "points not recorded"
+    pv = f"predicted P-V {p['pv_nm']:.2f} nm" if isinstance(p["pv_nm"], (int, float)) else "no P-V recorded"
+    lines = [
+        f"for          {case}",
+        f"             surface {p['surface']}, machine {p['machine']}, cutting {p['cutting']}, "
+        f"compensation {p['compensation']}",
+        f"             {p['dialect']}, {points}, {pv}",
+    ]
+    signed = record.get("origin", {})
+    if signed.get("key_id"):
+        until = f", expires {signed['expires']}" if signed.get("expires") else ", no expiry"
+        when = f"at {signed['signed_at']}{until} (ftsweep {signed['ftsweep']})"
+        lines.append(f"signed       by key {signed['key_id']} {when}")
+    return lines
+
+
+def replanned_line(record: dict[str, Any]) -> str:
+    """The line that says which rule judged the file's numbers against the re-planned ones."""
+    return f"re-planned   {record['replanned']}"
+
+
+def origin_line(record: dict[str, Any]) -> str:
+    """The line that says what verify proved of a file's origin (and a note on its sidecar's
+    older name, where it has one)."""
+    line = _origin(record)
+    return f"{line}\nnote         {record['note']}" if record.get("note") else line
+
+
+def _origin(record: dict[str, Any]) -> str:
+    proved = record.get("origin", {})
+    if proved.get("key_id"):
+        return f"origin       signed by key {proved['key_id']} (trusted)"
+    if proved.get("catalog"):
+        return (
+            f"origin       consistent with this catalog ({proved['catalog']}); no signature checked "
+            "(--trusted-key proves who exported it)"
+        )
+    return f"origin       {proved.get('proved', 'not checked')}"

@@ -1,0 +1,56 @@
+"""Interpolation (model §3, §4): what the controller commands at a point of the tool path.
+Tool-nose compensation of the stored values (``compensation``, ``ray_commands``), bilinear
+interpolation of a table along the spiral (``bilinear``), the segments a controller forms
+between a path program's points (``segments``: linear, PVT cubics, B-splines), a spiral
+program's commands at the simulator's passes and a timed program's crossings of its rays.
+"""
+
+from __future__ import annotations
+
+from ftsweep.stages import face
+
+_EXPORTS = {
+    "compensation": "compensation",
+    "arc_lift": "compensation",
+    "contact_window_um": "compensation",
+    "slope_compensation": "compensation",
+    "compensate": "compensation",
+    "scan_samples": "compensation",
+    "ray_commands": "ray_commands",
+    "compensate_on_ray": "ray_commands",
+    "commands_on_rays": "ray_commands",
+    "segments": "segments",
+    "hermite": "segments",
+    "natural_spline": "segments",
+    "pvt_tangents": "segments",
+    "control_points": "segments",
+    "bspline_segments": "segments",
+    "evaluate": "segments",
+    "deviations": "segments",
+    "dense_slopes": "segments",
+    "split_until_within": "segments",
+    "quantised": "segments",
+    "whole_steps": "segments",
+    "spiral_passes": "spiral_passes",
+    "pass_commands_kernel": "spiral_passes",
+    "tables": "tables",
+    "bilinear": "tables",
+    "table_indices": "tables",
+    "interpolate": "tables",
+    "pass_commands": "tables",
+    "PathGrid": "tables",
+    "nonfinite_passes": "tables",
+    "sample_on_nodes": "tables",
+    "first_machined_node": "tables",
+    "line_angles": "tables",
+    "path_grid": "tables",
+    "timed_path": "timed_path",
+    "slopes": "timed_path",
+    "tangents": "timed_path",
+    "on_time_steps": "timed_path",
+    "velocities": "timed_path",
+    "from_velocities": "timed_path",
+    "crossings": "timed_path",
+}
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = face(__name__, _EXPORTS)

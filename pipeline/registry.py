@@ -8,12 +8,14 @@ asks it for a case's kind instead of naming one.
 
 from __future__ import annotations
 
+from importlib.metadata import entry_points
 from typing import Any, Optional
 
 from ftsweep.engine.contract import ProgramKind
 from ftsweep.engine.plugins import (
     GROUP,
     RegistryError,
+    added,
     kind,
     kinds,
     names,
@@ -26,7 +28,9 @@ from ftsweep.options import flag
 
 __all__ = [
     "GROUP",
+    "OPTIONS_GROUP",
     "RegistryError",
+    "added",
     "check_options_keys",
     "check_sweep_axes",
     "flag",
@@ -77,15 +81,20 @@ def request_from_options(name: str, options: dict[str, Any]) -> tuple[dict[str, 
     return own.from_options(options)
 
 
+OPTIONS_GROUP = "ftsweep.options"
+
+
 def predict_options() -> list[Any]:
-    """Every registered kind's ``predict`` options (click parameters), in the kinds' order,
-    each kind's ``click_options`` decorator applied once, an option two kinds declare kept once."""
+    """Every kind's ``predict`` options (click parameters): the installed kinds' decorators,
+    read from the entry points of group ``ftsweep.options`` without loading the kinds (``predict
+    --help`` loads no kernel), then the ``click_options`` of the kinds :func:`register` added;
+    each decorator applied once, an option two kinds declare kept once."""
 
     def holder() -> None:  # pragma: no cover - never called: it only collects the options
         pass
 
-    applied: list[Any] = []
-    for own in kinds().values():
+    applied: list[Any] = [point.load() for point in entry_points(group=OPTIONS_GROUP)]
+    for own in added().values():
         if own.click_options is not None and own.click_options not in applied:
             applied.append(own.click_options)
     params: dict[str, Any] = {}

@@ -139,7 +139,9 @@ class ProgramKind:
     options : the command-line options (``predict``'s keys) that belong to it.
     click_options : a decorator adding those options to a command (click options, built with
         :mod:`ftsweep.options`); ``predict`` applies every kind's, each decorator once (the ring
-        and mesh kinds share theirs), so a kind outside the package adds its own.
+        and mesh kinds share theirs), so a kind outside the package adds its own. An installed
+        kind also names it in an entry point of group ``ftsweep.options``, so that ``predict
+        --help`` reads it without loading the kind.
     from_options : ``(options) -> (request fields, notices)`` of ``predict``'s options,
         raising ValueError naming the option for a combination it refuses.
     machine, cutting : the catalog entries ``predict`` takes when none is given: a machine

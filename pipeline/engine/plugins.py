@@ -18,7 +18,18 @@ from typing import Any
 
 from ftsweep.engine.contract import ProgramKind
 
-__all__ = ["GROUP", "RegistryError", "kind", "kinds", "names", "noun", "owners", "register", "unregister"]
+__all__ = [
+    "GROUP",
+    "RegistryError",
+    "added",
+    "kind",
+    "kinds",
+    "names",
+    "noun",
+    "owners",
+    "register",
+    "unregister",
+]
 
 GROUP = "ftsweep.kinds"
 _added: dict[str, ProgramKind] = {}
@@ -59,6 +70,11 @@ def register(kind: ProgramKind) -> ProgramKind:
         raise ValueError(f"a program kind named {kind.name!r} is registered already")
     _added[kind.name] = kind
     return kind
+
+
+def added() -> dict[str, ProgramKind]:
+    """The kinds :func:`register` added in this process (not the installed ones)."""
+    return dict(_added)
 
 
 def unregister(name: str) -> None:

@@ -15,7 +15,7 @@ sampled exactly, and the same nodes serve the exact compensation along the path.
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TypeAlias
 
 import numpy as np
 from numba import njit
@@ -26,7 +26,7 @@ from ftsweep.stages.paths.spiral import SpiralPath, phi_on_path, spiral_commands
 
 # a program the controller executes: a table (bilinear, model §3) or a spiral path (linear
 # in the spindle angle between consecutive points, [4])
-Program = Layout | SpiralPath
+Program: TypeAlias = Layout | SpiralPath
 
 
 @njit(nogil=True, cache=True, inline="always")

@@ -152,6 +152,7 @@ LAYERS = (
     ("sweeps", ("ftsweep.sweeps",)),
     ("tools", ("ftsweep.tools",)),
     ("cli", ("ftsweep.cli",)),
+    ("testing", ("ftsweep.testing",)),
 )
 GENERIC = ("engine", "store and export formats", "registry", "sweeps", "tools", "cli", "inputs", "base")
 

@@ -4,7 +4,6 @@ lease lock's rules, and what a store without conditional writes gets."""
 from __future__ import annotations
 
 import json
-import time
 
 import numpy as np
 import pytest
@@ -17,6 +16,7 @@ from ftsweep.store.lock import Lease, LockError
 from ftsweep.store.storage import StorageError, parse_options, place
 from ftsweep.sweeps import run
 from ftsweep.sweeps.run import run_sweep
+from ftsweep.testing import LeaseTests
 
 SPEC = """
 surface: small_sine
@@ -43,29 +43,12 @@ def test_a_sweep_into_memory_reads_back_like_a_local_one(tmp_path, catalog_dir):
     assert not place(url).listing(caselog.LOG) and not place(url + ".lock").exists()
 
 
-def test_a_lease_refuses_a_second_writer_and_is_taken_over_once_expired():
-    # 1.5 s leases renewed every 0.5 s: slack for a loaded 2-core CI machine (0.6 s was tight)
-    url = "memory://ftsweep-tests/lease/c.zarr"
-    lease = 1.5
-    first = Lease(url, "first", lease_s=lease)
-    first.acquire()
-    try:
-        with pytest.raises(LockError, match="is being written by pid .*lease until"):
-            Lease(url, "second", lease_s=lease).acquire()
-        time.sleep(lease + 0.5)  # past its first lease: held only because it was renewed
-        with pytest.raises(LockError):
-            Lease(url, "third", lease_s=lease).acquire()
-        first.check()
-    finally:
-        first._stop.set()  # the holder dies without releasing: its lease runs out
-        first._renewer.join()  # type: ignore[union-attr]
-    time.sleep(lease + 0.2)
-    taker = Lease(url, "after", lease_s=lease)
-    taker.acquire()
-    with pytest.raises(FileExistsError):  # the old holder's compare-and-swap now fails
-        place(url + ".lock").replace_if("", b"{}", first.tag)
-    taker.release()
-    assert not place(url + ".lock").exists()
+class TestMemoryLease(LeaseTests):
+    """The lease conformance suite (:class:`ftsweep.testing.LeaseTests`) on memory://."""
+
+    @pytest.fixture
+    def url(self, tmp_path):  # type: ignore[no-untyped-def]
+        return f"memory://ftsweep-tests/lease-{tmp_path.name}/c.zarr"
 
 
 def test_stores_without_conditional_writes_are_refused_for_writing():

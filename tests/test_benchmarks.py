@@ -75,9 +75,8 @@ def test_bench_dialect_1M_blocks(benchmark, dialect):
 @pytest.mark.parametrize("segments", ["linear", "pvt"])
 def test_bench_crossings_1M_points(benchmark, segments):
     """Crossings of 64 rays (one batch) with a 1M-point, 2,000-revolution timed program:
-    the linear walk against the cubic segments' root per crossing (stages.timed_path)."""
-    from ftsweep.stages.interpolation import timed_path
-    from ftsweep.stages.paths import dpath_motion
+    the linear segments against the cubic segments' root per crossing."""
+    from ftsweep.stages.interpolation import rays, timed_path
 
     n = 1_000_000
     t = np.linspace(0.0, 3000.0, n)
@@ -86,7 +85,7 @@ def test_bench_crossings_1M_points(benchmark, segments):
     z = 100.0 * np.cos(phi / 3.0)
     theta = np.linspace(-0.4, 0.4, 64)
     if segments == "linear":
-        pos, _, _ = benchmark(dpath_motion.crossings, phi, rho, z, theta)
+        pos, _, _ = benchmark(rays.crossings, phi, rho, z, theta)
     else:
         chan = np.column_stack([phi, rho, z])
         tan = timed_path.tangents(t, chan)

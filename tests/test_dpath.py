@@ -17,6 +17,7 @@ from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.kinds.dpath import format as program
 from ftsweep.kinds.dpath import study as dstudy
 from ftsweep.simulate import run_case
+from ftsweep.stages.interpolation import rays
 from ftsweep.stages.kinematics import axes as kinematics
 from ftsweep.stages.paths import dpath, dpath_motion
 from ftsweep.tools.export import ExportError, verify
@@ -613,17 +614,17 @@ def test_radius_at_is_evaluates_radius_and_cut_flags_bit_for_bit(transition):
 @given(
     steps=st.lists(st.floats(0.01, 3.0), min_size=3, max_size=60),
     start=st.floats(-20.0, 20.0),
-    rays=st.lists(st.floats(0.0, 2.0 * math.pi, exclude_max=True), min_size=1, max_size=6),
+    ray_angles=st.lists(st.floats(0.0, 2.0 * math.pi, exclude_max=True), min_size=1, max_size=6),
 )
-def test_crossings_are_where_the_path_passes_each_ray(steps, start, rays):
+def test_crossings_are_where_the_path_passes_each_ray(steps, start, ray_angles):
     """The bisecting search finds, for every ray and revolution, the program step that holds
     the crossing angle, and interpolates the path linearly there (a brute-force check)."""
     phi = start + np.concatenate([[0.0], np.cumsum(steps)])
     rho = 1000.0 + 10.0 * np.sin(phi)
     z = np.cos(3.0 * phi)
-    pos, w, seg = dpath_motion.crossings(phi, rho, z, np.sort(np.array(rays)))
+    pos, w, seg = rays.crossings(phi, rho, z, np.sort(np.array(ray_angles)))
     base = math.floor(phi[0] / (2.0 * math.pi)) * 2.0 * math.pi
-    for a, theta in enumerate(np.sort(np.array(rays))):
+    for a, theta in enumerate(np.sort(np.array(ray_angles))):
         for c in range(pos.shape[1]):
             q = theta + base + 2.0 * math.pi * c
             if q < phi[0] or q > phi[-1]:

@@ -233,3 +233,44 @@ def test_generic_modules_name_no_kind():
             if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in names:
                 offenders.append(f"{module}:{node.lineno} names the kind {node.value!r}")
     assert not offenders
+
+
+STAGES = ("sampling", "layouts", "interpolation", "envelope", "metrics", "kinematics", "paths", "numerics")
+
+
+def test_the_stage_faces_export_their_kernels_and_load_them_only_when_used():
+    """Each stage's face names its public kernels and modules in ``__all__``; every name loads
+    from its module, and importing every face loads none of its modules."""
+    import importlib
+    import json
+
+    assert sorted(STAGES) == sorted(
+        p.name for p in (REPO / "stages").iterdir() if (p / "__init__.py").exists()
+    )
+    for stage in STAGES:
+        face = importlib.import_module(f"ftsweep.stages.{stage}")
+        assert face.__all__ and face.__doc__
+        for name in face.__all__:
+            assert getattr(face, name) is not None, f"ftsweep.stages.{stage}.{name}"
+        with pytest.raises(AttributeError):
+            face.no_such_kernel  # noqa: B018
+    probe = (
+        "import json, sys\n"
+        + "".join(f"import ftsweep.stages.{s}\n" for s in STAGES)
+        + "print(json.dumps(sorted(m for m in sys.modules if m.startswith('ftsweep.stages.'))))"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert json.loads(out.stdout) == sorted(f"ftsweep.stages.{s}" for s in STAGES)
+
+
+def test_the_rooms_faces_export_their_public_names():
+    """``ftsweep.engine``, ``store``, ``exports``, ``inputs``, ``sweeps`` and ``tools`` name their
+    public names in ``__all__``, each loading from its module, and no name hides a module's."""
+    import importlib
+
+    for room in ("engine", "store", "exports", "inputs", "sweeps", "tools"):
+        face = importlib.import_module(f"ftsweep.{room}")
+        assert face.__all__, room
+        for name in face.__all__:
+            assert not (REPO / "pipeline" / room / f"{name}.py").exists(), f"ftsweep.{room}.{name}"
+            assert getattr(face, name) is not None, f"ftsweep.{room}.{name}"

@@ -19,8 +19,7 @@ from ftsweep.engine.case import Case, CaseError, program_request
 from ftsweep.exports import dialects
 from ftsweep.exports.moves import DialectError
 from ftsweep.simulate import run_case
-from ftsweep.stages.interpolation import timed_path
-from ftsweep.stages.paths import dpath_motion
+from ftsweep.stages.interpolation import rays, timed_path
 
 
 # ----------------------------------------------------------------------- closed forms
@@ -72,7 +71,7 @@ def test_linear_tangents_cross_rays_where_the_linear_walk_does():
     tan = np.empty((phi.size - 1, 6))
     tan[:, 0::2], tan[:, 1::2] = chord, chord
     theta = np.linspace(-math.pi, math.pi, 37)
-    p1, w1, s1 = dpath_motion.crossings(phi, rho, z, theta)
+    p1, w1, s1 = rays.crossings(phi, rho, z, theta)
     p2, w2, s2 = timed_path.crossings(phi, chan, tan, theta)
     np.testing.assert_array_equal(s1, s2)
     np.testing.assert_allclose(p2, p1, atol=1e-9, equal_nan=True)

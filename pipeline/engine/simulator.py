@@ -56,10 +56,8 @@ def _not_finite(what: str, count: int, first: int, where: Callable[[int], str]) 
 
 
 STAGE_TIMERS = STAGES
-# evaluation nodes per batch of rays: smaller batches keep more of a batch's arrays (~40 bytes
-# a node) in the core's caches (2 MiB L2 here) from one stage to the next. Measured on this
-# machine (2026-11-25, `run_case` best of 3): 150k nodes ran the bench's ring-1M and mesh-1M
-# cases 10-12 % faster than 400k and the small reference cases 15-20 %; 50k-100k no faster
+# evaluation nodes per batch of rays: a batch's arrays (~40 bytes a node) stay in a core's
+# caches from one stage to the next (docs/performance.md, "Tuned constants")
 BATCH_NODES = 150_000
 
 

@@ -26,13 +26,11 @@ THREADS: ContextVar[int] = ContextVar("ftsweep_case_threads", default=1)
 # numpy's per-call overhead than they gain
 PART_POINTS = 50_000
 # most points per part, on any number of threads: a part's dozen solver temporaries (0.5 MB
-# each) then stay in cache instead of streaming through memory. One thread, measured: ring-1M's
-# table 0.27 -> 0.22 s; the 990k-point chord spiral's 28 M dense points 20.6 -> 13.5 s
+# each) then stay in cache instead of streaming through memory (docs/performance.md,
+# "Tuned constants")
 MAX_PART_POINTS = 65_536
 # most points per part when threads share the work: with parts of MAX_PART_POINTS each thread
-# runs Python between numpy calls so often that the threads queue for the GIL (the 990k-point
-# chord spiral's 28 M dense points on 2 threads: 10.1 s in all in parts of 65,536; its
-# compensation 2.7-3.0 s in parts of 1 M, against 4.1 s on one thread)
+# runs Python between numpy calls so often that the threads queue for the GIL
 THREAD_PART_POINTS = 1_048_576
 
 

@@ -1,8 +1,9 @@
 """Interpolation (model §3, §4): what the controller commands at a point of the tool path.
 Tool-nose compensation of the stored values (``compensation``, ``ray_commands``), bilinear
-interpolation of a table along the spiral (``bilinear``), the segments a controller forms
+interpolation of a table along the spiral (``tables``), the segments a controller forms
 between a path program's points (``segments``: linear, PVT cubics, B-splines), a spiral
-program's commands at the simulator's passes and a timed program's crossings of its rays.
+program's commands at the simulator's passes, and where a program crosses the simulator's
+rays (``rays``: linear segments; ``timed_path``: cubic ones).
 """
 
 from __future__ import annotations
@@ -19,6 +20,10 @@ _EXPORTS = {
     "ray_commands": "ray_commands",
     "compensate_on_ray": "ray_commands",
     "commands_on_rays": "ray_commands",
+    "rays": "rays",
+    "step_of": "rays",
+    "RayGrid": "rays",
+    "ray_grid": "rays",
     "segments": "segments",
     "hermite": "segments",
     "natural_spline": "segments",
@@ -50,7 +55,6 @@ _EXPORTS = {
     "on_time_steps": "timed_path",
     "velocities": "timed_path",
     "from_velocities": "timed_path",
-    "crossings": "timed_path",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = face(__name__, _EXPORTS)

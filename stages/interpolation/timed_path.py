@@ -23,8 +23,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ftsweep.stages.interpolation.rays import ray_grid
 from ftsweep.stages.interpolation.segments import hermite, quantised
-from ftsweep.stages.paths.dpath_motion import ray_grid, step_of
 
 SPINDLE = 0
 TURNED = 1
@@ -195,7 +195,7 @@ def _root(
 
 
 @njit(nogil=True, cache=True)
-def _crossings(
+def _cubic(
     angle: np.ndarray,
     chan: np.ndarray,
     tan: np.ndarray,
@@ -204,26 +204,23 @@ def _crossings(
     sign: float,
     ray_theta: np.ndarray,
     order: np.ndarray,
-    n_rev: int,
+    seg: np.ndarray,
     pos: np.ndarray,
     w: np.ndarray,
-    seg: np.ndarray,
 ) -> None:  # pragma: no cover - jit
+    """Radius and Z of every bracketed crossing: the root of the segment's angle (:func:`_root`)."""
     period = 2.0 * math.pi
-    lo, hi, last, z = angle[0], angle[-1], angle.size - 2, chan.shape[1] - 1
-    for c in range(n_rev):
-        j = -1
-        for b in range(order.size):
+    z = chan.shape[1] - 1
+    for c in range(seg.shape[1]):  # a revolution at a time, rays in increasing angle: the steps
+        for b in range(order.size):  # read stay in the cache, as the bracketing walk reads them
             r = order[b]
-            q = ray_theta[r] + period * c
-            if q < lo or q > hi:
+            j = seg[r, c]
+            if j < 0:
                 pos[r, c] = math.nan
                 w[r, c] = math.nan
-                seg[r, c] = -1
                 continue
-            j = step_of(angle, q, j, last)
+            q = ray_theta[r] + period * c
             u = _root(angle, chan, tan, j, q, frame, apex, sign)
-            seg[r, c] = j
             pos[r, c] = _polar(chan, tan, j, u, frame, apex, sign, angle[j])[1]
             w[r, c] = _channel(chan, tan, j, z, u)
 
@@ -242,10 +239,10 @@ def crossings(
     points' unwrapped polar angle [rad] in the frame, increasing; ``chan`` (N, K) the
     channels (C first, Z last), ``tan`` their tangents (N − 1, 2K). Returns the radius [µm],
     Z [µm] and segment j of each crossing, (R, revolutions) arrays, NaN (−1) where the program
-    does not run: as :func:`ftsweep.stages.paths.dpath_motion.crossings` for linear segments."""
+    does not run: as :func:`ftsweep.stages.interpolation.rays.crossings` for linear segments."""
     angle = np.ascontiguousarray(angle, dtype=np.float64)
     g = ray_grid(angle, ray_theta)
-    _crossings(
+    _cubic(
         angle,
         np.ascontiguousarray(chan, dtype=np.float64),
         np.ascontiguousarray(tan, dtype=np.float64),
@@ -254,9 +251,8 @@ def crossings(
         float(sign),
         g.theta,
         g.order,
-        g.n_rev,
+        g.seg,
         g.pos,
         g.w,
-        g.seg,
     )
     return g.pos, g.w, g.seg

@@ -74,10 +74,9 @@ def _sinewave2d_kernel(
 
 # Along a radial section the phases kx·x and ky·y advance by a fixed step per node, so sin and
 # cos are carried from node to node by the angle-addition rotation and computed afresh only
-# every _ANCHOR nodes: the libm calls dominated sampling. Measured against libm at every node
-# on ring-1M's lines (2026-11-26): the largest height difference is 1.04e-14 µm anchoring every
-# 32 nodes, 1.10e-14 every 128 (the phase's own rounding, |kx·x|·ε, sets it, not the
-# rotations), slope 5.5e-16 and 5.8e-16; every 128 nodes the kernel takes 0.048 s against 0.069
+# every _ANCHOR nodes, since the libm calls dominated sampling; the phase's own rounding
+# (|kx·x|·ε), not the rotations, bounds the difference from libm (docs/performance.md,
+# "Tuned constants")
 _ANCHOR = 128
 
 

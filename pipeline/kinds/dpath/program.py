@@ -29,7 +29,7 @@ from ftsweep.engine.record import non_finite, simulated
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.inputs import catalogs
 from ftsweep.stages.envelope import arcs as envelope
-from ftsweep.stages.interpolation import compensation, timed_path
+from ftsweep.stages.interpolation import compensation, rays, timed_path
 from ftsweep.stages.kinematics import axes as kinematics
 from ftsweep.stages.paths import dpath, dpath_motion
 
@@ -419,7 +419,7 @@ def _crossings(
     validity and whether each lies on a cut (both neighbouring points on it). ``chan``: a
     PVT program's C, X, Z columns, its segments cubic in time (None: linear)."""
     if chan is None:
-        pos, w, seg = dpath_motion.crossings(path.phi, path.rho, z_prog, theta)
+        pos, w, seg = rays.crossings(path.phi, path.rho, z_prog, theta)
     else:
         pos, w, seg = timed_path.crossings(path.phi, chan, path.tangents, theta)
     order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)

@@ -29,10 +29,9 @@ from ftsweep.engine.case import CaseError
 from ftsweep.engine.simulator import ExactRows, Machined, require_finite
 from ftsweep.inputs import catalogs
 from ftsweep.stages.envelope import arcs as envelope
-from ftsweep.stages.interpolation import timed_path
+from ftsweep.stages.interpolation import rays, timed_path
 from ftsweep.stages.kinematics import axes as kinematics
 from ftsweep.stages.metrics import moments as metrics
-from ftsweep.stages.paths import dpath_motion
 from ftsweep.stages.paths import fresnel as ff
 
 RAYS_PER_BATCH = 64
@@ -134,7 +133,7 @@ class FresnelSimulation:
         """The passes crossing each ray, sorted outwards: distance from the lowest point [µm],
         tool tip Z [µm], facet level, and how many there are."""
         if self.chan is None:
-            pos, w, seg = dpath_motion.crossings(self.psi, self.r, self.z, theta)
+            pos, w, seg = rays.crossings(self.psi, self.r, self.z, theta)
         else:
             # cubic in time (PVT): the path between points followed exactly through eq. 9
             pos, w, seg = timed_path.crossings(

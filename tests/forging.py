@@ -13,7 +13,8 @@ from pathlib import Path
 from hypothesis import strategies as st
 
 from ftsweep.exports.files import CRC_LINE, crc_of, sidecar_digest
-from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum, read_header, render_header
+from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum, render_header
+from ftsweep.kinds.table.verify import read_header
 from ftsweep.tools.export import ExportError
 
 

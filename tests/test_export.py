@@ -17,8 +17,9 @@ from clusters import BIN
 from ftsweep.cli.main import main
 from ftsweep.engine.planning import control_table
 from ftsweep.inputs.catalogs import entry
-from ftsweep.kinds.table.header import c_identifier, c_string, read_header
+from ftsweep.kinds.table.header import c_identifier, c_string
 from ftsweep.kinds.table.layout import build_layout
+from ftsweep.kinds.table.verify import read_header
 from ftsweep.store import cube
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.sweeps.spec import case_at, load_sweep

@@ -28,7 +28,7 @@ from ftsweep.cli.main import main
 from ftsweep.exports import dialects, gcode, nc
 from ftsweep.exports.files import crc_of
 from ftsweep.kinds.table.c_view import read_c
-from ftsweep.kinds.table.header import MAX_HEADER_BYTES
+from ftsweep.kinds.table.verify import MAX_HEADER_BYTES
 from ftsweep.store import caselog
 from ftsweep.store import io as store_io
 from ftsweep.sweeps.run import run_sweep

@@ -21,7 +21,8 @@ import xarray as xr
 from click.testing import CliRunner
 
 from ftsweep.cli.main import main
-from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum, read_header
+from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum
+from ftsweep.kinds.table.verify import read_header
 from ftsweep.store import caselog, cube
 from ftsweep.store.lock import LockError, acquire, lock_path, release
 from ftsweep.sweeps.run import run_sweep

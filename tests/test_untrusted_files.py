@@ -26,9 +26,7 @@ from hypothesis import strategies as st
 from ftsweep.cli.main import main
 from ftsweep.exports.files import CRC_LINE, crc_of, sidecar_digest
 from ftsweep.kinds.table.c_view import read_c
-from ftsweep.kinds.table.header import (
-    render_header,
-)
+from ftsweep.kinds.table.header import render_header
 from ftsweep.store.io import read_sidecar
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.tools.export import ExportError, export, verify

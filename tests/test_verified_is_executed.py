@@ -17,7 +17,8 @@ from click.testing import CliRunner
 
 from ftsweep.cli.main import main
 from ftsweep.exports.files import CRC_LINE, sidecar_digest
-from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum, read_header
+from ftsweep.kinds.table.header import CHECKSUM_MACRO, checksum
+from ftsweep.kinds.table.verify import read_header
 from ftsweep.sweeps.run import run_sweep
 
 SPHERE_D = """

@@ -95,7 +95,26 @@ def layer_record(
     change_s = layer_change_of(rcase)
     times = layers.layer_times(layering, rcase.rho0_um, rcase.feed_um, rpm, change_s)
     stroke = layering.stroke_used_um
-    schedule = {
+    schedule = layer_schedule(layering, times, z_error)
+    return dict(
+        n_layers=layering.n_layers,
+        layer_segments=layering.n_segments,
+        layer_zone_um=layering.zone_um,
+        layer_stroke_um=float(stroke.max()),
+        z_error_um=z_error,
+        machining_s=float(times.time_s.sum()),
+        single_pass_s=times.single_pass_s,
+        layer_change_s=change_s,
+        layer_change_share=change_s * layering.n_segments / float(times.time_s.sum()),
+        layers=schedule,
+    )
+
+
+def layer_schedule(layering: layers.LayerPlan, times: layers.LayerTimes, z_error: float) -> dict[str, Any]:
+    """The schedule of a layered case ([3]) as its record's ``layers`` holds it: per layer its
+    zone, Z offset and shift, radii, angles, segments, stroke, spiral length and time [µm, rad, s]."""
+    stroke = layering.stroke_used_um
+    return {
         "n_layers": layering.n_layers,
         "zone_um": layering.zone_um,
         "margin_um": layering.margin_um,
@@ -116,18 +135,6 @@ def layer_record(
         "single_pass_time_s": times.single_pass_s,
         "stroke_extension": float(layering.w_high.max() - layering.levels_um[0]) / layering.travel_um,
     }
-    return dict(
-        n_layers=layering.n_layers,
-        layer_segments=layering.n_segments,
-        layer_zone_um=layering.zone_um,
-        layer_stroke_um=float(stroke.max()),
-        z_error_um=z_error,
-        machining_s=float(times.time_s.sum()),
-        single_pass_s=times.single_pass_s,
-        layer_change_s=change_s,
-        layer_change_share=change_s * layering.n_segments / float(times.time_s.sum()),
-        layers=schedule,
-    )
 
 
 def record_of(

@@ -155,9 +155,10 @@ def make_report(
     return paths
 
 
-def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[str, Path]) -> str:
+def _cube_rows(ds: Any) -> str:
+    """The table rows that say which cube the report shows: its sweep, provenance and cases."""
     attrs = ds.attrs
-    rows = "".join(
+    return "".join(
         f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
         for k, v in (
             ("sweep", attrs.get("sweep_name")),
@@ -175,6 +176,12 @@ def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[s
             ),
         )
     )
+
+
+def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[str, Path]) -> str:
+    """The report's page: the cube, the chosen case, its motion, the figures and the spec."""
+    attrs = ds.attrs
+    rows = _cube_rows(ds)
     case_rows = "".join(
         f"<tr><th>{html.escape(k)}</th><td>{v:.4g}</td></tr>"
         if isinstance(v, float) and math.isfinite(v)

@@ -150,7 +150,7 @@ def _table_options(kind: str, opts: dict[str, Any]) -> tuple[dict[str, Any], lis
 
 
 def _file_format() -> Any:
-    from ftsweep.kinds.table.header import header_format
+    from ftsweep.kinds.table.verify import header_format
 
     return header_format()
 

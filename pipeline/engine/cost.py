@@ -14,9 +14,7 @@ from typing import Any, Optional
 
 from ftsweep.defaults import MAX_NODES
 from ftsweep.engine.case import Case, CaseError, Resolution
-from ftsweep.inputs import catalogs
 from ftsweep.stages.interpolation.tables import Program
-from ftsweep.stages.paths import spiral
 
 
 def angular_samples(
@@ -138,28 +136,3 @@ def check_capacity(case: Case, what: str, n_points: float, capacity: int, note: 
             f"'{case.machine}' "
             f"({capacity:,}); use larger pitches, steps or budgets, fewer points, or a larger machine"
         )
-
-
-def spiral_points(case: Case, surface_spec: Any, feed_um: float) -> float:
-    """Points a spiral request's rule gives, estimated before planning ([4]): Np per
-    revolution times ρ0/F for the angle rule, the path length over the step for the arc
-    rule; 0 for the chord rule (known only once sampled; :func:`spiral.chord_budget` bounds
-    its own sampling)."""
-    rho0 = float(catalogs.aperture_of(surface_spec).outer_radius_um)
-    rule, value = case.layout.spiral_rule()
-    if rule == "angle":
-        return value * rho0 / feed_um
-    if rule == "arc":
-        return spiral.path_length_um(rho0, feed_um) / value
-    curvature = catalogs.curvature_bound(surface_spec)
-    if curvature is not None and math.isfinite(curvature):
-        # a chord of length s on a curve of curvature ≤ K deviates by ≤ K·s²/8 ([4] eq. 4), so
-        # the budget needs points no closer than sqrt(8Δ/K): an upper estimate of the count,
-        # refused only when even a tenth of it is over the capacity
-        estimate = spiral.path_length_um(rho0, feed_um) * math.sqrt(curvature / (8.0 * value))
-        return estimate / CHORD_ESTIMATE_MARGIN
-    return 0.0
-
-
-# the chord rule's up-front count (an upper estimate) is divided by this before the capacity check
-CHORD_ESTIMATE_MARGIN = 10.0

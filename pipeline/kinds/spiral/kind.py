@@ -16,7 +16,7 @@ import numpy as np
 from ftsweep.engine import result
 from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.contract import Axis, BenchRow, Planning, ProgramKind
-from ftsweep.engine.cost import check_capacity, spiral_points
+from ftsweep.engine.cost import check_capacity
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.planning import compensator
 from ftsweep.engine.threads import compensate_in_parts
@@ -211,6 +211,31 @@ def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, p
         sections = section_samples(surface_spec, folder)
         return residual_feed_um(sections, case.layout.residual_um, rc, case.surface)
     return case.feed_of(cutting)
+
+
+def spiral_points(case: Case, surface_spec: Any, feed_um: float) -> float:
+    """Points a spiral request's rule gives, estimated before planning ([4]): Np per
+    revolution times ρ0/F for the angle rule, the path length over the step for the arc
+    rule; 0 for the chord rule (known only once sampled;
+    :func:`ftsweep.stages.paths.spiral.chord_budget` bounds its own sampling)."""
+    rho0 = float(catalogs.aperture_of(surface_spec).outer_radius_um)
+    rule, value = case.layout.spiral_rule()
+    if rule == "angle":
+        return value * rho0 / feed_um
+    if rule == "arc":
+        return spiral.path_length_um(rho0, feed_um) / value
+    curvature = catalogs.curvature_bound(surface_spec)
+    if curvature is not None and math.isfinite(curvature):
+        # a chord of length s on a curve of curvature ≤ K deviates by ≤ K·s²/8 ([4] eq. 4), so
+        # the budget needs points no closer than sqrt(8Δ/K): an upper estimate of the count,
+        # refused only when even a tenth of it is over the capacity
+        estimate = spiral.path_length_um(rho0, feed_um) * math.sqrt(curvature / (8.0 * value))
+        return estimate / CHORD_ESTIMATE_MARGIN
+    return 0.0
+
+
+# the chord rule's up-front count (an upper estimate) is divided by this before the capacity check
+CHORD_ESTIMATE_MARGIN = 10.0
 
 
 def _check_estimate(case: Case, surface_spec: Any, feed_um: float, capacity: int) -> None:

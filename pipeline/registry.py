@@ -39,6 +39,7 @@ __all__ = [
     "names",
     "noun",
     "owners",
+    "predict_option_groups",
     "predict_options",
     "register",
     "request_from_options",
@@ -84,23 +85,35 @@ def request_from_options(name: str, options: dict[str, Any]) -> tuple[dict[str, 
 OPTIONS_GROUP = "ftsweep.options"
 
 
-def predict_options() -> list[Any]:
-    """Every kind's ``predict`` options (click parameters): the installed kinds' decorators,
-    read from the entry points of group ``ftsweep.options`` without loading the kinds (``predict
-    --help`` loads no kernel), then the ``click_options`` of the kinds :func:`register` added;
-    each decorator applied once, an option two kinds declare kept once."""
+def predict_option_groups() -> dict[str, list[Any]]:
+    """Every kind's ``predict`` options (click parameters) by group, titled with the layouts
+    they serve: the installed kinds' decorators, read from the entry points of group
+    ``ftsweep.options`` (named by their layouts, ``ring+mesh``) without loading the kinds, so
+    ``predict --help`` loads no kernel; then the ``click_options`` of the kinds :func:`register`
+    added. Each decorator is applied once, and an option two groups declare is kept in the first."""
+    decorators: dict[str, Any] = {p.name: p.load() for p in entry_points(group=OPTIONS_GROUP)}
+    for own in added().values():
+        if own.click_options is not None and own.click_options not in decorators.values():
+            decorators[own.name] = own.click_options
+    groups: dict[str, list[Any]] = {}
+    seen: set[str] = set()
+    for layouts, decorator in decorators.items():
+        params = [p for p in _params_of(decorator) if p.name not in seen]
+        seen.update(p.name for p in params)
+        groups[f"Options of --layout {layouts.replace('+', ', ')}"] = params
+    return groups
+
+
+def _params_of(decorator: Any) -> list[Any]:
+    """The click parameters a decorator of options adds, in the order ``--help`` shows them."""
 
     def holder() -> None:  # pragma: no cover - never called: it only collects the options
         pass
 
-    applied: list[Any] = [point.load() for point in entry_points(group=OPTIONS_GROUP)]
-    for own in added().values():
-        if own.click_options is not None and own.click_options not in applied:
-            applied.append(own.click_options)
-    params: dict[str, Any] = {}
-    for decorator in applied:
-        holder.__dict__.pop("__click_params__", None)
-        decorator(holder)
-        for param in reversed(holder.__dict__.get("__click_params__", [])):
-            params.setdefault(param.name, param)
-    return list(params.values())
+    decorator(holder)
+    return list(reversed(holder.__dict__.get("__click_params__", [])))
+
+
+def predict_options() -> list[Any]:
+    """Every kind's ``predict`` options (:func:`predict_option_groups`), in one list."""
+    return [p for params in predict_option_groups().values() for p in params]

@@ -11,6 +11,7 @@ import sys
 
 import click
 import pytest
+from click.testing import CliRunner
 
 from ftsweep.cli.main import commands, main, short_help
 
@@ -82,3 +83,23 @@ def test_plots_leave_the_callers_matplotlib_backend_alone():
         "assert matplotlib.get_backend() == 'svg', matplotlib.get_backend()"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_the_top_level_help_lists_a_runs_commands_in_order():
+    """sweep → status → select → export → verify first, as a run goes; every command listed once."""
+    out = CliRunner().invoke(main, ["--help"]).output
+    listed = [line.split()[0] for line in out.split("Commands:")[1].splitlines() if line.strip()]
+    assert listed[:5] == ["sweep", "status", "select", "export", "verify"]
+    assert sorted(listed) == sorted({*commands(), "catalogs"})
+
+
+def test_predict_help_groups_each_kinds_options_under_its_layouts():
+    out = CliRunner().invoke(main, ["predict", "--help"]).output
+    common, _, by_kind = out.split("\nOptions:\n")[1].partition("Options of --layout")
+    assert "--surface" in common and "--feed-um" in common and "--drho-um" not in common
+    sections = {
+        s.split(":")[0].strip(): s for s in ("Options of --layout" + by_kind).split("Options of --layout")[1:]
+    }
+    assert "--drho-um" in sections["ring, mesh"] and "--dx-um" in sections["ring, mesh"]
+    assert "--chord-um" in sections["spiral"] and "--spacing-um" in sections["dpath"]
+    assert "--facet-height-um" in sections["fresnel"]

@@ -79,7 +79,8 @@ def test_it_adds_its_own_predict_option(module_catalog_dir):
     record = json.loads(res.stdout)
     assert record["layout"] == "square" and record["n_points"] == 61 * 61 and record["pitch_actual_um"] == 7.5
     help_text = CliRunner().invoke(main, ["predict", "--help"], env=env).output
-    assert "--square-pitch-um" in help_text and "Square mesh: pitch" in help_text
+    assert "Options of --layout square:" in help_text and "Square mesh: pitch" in help_text
+    assert "--square-pitch-um" in help_text.split("Options of --layout square:")[1]
     ring = ["predict", "--surface", "small_lens", "--layout", "ring", "--drho-um", "20", "--dtheta-deg", "5"]
     refused = CliRunner().invoke(main, [*ring, "--square-pitch-um", "7.5"], env=env)
     assert refused.exit_code != 0 and "--square-pitch-um belongs to square mesh" in refused.output

@@ -21,19 +21,33 @@ from ftsweep.version import __version__
 # shows its own help, so that `ftsweep --help` need not load numba, xarray or zarr; the group's
 # help reads their one-line summaries from the modules' source
 COMMANDS = {
-    "predict": ("ftsweep.cli.predict", "predict"),
     "sweep": ("ftsweep.cli.sweep", "sweep"),
     "status": ("ftsweep.cli.status", "status"),
     "select": ("ftsweep.cli.cubes", "select"),
     "export": ("ftsweep.cli.cubes", "export"),
     "verify": ("ftsweep.cli.cubes", "verify"),
-    "optimize": ("ftsweep.cli.tools", "optimize"),
+    "predict": ("ftsweep.cli.predict", "predict"),
     "report": ("ftsweep.cli.cubes", "report"),
-    "estimate": ("ftsweep.cli.tools", "estimate"),
-    "bench": ("ftsweep.cli.tools", "bench"),
     "compare": ("ftsweep.cli.cubes", "compare"),
+    "estimate": ("ftsweep.cli.tools", "estimate"),
+    "optimize": ("ftsweep.cli.tools", "optimize"),
     "keys": ("ftsweep.cli.cubes", "keys"),
+    "bench": ("ftsweep.cli.tools", "bench"),
 }
+# the order `ftsweep --help` lists them: a run's (sweep → status → select → export → verify),
+# then one case and the cube's other tools, the kinds' own commands, and the house-keeping ones
+WORKFLOW = (
+    "sweep",
+    "status",
+    "select",
+    "export",
+    "verify",
+    "predict",
+    "report",
+    "compare",
+    "estimate",
+    "optimize",
+)
 GROUP = "ftsweep.commands"
 
 
@@ -85,7 +99,10 @@ class _Group(click.Group):
         _leave(code)
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return sorted({*self.commands, *commands()})
+        known = [*self.commands, *commands()]
+        last = ("catalogs", "keys", "bench")
+        rest = sorted({n for n in known if n not in WORKFLOW and n not in last})
+        return [*(n for n in WORKFLOW if n in known), *rest, *(n for n in last if n in known)]
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> Optional[click.Command]:
         known = commands()

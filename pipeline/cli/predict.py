@@ -39,6 +39,19 @@ class _PredictCommand(click.Command):
         own = {p.name for p in params}
         return [*params[:at], *(p for p in registry.predict_options() if p.name not in own), *params[at:]]
 
+    def format_options(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The options in groups: those of every program first, then each kind's own."""
+        from ftsweep import registry
+
+        groups = registry.predict_option_groups()
+        grouped = {p.name for params in groups.values() for p in params}
+        common = [p for p in self.get_params(ctx) if p.name not in grouped]
+        for title, params in {"Options": common, **groups}.items():
+            rows = [r for r in (p.get_help_record(ctx) for p in params) if r is not None]
+            if rows:
+                with formatter.section(title):
+                    formatter.write_dl(rows)
+
 
 @click.command(cls=_PredictCommand)
 @click.option(

@@ -35,12 +35,31 @@ __all__ = [
     "stack",
     "stderr_progress",
     "threads_option",
+    "unit_words",
 ]
 
 
 def flag(name: str) -> str:
     """The command-line option of a field: ``drho_um`` → ``--drho-um``."""
     return "--" + name.replace("_", "-")
+
+
+# the units an option's name ends with, as a message says them
+UNIT_WORDS = (
+    ("_mm_min", "mm/min"),
+    ("_um", "µm"),
+    ("_nm", "nm"),
+    ("_mm", "mm"),
+    ("_deg", "degrees"),
+    ("_rpm", "rpm"),
+    ("_hz", "Hz"),
+    ("_s", "seconds"),
+)
+
+
+def unit_words(name: str) -> str:
+    """`` of µm`` for an option named ``..._um`` (its units, from its name), else ``""``."""
+    return next((f" of {words}" for suffix, words in UNIT_WORDS if name.endswith(suffix)), "")
 
 
 def stack(options: list[Any]) -> Any:
@@ -59,6 +78,12 @@ class FiniteRange(click.FloatRange):
     """A finite float within a range; click refuses anything else naming the option."""
 
     def convert(self, value: Any, param: Optional[click.Parameter], ctx: Optional[click.Context]) -> Any:
+        if not isinstance(value, (int, float)):
+            try:
+                float(value)
+            except (TypeError, ValueError):
+                name = param.name if param is not None and param.name else ""
+                self.fail(f"takes a number{unit_words(name)}, e.g. 2 (got {str(value)[:40]!r})", param, ctx)
         number = super().convert(value, param, ctx)
         if not math.isfinite(number):
             self.fail(f"{number} is not a finite number", param, ctx)

@@ -47,13 +47,26 @@ class CubeLocation(click.ParamType):
             return text
         path = Path(text.removeprefix("file://"))
         if not path.exists():
-            self.fail(f"{text!r} does not exist", param, ctx)
+            self.fail(f"{text!r} does not exist: {_maker_of(path)}", param, ctx)
         if not path.is_dir():
             self.fail(f"{text!r} is a file, not a cube (a Zarr folder)", param, ctx)
         return text
 
 
 CUBE = CubeLocation()
+
+
+def _maker_of(path: Path) -> str:
+    """Which command makes the cube at ``path``: the catalog sweep of its name, else any sweep."""
+    from ftsweep.sweeps.spec import sweep_dir
+
+    stem = path.name.removesuffix(".zarr")
+    if stem and (sweep_dir() / f"{stem}.yaml").is_file():
+        default = Path("outputs") / f"{stem}.zarr"
+        out = "" if path == default else f" --out {path}"
+        return f"run `ftsweep sweep {stem}{out}` first"
+    return f"run `ftsweep sweep SWEEP --out {path}` first (`ftsweep catalogs` lists the sweeps)"
+
 
 # storage options of a cube given as a URL; the usual places come first (fsspec's configuration)
 ALLOW_INCOMPLETE = click.option(

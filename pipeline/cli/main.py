@@ -104,6 +104,19 @@ class _Group(click.Group):
         rest = sorted({n for n in known if n not in WORKFLOW and n not in last})
         return [*(n for n in WORKFLOW if n in known), *rest, *(n for n in last if n in known)]
 
+    def resolve_command(self, ctx: click.Context, args: list[str]) -> Any:
+        """click's, with a "did you mean" for a misspelt command."""
+        try:
+            return super().resolve_command(ctx, args)
+        except click.UsageError:
+            name = args[0] if args else ""
+            known = self.list_commands(ctx)
+            if name and not name.startswith("-") and name not in known:
+                from ftsweep.inputs.strict import did_you_mean
+
+                raise click.UsageError(f"No such command {name!r}{did_you_mean(name, known)}.", ctx) from None
+            raise
+
     def get_command(self, ctx: click.Context, cmd_name: str) -> Optional[click.Command]:
         known = commands()
         if cmd_name in known and cmd_name not in self.commands:

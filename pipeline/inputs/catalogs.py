@@ -28,7 +28,7 @@ from pydantic import (
 )
 
 from ftsweep.inputs.controllers import Controller
-from ftsweep.inputs.strict import Strict
+from ftsweep.inputs.strict import Strict, did_you_mean
 from ftsweep.inputs.yamlfiles import CatalogError, read_yaml_file
 from ftsweep.stages.kinematics import axes as kinematics
 from ftsweep.stages.sampling.surfaces import FAMILIES, Aperture, Family, SurfaceFn
@@ -462,7 +462,7 @@ def _format_error(path: Path, name: str, err: ValidationError, model: Any) -> st
         where = f"{name}.{loc}" if loc else name
         if e["type"] == "extra_forbidden":
             allowed = _allowed_keys(model, e["loc"][:-1])
-            hint = f" (allowed: {', '.join(allowed)})" if allowed else ""
+            hint = f"{did_you_mean(e['loc'][-1], allowed)} (allowed: {', '.join(allowed)})" if allowed else ""
             lines.append(f"  - {where}: unknown key{hint}")
         elif e["type"] == "missing":
             lines.append(f"  - {where}: required key is missing")
@@ -509,7 +509,14 @@ def _union_members(annotation: Any) -> list[Any]:
 
 def _read_yaml(path: Path) -> dict[str, Any]:
     if not path.exists():
-        raise CatalogError(f"catalog file {path} does not exist")
+        env = os.environ.get("FTSWEEP_CATALOGS")
+        why = (
+            f"the folder FTSWEEP_CATALOGS={env} names has no {path.name}: point it at a folder of "
+            "catalogs (surfaces.yaml, machines.yaml, cutting.yaml, ...) or unset it for the installed ones"
+            if env and path.parent == Path(env)
+            else "the catalogs are incomplete"
+        )
+        raise CatalogError(f"catalog file {path} does not exist: {why}")
     data = read_yaml_file(path)
     if not isinstance(data, dict) or not data:
         raise CatalogError(f"{path}: expected a mapping of entry names to entries")
@@ -554,8 +561,8 @@ def entry(kind: str, name: str, folder: Path | None = None) -> Any:
     entries = _load(kind, folder)
     if name not in entries:
         raise CatalogError(
-            f"unknown {kind[:-1] if kind.endswith('s') else kind} '{name}' in {folder / (kind + '.yaml')}; "
-            f"known: {', '.join(sorted(entries))}"
+            f"unknown {kind[:-1] if kind.endswith('s') else kind} '{name}'{did_you_mean(name, entries)} in "
+            f"{folder / (kind + '.yaml')}; known: {', '.join(sorted(entries))}"
         )
     return entries[name]
 

@@ -8,6 +8,18 @@ from typing import Any, Optional
 
 from pydantic import BaseModel, ConfigDict, model_validator
 
+__all__ = ["did_you_mean"]
+
+
+def did_you_mean(word: str, known: Any) -> str:
+    """`` (did you mean 'axes'?)`` for the known name closest to a misspelt ``word`` (difflib's
+    ratio ≥ 0.6), else an empty string: the hint a refusal of an unknown key or name ends with."""
+    import difflib
+
+    close = difflib.get_close_matches(str(word)[:100], [str(k) for k in known], n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
 # the largest magnitude of a length in µm any part, pitch, feed or travel has: 10 m
 MAX_LENGTH_UM = 1e7
 # the smallest tool radius a diamond has: 1 nm (a sharper one divides the envelope by ~0)

@@ -33,6 +33,7 @@ from ftsweep.engine.case import Case, Resolution
 from ftsweep.engine.contract import Axis
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError, Strict
+from ftsweep.inputs.strict import did_you_mean
 
 MAX_AXIS_VALUES = 100_000
 
@@ -91,7 +92,8 @@ class SweepAxes(Strict):
             axis = known.get(name)
             if axis is None:
                 names = ", ".join(sorted({*known, *cls.model_fields}))
-                raise ValueError(f"axes.{name}: unknown axis; the axes are {names}")
+                hint = did_you_mean(name, {*known, *cls.model_fields})
+                raise ValueError(f"axes.{name}: unknown axis{hint}; the axes are {names}")
             if value is not None:
                 out[name] = _axis_value(axis, value)
         return out
@@ -180,7 +182,7 @@ class SweepSpec(Strict):
             if name in cls.model_fields:
                 continue
             if name not in keys:
-                raise ValueError(f"{name}: unknown key")
+                raise ValueError(f"{name}: unknown key{did_you_mean(name, [*cls.model_fields, *keys])}")
             if value is not None and not isinstance(value, dict):
                 got = type(value).__name__
                 raise ValueError(f"{name}: the options of every case are a mapping (got {got})")

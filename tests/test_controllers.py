@@ -456,3 +456,35 @@ def test_pvt_segment_times_are_whole_controller_steps(tmp_path):
     assert len(times) > 10 and np.all(np.abs(steps - np.round(steps)) < 1e-6)
     moves = dialects.read(lines[:-1], "pmac-pvt")
     assert np.allclose(moves.velocity["C"][1:], 6.63 * 6.0)  # deg/s
+
+
+def test_predict_program_reads_against_the_machine_the_file_names(moore, tmp_path):
+    """Without --machine, the machine an ftsweep file's header names (when the catalog has it);
+    --machine overrides it; a name the catalog lacks falls back to the default, saying so."""
+    _, out = moore
+    text = out.read_text()
+    assert "machine sts-moore" in text
+
+    def machine_of(path: Path, *extra: str) -> dict:
+        r = CliRunner().invoke(main, ["predict", "--program", str(path), *extra, "--json"])
+        assert r.exit_code == 0, r.output
+        got = json.loads(r.output)
+        return {"machine": got["machine"], "from": got["machine_from"]}
+
+    assert machine_of(out) == {"machine": "sts-moore", "from": "named by the file"}
+    other = tmp_path / "nanoform.nc"
+    other.write_text(text.replace("machine sts-moore", "machine sts-nanoform"))
+    assert machine_of(other) == {"machine": "sts-nanoform", "from": "named by the file"}
+    assert machine_of(other, "--machine", "sts-moore") == {"machine": "sts-moore", "from": "--machine"}
+    unknown = tmp_path / "unknown.nc"
+    unknown.write_text(text.replace("machine sts-moore", "machine lathe-from-elsewhere"))
+    got = machine_of(unknown)
+    assert got["machine"] == "sts-moore" and "'lathe-from-elsewhere', which the catalog lacks" in got["from"]
+    r = CliRunner().invoke(main, ["predict", "--program", str(other)])
+    assert "machine      sts-nanoform (named by the file)" in r.output
+
+
+def test_each_dialects_header_states_only_its_own_units(moore):
+    _, out = moore
+    units = next(line for line in out.read_text().splitlines() if "units:" in line)
+    assert "G93 F inverse time" in units and "PVT" not in units and " W " not in units

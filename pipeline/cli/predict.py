@@ -259,6 +259,7 @@ def _predict_program(opts: dict[str, Any]) -> None:
         return
     feed = info["feed_um_per_rev"]
     click.echo(f"program      {info['program']} ({info['dialect']}, {info['interpolation']} segments)")
+    click.echo(f"machine      {info['machine']} ({info['machine_from']})")
     click.echo(
         f"points       {info['n_points']:,} over {info['revolutions']:.4g} revolutions "
         f"({info['points_per_rev']:.4g} per revolution on average)"

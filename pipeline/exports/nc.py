@@ -64,6 +64,35 @@ def adapter_of(kind: str) -> Adapter:
     return fmt.dialect  # type: ignore[no-any-return]
 
 
+# what a dialect's words mean beyond the axes' units: each file's header says only its own
+TIME_UNITS = {
+    "linear": "G93 F inverse time",
+    "pvt": "PVT segment ms, velocities units/s",
+    "spline1": "SPLINE1 segment ms",
+}
+
+
+def _units_line(moves: Moves, dialect: str) -> str:
+    """The header's units: the axes the program moves and its dialect's time words."""
+    axes = [
+        a
+        for a, v in (("X", moves.x_mm), ("Y", moves.y_mm), ("Z", moves.z_mm), ("W", moves.w_mm))
+        if v is not None
+    ]
+    return f"units: {' '.join(axes)} mm, C deg, {TIME_UNITS[dialects.INTERPOLATION[dialect]]}"
+
+
+def named_machine(lines: list[str]) -> Optional[str]:
+    """The machine an ftsweep dialect file's header names (``…, machine NAME``), as written:
+    the caller checks it against the catalog (a file is data; its text names, never decides)."""
+    for line in lines[:40]:
+        text = line.strip().lstrip("(;").rstrip(")").strip()
+        if text.startswith("surface: ") and ", machine " in text:
+            name = text.rsplit(", machine ", 1)[1].strip()
+            return name if name.replace("-", "").replace("_", "").isalnum() and len(name) <= 64 else None
+    return None
+
+
 def controller_of(machine: Any, dialect: str) -> Controller:
     """The controller a ``dialect`` program is written for: the machine's, or (a machine that
     declares none) the dialect's defaults. Refuses a dialect whose interpolation is not the
@@ -127,7 +156,7 @@ def _document(
         f"surface: {case.surface}, compensation {case.compensation}, machine {case.machine}",
         *kind_lines,
         _motion_line(moves),
-        "units: X Y Z W mm, C deg, G93 F inverse time, PVT segment ms, velocities units/s",
+        _units_line(moves, dialect),
         f"sidecar sha256: {sidecar_digest(meta, TEXT_FIELDS)}",
         CRC_TEXT.format(0),
     ]
@@ -400,10 +429,7 @@ def predict_program(
         "interpolation": moves.interpolation,
     }
     info.update(dialects.summary(moves))
-    machine = (
-        machine
-        or {"linear": "sts-moore", "pvt": "sts-pmac-pvt", "spline1": "sts-pmac-spline"}[moves.interpolation]
-    )
+    machine, info["machine_from"] = _machine_for(path, machine, moves.interpolation)
     info["machine"] = machine
     entry = catalogs.entry("machines", machine)
     info["axes"] = _against(_peaks(moves), entry)
@@ -424,6 +450,24 @@ def predict_program(
     info.update({k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "nose_radius_um", "feed_um")})
     info.update(surface=surface, kind=kind, record=record)
     return info
+
+
+# the machine a program's summary is judged on when neither --machine nor the file names one
+DEFAULT_MACHINE = {"linear": "sts-moore", "pvt": "sts-pmac-pvt", "spline1": "sts-pmac-spline"}
+
+
+def _machine_for(path: Path, given: Optional[str], interpolation: str) -> tuple[str, str]:
+    """The machine a program is read against and where it came from: ``--machine``, else the
+    one the file's header names when the catalog has it, else its interpolation's default."""
+    from ftsweep.inputs import catalogs
+
+    if given:
+        return given, "--machine"
+    named = named_machine(read_lines(Path(path), strict=False))
+    if named is not None and named in catalogs.entries("machines"):
+        return named, "named by the file"
+    why = f"the file names {named!r}, which the catalog lacks" if named else "the file names none"
+    return DEFAULT_MACHINE[interpolation], f"default for {interpolation} segments ({why}; give --machine)"
 
 
 def _foreign_reader() -> tuple[str, Adapter]:

@@ -54,6 +54,28 @@ def test_report_writes_every_figure_and_an_html_page(small_cube, tmp_path):
     assert not list(out.glob(".*"))  # no temporary files left
 
 
+def test_report_maps_the_case_export_chooses_with_the_same_budget(small_cube, tmp_path):
+    """``report --budget-points N`` shows the case ``select``/``export --budget-points N``
+    choose, not the best at the largest budget; two criteria at once are refused."""
+    import json
+
+    picked = json.loads(
+        CliRunner().invoke(main, ["select", str(small_cube), "--budget-points", "9000", "--json"]).stdout
+    )
+    out = tmp_path / "budget"
+    args = ["report", str(small_cube), "--out", str(out), "--map-bins", "16", "--budget-points", "9000"]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    page = (out / "index.html").read_text()
+    assert f"<th>index</th><td>{picked['index']}</td>" in page and "budget" in page
+    largest = json.loads(
+        CliRunner().invoke(main, ["select", str(small_cube), "--budget-points", "16000", "--json"]).stdout
+    )
+    assert largest["index"] != picked["index"]  # the default would have mapped another case
+    both = CliRunner().invoke(main, ["report", str(small_cube), "--budget-points", "9000", "--case", "0"])
+    assert both.exit_code == 2 and "at most one of --budget-points, --tolerance-nm and --case" in both.output
+
+
 def test_accessor_best_optimum_and_plots(small_cube):
     ds = xr.open_zarr(small_cube)
     best = ds.ftsweep.best(budget_points=16000)

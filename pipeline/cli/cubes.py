@@ -323,10 +323,19 @@ def _print_verified(header: Path, record: dict[str, Any], compiled: bool) -> Non
     "outputs/<cube>-report for a URL.",
 )
 @click.option(
+    "--budget-points",
+    type=COUNT,
+    help="Map the case export chooses for this budget: the best layout at or under this many points.",
+)
+@click.option(
+    "--tolerance-nm", type=POSITIVE, help="Map the smallest layout meeting this P-V [nm], as export."
+)
+@click.option(
     "--case",
     "index",
     type=int,
-    help="Case (flat index) for the error map and spectrum. Default: the best at the largest budget.",
+    help="Case (flat index) for the error map and spectrum. Default (none of the three): the best at the "
+    "largest budget.",
 )
 @click.option(
     "--map-bins",
@@ -341,6 +350,8 @@ def _print_verified(header: Path, record: dict[str, Any], compiled: bool) -> Non
 def report(
     cube_path: str,
     out_dir: Optional[str],
+    budget_points: Optional[int],
+    tolerance_nm: Optional[float],
     index: Optional[int],
     map_bins: int,
     trust_plugins: bool,
@@ -351,13 +362,17 @@ def report(
 
     P-V against point count and against aspect ratio (optimum marked), a heat map of P-V,
     the error map of the chosen case over the part and its W command spectrum with the servo
-    bandwidth. The error map needs a re-simulation of that case, which shows progress.
+    bandwidth. The chosen case is the one export chooses with the same --budget-points,
+    --tolerance-nm or --case. The error map needs a re-simulation of that case, which shows
+    progress.
     """
     from ftsweep.engine.case import CaseError
     from ftsweep.store.cube import CubeError
     from ftsweep.tools.report import make_report
     from ftsweep.tools.select import SelectError, current_status
 
+    if sum(v is not None for v in (budget_points, tolerance_nm, index)) > 1:
+        raise click.UsageError("give at most one of --budget-points, --tolerance-nm and --case")
     try:
         guard_complete(current_status(cube_place(cube_path, storage_options)), allow_incomplete)
     except (CubeError, SelectError) as exc:
@@ -372,6 +387,8 @@ def report(
             map_bins,
             progress,
             trust_plugins,
+            budget_points,
+            tolerance_nm,
         )
     except (CubeError, SelectError, CaseError) as exc:
         raise click.ClickException(str(exc)) from None

@@ -117,8 +117,12 @@ def make_report(
     map_bins: int = 160,
     progress: Optional[Callable[[int, int], None]] = None,
     trust_plugins: bool = False,
+    budget_points: Optional[int] = None,
+    tolerance_nm: Optional[float] = None,
 ) -> dict[str, Path]:
-    """Write the figures and ``index.html`` into ``out_dir``; returns their paths."""
+    """Write the figures and ``index.html`` into ``out_dir``; returns their paths. The error map
+    and spectrum show the case ``export`` chooses with the same ``budget_points``,
+    ``tolerance_nm`` or ``index`` (none given: the best at the largest budget)."""
     at = place(cube_path)
     ds = open_cube(at)
     if not bool(eligible(ds).any()):
@@ -135,11 +139,9 @@ def make_report(
         paths["pv_vs_aspect"] = _save(ds.ftsweep.plot_aspect(), out / "pv_vs_aspect.png")
         paths["pv_heatmap"] = _save(ds.ftsweep.plot_heatmap(), out / "pv_heatmap.png")
 
-    if index is None:
-        budget = int(np.nanmax(ds["points"].values if "points" in ds.dims else ds["n_points"].values))
-        chosen = choose(ds, budget_points=budget)
-    else:
-        chosen = choose(ds, index=index)
+    if index is None and budget_points is None and tolerance_nm is None:
+        budget_points = int(np.nanmax(ds["points"].values if "points" in ds.dims else ds["n_points"].values))
+    chosen = choose(ds, budget_points, tolerance_nm, index)
     record, (case, layout, table, specs) = resimulate(
         at, int(chosen["index"]), map_bins, progress, trust_plugins
     )

@@ -67,7 +67,7 @@ def test_report_maps_the_case_export_chooses_with_the_same_budget(small_cube, tm
     r = CliRunner().invoke(main, args)
     assert r.exit_code == 0, r.output
     page = (out / "index.html").read_text()
-    assert f"<th>index</th><td>{picked['index']}</td>" in page and "budget" in page
+    assert f"<th>index</th><td>{picked['index']}</td>" in page and "at or under 9,000 points" in page
     largest = json.loads(
         CliRunner().invoke(main, ["select", str(small_cube), "--budget-points", "16000", "--json"]).stdout
     )

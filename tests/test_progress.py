@@ -50,8 +50,10 @@ def test_a_terminal_shows_one_live_bar(tmp_path, catalog_dir):
     proc.wait(timeout=300)
     os.close(leader)
     text = seen.decode("utf-8", "replace")
-    assert "\r" in text and "sweep:" in text and "case" in text  # tqdm redraws one line
-    assert "0 failed, 2 refused, 0 pending" in text
+    assert "\r" in text and "sweep: 6/6 |" in text  # tqdm redraws one line: 4 computed, 2 refused up front
+    # ftsweep's counts add up to the bar's total; one clock and one ETA, ftsweep's: no tqdm rate
+    assert "4 done, 0 failed, 2 refused, 0 pending | " in text and "ETA 0 s" in text
+    assert "case/s" not in text and "it/s" not in text and text.count("ETA") == text.count(" pending | ")
     assert not re.search(r"^\[\s*\d+/\d+\]", text, re.M)  # no scrolling log lines on a terminal
     assert proc.returncode == 1  # two cases refused: the cube cannot be completed as specified
 

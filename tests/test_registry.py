@@ -9,6 +9,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 from ftsweep.inputs import catalogs
 from ftsweep.stages.sampling.surfaces import FAMILIES
 
@@ -77,3 +79,23 @@ def test_the_commands_offer_every_registered_kind():
     for command in (predict, optimize_command):
         layout = next(p for p in command.params if p.name == "layout")
         assert set(layout.type.choices) == set(registry.kinds()), command.name
+
+
+@pytest.mark.parametrize(
+    ("fields", "label"),
+    [
+        ({"kind": "spiral", "chord_um": 0.5}, "chord 0.5 µm"),
+        ({"kind": "spiral", "points_per_rev": 500}, "points_per_rev=500"),
+        ({"kind": "dpath", "spacing_um": 20.0}, "spacing 20 µm"),
+        (
+            {"kind": "fresnel", "facet_height_um": 10.0, "deviation_deg": 2.0},
+            "facet_height 10 µm deviation 2°",
+        ),
+        ({"kind": "ring", "points": 1e6, "aspect": 8.0}, "N≈1,000,000 α=8"),
+    ],
+)
+def test_a_cases_label_names_its_own_fields_with_units_never_none(fields, label):
+    from ftsweep.engine.case import program_request
+
+    text = program_request(**fields).label()
+    assert text == label and "None" not in text

@@ -262,7 +262,7 @@ class SweepProgress:
         state = f"{self.failed} failed, {refused} refused, {total - done} pending"
         eta = _eta_text(self.case_s, self.timed, total - done, report.workers)
         if self.tty:
-            self._draw(len(rows), total, f"{state}; {eta}")
+            self._draw(len(rows), total, len(report.refused), f"{elapsed:6.1f} s, {eta}")
             return
         self.shown = elapsed
         last = rows[-1]
@@ -272,7 +272,10 @@ class SweepProgress:
         width = len(str(total))
         click.echo(f"[{done:>{width}}/{total}] {state} | {elapsed:6.1f} s, {eta} | {what}", err=True)
 
-    def _draw(self, new: int, total: int, postfix: str) -> None:
+    def _draw(self, new: int, queued: int, upfront: int, clock: str) -> None:
+        """One bar: ftsweep's counts, clock and ETA after it, none of tqdm's own (its rate, ETA
+        and clock disagreed with ftsweep's), the counts from the bar's own so that they add up
+        to its total, and a text of fixed width so that the bar does not jump."""
         if self.bar is None:
             import shutil
 
@@ -281,11 +284,27 @@ class SweepProgress:
             # a terminal that reports no size (0 × 0, as a fresh pseudo-terminal) gets 100 × 24:
             # tqdm would hide a bar below a screen of no rows
             size = shutil.get_terminal_size((100, 24))
+            # the cases refused before dispatch count as finished: the counts add up to the total
             self.bar = tqdm(
-                total=total, file=sys.stderr, unit="case", desc="sweep", ncols=size.columns, nrows=size.lines
+                total=queued + upfront,
+                initial=upfront,
+                file=sys.stderr,
+                unit="case",
+                desc="sweep:",
+                ncols=size.columns,
+                nrows=size.lines,
+                bar_format="{desc} {n_fmt}/{total_fmt} |{bar}|",
             )
         self.bar.update(new)
-        self.bar.set_postfix_str(postfix, refresh=True)
+        total, refused = queued + upfront, upfront + self.refused
+        width = len(str(total))
+        counts = (
+            f"{self.bar.n - self.failed - refused:>{width}} done, {self.failed:>{width}} failed, "
+            f"{refused:>{width}} refused, {total - self.bar.n:>{width}} pending"
+        )
+        # the text after the bar is ftsweep's own, not tqdm's postfix (which it prefixes with ", ")
+        self.bar.bar_format = "{desc} {n_fmt}/{total_fmt} |{bar}| " + f"{counts} | {clock:<20s}"
+        self.bar.refresh()
 
     def close(self) -> None:
         """End the bar (on a terminal), so the summary starts on its own line."""

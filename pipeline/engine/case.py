@@ -65,9 +65,23 @@ class Request(Strict):
         }
 
     def label(self) -> str:
-        """Short text of the request for progress and error lines."""
+        """Short text of the request for progress and error lines: its given fields with their
+        units (``chord 0.5 µm``), the unset ones left out."""
         given = self.model_dump(exclude_none=True, exclude={"kind"})
-        return " ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in given.items())
+        return " ".join(_field_text(k, v) for k, v in given.items() if v is not None)
+
+
+# a field's unit, from the end of its name, as a label writes it
+_UNITS = (("_um", "µm"), ("_nm", "nm"), ("_mm", "mm"), ("_deg", "°"), ("_s", "s"))
+
+
+def _field_text(name: str, value: Any) -> str:
+    """``chord 0.5 µm`` for ``chord_um=0.5``; ``points_per_rev=500`` for a count."""
+    number = f"{value:g}" if isinstance(value, float) else str(value)
+    for suffix, unit in _UNITS:
+        if name.endswith(suffix):
+            return f"{name[: -len(suffix)]} {number}{'' if unit == '°' else ' '}{unit}"
+    return f"{name}={number}"
 
 
 def program_request(**fields: Any) -> Any:

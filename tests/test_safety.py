@@ -530,6 +530,23 @@ def test_unreachable_scheduler_is_reported_within_seconds(tmp_path, catalog_dir)
     elapsed = time.perf_counter() - start
     assert_one_line_error(r, "no dask scheduler answered at tcp://127.0.0.1:1")
     assert elapsed < 20, f"took {elapsed:.1f} s"  # the connect timeout is 5 s; startup adds a little
+    assert not (tmp_path / "x.zarr").exists()  # the cube it made is not left behind, empty
+
+
+@pytest.mark.integration  # waits on an unreachable scheduler
+def test_an_unreachable_scheduler_leaves_an_existing_cube_as_it_was(tmp_path, catalog_dir):
+    """A cube that held finished cases before the run keeps them when the run's cluster never
+    comes: only a cube the run itself made is removed."""
+    spec = write(tmp_path, "one.yaml", ONE_CASE)
+    out = tmp_path / "x.zarr"
+    assert (
+        cli(["sweep", str(spec), "--out", str(out), "--scheduler", "synchronous"], catalog_dir).exit_code == 0
+    )
+    grown = write(tmp_path, "one.yaml", ONE_CASE.replace("points: [15000]", "points: [15000, 20000]"))
+    r = cli(["sweep", str(grown), "--out", str(out), "--scheduler", "tcp://127.0.0.1:1"], catalog_dir)
+    assert_one_line_error(r, "no dask scheduler answered at tcp://127.0.0.1:1")
+    status = cli(["status", str(out), "--json"], catalog_dir)
+    assert json.loads(status.stdout)["counts"]["done"] == 1  # (status exits 1: a case is still pending)
 
 
 # ----------------------------------------------------------------------------- probes

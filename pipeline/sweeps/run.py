@@ -101,6 +101,7 @@ class SweepReport:
     refused: dict[int, str] = field(default_factory=dict)  # refused before dispatch, by reason
     queued: int = 0  # cases this run computes
     note: str = ""  # what the run changed in the cube beyond its cases (it grew)
+    connected: bool = False  # the run got its cluster (workers may have logged cases)
 
     @property
     def done(self) -> int:
@@ -370,6 +371,7 @@ def _compute(
         return tasks
 
     def on_cluster(got: Cluster) -> None:
+        report.connected = True
         report.workers, report.threads, report.dashboard = got.workers, got.threads, got.dashboard
         if announce is not None:
             announce(report)
@@ -444,6 +446,7 @@ def _run_locked(
 ) -> SweepReport:
     name, run_id = names
     lease = watchers[2]
+    created = not out.exists()
     _, note = prepare_cube(name, spec, out, restart, catalog_folder, lease)
     status, damaged = _undamaged_status(out, lease)
     already = int(np.count_nonzero(status == cube.DONE))
@@ -462,6 +465,11 @@ def _run_locked(
     try:
         _compute(report, spec, costs, where, run_id, catalog_folder, watchers)
     except BaseException:
+        if created and not report.connected:
+            # a cube this run made whose cluster never came (a wrong --scheduler): no task ran,
+            # so nothing was computed, and nothing is left behind
+            out.remove_all()
+            raise
         # on an error or a signal too: what the workers finished goes into the blocks now,
         # unless another writer took over the lease (then the first error is the one told)
         try:

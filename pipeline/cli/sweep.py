@@ -160,7 +160,7 @@ def _prepare(
         _check_destination(where, scheduler)
     click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
     if not kernels_cached():
-        click.echo("compiling    numba's kernels: the first run on this machine (about 20 s) ...", err=True)
+        click.echo("compiling    numba's kernels: the first run on this machine (about 15 s) ...", err=True)
     return where
 
 

@@ -165,7 +165,7 @@ def lazy_cache_loads() -> bool:
 
 def kernels_cached() -> bool:
     """Whether numba's cache holds the compiled kernels already (a run then starts at once;
-    the first run on a machine compiles them, about 20 s): the index files of the envelope
+    the first run on a machine compiles them, about 15 s on 2 cores): the index files of the envelope
     stage (``ftsweep.stages.envelope.arcs``), in ``NUMBA_CACHE_DIR`` where set, else beside the
     stages' sources."""
     import os

@@ -15,7 +15,7 @@ from typing import Any, Optional
 
 import click
 
-from ftsweep.inputs.strict import check_physical
+from ftsweep.inputs.strict import check_physical, unit_of
 from ftsweep.store.io import dumps_json
 
 __all__ = [
@@ -44,22 +44,10 @@ def flag(name: str) -> str:
     return "--" + name.replace("_", "-")
 
 
-# the units an option's name ends with, as a message says them
-UNIT_WORDS = (
-    ("_mm_min", "mm/min"),
-    ("_um", "µm"),
-    ("_nm", "nm"),
-    ("_mm", "mm"),
-    ("_deg", "degrees"),
-    ("_rpm", "rpm"),
-    ("_hz", "Hz"),
-    ("_s", "seconds"),
-)
-
-
 def unit_words(name: str) -> str:
     """`` of µm`` for an option named ``..._um`` (its units, from its name), else ``""``."""
-    return next((f" of {words}" for suffix, words in UNIT_WORDS if name.endswith(suffix)), "")
+    unit = unit_of(name)
+    return "" if unit is None else f" of {unit[2]}"
 
 
 def stack(options: list[Any]) -> Any:
@@ -90,7 +78,7 @@ class FiniteRange(click.FloatRange):
         if param is not None and param.name:
             problem = check_physical(param.name, number)  # 1e308 µm, points, a 1e-300 µm radius
             if problem:
-                self.fail(problem.replace(param.name, f"--{param.name.replace('_', '-')}", 1), param, ctx)
+                self.fail(problem.replace(param.name, flag(param.name), 1), param, ctx)
         return number
 
     def _describe_range(self) -> str:

@@ -25,6 +25,7 @@ from ftsweep.defaults import POINTS_PER_FEED, SAMPLES_PER_CELL
 from ftsweep.engine import plugins as registry
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import Strict
+from ftsweep.inputs.strict import unit_of
 
 
 class CaseError(ValueError):
@@ -71,17 +72,14 @@ class Request(Strict):
         return " ".join(_field_text(k, v) for k, v in given.items() if v is not None)
 
 
-# a field's unit, from the end of its name, as a label writes it
-_UNITS = (("_um", "µm"), ("_nm", "nm"), ("_mm", "mm"), ("_deg", "°"), ("_s", "s"))
-
-
 def _field_text(name: str, value: Any) -> str:
     """``chord 0.5 µm`` for ``chord_um=0.5``; ``points_per_rev=500`` for a count."""
     number = f"{value:g}" if isinstance(value, float) else str(value)
-    for suffix, unit in _UNITS:
-        if name.endswith(suffix):
-            return f"{name[: -len(suffix)]} {number}{'' if unit == '°' else ' '}{unit}"
-    return f"{name}={number}"
+    unit = unit_of(name)
+    if unit is None:
+        return f"{name}={number}"
+    suffix, symbol, _ = unit
+    return f"{name[: -len(suffix)]} {number}{'' if symbol == '°' else ' '}{symbol}"
 
 
 def program_request(**fields: Any) -> Any:

@@ -8,7 +8,24 @@ from typing import Any, Optional
 
 from pydantic import BaseModel, ConfigDict, model_validator
 
-__all__ = ["did_you_mean"]
+__all__ = ["UNITS", "did_you_mean", "unit_of"]
+
+# a number's unit from the end of its name: (suffix, symbol, as a sentence says it)
+UNITS = (
+    ("_mm_min", "mm/min", "mm/min"),
+    ("_um", "µm", "µm"),
+    ("_nm", "nm", "nm"),
+    ("_mm", "mm", "mm"),
+    ("_deg", "°", "degrees"),
+    ("_rpm", "rpm", "rpm"),
+    ("_hz", "Hz", "Hz"),
+    ("_s", "s", "seconds"),
+)
+
+
+def unit_of(name: str) -> Optional[tuple[str, str, str]]:
+    """``(suffix, symbol, words)`` of the unit a name ends with (``chord_um``: µm), else None."""
+    return next((unit for unit in UNITS if name.endswith(unit[0])), None)
 
 
 def did_you_mean(word: str, known: Any) -> str:

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from ftsweep.options import FINITE, POSITIVE
+from ftsweep.options import FINITE, POSITIVE, stack
 
 
 def dpath_options(f: Any) -> Any:
@@ -38,6 +38,4 @@ def dpath_options(f: Any) -> Any:
             help="D path: largest C step in a transition [deg]. Default: 1.",
         ),
     ]
-    for option in reversed(options):
-        f = option(f)
-    return f
+    return stack(options)(f)

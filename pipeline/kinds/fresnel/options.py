@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from ftsweep.options import FINITE, POSITIVE
+from ftsweep.options import FINITE, POSITIVE, stack
 
 
 def fresnel_options(f: Any) -> Any:
@@ -33,6 +33,4 @@ def fresnel_options(f: Any) -> Any:
             help="Fresnel: control points polar about centroids (eqs. 5-6), by arc length (A.3), auto.",
         ),
     ]
-    for option in reversed(options):
-        f = option(f)
-    return f
+    return stack(options)(f)

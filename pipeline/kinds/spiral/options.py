@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from ftsweep.options import FINITE
+from ftsweep.options import FINITE, stack
 
 
 def spiral_options(f: Any) -> Any:
@@ -31,6 +31,4 @@ def spiral_options(f: Any) -> Any:
             "within it, from each radial section's curvature (instead of --feed-um).",
         ),
     ]
-    for option in reversed(options):
-        f = option(f)
-    return f
+    return stack(options)(f)

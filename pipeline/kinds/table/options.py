@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from ftsweep.options import FINITE
+from ftsweep.options import FINITE, stack
 
 
 def table_options(f: Any) -> Any:
@@ -27,6 +27,4 @@ def table_options(f: Any) -> Any:
             "--aspect", type=FINITE, help="Target aspect ratio α: Δρ/Δθ [µm/deg] (ring) or Δx/Δy (mesh)."
         ),
     ]
-    for option in reversed(options):
-        f = option(f)
-    return f
+    return stack(options)(f)

@@ -400,7 +400,11 @@ def _against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
 def read_any(path: Path, g93_f: str = "inverse_minutes") -> Moves:
     """The moves of a program file in any supported dialect (ftsweep's own dialect files by
     their first line, others by their blocks: :func:`ftsweep.exports.dialects.detect`)."""
-    lines = read_lines(Path(path), strict=False)
+    return _moves_of(read_lines(Path(path), strict=False), g93_f)
+
+
+def _moves_of(lines: list[str], g93_f: str) -> Moves:
+    """The moves of a program's lines, its dialect named by its first line or by its blocks."""
     dialect = dialect_named(lines) if lines and is_dialect_file(lines[0]) else dialects.detect(lines)
     return dialects.read(lines, dialect, g93_f)
 
@@ -422,14 +426,15 @@ def predict_program(
     (docs/controllers.md)."""
     from ftsweep.inputs import catalogs
 
-    moves = read_any(path, g93_f)
+    lines = read_lines(Path(path), strict=False)  # read once: its moves and the machine it names
+    moves = _moves_of(lines, g93_f)
     info: dict[str, Any] = {
         "program": str(path),
         "dialect": moves.dialect,
         "interpolation": moves.interpolation,
     }
     info.update(dialects.summary(moves))
-    machine, info["machine_from"] = _machine_for(path, machine, moves.interpolation)
+    machine, info["machine_from"] = _machine_for(named_machine(lines), machine, moves.interpolation)
     info["machine"] = machine
     entry = catalogs.entry("machines", machine)
     info["axes"] = _against(_peaks(moves), entry)
@@ -456,14 +461,14 @@ def predict_program(
 DEFAULT_MACHINE = {"linear": "sts-moore", "pvt": "sts-pmac-pvt", "spline1": "sts-pmac-spline"}
 
 
-def _machine_for(path: Path, given: Optional[str], interpolation: str) -> tuple[str, str]:
+def _machine_for(named: Optional[str], given: Optional[str], interpolation: str) -> tuple[str, str]:
     """The machine a program is read against and where it came from: ``--machine``, else the
-    one the file's header names when the catalog has it, else its interpolation's default."""
+    one the file's header names (``named``) when the catalog has it, else its interpolation's
+    default."""
     from ftsweep.inputs import catalogs
 
     if given:
         return given, "--machine"
-    named = named_machine(read_lines(Path(path), strict=False))
     if named is not None and named in catalogs.entries("machines"):
         return named, "named by the file"
     why = f"the file names {named!r}, which the catalog lacks" if named else "the file names none"

@@ -40,7 +40,6 @@ __all__ = [
     "noun",
     "owners",
     "predict_option_groups",
-    "predict_options",
     "register",
     "request_from_options",
     "unregister",
@@ -112,8 +111,3 @@ def _params_of(decorator: Any) -> list[Any]:
 
     decorator(holder)
     return list(reversed(holder.__dict__.get("__click_params__", [])))
-
-
-def predict_options() -> list[Any]:
-    """Every kind's ``predict`` options (:func:`predict_option_groups`), in one list."""
-    return [p for params in predict_option_groups().values() for p in params]

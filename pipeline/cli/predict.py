@@ -27,23 +27,31 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
 
 
 class _PredictCommand(click.Command):
-    """``predict`` with every registered kind's own options (:func:`ftsweep.registry.predict_options`)
-    after ``--layout``, read when the command parses or shows its help, so a kind registered
-    later, or installed from outside the package, adds its options without touching this module."""
+    """``predict`` with every registered kind's own options
+    (:func:`ftsweep.registry.predict_option_groups`) after ``--layout``, read once per
+    invocation when the command parses or shows its help, so a kind registered later, or
+    installed from outside the package, adds its options without touching this module."""
+
+    @staticmethod
+    def _groups(ctx: click.Context) -> dict[str, list[click.Parameter]]:
+        """The kinds' option groups of this invocation: built once, the same parameters for
+        parsing and for help."""
+        if "ftsweep.predict_groups" not in ctx.meta:
+            from ftsweep import registry
+
+            ctx.meta["ftsweep.predict_groups"] = registry.predict_option_groups()
+        return ctx.meta["ftsweep.predict_groups"]  # type: ignore[no-any-return]
 
     def get_params(self, ctx: click.Context) -> list[click.Parameter]:
-        from ftsweep import registry
-
         params = super().get_params(ctx)
         at = next(i for i, p in enumerate(params) if p.name == "layout") + 1
         own = {p.name for p in params}
-        return [*params[:at], *(p for p in registry.predict_options() if p.name not in own), *params[at:]]
+        kinds = [p for group in self._groups(ctx).values() for p in group if p.name not in own]
+        return [*params[:at], *kinds, *params[at:]]
 
     def format_options(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         """The options in groups: those of every program first, then each kind's own."""
-        from ftsweep import registry
-
-        groups = registry.predict_option_groups()
+        groups = self._groups(ctx)
         grouped = {p.name for params in groups.values() for p in params}
         common = [p for p in self.get_params(ctx) if p.name not in grouped]
         for title, params in {"Options": common, **groups}.items():

@@ -174,7 +174,7 @@ def test_an_independent_gcode_parser_reads_the_same_moves(moore):
     gcodeparser = pytest.importorskip("gcodeparser")
     _, out = moore
     text = out.read_text()
-    moves = dialects.read(text.split("\n")[:-1], "iso-sts")
+    moves = dialects.read(text.split("\n")[:-1], "iso-sts", _machine("sts-moore").controller)
     parsed = [
         g.params
         for g in gcodeparser.parse_gcode_lines(text, include_comments=False)
@@ -185,7 +185,8 @@ def test_an_independent_gcode_parser_reads_the_same_moves(moore):
     np.testing.assert_allclose(dialects.wrapped(moves.c_deg[1:], 6), c, atol=1e-9)
     np.testing.assert_allclose(moves.x_mm[1:], [p["X"] for p in parsed], atol=1e-12)
     np.testing.assert_allclose(moves.z_mm[1:], [p["Z"] for p in parsed], atol=1e-12)
-    np.testing.assert_allclose(60.0 / moves.seconds, [p["F"] for p in parsed], rtol=1e-6)
+    # sts-moore's F under G93 is the block's time in seconds
+    np.testing.assert_allclose(moves.seconds, [p["F"] for p in parsed], rtol=1e-6)
 
 
 def test_linuxcnc_rs274_interprets_the_linuxcnc_dialect(moore, tmp_path):
@@ -239,7 +240,7 @@ M26.1
 G94 G01 Z1.0 F100.
 G01 X2.000000 C0.000 F100.
 G01 Z0.0 F10.
-G93 F1440.
+G93 F0.0416667
 WHILE [#102 LT [10*#100]] DO1
 #102=#102+1
 C[#102*#101] X[2.0-#102*0.01/#100] Z0.0
@@ -263,14 +264,15 @@ def test_a_hand_written_moore_program_is_read(tmp_path):
     assert got["points_per_rev"] == pytest.approx(720.0)
     for stat in ("min", "median", "max"):
         assert got["feed_um_per_rev"][stat] == pytest.approx(10.0, rel=1e-6)
-    # F1440 (1/min) a block of 0.5°: 12°/s, 2 rpm
-    assert got["spindle_rpm"] == pytest.approx(2.0, rel=1e-9)
+    # sts-moore's F under G93 is seconds per block: 0.5° in 1/24 s, 12°/s, 2 rpm
+    assert got["machine"] == "sts-moore" and "default for iso-sts" in got["machine_from"]
+    assert got["spindle_rpm"] == pytest.approx(2.0, rel=1e-5)
 
 
 @pytest.mark.parametrize(
     ("line", "named"),
     [
-        ("IF [#102 GT 3] GOTO 10", "IF/GOTO"),
+        ("IF [1.0 GT 0.5] GOTO 10", "no block N10"),
         ("C[#999*2.] X1.0 Z0.0", "#999 is used before"),
         ("G02 X1.0 Z0.0", "circular"),
         ("C1.0 X1 Z0.0", "no decimal point"),
@@ -428,8 +430,11 @@ def test_a_billion_pass_loop_is_refused_within_the_block_budget():
 
     lines = ["G90 G21 G18 G94", "#1 = 0", "G93", "WHILE [#1 LT 1000000000] DO1",
              "G01 C[#1*0.1] X[10.0-#1*0.00001] Z0.0 F0.001", "#1 = #1 + 1", "END1", "M30"]  # fmt: skip
-    reader = gcode.IsoReader(lines, "iso-sts", "seconds")
-    with pytest.raises(dialects.DialectError, match="loops executed more than 1,000,000 lines"):
+    from ftsweep.inputs.controllers import Controller
+
+    ctrl = Controller(dialect="iso-sts", interpolation="linear", g93_f="seconds")
+    reader = gcode.IsoReader(lines, "iso-sts", ctrl)
+    with pytest.raises(dialects.DialectError, match="loops and jumps executed more than 1,000,000 lines"):
         reader.run()
     assert reader.blocks == len(lines) + gcode.MAX_READ_BLOCKS + 1
 
@@ -474,13 +479,17 @@ def test_predict_program_reads_against_the_machine_the_file_names(moore, tmp_pat
     assert machine_of(out) == {"machine": "sts-moore", "from": "named by the file"}
     other = tmp_path / "nanoform.nc"
     other.write_text(text.replace("machine sts-moore", "machine sts-nanoform"))
-    assert machine_of(other) == {"machine": "sts-nanoform", "from": "named by the file"}
+    # sts-nanoform declares no controller: the ISO defaults read F as inverse minutes, which
+    # makes this file's F (seconds per block) a spindle no lathe turns, refused by name
+    r = CliRunner().invoke(main, ["predict", "--program", str(other), "--json"])
+    assert r.exit_code == 1 and "see machine.controller.g93_f" in r.output
+    assert machine_of(other, "--g93-f", "seconds") == {"machine": "sts-nanoform", "from": "named by the file"}
     assert machine_of(other, "--machine", "sts-moore") == {"machine": "sts-moore", "from": "--machine"}
     unknown = tmp_path / "unknown.nc"
     unknown.write_text(text.replace("machine sts-moore", "machine lathe-from-elsewhere"))
     got = machine_of(unknown)
     assert got["machine"] == "sts-moore" and "'lathe-from-elsewhere', which the catalog lacks" in got["from"]
-    r = CliRunner().invoke(main, ["predict", "--program", str(other)])
+    r = CliRunner().invoke(main, ["predict", "--program", str(other), "--g93-f", "seconds"])
     assert "machine      sts-nanoform (named by the file)" in r.output
 
 

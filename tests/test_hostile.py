@@ -316,7 +316,10 @@ LOOP = ["G90 G21 G18 G94", "#1 = 0", "G93", "WHILE [#1 LT {n}] DO1",
 def test_a_g_code_loop_executes_no_more_blocks_than_its_budget(monkeypatch, passes, budget):
     monkeypatch.setattr(gcode, "MAX_READ_BLOCKS", budget)
     lines = [line.format(n=passes) for line in LOOP]
-    reader = gcode.IsoReader(lines, "iso-sts", "seconds")
+    from ftsweep.inputs.controllers import Controller
+
+    ctrl = Controller(dialect="iso-sts", interpolation="linear", g93_f="seconds")
+    reader = gcode.IsoReader(lines, "iso-sts", ctrl)
     try:
         reader.run()
         message = ""
@@ -326,4 +329,4 @@ def test_a_g_code_loop_executes_no_more_blocks_than_its_budget(monkeypatch, pass
     assert reader.blocks <= len(lines) + budget + 1
     # refused for its loop exactly when the passes after the first (three lines each) pass it
     over = 3 * (passes - 1) > budget
-    assert ("loops executed more than" in message) == over, (passes, budget, reader.blocks, message)
+    assert ("loops and jumps executed more than" in message) == over, (passes, budget, reader.blocks, message)

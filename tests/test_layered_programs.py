@@ -120,7 +120,7 @@ def test_a_maintained_parser_reads_the_same_cuts(layered):
     np.testing.assert_allclose([b["C"] for b in blocks], dialects.wrapped(moves.c_deg[rest], 6), atol=1e-9)
 
 
-def test_predict_summarises_a_layered_program_and_names_what_it_cannot_predict(layered):
+def test_predict_summarises_a_layered_program_and_predicts_its_cuts(layered):
     _, env, out = layered
     r = CliRunner().invoke(
         main, ["predict", "--program", str(out), "--machine", "short-fts", "--json"], env=env
@@ -128,10 +128,20 @@ def test_predict_summarises_a_layered_program_and_names_what_it_cannot_predict(l
     assert r.exit_code == 0, r.output
     info = json.loads(r.stdout)
     assert info["cuts"] > 100 and "w_accel_m_s2" in info["axes"]
+    # with its surface, the cuts' passes (the tool at Z + W) are simulated as the controller
+    # runs them. The export's sidecar records the single pass the cuts merge into; where a cut
+    # ends with its servo clipped at the bottom of its stroke, the tool over the cut's last
+    # segment stands above that single pass and no other cut passes there, so the cuts leave
+    # a little more material: 431 nm against 407 nm here (6 %), hence the one-sided band
     r = CliRunner().invoke(
-        main, ["predict", "--program", str(out), "--machine", "short-fts", "--surface", "small_sine"], env=env
+        main,
+        ["predict", "--program", str(out), "--machine", "short-fts", "--surface", "small_sine", "--json"],
+        env=env,
     )
-    assert r.exit_code == 1 and "verify" in r.output
+    assert r.exit_code == 0, r.output
+    got = json.loads(r.stdout)
+    side = json.loads(out.with_name(out.name + ".json").read_text())
+    assert side["pv_nm_as_written"] * 0.99 <= got["pv_nm"] <= side["pv_nm_as_written"] * 1.10
 
 
 def test_the_reader_takes_several_cuts_and_unwraps_each():

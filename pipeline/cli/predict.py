@@ -84,9 +84,9 @@ class _PredictCommand(click.Command):
 @click.option(
     "--g93-f",
     type=click.Choice(["inverse_minutes", "seconds"]),
-    default="inverse_minutes",
-    show_default=True,
-    help="With --program: what F means under G93 on the controller the program was written for.",
+    default=None,
+    help="With --program: what F means under G93 on the controller the program was written for, "
+    "overriding the machine's profile (machine.controller.g93_f; docs/controllers.md).",
 )
 @click.option(
     "--layout",

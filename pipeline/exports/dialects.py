@@ -19,7 +19,7 @@ import numpy as np
 from ftsweep.exports.gcode import IsoReader
 from ftsweep.exports.moves import Adapter, DialectError, Moves, aligned, summary
 from ftsweep.exports.pmac import read_pmac
-from ftsweep.inputs.controllers import DIALECT_INTERPOLATION
+from ftsweep.inputs.controllers import DIALECT_INTERPOLATION, Controller
 
 # the interpolation each controller dialect commands (the catalog's table, ftsweep's text aside)
 INTERPOLATION = {d: i for d, i in DIALECT_INTERPOLATION.items() if d != "text"}
@@ -161,12 +161,20 @@ def detect(lines: list[str]) -> str:
     return "iso-sts"
 
 
-def read(lines: list[str], dialect: str, g93_f: str = "inverse_minutes") -> Moves:
-    """The moves a program's lines command, read as the controller reads ``dialect``
-    (:func:`detect`); :class:`DialectError` names the first line it cannot evaluate."""
+def read(lines: list[str], dialect: str, ctrl: Any = None) -> Moves:
+    """The moves a program's lines command, read as the controller of profile ``ctrl``
+    (:class:`ftsweep.inputs.controllers.Controller`, or its recorded dict; None: the dialect's
+    defaults) reads ``dialect`` (:func:`detect`); :class:`DialectError` names the first line
+    it cannot evaluate."""
+    if ctrl is None:
+        ctrl = Controller(dialect=dialect, interpolation=INTERPOLATION[dialect])
+    elif isinstance(ctrl, dict):
+        ctrl = Controller.model_validate(
+            {**ctrl, "dialect": dialect, "interpolation": INTERPOLATION[dialect]}
+        )
     if dialect.startswith("pmac"):
-        return read_pmac(lines, dialect)
-    return IsoReader(lines, dialect, g93_f).run()
+        return read_pmac(lines, dialect, ctrl)
+    return IsoReader(lines, dialect, ctrl).run()
 
 
 __all__ = [

@@ -1,134 +1,172 @@
-"""ISO STS and RS274 G-code read as a controller reads it (docs/controllers.md): modal
-state, constant macro variables, WHILE loops of constant count and the G93 blocks' points;
-anything else refused, naming the line."""
+"""ISO STS and RS274 G-code read as the controller its machine's profile describes reads it
+(docs/controllers.md): the profile's power-on modal state, modal blocks without a G word, the
+macro language (:mod:`ftsweep.exports.macro`: variables, expressions, WHILE, IF, GOTO), G52
+offsets applied, G90/G91, dwells as time, the spindle either way, several passes; anything the
+profile does not define is refused naming the line, and values that cannot be a lathe program
+under the profile are refused naming the convention that is the likely cause."""
 
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable
+from typing import Any, Optional
 
 import numpy as np
 
+from ftsweep.exports import macro
 from ftsweep.exports.moves import DialectError, Moves
 
-# lines a program's loops may execute beyond the file's own lines (about 3 s here at ~3.4 µs
-# a line): a WHILE loop cannot make the reader run away, and a loop-made program of up to
+# lines a program's loops and jumps may execute beyond the file's own (about 3 s here at
+# ~3.4 µs a line): no loop makes the reader run away, and a loop-made program of up to
 # ~300,000 points is read; larger programs are written out, as CAM and ftsweep write them
 MAX_READ_BLOCKS = 1_000_000
-
 
 # a cutting block of numbers only (each with its decimal point): read without the tokenizer
 _PLAIN = re.compile(
     r"^(G0?1 )?C(-?\d+\.\d*) X(-?\d+\.\d*) (?:Y(-?\d+\.\d*) )?Z(-?\d+\.\d*)(?: F(\d+\.\d*))?$"
 )
 _WORD = re.compile(r"([A-Z])\s*(\[[^\]]*\]|#\d+|[-+]?(?:\d+\.?\d*|\.\d+))")
-_NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)")
 _COMMENT = re.compile(r"\([^()]*\)")
+_LABEL = re.compile(r"^N(\d+)\s*")
 _ASSIGN = re.compile(r"^#(\d+)\s*=\s*(.+)$")
 _WHILE = re.compile(r"^WHILE\s*\[(.+)\]\s*DO\s*(\d)$")
 _END = re.compile(r"^END\s*(\d)$")
-_CONDITION = re.compile(r"^(.+?)\s+(LT|LE|GT|GE|EQ|NE)\s+(.+)$")
-# G codes the reader knows: motion, units, planes, offsets, compensation cancels, modes
-KNOWN_G = {0.0, 1.0, 4.0, 17.0, 18.0, 19.0, 21.0, 40.0, 49.0, 52.0, 54.0, 55.0, 56.0, 57.0, 58.0, 59.0}
-KNOWN_G |= {61.0, 63.0, 64.0, 71.0, 90.0, 93.0, 94.0, 103.0}
+_GOTO = re.compile(r"^GOTO\s*(.+)$")
+_IF = re.compile(r"^IF\s*\[(.+)\]\s*(GOTO\s*(.+)|THEN\s*(.+))$")
+# G codes of modes the path does not depend on: planes, metric, compensation cancels, exact
+# stop and cutting modes, polar cancel, work coordinate systems (their offsets zero: the
+# program's coordinates are the part's)
+PASSIVE_G = {17.0, 18.0, 19.0, 21.0, 40.0, 49.0, 54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 61.0, 63.0, 64.0, 71.0}
+PASSIVE_G |= {103.0}
 FLOW_M = {97.0, 98.0, 99.0}  # subprogram calls and returns: not evaluated
+END_M = {2.0, 30.0}
 # the axes a block may move: C, X, Y, Z and a layered program's servo W
 AXES = ("C", "X", "Y", "Z", "W")
-
-
-# an expression parsed once: evaluated on the variables set so far (KeyError: one unset)
-Expr = Callable[[dict[int, float]], float]
-
-
-def _constant(c: float) -> Expr:
-    return lambda v: c
-
-
-def _variable(k: int) -> Expr:
-    return lambda v: v[k]
-
-
-def _negative(a: Expr) -> Expr:
-    return lambda v: -a(v)
-
-
-def _plus(a: Expr, b: Expr) -> Expr:
-    return lambda v: a(v) + b(v)
-
-
-def _minus(a: Expr, b: Expr) -> Expr:
-    return lambda v: a(v) - b(v)
-
-
-def _times(a: Expr, b: Expr) -> Expr:
-    return lambda v: a(v) * b(v)
-
-
-def _over(a: Expr, b: Expr) -> Expr:
-    return lambda v: a(v) / b(v)
+# a G94 feed move turning C among this many in a row is a cut, not an approach
+G94_CUT_RUN = 3
+# what a lathe's spindle program can be (a reading outside names the likely convention)
+RPM_RANGE = (0.1, 20_000.0)
+MAX_REVOLUTION_S = 3600.0
 
 
 class IsoReader:
-    """ISO STS / RS274 G-code as a controller reads it: modal state, macro variables set to
-    constants, WHILE loops (their conditions on those constants) and the G93 blocks' points."""
+    """ISO STS / RS274 G-code as the controller of profile ``ctrl``
+    (:class:`ftsweep.inputs.controllers.Controller`) reads it (module docstring)."""
 
-    def __init__(self, lines: list[str], dialect: str, g93_f: str) -> None:
-        self.lines, self.dialect, self.g93_f = lines, dialect, g93_f
+    def __init__(self, lines: list[str], dialect: str, ctrl: Any) -> None:
+        self.lines, self.dialect, self.ctrl = lines, dialect, ctrl
         self.vars: dict[int, float] = {}
         self.pos = {a: math.nan for a in AXES}
-        self.g93 = False
+        self.offset = {a: 0.0 for a in AXES}
+        self.g93 = ctrl.power_on_feed == "G93"
+        self.absolute = ctrl.power_on_distance == "G90"
+        self.motion: Optional[float] = {"G00": 0.0, "G01": 1.0, "none": None}[ctrl.power_on_motion]
         self.in_cut = False
-        self.feed = math.nan
-        self.motion = 0.0
+        self.feed, self.feed_line = math.nan, -1
+        self.first_f: Optional[tuple[int, float]] = None
+        self.g94_c_run = 0
         # every cut's points; T the time of the block into a point, NaN at a cut's start
         self.out: dict[str, list[float]] = {a: [] for a in (*AXES, "T")}
+        self.point_line: list[int] = []
         self.m_codes: set[str] = set()
         self.comments: dict[int, str] = {}
+        self.dwell_s = 0.0
+        self.offset_used = False
         self.blocks = 0
+        self.ended = False
         # a loop's lines are read and its expressions parsed once, then evaluated each pass
         self._cleaned: dict[int, str] = {}
         self._parsed: dict[int, list[tuple[str, str]]] = {}
-        self._compiled: dict[str, Callable[[dict[int, float]], float]] = {}
+        self._exprs: dict[str, macro.Expr] = {}
+        self._conds: dict[str, Any] = {}
+        self._labels: dict[int, int] = {}
+        self._loops: dict[int, int] = {}
 
     def fail(self, n: int, why: str) -> DialectError:
-        text = self.lines[n].strip()[:80] if n < len(self.lines) else ""
+        text = self.lines[n].strip()[:80] if 0 <= n < len(self.lines) else ""
         return DialectError(f"line {n + 1} ({text!r}): {why}")
 
     def run(self) -> Moves:
+        self._scan()
         self.budget = len(self.lines) + MAX_READ_BLOCKS
-        self._execute(0, len(self.lines))
-        if not self.out["C"]:
-            raise DialectError("no cutting block under G93 (inverse time): nothing to predict")
-        return self._moves()
-
-    def _execute(self, first: int, stop: int) -> None:
-        n = first
-        while n < stop:
-            # every line executed counts (assignments and loop tests too): no loop runs away
-            self.blocks += 1
+        n = 0
+        while n < len(self.lines) and not self.ended:
+            self.blocks += 1  # every line executed counts (loop tests too): no loop runs away
             if self.blocks > self.budget:
                 raise self.fail(n, self._over_budget())
-            text = self._clean(n)
-            loop = _WHILE.match(text)
-            if loop:
-                end = self._loop_end(n, loop.group(2), stop)
-                while self._condition(n, loop.group(1)):
-                    self._execute(n + 1, end)
-                    self.blocks += 1
-                    if self.blocks > self.budget:
-                        raise self.fail(n, self._over_budget())
-                n = end + 1
+            n = self._step(n)
+        if not self.out["C"]:
+            raise DialectError(self._no_cut())
+        moves = self._moves()
+        self._plausible(moves)
+        return moves
+
+    def _no_cut(self) -> str:
+        feed = "G93" if self.ctrl.power_on_feed == "G93" else "G94 (feed per minute)"
+        return (
+            "no cutting block under G93 (inverse time): nothing to predict (the profile's power-on feed "
+            f"mode is {feed}; a program of point blocks needs G93 before them)"
+        )
+
+    def _scan(self) -> None:
+        """Sequence numbers (GOTO's targets) and every WHILE's END, found before running."""
+        open_loops: list[tuple[str, int]] = []
+        for n, raw in enumerate(self.lines):
+            upper = raw.upper()
+            if "N" in upper:
+                label = _LABEL.match(raw.strip().upper())
+                if label:
+                    self._labels.setdefault(int(label.group(1)), n)
+            if "WHILE" not in upper and "END" not in upper:
                 continue
-            if _END.match(text):
-                raise self.fail(n, "END without its WHILE")
-            self._block(n, text)
-            n += 1
+            text = self._clean(n)
+            loop, end = _WHILE.match(text), _END.match(text)
+            if loop:
+                open_loops.append((loop.group(2), n))
+            elif end:
+                if not open_loops or open_loops[-1][0] != end.group(1):
+                    raise self.fail(n, f"END{end.group(1)} without its WHILE … DO{end.group(1)}")
+                start = open_loops.pop()[1]
+                self._loops[start], self._loops[n] = n, start
+        if open_loops:
+            tag, n = open_loops[-1]
+            raise self.fail(n, f"WHILE … DO{tag} has no END{tag}")
+
+    def _step(self, n: int) -> int:
+        """Execute line ``n``; the line to execute next."""
+        text = self._clean(n)
+        loop = _WHILE.match(text)
+        if loop:
+            return n + 1 if self._condition(n, loop.group(1)) else self._loops[n] + 1
+        if _END.match(text):  # the WHILE's condition tested again: into its body or past the END
+            start = self._loops[n]
+            again = self._condition(n, _WHILE.match(self._clean(start)).group(1))  # type: ignore[union-attr]
+            return start + 1 if again else n + 1
+        jump = _IF.match(text)
+        if jump:
+            if not self._condition(n, jump.group(1)):
+                return n + 1
+            if jump.group(3) is not None:
+                return self._goto(n, jump.group(3))
+            text = jump.group(4).strip()
+            if not _ASSIGN.match(text):
+                raise self.fail(n, "IF … THEN takes an assignment #i = expression only")
+        goto = _GOTO.match(text)
+        if goto:
+            return self._goto(n, goto.group(1))
+        self._block(n, text)
+        return n + 1
+
+    def _goto(self, n: int, target: str) -> int:
+        label = self._expr(n, target)
+        if label != round(label) or int(label) not in self._labels:
+            raise self.fail(n, f"GOTO {label:g}: no block N{label:g} in the program")
+        return self._labels[int(label)]
 
     def _over_budget(self) -> str:
         return (
-            f"its loops executed more than {MAX_READ_BLOCKS:,} lines beyond the file's own (a loop "
-            "that does not end, or a program to write out block by block)"
+            f"its loops and jumps executed more than {MAX_READ_BLOCKS:,} lines beyond the file's own (a "
+            "loop that does not end, or a program to write out block by block)"
         )
 
     def _clean(self, n: int) -> str:
@@ -150,85 +188,41 @@ class IsoReader:
         text = raw.strip().upper()
         if text.startswith("/"):
             raise self.fail(n, "a block-delete '/' block: whether it runs depends on a switch")
-        return text
-
-    def _loop_end(self, n: int, tag: str, stop: int) -> int:
-        depth = 0
-        for k in range(n + 1, stop):
-            text = self._clean_quiet(k)
-            if _WHILE.match(text):
-                depth += 1
-            end = _END.match(text)
-            if end:
-                if depth == 0 and end.group(1) == tag:
-                    return k
-                depth -= 1
-        raise self.fail(n, f"WHILE … DO{tag} has no END{tag}")
-
-    def _clean_quiet(self, n: int) -> str:
-        return _COMMENT.sub(" ", self.lines[n].split(";", 1)[0]).strip().upper()
+        return _LABEL.sub("", text, count=1)
 
     def _condition(self, n: int, text: str) -> bool:
-        found = _CONDITION.match(text.strip())
-        if not found:
-            raise self.fail(n, "a WHILE condition must be 'a LT|LE|GT|GE|EQ|NE b'")
-        a, op, b = self._expr(n, found.group(1)), found.group(2), self._expr(n, found.group(3))
-        return bool({"LT": a < b, "LE": a <= b, "GT": a > b, "GE": a >= b, "EQ": a == b, "NE": a != b}[op])
+        test = self._conds.get(text)
+        if test is None:
+            try:
+                test = self._conds[text] = macro.condition(text)
+            except macro.MacroError as exc:
+                raise self.fail(n, str(exc)) from None
+        return bool(self._evaluated(n, test))
 
     def _expr(self, n: int, text: str) -> float:
-        """An arithmetic expression of numbers and set variables (+ − * /, [ ] grouping),
-        parsed once by a small parser into a tree of closures and evaluated on the variables
-        as they are: never by Python's ``eval``."""
-        compiled = self._compiled.get(text)
+        compiled = self._exprs.get(text)
         if compiled is None:
-            tokens = re.findall(r"#\d+|\d+\.?\d*|\.\d+|[-+*/\[\]()]|\S", text)
-            compiled, rest = self._sum(n, tokens)
-            if rest:
-                raise self.fail(n, f"cannot evaluate {text.strip()[:40]!r}")
-            self._compiled[text] = compiled
+            try:
+                compiled = self._exprs[text] = macro.parse(text)
+            except macro.MacroError as exc:
+                raise self.fail(n, str(exc)) from None
+        return float(self._evaluated(n, compiled))
+
+    def _evaluated(self, n: int, f: Any) -> Any:
         try:
-            return compiled(self.vars)
+            return f(self.vars)
         except KeyError as exc:
-            raise self.fail(n, f"#{exc.args[0]} is used before it is set to a constant") from None
+            why = f"#{exc.args[0]} is used before it is set (the reader knows no system variable)"
+            raise self.fail(n, why) from None
         except ZeroDivisionError:
             raise self.fail(n, "division by zero") from None
-
-    def _sum(self, n: int, t: list[str]) -> tuple[Expr, list[str]]:
-        value, t = self._product(n, t)
-        while t and t[0] in "+-":
-            op, (rhs, t) = t[0], self._product(n, t[1:])
-            value = _plus(value, rhs) if op == "+" else _minus(value, rhs)
-        return value, t
-
-    def _product(self, n: int, t: list[str]) -> tuple[Expr, list[str]]:
-        value, t = self._atom(n, t)
-        while t and t[0] in "*/":
-            op, (rhs, t) = t[0], self._atom(n, t[1:])
-            value = _times(value, rhs) if op == "*" else _over(value, rhs)
-        return value, t
-
-    def _atom(self, n: int, t: list[str]) -> tuple[Expr, list[str]]:
-        if not t:
-            raise self.fail(n, "an expression ends early")
-        head = t[0]
-        if head in "+-":
-            value, rest = self._atom(n, t[1:])
-            return (_negative(value) if head == "-" else value), rest
-        if head in "[(":
-            value, rest = self._sum(n, t[1:])
-            if not rest or rest[0] not in "])":
-                raise self.fail(n, "an expression's bracket does not close")
-            return value, rest[1:]
-        if head.startswith("#"):
-            return _variable(int(head[1:])), t[1:]
-        if _NUMBER.fullmatch(head):
-            return _constant(float(head)), t[1:]
-        raise self.fail(n, f"cannot evaluate {head!r}")
+        except ValueError as exc:  # SQRT of a negative number
+            raise self.fail(n, f"an expression has no value: {exc}") from None
 
     def _block(self, n: int, text: str) -> None:
         plain = _PLAIN.match(text)
-        if plain:  # the common cutting block: numbers only, no word the modal state needs parsed
-            self._plain(n, plain)
+        if plain and self.absolute and self.g93 and not any(self.offset.values()):
+            self._plain(n, plain)  # the common cutting block: no word the modal state needs parsed
             return
         if not text or text == "%" or re.fullmatch(r"O\d+", text):
             return
@@ -236,11 +230,17 @@ class IsoReader:
         if assign:
             self.vars[int(assign.group(1))] = self._expr(n, assign.group(2))
             return
-        if re.search(r"\b(IF|GOTO|THEN)\b", text):
-            raise self.fail(n, "IF/GOTO jumps are not evaluated: unroll them")
+        if re.search(r"\b(IF|GOTO|THEN|WHILE|DO|END)\b", text):
+            raise self.fail(n, "a macro statement the reader does not evaluate in this form")
         words = self._words(n, text)
-        self._modes(n, words)
-        axes = {k: v for k, v in words if k in AXES}
+        gs = [v for k, v in words if k == "G"]
+        if 4.0 in gs:
+            self._dwell(n, words)
+            return
+        axes = self._modes(n, words)
+        if 52.0 in gs:
+            self._local_offset(axes)
+            return
         if axes:
             self._move(n, axes)
 
@@ -250,7 +250,7 @@ class IsoReader:
         if m.group(1):
             self.motion = 1.0
         if m.group(6):
-            self.feed = float(m.group(6))
+            self._set_feed(n, float(m.group(6)))
         axes = {"C": float(m.group(2)), "X": float(m.group(3)), "Z": float(m.group(5))}
         if m.group(4):
             axes["Y"] = float(m.group(4))
@@ -260,7 +260,27 @@ class IsoReader:
         parsed = self._parsed.get(n)
         if parsed is None:
             parsed = self._parsed[n] = self._split_words(n, text)
-        return [(letter, self._expr(n, raw) if raw[0] in "[#" else float(raw)) for letter, raw in parsed]
+        return [(letter, self._value(n, letter, raw)) for letter, raw in parsed]
+
+    def _value(self, n: int, letter: str, raw: str) -> float:
+        if raw[0] in "[#":
+            return self._expr(n, raw)
+        if letter in AXES and "." not in raw:
+            return self._whole_number(n, letter, raw)
+        return float(raw)
+
+    def _whole_number(self, n: int, letter: str, raw: str) -> float:
+        how = self.ctrl.whole_number_words
+        if how == "mm":
+            return float(raw)
+        if how == "increments":
+            return float(raw) * self.ctrl.input_increment_um * 1e-3
+        raise self.fail(
+            n,
+            f"{letter}{raw} has no decimal point: a controller reads it as mm or in least input increments "
+            "by a parameter; the machine's profile does not say which "
+            "(machine.controller.whole_number_words)",
+        )
 
     def _split_words(self, n: int, text: str) -> list[tuple[str, str]]:
         """A block's words as written (letter, number or expression), checked once."""
@@ -268,66 +288,140 @@ class IsoReader:
         for match in _WORD.finditer(text):
             if text[at : match.start()].strip():
                 raise self.fail(n, f"cannot read {text[at : match.start()].strip()[:20]!r}")
-            letter, raw = match.group(1), match.group(2)
-            if not raw.startswith(("[", "#")) and letter in AXES and "." not in raw:
-                raise self.fail(
-                    n,
-                    f"{letter}{raw} has no decimal point: controllers read it as mm or as µm by a parameter",
-                )
-            found.append((letter, raw))
+            found.append((match.group(1), match.group(2)))
             at = match.end()
         if text[at:].strip():
             raise self.fail(n, f"cannot read {text[at:].strip()[:20]!r}")
         return found
 
-    def _modes(self, n: int, words: list[tuple[str, float]]) -> None:
+    def _modes(self, n: int, words: list[tuple[str, float]]) -> dict[str, float]:
+        """The block's modal words applied; its axis words returned."""
+        axes: dict[str, float] = {}
         for letter, value in words:
             if letter == "G":
                 self._g(n, value)
             elif letter == "M":
-                if value in FLOW_M:
-                    raise self.fail(n, f"M{value:g} calls or returns from a subprogram: not evaluated")
-                self.m_codes.add(f"M{value:g}")
+                self._m(n, value)
             elif letter == "F":
-                self.feed = value
-            elif letter not in "CXYZWNTS":
-                raise self.fail(n, f"the word {letter} is not one the reader evaluates")
+                self._set_feed(n, value)
+            elif letter in AXES:
+                axes[letter] = value
+            elif letter not in "NTS":
+                raise self.fail(n, f"the word {letter} is not one the reader evaluates in this block")
+        return axes
+
+    def _m(self, n: int, value: float) -> None:
+        if value in FLOW_M:
+            raise self.fail(n, f"M{value:g} calls or returns from a subprogram: not evaluated")
+        if value in END_M:
+            self.ended = True
+        self.m_codes.add(f"M{value:g}")
 
     def _g(self, n: int, value: float) -> None:
         if value in (2.0, 3.0):
             raise self.fail(n, "circular interpolation (G2/G3) is not a path program's block")
-        if value == 91.0:
-            raise self.fail(n, "incremental positions (G91): the reader takes absolute (G90) programs")
         if value == 20.0:
             raise self.fail(n, "inch units (G20): the reader takes metric (G21/G71) programs")
-        if value not in KNOWN_G:
-            raise self.fail(n, f"G{value:g} is not a code the reader evaluates")
         if value in (93.0, 94.0):
             self.g93 = value == 93.0
             self.in_cut = self.in_cut and self.g93
             self.feed = math.nan
         elif value in (0.0, 1.0):
             self.motion = value
+        elif value in (90.0, 91.0):
+            self.absolute = value == 90.0
+        elif value not in PASSIVE_G and value != 52.0:
+            why = {
+                10.0: "G10 sets offsets in the controller's memory",
+                28.0: "G28 returns to a reference point",
+            }
+            raise self.fail(n, f"{why.get(value, f'G{value:g}')}: not a code the reader evaluates")
+
+    def _set_feed(self, n: int, value: float) -> None:
+        ctrl = self.ctrl
+        if ctrl.f_min is not None and value < ctrl.f_min or ctrl.f_max is not None and value > ctrl.f_max:
+            raise self.fail(n, f"F{value:g} is outside the controller's F range [{ctrl.f_min}, {ctrl.f_max}]")
+        self.feed, self.feed_line = value, n
+
+    def _dwell(self, n: int, words: list[tuple[str, float]]) -> None:
+        """G04: the tool stands for X seconds (or P, in the profile's units)."""
+        given = {k: v for k, v in words if k in "XPU"}
+        if len(given) != 1 or any(k in "CYZW" for k, _ in words):
+            raise self.fail(n, "G04 (dwell) takes one time word, X or U [s] or P, and moves no axis")
+        letter, value = next(iter(given.items()))
+        if value < 0:
+            raise self.fail(n, "a dwell of negative time")
+        self.dwell_s += value * 1e-3 if letter == "P" and self.ctrl.dwell_p == "ms" else value
+
+    def _local_offset(self, axes: dict[str, float]) -> None:
+        """G52: a local coordinate offset, added to every position programmed after it (G52
+        without axes cancels every offset)."""
+        if not axes:
+            self.offset = {a: 0.0 for a in AXES}
+        self.offset.update(axes)
+        self.offset_used = self.offset_used or any(self.offset.values())
+
+    def _target(self, axes: dict[str, float]) -> dict[str, float]:
+        if self.absolute:
+            return {a: v + self.offset[a] for a, v in axes.items()}
+        return {a: self.pos[a] + v for a, v in axes.items()}
 
     def _move(self, n: int, axes: dict[str, float]) -> None:
+        if self.motion is None:
+            raise self.fail(
+                n,
+                "axis words before any motion mode (G0/G1): this controller refuses them "
+                "(machine.controller.power_on_motion: none)",
+            )
+        target = self._target(axes)
         if self.g93 and self.motion == 1.0:
-            if not self.in_cut:
-                # a cut starts where the tool stands: a layered program has one per segment
-                self.in_cut = True
-                self._point(math.nan)
-            if not self.feed > 0.0:
-                raise self.fail(n, "a G93 block without a positive F: its time is unknown")
-            minutes = 1.0 / self.feed if self.g93_f == "inverse_minutes" else self.feed / 60.0
-            self.pos.update(axes)
-            self._point(minutes * 60.0)
+            self._cut(n, target)
             return
+        turns = "C" in target and target["C"] != self.pos["C"] and math.isfinite(self.pos["C"])
+        self.g94_c_run = self.g94_c_run + 1 if turns and self.motion == 1.0 else 0
+        if self.g94_c_run >= G94_CUT_RUN:
+            raise self.fail(
+                n,
+                f"{G94_CUT_RUN} feed moves in a row turn C under G94 (feed per minute): a cut whose time "
+                "depends on how this controller mixes degrees and mm; the reader times cuts written under "
+                "G93" + (" (the profile's power-on feed mode is G94)" if not self.first_f else ""),
+            )
         self.in_cut = False  # a move outside G93 (an approach, the retract) ends a cut
-        self.pos.update(axes)
+        self.pos.update(target)
 
-    def _point(self, seconds: float) -> None:
+    def _cut(self, n: int, target: dict[str, float]) -> None:
+        if not self.in_cut:
+            # a cut starts where the tool stands (a layered program has one per segment); a
+            # program that gives no position before its first block starts at that block
+            self.in_cut = True
+            if all(math.isfinite(self.pos[a]) for a in "CXZ"):
+                self._point(math.nan, n)
+                self.pos.update(target)
+                self._point(self._seconds(n), n)
+                return
+            self.pos.update(target)
+            self._point(math.nan, n)
+            return
+        seconds = self._seconds(n)
+        self.pos.update(target)
+        self._point(seconds, n)
+
+    def _seconds(self, n: int) -> float:
+        if not self.feed > 0.0:
+            raise self.fail(n, "a G93 block without a positive F: its time is unknown")
+        if self.ctrl.g93_f_every_block and self.feed_line != n:
+            raise self.fail(
+                n, "a G93 block without its own F: this controller needs F on every inverse-time block"
+            )
+        if self.first_f is None:
+            self.first_f = (n, self.feed)
+        return 60.0 / self.feed if self.ctrl.g93_f == "inverse_minutes" else self.feed
+
+    def _point(self, seconds: float, n: int) -> None:
         for axis in AXES:
             self.out[axis].append(self.pos[axis])
         self.out["T"].append(seconds)
+        self.point_line.append(n)
 
     def _moves(self) -> Moves:
         cols = {a: np.array(self.out[a]) for a in AXES}
@@ -335,13 +429,14 @@ class IsoReader:
         starts = np.flatnonzero(np.isnan(t))
         for axis in "CXZ":
             if not np.all(np.isfinite(cols[axis])):
-                raise DialectError(f"the cut starts before {axis} is given a position")
+                k = int(np.flatnonzero(~np.isfinite(cols[axis]))[0])
+                raise self.fail(self.point_line[k], f"the cut starts before {axis} is given a position")
         c = cols["C"]
-        if self.dialect != "linuxcnc":
-            # C read modulo 360 is made accumulated within each cut
-            c = np.concatenate(
-                [_unwrap(c[lo:hi]) for lo, hi in zip(starts, [*starts[1:], c.size], strict=True)]
-            )
+        bounds = list(zip(starts, [*starts[1:], c.size], strict=True))
+        if self.ctrl.c_wrap == "revolution" and self.dialect != "linuxcnc":
+            c = np.concatenate([_unwrap(c[lo:hi]) for lo, hi in bounds])
+        for lo, hi in bounds:
+            self._one_way(c, int(lo), int(hi))
         y = None if not np.all(np.isfinite(cols["Y"])) else cols["Y"]
         w = None
         if np.any(np.isfinite(cols["W"])):
@@ -349,6 +444,8 @@ class IsoReader:
                 raise DialectError("a cut starts before W (the servo) is given a position")
             w = cols["W"]
         notes = [f"machine functions passed over: {', '.join(sorted(self.m_codes))}"] if self.m_codes else []
+        if self.offset_used:
+            notes.append("G52 local offsets applied to the positions programmed after them")
         return Moves(
             c,
             cols["X"],
@@ -362,11 +459,59 @@ class IsoReader:
             notes,
             w,
             starts[1:] if starts.size > 1 else None,
+            dwell_s=self.dwell_s,
         )
+
+    def _one_way(self, c: np.ndarray, lo: int, hi: int) -> None:
+        """A cut's spindle turns one way (a block may hold C still)."""
+        step = np.diff(c[lo:hi])
+        if np.any(step > 0) and np.any(step < 0):
+            turn = np.sign(step[np.flatnonzero(step)[0]])
+            back = int(np.flatnonzero(np.sign(step) == -turn)[0])
+            raise self.fail(
+                self.point_line[lo + back + 1], "C turns back: a spindle program's C turns one way"
+            )
+
+    def _plausible(self, m: Moves) -> None:
+        """Refuse a reading that cannot be a lathe program, naming the convention behind it."""
+        seconds = np.asarray(m.seconds, dtype=np.float64)
+        turn = np.abs(np.diff(m.c_deg)) / 360.0
+        timed = np.isfinite(seconds) & (seconds > 0)
+        total, revs = float(np.sum(seconds[timed])), float(np.sum(turn[timed]))
+        rpm = revs / total * 60.0 if total > 0 else math.nan
+        hint = self._f_hint()
+        if revs > 0 and not RPM_RANGE[0] <= rpm <= RPM_RANGE[1]:
+            raise DialectError(f"{hint} gives a spindle of {rpm:.3g} rpm, not a lathe's{self._f_question()}")
+        per_rev = np.divide(seconds, turn, out=np.zeros_like(seconds), where=timed & (turn > 0))
+        if np.any(per_rev > MAX_REVOLUTION_S):
+            raise DialectError(
+                f"{hint} gives {per_rev.max() / 3600.0:.3g} hours a revolution{self._f_question()}"
+            )
+        period = self.ctrl.servo_period_s
+        short = timed & (seconds < (period or 0.0) * (1 - 1e-9))
+        if np.any(short):
+            k = int(np.flatnonzero(short)[0])
+            raise self.fail(
+                self.point_line[k + 1],
+                f"a block of {seconds[k]:.3g} s, under the controller's servo period "
+                f"{period:g} s ({hint}){self._f_question()}",
+            )
+
+    def _f_hint(self) -> str:
+        if self.first_f is None:
+            return "the program"
+        n, f = self.first_f
+        how = "inverse minutes" if self.ctrl.g93_f == "inverse_minutes" else "seconds per block"
+        return f"line {n + 1}: G93 F{f:g} as {how}"
+
+    def _f_question(self) -> str:
+        other = "seconds per block" if self.ctrl.g93_f == "inverse_minutes" else "inverse minutes"
+        return f": does this controller read F as {other}? see machine.controller.g93_f"
 
 
 def _unwrap(c_deg: np.ndarray) -> np.ndarray:
-    """C read modulo 360 made accumulated: every block turns the spindle forward by less
-    than a revolution (C of a block equal to the last one's is no turn)."""
+    """C read modulo 360 made accumulated: every block turns the spindle by less than half a
+    revolution, either way (the shorter way round)."""
     step = np.mod(np.diff(c_deg), 360.0)
+    step = np.where(step > 180.0, step - 360.0, step)  # forward steps keep their exact value
     return np.concatenate([[c_deg[0]], c_deg[0] + np.cumsum(step)])

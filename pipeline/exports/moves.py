@@ -38,6 +38,7 @@ class Moves:
     # its entry in ``seconds`` NaN)
     w_mm: Optional[np.ndarray] = None
     cut_starts: Optional[np.ndarray] = None
+    dwell_s: float = 0.0  # time the program's dwells (G04) stand still, not in ``seconds``
 
     @property
     def n_points(self) -> int:
@@ -104,30 +105,42 @@ def aligned(moves: Moves, c0_deg: float) -> Moves:
     return replace(moves, c_deg=moves.c_deg + 360.0 * turns)
 
 
+def _stats(values: np.ndarray) -> dict[str, float]:
+    v = values[np.isfinite(values)]
+    if not v.size:
+        return {"min": math.nan, "median": math.nan, "max": math.nan}
+    return {"min": float(v.min()), "median": float(np.median(v)), "max": float(v.max())}
+
+
 def summary(m: Moves) -> dict[str, Any]:
     """Points, revolutions, points per revolution, the feed per revolution [µm] (from X's
-    drop per revolution of C), the time [s] and the mean spindle speed [rpm] of a program's
-    moves, over its cuts (a layered program's approach moves between cuts left out)."""
-    revs, seconds, feeds = 0.0, 0.0, []
+    drop per revolution of C), the time [s] and the spindle speed [rpm] of a program's moves,
+    over its cuts (a layered program's approach moves between cuts left out); the spindle
+    either way (revolutions counted as turned). Feed, points per revolution (per whole
+    revolution turned) and spindle speed (per block) also as min / median / max."""
+    revs, seconds, feeds, counts, rpm = 0.0, 0.0, [], [], []
     for lo, hi in m.cuts():
-        turn = (m.c_deg[lo:hi] - m.c_deg[lo]) / 360.0
+        turn = np.abs(m.c_deg[lo:hi] - m.c_deg[lo]) / 360.0
         revs += float(turn[-1])
-        seconds += float(np.sum(m.seconds[lo : hi - 1]))
+        dt = m.seconds[lo : hi - 1]
+        seconds += float(np.sum(dt))
         dx = -np.diff(m.x_mm[lo:hi]) * 1e3
         dturn = np.diff(turn)
-        feed = np.divide(dx, dturn, out=np.full(dx.shape, np.nan), where=dturn > 0)
-        feeds.append(feed[np.isfinite(feed)])
-    feed = np.concatenate(feeds)
+        feeds.append(np.divide(dx, dturn, out=np.full(dx.shape, np.nan), where=dturn > 0))
+        rpm.append(np.divide(dturn * 60.0, dt, out=np.full(dt.shape, np.nan), where=dt > 0))
+        whole = np.floor(turn[1:])
+        counts.append(np.bincount(whole.astype(np.int64))[: int(turn[-1])].astype(np.float64))
+    direction = "C decreasing" if m.n_points > 1 and m.c_deg[-1] < m.c_deg[0] else "C increasing"
     return {
         "n_points": m.n_points,
         "cuts": len(m.cuts()),
         "revolutions": revs,
         "points_per_rev": (m.n_points - len(m.cuts())) / revs if revs > 0 else math.nan,
-        "feed_um_per_rev": {
-            "min": float(feed.min()) if feed.size else math.nan,
-            "median": float(np.median(feed)) if feed.size else math.nan,
-            "max": float(feed.max()) if feed.size else math.nan,
-        },
+        "points_per_rev_range": _stats(np.concatenate(counts)),
+        "feed_um_per_rev": _stats(np.concatenate(feeds)),
         "machining_s": seconds,
+        "dwell_s": float(m.dwell_s),
         "spindle_rpm": revs / seconds * 60.0 if seconds > 0 else math.nan,
+        "spindle_rpm_range": _stats(np.concatenate(rpm)),
+        "spindle_direction": direction,
     }

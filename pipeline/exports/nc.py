@@ -107,8 +107,12 @@ def controller_of(machine: Any, dialect: str) -> Controller:
     ctrl = machine.controller
     if ctrl is None:
         return Controller(dialect=dialect, interpolation=want)
-    # the same interpolation: the machine's controller, in the dialect asked (ISO or LinuxCNC)
-    return ctrl if ctrl.dialect == dialect else ctrl.model_copy(update={"dialect": dialect})
+    if ctrl.dialect == dialect:
+        return ctrl
+    # the same interpolation in another dialect (ISO or LinuxCNC): the machine's limits, the
+    # conventions of that dialect's controller
+    limits = ("time_quantum_s", "max_segment_s", "decimals", "max_blocks", "servo_period_s")
+    return Controller(dialect=dialect, interpolation=want, **{k: getattr(ctrl, k) for k in limits})
 
 
 def _limits(moves: Moves, ctrl: Controller) -> None:
@@ -157,6 +161,7 @@ def _document(
         *kind_lines,
         _motion_line(moves),
         _units_line(moves, dialect),
+        *(f"conventions: {c}" for c in ctrl.conventions()),
         f"sidecar sha256: {sidecar_digest(meta, TEXT_FIELDS)}",
         CRC_TEXT.format(0),
     ]
@@ -209,7 +214,7 @@ def export(
         "selection": chosen,
     }
     lines, meta, (adapter, rcase) = _document(case, specs, dialect, meta_in)
-    moves = dialects.read(lines, dialect, meta["controller"]["g93_f"])
+    moves = dialects.read(lines, dialect, meta["controller"])
     reason = adapter.check(rcase, moves)
     if reason:
         raise ProgramError(
@@ -297,6 +302,11 @@ def verify(
         )
     planned, _ = _with_crc([_replace_digest(line, dialect, digest) for line in planned], dialect)
     for number, (a, b) in enumerate(zip(lines, planned, strict=False), start=1):
+        if a != b and "conventions: " in a and "conventions: " in b:
+            raise ProgramError(
+                f"{path}: line {number} states the controller conventions {a[:160]!r}, machine "
+                f"'{case.machine}' has {b[:160]!r}: the file was written for another profile; do not run it"
+            )
         if a != b:
             raise ProgramError(
                 f"{path}: line {number} reads {a[:100]!r} where the recorded case gives {b[:100]!r}; "
@@ -306,7 +316,7 @@ def verify(
         raise ProgramError(
             f"{path}: {len(lines):,} lines where the recorded case gives {len(planned):,}; do not run it"
         )
-    moves = dialects.read(lines, dialect, meta["controller"]["g93_f"])
+    moves = dialects.read(lines, dialect, meta["controller"])
     reason = adapter.check(rcase, moves)
     if reason:
         raise ProgramError(
@@ -397,16 +407,39 @@ def _against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
     }
 
 
-def read_any(path: Path, g93_f: str = "inverse_minutes") -> Moves:
+def read_any(path: Path, machine: Optional[str] = None) -> Moves:
     """The moves of a program file in any supported dialect (ftsweep's own dialect files by
-    their first line, others by their blocks: :func:`ftsweep.exports.dialects.detect`)."""
-    return _moves_of(read_lines(Path(path), strict=False), g93_f)
+    their first line, others by their blocks: :func:`ftsweep.exports.dialects.detect`), read
+    as the profile of ``machine`` (else the one the file names, else its dialect's default
+    machine) says (:func:`profile_for`)."""
+    lines = read_lines(Path(path), strict=False)
+    dialect = _dialect_of(lines)
+    name, _ = _machine_for(named_machine(lines), machine, dialect)
+    return dialects.read(lines, dialect, profile_for(name, dialect))
 
 
-def _moves_of(lines: list[str], g93_f: str) -> Moves:
-    """The moves of a program's lines, its dialect named by its first line or by its blocks."""
-    dialect = dialect_named(lines) if lines and is_dialect_file(lines[0]) else dialects.detect(lines)
-    return dialects.read(lines, dialect, g93_f)
+def _dialect_of(lines: list[str]) -> str:
+    """A program's dialect, named by its first line (ftsweep's) or by its blocks."""
+    return dialect_named(lines) if lines and is_dialect_file(lines[0]) else dialects.detect(lines)
+
+
+def profile_for(machine: str, dialect: str, g93_f: Optional[str] = None) -> Controller:
+    """The controller profile a ``dialect`` program is read with on ``machine``: the machine's
+    when it reads that dialect, else that dialect's controller's conventions with the
+    machine's limits; ``g93_f`` overrides what F means under G93."""
+    from ftsweep.inputs import catalogs
+
+    entry = catalogs.entry("machines", machine)
+    ctrl = entry.controller
+    want = dialects.INTERPOLATION[dialect]
+    if ctrl is None or ctrl.dialect != dialect:
+        keep = (
+            {}
+            if ctrl is None
+            else {k: getattr(ctrl, k) for k in ("decimals", "max_blocks", "servo_period_s")}
+        )
+        ctrl = Controller(dialect=dialect, interpolation=want, **keep)
+    return ctrl if g93_f is None else ctrl.model_copy(update={"g93_f": g93_f})
 
 
 def predict_program(
@@ -414,28 +447,33 @@ def predict_program(
     surface: Optional[str],
     machine: Optional[str],
     cutting: Optional[str],
-    g93_f: str = "inverse_minutes",
+    g93_f: Optional[str] = None,
     progress: Any = None,
     map_bins: Optional[int] = None,
 ) -> dict[str, Any]:
-    """Read a path program in any supported dialect (ftsweep's or another CAM's), summarise
-    it (points, revolutions, feed per revolution, spindle speed, peak axis speeds and
-    accelerations against the machine's limits) and, with a ``surface``, predict the form
-    error it leaves (with ``map_bins``, its error map) through the one simulator, as the
-    program kind that reads programs from elsewhere (its adapter's ``stand_in``) simulates it
-    (docs/controllers.md)."""
+    """Read a path program in any supported dialect (ftsweep's or another CAM's) as the
+    profile of its machine (``machine``, else the one its header names, else its dialect's
+    default) says, summarise it (points, revolutions, feed per revolution, spindle speed,
+    peak axis speeds and accelerations against the machine's limits) and, with a
+    ``surface``, predict the form error it leaves (with ``map_bins``, its error map) through
+    the one simulator, as the program kind that reads programs from elsewhere (its adapter's
+    ``stand_in``) simulates it (docs/controllers.md)."""
     from ftsweep.inputs import catalogs
 
     lines = read_lines(Path(path), strict=False)  # read once: its moves and the machine it names
-    moves = _moves_of(lines, g93_f)
+    dialect = _dialect_of(lines)
+    machine, machine_from = _machine_for(named_machine(lines), machine, dialect)
+    ctrl = profile_for(machine, dialect, g93_f)
+    moves = dialects.read(lines, dialect, ctrl)
     info: dict[str, Any] = {
         "program": str(path),
         "dialect": moves.dialect,
         "interpolation": moves.interpolation,
+        "machine": machine,
+        "machine_from": machine_from,
+        "conventions": ctrl.conventions(),
     }
     info.update(dialects.summary(moves))
-    machine, info["machine_from"] = _machine_for(named_machine(lines), machine, moves.interpolation)
-    info["machine"] = machine
     entry = catalogs.entry("machines", machine)
     info["axes"] = _against(_peaks(moves), entry)
     info["notes"] = list(moves.notes)
@@ -457,13 +495,18 @@ def predict_program(
     return info
 
 
-# the machine a program's summary is judged on when neither --machine nor the file names one
-DEFAULT_MACHINE = {"linear": "sts-moore", "pvt": "sts-pmac-pvt", "spline1": "sts-pmac-spline"}
+# the machine a program is read against when neither --machine nor the file names one
+DEFAULT_MACHINE = {
+    "iso-sts": "sts-moore",
+    "linuxcnc": "sts-linuxcnc",
+    "pmac-pvt": "sts-pmac-pvt",
+    "pmac-spline": "sts-pmac-spline",
+}
 
 
-def _machine_for(named: Optional[str], given: Optional[str], interpolation: str) -> tuple[str, str]:
+def _machine_for(named: Optional[str], given: Optional[str], dialect: str) -> tuple[str, str]:
     """The machine a program is read against and where it came from: ``--machine``, else the
-    one the file's header names (``named``) when the catalog has it, else its interpolation's
+    one the file's header names (``named``) when the catalog has it, else its dialect's
     default."""
     from ftsweep.inputs import catalogs
 
@@ -472,7 +515,7 @@ def _machine_for(named: Optional[str], given: Optional[str], interpolation: str)
     if named is not None and named in catalogs.entries("machines"):
         return named, "named by the file"
     why = f"the file names {named!r}, which the catalog lacks" if named else "the file names none"
-    return DEFAULT_MACHINE[interpolation], f"default for {interpolation} segments ({why}; give --machine)"
+    return DEFAULT_MACHINE[dialect], f"default for {dialect} programs ({why}; give --machine)"
 
 
 def _foreign_reader() -> tuple[str, Adapter]:
@@ -491,5 +534,9 @@ def check_dialect_file(path: Path, trust_plugins: bool = False) -> dict[str, Any
     from ftsweep.store.io import read_sidecar
 
     lines = read_lines(Path(path), strict=True)
-    adapter = adapter_of(str(read_sidecar(Path(path)).get("layout")))
-    return check_program(path, dialects.read(lines, dialect_named(lines)), adapter)
+    meta = read_sidecar(Path(path))
+    adapter = adapter_of(str(meta.get("layout")))
+    ctrl = meta.get("controller")
+    return check_program(
+        path, dialects.read(lines, dialect_named(lines), ctrl if isinstance(ctrl, dict) else None), adapter
+    )

@@ -1,26 +1,36 @@
-"""Delta Tau PMAC motion programs (PVT and SPLINE1) read as the controller reads them
-(docs/controllers.md)."""
+"""Delta Tau PMAC motion programs (PVT and SPLINE1) read as the controller its machine's
+profile describes reads them (docs/controllers.md): Turbo PMAC's syntax (``PVT<ms>``,
+``SPLINE1`` with ``TA<ms>``) or Power PMAC's (``pvt<ms>``, ``spline<ms>``), words with or
+without spaces, integer or decimal numbers, ABS and INC, TA/TS/TM; PVT velocities in units
+per Ix90 ms, segment times by I42."""
 
 from __future__ import annotations
 
 import math
 import re
+from typing import Any
 
 import numpy as np
 
 from ftsweep.exports.moves import DialectError, Moves
 
+_NUM = r"-?(?:\d+\.?\d*|\.\d+)"
 # a cut block giving all three axes (with their velocities in PVT): read without the tokenizer
 _PMAC_PLAIN = re.compile(
     r"^C(-?\d+\.\d+)(?::(-?\d+\.\d+))? X(-?\d+\.\d+)(?::(-?\d+\.\d+))? Z(-?\d+\.\d+)(?::(-?\d+\.\d+))?$"
 )
-_PMAC_MOVE = re.compile(r"^([CXYZ])(-?\d+\.\d+)(?::(-?\d+\.\d+))?$")
+# one statement of a line whose spaces are removed: a mode, a time, or an axis word
+_STATEMENT = re.compile(
+    rf"(SPLINE1|SPLINE({_NUM})|PVT({_NUM})|T([AMS])({_NUM})|ABS|INC|RAPID|LINEAR|([A-Z])({_NUM})(?::({_NUM}))?)"
+)
+_WHOLE_LINE = re.compile(r"^(OPEN\s+PROG\s*\d+(\s+CLEAR)?|CLOSE|CLEAR|END\s+GATHER|DWELL\s*0)$")
+AXES = "CXYZ"
 
 
-def read_pmac(lines: list[str], dialect: str) -> Moves:
-    """A PMAC motion program: RAPID to the start, then PVT moves (each ``AXISpos:vel``,
-    ``PVTms`` setting the segment time) or SPLINE1 moves at one TA [ms]."""
-    reader = _PmacReader(dialect)
+def read_pmac(lines: list[str], dialect: str, ctrl: Any) -> Moves:
+    """A PMAC motion program: moves to the start (RAPID or LINEAR), then PVT moves (each
+    ``AXISpos:vel``, ``PVT<ms>`` setting the segment time) or SPLINE1 moves at one TA [ms]."""
+    reader = _PmacReader(dialect, ctrl)
     for n, line in enumerate(lines):
         reader.line(n, line)
     return reader.moves()
@@ -29,83 +39,134 @@ def read_pmac(lines: list[str], dialect: str) -> Moves:
 class _PmacReader:
     """The state of a PMAC program read line by line (:func:`read_pmac`)."""
 
-    def __init__(self, dialect: str) -> None:
-        self.dialect = dialect
+    def __init__(self, dialect: str, ctrl: Any) -> None:
+        self.dialect, self.ctrl = dialect, ctrl
         self.comments: list[str] = []
-        self.pos: dict[str, float] = {"C": math.nan, "X": math.nan, "Y": math.nan, "Z": math.nan}
-        self.mode, self.seconds = "", math.nan
+        self.pos: dict[str, float] = {a: math.nan for a in AXES}
+        self.mode, self.seconds, self.ta_s = "", math.nan, math.nan
+        self.absolute = True
         self.points: list[dict[str, float]] = []
         self.vel: list[dict[str, float]] = []
         self.times: list[float] = []
+        # velocities in a file's units per Ix90 ms, made per second
+        self.per_second = 1000.0 / float(ctrl.ix90_ms)
+
+    def fail(self, n: int, line: str, why: str) -> DialectError:
+        return DialectError(f"line {n + 1} ({line.strip()[:60]!r}): {why}")
 
     def line(self, n: int, line: str) -> None:
-        fast = _PMAC_PLAIN.match(line) if self.points and self.mode in ("PVT", "SPLINE1") else None
+        fast = (
+            _PMAC_PLAIN.match(line)
+            if self.points and self.absolute and self.mode in ("PVT", "SPLINE1")
+            else None
+        )
         speeds = (fast.group(2), fast.group(4), fast.group(6)) if fast else ()
         if fast and all((v is None) == (self.mode == "SPLINE1") for v in speeds):
             self._plain(fast)
             return
-        text = line.split(";", 1)[0].strip().upper()
         if line.startswith("; "):
             self.comments.append(line[2:])
-        if not text or text in ("CLOSE", "ABS", "OPEN PROG 1 CLEAR"):
+        text = line.split(";", 1)[0].split("//", 1)[0].strip().upper()
+        if not text or _WHOLE_LINE.match(text):
             return
-        if text in ("RAPID", "LINEAR"):
+        squeezed, at = re.sub(r"\s+", "", text), 0
+        move: dict[str, float] = {}
+        speeds_: dict[str, float] = {}
+        for m in _STATEMENT.finditer(squeezed):
+            if m.start() != at:
+                raise self.fail(n, line, f"cannot read {squeezed[at : m.start()][:20]!r}")
+            at = m.end()
+            if m.group(6):
+                self._word(n, line, m, move, speeds_)
+            else:
+                self._statement(n, line, m)
+        if at != len(squeezed):
+            raise self.fail(n, line, f"cannot read {squeezed[at:][:20]!r}")
+        if move:
+            self._move(n, line, move, speeds_)
+
+    def _word(
+        self, n: int, line: str, m: re.Match[str], move: dict[str, float], speeds: dict[str, float]
+    ) -> None:
+        axis = m.group(6)
+        if axis not in AXES:
+            raise self.fail(n, line, f"the axis {axis} is not one of a path program's (C, X, Y, Z)")
+        move[axis] = float(m.group(7))
+        if m.group(8) is not None:
+            speeds[axis] = float(m.group(8)) * self.per_second
+
+    def _statement(self, n: int, line: str, m: re.Match[str]) -> None:
+        word, power = m.group(1), self.ctrl.pmac_syntax == "power"
+        if word in ("ABS", "INC"):
+            self.absolute = word == "ABS"
+        elif word in ("RAPID", "LINEAR"):
             if self.points:
-                raise DialectError(f"line {n + 1}: {text} after the cut: the reader takes one cut")
-            self.mode = text
-            return
-        found = re.fullmatch(r"PVT(\d+(?:\.\d+)?)", text) or re.fullmatch(r"SPLINE1\s*TA(\d+)", text)
-        if found:
-            self._segment_time(n, text, found.group(1))
-            return
-        self._move(n, line, text)
+                raise self.fail(n, line, f"{word} after the cut: the reader takes one cut")
+            self.mode = word
+        elif m.group(3) is not None:
+            self.mode = "PVT"
+            self.seconds = self._time(n, line, m.group(3), "PVT")
+        elif word == "SPLINE1" or m.group(2) is not None:
+            if (word == "SPLINE1") == power:
+                rule = "spline<ms>" if power else "SPLINE1 with TA<ms>"
+                raise self.fail(n, line, f"a {self.ctrl.pmac_syntax.title()} PMAC profile writes {rule}")
+            self.mode = "SPLINE1"
+            if m.group(2) is not None:
+                self.ta_s = self._time(n, line, m.group(2), "spline")
+        elif m.group(4) == "A":
+            self.ta_s = self._time(n, line, m.group(5), "TA")
+        # TS (S-curve time) and TM (move time) shape LINEAR moves only: the cut's segments
+        # are PVT's or SPLINE1's, timed by PVT and TA
+
+    def _time(self, n: int, line: str, ms: str, what: str) -> float:
+        value = float(ms)
+        if self.ctrl.i42 == 1 and value != round(value):
+            raise self.fail(n, line, f"{what} time {ms} ms: this controller takes whole ms (I42=1)")
+        if not 0.0 < value <= 4095.9998 + 1e-9:
+            raise self.fail(n, line, f"a segment time of {ms} ms is outside (0, 4095.9998]")
+        return value * 1e-3
 
     def _plain(self, m: re.Match[str]) -> None:
         """A cut block of :data:`_PMAC_PLAIN`'s form: what :meth:`_move` makes of it."""
         self.pos = {**self.pos, "C": float(m.group(1)), "X": float(m.group(3)), "Z": float(m.group(5))}
         self.points.append(self.pos)
         if self.mode == "PVT":
-            self.vel.append(
-                {**self.vel[-1], "C": float(m.group(2)), "X": float(m.group(4)), "Z": float(m.group(6))}
-            )
-        self.times.append(self.seconds)
+            k = self.per_second
+            v = {"C": float(m.group(2)) * k, "X": float(m.group(4)) * k, "Z": float(m.group(6)) * k}
+            self.vel.append({**self.vel[-1], **v})
+        self.times.append(self.seconds if self.mode == "PVT" else self.ta_s)
 
-    def _segment_time(self, n: int, text: str, ms: str) -> None:
-        self.mode = "PVT" if text.startswith("PVT") else "SPLINE1"
-        self.seconds = float(ms) * 1e-3
-        if not 0.0 < self.seconds <= 4.0959998 + 1e-12:
-            raise DialectError(f"line {n + 1}: a segment time of {ms} ms is outside (0, 4095.9998]")
-
-    def _move(self, n: int, line: str, text: str) -> None:
-        words = text.split()
-        parsed = [_PMAC_MOVE.match(w) for w in words]
-        if not words or not all(parsed):
-            raise DialectError(f"line {n + 1} ({line.strip()[:60]!r}): not a block the reader evaluates")
-        move = {m.group(1): float(m.group(2)) for m in parsed if m}
-        speeds = {m.group(1): float(m.group(3)) for m in parsed if m and m.group(3) is not None}
+    def _move(self, n: int, line: str, move: dict[str, float], speeds: dict[str, float]) -> None:
+        target = move if self.absolute else {a: self.pos[a] + v for a, v in move.items()}
         if self.mode in ("RAPID", "LINEAR", ""):
             if speeds or not self.mode:
-                raise DialectError(f"line {n + 1}: a move before PVT or SPLINE1, or a velocity outside PVT")
-            self.pos.update(move)
+                raise self.fail(
+                    n,
+                    line,
+                    "a move before PVT or SPLINE1 that is not RAPID or LINEAR, or a velocity outside PVT",
+                )
+            self.pos.update(target)
             return
+        if self.mode == "SPLINE1" and not self.ta_s > 0:
+            raise self.fail(n, line, "a SPLINE1 move before its segment time TA is set")
         if not self.points:
             self.points.append(dict(self.pos))
-            self.vel.append({"C": 0.0, "X": 0.0, "Y": 0.0, "Z": 0.0})  # a RAPID ends at rest
-        self.pos.update(move)
+            self.vel.append({a: 0.0 for a in AXES})  # a RAPID ends at rest
+        self.pos.update(target)
         self.points.append(dict(self.pos))
         if self.mode == "PVT":
             if set(speeds) != set(move):
-                raise DialectError(f"line {n + 1}: every PVT axis word needs its velocity (pos:vel)")
+                raise self.fail(n, line, "every PVT axis word needs its velocity (pos:vel)")
             self.vel.append({**self.vel[-1], **speeds})
-        self.times.append(self.seconds)
+        self.times.append(self.seconds if self.mode == "PVT" else self.ta_s)
 
     def moves(self) -> Moves:
         if not self.points:
             raise DialectError("no PVT or SPLINE1 move: nothing to predict")
-        cols = {a: np.array([p[a] for p in self.points]) for a in "CXYZ"}
+        cols = {a: np.array([p[a] for p in self.points]) for a in AXES}
         # Y is a four-axis program's: given at the start or never
         axes = "CXYZ" if np.isfinite(cols["Y"][0]) else "CXZ"
-        for axis in "CXYZ":
+        for axis in AXES:
             if axis in axes and not np.all(np.isfinite(cols[axis])):
                 raise DialectError(f"the cut starts before {axis} is given a position")
             if axis not in axes and np.any(np.isfinite(cols[axis])):

@@ -1,9 +1,10 @@
 """The controller entry of a machine (docs/controllers.md): the dialect its path programs are
-written in, how it forms the path between points, and its limits."""
+written in, how it forms the path between points, its limits, and every convention a program
+depends on (the controller's profile), so that a program is read as that controller reads it."""
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, Optional
 
 from pydantic import Field, PositiveFloat, PositiveInt, model_validator
 
@@ -18,10 +19,24 @@ DIALECT_INTERPOLATION = {
     "pmac-spline": "spline1",
 }
 
+# a profile's conventions where an entry leaves them unset: what each dialect's controller does
+# at power-on with its factory parameters (docs/controllers.md, "Controller profiles")
+DIALECT_CONVENTIONS: dict[str, dict[str, object]] = {
+    "linuxcnc": {
+        "whole_number_words": "mm",
+        "power_on_motion": "none",
+        "g93_f_every_block": True,
+        "dwell_p": "s",
+        "c_wrap": "cumulative",
+    },
+}
+
 
 class Controller(Strict):
     """The controller that runs a machine's path programs (docs/controllers.md): the dialect
-    it reads, how it forms the path between points, and its limits."""
+    it reads, how it forms the path between points, its limits, and its profile — the
+    conventions a program depends on (units of a word without a decimal point, power-on modal
+    state, what G93's F means, dwell and offset codes, PMAC's time units)."""
 
     dialect: Literal["text", "iso-sts", "pmac-pvt", "pmac-spline", "linuxcnc"] = Field(
         "text", description="program dialect export writes by default"
@@ -33,8 +48,49 @@ class Controller(Strict):
     )
     g93_f: Literal["inverse_minutes", "seconds"] = Field(
         "inverse_minutes",
-        description="meaning of F under G93: 1/(block time in minutes) (ISO, LinuxCNC) or the block "
-        "time in seconds",
+        description="meaning of F under G93: 1/(block time in minutes) (RS274, LinuxCNC, Fanuc) or the "
+        "block time in seconds (Moore, Beckhoff)",
+    )
+    g93_f_every_block: bool = Field(
+        False, description="every G93 motion block must carry its own F (LinuxCNC); else F is modal"
+    )
+    f_min: Optional[PositiveFloat] = Field(None, description="least F a block may carry (none: unchecked)")
+    f_max: Optional[PositiveFloat] = Field(None, description="largest F a block may carry (none: unchecked)")
+    whole_number_words: Literal["mm", "increments", "refuse"] = Field(
+        "refuse",
+        description="an axis word without a decimal point (X1): millimetres (Moore, LinuxCNC), least "
+        "input increments of input_increment_um (Fanuc without decimal-point programming), or refused "
+        "as ambiguous",
+    )
+    input_increment_um: PositiveFloat = Field(
+        1.0, description="the least input increment a whole-number word counts [µm] (Fanuc IS-B: 1)"
+    )
+    power_on_motion: Literal["G00", "G01", "none"] = Field(
+        "G00",
+        description="motion mode before the program sets one: rapid, linear (Moore), or none (LinuxCNC: "
+        "an axis word before G0/G1 is an error)",
+    )
+    power_on_feed: Literal["G93", "G94"] = Field("G94", description="feed mode before the program sets one")
+    power_on_distance: Literal["G90", "G91"] = Field("G90", description="absolute or incremental at power-on")
+    dwell_p: Literal["ms", "s"] = Field(
+        "ms", description="units of G04's P word (Fanuc, Moore: ms; LinuxCNC: s); G04 X is always seconds"
+    )
+    servo_period_s: Optional[PositiveFloat] = Field(
+        None,
+        description="the controller's interpolation period [s]: no block may take less (none: unchecked)",
+    )
+    ix90_ms: PositiveFloat = Field(
+        1000.0,
+        description="PMAC Ix90 (Isx90 on Power PMAC): the time unit of PVT velocities and feed rates [ms]; "
+        "1000: per second, 60000: per minute",
+    )
+    i42: Literal[0, 1] = Field(
+        0,
+        description="Turbo PMAC I42: 0, PVT times in ms with 1/4 µs resolution up to 4,095.9998 ms; 1, "
+        "whole ms",
+    )
+    pmac_syntax: Literal["turbo", "power"] = Field(
+        "turbo", description="Turbo PMAC (PVT<ms>, SPLINE1 TA<ms>) or Power PMAC (pvt<ms>, spline<ms>)"
     )
     time_quantum_s: PositiveFloat = Field(
         1e-6, description="resolution of a segment's time [s] (PMAC PVT: 0.25 µs; SPLINE1: 1 ms)"
@@ -46,6 +102,13 @@ class Controller(Strict):
     )
     max_blocks: PositiveInt = Field(50_000_000, description="most program blocks the controller accepts")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _dialect_conventions(cls, data: object) -> object:
+        if isinstance(data, dict):
+            return {**DIALECT_CONVENTIONS.get(str(data.get("dialect")), {}), **data}
+        return data
+
     @model_validator(mode="after")
     def _dialect_matches(self) -> Controller:
         want = DIALECT_INTERPOLATION[self.dialect]
@@ -54,4 +117,24 @@ class Controller(Strict):
                 f"dialect {self.dialect} commands {want} interpolation, but interpolation is "
                 f"{self.interpolation}"
             )
+        if self.f_min is not None and self.f_max is not None and self.f_min > self.f_max:
+            raise ValueError(f"f_min {self.f_min:g} is above f_max {self.f_max:g}")
         return self
+
+    def conventions(self) -> list[str]:
+        """The conventions a program of this controller's dialect relies on, in the
+        controller's words (each exported file's header states them; verify compares)."""
+        if self.dialect.startswith("pmac"):
+            step = "whole ms" if self.i42 else "ms, 1/4 us steps"
+            ta = "PVT" if self.interpolation == "pvt" else "SPLINE1"
+            return [
+                f"Ix90={self.ix90_ms:g} velocity per {self.ix90_ms / 1000.0:g} s, I42={self.i42} "
+                f"segment time {step}, {self.pmac_syntax.title()} PMAC {ta} syntax, ABS"
+            ]
+        f = "block time in s" if self.g93_f == "seconds" else "1/block time in 1/min"
+        words = {"mm": "mm", "increments": f"{self.input_increment_um:g} um increments", "refuse": "refused"}
+        return [
+            f"G93 F = {f}{' on every block' if self.g93_f_every_block else ''}, power-on "
+            f"{self.power_on_motion} {self.power_on_feed} {self.power_on_distance}, axis words without a "
+            f"point {words[self.whole_number_words]}, G04 P in {self.dwell_p}, C {self.c_wrap}"
+        ]

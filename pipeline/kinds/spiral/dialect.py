@@ -12,8 +12,10 @@ import numpy as np
 from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.planning import layer_plan
 from ftsweep.exports.dialects import Adapter, DialectError, Moves
+from ftsweep.exports.moves import pvt_tangents
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages.interpolation import segments
+from ftsweep.stages.paths.commanded import CommandedPath
 from ftsweep.stages.paths.spiral import SpiralPath, angular_speed, spiral_commands, spiral_radius
 
 
@@ -159,8 +161,48 @@ def _simulate(
 ) -> dict[str, Any]:
     """The case with its program as ``moves`` command it (a layered program's single pass
     through the planned spiral's ``rcase``: :func:`single_pass`)."""
+    if rcase is None:  # a program from elsewhere: every pass it makes, as its controller makes it
+        return run_case(case, specs=specs, progress=progress, program=commanded_of(moves))
     program = program_of(moves) if moves.w_mm is None else single_pass(moves, rcase)
     return run_case(case, specs=specs, progress=progress, program=program)
+
+
+def commanded_of(moves: Moves) -> tuple[CommandedPath, np.ndarray]:
+    """A program's moves as the path the one simulator follows and its tool tip's Z [µm]
+    (Z + W for a layered program): C in rad times the spindle's sense, so that the angle
+    increases, X in µm; the segments the controller forms (PVT: the velocities' tangents;
+    SPLINE1: the B-spline's way-points and tangents over each cut's control points)."""
+    if moves.y_mm is not None and np.any(moves.y_mm != 0.0):
+        raise DialectError(
+            "a program that moves Y (a four-axis program) is predicted from its export (ftsweep verify "
+            "FILE); predict --program simulates C-X-Z(-W) lathe programs"
+        )
+    c = np.radians(moves.c_deg)
+    sense = -1.0 if c[-1] < c[0] else 1.0
+    angle, rho = sense * c, moves.x_mm * 1e3
+    z = moves.z_mm * 1e3 + (0.0 if moves.w_mm is None else moves.w_mm * 1e3)
+    starts = np.array([lo for lo, _ in moves.cuts()], dtype=np.int64)
+    for lo, hi in moves.cuts():
+        if np.any(np.diff(angle[lo:hi]) <= 0.0):
+            k = lo + int(np.flatnonzero(np.diff(angle[lo:hi]) <= 0.0)[0]) + 1
+            raise DialectError(
+                f"point {k + 1}: C stands still or turns back within a cut; the spindle turns one way"
+            )
+    tangents = None
+    if moves.interpolation == "pvt":
+        tangents = pvt_tangents(moves, "CXZ")
+        tangents[:, 0:2] *= sense
+    elif moves.interpolation == "spline1":
+        tangents = np.empty((moves.n_points - 1, 6))
+        for lo, hi in moves.cuts():
+            for k, chan in enumerate((angle, rho, z)):
+                way, d0, d1 = segments.bspline_segments(chan[lo:hi])
+                chan[lo:hi] = way
+                tangents[lo : hi - 1, 2 * k], tangents[lo : hi - 1, 2 * k + 1] = d0, d1
+    path = CommandedPath(
+        "spiral", angle, rho, starts, sense, moves.interpolation, tangents, np.asarray(moves.seconds)
+    )
+    return path, z
 
 
 def single_pass(moves: Moves, rcase: Any) -> tuple[SpiralPath, np.ndarray]:

@@ -25,6 +25,7 @@ from ftsweep.kinds.spiral.options import spiral_options
 from ftsweep.kinds.spiral.request import SpiralRequest
 from ftsweep.stages.interpolation import segments
 from ftsweep.stages.paths import cusp_budget, spiral
+from ftsweep.stages.paths.commanded import CommandedPath
 
 AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")
 
@@ -48,6 +49,8 @@ def plan_spiral(
     if program is not None:
         path, values = program
         values = np.asarray(values, dtype=np.float64)
+        if isinstance(path, CommandedPath):  # any program read from a file: cut where it cuts
+            return path, {"values": values, "gouge": np.zeros(values.shape, dtype=bool)}
         if path.rho0_um < rho0 * (1.0 - 1e-9):
             raise CaseError(
                 f"the program's spiral starts at radius {path.rho0_um / 1e3:.6g} mm, inside the part's "
@@ -270,7 +273,8 @@ def _plan(p: Planning) -> tuple[spiral.SpiralPath, dict[str, Any]]:
 
 def _record_fields(rcase: Any) -> dict[str, Any]:
     case, layout = rcase.case, rcase.layout
-    rule, value = case.layout.spiral_rule()
+    # a program read from a file follows no rule of its own request's
+    rule, value = ("program", math.nan) if isinstance(layout, CommandedPath) else case.layout.spiral_rule()
     return {
         "spiral_rule": rule,
         "points_per_rev": value if rule == "angle" else math.nan,
@@ -316,6 +320,7 @@ def _describe(r: dict[str, Any]) -> list[str]:
         "angle": f"{r['points_per_rev']:g} points per revolution",
         "arc": f"a point every {r['arc_um']:g} µm of path",
         "chord": f"chord budget {r['chord_um']:g} µm (largest chord error {r['chord_error_nm']:.1f} nm)",
+        "program": "as the program file places them",
     }[r["spiral_rule"]]
     budget = (
         f"from the residual budget {r['residual_um']:g} µm" if math.isfinite(r["residual_um"]) else "given"
@@ -324,7 +329,8 @@ def _describe(r: dict[str, Any]) -> list[str]:
         f"program      spiral: {r['n_points']:,} points, {rule}",
         f"steps        mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm along the path, "
         f"{r['revolutions']:.4g} revolutions  (α = {r['aspect_actual']:.4g} µm/deg)",
-        f"feed         {r['feed_um']:.4g} µm/rev ({budget}); largest residual (cusp) "
+        f"feed         {r['feed_um']:.4g} µm/rev ({budget if r['spiral_rule'] != 'program' else 'median'}); "
+        "largest residual (cusp) "
         f"{r['residual_error_nm']:.1f} nm from the section curvature",
     ]
 
@@ -339,6 +345,16 @@ def _check_sweep(spec: Any) -> None:
         )
     if spec.axes.get("residual_um") is not None and spec.axes.feed_um is not None:
         raise ValueError("axes.residual_um sets the feed: give it or axes.feed_um, not both")
+
+
+def _simulation(inputs: Any, timer: Any) -> Any:
+    """The line engine for a planned spiral; a program read from a file (a
+    :class:`CommandedPath`) is sampled on rays by the passes it makes."""
+    if isinstance(inputs.rcase.layout, CommandedPath):
+        from ftsweep.kinds.spiral.commanded import CommandedSimulation
+
+        return CommandedSimulation(inputs, timer)
+    return LineSimulation(inputs, timer)
 
 
 def _file_format() -> Any:
@@ -385,7 +401,7 @@ SPIRAL = ProgramKind(
     plan=_plan,
     record_fields=_record_fields,
     cost=_cost,
-    simulation=LineSimulation,
+    simulation=_simulation,
     pitch_text=_pitch,
     point_text=_point,
     angular_cells=_cells,

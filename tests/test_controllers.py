@@ -135,6 +135,45 @@ def test_an_iso_sts_export_predicts_the_cubes_pv_and_verifies(moore):
     assert v.exit_code == 0, v.output
 
 
+def _predicted(tmp_path: Path, name: str, machine: str, cutting: str, axis: str) -> tuple[Path, dict]:
+    """A spiral case's cube, and predict --program's reading of its export."""
+    cube = _sweep(tmp_path, name, SPIRAL.format(m=machine, c=cutting, axis=axis))
+    out = tmp_path / f"{name}.pmc"
+    r = CliRunner().invoke(main, ["export", str(cube), "--case", "0", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(
+        main,
+        ["predict", "--program", str(out), "--surface", "sinusoidal_mesh", "--cutting", cutting, "--json"],
+    )
+    assert r.exit_code == 0, r.output
+    return cube, json.loads(r.output)
+
+
+def test_a_pvt_program_read_back_predicts_the_cubes_part(tmp_path):
+    """Two samplings of one program agree: the cube's (the planned spiral through the line
+    engine) and predict --program's (the file's PVT segments as the passes they make over
+    rays, no spiral assumed). 2 %: the file's part is judged only on the ring its passes
+    fully machine, the cube's to the aperture's edge (its spiral continued beyond its start)."""
+    import xarray as xr
+
+    cube, got = _predicted(tmp_path, "pvt", "sts-pmac-pvt", "seed003", "chord_um: [1.0]")
+    assert got["interpolation"] == "pvt"
+    assert got["pv_nm"] == pytest.approx(float(xr.open_zarr(cube)["pv_nm"].values.ravel()[0]), rel=0.02)
+
+
+def test_spline1_and_pvt_files_of_the_same_points_predict_the_same_part(tmp_path):
+    """On evenly spaced points the natural spline a PVT file's velocities come from and the
+    B-spline of a SPLINE1 file's control points are one cubic (docs/controllers.md): read
+    back through their own segment forms (Hermite velocities; B-spline way-points), the two
+    files predict one part, to the files' rounding (positions and velocities printed at
+    6 decimals, 1 nm: 0.03 % of the P-V here, hence 1e-3)."""
+    _, pvt = _predicted(tmp_path, "p", "sts-pmac-pvt", "seed003-6rpm", "points_per_rev: [500]")
+    _, spline = _predicted(tmp_path, "s", "sts-pmac-spline", "seed003-6rpm", "points_per_rev: [500]")
+    assert (pvt["interpolation"], spline["interpolation"]) == ("pvt", "spline1")
+    assert spline["pv_nm"] == pytest.approx(pvt["pv_nm"], rel=1e-3)
+    assert spline["rms_nm"] == pytest.approx(pvt["rms_nm"], rel=1e-3)
+
+
 def test_predict_program_draws_its_error_map(moore, tmp_path):
     _, out = moore
     png = tmp_path / "map.png"

@@ -254,6 +254,7 @@ def _predict_program(opts: dict[str, Any]) -> None:
             opts["g93_f"],
             progress,
             map_bins=160 if opts["map_png"] else None,
+            nose_radius_um=opts["nose_radius_um"],
         )
     except (nc.ProgramError, CaseError, CatalogError, SurfaceLoadError) as exc:
         raise click.ClickException(str(exc)) from None
@@ -265,6 +266,11 @@ def _predict_program(opts: dict[str, Any]) -> None:
     if opts["as_json"]:
         echo_json({k: v for k, v in info.items() if not str(k).startswith("error_map")})
         return
+    _echo_program(info)
+
+
+def _echo_program(info: dict[str, Any]) -> None:
+    """``predict --program``'s summary: the program as read, its motion, and its prediction."""
     feed = info["feed_um_per_rev"]
     click.echo(f"program      {info['program']} ({info['dialect']}, {info['interpolation']} segments)")
     click.echo(f"machine      {info['machine']} ({info['machine_from']})")
@@ -273,10 +279,18 @@ def _predict_program(opts: dict[str, Any]) -> None:
         f"({info['points_per_rev']:.4g} per revolution on average)"
         + (f" in {info['cuts']:,} cuts" if info["cuts"] > 1 else "")
     )
+    ppr, rpm = info["points_per_rev_range"], info["spindle_rpm_range"]
     click.echo(
-        f"feed         {feed['min']:.4g} / {feed['median']:.4g} / {feed['max']:.4g} µm/rev "
-        f"(min / median / max); spindle {info['spindle_rpm']:.4g} rpm; {info['machining_s']:.4g} s"
+        f"feed         {feed['min']:.4g} / {feed['median']:.4g} / {feed['max']:.4g} µm/rev; points per "
+        f"revolution {ppr['min']:.4g} / {ppr['median']:.4g} / {ppr['max']:.4g} (min / median / max)"
     )
+    click.echo(
+        f"spindle      {rpm['min']:.4g} / {rpm['median']:.4g} / {rpm['max']:.4g} rpm, "
+        f"{info['spindle_direction']}; {info['machining_s']:.4g} s cutting"
+        + (f", {info['dwell_s']:.4g} s dwelling" if info["dwell_s"] else "")
+    )
+    for line in info["conventions"]:
+        click.echo(f"read as      {line}")
     for name, a in info["axes"].items():
         unit = name.rsplit("_", 2)[-2] + "/" + name.rsplit("_", 1)[-1]
         limit = (
@@ -287,9 +301,26 @@ def _predict_program(opts: dict[str, Any]) -> None:
         click.echo(f"{name[:7]:<12} peak {a['peak']:.4g} {unit} on machine {info['machine']} ({limit})")
     for note in info["notes"]:
         click.echo(f"note         {note}")
-    if "record" in info:  # the stand-in request's rule lines say nothing of this program
-        lines = summary_text(info["record"]).split("\n")
-        click.echo("\n".join(x for x in lines if not x.startswith(("program ", "steps "))))
+    if "record" in info:
+        _echo_prediction(info)
+
+
+def _echo_prediction(info: dict[str, Any]) -> None:
+    """The predicted part of ``predict --program`` (the stand-in request's rule lines say
+    nothing of the program, so they are left out)."""
+    lines = summary_text(info["record"]).split("\n")
+    click.echo("\n".join(x for x in lines if not x.startswith(("program ", "steps "))))
+    if "judged_radii_mm" in info:
+        (lo, hi), (a, b) = info["judged_radii_mm"], info["cut_radii_mm"]
+        click.echo(
+            f"judged       from radius {lo:.4g} to {hi:.4g} mm: the program cuts {a:.4g} to {b:.4g} mm, "
+            "less its edge bands"
+        )
+    for name, at in info["extremes"].items():
+        click.echo(
+            f"{name:<12} {at['error_nm']:+.4g} nm at x = {at['x_mm']:.4g} mm, y = {at['y_mm']:.4g} mm "
+            f"(r = {at['r_mm']:.4g} mm)"
+        )
 
 
 def _save_map(info: dict[str, Any], out: str) -> None:

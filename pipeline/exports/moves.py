@@ -112,9 +112,20 @@ def _stats(values: np.ndarray) -> dict[str, float]:
     return {"min": float(v.min()), "median": float(np.median(v)), "max": float(v.max())}
 
 
+def _feeds(turn: np.ndarray, x_um: np.ndarray) -> np.ndarray:
+    """X's drop [µm] over the revolution after each point of a cut that has a whole revolution
+    after it (printed positions' rounding averages out over a revolution, where a block's own
+    drop of a few nm does not); a cut of less than a revolution: its blocks' drop per turn."""
+    on = turn + 1.0 <= turn[-1]
+    if np.any(on):
+        return x_um[on] - np.interp(turn[on] + 1.0, turn, x_um)
+    dx, dturn = -np.diff(x_um), np.diff(turn)
+    return np.divide(dx, dturn, out=np.full(dx.shape, np.nan), where=dturn > 0)
+
+
 def summary(m: Moves) -> dict[str, Any]:
-    """Points, revolutions, points per revolution, the feed per revolution [µm] (from X's
-    drop per revolution of C), the time [s] and the spindle speed [rpm] of a program's moves,
+    """Points, revolutions, points per revolution, the feed per revolution [µm] (X's drop
+    over a revolution of C, :func:`_feeds`), the time [s] and the spindle speed [rpm] of a program's moves,
     over its cuts (a layered program's approach moves between cuts left out); the spindle
     either way (revolutions counted as turned). Feed, points per revolution (per whole
     revolution turned) and spindle speed (per block) also as min / median / max."""
@@ -124,11 +135,10 @@ def summary(m: Moves) -> dict[str, Any]:
         revs += float(turn[-1])
         dt = m.seconds[lo : hi - 1]
         seconds += float(np.sum(dt))
-        dx = -np.diff(m.x_mm[lo:hi]) * 1e3
+        feeds.append(_feeds(turn, m.x_mm[lo:hi] * 1e3))
         dturn = np.diff(turn)
-        feeds.append(np.divide(dx, dturn, out=np.full(dx.shape, np.nan), where=dturn > 0))
         rpm.append(np.divide(dturn * 60.0, dt, out=np.full(dt.shape, np.nan), where=dt > 0))
-        whole = np.floor(turn[1:])
+        whole = np.maximum(np.ceil(turn[1:]) - 1.0, 0.0)  # a point ending a revolution counts in it
         counts.append(np.bincount(whole.astype(np.int64))[: int(turn[-1])].astype(np.float64))
     direction = "C decreasing" if m.n_points > 1 and m.c_deg[-1] < m.c_deg[0] else "C increasing"
     return {

@@ -450,6 +450,7 @@ def predict_program(
     g93_f: Optional[str] = None,
     progress: Any = None,
     map_bins: Optional[int] = None,
+    nose_radius_um: Optional[float] = None,
 ) -> dict[str, Any]:
     """Read a path program in any supported dialect (ftsweep's or another CAM's) as the
     profile of its machine (``machine``, else the one its header names, else its dialect's
@@ -457,7 +458,8 @@ def predict_program(
     peak axis speeds and accelerations against the machine's limits) and, with a
     ``surface``, predict the form error it leaves (with ``map_bins``, its error map) through
     the one simulator, as the program kind that reads programs from elsewhere (its adapter's
-    ``stand_in``) simulates it (docs/controllers.md)."""
+    ``stand_in``) simulates it, with the ``cutting`` entry's tool or ``nose_radius_um`` [µm]
+    (docs/controllers.md)."""
     from ftsweep.inputs import catalogs
 
     lines = read_lines(Path(path), strict=False)  # read once: its moves and the machine it names
@@ -486,13 +488,40 @@ def predict_program(
         return info
     kind, adapter = _foreign_reader()
     case = adapter.stand_in(surface, machine, cutting or "reference")  # type: ignore[misc]
-    if map_bins:
-        res = case.resolution.model_copy(update={"error_map_bins": map_bins})
-        case = case.model_copy(update={"resolution": res})
+    # a map always: it says where the error's extremes lie
+    res = case.resolution.model_copy(update={"error_map_bins": map_bins or WHERE_BINS})
+    case = case.model_copy(update={"resolution": res})
+    if nose_radius_um is not None:
+        case = case.model_copy(update={"nose_radius_um": nose_radius_um})
     record = adapter.simulate(case, None, moves, progress, None)
     info.update({k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "nose_radius_um", "feed_um")})
-    info.update(surface=surface, kind=kind, record=record)
+    info.update(surface=surface, kind=kind, record=record, extremes=extremes(record))
+    for key in ("cut_radii_mm", "judged_radii_mm"):
+        if key in record:
+            info[key] = list(record[key])
+    if not map_bins:
+        record = {k: v for k, v in record.items() if not k.startswith("error_map")}
+        info["record"] = record
     return info
+
+
+# bins per side of the map that locates a program's highest and lowest error
+WHERE_BINS = 64
+
+
+def extremes(record: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """Where a predicted part's form error is highest and lowest: the centres [mm] of the
+    error map's bins whose peak error [nm] is the largest and the least, with those errors."""
+    peak = np.asarray(record["error_map_peak_nm"], dtype=np.float64)
+    centres = np.asarray(record["error_map_x_um"], dtype=np.float64) * 1e-3
+    if not np.any(np.isfinite(peak)):
+        return {}
+    out = {}
+    for name, at in (("highest", np.nanargmax(peak)), ("lowest", np.nanargmin(peak))):
+        iy, ix = np.unravel_index(int(at), peak.shape)
+        x, y = float(centres[ix]), float(centres[iy])
+        out[name] = {"x_mm": x, "y_mm": y, "r_mm": float(np.hypot(x, y)), "error_nm": float(peak[iy, ix])}
+    return out
 
 
 # the machine a program is read against when neither --machine nor the file names one

@@ -21,7 +21,7 @@ _PMAC_PLAIN = re.compile(
 )
 # one statement of a line whose spaces are removed: a mode, a time, or an axis word
 _STATEMENT = re.compile(
-    rf"(SPLINE1|SPLINE({_NUM})|PVT({_NUM})|T([AMS])({_NUM})|ABS|INC|RAPID|LINEAR|([A-Z])({_NUM})(?::({_NUM}))?)"
+    rf"(SPLINE({_NUM})|PVT({_NUM})|T([AMS])({_NUM})|ABS|INC|RAPID|LINEAR|([A-Z])({_NUM})(?::({_NUM}))?)"
 )
 _WHOLE_LINE = re.compile(r"^(OPEN\s+PROG\s*\d+(\s+CLEAR)?|CLOSE|CLEAR|END\s+GATHER|DWELL\s*0)$")
 AXES = "CXYZ"
@@ -106,12 +106,12 @@ class _PmacReader:
         elif m.group(3) is not None:
             self.mode = "PVT"
             self.seconds = self._time(n, line, m.group(3), "PVT")
-        elif word == "SPLINE1" or m.group(2) is not None:
-            if (word == "SPLINE1") == power:
-                rule = "spline<ms>" if power else "SPLINE1 with TA<ms>"
-                raise self.fail(n, line, f"a {self.ctrl.pmac_syntax.title()} PMAC profile writes {rule}")
+        elif m.group(2) is not None:
+            # Turbo PMAC: SPLINE1 the mode, TA its time; Power PMAC: spline<ms>, the time in it
+            if not power and m.group(2) != "1":
+                raise self.fail(n, line, "a Turbo PMAC profile writes SPLINE1 with TA<ms>")
             self.mode = "SPLINE1"
-            if m.group(2) is not None:
+            if power:
                 self.ta_s = self._time(n, line, m.group(2), "spline")
         elif m.group(4) == "A":
             self.ta_s = self._time(n, line, m.group(5), "TA")

@@ -153,6 +153,7 @@ class CommandedSimulation:
             feasible=feasible,
             infeasible_reason=reason,
             cut_radii_mm=self.span_mm,
+            judged_radii_mm=(float(self.nodes[0]) / 1e3, float(self.nodes[-1]) / 1e3),
         )
         record.update(layer_record(rcase, None, dyn.stroke_um))
         return record

@@ -1,0 +1,350 @@
+"""Programs written as shops' CAM and controllers' manuals write them, read as their
+controller reads them (the machine's profile, docs/controllers.md) and predicted: each with
+its expected summary, and where ftsweep can predict it an independent expected form error
+(the cusp height f²/8r of a constant-feed turn on a flat part, model §5)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from ftsweep.cli.main import main
+from ftsweep.exports import dialects, nc
+from ftsweep.inputs.controllers import Controller
+
+# the part: a 0.5 mm spiral at 10 µm/rev, 1° a block (360 points a revolution, 50
+# revolutions), each block 1 ms (F0.001 read as seconds per block: 1000°/s, 166.7 rpm)
+RADIUS_MM, FEED_UM, STEP_DEG, BLOCK_S = 0.5, 10.0, 1.0, 0.001
+REVS = round(RADIUS_MM * 1e3 / FEED_UM)
+N_BLOCKS = REVS * round(360 / STEP_DEG)
+NOSE_UM = 500.0
+CUSP_NM = FEED_UM**2 / (8.0 * NOSE_UM) * 1e3  # 25 nm
+
+
+def points(reverse: bool = False, feed_um: float = FEED_UM, g: str = "") -> list[str]:
+    """The point blocks a CAM writes: C modulo 360 at 6 decimals, X and Z in mm, no G word
+    (G01 is modal), F once before them (``g``: a G word on every block, e.g. 'G01 ')."""
+    out = []
+    for k in range(1, N_BLOCKS + 1):
+        c = (k * STEP_DEG) % 360.0
+        c = (360.0 - c) % 360.0 if reverse else c
+        x = RADIUS_MM - k * STEP_DEG / 360.0 * feed_um * 1e-3
+        out.append(f"{g}C{c:.6f} X{x:.6f} Z0.000000")
+    return out
+
+
+def moore_650fg(body: list[str] | None = None, passes: int = 3) -> str:
+    """A program as another tool writes it for a Moore Nanotech 650FG: a macro header, the
+    passes in a WHILE loop each under its own G52 Z offset (the last at 0), whole-mm words,
+    G93 point blocks without a G word, M26.1 … M29 M30."""
+    blocks = points() if body is None else body
+    head = f"""%
+O0100
+(STS PROGRAM FOR MOORE NANOTECH 650FG - FLAT, R0.5 TOOL)
+#1={passes} (PASSES)
+#2=0.002 (DEPTH OF CUT MM)
+#3=1 (PASS)
+G52 G63 G71 G103 G40 G18 G90
+G54
+T0101
+M78
+M26.1
+WHILE [#3 LE #1] DO1
+#8=[#1-#3]*#2
+G52 Z[#8]
+G94 Z20 F500
+X{RADIUS_MM:.1f} C0.
+Z0.1
+Z0.
+G93 F{BLOCK_S:g}"""
+    tail = """G94 Z20 F500
+#3=#3+1
+END1
+G52
+M29
+M30
+%"""
+    return "\n".join([head, *blocks, tail]) + "\n"
+
+
+def predict(tmp_path: Path, text: str, *args: str) -> tuple[int, str]:
+    path = tmp_path / "part.nc"
+    path.write_text(text)
+    r = CliRunner().invoke(main, ["predict", "--program", str(path), *args, "--json"])
+    return r.exit_code, r.output
+
+
+def _read(text: str, machine: str = "sts-moore") -> dialects.Moves:
+    lines = text.rstrip("\n").split("\n")
+    return dialects.read(lines, dialects.detect(lines), nc.profile_for(machine, dialects.detect(lines)))
+
+
+@pytest.fixture(scope="module")
+def flat_catalogs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from conftest import make_catalog_dir
+
+    return make_catalog_dir(tmp_path_factory.mktemp("shop") / "catalogs")
+
+
+def test_a_moore_program_from_another_tool_is_read_as_published(tmp_path):
+    code, out = predict(tmp_path, moore_650fg(), "--machine", "sts-moore")
+    assert code == 0, out
+    got = json.loads(out)
+    # every pass is a cut of the file's points: its start and its N blocks
+    assert got["cuts"] == 3 and got["n_points"] == 3 * (N_BLOCKS + 1)
+    assert got["revolutions"] == pytest.approx(3 * REVS, rel=1e-9)
+    assert got["points_per_rev"] == pytest.approx(360.0, rel=1e-9)
+    assert got["points_per_rev_range"] == {"min": 360.0, "median": 360.0, "max": 360.0}
+    assert got["feed_um_per_rev"]["median"] == pytest.approx(FEED_UM, rel=1e-4)
+    # F0.001 as seconds per block: 1° a ms, a lathe's 166.7 rpm
+    assert got["spindle_rpm"] == pytest.approx(STEP_DEG / 360.0 / BLOCK_S * 60.0, rel=1e-6)
+    assert got["spindle_direction"] == "C increasing"
+    assert "G93 F = block time in s" in got["conventions"][0]
+    assert got["machining_s"] == pytest.approx(3 * N_BLOCKS * BLOCK_S, rel=1e-9)
+
+
+def test_its_g52_offsets_set_each_pass_and_its_z20_is_whole_mm():
+    moves = _read(moore_650fg())
+    for k, (lo, hi) in enumerate(moves.cuts()):
+        # each cut starts where the approach left the tool: Z0. at its pass's offset
+        offset = (2 - k) * 0.002
+        np.testing.assert_allclose(moves.z_mm[lo:hi], offset, atol=1e-12)
+    assert any("G52" in n for n in moves.notes)
+
+
+def test_its_form_error_is_the_feeds_cusp(tmp_path, flat_catalogs):
+    """On a flat part the last pass leaves the cusps f²/8r between its turns (model §5)."""
+    code, out = _with_catalogs(
+        flat_catalogs, tmp_path, moore_650fg(), "--surface", "flat", "--nose-radius-um", str(NOSE_UM)
+    )
+    assert code == 0, out
+    got = json.loads(out)
+    # the peaks are the exact arcs' meeting points; the valleys lie within a node step
+    assert got["pv_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    assert got["extremes"]["highest"]["error_nm"] > got["extremes"]["lowest"]["error_nm"]
+
+
+def _with_catalogs(folder: Path, tmp_path: Path, text: str, *args: str) -> tuple[int, str]:
+    path = tmp_path / "part.nc"
+    path.write_text(text)
+    r = CliRunner().invoke(
+        main,
+        ["predict", "--program", str(path), "--machine", "sts-moore", *args, "--json"],
+        env={"FTSWEEP_CATALOGS": str(folder)},
+    )
+    return r.exit_code, r.output
+
+
+# ------------------------------------------------------------- each misreading, modelled or refused
+def test_f_read_as_inverse_minutes_is_refused_naming_the_convention(tmp_path):
+    code, out = predict(tmp_path, moore_650fg(), "--machine", "sts-moore", "--g93-f", "inverse_minutes")
+    assert code == 1
+    # 1° in 1000 minutes: 2.8e-06 rpm
+    assert "line 20: G93 F0.001 as inverse minutes gives a spindle of 2.78e-06 rpm" in out
+    assert "see machine.controller.g93_f" in out
+
+
+def test_a_dwell_is_time_not_a_move():
+    text = moore_650fg(passes=1).replace("Z0.\nG93", "Z0.\nG04 X1.0\nG04 P500\nG93")
+    moves = _read(text)
+    assert moves.dwell_s == pytest.approx(1.5)  # X in s, P in ms on this profile
+    assert moves.x_mm[0] == pytest.approx(RADIUS_MM)  # X1.0 of the dwell moved nothing
+    linuxcnc = Controller(dialect="linuxcnc", interpolation="linear")
+    assert linuxcnc.dwell_p == "s"  # LinuxCNC's P is seconds
+
+
+def test_a_spindle_turning_the_other_way_is_read_and_predicted(tmp_path, flat_catalogs):
+    text = moore_650fg(points(reverse=True), passes=1)
+    code, out = _with_catalogs(
+        flat_catalogs, tmp_path, text, "--surface", "flat", "--nose-radius-um", str(NOSE_UM)
+    )
+    assert code == 0, out
+    got = json.loads(out)
+    assert got["spindle_direction"] == "C decreasing"
+    assert got["revolutions"] == pytest.approx(REVS, rel=1e-9)
+    assert got["spindle_rpm"] == pytest.approx(STEP_DEG / 360.0 / BLOCK_S * 60.0, rel=1e-6)
+    assert got["pv_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+
+
+def test_c_turning_back_within_a_cut_is_refused_by_line():
+    body = points()[:50] + ["C45.000000 X0.49 Z0.0"]
+    with pytest.raises(dialects.DialectError, match=r"line 70 .*C turns back"):
+        _read(moore_650fg(body, passes=1))
+
+
+def test_linuxcnc_needs_f_on_every_inverse_time_block(tmp_path):
+    text = LINUXCNC.format(f_rest="")
+    with pytest.raises(dialects.DialectError, match=r"line 6 .*without its own F"):
+        _read(text, "sts-linuxcnc")
+    good = _read(LINUXCNC.format(f_rest=" F60000.0"), "sts-linuxcnc")
+    assert good.n_points == 4 and np.allclose(good.seconds, 0.001)
+    rs274 = shutil.which("rs274")
+    if rs274 is not None:  # LinuxCNC's own interpreter refuses the same file
+        path = tmp_path / "f.ngc"
+        path.write_text(text)
+        run = subprocess.run([rs274, "-g", str(path)], capture_output=True, text=True, timeout=60)
+        assert run.returncode != 0 and "F word missing with inverse time" in run.stdout + run.stderr
+
+
+LINUXCNC = """G21 G18 G90 G40 G49 G61
+G0 X1.0 C0.0
+G1 Z0.0 F10.0
+G93
+G1 C1.0 X0.99997 Z0.0 F60000.0
+G1 C2.0 X0.99994 Z0.0{f_rest}
+G1 C3.0 X0.99992 Z0.0{f_rest}
+G94
+M2
+"""
+
+
+def test_cutting_under_g94_is_refused_by_line():
+    body = ["G94", *[f"G01 {b} F500." for b in points()[:5]]]
+    text = moore_650fg(body, passes=1).replace("G93 F0.001\n", "")
+    with pytest.raises(dialects.DialectError, match=r"line 22 .*turn C under G94"):
+        _read(text)
+
+
+def test_a_bare_program_is_read_from_the_profiles_power_on_state():
+    bare = "\n".join(points()[:100]) + "\n"
+    # the Moore's power-on feed mode is G94: point blocks alone are a cut it does not time
+    with pytest.raises(dialects.DialectError, match=r"line 4 .*power-on feed mode is G94"):
+        _read(bare)
+    # under G93 the cut starts at the first block (no position is given before it)
+    moves = _read("G93 F0.001\n" + bare)
+    assert moves.n_points == 100 and moves.c_deg[0] == pytest.approx(1.0)
+
+
+def test_whole_number_words_follow_the_profile():
+    text = moore_650fg(passes=1)
+    with pytest.raises(
+        dialects.DialectError, match=r"line 15 .*Z20 has no decimal point.*whole_number_words"
+    ):
+        _read(text, "sts-nanoform")
+    fanuc = Controller(
+        dialect="iso-sts", whole_number_words="increments", input_increment_um=1.0, g93_f="seconds"
+    )
+    moves = dialects.read(
+        ["G90 G18", "G01 X500 C0 Z100", "G93 F0.001", "C1. X0.49 Z0.", "M30"], "iso-sts", fanuc
+    )
+    assert moves.x_mm[0] == pytest.approx(0.5) and moves.z_mm[0] == pytest.approx(0.1)
+
+
+def test_if_goto_loops_read_as_while_loops():
+    text = moore_650fg(points()[:720], passes=2)
+    jumped = text.replace("WHILE [#3 LE #1] DO1", "N10").replace("END1", "IF [#3 LE #1] GOTO 10")
+    a, b = _read(text), _read(jumped)
+    np.testing.assert_array_equal(a.c_deg, b.c_deg)
+    np.testing.assert_array_equal(a.z_mm, b.z_mm)
+    assert a.cuts() == b.cuts()
+
+
+def test_incremental_blocks_and_macro_functions():
+    lines = ["G90 G18", "#100 = 1", "#101 = SQRT[4.0] * #100", "G01 X[#101] C0. Z0.", "G93 F0.001", "G91",
+             "C1. X-0.0001 Z0.", "C1. X-0.0001 Z0.", "G90", "M30"]  # fmt: skip
+    moves = dialects.read(lines, "iso-sts", nc.profile_for("sts-moore", "iso-sts"))
+    np.testing.assert_allclose(moves.x_mm, [2.0, 1.9999, 1.9998])
+    np.testing.assert_allclose(moves.c_deg, [0.0, 1.0, 2.0])
+
+
+def test_an_f_outside_the_controllers_range_is_refused():
+    fanuc = Controller(dialect="iso-sts", f_min=0.001, f_max=9999.999)
+    with pytest.raises(dialects.DialectError, match=r"line 3 .*F26641.5 is outside"):
+        dialects.read(
+            ["G90 G18", "G01 X1. C0. Z0.", "G93 F26641.496021", "C1. X0.99 Z0.", "M30"], "iso-sts", fanuc
+        )
+
+
+def test_a_varying_feed_is_predicted_pass_by_pass(tmp_path, flat_catalogs):
+    """A feed that grows linearly with the radius: no spiral of constant feed; on a flat part
+    the largest cusp is that of the largest feed inside the judged ring, f²/8r."""
+    out = []
+    x, k = RADIUS_MM, 0
+    while x > 0.01:
+        k += 1
+        feed_um = 4.0 + 12.0 * x / RADIUS_MM  # 16 µm/rev at the edge, 4 at the centre
+        x -= STEP_DEG / 360.0 * feed_um * 1e-3
+        out.append(f"C{(k * STEP_DEG) % 360.0:.6f} X{x:.6f} Z0.000000")
+    code, got = _with_catalogs(flat_catalogs, tmp_path, moore_650fg(out, passes=1), "--surface", "flat",
+                               "--nose-radius-um", str(NOSE_UM))  # fmt: skip
+    assert code == 0, got
+    info = json.loads(got)
+    outer_mm = info["judged_radii_mm"][1]
+    feed_there = 4.0 + 12.0 * outer_mm / RADIUS_MM
+    assert info["feed_um_per_rev"]["max"] > 1.3 * info["feed_um_per_rev"]["min"]
+    # the cusp grows with the feed: the judged ring's outer cusps bound the P-V
+    assert info["pv_nm"] == pytest.approx(feed_there**2 / (8.0 * NOSE_UM) * 1e3, rel=0.05)
+
+
+# ------------------------------------------------------------------------------------- PMAC
+PMAC_MANUAL = """CLOSE
+OPEN PROG 1 CLEAR
+ABS
+RAPID
+Z1
+C0X1Z0
+INC
+PVT100
+C36:360X-0.001:-0.01Z0:0
+C36:360X-0.001:-0.01Z0:0
+C36:360 X-0.001:-0.01 Z0:0
+CLOSE
+"""
+
+
+def test_the_pmac_reader_takes_the_manuals_syntax():
+    """Integers, words without spaces, INC after ABS, ``PVT<ms>``: velocities in units per
+    Ix90 ms (1000 by default: per second)."""
+    moves = dialects.read(PMAC_MANUAL.split("\n"), "pmac-pvt", nc.profile_for("sts-pmac-pvt", "pmac-pvt"))
+    np.testing.assert_allclose(moves.c_deg, [0.0, 36.0, 72.0, 108.0])
+    np.testing.assert_allclose(moves.x_mm, [1.0, 0.999, 0.998, 0.997])
+    np.testing.assert_allclose(moves.seconds, 0.1)
+    np.testing.assert_allclose(moves.velocity["C"], [0.0, 360.0, 360.0, 360.0])  # from rest after RAPID
+    per_minute = Controller(dialect="pmac-pvt", interpolation="pvt", ix90_ms=60000.0)
+    slow = dialects.read(PMAC_MANUAL.split("\n"), "pmac-pvt", per_minute)
+    np.testing.assert_allclose(slow.velocity["C"], [0.0, 6.0, 6.0, 6.0])
+
+
+def test_pmac_time_rules_follow_the_profile():
+    text = PMAC_MANUAL.replace("PVT100", "PVT60.36925").split("\n")
+    whole_ms = Controller(dialect="pmac-pvt", interpolation="pvt", i42=1)
+    with pytest.raises(dialects.DialectError, match=r"line 8 .*whole ms \(I42=1\)"):
+        dialects.read(text, "pmac-pvt", whole_ms)
+    assert dialects.read(text, "pmac-pvt").seconds[0] == pytest.approx(0.06036925)
+    spline = [
+        "OPEN PROG 1 CLEAR",
+        "ABS",
+        "RAPID",
+        "C0 X1 Z0",
+        "spline10",
+        "C36 X0.999 Z0",
+        "C72 X0.998 Z0",
+        "CLOSE",
+    ]
+    power = Controller(dialect="pmac-spline", interpolation="spline1", pmac_syntax="power")
+    assert dialects.read(spline, "pmac-spline", power).n_points == 3
+    with pytest.raises(dialects.DialectError, match=r"line 5 .*Turbo PMAC profile writes SPLINE1 with TA"):
+        dialects.read(spline, "pmac-spline")
+
+
+# -------------------------------------------------------------------- what gcodeparser is not
+def test_gcodeparser_is_not_a_controllers_reading():
+    """gcodeparser (PyPI) is a tokenizer: it drops modal blocks without a G word and reads
+    G-code inside comments, so the tests use it only on ftsweep's own exports (a G word on
+    every block, no code in comments) and LinuxCNC's rs274 as the independent reader."""
+    gcodeparser = pytest.importorskip("gcodeparser")
+    text = moore_650fg(points()[:360], passes=1)
+    parsed = gcodeparser.parse_gcode_lines(text, include_comments=False)
+    moves = _read(text)
+    cutting = [g for g in parsed if "C" in g.params and g.command == ("G", 1)]
+    assert moves.n_points == 361 and len(cutting) < 360  # the point blocks carry no G word
+    # a comment holding G-code is read as a move, even with comments excluded
+    commented = gcodeparser.parse_gcode_lines("(G01 X5.0)\nG01 X1.0\n", include_comments=False)
+    assert [g.params.get("X") for g in commented] == [5.0, 1.0]
+    assert _read("G90 G18\n(G01 X5.0)\nG01 X1. C0. Z0.\nG93 F0.001\nC1. X0.99 Z0.\n").x_mm[0] == 1.0

@@ -174,6 +174,17 @@ def test_spline1_and_pvt_files_of_the_same_points_predict_the_same_part(tmp_path
     assert spline["rms_nm"] == pytest.approx(pvt["rms_nm"], rel=1e-3)
 
 
+@pytest.mark.skipif(not shutil.which("cc"), reason="no C compiler on this machine")
+def test_verify_compiled_reads_g_code_on_every_axis(moore):
+    """The C reference reads ISO STS G93 blocks (F the block's seconds on sts-moore, C modulo
+    360 the shorter way) as linear in time on every axis, as the simulator forms them."""
+    _, out = moore
+    r = CliRunner().invoke(main, ["verify", str(out), "--compiled", "--json"])
+    assert r.exit_code == 0, r.output
+    axes = json.loads(r.output)["compiled_axes"]
+    assert set(axes) == {"C", "X", "Z", "Z_simulated"} and all(d <= b for d, b in axes.values())
+
+
 def test_predict_program_draws_its_error_map(moore, tmp_path):
     _, out = moore
     png = tmp_path / "map.png"
@@ -363,7 +374,14 @@ def test_verify_compiled_agrees_with_the_simulator(tmp_path, name, text, suffix)
     assert r.exit_code == 0, r.output
     record = json.loads(r.output)
     assert record["compiled_points"] >= 100_000
-    assert record["compiled_max_diff_um"] <= 1e-9
+    # every axis the file moves, each within its rounding bound: lengths 1e-9 µm (plus
+    # 1e-14 of their size), C the same in thousandths of a degree
+    if suffix == ".h":  # a table header: its lookups
+        assert record["compiled_max_diff_um"] <= 1e-9
+        return
+    axes = record["compiled_axes"]
+    assert {"C", "X", "Z", "Z_simulated"} <= set(axes) and all(d <= b for d, b in axes.values())
+    assert all(axes[a][0] <= 1e-9 for a in ("X", "Z", "Z_simulated"))
 
 
 @needs_cc
@@ -382,13 +400,20 @@ def test_the_compiled_reference_sees_a_swapped_tangent(tmp_path):
     lines = dialects.render(m, "pmac-pvt", ["x"], nc.controller_of(_machine("sts-pmac-pvt"), "pmac-pvt"))
     path = tmp_path / "p.pmc"
     path.write_text("\n".join(lines) + "\n")
-    read = dialects.read(lines, "pmac-pvt")
+    ctrl = nc.controller_of(_machine("sts-pmac-pvt"), "pmac-pvt")
+    read = dialects.read(lines, "pmac-pvt", ctrl)
     from ftsweep.kinds.spiral.dialect import ADAPTER
 
-    assert compiled.check_program(path, read, ADAPTER)["compiled_max_diff_um"] <= 1e-9
+    axes = compiled.check_program(path, read, ADAPTER, ctrl)["compiled_axes"]
+    assert set(axes) == {"C", "X", "Z", "Z_simulated"} and all(d <= b for d, b in axes.values())
     read.velocity["Z"] = read.velocity["Z"][::-1].copy()
-    with pytest.raises(Exception, match="differ by"):
-        compiled.check_program(path, read, ADAPTER)
+    with pytest.raises(Exception, match="Z at points along the path"):
+        compiled.check_program(path, read, ADAPTER, ctrl)
+    # an axis the simulator alone never evaluates is compared too
+    read = dialects.read(lines, "pmac-pvt", ctrl)
+    read.velocity["X"] = read.velocity["X"] + 1e-3
+    with pytest.raises(Exception, match="X at points along the path"):
+        compiled.check_program(path, read, ADAPTER, ctrl)
 
 
 def _machine(name: str):

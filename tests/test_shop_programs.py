@@ -348,3 +348,27 @@ def test_gcodeparser_is_not_a_controllers_reading():
     commented = gcodeparser.parse_gcode_lines("(G01 X5.0)\nG01 X1.0\n", include_comments=False)
     assert [g.params.get("X") for g in commented] == [5.0, 1.0]
     assert _read("G90 G18\n(G01 X5.0)\nG01 X1. C0. Z0.\nG93 F0.001\nC1. X0.99 Z0.\n").x_mm[0] == 1.0
+
+
+@pytest.mark.skipif(not shutil.which("cc"), reason="no C compiler on this machine")
+def test_the_compiled_reference_reads_the_manuals_pmac_as_the_reader_does(tmp_path):
+    """INC, integers, words without spaces and velocities per Ix90 ms: the C reference
+    (written from the manual, its PVT the cubic in time in powers of t) and the reader with
+    the simulator's Hermite segments give every axis alike."""
+    from ftsweep.exports import compiled
+
+    path = tmp_path / "manual.pmc"
+    path.write_text(PMAC_MANUAL)
+    for ix90 in (1000.0, 60000.0):
+        ctrl = Controller(dialect="pmac-pvt", interpolation="pvt", ix90_ms=ix90)
+        moves = dialects.read(PMAC_MANUAL.split("\n"), "pmac-pvt", ctrl)
+        exe = compiled._build(tmp_path, [])
+        run = subprocess.run(
+            [str(exe), str(path), "7", f"{ix90:g}", "0", "0"], capture_output=True, timeout=60
+        )
+        got = np.frombuffer(run.stdout, dtype=np.float64)
+        want = compiled.file_segments(moves, 7)
+        assert int(got[0]) == sum(compiled.AXIS_BITS[a] for a in want)
+        np.testing.assert_allclose(
+            got[1:].reshape(-1, len(want)), np.column_stack(list(want.values())), atol=1e-12
+        )

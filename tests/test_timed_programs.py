@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -216,10 +217,15 @@ def test_a_timed_program_goes_out_in_pvt_and_verifies(tmp_path, name, sweep, axe
         if ln.startswith("PVT"):
             steps = float(ln[3:]) * 1e-3 / 2.5e-7
             assert steps == pytest.approx(round(steps), abs=1e-6)
-    r = CliRunner().invoke(main, ["verify", str(out), "--json"])
+    r = CliRunner().invoke(
+        main, ["verify", str(out), "--json", *(["--compiled"] if shutil.which("cc") else [])]
+    )
     assert r.exit_code == 0, r.output
     record = json.loads(r.stdout)
     assert record["dialect"] == "pmac-pvt" and record["layout"] == name
+    if "compiled_axes" in record:  # the C reference read every axis, Y included, as the file's segments
+        assert set(record["compiled_axes"]) == set(axes)
+        assert all(d <= b for d, b in record["compiled_axes"].values())
     cube_pv = float(xr.open_zarr(cube)["pv_nm"].values.ravel()[0])
     assert record["pv_nm"] == pytest.approx(cube_pv, rel=0.01)
     machine = "xzc-pmac-pvt" if axes == "CXZ" else "xyzc-pmac-pvt"

@@ -303,7 +303,20 @@ def _print_verified(header: Path, record: dict[str, Any], compiled: bool) -> Non
     for line in [*exp.purpose_lines(record), *exp.format_of_file(header).verified(record)]:
         click.echo(line)
     click.echo(exp.replanned_line(record))
-    if compiled:
+    if compiled and "compiled_axes" in record:
+        # a program: every axis the file moves, C in degrees, lengths in µm
+        unit = {"C": (1e-3, "deg")}
+        parts = [
+            f"{a.replace('_simulated', ' as simulated')} {d * unit.get(a, (1.0, ''))[0]:.2g} "
+            f"{unit.get(a, (1.0, 'µm'))[1]}"
+            for a, (d, _) in record["compiled_axes"].items()
+        ]
+        click.echo(
+            f"compiled     the C reference reads the file as its controller does and agrees with the "
+            f"simulator on every axis at {record['compiled_points']:,} points: largest differences "
+            f"{', '.join(parts)}, each within its rounding bound: ok"
+        )
+    elif compiled:
         click.echo(
             f"compiled     the C reference gives the simulator's commands at {record['compiled_points']:,} "
             f"{record['compiled_what']}: largest difference {record['compiled_max_diff_um']:.3g} µm "

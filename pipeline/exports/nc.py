@@ -486,6 +486,20 @@ def predict_program(
         )
     if surface is None:
         return info
+    info.update(_predicted(moves, surface, machine, cutting, progress, map_bins, nose_radius_um))
+    return info
+
+
+def _predicted(
+    moves: Moves,
+    surface: str,
+    machine: str,
+    cutting: Optional[str],
+    progress: Any,
+    map_bins: Optional[int],
+    nose_radius_um: Optional[float],
+) -> dict[str, Any]:
+    """The form error a program's ``moves`` leave on ``surface`` (:func:`predict_program`)."""
     kind, adapter = _foreign_reader()
     case = adapter.stand_in(surface, machine, cutting or "reference")  # type: ignore[misc]
     # a map always: it says where the error's extremes lie
@@ -494,14 +508,14 @@ def predict_program(
     if nose_radius_um is not None:
         case = case.model_copy(update={"nose_radius_um": nose_radius_um})
     record = adapter.simulate(case, None, moves, progress, None)
-    info.update({k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "nose_radius_um", "feed_um")})
-    info.update(surface=surface, kind=kind, record=record, extremes=extremes(record))
+    info = {k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "nose_radius_um", "feed_um")}
+    info.update(surface=surface, kind=kind, extremes=extremes(record))
     for key in ("cut_radii_mm", "judged_radii_mm"):
         if key in record:
             info[key] = list(record[key])
     if not map_bins:
         record = {k: v for k, v in record.items() if not k.startswith("error_map")}
-        info["record"] = record
+    info["record"] = record
     return info
 
 
@@ -565,7 +579,8 @@ def check_dialect_file(path: Path, trust_plugins: bool = False) -> dict[str, Any
     lines = read_lines(Path(path), strict=True)
     meta = read_sidecar(Path(path))
     adapter = adapter_of(str(meta.get("layout")))
-    ctrl = meta.get("controller")
-    return check_program(
-        path, dialects.read(lines, dialect_named(lines), ctrl if isinstance(ctrl, dict) else None), adapter
+    dialect = dialect_named(lines)
+    ctrl = Controller.model_validate(
+        {**meta["controller"], "dialect": dialect, "interpolation": dialects.INTERPOLATION[dialect]}
     )
+    return check_program(path, dialects.read(lines, dialect, ctrl), adapter, ctrl)

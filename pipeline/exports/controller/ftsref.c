@@ -4,17 +4,27 @@
  *   reads pairs of doubles from stdin -- (rho [um], theta [deg]) for a ring, (x [um], y [um])
  *   for a mesh -- and writes the bilinear lookup (model section 3, eq. 2) of the header's own
  *   table and macros [um] as doubles to stdout.
- * Built without: ftsref PROGRAM M reads a PMAC PVT or SPLINE1 program and writes, for every
- *   segment k and j = 0..M-1, Z [mm] at the segment's parameter u = (j + 0.5)/M: PVT as the
- *   cubic Hermite in time through the end positions and velocities, SPLINE1 as the uniform
- *   cubic B-spline's basis functions over the control points (the ends continued by
- *   P[-1] = 2P[0] - P[1] and P[N] = 2P[N-1] - P[N-2]).
+ * Built without: ftsref PROGRAM M IX90_MS G93_SECONDS C_WRAPS reads a path program as its
+ *   controller's manual describes it and writes the axes the program moves (C, X, Y, Z, W, in
+ *   that order: first a double holding their bit mask 1, 2, 4, 8, 16), for every segment k of
+ *   every cut and j = 0..M-1, at the segment's time fraction u = (j + 0.5)/M:
+ *   - PMAC (Turbo PMAC Software Reference, "PVT", "SPLINE1", "INC", "Ix90"): words with or
+ *     without spaces, ABS/INC, RAPID to the start (the cut starts there at rest), PVT<ms>
+ *     moves AXISpos:vel whose velocities are in units per IX90_MS ms, evaluated as the
+ *     manual's cubic in time p(t) = p0 + v0 t + c2 t^2 + c3 t^3 through the end positions
+ *     and velocities; SPLINE1 TA<ms> moves evaluated by the uniform cubic B-spline's basis
+ *     functions over the control points, the ends continued by P[-1] = 2P[0] - P[1] and
+ *     P[N] = 2P[N-1] - P[N-2] (ftsweep's natural ends, not the manual's added pieces);
+ *   - G-code (RS274NGC): G93 G01 blocks, linear in time, F the block's time in seconds
+ *     (G93_SECONDS 1) or 1/minutes (0); a cut is a run of G93 blocks; C printed modulo 360
+ *     (C_WRAPS 1) turns the shorter way round.
  * Compile with -std=c99 -ffp-contract=off so that no multiply-add is fused.
  */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <math.h>
+#include <ctype.h>
 
 #ifdef FTS_HEADER
 #include FTS_HEADER
@@ -31,13 +41,13 @@ static double lookup(double a, double b)
     double u = (a - M(ORIGIN0)) / M(PITCH0), v = (b - M(ORIGIN1)) / M(PITCH1);
     double fi = floor(u), fj = floor(v), t, s;
     long i, j, j1;
-    if (fi > n0 - 2.0) { i = n0 - 2; t = 1.0; } else if (fi >= 0.0) { i = (long)fi; t = u - fi; } else { i = 0; t = 0.0; }
+    if (fi > (double)n0 - 2.0) { i = n0 - 2; t = 1.0; } else if (fi >= 0.0) { i = (long)fi; t = u - fi; } else { i = 0; t = 0.0; }
     s = v - fj;
     j = (long)fj;
     if (M(LAYOUT_IS_RING)) {
         j = ((j % n1) + n1) % n1;  /* the angle wraps: column n1-1 neighbours column 0 */
         j1 = (j + 1) % n1;
-    } else if (fj > n1 - 2.0) { j = n1 - 2; j1 = n1 - 1; s = 1.0; }
+    } else if (fj > (double)n1 - 2.0) { j = n1 - 2; j1 = n1 - 1; s = 1.0; }
     else if (fj >= 0.0) { j1 = j + 1; }
     else { j = 0; j1 = 1; s = 0.0; }
     return (1.0 - t) * (1.0 - s) * cell(i, j) + t * (1.0 - s) * cell(i + 1, j)
@@ -56,87 +66,248 @@ int main(void)
 
 #else
 
-typedef struct { double *z, *v, *t; long n, cap; int spline; } Program;
+#define AXES 5
+static const char AXIS_NAMES[AXES + 1] = "CXYZW";
 
-static void push(Program *p, double z, double v, double t)
+/* a program's points: every axis's position and velocity (per second) at each, the time into
+ * it [s] (0 at a cut's first point), and whether it starts a cut */
+typedef struct {
+    double *pos[AXES], *vel[AXES], *t;
+    int *start;
+    long n, cap;
+    int spline, mask;
+} Program;
+
+static void *grown(void *block, size_t bytes)
 {
+    void *p = realloc(block, bytes);
+    if (!p) { fputs("ftsref: out of memory\n", stderr); exit(2); }
+    return p;
+}
+
+static void push(Program *p, const double *pos, const double *vel, double t, int start)
+{
+    int a;
     if (p->n == p->cap) {
         p->cap = p->cap ? 2 * p->cap : 1024;
-        p->z = realloc(p->z, p->cap * sizeof(double));
-        p->v = realloc(p->v, p->cap * sizeof(double));
-        p->t = realloc(p->t, p->cap * sizeof(double));
-        if (!p->z || !p->v || !p->t) { fputs("ftsref: out of memory\n", stderr); exit(2); }
+        for (a = 0; a < AXES; a++) {
+            p->pos[a] = grown(p->pos[a], (size_t)p->cap * sizeof(double));
+            p->vel[a] = grown(p->vel[a], (size_t)p->cap * sizeof(double));
+        }
+        p->t = grown(p->t, (size_t)p->cap * sizeof(double));
+        p->start = grown(p->start, (size_t)p->cap * sizeof(int));
     }
-    p->z[p->n] = z; p->v[p->n] = v; p->t[p->n] = t; p->n++;
+    for (a = 0; a < AXES; a++) { p->pos[a][p->n] = pos[a]; p->vel[a][p->n] = vel[a]; }
+    p->t[p->n] = t;
+    p->start[p->n] = start;
+    p->n++;
 }
 
-/* the Z word of a move line ("Zpos" or "Zpos:vel"); 0 when the line has none */
-static int z_word(const char *line, double *z, double *v)
+typedef struct {
+    double pos[AXES], vel[AXES], word[AXES], speed[AXES], seconds, ta, feed, ix90, prev_c;
+    int given[AXES], has_speed[AXES], inc, pmac_cut, g93, motion, cutting, g93_seconds, wraps;
+} Reader;
+
+/* a decimal number as controllers write it: sign, digits, point, digits (strtod alone would
+ * read "0X1" as hexadecimal, and PMAC words follow each other without spaces) */
+static double number(const char *s, const char **end)
 {
-    const char *at = strchr(line, 'Z');
-    char *end;
-    if (!at) return 0;
-    *z = strtod(at + 1, &end);
-    *v = (*end == ':') ? strtod(end + 1, NULL) : 0.0;
-    return 1;
+    char text[64];
+    size_t n = 0;
+    if (s[n] == '-' || s[n] == '+') n++;
+    while (n < sizeof text - 1 && (isdigit((unsigned char)s[n]) || s[n] == '.')) n++;
+    memcpy(text, s, n);
+    text[n] = '\0';
+    *end = s + n;
+    if (n == 0 || (n == 1 && (s[0] == '-' || s[0] == '+' || s[0] == '.'))) { *end = s; return 0.0; }
+    return strtod(text, NULL);
 }
 
-static int read_program(const char *path, Program *p)
+static int axis_of(char c)
 {
-    char line[512];
-    double z = 0.0, v, seconds = 0.0, last_z = NAN;
-    int cutting = 0;
+    const char *at = strchr(AXIS_NAMES, c);
+    return (c && at) ? (int)(at - AXIS_NAMES) : -1;
+}
+
+/* one keyword or word of a line whose comments are removed; returns the characters used */
+static size_t token(Reader *r, Program *p, const char *s)
+{
+    const char *end;
+    double v;
+    int a = axis_of(s[0]);
+    if (strncmp(s, "RAPID", 5) == 0 || strncmp(s, "LINEAR", 6) == 0) { r->seconds = 0.0; return s[0] == 'R' ? 5 : 6; }
+    if (strncmp(s, "ABS", 3) == 0 || strncmp(s, "INC", 3) == 0) { r->inc = s[0] == 'I'; return 3; }
+    if (strncmp(s, "SPLINE1", 7) == 0) { p->spline = 1; r->seconds = r->ta; return 7; }
+    if (strncmp(s, "PVT", 3) == 0) { r->seconds = number(s + 3, &end) / 1000.0; p->spline = 0; return (size_t)(end - s); }
+    if (s[0] == 'T' && (s[1] == 'A' || s[1] == 'S' || s[1] == 'M')) {
+        v = number(s + 2, &end);
+        if (s[1] == 'A') { r->ta = v / 1000.0; if (p->spline) r->seconds = r->ta; }
+        return (size_t)(end - s);
+    }
+    v = number(s + 1, &end);
+    if (end == s + 1) return 0;
+    if (a >= 0) {
+        r->word[a] = v;
+        r->given[a] = 1;
+        if (*end == ':') {
+            r->speed[a] = number(end + 1, &end) * 1000.0 / r->ix90;
+            r->has_speed[a] = 1;
+        }
+    } else if (s[0] == 'G') {
+        if (v == 93.0 || v == 94.0) r->g93 = v == 93.0;
+        if (v == 0.0 || v == 1.0) r->motion = (int)v;
+    } else if (s[0] == 'F') {
+        r->feed = v;
+    }
+    return (size_t)(end - s);
+}
+
+/* the block's axis words applied: ABS or INC, C modulo 360 the shorter way round */
+static void move(Reader *r, Program *p)
+{
+    int a;
+    for (a = 0; a < AXES; a++) {
+        double target;
+        if (!r->given[a]) continue;
+        target = r->inc ? r->pos[a] + r->word[a] : r->word[a];
+        if (a == 0 && r->wraps && !isnan(r->prev_c)) {
+            double step = fmod(target - r->prev_c, 360.0);
+            if (step < 0.0) step += 360.0;
+            if (step > 180.0) step -= 360.0;
+            r->prev_c = target;
+            target = r->pos[0] + step;
+        } else if (a == 0) {
+            r->prev_c = target;
+        }
+        r->pos[a] = target;
+        p->mask |= 1 << a;
+        if (r->has_speed[a]) r->vel[a] = r->speed[a];
+    }
+}
+
+static void block(Reader *r, Program *p, const char *line)
+{
+    int a, any = 0;
+    double rest[AXES] = {0.0, 0.0, 0.0, 0.0, 0.0};
+    size_t used;
+    for (a = 0; a < AXES; a++) { r->given[a] = 0; r->has_speed[a] = 0; }
+    while (*line) {
+        if (*line == ' ' || *line == '\t' || *line == '\r' || *line == '\n') { line++; continue; }
+        used = token(r, p, line);
+        if (used == 0) { line++; continue; }  /* a keyword the path does not depend on */
+        line += used;
+    }
+    for (a = 0; a < AXES; a++) any |= r->given[a];
+    if (!any) return;
+    if (r->seconds > 0.0) {  /* a PMAC PVT or SPLINE1 move: the cut starts at rest after RAPID */
+        if (!r->pmac_cut) { push(p, r->pos, rest, 0.0, 1); r->pmac_cut = 1; }
+        move(r, p);
+        push(p, r->pos, r->vel, r->seconds, 0);
+        return;
+    }
+    if (r->g93 && r->motion == 1) {
+        double t = r->g93_seconds ? r->feed : 60.0 / r->feed;
+        if (!r->cutting) { push(p, r->pos, rest, 0.0, 1); r->cutting = 1; }
+        move(r, p);
+        push(p, r->pos, rest, t, 0);
+        return;
+    }
+    r->cutting = 0;
+    move(r, p);
+}
+
+static void strip_comments(char *line)
+{
+    char *out = line, *in = line;
+    int depth = 0;
+    for (; *in; in++) {
+        if (*in == ';') break;
+        if (*in == '(') { depth++; continue; }
+        if (*in == ')') { if (depth) depth--; continue; }
+        if (!depth) *out++ = *in;
+    }
+    *out = '\0';
+}
+
+static int read_program(const char *path, Program *p, Reader *r)
+{
+    char line[1024];
     FILE *f = fopen(path, "r");
     if (!f) { perror(path); return 0; }
     while (fgets(line, sizeof line, f)) {
-        if (line[0] == ';' || strncmp(line, "CLOSE", 5) == 0 || strncmp(line, "OPEN", 4) == 0
-            || strncmp(line, "ABS", 3) == 0 || strncmp(line, "RAPID", 5) == 0) continue;
-        if (strncmp(line, "PVT", 3) == 0) { seconds = strtod(line + 3, NULL) / 1000.0; p->spline = 0; continue; }
-        if (strncmp(line, "SPLINE1 TA", 10) == 0) { seconds = strtod(line + 10, NULL) / 1000.0; p->spline = 1; continue; }
-        if (!z_word(line, &z, &v)) continue;
-        if (seconds == 0.0) { last_z = z; continue; }  /* a RAPID move: the cut starts there, at rest */
-        if (!cutting) { push(p, last_z, 0.0, 0.0); cutting = 1; }
-        push(p, z, v, seconds);
+        strip_comments(line);
+        if (strncmp(line, "OPEN", 4) == 0 || strncmp(line, "CLOSE", 5) == 0) continue;
+        block(r, p, line);
     }
     fclose(f);
     return p->n >= 2;
 }
 
-static double pvt(const Program *p, long k, double u)
+/* the manual's PVT cubic in time through (p0, v0) at 0 and (p1, v1) at T, at t = uT */
+static double pvt(double p0, double p1, double v0, double v1, double T, double u)
 {
-    double T = p->t[k + 1], d0 = p->v[k] * T, d1 = p->v[k + 1] * T;
-    double y0 = p->z[k], y1 = p->z[k + 1];
-    double a = 2.0 * (y0 - y1) + d0 + d1, b = 3.0 * (y1 - y0) - 2.0 * d0 - d1;
-    return ((a * u + b) * u + d0) * u + y0;
+    double t = u * T, slope = (p1 - p0) / T;
+    double c2 = (3.0 * slope - 2.0 * v0 - v1) / T, c3 = (v0 + v1 - 2.0 * slope) / (T * T);
+    return p0 + v0 * t + c2 * t * t + c3 * t * t * t;
 }
 
-static double ctrl(const Program *p, long k)
+/* control point k of the cut [lo, hi) of one axis, continued past its ends (natural ends) */
+static double ctrl(const double *y, long lo, long hi, long k)
 {
-    if (k < 0) return 2.0 * p->z[0] - p->z[1];
-    if (k >= p->n) return 2.0 * p->z[p->n - 1] - p->z[p->n - 2];
-    return p->z[k];
+    if (k < lo) return 2.0 * y[lo] - y[lo + 1];
+    if (k >= hi) return 2.0 * y[hi - 1] - y[hi - 2];
+    return y[k];
 }
 
-static double spline(const Program *p, long k, double u)
+static double spline(const double *y, long lo, long hi, long k, double u)
 {
     double w = 1.0 - u;
-    return (w * w * w * ctrl(p, k - 1) + (3.0 * u * u * u - 6.0 * u * u + 4.0) * ctrl(p, k)
-            + (-3.0 * u * u * u + 3.0 * u * u + 3.0 * u + 1.0) * ctrl(p, k + 1) + u * u * u * ctrl(p, k + 2)) / 6.0;
+    return (w * w * w * ctrl(y, lo, hi, k - 1) + (3.0 * u * u * u - 6.0 * u * u + 4.0) * ctrl(y, lo, hi, k)
+            + (-3.0 * u * u * u + 3.0 * u * u + 3.0 * u + 1.0) * ctrl(y, lo, hi, k + 1)
+            + u * u * u * ctrl(y, lo, hi, k + 2)) / 6.0;
+}
+
+static double sample(const Program *p, int a, long lo, long hi, long k, double u)
+{
+    const double *y = p->pos[a];
+    if (p->spline) return spline(y, lo, hi, k, u);
+    return pvt(y[k], y[k + 1], p->vel[a][k], p->vel[a][k + 1], p->t[k + 1], u);
 }
 
 int main(int argc, char **argv)
 {
-    Program p = {0};
-    long k, j, m;
-    double z;
-    if (argc != 3 || (m = atol(argv[2])) < 1) { fputs("usage: ftsref PROGRAM SAMPLES_PER_SEGMENT\n", stderr); return 2; }
-    if (!read_program(argv[1], &p)) { fputs("ftsref: no PVT or SPLINE1 cut in the program\n", stderr); return 1; }
-    for (k = 0; k + 1 < p.n; k++)
-        for (j = 0; j < m; j++) {
-            double u = (j + 0.5) / (double)m;
-            z = p.spline ? spline(&p, k, u) : pvt(&p, k, u);
-            fwrite(&z, sizeof(double), 1, stdout);
-        }
+    Program p;
+    Reader r;
+    long k, j, m, lo, hi;
+    int a, linear;
+    double value;
+    memset(&p, 0, sizeof p);
+    memset(&r, 0, sizeof r);
+    if (argc != 6 || (m = atol(argv[2])) < 1) {
+        fputs("usage: ftsref PROGRAM SAMPLES_PER_SEGMENT IX90_MS G93_SECONDS C_WRAPS\n", stderr);
+        return 2;
+    }
+    r.ix90 = strtod(argv[3], NULL);
+    r.g93_seconds = atoi(argv[4]);
+    r.wraps = atoi(argv[5]);
+    r.prev_c = NAN;
+    r.motion = -1;
+    if (!read_program(argv[1], &p, &r)) { fputs("ftsref: no cut in the program\n", stderr); return 1; }
+    linear = !r.pmac_cut;
+    value = (double)p.mask;
+    fwrite(&value, sizeof(double), 1, stdout);
+    for (lo = 0; lo < p.n; lo = hi) {
+        for (hi = lo + 1; hi < p.n && !p.start[hi]; hi++) {}
+        for (k = lo; k + 1 < hi; k++)
+            for (j = 0; j < m; j++) {
+                double u = ((double)j + 0.5) / (double)m;
+                for (a = 0; a < AXES; a++) {
+                    if (!(p.mask & (1 << a))) continue;
+                    value = linear ? p.pos[a][k] + u * (p.pos[a][k + 1] - p.pos[a][k]) : sample(&p, a, lo, hi, k, u);
+                    fwrite(&value, sizeof(double), 1, stdout);
+                }
+            }
+    }
     return 0;
 }
 #endif

@@ -70,9 +70,12 @@ class _PredictCommand(click.Command):
 @click.option(
     "--program",
     type=click.Path(exists=True, dir_okay=False),
-    help="A spiral program in any supported dialect (ISO STS or LinuxCNC G-code under G93, PMAC PVT or "
-    "SPLINE1, ftsweep's): print its points, revolutions, feed per revolution and peak axis motion against "
-    "the machine's limits, and with --surface its predicted form error (docs/controllers.md).",
+    help="A lathe program in any supported dialect (ISO STS or LinuxCNC G-code, PMAC PVT or SPLINE1; "
+    "ftsweep's or another CAM's), read as the controller of its machine reads it (--machine, else the one "
+    "its header names, else its dialect's): print its points, cuts, feed, points per revolution and "
+    "spindle speed, the conventions it was read by and its axes against the machine's limits; with "
+    "--surface and the tool (--cutting or --nose-radius-um) its predicted form error, as the passes it "
+    "commands cut the part (docs/controllers.md).",
 )
 @click.option(
     "--map",
@@ -179,8 +182,9 @@ def predict(**opts: Any) -> None:
     """Predict the form error one program leaves on the machined surface.
 
     A table by explicit pitches (--drho-um and --dtheta-deg, rings; --dx-um and --dy-um,
-    meshes) or a point count and aspect ratio (--points, --aspect). --program FILE: a spiral
-    program in any dialect read, summarised and (with --surface) predicted.
+    meshes) or a point count and aspect ratio (--points, --aspect). --program FILE: any lathe
+    program (a CAM's or ftsweep's) read as its controller reads it, summarised and (with
+    --surface) predicted: varying feed, several passes, the spindle either way.
 
     Commands spanning more than the machine's travel are cut in layers (--layers auto, [3]):
     stroke zones of the travel less the machine's margin, one Z offset each; the JSON's
@@ -210,6 +214,7 @@ def predict(**opts: Any) -> None:
       ftsweep predict --surface sinusoidal_mesh --layout spiral --chord-um 0.5 --residual-um 0.5 \\
           --cutting seed003 --machine sts-nanoform
       ftsweep predict --program p.nc --surface sinusoidal_mesh --cutting seed003
+      ftsweep predict --program shop.nc --machine sts-moore --surface sinusoidal_mesh --nose-radius-um 496
       ftsweep predict --surface concave_sphere --layout dpath --spacing-um 20 \\
           --machine sts-xzc --cutting dpath-finish
       ftsweep predict --surface chebyshev_example --layout fresnel --facet-height-um 10 \\

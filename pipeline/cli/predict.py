@@ -183,8 +183,7 @@ def predict(**opts: Any) -> None:
 
     A table by explicit pitches (--drho-um and --dtheta-deg, rings; --dx-um and --dy-um,
     meshes) or a point count and aspect ratio (--points, --aspect). --program FILE: any lathe
-    program (a CAM's or ftsweep's) read as its controller reads it, summarised and (with
-    --surface) predicted: varying feed, several passes, the spindle either way.
+    program read as its controller reads it, summarised and (with --surface) predicted.
 
     Commands spanning more than the machine's travel are cut in layers (--layers auto, [3]):
     stroke zones of the travel less the machine's margin, one Z offset each; the JSON's
@@ -213,7 +212,6 @@ def predict(**opts: Any) -> None:
       ftsweep predict --surface sinewave2d --layout spiral --points-per-rev 500
       ftsweep predict --surface sinusoidal_mesh --layout spiral --chord-um 0.5 --residual-um 0.5 \\
           --cutting seed003 --machine sts-nanoform
-      ftsweep predict --program p.nc --surface sinusoidal_mesh --cutting seed003
       ftsweep predict --program shop.nc --machine sts-moore --surface sinusoidal_mesh --nose-radius-um 496
       ftsweep predict --surface concave_sphere --layout dpath --spacing-um 20 \\
           --machine sts-xzc --cutting dpath-finish

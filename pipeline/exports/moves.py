@@ -134,7 +134,10 @@ def summary(m: Moves) -> dict[str, Any]:
         turn = np.abs(m.c_deg[lo:hi] - m.c_deg[lo]) / 360.0
         revs += float(turn[-1])
         dt = m.seconds[lo : hi - 1]
-        seconds += float(np.sum(dt))
+        # SPLINE1 runs one TA more at each end (the controller's added pieces, from and to rest)
+        seconds += float(np.sum(dt)) + (
+            2.0 * float(dt[0]) if m.interpolation == "spline1" and dt.size else 0.0
+        )
         feeds.append(_feeds(turn, m.x_mm[lo:hi] * 1e3))
         dturn = np.diff(turn)
         rpm.append(np.divide(dturn * 60.0, dt, out=np.full(dt.shape, np.nan), where=dt > 0))

@@ -29,6 +29,7 @@ _EXPORTS = {
     "natural_spline": "segments",
     "pvt_tangents": "segments",
     "control_points": "segments",
+    "added_pieces_segments": "segments",
     "bspline_segments": "segments",
     "evaluate": "segments",
     "deviations": "segments",

@@ -131,6 +131,23 @@ def bspline_segments(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return y, d0, d1
 
 
+def added_pieces_segments(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Way-points y and segment tangents (d0, d1) of a SPLINE1 sequence as the controller
+    runs it from rest to rest: the uniform cubic B-spline over control points ``p`` (N ≥ 2,
+    the first the position the sequence starts from) with the manual's *added pieces* — a
+    zero-distance segment of the same time at each end (control points P_0 and P_N−1 taken
+    three times), so the path accelerates from and decelerates to a stop (Turbo PMAC User
+    Manual, "Added Pieces"). N + 2 way-points, N + 1 segments: the first leaves y = P_0 at
+    rest, the last arrives at P_N−1 at rest."""
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    if p.size < 2:
+        raise ValueError("a B-spline program needs at least 2 control points")
+    q = np.concatenate([p[:1], p[:1], p, p[-1:], p[-1:]])
+    y = (q[:-2] + 4.0 * q[1:-1] + q[2:]) / 6.0
+    slope = (q[2:] - q[:-2]) / 2.0
+    return y, slope[:-1], slope[1:]
+
+
 @njit(nogil=True, cache=True)
 def _evaluate_kernel(
     x: np.ndarray, y: np.ndarray, d0: np.ndarray, d1: np.ndarray, q: np.ndarray, out: np.ndarray

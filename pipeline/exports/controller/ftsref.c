@@ -13,8 +13,8 @@
  *     moves AXISpos:vel whose velocities are in units per IX90_MS ms, evaluated as the
  *     manual's cubic in time p(t) = p0 + v0 t + c2 t^2 + c3 t^3 through the end positions
  *     and velocities; SPLINE1 TA<ms> moves evaluated by the uniform cubic B-spline's basis
- *     functions over the control points, the ends continued by P[-1] = 2P[0] - P[1] and
- *     P[N] = 2P[N-1] - P[N-2] (ftsweep's natural ends, not the manual's added pieces);
+ *     functions over the control points with the manual's added pieces (a zero-distance
+ *     segment of TA at each end: from and to rest, one segment more at each end);
  *   - G-code (RS274NGC): G93 G01 blocks, linear in time, F the block's time in seconds
  *     (G93_SECONDS 1) or 1/minutes (0); a cut is a run of G93 blocks; C printed modulo 360
  *     (C_WRAPS 1) turns the shorter way round.
@@ -251,20 +251,22 @@ static double pvt(double p0, double p1, double v0, double v1, double T, double u
     return p0 + v0 * t + c2 * t * t + c3 * t * t * t;
 }
 
-/* control point k of the cut [lo, hi) of one axis, continued past its ends (natural ends) */
-static double ctrl(const double *y, long lo, long hi, long k)
+/* control point m of the cut [lo, hi) of one axis as the controller sequences it: the
+ * manual's added pieces (a zero-distance segment of TA at each end) repeat the first and the
+ * last point, so the spline leaves and reaches them at rest */
+static double ctrl(const double *y, long lo, long hi, long m)
 {
-    if (k < lo) return 2.0 * y[lo] - y[lo + 1];
-    if (k >= hi) return 2.0 * y[hi - 1] - y[hi - 2];
-    return y[k];
+    long k = lo + m - 2;
+    return y[k < lo ? lo : (k >= hi ? hi - 1 : k)];
 }
 
-static double spline(const double *y, long lo, long hi, long k, double u)
+/* segment j (0 .. hi - lo) of the cut: the uniform cubic B-spline's basis functions */
+static double spline(const double *y, long lo, long hi, long j, double u)
 {
     double w = 1.0 - u;
-    return (w * w * w * ctrl(y, lo, hi, k - 1) + (3.0 * u * u * u - 6.0 * u * u + 4.0) * ctrl(y, lo, hi, k)
-            + (-3.0 * u * u * u + 3.0 * u * u + 3.0 * u + 1.0) * ctrl(y, lo, hi, k + 1)
-            + u * u * u * ctrl(y, lo, hi, k + 2)) / 6.0;
+    return (w * w * w * ctrl(y, lo, hi, j) + (3.0 * u * u * u - 6.0 * u * u + 4.0) * ctrl(y, lo, hi, j + 1)
+            + (-3.0 * u * u * u + 3.0 * u * u + 3.0 * u + 1.0) * ctrl(y, lo, hi, j + 2)
+            + u * u * u * ctrl(y, lo, hi, j + 3)) / 6.0;
 }
 
 static double sample(const Program *p, int a, long lo, long hi, long k, double u)
@@ -297,13 +299,16 @@ int main(int argc, char **argv)
     value = (double)p.mask;
     fwrite(&value, sizeof(double), 1, stdout);
     for (lo = 0; lo < p.n; lo = hi) {
+        long segments;
         for (hi = lo + 1; hi < p.n && !p.start[hi]; hi++) {}
-        for (k = lo; k + 1 < hi; k++)
+        segments = p.spline ? hi - lo + 1 : hi - lo - 1;
+        for (k = 0; k < segments; k++)
             for (j = 0; j < m; j++) {
                 double u = ((double)j + 0.5) / (double)m;
                 for (a = 0; a < AXES; a++) {
                     if (!(p.mask & (1 << a))) continue;
-                    value = linear ? p.pos[a][k] + u * (p.pos[a][k + 1] - p.pos[a][k]) : sample(&p, a, lo, hi, k, u);
+                    if (linear) value = p.pos[a][lo + k] + u * (p.pos[a][lo + k + 1] - p.pos[a][lo + k]);
+                    else value = sample(&p, a, lo, hi, p.spline ? k : lo + k, u);
                     fwrite(&value, sizeof(double), 1, stdout);
                 }
             }

@@ -193,16 +193,40 @@ def commanded_of(moves: Moves) -> tuple[CommandedPath, np.ndarray]:
         tangents = pvt_tangents(moves, "CXZ")
         tangents[:, 0:2] *= sense
     elif moves.interpolation == "spline1":
-        tangents = np.empty((moves.n_points - 1, 6))
-        for lo, hi in moves.cuts():
-            for k, chan in enumerate((angle, rho, z)):
-                way, d0, d1 = segments.bspline_segments(chan[lo:hi])
-                chan[lo:hi] = way
-                tangents[lo : hi - 1, 2 * k], tangents[lo : hi - 1, 2 * k + 1] = d0, d1
+        return _spline1_path(moves, angle, rho, z, sense)
     path = CommandedPath(
         "spiral", angle, rho, starts, sense, moves.interpolation, tangents, np.asarray(moves.seconds)
     )
     return path, z
+
+
+def _spline1_path(
+    moves: Moves, angle: np.ndarray, rho: np.ndarray, z: np.ndarray, sense: float
+) -> tuple[CommandedPath, np.ndarray]:
+    """A SPLINE1 program's path as the controller runs it: each cut's control points with the
+    manual's added pieces (from and to rest, one TA more at each end:
+    :func:`ftsweep.stages.interpolation.segments.added_pieces_segments`); the segment from one
+    cut's end to the next cut's start is an approach (its time NaN, never cut)."""
+    chans: list[list[np.ndarray]] = [[], [], []]
+    tans: list[np.ndarray] = []
+    times: list[np.ndarray] = []
+    starts: list[int] = []
+    for lo, hi in moves.cuts():
+        if starts:  # the approach into this cut
+            tans.append(np.zeros((1, 6)))
+            times.append(np.array([np.nan]))
+        starts.append(sum(c.size for c in chans[0]))
+        cut = []
+        for k, chan in enumerate((angle, rho, z)):
+            way, d0, d1 = segments.added_pieces_segments(chan[lo:hi])
+            chans[k].append(way)
+            cut += [d0, d1]
+        tans.append(np.column_stack(cut))
+        times.append(np.full(hi - lo + 1, float(moves.seconds[lo])))
+    a, r, zz = (np.concatenate(c) for c in chans)
+    starts_ = np.array(starts, dtype=np.int64)
+    path = CommandedPath("spiral", a, r, starts_, sense, "spline1", np.vstack(tans), np.concatenate(times))
+    return path, zz
 
 
 def single_pass(moves: Moves, rcase: Any) -> tuple[SpiralPath, np.ndarray]:

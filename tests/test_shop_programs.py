@@ -372,3 +372,13 @@ def test_the_compiled_reference_reads_the_manuals_pmac_as_the_reader_does(tmp_pa
         np.testing.assert_allclose(
             got[1:].reshape(-1, len(want)), np.column_stack(list(want.values())), atol=1e-12
         )
+
+
+def test_a_cumulative_c_past_the_controllers_soft_limit_is_refused_at_export():
+    from ftsweep.exports.files import ProgramError
+
+    moves = dialects.Moves(np.arange(5) * 500.0, np.linspace(1.0, 0.99, 5), np.zeros(5), np.full(4, 0.01))
+    soft = Controller(dialect="linuxcnc", interpolation="linear", c_limit_deg=1500.0)
+    with pytest.raises(ProgramError, match=r"C reaches 2,000° accumulated, past the controller's soft limit"):
+        nc._limits(moves, soft)
+    nc._limits(moves, soft.model_copy(update={"c_limit_deg": None}))  # a wrapped rotary: no limit

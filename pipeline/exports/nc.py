@@ -111,7 +111,7 @@ def controller_of(machine: Any, dialect: str) -> Controller:
         return ctrl
     # the same interpolation in another dialect (ISO or LinuxCNC): the machine's limits, the
     # conventions of that dialect's controller
-    limits = ("time_quantum_s", "max_segment_s", "decimals", "max_blocks", "servo_period_s")
+    limits = ("time_quantum_s", "max_segment_s", "decimals", "max_blocks", "servo_period_s", "c_limit_deg")
     return Controller(dialect=dialect, interpolation=want, **{k: getattr(ctrl, k) for k in limits})
 
 
@@ -121,6 +121,14 @@ def _limits(moves: Moves, ctrl: Controller) -> None:
     if blocks > ctrl.max_blocks:
         raise ProgramError(
             f"the program has {blocks:,} blocks, more than the controller's {ctrl.max_blocks:,}"
+        )
+    cumulative = ctrl.c_wrap == "cumulative" or ctrl.dialect == "linuxcnc"
+    turned = float(np.max(np.abs(moves.c_deg)))
+    if cumulative and ctrl.c_limit_deg is not None and turned > ctrl.c_limit_deg:
+        raise ProgramError(
+            f"C reaches {turned:,.0f}° accumulated, past the controller's soft limit of "
+            f"{ctrl.c_limit_deg:,.0f}° (machine.controller.c_limit_deg): raise the limit or make C a "
+            "wrapped rotary"
         )
     longest = float(np.nanmax(moves.seconds, initial=0.0))  # a layered program's approaches: NaN
     if longest > ctrl.max_segment_s:

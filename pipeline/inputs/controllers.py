@@ -101,6 +101,11 @@ class Controller(Strict):
         "revolution", description="C printed modulo 360 deg (revolution) or accumulated (cumulative)"
     )
     max_blocks: PositiveInt = Field(50_000_000, description="most program blocks the controller accepts")
+    c_limit_deg: Optional[PositiveFloat] = Field(
+        None,
+        description="the C axis's soft limit [deg] where C is printed accumulated (LinuxCNC: the INI's "
+        "MIN_LIMIT/MAX_LIMIT of the C joint); none: a wrapped rotary, unlimited",
+    )
 
     @model_validator(mode="before")
     @classmethod
@@ -137,4 +142,5 @@ class Controller(Strict):
             f"G93 F = {f}{' on every block' if self.g93_f_every_block else ''}, power-on "
             f"{self.power_on_motion} {self.power_on_feed} {self.power_on_distance}, axis words without a "
             f"point {words[self.whole_number_words]}, G04 P in {self.dwell_p}, C {self.c_wrap}"
+            + (f" within {self.c_limit_deg:g} deg" if self.c_limit_deg is not None else "")
         ]

@@ -171,17 +171,22 @@ def record_of(
     record.update(rcase.kind.record_fields(rcase))
     record["aspect_actual"] = layout.aspect
     record.update(simulated(rcase, errors, plan.n_theta, rcase.feed_um + plan.window_um, gouge))
-    record.update(
-        stroke_um=dyn.stroke_um,
-        w_velocity_peak_mm_s=dyn.velocity_peak_mm_s,
-        w_accel_peak_m_s2=dyn.accel_peak_m_s2,
-        w_accel_rms_m_s2=dyn.accel_rms_m_s2,
-        w_freq_max_hz=dyn.freq_max_hz,
-        feasible=feasible,
-        infeasible_reason=reason,
-    )
+    record.update(motion_fields(dyn, feasible, reason))
     record.update(layer_record(rcase, layering, dyn.stroke_um))
     return record
+
+
+def motion_fields(dyn: Any, feasible: bool, reason: str) -> dict[str, Any]:
+    """The W command's motion fields of a record (model §6 dynamics) and its feasibility."""
+    return {
+        "stroke_um": dyn.stroke_um,
+        "w_velocity_peak_mm_s": dyn.velocity_peak_mm_s,
+        "w_accel_peak_m_s2": dyn.accel_peak_m_s2,
+        "w_accel_rms_m_s2": dyn.accel_rms_m_s2,
+        "w_freq_max_hz": dyn.freq_max_hz,
+        "feasible": feasible,
+        "infeasible_reason": reason,
+    }
 
 
 def non_finite(rcase: ResolvedCase, errors: dict[str, float]) -> list[str]:

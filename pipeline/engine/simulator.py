@@ -29,6 +29,7 @@ from ftsweep.engine.result import STAGES
 from ftsweep.engine.threads import current as current_threads
 from ftsweep.engine.threads import using_threads
 from ftsweep.stages.envelope import arcs as envelope
+from ftsweep.stages.interpolation import compensation
 from ftsweep.stages.interpolation import tables as interpolation
 from ftsweep.stages.metrics import moments as metrics
 
@@ -99,6 +100,33 @@ class ExactRows:
 
     def heights(self) -> np.ndarray:
         return envelope.machined_rows(self.pos, self.w_exact, self.n_valid, self.rc, self.query)[0]
+
+
+def exact_at_passes(
+    rcase: ResolvedCase,
+    surface: Callable[..., Any],
+    pos: np.ndarray,
+    theta: np.ndarray,
+    on: np.ndarray,
+    base: np.ndarray,
+    curvature_bound: float,
+) -> np.ndarray:
+    """The exact commands [µm] (the compensated design, model §4) at the passes ``on`` of a
+    batch of rays at angles ``theta`` [rad], passes at radii ``pos`` [µm] on ``surface`` (in
+    the frame the rays are cast in); ``base`` elsewhere."""
+    res = rcase.case.resolution
+    w_exact = np.array(base, dtype=np.float64, copy=True)
+    w_exact[on], _ = compensation.compensate(
+        surface,
+        pos[on],
+        np.broadcast_to(theta[:, None], pos.shape)[on],
+        rcase.nose_radius_um,
+        rcase.case.compensation,
+        rcase.gradient_bound,
+        n_scan=res.compensation_scan,
+        curvature_bound=curvature_bound,
+    )
+    return w_exact
 
 
 class Machined(NamedTuple):

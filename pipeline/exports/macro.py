@@ -81,20 +81,23 @@ def parse(text: str) -> Expr:
     return value
 
 
-def _sum(t: list[str]) -> tuple[Expr, list[str]]:
-    value, t = _product(t)
-    while t and t[0] in ("+", "-"):
-        op, (rhs, t) = t[0], _product(t[1:])
+def _chain(
+    t: list[str], ops: tuple[str, str], operand: Callable[[list[str]], tuple[Expr, list[str]]]
+) -> tuple[Expr, list[str]]:
+    """Operands joined by the left-associative operators ``ops`` (one precedence level)."""
+    value, t = operand(t)
+    while t and t[0] in ops:
+        op, (rhs, t) = t[0], operand(t[1:])
         value = _binary(op, value, rhs)
     return value, t
+
+
+def _sum(t: list[str]) -> tuple[Expr, list[str]]:
+    return _chain(t, ("+", "-"), _product)
 
 
 def _product(t: list[str]) -> tuple[Expr, list[str]]:
-    value, t = _atom(t)
-    while t and t[0] in ("*", "/"):
-        op, (rhs, t) = t[0], _atom(t[1:])
-        value = _binary(op, value, rhs)
-    return value, t
+    return _chain(t, ("*", "/"), _atom)
 
 
 def _atom(t: list[str]) -> tuple[Expr, list[str]]:

@@ -26,7 +26,7 @@ import numpy as np
 
 from ftsweep.engine.case import CaseError
 from ftsweep.engine.record import non_finite, simulated
-from ftsweep.engine.simulator import ExactRows, Machined, require_finite
+from ftsweep.engine.simulator import ExactRows, Machined, exact_at_passes, require_finite
 from ftsweep.inputs import catalogs
 from ftsweep.stages.envelope import arcs as envelope
 from ftsweep.stages.interpolation import compensation, rays, timed_path
@@ -360,21 +360,9 @@ class DPathSimulation:
         """The exact commands of the passes on a cut (the transitions' own Z elsewhere), or
         None when the case asks the exact envelope off."""
         rcase = self.rcase
-        res = rcase.case.resolution
-        if not res.interp_error:
+        if not rcase.case.resolution.interp_error:
             return None
-        w_exact = w.copy()
-        w_exact[on_cut], _ = compensation.compensate(
-            self.surface,
-            pos[on_cut],
-            np.broadcast_to(theta[:, None], pos.shape)[on_cut],
-            rcase.nose_radius_um,
-            rcase.case.compensation,
-            rcase.gradient_bound,
-            n_scan=res.compensation_scan,
-            curvature_bound=self.curvature,
-        )
-        return w_exact
+        return exact_at_passes(rcase, self.surface, pos, theta, on_cut, w, self.curvature)
 
     def _cusps(self, cusp_r: np.ndarray, ct: np.ndarray, st: np.ndarray) -> tuple[np.ndarray, ...]:
         """The design at the cusp peaks between passes, which lie inside the fully machined

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from ftsweep.engine.case import CaseError
-from ftsweep.engine.record import layer_record, non_finite, simulated
-from ftsweep.engine.simulator import ExactRows, Machined, require_finite
+from ftsweep.engine.record import layer_record, motion_fields, non_finite, simulated
+from ftsweep.engine.simulator import ExactRows, Machined, exact_at_passes, require_finite
 from ftsweep.inputs import catalogs
 from ftsweep.stages.envelope import arcs as envelope
 from ftsweep.stages.interpolation import compensation
@@ -102,22 +102,12 @@ class CommandedSimulation:
         """The compensated design's commands at the passes (model §4): what the program would
         command with every point exact; None when the case asks the exact envelope off."""
         rcase = self.rcase
-        res = rcase.case.resolution
-        if not res.interp_error:
+        if not rcase.case.resolution.interp_error:
             return None
-        w_exact = np.full(pos.shape, np.nan)
         on = np.isfinite(pos) & (pos <= rcase.aperture.outer_radius_um)
-        w_exact[on], _ = compensation.compensate(
-            rcase.surface,
-            pos[on],
-            np.broadcast_to(theta[:, None], pos.shape)[on],
-            rcase.nose_radius_um,
-            rcase.case.compensation,
-            rcase.gradient_bound,
-            n_scan=res.compensation_scan,
-            curvature_bound=self.curvature,
+        return exact_at_passes(
+            rcase, rcase.surface, pos, theta, on, np.full(pos.shape, np.nan), self.curvature
         )
-        return w_exact
 
     def record(self, errors: dict[str, float], timer: Any) -> dict[str, Any]:
         """The record: the shared fields, the spiral kind's (its rule 'program') and the Z
@@ -144,14 +134,8 @@ class CommandedSimulation:
         record.update(rcase.kind.record_fields(rcase))
         record["aspect_actual"] = path.aspect
         record.update(simulated(rcase, errors, self.rays.size, self.band, np.zeros(0, dtype=bool)))
+        record.update(motion_fields(dyn, feasible, reason))
         record.update(
-            stroke_um=dyn.stroke_um,
-            w_velocity_peak_mm_s=dyn.velocity_peak_mm_s,
-            w_accel_peak_m_s2=dyn.accel_peak_m_s2,
-            w_accel_rms_m_s2=dyn.accel_rms_m_s2,
-            w_freq_max_hz=dyn.freq_max_hz,
-            feasible=feasible,
-            infeasible_reason=reason,
             cut_radii_mm=self.span_mm,
             judged_radii_mm=(float(self.nodes[0]) / 1e3, float(self.nodes[-1]) / 1e3),
         )

@@ -382,3 +382,19 @@ def test_a_cumulative_c_past_the_controllers_soft_limit_is_refused_at_export():
     with pytest.raises(ProgramError, match=r"C reaches 2,000° accumulated, past the controller's soft limit"):
         nc._limits(moves, soft)
     nc._limits(moves, soft.model_copy(update={"c_limit_deg": None}))  # a wrapped rotary: no limit
+
+
+def test_a_programs_simulation_is_bounded_before_any_work(flat_catalogs):
+    """Bounded work on any program: a ray's nodes and its crossings (one per revolution of
+    every cut) are counted against the case's node budget before a ray is cast."""
+    from ftsweep.engine.case import CaseError
+    from ftsweep.engine.planning import resolve_specs
+    from ftsweep.kinds.spiral.dialect import commanded_of, stand_in_case
+    from ftsweep.simulate import run_case
+
+    moves = _read(moore_650fg())
+    case = stand_in_case("flat", "sts-moore", "reference")
+    specs = resolve_specs(case, flat_catalogs)
+    with pytest.raises(CaseError, match="evaluation nodes"):
+        run_case(case, catalog_folder=flat_catalogs, specs=specs, program=commanded_of(moves), max_nodes=1e4)
+    assert run_case(case, catalog_folder=flat_catalogs, specs=specs, program=commanded_of(moves))["pv_nm"] > 0

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ftsweep.engine.case import CaseError
+from ftsweep.engine.cost import check_cost
 from ftsweep.engine.record import layer_record, motion_fields, non_finite, simulated
 from ftsweep.engine.simulator import ExactRows, Machined, exact_at_passes, require_finite
 from ftsweep.inputs import catalogs
@@ -57,7 +58,13 @@ class CommandedSimulation:
         self.span_mm = (inner / 1e3, outer / 1e3)
         n = res.n_theta or min(max(res.samples_per_cell * path.max_points_per_rev, MIN_RAYS), MAX_RAYS)
         self.rays = (np.arange(n) + 0.5) / n * 2.0 * math.pi
-        self.per_batch = max(1, int(s.batch_nodes // max(self.nodes.size, 1)))
+        # a ray holds its nodes and a crossing per revolution of every cut: the work and the
+        # memory a batch takes, whatever the program (bounded like any case: check_cost)
+        passes = sum(
+            math.ceil((path.angle[hi - 1] - path.angle[lo]) / (2.0 * math.pi)) + 2 for lo, hi in path.cuts()
+        )
+        check_cost((self.nodes.size + passes) / 2.0, n, s.max_nodes)
+        self.per_batch = max(1, int(s.batch_nodes // (self.nodes.size + passes)))
         self.n_batches = math.ceil(self.rays.size / self.per_batch)
         self.zone_split_um = res.zone_split * rcase.aperture.inner_radius_um
         self.curvature = catalogs.curvature_bound(rcase.surface_spec)

@@ -398,3 +398,12 @@ def test_a_programs_simulation_is_bounded_before_any_work(flat_catalogs):
     with pytest.raises(CaseError, match="evaluation nodes"):
         run_case(case, catalog_folder=flat_catalogs, specs=specs, program=commanded_of(moves), max_nodes=1e4)
     assert run_case(case, catalog_folder=flat_catalogs, specs=specs, program=commanded_of(moves))["pv_nm"] > 0
+
+
+def test_a_pmac_cut_ends_at_rapid_and_its_retract_is_not_cut():
+    text = PMAC_MANUAL.removesuffix("CLOSE\n") + "RAPID\nZ2\nCLOSE\n"
+    moves = dialects.read(text.split("\n"), "pmac-pvt")
+    assert moves.n_points == 4 and moves.z_mm[-1] == 0.0  # the retract to Z2 is not a point
+    again = text.removesuffix("CLOSE\n") + "PVT100\nC36:360 X-0.001:-0.01 Z0:0\nCLOSE\n"
+    with pytest.raises(dialects.DialectError, match="a second cut after RAPID"):
+        dialects.read(again.split("\n"), "pmac-pvt")

@@ -122,6 +122,11 @@ def _pmac_head(m: Moves, d: int) -> list[str]:
     return ["CLOSE", "OPEN PROG 1 CLEAR", "ABS", "RAPID", f"Z{lift}", start, f"Z{_num(m.z_mm[:1], d)[0]}"]
 
 
+def _retract(m: Moves, d: int) -> list[str]:
+    """Leaving the part after a PMAC cut: RAPID, Z up by the clearance."""
+    return ["RAPID", f"Z{_num(np.array([m.z_mm[-1] + CLEARANCE_MM]), d)[0]}"]
+
+
 def _pvt(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     _one_cut(m, dialect)
     assert m.velocity is not None
@@ -136,7 +141,7 @@ def _pvt(m: Moves, dialect: str, ctrl: Any) -> list[str]:
             out.append(f"PVT{ms}")
             last = ms
         out.append(" ".join(f"{a}{pos[a][k]}:{v[a][k]}" for a in pos))
-    return out + ["CLOSE"]
+    return out + _retract(m, d) + ["CLOSE"]
 
 
 def _spline(m: Moves, dialect: str, ctrl: Any) -> list[str]:
@@ -146,7 +151,7 @@ def _spline(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     out = _pmac_head(m, d)
     out.append(f"SPLINE1 TA{int(round(float(m.seconds[0]) * 1e3))}")
     out += [" ".join(f"{a}{pos[a][k]}" for a in pos) for k in range(1, m.n_points)]
-    return out + ["CLOSE"]
+    return out + _retract(m, d) + ["CLOSE"]
 
 
 # --------------------------------------------------------------------------- reading

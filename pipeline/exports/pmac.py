@@ -45,6 +45,8 @@ class _PmacReader:
         self.pos: dict[str, float] = {a: math.nan for a in AXES}
         self.mode, self.seconds, self.ta_s = "", math.nan, math.nan
         self.absolute = True
+        self.ended = False
+        self.cut_mode = ""
         self.points: list[dict[str, float]] = []
         self.vel: list[dict[str, float]] = []
         self.times: list[float] = []
@@ -100,8 +102,7 @@ class _PmacReader:
         if word in ("ABS", "INC"):
             self.absolute = word == "ABS"
         elif word in ("RAPID", "LINEAR"):
-            if self.points:
-                raise self.fail(n, line, f"{word} after the cut: the reader takes one cut")
+            self.ended = bool(self.points)  # after the cut: the retract, never cut
             self.mode = word
         elif m.group(3) is not None:
             self.mode = "PVT"
@@ -138,6 +139,8 @@ class _PmacReader:
 
     def _move(self, n: int, line: str, move: dict[str, float], speeds: dict[str, float]) -> None:
         target = move if self.absolute else {a: self.pos[a] + v for a, v in move.items()}
+        if self.ended and self.mode in ("PVT", "SPLINE1"):
+            raise self.fail(n, line, "a second cut after RAPID or LINEAR: the reader takes one cut")
         if self.mode in ("RAPID", "LINEAR", ""):
             if speeds or not self.mode:
                 raise self.fail(
@@ -145,11 +148,12 @@ class _PmacReader:
                     line,
                     "a move before PVT or SPLINE1 that is not RAPID or LINEAR, or a velocity outside PVT",
                 )
-            self.pos.update(target)
+            self.pos = {**self.pos, **target}  # a new dict: the cut's last point keeps its own
             return
         if self.mode == "SPLINE1" and not self.ta_s > 0:
             raise self.fail(n, line, "a SPLINE1 move before its segment time TA is set")
         if not self.points:
+            self.cut_mode = self.mode
             self.points.append(dict(self.pos))
             self.vel.append({a: 0.0 for a in AXES})  # a RAPID ends at rest
         self.pos.update(target)
@@ -172,7 +176,7 @@ class _PmacReader:
             if axis not in axes and np.any(np.isfinite(cols[axis])):
                 raise DialectError(f"{axis} is given during the cut but not at its start")
         velocity = None
-        interp = "spline1" if self.mode == "SPLINE1" else "pvt"
+        interp = "spline1" if self.cut_mode == "SPLINE1" else "pvt"
         if interp == "pvt":
             velocity = {a: np.array([v[a] for v in self.vel]) for a in axes}
         times = np.array(self.times)

@@ -524,7 +524,14 @@ def test_pvt_segment_times_are_whole_controller_steps(tmp_path):
     steps = np.array(times) / 0.00025
     assert len(times) > 10 and np.all(np.abs(steps - np.round(steps)) < 1e-6)
     moves = dialects.read(lines[:-1], "pmac-pvt")
-    assert np.allclose(moves.velocity["C"][1:], 6.63 * 6.0)  # deg/s
+    assert np.allclose(moves.velocity["C"][1:-1], 6.63 * 6.0)  # deg/s
+    # the program stops after its last point: one more segment to rest, at a constant
+    # deceleration (the cubic through v and 0 over a distance v·T/2), then leaves the part
+    assert moves.stopped and all(v[-1] == 0.0 for v in moves.velocity.values())
+    t_stop = moves.seconds[-1]
+    assert t_stop >= moves.seconds[-2] - 1e-12
+    assert moves.c_deg[-1] - moves.c_deg[-2] == pytest.approx(0.5 * 6.63 * 6.0 * t_stop, abs=2e-6)
+    assert lines[-4:-1] == ["RAPID", lines[-3], "CLOSE"] and lines[-3].startswith("Z")
 
 
 def test_predict_program_reads_against_the_machine_the_file_names(moore, tmp_path):

@@ -17,8 +17,9 @@ from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
 from ftsweep.engine.case import Case, CaseError, program_request
-from ftsweep.exports import dialects
+from ftsweep.exports import dialects, nc
 from ftsweep.exports.moves import DialectError
+from ftsweep.inputs import catalogs
 from ftsweep.simulate import run_case
 from ftsweep.stages.interpolation import rays, timed_path
 
@@ -217,6 +218,16 @@ def test_a_timed_program_goes_out_in_pvt_and_verifies(tmp_path, name, sweep, axe
         if ln.startswith("PVT"):
             steps = float(ln[3:]) * 1e-3 / 2.5e-7
             assert steps == pytest.approx(round(steps), abs=1e-6)
+    # the program stops after its path within the machine's accelerations, every axis at once
+    machine = "xzc-pmac-pvt" if axes == "CXZ" else "xyzc-pmac-pvt"
+    moves = dialects.read(lines, "pmac-pvt", nc.profile_for(machine, "pmac-pvt"))
+    limits = catalogs.entry("machines", machine).axes
+    t_stop = moves.seconds[-1]
+    assert moves.stopped and all(v[-1] == 0.0 for v in moves.velocity.values())
+    assert abs(moves.velocity["X"][-2]) / t_stop <= limits.x_accel_m_s2 * 1e3 * (1 + 1e-6)
+    assert abs(moves.velocity["Z"][-2]) / t_stop <= limits.z_accel_m_s2 * 1e3 * (1 + 1e-6)
+    if limits.c_accel_rad_s2 is not None:
+        assert abs(np.radians(moves.velocity["C"][-2])) / t_stop <= limits.c_accel_rad_s2 * (1 + 1e-6)
     r = CliRunner().invoke(
         main, ["verify", str(out), "--json", *(["--compiled"] if shutil.which("cc") else [])]
     )

@@ -17,7 +17,16 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep.exports.gcode import IsoReader
-from ftsweep.exports.moves import Adapter, DialectError, Moves, aligned, summary
+from ftsweep.exports.moves import (
+    Adapter,
+    DialectError,
+    Moves,
+    aligned,
+    stop_seconds,
+    summary,
+    with_stop,
+    without_stop,
+)
 from ftsweep.exports.pmac import read_pmac
 from ftsweep.inputs.controllers import DIALECT_INTERPOLATION, Controller
 
@@ -187,6 +196,9 @@ __all__ = [
     "DialectError",
     "Moves",
     "aligned",
+    "stop_seconds",
+    "with_stop",
+    "without_stop",
     "summary",
     "render",
     "read",

@@ -39,6 +39,8 @@ class Moves:
     w_mm: Optional[np.ndarray] = None
     cut_starts: Optional[np.ndarray] = None
     dwell_s: float = 0.0  # time the program's dwells (G04) stand still, not in ``seconds``
+    # a PVT program's last segment is its stop after the planned path (:func:`with_stop`)
+    stopped: bool = False
 
     @property
     def n_points(self) -> int:
@@ -96,6 +98,66 @@ class Adapter:
     check: Callable[..., str]
     commands: Optional[Callable[[Moves, int], np.ndarray]] = None
     stand_in: Optional[Callable[[str, str, str], Any]] = None
+
+
+def stop_seconds(m: Moves, machine: Any, quantum_s: float) -> float:
+    """How long a PVT program takes to stop after its last point [s]: each axis decelerating
+    at a constant rate from its last velocity, no faster than the machine's declared limits
+    (its ``axes`` accelerations, the servo's peak acceleration for Z), nor in less time than
+    the last segment took; on whole time steps of the controller."""
+    assert m.velocity is not None
+    rates = {"Z": machine.peak_accel_m_s2 * 1e3}  # mm/s²
+    if machine.axes is not None:
+        a = machine.axes
+        rates.update(X=a.x_accel_m_s2 * 1e3, Z=a.z_accel_m_s2 * 1e3)
+        if a.y_accel_m_s2 is not None:
+            rates["Y"] = a.y_accel_m_s2 * 1e3
+        if a.c_accel_rad_s2 is not None:
+            rates["C"] = math.degrees(a.c_accel_rad_s2)
+    need = [abs(float(v[-1])) / rates[k] for k, v in m.velocity.items() if k in rates]
+    t = max([float(m.seconds[-1]), *need])
+    return math.ceil(t / quantum_s - 1e-9) * quantum_s
+
+
+def with_stop(m: Moves, seconds: float) -> Moves:
+    """A PVT program that stops after its last point (docs/controllers.md): one more segment
+    of ``seconds`` [s] to a point half its last velocity times that time on, where every axis
+    is at rest — the segments' cubic is then a constant deceleration."""
+    assert m.velocity is not None
+    axes = {"C": m.c_deg, "X": m.x_mm, "Y": m.y_mm, "Z": m.z_mm}
+    end = {
+        k: float(v[-1]) + 0.5 * float(m.velocity[k][-1]) * seconds for k, v in axes.items() if v is not None
+    }
+    grown = {k: np.append(v, end[k]) for k, v in axes.items() if v is not None}
+    velocity = {k: np.append(v, 0.0) for k, v in m.velocity.items()}
+    return replace(
+        m,
+        c_deg=grown["C"],
+        x_mm=grown["X"],
+        y_mm=grown.get("Y"),
+        z_mm=grown["Z"],
+        seconds=np.append(m.seconds, seconds),
+        velocity=velocity,
+        stopped=True,
+    )
+
+
+def without_stop(m: Moves) -> Moves:
+    """The moves of the planned path: a stopped program's stop segment left out (it runs
+    after the last point, beyond the part a kind judges)."""
+    if not m.stopped:
+        return m
+    velocity = None if m.velocity is None else {k: v[:-1] for k, v in m.velocity.items()}
+    return replace(
+        m,
+        c_deg=m.c_deg[:-1],
+        x_mm=m.x_mm[:-1],
+        y_mm=None if m.y_mm is None else m.y_mm[:-1],
+        z_mm=m.z_mm[:-1],
+        seconds=m.seconds[:-1],
+        velocity=velocity,
+        stopped=False,
+    )
 
 
 def aligned(moves: Moves, c0_deg: float) -> Moves:

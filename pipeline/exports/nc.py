@@ -152,6 +152,8 @@ def _document(
     ctrl = controller_of(specs[1], dialect)
     adapter = adapter_of(case.layout.kind)
     moves, kind_lines, rcase = adapter.planned(case, specs)
+    if ctrl.interpolation == "pvt" and moves.cut_starts is None:
+        moves = dialects.with_stop(moves, dialects.stop_seconds(moves, specs[1], ctrl.time_quantum_s))
     _limits(moves, ctrl)
     meta = {
         **meta_in,

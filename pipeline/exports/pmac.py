@@ -181,4 +181,19 @@ class _PmacReader:
             velocity = {a: np.array([v[a] for v in self.vel]) for a in axes}
         times = np.array(self.times)
         y = cols["Y"] if "Y" in axes else None
-        return Moves(cols["C"], cols["X"], cols["Z"], times, y, velocity, interp, self.dialect, self.comments)
+        # a PVT cut that ends at rest: its last segment is the stop after its path
+        stopped = (
+            velocity is not None and len(self.points) > 2 and all(v[-1] == 0.0 for v in velocity.values())
+        )
+        return Moves(
+            cols["C"],
+            cols["X"],
+            cols["Z"],
+            times,
+            y,
+            velocity,
+            interp,
+            self.dialect,
+            self.comments,
+            stopped=stopped,
+        )

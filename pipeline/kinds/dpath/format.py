@@ -31,7 +31,7 @@ from ftsweep.exports.files import (
     sidecar_of,
     write_program,
 )
-from ftsweep.exports.moves import pvt_tangents, with_pvt
+from ftsweep.exports.moves import pvt_tangents, with_pvt, without_stop
 from ftsweep.exports.programs import program_format
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.version import __version__
@@ -188,7 +188,7 @@ def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list
 def _dpath_columns(moves: Moves, path: Any) -> np.ndarray:
     """A D path's moves as the text program's columns t [s], C [deg], X [mm], Z [mm], C at
     the planned path's revolutions (:func:`ftsweep.exports.dialects.aligned`)."""
-    moves = aligned(moves, math.degrees(float(path.phi[0])))
+    moves = aligned(without_stop(moves), math.degrees(float(path.phi[0])))
     t = np.concatenate([[0.0], np.cumsum(moves.seconds)])
     return np.column_stack([t, moves.c_deg, moves.x_mm, moves.z_mm])
 
@@ -206,7 +206,7 @@ def _dpath_simulate(
     data = _dpath_columns(moves, rcase.layout)
     run = _as_run(rcase.layout, data)
     if moves.velocity is not None:
-        run = run._replace(tangents=pvt_tangents(moves, "CXZ"))
+        run = run._replace(tangents=pvt_tangents(without_stop(moves), "CXZ"))
     return run_case(case, specs=specs, progress=progress, program=(run, data[:, 3] * 1e3))
 
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.exports.moves import pvt_tangents, with_pvt
+from ftsweep.exports.moves import pvt_tangents, with_pvt, without_stop
 from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel.study import lines_reason
 from ftsweep.stages.paths import fresnel as ff
@@ -49,7 +49,7 @@ def _columns(moves: Any, rcase: Any) -> np.ndarray:
     program's (``rcase``'s) revolutions (:func:`ftsweep.exports.dialects.aligned`)."""
     from ftsweep.exports.dialects import aligned
 
-    moves = aligned(moves, math.degrees(float(rcase.layout.plan.phi[0])))
+    moves = aligned(without_stop(moves), math.degrees(float(rcase.layout.plan.phi[0])))
     t = np.concatenate([[0.0], np.cumsum(moves.seconds)])
     return np.column_stack([t, moves.c_deg, moves.x_mm, moves.y_mm, moves.z_mm])
 
@@ -72,7 +72,7 @@ def _dialect_simulate(
     if moves.velocity is not None:
         # PVT: the segments the file's C, X, Y and their velocities form
         fplan = given.plan._replace(phi=phi, x_um=data[:, 2] * 1e3, y_um=data[:, 3] * 1e3)
-        given = given._replace(plan=fplan, tangents=pvt_tangents(moves, "CXYZ"))
+        given = given._replace(plan=fplan, tangents=pvt_tangents(without_stop(moves), "CXYZ"))
     return run_case(case, specs=specs, progress=progress, program=(given, data[:, 4] * 1e3))
 
 

@@ -564,6 +564,23 @@ def test_predict_program_reads_against_the_machine_the_file_names(moore, tmp_pat
     assert "machine      sts-nanoform (named by the file)" in r.output
 
 
+def test_a_file_written_for_another_profile_is_refused_by_verify(moore, tmp_path):
+    """The header states the conventions the file relies on; on a machine whose profile now
+    reads F otherwise, verify refuses it, naming the convention."""
+    _, out = moore
+    text = out.read_text()
+    assert "(conventions: G93 F = block time in s, power-on G01 G94 G90" in text
+    folder = tmp_path / "catalogs"
+    shutil.copytree(Path(__file__).resolve().parent.parent / "catalogs", folder)
+    machines = folder / "machines.yaml"
+    entry = machines.read_text().split("sts-moore:", 1)
+    machines.write_text(
+        entry[0] + "sts-moore:" + entry[1].replace("g93_f: seconds", "g93_f: inverse_minutes", 1)
+    )
+    r = CliRunner().invoke(main, ["verify", str(out)], env={"FTSWEEP_CATALOGS": str(folder)})
+    assert r.exit_code == 1 and "controller.g93_f" in r.output
+
+
 def test_each_dialects_header_states_only_its_own_units(moore):
     _, out = moore
     units = next(line for line in out.read_text().splitlines() if "units:" in line)

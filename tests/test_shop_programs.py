@@ -6,6 +6,7 @@ its expected summary, and where ftsweep can predict it an independent expected f
 from __future__ import annotations
 
 import json
+import math
 import shutil
 import subprocess
 from pathlib import Path
@@ -224,7 +225,7 @@ def test_a_bare_program_is_read_from_the_profiles_power_on_state():
 def test_whole_number_words_follow_the_profile():
     text = moore_650fg(passes=1)
     with pytest.raises(
-        dialects.DialectError, match=r"line 15 .*Z20 has no decimal point.*whole_number_words"
+        dialects.DialectError, match=r"line 15, column 5 .*Z20 has no decimal point.*whole_number_words"
     ):
         _read(text, "sts-nanoform")
     fanuc = Controller(
@@ -255,7 +256,7 @@ def test_incremental_blocks_and_macro_functions():
 
 def test_an_f_outside_the_controllers_range_is_refused():
     fanuc = Controller(dialect="iso-sts", f_min=0.001, f_max=9999.999)
-    with pytest.raises(dialects.DialectError, match=r"line 3 .*F26641.5 is outside"):
+    with pytest.raises(dialects.DialectError, match=r"line 3, column 5 .*F26641.5 is outside"):
         dialects.read(
             ["G90 G18", "G01 X1. C0. Z0.", "G93 F26641.496021", "C1. X0.99 Z0.", "M30"], "iso-sts", fanuc
         )
@@ -407,3 +408,41 @@ def test_a_pmac_cut_ends_at_rapid_and_its_retract_is_not_cut():
     again = text.removesuffix("CLOSE\n") + "PVT100\nC36:360 X-0.001:-0.01 Z0:0\nCLOSE\n"
     with pytest.raises(dialects.DialectError, match="a second cut after RAPID"):
         dialects.read(again.split("\n"), "pmac-pvt")
+
+
+def test_a_four_axis_program_is_predicted_as_its_tool_turns_over_the_part(tmp_path, flat_catalogs):
+    """The same spiral written with the tool off the X axis (Y = 0.1 mm, X shortened so
+    that the radius is the same, C turned back by the offset's angle) cuts the same part."""
+    plain = moore_650fg(passes=1)
+    blocks = []
+    for k in range(1, N_BLOCKS + 1):
+        r = RADIUS_MM - k * STEP_DEG / 360.0 * FEED_UM * 1e-3
+        y = 0.1 * r / RADIUS_MM
+        x = math.sqrt(r * r - y * y)
+        c = (k * STEP_DEG - math.degrees(math.atan2(y, x))) % 360.0
+        blocks.append(f"C{c:.6f} X{x:.6f} Y{y:.6f} Z0.000000")
+    x0 = math.sqrt(RADIUS_MM**2 - 0.1**2)
+    c0 = -math.degrees(math.atan2(0.1, x0)) % 360.0
+    turned = moore_650fg(blocks, passes=1).replace(f"X{RADIUS_MM:.1f} C0.", f"X{x0:.6f} Y0.1 C{c0:.6f}")
+    a = json.loads(
+        _with_catalogs(flat_catalogs, tmp_path, plain, "--surface", "flat", "--nose-radius-um", "500")[1]
+    )
+    b = json.loads(
+        _with_catalogs(flat_catalogs, tmp_path, turned, "--surface", "flat", "--nose-radius-um", "500")[1]
+    )
+    assert b["pv_nm"] == pytest.approx(a["pv_nm"], rel=0.01)
+
+
+@pytest.mark.parametrize(
+    ("block", "column", "why"),
+    [
+        ("G01 X1.0 Q5 Z0.0", 10, "the word Q is not one"),
+        ("G01 C1.0 X1 Z0.0", 10, "X1 has no decimal point"),
+        ("G01 X1.0 ?? Z0.", 10, "cannot read '??'"),
+        ("G01 X1.0 G10 Z0.", 10, "G10 sets offsets"),
+    ],
+)
+def test_a_refusal_names_line_column_word_and_reason(block, column, why):
+    lines = ["G90 G18", "G01 X2.0 C0.0 Z0.0 F100.", "G93 F100.", block, "M30"]
+    with pytest.raises(dialects.DialectError, match=rf"^line 4, column {column} .*{why}"):
+        dialects.read(lines, "iso-sts")

@@ -80,11 +80,18 @@ class IsoReader:
         self._exprs: dict[str, macro.Expr] = {}
         self._conds: dict[str, Any] = {}
         self._labels: dict[int, int] = {}
+        self._col = 0  # the column of the word being evaluated, for messages (0: the line)
         self._loops: dict[int, int] = {}
 
     def fail(self, n: int, why: str) -> DialectError:
         text = self.lines[n].strip()[:80] if 0 <= n < len(self.lines) else ""
-        return DialectError(f"line {n + 1} ({text!r}): {why}")
+        col = f", column {self._col}" if self._col else ""
+        return DialectError(f"line {n + 1}{col} ({text!r}): {why}")
+
+    def _column(self, n: int, token: str) -> int:
+        """Where ``token`` (a word as cleaned) stands in line ``n`` as written (1-based; 0
+        when comments or a macro expression's spacing hide it)."""
+        return self.lines[n].upper().find(token) + 1
 
     def run(self) -> Moves:
         self._scan()
@@ -275,6 +282,7 @@ class IsoReader:
             return float(raw)
         if how == "increments":
             return float(raw) * self.ctrl.input_increment_um * 1e-3
+        self._col = self._column(n, f"{letter}{raw}")
         raise self.fail(
             n,
             f"{letter}{raw} has no decimal point: a controller reads it as mm or in least input increments "
@@ -287,17 +295,20 @@ class IsoReader:
         found, at = [], 0
         for match in _WORD.finditer(text):
             if text[at : match.start()].strip():
+                self._col = self._column(n, text[at : match.start()].strip())
                 raise self.fail(n, f"cannot read {text[at : match.start()].strip()[:20]!r}")
             found.append((match.group(1), match.group(2)))
             at = match.end()
         if text[at:].strip():
+            self._col = self._column(n, text[at:].strip())
             raise self.fail(n, f"cannot read {text[at:].strip()[:20]!r}")
         return found
 
     def _modes(self, n: int, words: list[tuple[str, float]]) -> dict[str, float]:
         """The block's modal words applied; its axis words returned."""
         axes: dict[str, float] = {}
-        for letter, value in words:
+        for k, (letter, value) in enumerate(words):
+            self._col = self._column(n, "".join(self._parsed[n][k]))
             if letter == "G":
                 self._g(n, value)
             elif letter == "M":
@@ -308,6 +319,7 @@ class IsoReader:
                 axes[letter] = value
             elif letter not in "NTS":
                 raise self.fail(n, f"the word {letter} is not one the reader evaluates in this block")
+        self._col = 0
         return axes
 
     def _m(self, n: int, value: float) -> None:

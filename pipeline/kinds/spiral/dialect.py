@@ -170,16 +170,14 @@ def _simulate(
 def commanded_of(moves: Moves) -> tuple[CommandedPath, np.ndarray]:
     """A program's moves as the path the one simulator follows and its tool tip's Z [µm]
     (Z + W for a layered program): C in rad times the spindle's sense, so that the angle
-    increases, X in µm; the segments the controller forms (PVT: the velocities' tangents;
-    SPLINE1: the B-spline's way-points and tangents over each cut's control points)."""
+    increases, X in µm (a four-axis program's (X, Y) turned by C: :func:`_turned`); the
+    segments the controller forms (PVT: the velocities' tangents; SPLINE1: the B-spline's
+    way-points and tangents over each cut's control points)."""
+    c, rho = np.radians(moves.c_deg), moves.x_mm * 1e3
     if moves.y_mm is not None and np.any(moves.y_mm != 0.0):
-        raise DialectError(
-            "a program that moves Y (a four-axis program) is predicted from its export (ftsweep verify "
-            "FILE); predict --program simulates C-X-Z(-W) lathe programs"
-        )
-    c = np.radians(moves.c_deg)
+        c, rho = _turned(moves)
     sense = -1.0 if c[-1] < c[0] else 1.0
-    angle, rho = sense * c, moves.x_mm * 1e3
+    angle = sense * c
     z = moves.z_mm * 1e3 + (0.0 if moves.w_mm is None else moves.w_mm * 1e3)
     starts = np.array([lo for lo, _ in moves.cuts()], dtype=np.int64)
     for lo, hi in moves.cuts():
@@ -198,6 +196,23 @@ def commanded_of(moves: Moves) -> tuple[CommandedPath, np.ndarray]:
         "spiral", angle, rho, starts, sense, moves.interpolation, tangents, np.asarray(moves.seconds)
     )
     return path, z
+
+
+def _turned(moves: Moves) -> tuple[np.ndarray, np.ndarray]:
+    """A four-axis program's tool on the part: (X, Y) turned by C, its polar angle C +
+    atan2(Y, X) [rad] (unwrapped along each cut) and radius hypot(X, Y) [µm] — linear between
+    points in those, as a C-X program is in C and X."""
+    if moves.interpolation != "linear":
+        raise DialectError(
+            "a four-axis PVT or SPLINE1 program (Y moving) is predicted from its export (ftsweep "
+            "verify FILE); predict --program simulates its G-code"
+        )
+    assert moves.y_mm is not None
+    x, y = moves.x_mm * 1e3, moves.y_mm * 1e3
+    turn = np.radians(moves.c_deg) + np.arctan2(y, x)
+    for lo, hi in moves.cuts():
+        turn[lo:hi] = turn[lo] + np.unwrap(turn[lo:hi] - turn[lo])
+    return turn, np.hypot(x, y)
 
 
 def _spline1_path(

@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import given
+from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
 from ftsweep.exports import dialects, nc
@@ -446,3 +448,24 @@ def test_a_refusal_names_line_column_word_and_reason(block, column, why):
     lines = ["G90 G18", "G01 X2.0 C0.0 Z0.0 F100.", "G93 F100.", block, "M30"]
     with pytest.raises(dialects.DialectError, match=rf"^line 4, column {column} .*{why}"):
         dialects.read(lines, "iso-sts")
+
+
+def test_z20_is_twenty_millimetres_on_a_moore():
+    lines = ["G90 G18", "G01 X1. C0.", "G94 Z20 F500", "G93 F0.001", "C1. X0.99999", "C2. X0.99998", "M30"]
+    moves = dialects.read(lines, "iso-sts", nc.profile_for("sts-moore", "iso-sts"))
+    np.testing.assert_allclose(moves.z_mm, 20.0)
+
+
+@given(p=st.lists(st.floats(-10.0, 10.0), min_size=2, max_size=30))
+def test_a_spline1_sequence_leaves_and_reaches_its_ends_at_rest(p):
+    """The controller's added pieces (a zero-distance TA segment at each end): the path
+    starts at the first control point and ends at the last, both with zero velocity, one
+    segment more at each end than the control points make."""
+    from ftsweep.stages.interpolation import segments
+
+    y, d0, d1 = segments.added_pieces_segments(np.array(p))
+    assert y.size == len(p) + 2 and d0.size == len(p) + 1
+    assert y[0] == p[0] and y[-1] == p[-1] and d0[0] == 0.0 and d1[-1] == 0.0
+    # the interior way-points are the uniform B-spline's (P_k-1 + 4 P_k + P_k+1)/6
+    q = np.concatenate([[p[0]] * 2, p, [p[-1]] * 2])
+    np.testing.assert_allclose(y[1:-1], (q[1:-3] + 4.0 * q[2:-2] + q[3:-1]) / 6.0, atol=1e-12)

@@ -144,6 +144,7 @@ def added_pieces_segments(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
         raise ValueError("a B-spline program needs at least 2 control points")
     q = np.concatenate([p[:1], p[:1], p, p[-1:], p[-1:]])
     y = (q[:-2] + 4.0 * q[1:-1] + q[2:]) / 6.0
+    y[0], y[-1] = p[0], p[-1]  # (P + 4P + P)/6 is P: exactly, not to rounding
     slope = (q[2:] - q[:-2]) / 2.0
     return y, slope[:-1], slope[1:]
 

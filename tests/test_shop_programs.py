@@ -367,7 +367,7 @@ def test_the_compiled_reference_reads_the_manuals_pmac_as_the_reader_does(tmp_pa
         moves = dialects.read(PMAC_MANUAL.split("\n"), "pmac-pvt", ctrl)
         exe = compiled._build(tmp_path, [])
         run = subprocess.run(
-            [str(exe), str(path), "7", f"{ix90:g}", "0", "0"], capture_output=True, timeout=60
+            [str(exe), str(path), "7", f"{ix90:g}", "0", "0", "0"], capture_output=True, timeout=60
         )
         got = np.frombuffer(run.stdout, dtype=np.float64)
         want = compiled.file_segments(moves, 7)
@@ -469,3 +469,24 @@ def test_a_spline1_sequence_leaves_and_reaches_its_ends_at_rest(p):
     # the interior way-points are the uniform B-spline's (P_k-1 + 4 P_k + P_k+1)/6
     q = np.concatenate([[p[0]] * 2, p, [p[-1]] * 2])
     np.testing.assert_allclose(y[1:-1], (q[1:-3] + 4.0 * q[2:-2] + q[3:-1]) / 6.0, atol=1e-12)
+
+
+@pytest.mark.skipif(not shutil.which("cc"), reason="no C compiler on this machine")
+def test_a_power_pmac_spline_program_is_written_in_its_syntax_and_read_alike(tmp_path):
+    """A Power PMAC profile writes spline<ms>; the reader and the C reference read it alike."""
+    from ftsweep.exports import compiled
+
+    ctrl = Controller(dialect="pmac-spline", interpolation="spline1", pmac_syntax="power")
+    m = dialects.Moves(np.arange(6) * 36.0, np.linspace(1.0, 0.995, 6), np.zeros(6), np.full(5, 0.01))
+    lines = dialects.render(m, "pmac-spline", ["power"], ctrl)
+    assert "spline10" in lines and not any(ln.startswith("SPLINE1") for ln in lines)
+    path = tmp_path / "p.pmc"
+    path.write_text("\n".join(lines) + "\n")
+    moves = dialects.read(lines, "pmac-spline", ctrl)
+    exe = compiled._build(tmp_path, [])
+    run = subprocess.run([str(exe), str(path), "5", "1000", "0", "0", "1"], capture_output=True, timeout=60)
+    got = np.frombuffer(run.stdout, dtype=np.float64)
+    want = compiled.file_segments(moves, 5)
+    np.testing.assert_allclose(
+        got[1:].reshape(-1, len(want)), np.column_stack(list(want.values())), atol=1e-12
+    )

@@ -117,6 +117,7 @@ def check_program(path: Path, moves: Any, adapter: Any, ctrl: Any) -> dict[str, 
         f"{float(ctrl.ix90_ms):g}",
         "1" if ctrl.g93_f == "seconds" else "0",
         "1" if ctrl.c_wrap == "revolution" and ctrl.dialect != "linuxcnc" else "0",
+        "1" if ctrl.pmac_syntax == "power" else "0",
     ]
     with tempfile.TemporaryDirectory(prefix="ftsref-") as tmp:
         exe = _build(Path(tmp), [])

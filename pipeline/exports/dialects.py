@@ -158,7 +158,8 @@ def _spline(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     d = ctrl.decimals
     pos = {a: _num(v, d) for a, v in _axes(m).items()}
     out = _pmac_head(m, d)
-    out.append(f"SPLINE1 TA{int(round(float(m.seconds[0]) * 1e3))}")
+    ta = int(round(float(m.seconds[0]) * 1e3))
+    out.append(f"spline{ta}" if ctrl.pmac_syntax == "power" else f"SPLINE1 TA{ta}")
     out += [" ".join(f"{a}{pos[a][k]}" for a in pos) for k in range(1, m.n_points)]
     return out + _retract(m, d) + ["CLOSE"]
 

@@ -456,29 +456,6 @@ def test_verify_compiled_says_when_there_is_no_compiler(monkeypatch):
 
 
 @pytest.mark.integration
-def test_the_readmes_dialect_example_runs_as_written(tmp_path):
-    """The README's block on controllers' dialects, command by command, in a fresh folder (the
-    last line verifies the set-up's header: tests/test_reference_sweep.py makes that one)."""
-    import shlex
-
-    readme = (Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8")
-    block = readme.split("**Programs in the controller's own dialect.**", 1)[1].split("```bash\n", 1)[1]
-    commands = [line.split("  #", 1)[0].strip() for line in block.split("```", 1)[0].splitlines()]
-    assert len(commands) == 5 and commands[-1] == "ftsweep verify outputs/sinewave-ring.h --compiled"
-    import subprocess
-    import sys
-
-    ftsweep = Path(sys.executable).parent / "ftsweep"
-    for command in commands[:-1]:
-        args = shlex.split(command)
-        assert args[0] == "ftsweep"
-        done = subprocess.run(
-            [str(ftsweep), *args[1:]], cwd=tmp_path, capture_output=True, text=True, timeout=900
-        )
-        assert done.returncode == 0, f"{command}: {done.stdout[-800:]} {done.stderr[-800:]}"
-    assert (tmp_path / "outputs" / "seed003-map.png").stat().st_size > 0
-
-
 def test_a_loop_that_does_not_end_is_refused(monkeypatch):
     from ftsweep.exports import gcode
 

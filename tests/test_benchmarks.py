@@ -65,7 +65,7 @@ def test_bench_dialect_1M_blocks(benchmark, dialect):
     ctrl = entry("machines", "sts-moore" if dialect == "iso-sts" else "sts-pmac-pvt").controller
 
     def both() -> dialects.Moves:
-        return dialects.read(dialects.render(moves, dialect, ["bench"], ctrl), dialect)
+        return dialects.read(dialects.render(moves, dialect, ["bench"], ctrl), dialect, ctrl)
 
     read = benchmark.pedantic(both, rounds=1, iterations=1)
     np.testing.assert_allclose(read.z_mm, np.round(z, 6), atol=1e-12)

@@ -198,22 +198,20 @@ class IsoReader:
         return _LABEL.sub("", text, count=1)
 
     def _condition(self, n: int, text: str) -> bool:
-        test = self._conds.get(text)
-        if test is None:
-            try:
-                test = self._conds[text] = macro.condition(text)
-            except macro.MacroError as exc:
-                raise self.fail(n, str(exc)) from None
-        return bool(self._evaluated(n, test))
+        return bool(self._evaluated(n, self._once(n, text, self._conds, macro.condition)))
 
     def _expr(self, n: int, text: str) -> float:
-        compiled = self._exprs.get(text)
-        if compiled is None:
+        return float(self._evaluated(n, self._once(n, text, self._exprs, macro.parse)))
+
+    def _once(self, n: int, text: str, cache: dict[str, Any], parse: Any) -> Any:
+        """``text`` parsed by ``parse`` once (a loop's lines are evaluated again and again)."""
+        found = cache.get(text)
+        if found is None:
             try:
-                compiled = self._exprs[text] = macro.parse(text)
+                found = cache[text] = parse(text)
             except macro.MacroError as exc:
                 raise self.fail(n, str(exc)) from None
-        return float(self._evaluated(n, compiled))
+        return found
 
     def _evaluated(self, n: int, f: Any) -> Any:
         try:

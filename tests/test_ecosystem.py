@@ -218,6 +218,21 @@ def test_wheel_installs_one_package_named_ftsweep(tmp_path):
     ok = run(str(py), "-c", "import ftsweep, ftsweep.stages, xarray; print(ftsweep.__file__)")
     assert ok.returncode == 0, ok.stderr
     assert ok.stdout.strip().startswith(site)  # the wheel's copy, not the repository's
+    # from the folder holding a clone named like the package (what `git clone …/ftsweep` makes):
+    # the clone has no __init__.py, so Python would take it for a namespace package were the
+    # installed package not a regular one on sys.path (the README's user install)
+    clone = work / "ftsweep"
+    for part in ("pipeline", "stages", "catalogs"):
+        (clone / part).mkdir(parents=True)
+    (clone / "pyproject.toml").write_text("[project]\nname = 'ftsweep'\n")
+    here = run(
+        str(py),
+        "-c",
+        "import ftsweep, xarray as xr; print(ftsweep.__file__); print(type(xr.Dataset().ftsweep).__name__)",
+    )
+    assert here.returncode == 0, here.stderr
+    found, accessor = here.stdout.split()
+    assert found.startswith(site) and accessor != "", here.stdout
     for generic in ("pipeline", "stages"):
         refused = run(str(py), "-c", f"import {generic}")
         assert refused.returncode != 0 and "ModuleNotFoundError" in refused.stderr

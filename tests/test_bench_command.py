@@ -79,3 +79,47 @@ def test_cube_scale_counts_objects_and_times_open_and_select(tmp_path):
     assert row["open_s"] > 0 and row["select_s"] >= 0 and row["select_command_s"] > row["open_s"]
     assert 0 <= row["index"] < 5000
     assert synthetic_spec(100_000).axes.aspect is not None
+
+
+# ----------------------------------------------------------------------------- documented times
+def test_every_time_the_readme_documents_is_found_with_the_command_that_measures_it():
+    from ftsweep.tools.documented import FIRST_PREDICT, documented_times, readme_path
+
+    rows = documented_times(readme_path().read_text(encoding="utf-8"))
+    labels = [r.label for r in rows]
+    # the quickstart's sweep → status → export → verify, each with its figure, then the compile pair
+    for step in ("ftsweep sweep sinewave-ring", "ftsweep status", "ftsweep export", "ftsweep verify"):
+        assert any(label.startswith(step) for label in labels), (step, labels)
+    assert all(r.seconds is not None and r.seconds > 0 for r in rows), rows
+    assert [r.command for r in rows[-2:]] == [FIRST_PREDICT, FIRST_PREDICT]
+
+
+def test_a_figure_the_text_no_longer_states_shows_as_missing():
+    from ftsweep.tools.documented import documented_times, format_documented
+
+    rows = documented_times("# ftsweep\n\n## Quickstart\n\n```bash\nftsweep --help   # the help\n```\n")
+    assert rows[0].seconds is None and rows[0].command is None
+    table = format_documented([{**r._asdict(), "measured": None} for r in rows])
+    assert "the quickstart's timed ftsweep lines" in table and "—" in table
+
+
+def test_documented_times_are_measured_beside_the_written_figures(tmp_path, monkeypatch):
+    """The runner on a stand-in README (two quick commands): each row measured in its own fresh
+    folder, the compile estimate against the difference of the predict pair."""
+    from ftsweep.tools import documented
+    from ftsweep.tools.bench import ftsweep_command
+
+    monkeypatch.setattr(
+        documented, "FIRST_PREDICT", "ftsweep predict --surface sinewave2d --drho-um 50 --dtheta-deg 10"
+    )
+    readme = (
+        "## Quickstart\n\n```bash\nftsweep --help       # the commands: 1.5 s\n```\n\n"
+        "a first `predict` of a ring: 12 s against 1 s once cached\n"
+    )
+    rows = documented.measure(documented.documented_times(readme), " ".join(ftsweep_command()))
+    assert [r["seconds"] for r in rows[:3]] == [1.5, 12.0, 1.0]
+    assert all(r["measured"] > 0 for r in rows[:3])
+    estimate = rows[-1]
+    assert estimate["measured"] == pytest.approx(rows[1]["measured"] - rows[2]["measured"])
+    table = documented.format_documented(rows)
+    assert "ftsweep --help" in table and "compile estimate" in table

@@ -146,7 +146,7 @@ def _prepare(
     """Load the spec (naming what is wrong with it), refuse a cube the sweep cannot write, and
     say what runs, and when the kernels compile first; returns the cube's place (None: the
     default)."""
-    from ftsweep.engine.startup import kernels_cached
+    from ftsweep.engine.startup import FIRST_COMPILE_S, kernels_cached
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.sweeps.run import axis_summary
     from ftsweep.sweeps.spec import load_sweep
@@ -160,7 +160,11 @@ def _prepare(
         _check_destination(where, scheduler)
     click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
     if not kernels_cached():
-        click.echo("compiling    numba's kernels: the first run on this machine (about 15 s) ...", err=True)
+        click.echo(
+            f"compiling    numba's kernels: the first run on this machine "
+            f"(about {FIRST_COMPILE_S:.0f} s) ...",
+            err=True,
+        )
     return where
 
 

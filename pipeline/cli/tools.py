@@ -4,6 +4,7 @@ sweep's cases without simulating them) and ``bench`` (timings)."""
 from __future__ import annotations
 
 import functools
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -284,6 +285,13 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
     help="Also build a synthetic cube of this many cases (e.g. 100000: ~10 s) in a temporary "
     "folder and report its objects, and the seconds to open it and to select from it.",
 )
+@click.option(
+    "--documented",
+    is_flag=True,
+    help="Only this: run what each time the README documents describes (the quickstart's "
+    "lines, a first predict with and without numba's cache) as on a fresh install, and print "
+    "the written figure beside the measured one (about 80 s on 2 cores).",
+)
 def bench(
     names: tuple[str, ...],
     repeat: int,
@@ -293,6 +301,7 @@ def bench(
     scheduler: Optional[str],
     threads: Optional[int],
     cube_cases: Optional[int],
+    documented: bool,
 ) -> None:
     """Time whole commands, the case runner per stage, and optionally a sweep.
 
@@ -304,9 +313,18 @@ def bench(
     compensation, surface sampling, interpolation, envelope and metrics, after a warm-up that
     pays numba's compile cost, on one thread (and the 10⁶-point ones on --threads). With
     --sweep, the throughput of a whole sweep on each --workers count and on --scheduler; with
-    --cube-cases, a synthetic cube's object count and open and select times. Nothing is
-    asserted about time (about 3 minutes without --sweep).
+    --cube-cases, a synthetic cube's object count and open and select times; with
+    --documented, only the README's times beside their measurements. Nothing is asserted
+    about time (about 3 minutes without --sweep).
+
+    Examples:
+      ftsweep bench
+      ftsweep bench --case ring-1M-a8 --repeat 3 --threads 1
+      ftsweep bench --documented
     """
+    if documented:
+        _bench_documented(json_path)
+        return
     from ftsweep.defaults import usable_cores
     from ftsweep.store.io import write_json_atomic
     from ftsweep.tools.bench import (
@@ -343,4 +361,21 @@ def bench(
         result["cube_scale"] = cube_scale(cube_cases)
         click.echo(format_cube_scale(result["cube_scale"]))
     write_json_atomic(json_path, result)
+    click.echo(f"wrote {json_path}")
+
+
+def _bench_documented(json_path: str) -> None:
+    """``bench --documented``: the README's times beside their measurements."""
+    from ftsweep.store.io import write_json_atomic
+    from ftsweep.tools.bench import ftsweep_command
+    from ftsweep.tools.documented import documented_times, format_documented, measure, readme_path
+
+    try:
+        rows = documented_times(readme_path().read_text(encoding="utf-8"))
+        click.echo("running the README's timed commands in a fresh folder, numba's cache empty ...", err=True)
+        measured = measure(rows, shlex.join(ftsweep_command()))
+    except ValueError as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(format_documented(measured))
+    write_json_atomic(json_path, {"documented": measured})
     click.echo(f"wrote {json_path}")

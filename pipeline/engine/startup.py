@@ -163,9 +163,15 @@ def lazy_cache_loads() -> bool:
     return True
 
 
+# seconds numba takes to compile the kernels a first run needs, on the project's 2 cores (a
+# first ring predict with an empty cache less the same with the cache it filled): the estimate
+# a first sweep prints, measured again by `ftsweep bench --documented`
+FIRST_COMPILE_S = 15.0
+
+
 def kernels_cached() -> bool:
     """Whether numba's cache holds the compiled kernels already (a run then starts at once;
-    the first run on a machine compiles them, about 15 s on 2 cores): the index files of the envelope
+    the first run on a machine compiles them, :data:`FIRST_COMPILE_S`): the index files of the envelope
     stage (``ftsweep.stages.envelope.arcs``), in ``NUMBA_CACHE_DIR`` where set, else beside the
     stages' sources."""
     import os

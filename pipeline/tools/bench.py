@@ -149,7 +149,7 @@ axes: {points: [950000], aspect: [16.0]}
 """
 
 
-def _command() -> list[str]:
+def ftsweep_command() -> list[str]:
     """The console script beside this interpreter, else ``python -m ftsweep.cli.main``."""
     import shutil
     import sys
@@ -186,7 +186,7 @@ def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[
     import json
     import tempfile
 
-    head = _command()
+    head = ftsweep_command()
     known = whole_process_rows()
     unknown = [n for n in names or [] if n not in known]
     if unknown:

@@ -1,0 +1,137 @@
+"""The times the README documents, measured again (``ftsweep bench --documented``).
+
+A figure a user reads before running something ("48 s", "about 15 s") goes stale silently
+when the code changes; this runs what each figure describes, as a user on a fresh install
+would, and prints the documented figure beside the measured one. Three sources:
+
+- the README's quickstart block: every ``ftsweep …`` line ending in a comment ``…: N s``,
+  run in order in a fresh folder, with an empty numba cache so that the first sweep compiles
+  the kernels as on a fresh install;
+- the README's first-compile sentence ("a first `predict` of a ring: N s against M s once
+  they are cached"): the same predict with an empty cache, then with the cache it filled;
+- the compile estimate ``sweep`` prints on a first run
+  (:data:`ftsweep.engine.startup.FIRST_COMPILE_S`), against the difference of those two.
+
+The install line and the test commands are not run here (the network and half an hour):
+their figures come from a fresh clone's CI log. Nothing is asserted about time.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, NamedTuple, Optional
+
+# a quickstart line: the command, then a comment ending in the seconds it took
+_TIMED_LINE = re.compile(r"^(ftsweep [^#]*?)\s*#.*?(\d+(?:\.\d+)?) s\s*$")
+_QUICKSTART = re.compile(r"^## Quickstart.*?^```\w*\n(.*?)^```", re.S | re.M)
+_FIRST_PREDICT = re.compile(r"a first\s+`predict` of a ring: (\d+(?:\.\d+)?) s against (\d+(?:\.\d+)?) s")
+# the ring the first-compile sentence times (the tour's first prediction)
+FIRST_PREDICT = "ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5"
+
+
+class Documented(NamedTuple):
+    """One documented time: what it is, the figure [s] (None: the text no longer states
+    it), and the command that measures it (None: a figure derived from other rows)."""
+
+    label: str
+    seconds: Optional[float]
+    command: Optional[str]
+
+
+def readme_path() -> Path:
+    """The README of the checkout this ftsweep is installed from (an editable install); a
+    regular install has none, and the documented figures are the checkout's."""
+    import ftsweep
+
+    path = Path(ftsweep.__file__).resolve().parent.parent / "README.md"
+    if not path.is_file():
+        raise ValueError(
+            f"no README.md beside this ftsweep ({path.parent}): the documented times are a "
+            "checkout's; run the bench from an editable install of a clone (pip install -e .)"
+        )
+    return path
+
+
+def documented_times(readme: str) -> list[Documented]:
+    """The quickstart's timed lines, then the first-compile pair, from the README's text."""
+    rows = []
+    block = _QUICKSTART.search(readme)
+    for line in (block.group(1) if block else "").splitlines():
+        m = _TIMED_LINE.match(line.strip())
+        if m:
+            rows.append(Documented(m.group(1), float(m.group(2)), m.group(1)))
+    if not rows:
+        rows.append(Documented("the quickstart's timed ftsweep lines", None, None))
+    pair = _FIRST_PREDICT.search(" ".join(readme.split()))
+    first, cached = (float(pair.group(1)), float(pair.group(2))) if pair else (None, None)
+    rows.append(Documented("first predict of a ring, kernels compiled", first, FIRST_PREDICT))
+    rows.append(Documented("the same predict, kernels cached", cached, FIRST_PREDICT))
+    return rows
+
+
+def _timed(command: str, cwd: Path, env: dict[str, str]) -> float:
+    """Seconds one command line takes as its own process; ValueError naming it if it fails."""
+    argv = shlex.split(command)
+    started = time.perf_counter()
+    done = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True)
+    took = time.perf_counter() - started
+    if done.returncode != 0:
+        raise ValueError(f"`{command}` failed (exit {done.returncode}): {done.stderr.strip()[-300:]}")
+    return took
+
+
+def measure(rows: list[Documented], executable: str = "ftsweep") -> list[dict[str, Any]]:
+    """Run every row's command as :mod:`this module <ftsweep.tools.documented>` describes
+    (``executable`` stands for the leading ``ftsweep``) and return the rows with their
+    measured seconds, then the printed compile estimate against the measured compile time."""
+    from ftsweep.engine.startup import FIRST_COMPILE_S
+
+    out: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory(prefix="ftsweep-documented-") as folder:
+        root = Path(folder)
+        caches = {"quickstart": root / "cache-quickstart", "predict": root / "cache-predict"}
+        for name, cache in caches.items():
+            cache.mkdir()
+            (root / name).mkdir()
+        for row in rows:
+            if row.command is None:
+                out.append({**row._asdict(), "measured": None})
+                continue
+            group = "predict" if row.command == FIRST_PREDICT else "quickstart"
+            env = {**os.environ, "NUMBA_CACHE_DIR": str(caches[group])}
+            command = executable + row.command[len("ftsweep") :]
+            out.append({**row._asdict(), "measured": _timed(command, root / group, env)})
+    compiled = [r["measured"] for r in out if r["command"] == FIRST_PREDICT]
+    out.append(
+        {
+            "label": "compile estimate `ftsweep sweep` prints on a first run",
+            "seconds": FIRST_COMPILE_S,
+            "command": None,
+            "measured": compiled[0] - compiled[1] if len(compiled) == 2 else None,
+        }
+    )
+    return out
+
+
+def format_documented(rows: list[dict[str, Any]]) -> str:
+    """The documented figure beside the measured one, and their ratio."""
+
+    def sec(v: Optional[float]) -> str:
+        return "—" if v is None else f"{v:.1f}"
+
+    head = f"{'documented time (README, sweep)':66s} {'written s':>9s} {'measured s':>10s} {'ratio':>6s}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        both = r["seconds"] is not None and r["measured"] is not None and r["seconds"] > 0
+        ratio = f"{r['measured'] / r['seconds']:6.2f}" if both else "     —"
+        lines.append(f"{r['label'][:66]:66s} {sec(r['seconds']):>9s} {sec(r['measured']):>10s} {ratio}")
+    lines.append("written: the figure in the text ('—': the text no longer states it)")
+    lines.append("measured: in a fresh folder with an empty numba cache, as a fresh install's first run")
+    lines.append("not run here: the install and test times (a fresh clone's CI log has them)")
+    return "\n".join(lines)

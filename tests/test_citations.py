@@ -86,3 +86,13 @@ def test_every_document_the_code_cites_is_in_the_repository():
             found = (ROOT / name).is_file() or (ROOT / "docs" / name).is_file()
             assert found, f"{path.name} cites {name}, which the repository does not hold"
     assert {"docs/architecture.md", "docs/performance.md", "docs/kinds.md"} <= cited
+
+
+def test_the_command_reference_is_the_commands_own_help():
+    """docs/reference.md is what the commands print for --help (regenerate it with
+    `python -m ftsweep.tools.reference > docs/reference.md` after changing an option)."""
+    from ftsweep.tools.reference import render
+
+    page = (ROOT / "docs" / "reference.md").read_text(encoding="utf-8")
+    stale = "docs/reference.md is stale: python -m ftsweep.tools.reference > docs/reference.md"
+    assert page == render(), stale

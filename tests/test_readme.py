@@ -1,5 +1,5 @@
-"""Every block of README.md a user copies runs as written, in order, in one fresh folder, as a
-user following the README would run them (the environment's installed ftsweep on PATH, a
+"""Every block of README.md and then of docs/guide.md a user copies runs as written, in order,
+in one fresh folder, as a user following them would run them (the environment's installed ftsweep on PATH, a
 `.venv` beside them): a block that fails, or an output a block shows that differs, fails.
 
 Not run, each for its reason (:data:`NOT_RUN`): the test commands (they are this suite) and
@@ -23,6 +23,8 @@ import pytest
 pytestmark = pytest.mark.integration
 
 README = Path(__file__).resolve().parent.parent / "README.md"
+# the pages whose blocks run, in the order a user reads them
+PAGES = (README, README.parent / "docs" / "guide.md")
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```$", re.S | re.M)
 INSTALL = re.compile(r"python3 -m venv \.venv && \.venv/bin/pip install [^&#]*(?:&& )?")
 # blocks not run, recognised by their text, and why
@@ -33,10 +35,17 @@ NOT_RUN = {
 BLOCK_TIMEOUT_S = 1200
 
 
-def blocks() -> list[tuple[int, str, str]]:
-    """(line, language, text) of every fenced block of the README, in order."""
-    text = README.read_text(encoding="utf-8")
-    return [(text[: m.start()].count("\n") + 1, m.group(1), m.group(2)) for m in FENCE.finditer(text)]
+def blocks() -> list[tuple[str, str, str]]:
+    """(where: page and line, language, text) of every fenced block of :data:`PAGES`, in order."""
+    found = []
+    for page in PAGES:
+        text = page.read_text(encoding="utf-8")
+        name = page.relative_to(README.parent)
+        found += [
+            (f"{name} line {text[: m.start()].count(chr(10)) + 1}", m.group(1), m.group(2))
+            for m in FENCE.finditer(text)
+        ]
+    return found
 
 
 def _skip_reason(text: str) -> str:
@@ -87,7 +96,7 @@ def _console(text: str, cwd: Path, env: dict[str, str]) -> None:
         for line in lines:
             found = next((k for k in range(at, len(out)) if out[k].rstrip() == line.rstrip()), None)
             assert found is not None, (
-                f"{command}: the README shows {line!r}; it printed:\n{done.stdout[-3000:]}"
+                f"{command}: the page shows {line!r}; it printed:\n{done.stdout[-3000:]}"
             )
             at = found + 1
 
@@ -100,7 +109,7 @@ def _text(text: str, previous: str) -> None:
         if words[0] in ("for", "signed"):
             continue  # a folder, a key id and a time: the user's own
         assert " ".join(words) in {" ".join(ln.split()) for ln in previous.split("\n")}, (
-            f"the README shows {line!r}; the block before it printed:\n{previous[-3000:]}"
+            f"the page shows {line!r}; the block before it printed:\n{previous[-3000:]}"
         )
 
 
@@ -127,12 +136,12 @@ def test_every_readme_block_runs_as_written(folder):
             _console(text, folder, env)
             continue
         if lang == "python":
-            script = folder / f"block-{line}.py"
+            script = folder / f"block-{len(ran)}.py"
             script.write_text(text)
             done = _run([sys.executable, str(script)], folder, env)
         else:
             done = _run(["bash", "-e", "-o", "pipefail", "-c", INSTALL.sub("", text)], folder, env)
-        assert done.returncode == 0, f"README line {line}: the block failed:\n{done.stdout[-4000:]}"
+        assert done.returncode == 0, f"{line}: the block failed:\n{done.stdout[-4000:]}"
         previous = done.stdout
         ran.append(line)
     assert len(ran) >= 10, ran

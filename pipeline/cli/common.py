@@ -31,7 +31,7 @@ TRUST_PLUGINS = click.option(
     "--trust-plugins",
     is_flag=True,
     help="Run a plug-in surface the file names even if the local catalog does not declare it "
-    "(plug-ins are code: only for files you trust; README 'Trust').",
+    "(plug-ins are code: only for files you trust; docs/guide.md 'Trust').",
 )
 
 

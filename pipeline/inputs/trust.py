@@ -1,4 +1,4 @@
-"""The trust model (README "Trust"): catalogs and plug-ins are code the user chose to run;
+"""The trust model (docs/guide.md "Trust"): catalogs and plug-ins are code the user chose to run;
 exported files and cubes are data. Entries a cube or sidecar recorded are validated here, and
 a plug-in surface they name is accepted only if the local catalog declares it, before
 anything is imported.
@@ -35,7 +35,7 @@ def specs_from_entries(
     header sidecar's provenance), so results are re-derived from what was used, not from the
     catalogs as they are now.
 
-    Recorded entries are data (README "Trust"): a plug-in surface they name is accepted only
+    Recorded entries are data (docs/guide.md "Trust"): a plug-in surface they name is accepted only
     if a plug-in entry of the local catalog (``folder``, default :func:`catalog_dir`) names
     the same function with the same parameters, unless ``trust_plugins``; otherwise
     :class:`CatalogError`, before anything is imported."""

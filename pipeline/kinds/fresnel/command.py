@@ -84,7 +84,7 @@ def fresnel_command(**opts: Any) -> None:
     quasi-spiral path along the facets' edges (feed Δr per turn from the cutting entry),
     the 4-axis trajectory that keeps the rake face on the cutting direction, the tool-edge
     compensation (eq. 10 and eq. 12, both reported), and the timesteps: per turn optimised
-    (scipy L-BFGS-B) to level the axes' relative accelerations, then scaled by K_s; the
+    (a compiled L-BFGS) to level the axes' relative accelerations, then scaled by K_s; the
     machining time is compared with one constant timestep at the global acceleration limit.
     Progress on stderr; plots in --plots; with -o the program and a JSON sidecar
     (check it with `ftsweep verify FILE`).

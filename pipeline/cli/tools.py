@@ -286,6 +286,16 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
     "folder and report its objects, and the seconds to open it and to select from it.",
 )
 @click.option(
+    "--simulate-workers",
+    "simulated",
+    type=COUNT,
+    multiple=True,
+    help="With --sweep: replay the case times the run recorded through the same scheduling "
+    "policy (tasks planned for N threads, longest first; each free thread takes the next) and "
+    "print the predicted wall time and efficiency on N threads (repeatable, e.g. "
+    "--simulate-workers 16 --simulate-workers 64); the measured run's own count is replayed too.",
+)
+@click.option(
     "--documented",
     is_flag=True,
     help="Only this: run what each time the README documents describes (the quickstart's "
@@ -301,6 +311,7 @@ def bench(
     scheduler: Optional[str],
     threads: Optional[int],
     cube_cases: Optional[int],
+    simulated: tuple[int, ...],
     documented: bool,
 ) -> None:
     """Time whole commands, the case runner per stage, and optionally a sweep.
@@ -355,6 +366,10 @@ def bench(
             click.echo(f"running sweep {sweep_name} on {address or f'{n} local worker(s)'} ...", err=True)
             result["sweeps"].append(sweep_throughput(sweep_name, n, address))
             click.echo(format_sweep(result["sweeps"][-1]))
+        if simulated:
+            result["replays"] = _replays(sweep_name, result["sweeps"][-1], simulated)
+    elif simulated:
+        raise click.UsageError("--simulate-workers replays a run's case times: give --sweep too")
     if cube_cases:
         from ftsweep.tools.cubescale import cube_scale, format_cube_scale
 
@@ -379,3 +394,18 @@ def _bench_documented(json_path: str) -> None:
     click.echo(format_documented(measured))
     write_json_atomic(json_path, {"documented": measured})
     click.echo(f"wrote {json_path}")
+
+
+def _replays(sweep_name: str, measured: dict[str, Any], simulated: tuple[int, ...]) -> list[dict[str, Any]]:
+    """The last measured run's case times replayed on its own thread count and on each of
+    ``simulated`` (:mod:`ftsweep.sweeps.replay`), printed."""
+    from ftsweep.sweeps.replay import format_replay, replay
+
+    counts = [measured["workers"], *(n for n in simulated if n != measured["workers"])]
+    rows = replay(sweep_name, measured["case_seconds"], counts)
+    click.echo(format_replay(rows))
+    click.echo(
+        f"measured on {measured['workers']} worker(s): wall {measured['wall_s']:.1f} s, efficiency "
+        f"{measured['efficiency']:.2f} (the replay leaves out round trips and the cluster's start)"
+    )
+    return rows

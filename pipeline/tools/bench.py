@@ -272,6 +272,7 @@ def sweep_throughput(name: str, workers: int, scheduler: str | None = None) -> d
         whole = time.perf_counter() - started
     summed = float(sum(row.get("seconds", 0.0) for row in report.rows))
     wall = report.wall_s
+    recorded = {int(r["index"]): float(r["seconds"]) for r in report.rows if r.get("seconds") is not None}
     return {
         "sweep": name,
         "scheduler": scheduler or "local cluster",
@@ -283,6 +284,7 @@ def sweep_throughput(name: str, workers: int, scheduler: str | None = None) -> d
         "summed_case_s": summed,
         "cases_per_s": len(report.rows) / wall if wall > 0 else float("nan"),
         "efficiency": summed / (wall * report.workers) if wall > 0 else float("nan"),
+        "case_seconds": recorded,
     }
 
 

@@ -274,3 +274,29 @@ def test_the_rooms_faces_export_their_public_names():
         for name in face.__all__:
             assert not (REPO / "pipeline" / room / f"{name}.py").exists(), f"ftsweep.{room}.{name}"
             assert getattr(face, name) is not None, f"ftsweep.{room}.{name}"
+
+
+# the repository's top level, as the README's layout lists it: nothing stray (a committed
+# wheel, a scratch file) reaches a clone
+TOP_LEVEL = {
+    ".ci",
+    ".gitignore",
+    "LICENSE",
+    "README.md",
+    "catalogs",
+    "docs",
+    "outputs",
+    "pipeline",
+    "pyproject.toml",
+    "stages",
+    "tests",
+}
+
+
+def test_nothing_stray_is_committed_at_the_top_level():
+    listed = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True)
+    if listed.returncode != 0:
+        pytest.skip(f"not a git checkout ({listed.stderr.strip()[:80]}): the tracked files are unknown")
+    tops = {line.split("/", 1)[0] for line in listed.stdout.splitlines() if line}
+    assert tops <= TOP_LEVEL, f"stray at the top level: {sorted(tops - TOP_LEVEL)}"
+    assert not [f for f in listed.stdout.splitlines() if f.endswith((".whl", ".tar.gz", ".zip"))]

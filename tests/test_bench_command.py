@@ -123,3 +123,31 @@ def test_documented_times_are_measured_beside_the_written_figures(tmp_path, monk
     assert estimate["measured"] == pytest.approx(rows[1]["measured"] - rows[2]["measured"])
     table = documented.format_documented(rows)
     assert "ftsweep --help" in table and "compile estimate" in table
+
+
+# ----------------------------------------------------------------------------- a sweep measured
+@pytest.mark.integration  # a local Dask cluster
+def test_a_measured_sweep_is_replayed_on_more_threads_and_its_cases_run_again_alone(tmp_path):
+    spec = tmp_path / "tiny.yaml"
+    spec.write_text("surface: sinewave2d\nlayout: ring\naxes: {points: [5000, 9000, 20000], aspect: [4.0]}\n")
+    out = tmp_path / "bench.json"
+    r = CliRunner().invoke(
+        main,
+        ["bench", "--case", "sinewave-ring-1.00deg", "--sweep", str(spec), "--workers", "1"]
+        + ["--simulate-workers", "4", "--json", str(out)],
+    )
+    assert r.exit_code == 0, r.output
+    assert "replayed on 1 thread(s)" in r.output and "replayed on 4 thread(s)" in r.output
+    data = json.loads(out.read_text())
+    one, four = data["replays"]
+    assert one["cases"] == four["cases"] == 3
+    assert one["summed_case_s"] == pytest.approx(data["sweeps"][0]["summed_case_s"])
+    assert four["wall_s"] <= one["wall_s"] and one["efficiency"] == pytest.approx(1.0)
+    assert len(data["side_by_side"]) == 3
+    assert all(row["alone_s"] > 0 and row["ratio"] > 0 for row in data["side_by_side"])
+    assert "sweep s" in r.output and "alone s" in r.output
+
+
+def test_simulated_workers_need_a_sweep():
+    r = CliRunner().invoke(main, ["bench", "--case", "sinewave-ring-1.00deg", "--simulate-workers", "4"])
+    assert r.exit_code == 2 and "give --sweep too" in r.output

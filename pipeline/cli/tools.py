@@ -258,7 +258,8 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
     "sweep_name",
     metavar="SWEEP",
     help="Also run this sweep (e.g. sinewave-ring, ~30 s on 2 workers) and report cases/s and the "
-    "efficiency (summed case time over wall time × workers).",
+    "efficiency (summed case time over wall time × workers); then its 5 costliest cases again in "
+    "this process, their seconds in the sweep beside alone.",
 )
 @click.option(
     "--workers",
@@ -368,6 +369,7 @@ def bench(
             click.echo(format_sweep(result["sweeps"][-1]))
         if simulated:
             result["replays"] = _replays(sweep_name, result["sweeps"][-1], simulated)
+        result["side_by_side"] = _side_by_side(sweep_name, result["sweeps"][-1])
     elif simulated:
         raise click.UsageError("--simulate-workers replays a run's case times: give --sweep too")
     if cube_cases:
@@ -408,4 +410,14 @@ def _replays(sweep_name: str, measured: dict[str, Any], simulated: tuple[int, ..
         f"measured on {measured['workers']} worker(s): wall {measured['wall_s']:.1f} s, efficiency "
         f"{measured['efficiency']:.2f} (the replay leaves out round trips and the cluster's start)"
     )
+    return rows
+
+
+def _side_by_side(sweep_name: str, measured: dict[str, Any]) -> list[dict[str, Any]]:
+    """The costliest cases of the last measured run, in the sweep and alone, printed."""
+    from ftsweep.tools.bench import format_side_by_side, side_by_side
+
+    click.echo(f"running the 5 costliest cases of {sweep_name} again in this process ...", err=True)
+    rows = side_by_side(sweep_name, measured["case_seconds"])
+    click.echo(format_side_by_side(rows))
     return rows

@@ -296,3 +296,43 @@ def format_sweep(sweep: dict[str, Any]) -> str:
         f"{sweep['cases_per_s']:.2f} cases/s, summed case time {sweep['summed_case_s']:.1f} s, "
         f"efficiency {sweep['efficiency']:.2f}"
     )
+
+
+def side_by_side(sweep: str, case_seconds: dict[int, float], count: int = 5) -> list[dict[str, Any]]:
+    """The ``count`` costliest cases a sweep run recorded, each run again in this process on
+    one thread (best of two, after a warm-up case), beside its seconds inside the sweep: where
+    a case costs more in a sweep than alone (other workers sharing the cores' caches and
+    memory, serialisation, logs)."""
+    from ftsweep.sweeps.spec import case_at, load_sweep
+
+    _, spec = load_sweep(sweep)
+    costliest = sorted(case_seconds, key=lambda i: -case_seconds[i])[:count]
+    if not costliest:
+        return []
+    run_case(case_at(spec, min(case_seconds, key=lambda i: case_seconds[i])))  # warm-up
+    rows = []
+    for i in costliest:
+        case = case_at(spec, i)
+        alone = min(float(run_case(case, threads=1)["seconds"]) for _ in range(2))
+        rows.append(
+            {
+                "index": i,
+                "case": case.layout.label(),
+                "sweep_s": case_seconds[i],
+                "alone_s": alone,
+                "ratio": case_seconds[i] / alone if alone > 0 else float("nan"),
+            }
+        )
+    return rows
+
+
+def format_side_by_side(rows: list[dict[str, Any]]) -> str:
+    """The side-by-side table of :func:`side_by_side`."""
+    head = f"{'case in the sweep':32s} {'sweep s':>8s} {'alone s':>8s} {'ratio':>6s}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        lines.append(
+            f"{r['index']:>4d} {r['case'][:27]:27s} {r['sweep_s']:8.2f} {r['alone_s']:8.2f} {r['ratio']:6.2f}"
+        )
+    lines.append("alone: the same case in this process on one thread, the other cores idle")
+    return "\n".join(lines)

@@ -337,21 +337,15 @@ def bench(
     if documented:
         _bench_documented(json_path)
         return
+    if simulated and sweep_name is None:
+        raise click.UsageError("--simulate-workers replays a run's case times: give --sweep too")
     from ftsweep.defaults import usable_cores
     from ftsweep.store.io import write_json_atomic
-    from ftsweep.tools.bench import (
-        format_sweep,
-        format_table,
-        format_whole_process,
-        run_benchmark,
-        sweep_throughput,
-        whole_process,
-    )
+    from ftsweep.tools.bench import format_table, format_whole_process, run_benchmark, whole_process
 
     try:
-        # whole processes first, while this one is small: once the in-process cases have run it
-        # keeps ~1 GB (ftsweep.engine.allocator), and on this VM a child's fresh pages then came ~30 %
-        # slower (the 990k-point chord spiral 3.0 -> 3.9-4.2 s, measured both ways)
+        # whole processes first, while this one is small: after the in-process cases it keeps ~1 GB
+        # (engine.allocator), and a child's fresh pages came ~30 % slower (chord spiral 3.0 -> 3.9 s)
         rows = whole_process(max(repeat, 3)) if not names else []
         result = run_benchmark(list(names) or None, repeat=repeat, threads=threads or usable_cores())
         result["whole_process"] = rows
@@ -361,17 +355,7 @@ def bench(
         click.echo(format_whole_process(result["whole_process"]))
     click.echo(format_table(result))
     if sweep_name is not None:
-        runs = [(n, None) for n in (workers or (2,))] + ([(0, scheduler)] if scheduler else [])
-        result["sweeps"] = []
-        for n, address in runs:
-            click.echo(f"running sweep {sweep_name} on {address or f'{n} local worker(s)'} ...", err=True)
-            result["sweeps"].append(sweep_throughput(sweep_name, n, address))
-            click.echo(format_sweep(result["sweeps"][-1]))
-        if simulated:
-            result["replays"] = _replays(sweep_name, result["sweeps"][-1], simulated)
-        result["side_by_side"] = _side_by_side(sweep_name, result["sweeps"][-1])
-    elif simulated:
-        raise click.UsageError("--simulate-workers replays a run's case times: give --sweep too")
+        result.update(_bench_sweep(sweep_name, workers, scheduler, simulated))
     if cube_cases:
         from ftsweep.tools.cubescale import cube_scale, format_cube_scale
 
@@ -421,3 +405,22 @@ def _side_by_side(sweep_name: str, measured: dict[str, Any]) -> list[dict[str, A
     rows = side_by_side(sweep_name, measured["case_seconds"])
     click.echo(format_side_by_side(rows))
     return rows
+
+
+def _bench_sweep(
+    sweep_name: str, workers: tuple[int, ...], scheduler: Optional[str], simulated: tuple[int, ...]
+) -> dict[str, Any]:
+    """``bench --sweep``: the sweep on each worker count (and --scheduler), printed; the last
+    run's case times replayed on the --simulate-workers counts, and its costliest cases alone."""
+    from ftsweep.tools.bench import format_sweep, sweep_throughput
+
+    runs = [(n, None) for n in (workers or (2,))] + ([(0, scheduler)] if scheduler else [])
+    out: dict[str, Any] = {"sweeps": []}
+    for n, address in runs:
+        click.echo(f"running sweep {sweep_name} on {address or f'{n} local worker(s)'} ...", err=True)
+        out["sweeps"].append(sweep_throughput(sweep_name, n, address))
+        click.echo(format_sweep(out["sweeps"][-1]))
+    if simulated:
+        out["replays"] = _replays(sweep_name, out["sweeps"][-1], simulated)
+    out["side_by_side"] = _side_by_side(sweep_name, out["sweeps"][-1])
+    return out

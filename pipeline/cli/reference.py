@@ -1,6 +1,6 @@
 """The command reference (docs/reference.md): every command's ``--help``, in the order
 ``ftsweep --help`` lists them, rendered by click itself at a fixed width so that the page is
-the same on every machine. ``python -m ftsweep.tools.reference > docs/reference.md`` writes
+the same on every machine. ``python -m ftsweep.cli.reference > docs/reference.md`` writes
 it; a test keeps the page equal to what this renders, so a changed option shows as a diff.
 """
 
@@ -36,7 +36,7 @@ def render() -> str:
         "",
         "Every command's `--help`, in the order `ftsweep --help` lists them: the workflow (sweep,",
         "status, select, export, verify) first. Generated from the commands themselves",
-        "(`python -m ftsweep.tools.reference > docs/reference.md`; tests/test_citations.py keeps",
+        "(`python -m ftsweep.cli.reference > docs/reference.md`; tests/test_citations.py keeps",
         "this page equal to their help). The user guide is docs/guide.md.",
         "",
         *(f"- [{name}](#{name.replace(' ', '-')})" for name, _ in helps),

@@ -103,3 +103,23 @@ def test_the_command_reference_is_the_commands_own_help():
     page = (ROOT / "docs" / "reference.md").read_text(encoding="utf-8")
     stale = "docs/reference.md is stale: python -m ftsweep.cli.reference > docs/reference.md"
     assert page == rendered, stale
+
+
+def _slug(heading: str) -> str:
+    """A heading's anchor as GitHub makes it: lower case, punctuation dropped, spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def test_every_link_into_the_guide_and_the_reference_lands_on_a_heading():
+    pages = {
+        name: (ROOT / name).read_text(encoding="utf-8") for name in ("docs/guide.md", "docs/reference.md")
+    }
+    anchors = {
+        name: {_slug(h) for h in re.findall(r"^#{1,4} (.+)$", text, flags=re.M)}
+        for name, text in pages.items()
+    }
+    links = [(name, a) for name, a in re.findall(r"\]\((docs/\w+\.md)#([\w-]+)\)", README)]
+    links += [(name, a) for name, text in pages.items() for a in re.findall(r"\]\(#([\w-]+)\)", text)]
+    assert len(links) > 20, links
+    missing = [f"{name}#{a}" for name, a in links if a not in anchors[name]]
+    assert not missing, missing

@@ -102,6 +102,9 @@ class SweepReport:
     queued: int = 0  # cases this run computes
     note: str = ""  # what the run changed in the cube beyond its cases (it grew)
     connected: bool = False  # the run got its cluster (workers may have logged cases)
+    # where the wall went: seconds from the start of the computation to the cluster being
+    # connected, to the first and the last case delivered, and to the end (the last merge)
+    timeline: dict[str, float] = field(default_factory=dict)
 
     @property
     def done(self) -> int:
@@ -357,7 +360,11 @@ def _compute(
 
     merged = [time.monotonic()]
 
+    started = time.perf_counter()
+
     def on_result(rows: list[dict]) -> None:
+        report.timeline.setdefault("first_case_s", time.perf_counter() - started)
+        report.timeline["last_case_s"] = time.perf_counter() - started
         report.rows.extend(rows)
         if time.monotonic() - merged[0] >= MERGE_EVERY_S:
             _merge_fenced(report.cube, lease)  # a writer whose lease was taken over stops here
@@ -371,6 +378,7 @@ def _compute(
         return tasks
 
     def on_cluster(got: Cluster) -> None:
+        report.timeline["connected_s"] = time.perf_counter() - started
         report.connected = True
         report.workers, report.threads, report.dashboard = got.workers, got.threads, got.dashboard
         if announce is not None:

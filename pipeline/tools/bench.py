@@ -285,11 +285,25 @@ def sweep_throughput(name: str, workers: int, scheduler: str | None = None) -> d
         "cases_per_s": len(report.rows) / wall if wall > 0 else float("nan"),
         "efficiency": summed / (wall * report.workers) if wall > 0 else float("nan"),
         "case_seconds": recorded,
+        "timeline": dict(report.timeline),
     }
 
 
 def format_sweep(sweep: dict[str, Any]) -> str:
-    """One line of a :func:`sweep_throughput` result."""
+    """Two lines of a :func:`sweep_throughput` result: the throughput, and where the wall went
+    (to the cluster, to the first case, between the first and the last, after the last)."""
+    line = _throughput(sweep)
+    tl, wall = sweep.get("timeline", {}), sweep["wall_s"]
+    if {"connected_s", "first_case_s", "last_case_s"} <= set(tl):
+        line += (
+            f"\n  wall {wall:.1f} s: cluster connected at {tl['connected_s']:.1f} s, first case "
+            f"delivered at {tl['first_case_s']:.1f} s, last at {tl['last_case_s']:.1f} s, then "
+            f"{wall - tl['last_case_s']:.1f} s to the end (the last merge)"
+        )
+    return line
+
+
+def _throughput(sweep: dict[str, Any]) -> str:
     return (
         f"sweep {sweep['sweep']} on {sweep['workers']} worker(s) ({sweep['scheduler']}): {sweep['cases']} "
         f"cases in {sweep['wall_s']:.1f} s wall ({sweep['whole_s']:.1f} s with the cube's set-up): "

@@ -352,38 +352,10 @@ def _compute(
     """Run the cases of ``costs`` (by index, with their costs) on the cluster ``where`` says,
     each case written as it finishes; the tasks are planned for the threads of the cluster the
     run got."""
-    pending = list(costs)
-    progress, announce, lease = watchers
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
-    if not pending:  # nothing to compute: no cluster is started
+    if not costs:  # nothing to compute: no cluster is started
         return
-
-    merged = [time.monotonic()]
-
-    started = time.perf_counter()
-
-    def on_result(rows: list[dict]) -> None:
-        report.timeline.setdefault("first_case_s", time.perf_counter() - started)
-        report.timeline["last_case_s"] = time.perf_counter() - started
-        report.rows.extend(rows)
-        if time.monotonic() - merged[0] >= MERGE_EVERY_S:
-            _merge_fenced(report.cube, lease)  # a writer whose lease was taken over stops here
-            merged[0] = time.monotonic()
-        if progress is not None:
-            progress(report, rows)
-
-    def plan(threads: int) -> list[list[int]]:
-        tasks = plan_tasks(spec, pending, threads, catalog_folder, costs)
-        report.tasks = len(tasks)
-        return tasks
-
-    def on_cluster(got: Cluster) -> None:
-        report.timeline["connected_s"] = time.perf_counter() - started
-        report.connected = True
-        report.workers, report.threads, report.dashboard = got.workers, got.threads, got.dashboard
-        if announce is not None:
-            announce(report)
-
+    plan, on_result, on_cluster = _callbacks(report, spec, costs, catalog_folder, watchers)
     assert spec.layout is not None
     execute(
         plan,
@@ -404,6 +376,41 @@ def _compute(
         worker_wait_s=where.worker_wait_s,
         check_reach=True,
     )
+
+
+def _callbacks(
+    report: SweepReport, spec: SweepSpec, costs: Costs, catalog_folder: Optional[Path], watchers: Watchers
+) -> tuple[Callable[[int], list[list[int]]], Callable[[list[dict]], None], Callable[[Cluster], None]]:
+    """What the executor calls during a run: the planner of the tasks for the cluster's threads,
+    the delivery of finished cases (merged every :data:`MERGE_EVERY_S`, progress told) and the
+    announcement of the cluster; each marks the report's timeline."""
+    progress, announce, lease = watchers
+    started = time.perf_counter()
+    merged = [time.monotonic()]
+
+    def plan(threads: int) -> list[list[int]]:
+        tasks = plan_tasks(spec, list(costs), threads, catalog_folder, costs)
+        report.tasks = len(tasks)
+        return tasks
+
+    def on_result(rows: list[dict]) -> None:
+        report.timeline.setdefault("first_case_s", time.perf_counter() - started)
+        report.timeline["last_case_s"] = time.perf_counter() - started
+        report.rows.extend(rows)
+        if time.monotonic() - merged[0] >= MERGE_EVERY_S:
+            _merge_fenced(report.cube, lease)  # a writer whose lease was taken over stops here
+            merged[0] = time.monotonic()
+        if progress is not None:
+            progress(report, rows)
+
+    def on_cluster(got: Cluster) -> None:
+        report.timeline["connected_s"] = time.perf_counter() - started
+        report.connected = True
+        report.workers, report.threads, report.dashboard = got.workers, got.threads, got.dashboard
+        if announce is not None:
+            announce(report)
+
+    return plan, on_result, on_cluster
 
 
 # a fenced write that finds an object changed (a stale writer's write landed on it) is redone

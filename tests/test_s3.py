@@ -25,8 +25,9 @@ from ftsweep.store import cube
 from ftsweep.store.storage import place
 from ftsweep.sweeps.run import run_sweep
 
-# a moto S3 server, sweeps in subprocesses killed and paused
-pytestmark = [pytest.mark.integration, pytest.mark.serial]
+# a moto S3 server, sweeps in subprocesses; the tests that race a running sweep (killed or
+# paused mid-run) are marked serial and run alone after the parallel run, the others with it
+pytestmark = [pytest.mark.integration]
 
 pytest.importorskip("s3fs")
 pytest.importorskip("moto")
@@ -196,6 +197,7 @@ def _wait_lease_out(lock_url: str) -> None:
     time.sleep(max(0.0, until - time.time()) + 0.5)
 
 
+@pytest.mark.serial
 def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refused(
     s3, s3_env, tmp_path, catalog_dir
 ):
@@ -269,6 +271,7 @@ def _block_tags(url: str) -> dict[str, str]:
     return {p: fs.info(p)["ETag"] for p in fs.find(url) if "/_log" not in p}
 
 
+@pytest.mark.serial
 def test_a_writer_paused_past_its_lease_writes_no_block_after_the_takeover(s3, s3_env, tmp_path, catalog_dir):
     # the writer is stopped (SIGSTOP) until its lease expired and another writer took the cube
     # over and finished it; resumed (SIGCONT), it must not write a block: its lease is fenced
@@ -404,6 +407,7 @@ def test_status_of_a_grown_cube_on_s3(s3, tmp_path, catalog_dir):
     assert found["last_run"]["cases"]["done"] == 3 and found["writer"] is None
 
 
+@pytest.mark.serial
 def test_an_s3_cube_survives_a_paused_writer_at_each_write_point(s3, tmp_path, catalog_dir, monkeypatch):
     # the writer paused right before each put of a metric's and the status's blocks
     # (tests/faults.py; test_fence.py goes through every key point on memory://, whose

@@ -103,7 +103,8 @@ class SweepReport:
     note: str = ""  # what the run changed in the cube beyond its cases (it grew)
     connected: bool = False  # the run got its cluster (workers may have logged cases)
     # where the wall went: seconds from the start of the computation to the cluster being
-    # connected, to the first and the last case delivered, and to the end (the last merge)
+    # connected (connected_s) and to the first and the last case delivered (first_case_s,
+    # last_case_s); the rest of ``wall_s`` is the last merge
     timeline: dict[str, float] = field(default_factory=dict)
 
     @property

@@ -11,7 +11,8 @@ import math
 import os
 import platform
 import time
-from typing import Any
+from pathlib import Path
+from typing import Any, Optional
 
 from ftsweep import registry
 from ftsweep.engine.case import Case, Resolution, program_request
@@ -153,7 +154,6 @@ def ftsweep_command() -> list[str]:
     """The console script beside this interpreter, else ``python -m ftsweep.cli.main``."""
     import shutil
     import sys
-    from pathlib import Path
 
     script = Path(sys.executable).with_name("ftsweep")
     found = str(script) if script.exists() else shutil.which("ftsweep")
@@ -163,7 +163,6 @@ def ftsweep_command() -> list[str]:
 def _exported_header(head: list[str], folder: str) -> str:
     """Sweep the 950k-point ring case (synchronously) and export its header into ``folder``."""
     import subprocess
-    from pathlib import Path
 
     spec = Path(folder) / "one.yaml"
     spec.write_text(_HEADER_SWEEP)
@@ -212,16 +211,24 @@ def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[
 
 def _run(head: list[str], row: BenchRow, folder: str, made: dict[str, str]) -> tuple[float, str]:
     """Run one row's command once: its seconds and stdout (ValueError naming it if it fails)."""
-    import subprocess
-
     if "{header}" in row.args and "{header}" not in made:
         made["{header}"] = _exported_header(head, folder)
     args = [made.get(a, a.replace("{dir}", folder)) for a in row.args]
+    return timed_process([*head, *args], row.label)
+
+
+def timed_process(
+    argv: list[str], label: str, cwd: Optional[Path] = None, env: Optional[dict[str, str]] = None
+) -> tuple[float, str]:
+    """Seconds one command takes as its own process, and its stdout; ValueError naming it
+    (``label``) with the end of its stderr if it fails."""
+    import subprocess
+
     started = time.perf_counter()
-    done = subprocess.run([*head, *args], capture_output=True, text=True)
+    done = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True)
     took = time.perf_counter() - started
     if done.returncode != 0:
-        raise ValueError(f"{row.label} failed: {done.stderr.strip()[-300:]}")
+        raise ValueError(f"{label} failed (exit {done.returncode}): {done.stderr.strip()[-300:]}")
     return took, done.stdout
 
 
@@ -262,7 +269,6 @@ def sweep_throughput(name: str, workers: int, scheduler: str | None = None) -> d
     over wall time × workers (1: every worker computing cases all the time). The cube is
     discarded."""
     import tempfile
-    from pathlib import Path
 
     from ftsweep.sweeps.run import run_sweep
 
@@ -270,9 +276,10 @@ def sweep_throughput(name: str, workers: int, scheduler: str | None = None) -> d
         started = time.perf_counter()
         report = run_sweep(name, Path(folder) / f"{name}.zarr", workers=workers, scheduler=scheduler)
         whole = time.perf_counter() - started
-    summed = float(sum(row.get("seconds", 0.0) for row in report.rows))
-    wall = report.wall_s
+    # the seconds of every case the run computed (failed ones record none), by case index
     recorded = {int(r["index"]): float(r["seconds"]) for r in report.rows if r.get("seconds") is not None}
+    summed = float(sum(recorded.values()))
+    wall = report.wall_s
     return {
         "sweep": name,
         "scheduler": scheduler or "local cluster",

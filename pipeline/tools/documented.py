@@ -21,9 +21,7 @@ from __future__ import annotations
 import os
 import re
 import shlex
-import subprocess
 import tempfile
-import time
 from pathlib import Path
 from typing import Any, NamedTuple, Optional
 
@@ -75,22 +73,12 @@ def documented_times(readme: str) -> list[Documented]:
     return rows
 
 
-def _timed(command: str, cwd: Path, env: dict[str, str]) -> float:
-    """Seconds one command line takes as its own process; ValueError naming it if it fails."""
-    argv = shlex.split(command)
-    started = time.perf_counter()
-    done = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True)
-    took = time.perf_counter() - started
-    if done.returncode != 0:
-        raise ValueError(f"`{command}` failed (exit {done.returncode}): {done.stderr.strip()[-300:]}")
-    return took
-
-
 def measure(rows: list[Documented], executable: str = "ftsweep") -> list[dict[str, Any]]:
     """Run every row's command as :mod:`this module <ftsweep.tools.documented>` describes
     (``executable`` stands for the leading ``ftsweep``) and return the rows with their
     measured seconds, then the printed compile estimate against the measured compile time."""
     from ftsweep.engine.startup import FIRST_COMPILE_S
+    from ftsweep.tools.bench import timed_process
 
     out: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="ftsweep-documented-") as folder:
@@ -106,7 +94,8 @@ def measure(rows: list[Documented], executable: str = "ftsweep") -> list[dict[st
             group = "predict" if row.command == FIRST_PREDICT else "quickstart"
             env = {**os.environ, "NUMBA_CACHE_DIR": str(caches[group])}
             command = executable + row.command[len("ftsweep") :]
-            out.append({**row._asdict(), "measured": _timed(command, root / group, env)})
+            took, _ = timed_process(shlex.split(command), f"`{command}`", root / group, env)
+            out.append({**row._asdict(), "measured": took})
     compiled = [r["measured"] for r in out if r["command"] == FIRST_PREDICT]
     out.append(
         {

@@ -83,6 +83,18 @@ def kill_group(proc: subprocess.Popen, sig: int) -> None:
         pass
 
 
+def group_gone(group: int, within_s: float) -> bool:
+    """Whether every process of session ``group`` has ended within ``within_s`` seconds."""
+    deadline = time.monotonic() + within_s
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(group, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.1)
+    return False
+
+
 @contextmanager
 def external_cluster(folder: Path, env: dict[str, str]) -> Iterator[ExternalCluster]:
     """A scheduler on 127.0.0.1 (add workers with :meth:`ExternalCluster.add_worker`)."""

@@ -15,10 +15,10 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from clusters import group_gone
 
 pytestmark = pytest.mark.integration
 
@@ -74,13 +74,8 @@ def _end_group(pid: int) -> None:
             os.killpg(pid, sig)
         except ProcessLookupError:
             return
-        deadline = time.monotonic() + grace
-        while time.monotonic() < deadline:
-            try:
-                os.killpg(pid, 0)
-            except ProcessLookupError:
-                return
-            time.sleep(0.1)
+        if group_gone(pid, grace):
+            return
 
 
 def _console(text: str, cwd: Path, env: dict[str, str]) -> None:

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 import xarray as xr
 from click.testing import CliRunner
-from clusters import BIN, done_count
+from clusters import BIN, done_count, group_gone
 
 from ftsweep.cli.main import main
 from ftsweep.store import cube
@@ -176,14 +176,8 @@ def test_storage_options_on_the_command_line(s3, s3_env, tmp_path, catalog_dir, 
 
 
 def _wait_gone(group: int) -> None:
-    deadline = time.time() + 60
-    while time.time() < deadline:
-        try:
-            os.killpg(group, 0)
-        except ProcessLookupError:
-            return
-        time.sleep(0.1)
-    raise AssertionError(f"processes of group {group} outlived SIGKILL")
+    if not group_gone(group, 60.0):
+        raise AssertionError(f"processes of group {group} outlived SIGKILL")
 
 
 # Long enough that the killed run's lease still holds after the kill, the wait for its processes

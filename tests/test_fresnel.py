@@ -38,7 +38,7 @@ def coarse(cheb, tmp_path_factory):
     text = (folder / "cutting.yaml").read_text()
     text += "\ncoarse-fresnel:\n  feed_um: 8.0\n  nose_radius_um: 40.0\n  spindle_rpm: 30.0\n"
     (folder / "cutting.yaml").write_text(text)
-    inp = fstudy.inputs(SURFACE, "xyzc-nanoform", "coarse-fresnel", points_per_turn=K_TEST)
+    inp = fstudy.inputs(SURFACE, "xyzc-nanoform", "coarse-fresnel", points_per_turn=K_TEST, timing="paper")
     return inp, fstudy.study(inp, folder), folder
 
 

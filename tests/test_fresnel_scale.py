@@ -16,7 +16,9 @@ from hypothesis import strategies as st
 
 from ftsweep.cli.main import main
 from ftsweep.engine.case import Case
+from ftsweep.inputs import catalogs
 from ftsweep.inputs.catalogs import CatalogError
+from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel import study as fstudy
 from ftsweep.simulate import run_case
 from ftsweep.stages.paths import fresnel as ff
@@ -78,11 +80,13 @@ def test_the_ramp_leaves_the_facets_interiors_as_the_plunge_does(monkeypatch):
 # --------------------------------------------------------------------------- the paper's scale
 def _paper_study(k: int) -> dict:
     return fstudy.public(
-        fstudy.study(fstudy.inputs(PAPER, "xyzc-nanoform", "fresnel-finish", points_per_turn=k))
+        fstudy.study(
+            fstudy.inputs(PAPER, "xyzc-nanoform", "fresnel-finish", points_per_turn=k, timing="paper")
+        )
     )
 
 
-def _check_paper_scale(s: dict) -> None:
+def _check_part(s: dict) -> None:
     # the catalog part is at [2]'s scale: 14 mm across, tens of facets at h = 10 µm ([2] §3.3:
     # 47), e_z of a few hundred nm with the 40 µm nose ([2]: up to 400 nm on its example)
     assert 30 <= s["n_facets"] <= 80
@@ -90,15 +94,20 @@ def _check_paper_scale(s: dict) -> None:
     assert s["within_limits"]
     assert s["time_constant_s"] > s["time_adaptive_s"] > 0.0
     assert s["speedup"] == pytest.approx(s["time_constant_s"] / s["time_adaptive_s"])
+    # a reference limited by plunges can only be slower
+    a = s["speedup_account"]
+    assert a["plunging"]["speedup"] >= s["speedup"] * (1.0 - 1e-9)
+    assert a["reference"]["axis"] in ("C", "X", "Y", "Z")
+
+
+def _check_paper_scale(s: dict) -> None:
+    _check_part(s)
     # [2]: the first turn's peak about halved (here within 40-75 %)
     assert 0.4 <= s["turn_peak_reduction_first"] <= 0.75
     a = s["speedup_account"]
     # turn by turn at constant steps < with eq. 15's steps; joining the turns costs ≤ 5 %
     assert 1.0 < a["turnwise_constant"] < a["turnwise_optimised"]
     assert s["speedup"] >= 0.95 * a["turnwise_optimised"]
-    # a reference limited by plunges can only be slower
-    assert a["plunging"]["speedup"] >= s["speedup"] * (1.0 - 1e-9)
-    assert a["reference"]["axis"] in ("C", "X", "Y", "Z")
 
 
 def test_paper_scale_part_at_90_points_a_turn():
@@ -109,13 +118,30 @@ def test_paper_scale_part_at_90_points_a_turn():
 
 
 @pytest.mark.slow
-def test_paper_scale_part_in_fresnel_json(tmp_path):
-    # the command's own settings (K = 360, Δr = 2 µm): constant and adaptive times, the account
-    res = CliRunner().invoke(main, ["fresnel", "--surface", PAPER, "--json", "--plots", str(tmp_path)])
+def test_paper_scale_part_in_fresnel_json_timed_within_2_percent_of_its_bound(tmp_path):
+    # the command's own settings (K = 360, Δr = 2 µm, optimal timing): its times, the bound
+    out = tmp_path / "paper.txt"
+    res = CliRunner().invoke(
+        main, ["fresnel", "--surface", PAPER, "--json", "--plots", str(tmp_path), "-o", str(out)]
+    )
     assert res.exit_code == 0, res.output
     s = json.loads(res.stdout)
-    _check_paper_scale(s)
-    assert s["n_points"] > 1_000_000
+    _check_part(s)
+    assert s["n_points"] > 1_000_000 and s["timing"] == "optimal"
+    # measured: 3,170.6 s against a bound of 3,163.1 s (0.24 %), [2]'s eqs. 15-16 3,210.9 s
+    assert 0.0 <= s["optimality_gap_pct"] <= 2.0 and max(s["facet_gap_pct"]) <= 2.0
+    # what the limits allow over constant steps (seed 001: 3.1× and 3.8× on its parts)
+    assert s["time_constant_s"] / s["time_bound_s"] < 2.6
+    # the exported lines by plain finite differences, within the machine's limits
+    lines = out.read_text().splitlines()
+    data = np.loadtxt(out, comments="#", skiprows=lines.index("t_s C_deg X_mm Y_mm Z_mm") + 1)
+    q = np.column_stack([np.radians(data[:, 1]), data[:, 2:] * 1e-3])
+    steps = np.diff(data[:, 0])
+    v = np.diff(q, axis=0) / steps[:, None]
+    a = 2.0 * (v[1:] - v[:-1]) / (steps[:-1] + steps[1:])[:, None]
+    limits = fp.limits_of(catalogs.entry("machines", "xyzc-nanoform"))
+    assert np.all(np.abs(v).max(axis=0) <= limits.velocity)
+    assert np.all(np.abs(a).max(axis=0) <= limits.accel)
 
 
 # --------------------------------------------------------------------------- sweeps

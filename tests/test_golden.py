@@ -71,7 +71,9 @@ def _kind_cases() -> dict[str, Case]:
 def _fresnel(folder: Path) -> dict[str, Any]:
     """The coarse Fresnel study of tests/test_fresnel.py: no P-V yet, so its plan
     and timing figures stand for it."""
-    inp = fstudy.inputs("chebyshev_example", "xyzc-nanoform", "coarse-fresnel", points_per_turn=120)
+    inp = fstudy.inputs(
+        "chebyshev_example", "xyzc-nanoform", "coarse-fresnel", points_per_turn=120, timing="paper"
+    )
     s = fstudy.study(inp, folder)
     return {k: s[k] for k in ("n_points", "n_turns", "ez_exact_max_nm", "time_adaptive_s", "time_constant_s")}
 

@@ -60,6 +60,12 @@ from ftsweep.options import (
     "--safety", type=FiniteRange(min=1.0), help="Safety factor K_s on every axis limit. Default: 1.25."
 )
 @click.option(
+    "--timing",
+    type=click.Choice(["optimal", "paper", "constant"]),
+    help="Timesteps: the least time every axis's limits allow, certified by a lower bound (optimal); "
+    "[2]'s eqs. 15-16 turn by turn (paper); one constant step (constant). Default: optimal.",
+)
+@click.option(
     "--plots",
     "plot_dir",
     type=click.Path(file_okay=False, path_type=Path),
@@ -78,14 +84,17 @@ from ftsweep.options import (
 @threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def fresnel_command(**opts: Any) -> None:
-    """Plan a freeform Fresnel program for an X-Y-Z-C lathe ([2]) and time it adaptively.
+    """Plan a freeform Fresnel program for an X-Y-Z-C lathe ([2]) and time it.
 
     Slices the surface along its contour lines into facets of the given height, plans the
     quasi-spiral path along the facets' edges (feed Δr per turn from the cutting entry),
     the 4-axis trajectory that keeps the rake face on the cutting direction, the tool-edge
-    compensation (eq. 10 and eq. 12, both reported), and the timesteps: per turn optimised
-    (a compiled L-BFGS) to level the axes' relative accelerations, then scaled by K_s; the
-    machining time is compared with one constant timestep at the global acceleration limit.
+    compensation (eq. 10 and eq. 12, both reported), and the timesteps: by default the least
+    time in which every axis stays within 1/K_s of its velocity and acceleration limits
+    ([2]'s eq. 14 at every point), with a lower bound no program with steps up to the
+    constant one can beat, in all and per facet (docs/kinds.md, "Time-optimal timing");
+    --timing paper times each turn by [2]'s eqs. 15-16 instead. The machining time is
+    compared with one constant timestep at the global acceleration limit.
     Progress on stderr; plots in --plots; with -o the program and a JSON sidecar
     (check it with `ftsweep verify FILE`).
 
@@ -93,6 +102,7 @@ def fresnel_command(**opts: Any) -> None:
     Examples:
       ftsweep fresnel
       ftsweep fresnel --surface chebyshev_example --facet-height-um 10 --json
+      ftsweep fresnel --timing paper          # [2]'s timesteps, to compare
       ftsweep fresnel -o outputs/fresnel.txt --force
     """
     from pydantic import ValidationError
@@ -100,9 +110,18 @@ def fresnel_command(**opts: Any) -> None:
     from ftsweep.exports.files import ExportError, sidecar_path
     from ftsweep.exports.origin import signed, signing_key
     from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.kinds.fresnel import figures
     from ftsweep.kinds.fresnel import study as fstudy
 
-    keys = ("facet_height_um", "points_per_turn", "deviation_deg", "compensation", "scheme", "safety")
+    keys = (
+        "facet_height_um",
+        "points_per_turn",
+        "deviation_deg",
+        "compensation",
+        "scheme",
+        "safety",
+        "timing",
+    )
     inp = fstudy.inputs(opts["surface"], opts["machine"], opts["cutting"], **{k: opts[k] for k in keys})
     out = opts["out"]
     refuse_overwrite(out, opts["force"])
@@ -110,7 +129,7 @@ def fresnel_command(**opts: Any) -> None:
     try:
         summary = fstudy.study(inp, progress=progress)
         progress_done(progress)
-        plots = [str(p) for p in fstudy.plot(summary, opts["plot_dir"])]
+        plots = [str(p) for p in figures.plot(summary, opts["plot_dir"])]
         if out is not None:
             meta = fstudy.export(summary, out, sidecar_path(out), inp)
             signed(out, signing_key(opts["sign_key"]), meta, opts["expires"])

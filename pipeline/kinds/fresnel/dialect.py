@@ -1,5 +1,5 @@
 """Fresnel programs ([2]) in controllers' G-code dialects (docs/controllers.md): the four
-channels X, Y, Z, C at the program's own adaptive timesteps, one G93 block a point, and the
+channels X, Y, Z, C at the program's own timesteps, one G93 block a point, and the
 one simulator run on the blocks as read back."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from ftsweep.stages.paths import fresnel as ff
 
 def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[str], Any]:
     """A Fresnel case's moves as planned and timed ([2]): its four channels at its own
-    adaptive timesteps, one G93 block a point."""
+    timesteps, one G93 block a point."""
     from ftsweep.exports.dialects import Moves
     from ftsweep.kinds.fresnel.form import record_fields
     from ftsweep.simulate import resolve_case
@@ -28,7 +28,7 @@ def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[
     fields = record_fields(rcase)
     lines = [
         f"tool: nose radius {fplan.nose_radius_um:g} um, compensation {fplan.compensation}",
-        f"spindle: C increasing, adaptive timesteps, {fields['machining_s']:.3f} s in all",
+        f"spindle: C increasing, {steps.timing} timesteps, {fields['machining_s']:.3f} s in all",
         f"points: {prog.n_points}, {fplan.path.n_turns} turns of {fplan.path.points_per_turn} points, "
         f"feed {fplan.feed_um:g} um per turn, Fresnel facets of {fplan.facet_height_um:g} um",
     ]

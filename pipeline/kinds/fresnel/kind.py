@@ -89,7 +89,8 @@ def _plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
         )
         limits = fresnel.limits_of(p.machine, case.machine)
         reference = 60.0 / (p.cutting.spindle_rpm * k)  # T0: one turn at the spindle speed
-        steps = fresnel.timesteps(fplan, limits, float(option(req, "safety")), reference, p.progress)
+        safety, timing = float(option(req, "safety")), str(option(req, "timing"))
+        steps = fresnel.timesteps(fplan, limits, safety, reference, p.progress, timing)
     except ValueError as exc:
         raise CaseError(f"Fresnel program: {exc}") from None
     prog = fresnel.FresnelProgram("fresnel", fplan, steps, fplan.path.xy)

@@ -32,5 +32,11 @@ def fresnel_options(f: Any) -> Any:
             type=click.Choice(["auto", "polar", "arc"]),
             help="Fresnel: control points polar about centroids (eqs. 5-6), by arc length (A.3), auto.",
         ),
+        click.option(
+            "--timing",
+            type=click.Choice(["optimal", "paper", "constant"]),
+            help="Fresnel: timesteps: least time under the limits (optimal), [2]'s eqs. 15-16 (paper), "
+            "one constant step. Default: optimal.",
+        ),
     ]
     return stack(options)(f)

@@ -2,8 +2,20 @@
 its quasi-spiral path and 4-axis trajectory (:mod:`ftsweep.stages.paths.fresnel`), and choosing the
 timesteps (model §6 axis dynamics).
 
-*Timesteps* ([2] §2.5). The positions of every axis along the path are fixed by the plan;
-the time between consecutive points is free. Per turn of the path (K steps) the timesteps
+*Timesteps*. The positions of every axis along the path are fixed by the plan; the time
+between consecutive points is free. Every timing keeps every axis within 1/K_s of its
+velocity limit on every step and of its acceleration limit at every point, by [2]'s
+discretisation (eq. 14: the velocity change at a point over the mean of its two steps; the
+kinematics stage). ``timing``:
+
+- ``optimal`` (the default): the least total time under those limits, by forward-backward
+  passes over the steps' speeds (:mod:`ftsweep.stages.kinematics.timing`); the study
+  certifies it with a lower bound on every step (:func:`certificate`, docs/kinds.md
+  "Time-optimal timing").
+- ``paper``: [2] §2.5, below.
+- ``constant``: the reference's one constant step.
+
+*[2]'s timesteps* (§2.5). Per turn of the path (K steps) the timesteps
 minimise the largest relative acceleration max |a/a_lim| over the four axes with their
 mean held at T0 (eq. 15), warm-started from the previous turn's solution; the step into a
 turn is taken at the turn's own last timestep (adjacent turns are nearly periodic, [2]
@@ -39,6 +51,7 @@ import numpy as np
 from ftsweep.inputs.facets import surface_range
 from ftsweep.stages.interpolation import timed_path
 from ftsweep.stages.kinematics import axes as kinematics
+from ftsweep.stages.kinematics import timing as least_time
 from ftsweep.stages.kinematics.axes import Limits
 from ftsweep.stages.paths import fresnel as ff
 from ftsweep.stages.paths import turnopt
@@ -50,7 +63,11 @@ DEFAULTS: dict[str, Any] = {
     "safety": 1.25,
     "compensation": "exact",
     "scheme": "auto",
+    "timing": "optimal",
 }
+# how a program is timed (module docstring): the least time the limits allow, [2]'s eqs.
+# 15-16, or one constant step
+TIMINGS = ("optimal", "paper", "constant")
 COMPENSATIONS = ("exact", "straight", "none")
 AXES = ("C", "X", "Y", "Z")
 # the p-norm standing in for the max of eq. 15, and the optimiser's budget per turn: p = 32 puts
@@ -290,22 +307,24 @@ def constant_step(q: np.ndarray, limits: Limits, safety: float) -> float:
 
 
 class Timesteps(NamedTuple):
-    """Adaptive timesteps of a program ([2] §2.5).
+    """The timesteps of a program (module docstring).
 
-    steps : (P − 1,) final timesteps [s] (after the K_s scaling).
+    steps : (P − 1,) final timesteps [s] (within 1/K_s of every limit).
     reference : T0 [s]. constant : the constant timestep of the reference program [s].
     peak_constant, peak_optimised : (turns,) max relative acceleration of every turn with
-    constant timesteps T0 and with the optimised ones (same mean T0), before scaling.
-    scale : (turns,) the factor applied to every turn (eq. 16).
+    constant timesteps T0 and with eq. 15's (same mean T0), before scaling; ``paper`` only.
+    scale : (turns,) the factor applied to every turn (eq. 16); ``paper`` only.
+    seconds : wall time of the timing [s]. timing : one of :data:`TIMINGS`.
     """
 
     steps: np.ndarray
     reference: float
     constant: float
-    peak_constant: np.ndarray
-    peak_optimised: np.ndarray
-    scale: np.ndarray
+    peak_constant: Optional[np.ndarray]
+    peak_optimised: Optional[np.ndarray]
+    scale: Optional[np.ndarray]
     seconds: float
+    timing: str = "paper"
 
 
 def _turn_deltas(q: np.ndarray, k: int, turn: int) -> np.ndarray:
@@ -410,11 +429,50 @@ def timesteps(
     safety: float,
     reference_s: float,
     progress: Optional[Callable[[int, int], None]] = None,
+    timing: str = DEFAULTS["timing"],
+) -> Timesteps:
+    """The timesteps of a planned program with safety factor K_s = ``safety`` by ``timing``
+    (module docstring): ``optimal`` the least-time profile, ``paper`` [2]'s eqs. 15-16 turn by
+    turn with reference timestep T0 = ``reference_s`` [s], ``constant`` the reference's one
+    step. Raises ``FresnelError`` for a safety factor below 1 or another timing."""
+    if not safety >= 1.0:
+        raise ff.FresnelError(f"the safety factor K_s must be at least 1 (got {safety:g})")
+    if timing == "paper":
+        return _paper_steps(fplan, limits, safety, reference_s, progress)
+    if timing not in TIMINGS:
+        raise ff.FresnelError(f"timing {timing!r} is not one of {', '.join(TIMINGS)}")
+    start = time.perf_counter()
+    q = fplan.axes_si()
+    constant = constant_step(q, limits, safety)
+    if timing == "constant":
+        steps = np.full(q.shape[0] - 1, constant)
+    else:
+        steps = least_time.least_time_steps(q, limits.velocity / safety, limits.accel / safety)
+    if progress is not None:
+        progress(fplan.path.n_turns, fplan.path.n_turns)
+    return Timesteps(steps, reference_s, constant, None, None, None, time.perf_counter() - start, timing)
+
+
+def certificate(q: np.ndarray, steps: np.ndarray, limits: Limits, safety: float) -> tuple[np.ndarray, float]:
+    """Per step, the least time [s] any program through the points q (P, 4) SI within 1/K_s
+    of every limit can take over it, among the programs none of whose steps is longer than
+    θ = max(the constant step, the longest of ``steps``) [s] (module docstring;
+    :func:`ftsweep.stages.kinematics.timing.least_time_bound`); and θ. Their sum bounds the
+    least time of the program from below, and the timing's own steps lie in that class."""
+    longest = max(constant_step(q, limits, safety), float(steps.max()))
+    low = least_time.least_time_bound(q, limits.velocity / safety, limits.accel / safety, longest)
+    return low, longest
+
+
+def _paper_steps(
+    fplan: FresnelPlan,
+    limits: Limits,
+    safety: float,
+    reference_s: float,
+    progress: Optional[Callable[[int, int], None]] = None,
 ) -> Timesteps:
     """Adaptive timesteps ([2] §2.5, module docstring) of a planned program, turn by turn,
     with reference timestep T0 = ``reference_s`` [s] and safety factor K_s = ``safety``."""
-    if not safety >= 1.0:
-        raise ff.FresnelError(f"the safety factor K_s must be at least 1 (got {safety:g})")
     start = time.perf_counter()
     q = fplan.axes_si()
     k = fplan.path.points_per_turn
@@ -450,6 +508,7 @@ def timesteps(
         peak_o,
         scale,
         time.perf_counter() - start,
+        "paper",
     )
 
 

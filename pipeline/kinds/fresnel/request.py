@@ -33,9 +33,15 @@ class FresnelRequest(Request):
         "(appendix A.3) or auto (default)",
     )
 
+    timing: Optional[Literal["optimal", "paper", "constant"]] = Field(
+        None,
+        description="fresnel: timesteps: the least time the limits allow (optimal, default), [2]'s "
+        "eqs. 15-16 (paper) or one constant step",
+    )
+
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
         return self.stable_dump(handler(self), FRESNEL_FIELDS)
 
 
-FRESNEL_FIELDS = ("facet_height_um", "points_per_turn", "deviation_deg", "safety", "control_points")
+FRESNEL_FIELDS = ("facet_height_um", "points_per_turn", "deviation_deg", "safety", "control_points", "timing")

@@ -1,11 +1,13 @@
 """The ``ftsweep fresnel`` study ([2]): plan a Fresnel program for a catalog surface, choose
 its timesteps, summarise it (facets, turns, compensation, machining time with constant and
-adaptive timesteps), plot it ([2] figs. 10, 12, 13) and export it as position-time lines
-``t [s]  C [deg]  X [mm]  Y [mm]  Z [mm]`` with a JSON sidecar, verified on re-reading.
+its own timesteps, a lower bound on the least time), plot it ([2] figs. 10, 12, 13) and
+export it as position-time lines ``t [s]  C [deg]  X [mm]  Y [mm]  Z [mm]`` with a JSON
+sidecar, verified on re-reading.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, Optional
@@ -19,7 +21,6 @@ from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel.request import FresnelRequest
 from ftsweep.simulate import resolve_case
 from ftsweep.stages.paths import fresnel as ff
-from ftsweep.store.io import save_figure
 from ftsweep.version import __version__
 
 if TYPE_CHECKING:
@@ -41,6 +42,8 @@ class Inputs(NamedTuple):
     compensation: str
     scheme: str
     safety: float
+    # a sidecar written before the timing was an input recorded a program timed by [2]'s eqs.
+    timing: str = "paper"
 
 
 def inputs(surface: str, machine: str, cutting: str, **options: Any) -> Inputs:
@@ -71,6 +74,7 @@ def case_of(inp: Inputs) -> Case:
         deviation_deg=inp.deviation_deg,
         safety=inp.safety,
         control_points=inp.scheme,
+        timing=inp.timing,
     )
     return Case(
         surface=inp.surface,
@@ -120,9 +124,11 @@ def summary(
     q = fplan.axes_si()
     acc, vel = fp.relative_peaks(q, steps.steps, limits)
     n_steps = q.shape[0] - 1
-    reduction = 1.0 - steps.peak_optimised / steps.peak_constant
     time_constant = steps.constant * n_steps
     time_adaptive = float(steps.steps.sum())
+    start = time.perf_counter()
+    low, longest = fp.certificate(q, steps.steps, limits, inp.safety)
+    bound_s = time.perf_counter() - start
     return {
         "surface": inp.surface,
         "machine": inp.machine,
@@ -151,12 +157,12 @@ def summary(
         "constant_step_s": steps.constant,
         "adaptive_step_min_s": float(steps.steps.min()),
         "adaptive_step_max_s": float(steps.steps.max()),
+        "timing": steps.timing,
         "time_constant_s": time_constant,
         "time_adaptive_s": time_adaptive,
         "speedup": time_constant / time_adaptive,
-        "turn_peak_reduction_first": float(reduction[0]),
-        "turn_peak_reduction_median": float(np.median(reduction)),
-        "turn_peak_reduction_min": float(reduction.min()),
+        **certificate_fields(path, steps.steps, low, longest),
+        **_paper_fields(steps),
         "relative_accel_max": dict(zip(fp.AXES, (float(v) for v in acc.max(axis=0)), strict=True)),
         "relative_velocity_max": dict(zip(fp.AXES, (float(v) for v in vel.max(axis=0)), strict=True)),
         "limiting_axis_counts": _limiting_axes(acc, path.points_per_turn),
@@ -164,6 +170,39 @@ def summary(
         "speedup_account": speedup_account(fplan, steps, limits, inp.safety),
         "planning_s": fplan.planning_s,
         "timesteps_s": steps.seconds,
+        "bound_s": bound_s,
+        "_bound": low,
+    }
+
+
+def certificate_fields(path: Any, steps: np.ndarray, low: np.ndarray, longest: float) -> dict[str, Any]:
+    """The program's time against the least time of any program through its points within the
+    same limits whose steps are all at most ``longest`` [s] (``low``: per step, [s];
+    :func:`ftsweep.kinds.fresnel.program.certificate`), in all and per facet: times [s], gaps
+    in % of the bound."""
+    facet = path.facet[: steps.size]
+    per_time = np.bincount(facet, weights=steps, minlength=path.n_facets)
+    per_bound = np.bincount(facet, weights=low, minlength=path.n_facets)
+    total, bound = float(steps.sum()), float(low.sum())
+    return {
+        "time_bound_s": bound,
+        "bound_longest_step_s": longest,
+        "optimality_gap_pct": 100.0 * (total / bound - 1.0),
+        "facet_time_s": [float(v) for v in per_time],
+        "facet_bound_s": [float(v) for v in per_bound],
+        "facet_gap_pct": [float(100.0 * (a / b - 1.0)) for a, b in zip(per_time, per_bound, strict=True)],
+    }
+
+
+def _paper_fields(steps: fp.Timesteps) -> dict[str, Any]:
+    """How much [2]'s eq. 15 cut every turn's peak acceleration (``paper`` timing only)."""
+    if steps.peak_optimised is None or steps.peak_constant is None:
+        return {}
+    reduction = 1.0 - steps.peak_optimised / steps.peak_constant
+    return {
+        "turn_peak_reduction_first": float(reduction[0]),
+        "turn_peak_reduction_median": float(np.median(reduction)),
+        "turn_peak_reduction_min": float(reduction.min()),
     }
 
 
@@ -187,7 +226,7 @@ def speedup_account(
     q = fplan.axes_si()
     acc = fp.relative_peaks(q, np.ones(n_steps), limits)[0]
     point, axis = divmod(int(np.argmax(acc)), acc.shape[1])
-    turn = min(point // k, steps.peak_constant.size - 1)
+    turn = min(point // k, fplan.path.n_turns - 1)
     plunged = q.copy()
     plunged[:, 3] -= ff.entry_offset(fplan.path.facet, k, fplan.facet_height_um) * 1e-6
     step_plunging = fp.constant_step(plunged, limits, safety)
@@ -195,9 +234,14 @@ def speedup_account(
     def turnwise(peaks: np.ndarray) -> float:
         return time_constant / float(np.sum(k * np.sqrt(safety * peaks) * t0))
 
+    paper = {}
+    if steps.peak_constant is not None and steps.peak_optimised is not None:
+        paper = {
+            "turnwise_constant": turnwise(steps.peak_constant),
+            "turnwise_optimised": turnwise(steps.peak_optimised),
+        }
     return {
-        "turnwise_constant": turnwise(steps.peak_constant),
-        "turnwise_optimised": turnwise(steps.peak_optimised),
+        **paper,
         "reference": {
             "axis": fp.AXES[axis],
             "turn": turn,
@@ -245,113 +289,57 @@ def text_lines(s: dict[str, Any]) -> list[str]:
         f"axes         X {s['x_range_mm'][0]:.3f} to {s['x_range_mm'][1]:.3f} mm, "
         f"Y {s['y_range_mm'][0]:.3f} to {s['y_range_mm'][1]:.3f} mm",
         f"accel        peak |a|/a_lim after K_s = {s['safety']:g}: {acc}",
-        f"timesteps    per-turn peak acceleration cut by {100 * s['turn_peak_reduction_median']:.1f} % "
-        f"(median; first turn {100 * s['turn_peak_reduction_first']:.1f} %, least "
-        f"{100 * s['turn_peak_reduction_min']:.1f} %)",
+        *_paper_text(s),
         f"time         constant {s['constant_step_s'] * 1e3:.4f} ms steps: {_hms(s['time_constant_s'])}; "
-        f"adaptive: {_hms(s['time_adaptive_s'])} ({s['speedup']:.2f}× faster)",
+        f"{s['timing']} timesteps: {_hms(s['time_adaptive_s'])} ({s['time_adaptive_s']:.2f} s, "
+        f"{s['speedup']:.2f}× faster)",
+        _bound_text(s),
         _account_text(s["speedup_account"]),
         f"limits       {'every axis within its limits on every step' if s['within_limits'] else 'EXCEEDED'}",
-        f"compute      planning {s['planning_s']:.1f} s, timesteps {s['timesteps_s']:.1f} s",
+        f"compute      planning {s['planning_s']:.1f} s, timesteps {s['timesteps_s']:.1f} s, "
+        f"bound {s['bound_s']:.1f} s",
     ]
+
+
+def _paper_text(s: dict[str, Any]) -> list[str]:
+    if "turn_peak_reduction_median" not in s:
+        return []
+    return [
+        f"timesteps    per-turn peak acceleration cut by {100 * s['turn_peak_reduction_median']:.1f} % "
+        f"(median; first turn {100 * s['turn_peak_reduction_first']:.1f} %, least "
+        f"{100 * s['turn_peak_reduction_min']:.1f} %)"
+    ]
+
+
+def _bound_text(s: dict[str, Any]) -> str:
+    """The certificate (:func:`certificate_fields`) as one line."""
+    worst = int(np.argmax(s["facet_gap_pct"]))
+    return (
+        f"bound        no program with steps ≤ {s['bound_longest_step_s'] * 1e3:.3f} ms is faster than "
+        f"{s['time_bound_s']:.2f} s: this one is {s['optimality_gap_pct']:.2f} % above; per facet at most "
+        f"{s['facet_gap_pct'][worst]:.2f} % (facet {worst})"
+    )
 
 
 def _account_text(a: dict[str, Any]) -> str:
     """The speed-up's account (:func:`speedup_account`) as one line."""
     ref = a["reference"]
     where = "a facet's first turn" if ref["enters_facet"] else f"turn {ref['turn']:,}"
+    turnwise = (
+        f"turn by turn at constant steps {a['turnwise_constant']:.2f}×, at eq. 15's steps "
+        f"{a['turnwise_optimised']:.2f}×; "
+        if "turnwise_constant" in a
+        else ""
+    )
     return (
-        f"speed-up     turn by turn at constant steps {a['turnwise_constant']:.2f}×, at eq. 15's steps "
-        f"{a['turnwise_optimised']:.2f}×; the constant step is set by {ref['axis']} on {where}; "
+        f"speed-up     {turnwise}the constant step is set by {ref['axis']} on {where}; "
         f"with facets entered by a plunge {a['plunging']['speedup']:.2f}×"
     )
 
 
-# --------------------------------------------------------------------------- plots
-def plot(s: dict[str, Any], folder: Path) -> list[Path]:
-    """Figures of a study ([2] figs. 10, 12, 13): ``fresnel-<surface>-path.png`` (facets over
-    the part with the quasi-spiral, every 20th turn), ``-axes.png`` (C, X, Y, Z over the
-    first turns) and ``-timesteps.png`` (the first turn's optimised timesteps, and the mean
-    timestep of every turn against the constant one)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    stem = folder / f"fresnel-{s['surface']}"
-    out = []
-    for suffix, draw in (
-        ("-path.png", _plot_path),
-        ("-axes.png", _plot_axes),
-        ("-timesteps.png", _plot_steps),
-    ):
-        out.append(save_figure(draw(s), stem.with_name(stem.name + suffix)))
-    return out
-
-
-def _plot_path(s: dict[str, Any]) -> Any:
-    """The facets over the part (edges white) and the quasi-spiral, every 20th turn."""
-    import matplotlib.pyplot as plt
-
-    fplan, specs = s["_plan"], s["_specs"]
-    k = fplan.path.points_per_turn
-    fig, ax = plt.subplots(1, 2, figsize=(11, 5))
-    aperture = catalogs.aperture_of(specs[0])
-    hx, hy = aperture.half_extent_um
-    gx, gy = np.meshgrid(np.linspace(-hx, hx, 301), np.linspace(-hy, hy, 301))
-    fn = catalogs.base_callable(specs[0])
-    fc = ff.sliced(fn(gx, gy)[0], fplan.f_ref_um, fplan.facet_height_um)[0]
-    fc = np.where(aperture.contains(gx, gy), fc, np.nan)
-    im = ax[0].pcolormesh(gx * 1e-3, gy * 1e-3, fc, shading="auto", cmap="viridis")
-    fig.colorbar(im, ax=ax[0], label="f_c [µm]")
-    for edge in fplan.path.edges[:-1]:
-        closed = np.vstack([edge, edge[:1]]) * 1e-3
-        ax[0].plot(closed[:, 0], closed[:, 1], "w-", lw=0.8)
-    ax[0].set(title=f"{s['n_facets']} facets of {s['facet_height_um']:g} µm (edges white)", xlabel="X [mm]")
-    ax[0].set_ylabel("Y [mm]")
-    xy = fplan.path.xy[:-1].reshape(-1, k, 2)[::20].reshape(-1, 2) * 1e-3
-    ax[1].plot(xy[:, 0], xy[:, 1], lw=0.5)
-    ax[1].set(title="quasi-spiral (every 20th turn), workpiece frame", xlabel="X [mm]", ylabel="Y [mm]")
-    for a in ax:
-        a.set_aspect("equal")
-    fig.tight_layout()
-    return fig
-
-
-def _plot_axes(s: dict[str, Any]) -> Any:
-    """C, X, Y, Z over the first three turns, at the adaptive timesteps."""
-    import matplotlib.pyplot as plt
-
-    fplan, steps = s["_plan"], s["_steps"]
-    n = min(3 * fplan.path.points_per_turn, steps.steps.size)
-    t = np.concatenate([[0.0], np.cumsum(steps.steps[:n])])
-    fig, ax = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
-    series = (np.degrees(fplan.phi), fplan.x_um * 1e-3, fplan.y_um * 1e-3, fplan.tool_z_um)
-    for a, v, label in zip(ax, series, ("C [deg]", "X [mm]", "Y [mm]", "Z [µm]"), strict=True):
-        a.plot(t, v[: n + 1])
-        a.set_ylabel(label)
-    ax[0].set_title("axis trajectories over the first three turns (adaptive timesteps)")
-    ax[-1].set_xlabel("t [s]")
-    fig.tight_layout()
-    return fig
-
-
-def _plot_steps(s: dict[str, Any]) -> Any:
-    """The first turn's adaptive timesteps, and every turn's mean against the constant one."""
-    import matplotlib.pyplot as plt
-
-    k, steps = s["_plan"].path.points_per_turn, s["_steps"]
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-    ax[0].plot(np.arange(k), steps.steps[:k] * 1e3)
-    ax[0].set(title="first turn: adaptive timesteps", xlabel="step k", ylabel="T [ms]")
-    mean = steps.steps.reshape(-1, k).mean(axis=1)
-    ax[1].plot(mean * 1e3, label="adaptive, mean per turn")
-    ax[1].axhline(steps.constant * 1e3, color="k", ls="--", label="constant")
-    ax[1].set(title="timestep history", xlabel="turn", ylabel="T [ms]", yscale="log")
-    ax[1].legend()
-    fig.tight_layout()
-    return fig
-
-
 # --------------------------------------------------------------------------- export
 # wall times of the study: facts about a run, not about the program (left out of the sidecar)
-WALL_TIMES = ("planning_s", "timesteps_s")
+WALL_TIMES = ("planning_s", "timesteps_s", "bound_s")
 
 
 def document(
@@ -382,12 +370,28 @@ def document(
         f"feed {s['feed_um']:g} um per turn; rake face {inp.deviation_deg:g} deg from the cutting direction",
         f"# tool: nose radius {s['nose_radius_um']:g} um; compensation {inp.compensation} "
         f"(e_z max {s['ez_exact_max_nm']:.3f} nm)",
-        f"# timing: adaptive timesteps, {s['time_adaptive_s']:.3f} s in all (constant timesteps: "
-        f"{s['time_constant_s']:.3f} s); safety factor K_s {inp.safety:g}",
+        *timing_lines(s, inp.safety),
         f"# points: {len(lines)}",
         "# units: t [s] from the first line, C [deg] accumulated, X Y [mm] tool, Z [mm] tool tip",
     ]
     return head, lines, meta
+
+
+def timing_lines(s: dict[str, Any], safety: float) -> list[str]:
+    """The header's timing lines: the timing, its time, the constant one and the bound, and the
+    discretisation the limits hold in (the kinematics stage, [2] eq. 14)."""
+    if s["timing"] == "paper":  # as programs were headed before the timing was an input
+        return [
+            f"# timing: adaptive timesteps, {s['time_adaptive_s']:.3f} s in all (constant timesteps: "
+            f"{s['time_constant_s']:.3f} s); safety factor K_s {safety:g}"
+        ]
+    return [
+        f"# timing: {s['timing']} timesteps, {s['time_adaptive_s']:.3f} s in all (constant timesteps: "
+        f"{s['time_constant_s']:.3f} s; no program with steps <= {s['bound_longest_step_s'] * 1e3:.3f} ms "
+        f"under 1/K_s of the limits takes less than {s['time_bound_s']:.3f} s); safety factor K_s {safety:g}",
+        "# limits: every axis within 1/K_s of its velocity limit on every step, (q[i+1]-q[i])/T[i], and of "
+        "its acceleration limit at every point, 2*(v[i]-v[i-1])/(T[i-1]+T[i])",
+    ]
 
 
 def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, Any]:
@@ -503,7 +507,7 @@ def case_document(
         f"{fplan.feed_um:g} um per turn; rake face {fields['deviation_deg']:g} deg from the cutting "
         "direction",
         f"# tool: nose radius {fplan.nose_radius_um:g} um; compensation {fplan.compensation}",
-        f"# timing: adaptive timesteps, {fields['machining_s']:.3f} s in all",
+        f"# timing: {steps.timing} timesteps, {fields['machining_s']:.3f} s in all",
         f"# predicted P-V: {chosen['pv_nm']:.6f} nm",
         f"# points: {len(lines)}",
         "# units: t [s] from the first line, C [deg] accumulated, X Y [mm] tool, Z [mm] tool tip",

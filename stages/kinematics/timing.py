@@ -11,8 +11,8 @@ safety factor), the program meets its limits when
   α·y − β·x ≤ c/x + c/y with x = s_{i−1}, y = s_i, c = A/2, (α, β) = ±(d_i, d_{i−1}).
 
 Where α > 0 the left side grows with y, so a point caps y given x: y ≤ root(β·x + c/x), the
-positive root of α·y² − R·y − c = 0 (:func:`_y_cap`); where β < 0 it caps x given y in the
-same way (:func:`_x_cap`); where α ≤ 0 and β ≥ 0 it always holds.
+positive root of α·y² − R·y − c = 0 (:func:`pair_y_cap`); where β < 0 it caps x given y in the
+same way (:func:`pair_x_cap`); where α ≤ 0 and β ≥ 0 it always holds.
 
 *Fastest profile* (:func:`fastest`, an upper bound): speeds start at their caps and are only
 ever lowered, as in the forward-backward passes of time-optimal path parametrisation. A point
@@ -24,18 +24,8 @@ by bisection), which takes the passes from hundreds to a few. Passes stop when t
 changes by less than ``tol``; the caller checks the result on every point (eq. 14) and
 scales it where rounding left a point above a limit.
 
-*Lower bound* (:func:`bound`). Consider the programs whose every step is at most θ [s]
-(s ≥ σ = 1/θ). Replace each point's inequalities by the set of (x, y) with y ≤ U(x) and
-x ≤ W(y), where U(x) = sup{y: some x' in [σ, x] meets the point with y} and W likewise: a
-superset of the point's feasible pairs (every feasible (x, y) has y ≤ U(x) since x' = x is
-allowed), and since U and W increase, the profiles meeting every such superset form a
-lattice whose greatest element bounds every step's speed from above. It is reached from the
-caps by the same passes, each only ever lowering a speed to a value no feasible profile can
-exceed (so stopping early still bounds): no program within the limits whose steps are all at
-most θ can run step k in less than 1/s_k. U is bounded per inequality: for β > 0, R(x') =
-β·x' + c/x' is convex, its sup over [σ, x] is at an end; for β ≤ 0 it is R(σ). The bound
-does not hold for programs with longer steps: one long step lets its neighbours' velocities
-jump by up to A·T/2 (docs/kinds.md).
+*Lower bound*: :mod:`ftsweep.stages.kinematics.certificate`, from the same pair caps with the
+relaxation σ > 0 of :func:`pair_y_cap` and :func:`pair_x_cap`.
 
 Units: positions in SI (m, rad), speeds s in 1/s, times in s.
 """
@@ -53,17 +43,17 @@ def speed_caps(
     d: np.ndarray, velocity: np.ndarray, shortest_s: float
 ) -> np.ndarray:  # pragma: no cover - jit
     """cap_k [1/s]: the greatest speed 1/T_k at which no axis of step k (displacements
-    ``d`` (P − 1, A), SI) exceeds its ``velocity`` limit (A,), and no step is shorter than
-    ``shortest_s`` [s] (a step that moves no axis)."""
+    ``d`` (P − 1, A), SI) exceeds its ``velocity`` limit (A,); 1/``shortest_s`` for a step no
+    limited axis moves over (time must still pass)."""
     n, m = d.shape
     cap = np.empty(n)
     for k in range(n):
-        best = 1.0 / shortest_s
+        best = math.inf
         for j in range(m):
             move = abs(d[k, j])
             if move > 0.0 and move * best > velocity[j]:
                 best = velocity[j] / move
-        cap[k] = best
+        cap[k] = best if best < math.inf else 1.0 / shortest_s
     return cap
 
 
@@ -75,11 +65,11 @@ def _root(coef: float, rhs: float, c: float) -> float:  # pragma: no cover - jit
 
 
 @njit(nogil=True, cache=True)
-def _y_cap(
+def pair_y_cap(
     d0: np.ndarray, d1: np.ndarray, x: float, accel: np.ndarray, y: float, sigma: float
 ) -> float:  # pragma: no cover - jit
     """min(y, the caps on y the point's inequalities with α > 0 set given x); with σ > 0 the
-    relaxed caps U (module docstring: the sup over x' in [σ, x])."""
+    relaxed caps U (:mod:`ftsweep.stages.kinematics.certificate`: the sup over x' in [σ, x])."""
     for j in range(d0.size):
         if not accel[j] < math.inf:
             continue
@@ -96,7 +86,7 @@ def _y_cap(
 
 
 @njit(nogil=True, cache=True)
-def _x_cap(
+def pair_x_cap(
     d0: np.ndarray, d1: np.ndarray, y: float, accel: np.ndarray, x: float, sigma: float
 ) -> float:  # pragma: no cover - jit
     """min(x, the caps on x the point's inequalities with β < 0 set given y); with σ > 0 the
@@ -140,7 +130,7 @@ def _joint(
     backward inequalities (bisection, 60 halvings); −1 when x/2 does not."""
 
     def short(z: float) -> bool:
-        return _x_cap(d0, d1, _y_cap(d0, d1, z, accel, y, 0.0), accel, z, 0.0) < z
+        return pair_x_cap(d0, d1, pair_y_cap(d0, d1, z, accel, y, 0.0), accel, z, 0.0) < z
 
     lo, hi = 0.5 * x, x
     if short(lo):
@@ -176,14 +166,14 @@ def fastest(
     total = _total(s)
     for _ in range(passes):
         for i in range(n - 1, 0, -1):
-            s[i - 1] = _x_cap(d[i - 1], d[i], s[i], accel, s[i - 1], 0.0)
+            s[i - 1] = pair_x_cap(d[i - 1], d[i], s[i], accel, s[i - 1], 0.0)
         for i in range(1, n):
-            s[i] = _y_cap(d[i - 1], d[i], s[i - 1], accel, s[i], 0.0)
-            if _x_cap(d[i - 1], d[i], s[i], accel, s[i - 1], 0.0) < s[i - 1]:
+            s[i] = pair_y_cap(d[i - 1], d[i], s[i - 1], accel, s[i], 0.0)
+            if pair_x_cap(d[i - 1], d[i], s[i], accel, s[i - 1], 0.0) < s[i - 1]:
                 x = _joint(d[i - 1], d[i], accel, s[i - 1], s[i])
                 if x > 0.0:
                     s[i - 1] = x
-                    s[i] = _y_cap(d[i - 1], d[i], x, accel, s[i], 0.0)
+                    s[i] = pair_y_cap(d[i - 1], d[i], x, accel, s[i], 0.0)
         new = _total(s)
         if abs(new - total) <= tol * new:
             break
@@ -191,35 +181,8 @@ def fastest(
     return s
 
 
-@njit(nogil=True, cache=True)
-def bound(
-    d: np.ndarray, cap: np.ndarray, accel: np.ndarray, longest_s: float, tol: float, passes: int
-) -> np.ndarray:  # pragma: no cover - jit
-    """Speeds s (P − 1) [1/s] no program within the limits whose steps are all at most
-    ``longest_s`` [s] can exceed on any step (module docstring, the lattice relaxation with
-    σ = 1/``longest_s``); the passes stop when the total changes by less than ``tol``
-    (relative) in one, or after ``passes``: every pass's result bounds."""
-    n = cap.size
-    sigma = 1.0 / longest_s
-    s = cap.copy()
-    total = _total(s)
-    for _ in range(passes):
-        for i in range(1, n):
-            s[i] = _y_cap(d[i - 1], d[i], s[i - 1], accel, s[i], sigma)
-        for i in range(n - 1, 0, -1):
-            s[i - 1] = _x_cap(d[i - 1], d[i], s[i], accel, s[i - 1], sigma)
-        new = _total(s)
-        if abs(new - total) <= tol * new:
-            break
-        total = new
-    return s
-
-
-# passes and tolerances measured on the Fresnel parts of docs/kinds.md: the fastest profile
-# settles in 2-4 passes; the bound's passes converge geometrically, and 1e-7 of the total
-# leaves it within 1e-4 of its limit in 20-40 passes
+# measured on the Fresnel parts of docs/kinds.md: the fastest profile settles in 2-4 passes
 FASTEST_TOL = 1e-12
-BOUND_TOL = 1e-7
 MAX_PASSES = 200
 SHORTEST_S = 1e-6
 
@@ -246,15 +209,3 @@ def _worst(values: np.ndarray, limit: np.ndarray) -> float:
     """The largest |value|/limit over rows and axes (axes without a limit left out)."""
     finite = np.isfinite(limit)
     return float(np.max(np.abs(values[:, finite]) / limit[finite], initial=0.0))
-
-
-def least_time_bound(q: np.ndarray, velocity: np.ndarray, accel: np.ndarray, longest_s: float) -> np.ndarray:
-    """Per step, the least time T_k [s] any program through positions q (P, A) SI within the
-    limits ``velocity`` and ``accel`` (A,) SI can take over step k, among the programs whose
-    steps are all at most ``longest_s`` [s] (:func:`bound`); their sum bounds the program's
-    total time from below. Scaled up by 1e-9 against the roundings of the roots."""
-    q = np.ascontiguousarray(q, dtype=np.float64)
-    d = np.ascontiguousarray(np.diff(q, axis=0))
-    cap = speed_caps(d, np.ascontiguousarray(velocity, dtype=np.float64), SHORTEST_S)
-    speeds = bound(d, cap, np.ascontiguousarray(accel, dtype=np.float64), longest_s, BOUND_TOL, MAX_PASSES)
-    return (1.0 - 1e-9) / speeds

@@ -10,7 +10,8 @@ kinematics stage). ``timing``:
 
 - ``optimal`` (the default): the least total time under those limits, by forward-backward
   passes over the steps' speeds (:mod:`ftsweep.stages.kinematics.timing`); the study
-  certifies it with a lower bound on every step (:func:`certificate`, docs/kinds.md
+  certifies it with a lower bound on the time of every program through the same points
+  within the same limits, in all and per facet (:func:`certificate`, docs/kinds.md
   "Time-optimal timing").
 - ``paper``: [2] §2.5, below.
 - ``constant``: the reference's one constant step.
@@ -51,8 +52,10 @@ import numpy as np
 from ftsweep.inputs.facets import surface_range
 from ftsweep.stages.interpolation import timed_path
 from ftsweep.stages.kinematics import axes as kinematics
+from ftsweep.stages.kinematics import certificate as bounds
 from ftsweep.stages.kinematics import timing as least_time
 from ftsweep.stages.kinematics.axes import Limits
+from ftsweep.stages.kinematics.certificate import LeastTimeBound
 from ftsweep.stages.paths import fresnel as ff
 from ftsweep.stages.paths import turnopt
 
@@ -453,15 +456,13 @@ def timesteps(
     return Timesteps(steps, reference_s, constant, None, None, None, time.perf_counter() - start, timing)
 
 
-def certificate(q: np.ndarray, steps: np.ndarray, limits: Limits, safety: float) -> tuple[np.ndarray, float]:
-    """Per step, the least time [s] any program through the points q (P, 4) SI within 1/K_s
-    of every limit can take over it, among the programs none of whose steps is longer than
-    θ = max(the constant step, the longest of ``steps``) [s] (module docstring;
-    :func:`ftsweep.stages.kinematics.timing.least_time_bound`); and θ. Their sum bounds the
-    least time of the program from below, and the timing's own steps lie in that class."""
+def certificate(q: np.ndarray, steps: np.ndarray, limits: Limits, safety: float) -> LeastTimeBound:
+    """A lower bound on the time of every program through the points q (P, 4) SI within 1/K_s
+    of every limit ([2] eq. 14 at every point; :mod:`ftsweep.stages.kinematics.certificate`),
+    starting from the class of programs none of whose steps is longer than the constant step
+    or the longest of ``steps`` [s]."""
     longest = max(constant_step(q, limits, safety), float(steps.max()))
-    low = least_time.least_time_bound(q, limits.velocity / safety, limits.accel / safety, longest)
-    return low, longest
+    return bounds.least_time_bound(q, limits.velocity / safety, limits.accel / safety, longest)
 
 
 def _paper_steps(

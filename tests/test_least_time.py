@@ -144,3 +144,25 @@ def test_the_fresnel_example_is_timed_within_2_percent_of_its_bound_and_exported
     assert within(q, steps, limits.velocity, limits.accel, 0.0)
     assert within(q, steps, limits.velocity / 1.25, limits.accel / 1.25, 5e-3)
     assert fstudy.verify(out)["within_limits"]
+
+
+def test_a_fresnel_case_takes_its_timing_from_its_request():
+    # unset, the request keeps the key it had before the timing was an option (the golden
+    # keys hold it); set, it names another case; constant steps take longer than the least time
+    from ftsweep.engine.case import Case, program_request
+    from ftsweep.simulate import run_case
+
+    def case(**timing: str) -> Case:
+        layout = program_request(kind="fresnel", points_per_turn=60, **timing)
+        return Case(
+            surface="chebyshev_example",
+            layout=layout,
+            machine="xyzc-nanoform",
+            cutting="fresnel-finish",
+            feed_um=8.0,
+        )
+
+    assert case().key() != case(timing="constant").key() != case(timing="optimal").key()
+    optimal, constant = run_case(case()), run_case(case(timing="constant"))
+    assert constant["machining_s"] > optimal["machining_s"] > 0.0
+    assert constant["pv_nm"] == pytest.approx(optimal["pv_nm"], rel=1e-9)  # a linear machine: the path alone

@@ -91,8 +91,8 @@ def fresnel_command(**opts: Any) -> None:
     the 4-axis trajectory that keeps the rake face on the cutting direction, the tool-edge
     compensation (eq. 10 and eq. 12, both reported), and the timesteps: by default the least
     time in which every axis stays within 1/K_s of its velocity and acceleration limits
-    ([2]'s eq. 14 at every point), with a lower bound no program with steps up to the
-    constant one can beat, in all and per facet (docs/kinds.md, "Time-optimal timing");
+    ([2]'s eq. 14 at every point), with a lower bound no program through the same points
+    within the same limits can beat, in all and per facet (docs/kinds.md, "Time-optimal timing");
     --timing paper times each turn by [2]'s eqs. 15-16 instead. The machining time is
     compared with one constant timestep at the global acceleration limit.
     Progress on stderr; plots in --plots; with -o the program and a JSON sidecar

@@ -44,9 +44,10 @@ from numba import njit
 
 from ftsweep.stages.kinematics.timing import SHORTEST_S, pair_x_cap, pair_y_cap, speed_caps
 
-# the passes' count: the bound they give is valid after any number, and within 5e-5 of its
-# limit after 20 on the Fresnel parts; the rounds that raise θ where a long step could pay
-PASSES = 20
+# the passes' count: the bound they give is valid after any number; after 10 it is within
+# 2.4e-4 of its limit on the Fresnel example (274.59 against 274.65 s), in half the time of 20
+# (5.8 s on the 1.85 M-point part); the rounds that raise θ where a long step could pay
+PASSES = 10
 ROUNDS = 6
 RAISE = 1.05
 SLACK = 1e-9

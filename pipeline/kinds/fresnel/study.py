@@ -383,6 +383,13 @@ def document(
     return head, lines, meta
 
 
+# the discretisation every timing holds the limits in (the kinematics stage, [2] eq. 14)
+LIMITS_LINE = (
+    "# limits: every axis within 1/K_s of its velocity limit on every step, (q[i+1]-q[i])/T[i], and of "
+    "its acceleration limit at every point, 2*(v[i]-v[i-1])/(T[i-1]+T[i])"
+)
+
+
 def timing_lines(s: dict[str, Any], safety: float) -> list[str]:
     """The header's timing lines: the timing, its time, the constant one and the bound, and the
     discretisation the limits hold in (the kinematics stage, [2] eq. 14)."""
@@ -395,8 +402,7 @@ def timing_lines(s: dict[str, Any], safety: float) -> list[str]:
         f"# timing: {s['timing']} timesteps, {s['time_adaptive_s']:.3f} s in all (constant timesteps: "
         f"{s['time_constant_s']:.3f} s; no program through these points within 1/K_s of the limits "
         f"takes less than {s['time_bound_s']:.3f} s); safety factor K_s {safety:g}",
-        "# limits: every axis within 1/K_s of its velocity limit on every step, (q[i+1]-q[i])/T[i], and of "
-        "its acceleration limit at every point, 2*(v[i]-v[i-1])/(T[i-1]+T[i])",
+        LIMITS_LINE,
     ]
 
 
@@ -514,6 +520,7 @@ def case_document(
         "direction",
         f"# tool: nose radius {fplan.nose_radius_um:g} um; compensation {fplan.compensation}",
         f"# timing: {steps.timing} timesteps, {fields['machining_s']:.3f} s in all",
+        LIMITS_LINE,
         f"# predicted P-V: {chosen['pv_nm']:.6f} nm",
         f"# points: {len(lines)}",
         "# units: t [s] from the first line, C [deg] accumulated, X Y [mm] tool, Z [mm] tool tip",

@@ -90,20 +90,9 @@ def pair_x_cap(
     d0: np.ndarray, d1: np.ndarray, y: float, accel: np.ndarray, x: float, sigma: float
 ) -> float:  # pragma: no cover - jit
     """min(x, the caps on x the point's inequalities with β < 0 set given y); with σ > 0 the
-    relaxed caps W."""
-    for j in range(d0.size):
-        if not accel[j] < math.inf:
-            continue
-        c = 0.5 * accel[j]
-        for sign in (1.0, -1.0):
-            alpha, beta = sign * d1[j], sign * d0[j]
-            if beta < 0.0:
-                rhs = -alpha * y + c / y
-                if sigma > 0.0:
-                    slow = -alpha * sigma + c / sigma
-                    rhs = max(rhs, slow) if alpha < 0.0 else slow
-                x = min(x, _root(-beta, rhs, c))
-    return x
+    relaxed caps W. The point read backwards: its inequalities with the steps swapped and
+    the sign turned, (α, β) → (−β, −α), are those :func:`pair_y_cap` takes (both signs)."""
+    return pair_y_cap(d1, d0, y, accel, x, sigma)
 
 
 @njit(nogil=True, cache=True)

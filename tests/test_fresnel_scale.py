@@ -13,6 +13,7 @@ import xarray as xr
 from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_least_time import exported_axes, within
 
 from ftsweep.cli.main import main
 from ftsweep.engine.case import Case
@@ -132,16 +133,10 @@ def test_paper_scale_part_in_fresnel_json_timed_within_2_percent_of_its_bound(tm
     assert 0.0 <= s["optimality_gap_pct"] <= 2.0 and max(s["facet_gap_pct"]) <= 2.0
     # what the limits allow over constant steps (seed 001: 3.1× and 3.8× on its parts)
     assert s["time_constant_s"] / s["time_bound_s"] < 2.6
-    # the exported lines by plain finite differences, within the machine's limits
-    lines = out.read_text().splitlines()
-    data = np.loadtxt(out, comments="#", skiprows=lines.index("t_s C_deg X_mm Y_mm Z_mm") + 1)
-    q = np.column_stack([np.radians(data[:, 1]), data[:, 2:] * 1e-3])
-    steps = np.diff(data[:, 0])
-    v = np.diff(q, axis=0) / steps[:, None]
-    a = 2.0 * (v[1:] - v[:-1]) / (steps[:-1] + steps[1:])[:, None]
+    # the exported lines by plain finite differences (tests/test_least_time.py), within the
+    # machine's limits
     limits = fp.limits_of(catalogs.entry("machines", "xyzc-nanoform"))
-    assert np.all(np.abs(v).max(axis=0) <= limits.velocity)
-    assert np.all(np.abs(a).max(axis=0) <= limits.accel)
+    assert within(*exported_axes(out), limits.velocity, limits.accel, 0.0)
     # and it verifies: planned and timed again from its sidecar, line for line
     res = CliRunner().invoke(main, ["verify", str(out)])
     assert res.exit_code == 0, res.output

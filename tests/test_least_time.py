@@ -30,6 +30,14 @@ def within(q: np.ndarray, steps: np.ndarray, velocity: np.ndarray, accel: np.nda
     return bool(np.all(v <= velocity * (1.0 + rel)) and np.all(a <= accel * (1.0 + rel)))
 
 
+def exported_axes(path) -> tuple[np.ndarray, np.ndarray]:
+    """The positions (P, 4) SI (C rad, X Y Z m) and steps [s] of an exported Fresnel program's
+    ``t C X Y Z`` lines, as printed."""
+    lines = path.read_text().splitlines()
+    data = np.loadtxt(path, comments="#", skiprows=lines.index("t_s C_deg X_mm Y_mm Z_mm") + 1)
+    return np.column_stack([np.radians(data[:, 1]), data[:, 2:] * 1e-3]), np.diff(data[:, 0])
+
+
 @st.composite
 def programs(draw: st.DrawFn, most: int = 40, least: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points of 1-4 axes with displacements of either sign (reversals included), and limits."""
@@ -133,14 +141,11 @@ def test_the_fresnel_example_is_timed_within_2_percent_of_its_bound_and_exported
     assert np.all(s["_steps"].steps >= s["_bound"].step_s)
     out, side = tmp_path / "f.txt", tmp_path / "f.json"
     fstudy.export(s, out, side, inp)
-    lines = out.read_text().splitlines()
-    assert any(line.startswith("# limits: every axis within 1/K_s") for line in lines)
-    data = np.loadtxt(out, comments="#", skiprows=lines.index(fstudy.F_COLUMNS) + 1)
-    q = np.column_stack([np.radians(data[:, 1]), data[:, 2:] * 1e-3])
+    assert any(line.startswith("# limits: every axis within 1/K_s") for line in out.read_text().splitlines())
+    q, steps = exported_axes(out)
     limits = fp.limits_of(catalogs.entry("machines", "xyzc-nanoform"))
     # within the machine's limits as printed; within 1/K_s to what the printed times move the
     # peaks: 1 ns on 0.5-0.9 ms steps is up to 1e-9·v/T² of a C acceleration (C peaks 0.8016)
-    steps = np.diff(data[:, 0])
     assert within(q, steps, limits.velocity, limits.accel, 0.0)
     assert within(q, steps, limits.velocity / 1.25, limits.accel / 1.25, 5e-3)
     assert fstudy.verify(out)["within_limits"]

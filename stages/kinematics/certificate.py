@@ -138,18 +138,19 @@ def _release(
     accel: np.ndarray,
     sigma: np.ndarray,
     s: np.ndarray,
+    gain: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
     end: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - jit
-    """G_k (P − 1) [s]: the g_i of the chains spanning each step, and whether each step's chain
-    is unsettled (ends on a pair that does not come below the passes alone)."""
+    """G_k (P − 1) [s]: the g_i (``gain``) of the chains spanning each step, and whether each
+    step's chain is settled (else it ends on a pair that does not come below the passes alone)."""
     n = s.size
     settled = np.ones(n, dtype=np.bool_)
     checked = np.zeros(n, dtype=np.int8)  # 0 unseen, 1 settles, 2 does not
     edge = np.zeros(n + 1)
     for i in range(n):
-        g = (1.0 / s[i] - 1.0 / cap[i]) / (1.0 + SLACK)
+        g = gain[i]
         j = end[i]
         if j >= 0:
             if checked[j] == 0:
@@ -241,9 +242,9 @@ def least_time_bound(
         sigma = 1.0 / theta
         s = bound(d, cap, accel, sigma, PASSES)
         lo, hi, end = _spans(_pointers(d, cap, accel, sigma, s))
-        through, settled = _release(d, cap, accel, sigma, s, lo, hi, end)
         step = 1.0 / (s * (1.0 + SLACK))
         gain = step - 1.0 / cap
+        through, settled = _release(d, cap, accel, sigma, s, gain, lo, hi, end)
         need = step + through - np.where(settled, gain, 0.0)
         excess = np.maximum(need - np.maximum(theta, _hold(d, accel, theta, s)), 0.0)
         # a step whose bound exceeds θ_k would fall outside its own class

@@ -88,8 +88,8 @@ def _plot_steps(s: dict[str, Any]) -> Any:
     ax[0].set(title=f"first turn: {s['timing']} timesteps", xlabel="step k", ylabel="T [ms]")
     mean = steps.steps.reshape(-1, k).mean(axis=1)
     ax[1].plot(mean * 1e3, label=f"{s['timing']}, mean per turn")
-    bound = s["_bound"].step_s
-    ax[1].plot(bound[: bound.size // k * k].reshape(-1, k).mean(axis=1) * 1e3, ls=":", label="bound's steps")
+    bound = s["_bound"].step_s.reshape(-1, k).mean(axis=1)
+    ax[1].plot(bound * 1e3, ls=":", label="bound's steps, mean per turn")
     ax[1].axhline(steps.constant * 1e3, color="k", ls="--", label="constant")
     ax[1].set(title="timestep history", xlabel="turn", ylabel="T [ms]", yscale="log")
     ax[1].legend()

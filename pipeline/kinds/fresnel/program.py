@@ -456,13 +456,13 @@ def timesteps(
     return Timesteps(steps, reference_s, constant, None, None, None, time.perf_counter() - start, timing)
 
 
-def certificate(q: np.ndarray, limits: Limits, safety: float) -> LeastTimeBound:
+def certificate(q: np.ndarray, limits: Limits, safety: float, constant_s: float) -> LeastTimeBound:
     """A lower bound on the time of every program through the points q (P, 4) SI within 1/K_s
     of every limit ([2] eq. 14 at every point; :mod:`ftsweep.stages.kinematics.certificate`),
     starting from the class of programs none of whose steps is longer than the constant step
-    (which holds the constant program): one bound whatever the timing."""
-    longest = constant_step(q, limits, safety)
-    return bounds.least_time_bound(q, limits.velocity / safety, limits.accel / safety, longest)
+    ``constant_s`` [s] (:func:`constant_step`, which every :class:`Timesteps` holds): that
+    class holds the constant program, and the bound is one whatever the timing."""
+    return bounds.least_time_bound(q, limits.velocity / safety, limits.accel / safety, constant_s)
 
 
 def _paper_steps(

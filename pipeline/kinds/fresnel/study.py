@@ -128,7 +128,7 @@ def summary(
     time_constant = steps.constant * n_steps
     time_adaptive = float(steps.steps.sum())
     start = time.perf_counter()
-    low = fp.certificate(q, limits, inp.safety)
+    low = fp.certificate(q, limits, inp.safety, steps.constant)
     bound_s = time.perf_counter() - start
     return {
         "surface": inp.surface,

@@ -15,7 +15,7 @@ import xarray as xr
 from ftsweep.store import caselog, cube, fenced
 from ftsweep.store.lock import LeaseLost, LockError
 from ftsweep.store.storage import place
-from ftsweep.sweeps import run
+from ftsweep.sweeps import cases, run
 from ftsweep.sweeps.run import run_sweep
 
 # two cases, merged one at a time (MERGE_EVERY_S = 0): the second merge lands on blocks that
@@ -189,7 +189,7 @@ def check_point(
         assert block_tags(url) == found["tags"], where
     run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog)
     xr.testing.assert_equal(data(url), expected)
-    counts = run.cube_counts(url)
+    counts = cases.cube_counts(url)
     assert counts["done"] == expected["status"].size and counts["pending"] == 0, where
     assert not caselog.pending_logs(url), where
     if not place(url).local:

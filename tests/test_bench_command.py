@@ -148,8 +148,8 @@ def test_a_measured_sweep_is_replayed_on_more_threads_and_its_cases_run_again_al
     assert "sweep s" in r.output and "alone s" in r.output
     # where the wall went, in order
     tl, wall = data["sweeps"][0]["timeline"], data["sweeps"][0]["wall_s"]
-    assert 0 < tl["connected_s"] <= tl["first_case_s"] <= tl["last_case_s"] <= wall
-    assert "cluster connected at" in r.output
+    assert 0 < tl["set_up_s"] <= tl["connected_s"] <= tl["first_case_s"] <= tl["last_case_s"] <= wall
+    assert "cube set up at" in r.output and "cluster connected and warmed at" in r.output
 
 
 def test_simulated_workers_need_a_sweep():

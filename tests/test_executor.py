@@ -129,7 +129,7 @@ def test_local_workers_run_without_the_statistical_profiler():
 
 
 def test_the_local_dashboard_listens_on_loopback_only():
-    from ftsweep.sweeps.executor import _close_quietly, _connect
+    from ftsweep.sweeps.connection import _close_quietly, _connect
 
     client, cluster = _connect(None, 1)
     try:

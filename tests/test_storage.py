@@ -14,7 +14,7 @@ from ftsweep.cli.main import main
 from ftsweep.store import caselog, cube
 from ftsweep.store.lock import Lease, LockError
 from ftsweep.store.storage import StorageError, parse_options, place
-from ftsweep.sweeps import run
+from ftsweep.sweeps import cases
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.testing import LeaseTests
 
@@ -217,11 +217,11 @@ def test_a_refusal_a_worker_logs_is_reconsidered_by_retry_failed(tmp_path, catal
         f"{caselog.LOG}/20260101T000000-x/abc-000001.npz", caselog._encode([(2, forged)])
     )
     plain = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
-    assert plain.done == 0 and run.cube_counts(out)["refused"] == 1
+    assert plain.done == 0 and cases.cube_counts(out)["refused"] == 1
     retried = run_sweep(
         str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir, retry_failed=True
     )
-    assert retried.done == 1 and run.cube_counts(out)["done"] == 4
+    assert retried.done == 1 and cases.cube_counts(out)["done"] == 4
     assert _done_values(out, 2)["pv_nm"] == good["pv_nm"]
 
 

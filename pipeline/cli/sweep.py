@@ -148,7 +148,7 @@ def _prepare(
     default)."""
     from ftsweep.engine.startup import FIRST_COMPILE_S, kernels_cached
     from ftsweep.inputs.catalogs import CatalogError
-    from ftsweep.sweeps.run import axis_summary
+    from ftsweep.sweeps.cases import axis_summary
     from ftsweep.sweeps.spec import load_sweep
 
     try:
@@ -338,7 +338,7 @@ def _print_refused(report: Any) -> None:
 def _print_sweep_summary(report: Any, wall_s: float) -> dict[str, int]:
     """The end-of-run summary on stdout: counts, throughput, failures, best per point count;
     ``wall_s`` the command's time so far (the clock progress shows)."""
-    from ftsweep.sweeps.run import cube_counts
+    from ftsweep.sweeps.cases import cube_counts
     from ftsweep.tools.query import best_per_point_count
 
     counts = cube_counts(report.cube)

@@ -12,7 +12,6 @@ streams every case into ``on_result`` once, when it finishes, not when its task 
 
 from __future__ import annotations
 
-import logging
 import queue
 import threading
 import time
@@ -33,8 +32,15 @@ from ftsweep.engine.lines import LineCache
 from ftsweep.simulate import run_case
 from ftsweep.store.caselog import CaseLog
 from ftsweep.store.storage import Place
+from ftsweep.sweeps.connection import (  # noqa: F401 - Cluster and ExecutorError are this module's API too
+    CONNECT_TIMEOUT_S,
+    Cluster,
+    EarlyCluster,
+    ExecutorError,
+    _close_quietly,
+    open_cluster,
+)
 from ftsweep.sweeps.spec import SweepSpec, case_at, case_lines
-from ftsweep.version import __version__
 
 
 @dataclass(frozen=True)
@@ -138,12 +144,6 @@ EVENT_POLL_S = 0.25
 # how long reading a finished task's summaries may take before it counts as lost with its
 # worker [s] (they are a few kB)
 RESULT_WAIT_S = 5.0
-# a scheduler that does not answer within this many seconds is reported, not waited for
-CONNECT_TIMEOUT_S = 5
-
-
-class ExecutorError(RuntimeError):
-    """The sweep could not be run on the asked scheduler; the message says why."""
 
 
 def _sharing(spec: SweepSpec, indices: list[int], folder: Optional[Path]) -> set[int]:
@@ -217,16 +217,6 @@ def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> fl
     return time.perf_counter() - t
 
 
-@dataclass(frozen=True)
-class Cluster:
-    """The cluster a run got: its workers and threads (tasks are planned for the threads) and
-    the dashboard's address (None for the synchronous scheduler or without a dashboard)."""
-
-    workers: int
-    threads: int
-    dashboard: Optional[str] = None
-
-
 Plan = list[list[int]] | Callable[[int], list[list[int]]]
 
 
@@ -242,6 +232,7 @@ def execute(
     on_cluster: Optional[Callable[[Cluster], None]] = None,
     worker_wait_s: float = WORKER_WAIT_S,
     check_reach: bool = False,
+    early: Optional[EarlyCluster] = None,
 ) -> None:
     """Run ``task(spec, group)`` for every group of case indices and call ``on_result`` with
     each task's summaries as it finishes.
@@ -259,6 +250,8 @@ def execute(
     worker_wait_s : seconds to wait for a first worker, and for one to come back once every
         worker left; then :class:`ExecutorError` (finished cases are written already).
     check_reach : one worker opens ``spec.cube`` before any task is sent (a sweep's run).
+    early : the cluster, opened and warmed while the caller set up, with this ``warm``
+        (:class:`ftsweep.sweeps.connection.EarlyCluster`); None opens it here.
     """
     on_error = on_error or task_failure
     if scheduler == SYNCHRONOUS:
@@ -271,51 +264,21 @@ def execute(
             warm()
         _run_synchronous(groups, spec, task, on_error, on_result)
         return
-    if not callable(plan) and not plan:
+    if early is None and not callable(plan) and not plan:  # an early cluster is closed below
         return
-    client, cluster = _connect(scheduler, workers)
+    opened = early.take() if early is not None else open_cluster(scheduler, workers, worker_wait_s, warm)
+    client = opened.client
     try:
-        got = _cluster_of(client, scheduler, worker_wait_s)
-        groups = plan(got.threads) if callable(plan) else plan
+        groups = plan(opened.got.threads) if callable(plan) else plan
         if not groups:
             return
         if on_cluster is not None:
-            on_cluster(got)
+            on_cluster(opened.got)
         if check_reach:
             _check_reach(client, spec, scheduler)
-        if warm is not None:
-            client.run(warm)
         _run_distributed(client, groups, spec, (task, on_error), on_result, worker_wait_s)
     finally:
-        _close_quietly(client, cluster)
-
-
-def _cluster_of(client: Any, scheduler: Optional[str], wait_s: float) -> Cluster:
-    """The connected cluster, once a worker joined (within ``wait_s``) and every worker can
-    import ftsweep (a worker that cannot is named, not left to fail each task obscurely)."""
-    where = scheduler or "the local cluster"
-    try:
-        client.wait_for_workers(1, timeout=wait_s)
-    except TimeoutError:
-        raise ExecutorError(
-            f"no worker joined the scheduler at {where} within {wait_s:g} s; start workers "
-            "(dask worker ADDRESS) and run again"
-        ) from None
-    # exec is a builtin: it reaches a worker that has no ftsweep, which then says so
-    answers = client.run(exec, "import ftsweep", on_error="return")
-    lacking = {w: a for w, a in answers.items() if isinstance(a, BaseException)}
-    if lacking:
-        names = ", ".join(sorted(lacking)[:5])
-        first = next(iter(lacking.values()))
-        raise ExecutorError(
-            f"{len(lacking)} worker(s) of {where} cannot import ftsweep ({names}: "
-            f"{type(first).__name__}: {str(first)[:200]}); install ftsweep {__version__} in every "
-            "worker's environment"
-        )
-    threads = client.nthreads()
-    return Cluster(
-        workers=len(threads), threads=sum(threads.values()), dashboard=_dashboard(client, scheduler)
-    )
+        _close_quietly(client, opened.cluster)
 
 
 def _check_reach(client: Any, spec: TaskSpec, scheduler: Optional[str]) -> None:
@@ -335,51 +298,6 @@ def _check_reach(client: Any, spec: TaskSpec, scheduler: Optional[str]) -> None:
             "pass the store's options with --storage-option KEY=VALUE (they travel to the workers, "
             "credentials too), or give the workers the configuration this machine has"
         )
-
-
-def _dashboard(client: Any, scheduler: Optional[str] = None) -> Optional[str]:
-    """The dashboard's address, or None when the scheduler runs none, or when the local
-    cluster's would only say that Dask needs bokeh (not installed here)."""
-    import importlib.util
-
-    if scheduler is None and importlib.util.find_spec("bokeh") is None:
-        return None
-    try:
-        link = client.dashboard_link
-    except (KeyError, AttributeError):  # no "dashboard" among the scheduler's services
-        return None
-    return str(link) if link else None
-
-
-def _connect(scheduler: Optional[str], workers: int) -> tuple[Any, Any]:
-    """A client of the scheduler at ``scheduler`` (checked within :data:`CONNECT_TIMEOUT_S`),
-    or of a new LocalCluster of ``workers`` single-threaded processes."""
-    from distributed import Client, LocalCluster
-
-    if scheduler:
-        try:
-            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s"), None
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise ExecutorError(
-                f"no dask scheduler answered at {scheduler[:200]} within {CONNECT_TIMEOUT_S} s "
-                f"({type(exc).__name__}); start one (dask scheduler) or omit --scheduler for a local cluster"
-            ) from None
-    cluster = LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        # a free port on this machine only: on ":0" it listened on every interface
-        dashboard_address="127.0.0.1:0",
-        silence_logs=logging.CRITICAL,  # task errors reach us through the futures
-        config=LOCAL_WORKER_CONFIG,
-    )
-    return Client(cluster), cluster
-
-
-# the local workers' Dask settings: no statistical profiler, whose thread took the GIL every
-# 10 ms to walk the stacks (reference sweep on 2 workers: wall 32.4 s on average with it,
-# 31.2 s without, four runs each); an external cluster keeps its own configuration
-LOCAL_WORKER_CONFIG = {"distributed.worker.profile.enabled": False}  # dotted: the nanny merges shallowly
 
 
 def _run_distributed(
@@ -468,23 +386,6 @@ class WorkerWatch:
                 f"the {finished} case(s) finished this run are in the cube, the others stay pending: "
                 "start workers and run the same command again to go on"
             )
-
-
-def _close_quietly(client: Any, cluster: Any) -> None:
-    # workers still heartbeating while the scheduler stops log tracebacks that mean nothing
-    # here: quieten distributed for the shutdown only
-    names = ("distributed", "distributed.worker", "distributed.nanny", "distributed.core", "distributed.comm")
-    quiet = [logging.getLogger(n) for n in names]
-    levels = [lg.level for lg in quiet]
-    for lg in quiet:
-        lg.setLevel(logging.CRITICAL)
-    try:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-    finally:
-        for lg, level in zip(quiet, levels, strict=True):
-            lg.setLevel(level)
 
 
 def task_failure(task: TaskSpec, indices: Iterable[int], exc: BaseException) -> list[dict]:

@@ -25,12 +25,12 @@ from ftsweep.store.cube import CubeError
 from ftsweep.store.lock import Lease, LeaseLost, cube_lock
 from ftsweep.store.storage import PathLike, Place, StorageError, check_writable, place, with_configured
 from ftsweep.sweeps import grow
-from ftsweep.sweeps.executor import Cluster, TaskSpec, execute, run_task, warm_up
+from ftsweep.sweeps.cases import prune_cases, refuse_cases
+from ftsweep.sweeps.connection import EarlyCluster
+from ftsweep.sweeps.executor import SYNCHRONOUS, Cluster, TaskSpec, execute, run_task, warm_up
 from ftsweep.sweeps.spec import (
-    NAMED_AXES,
     Costs,
     SweepSpec,
-    case_costs,
     coordinates,
     load_sweep,
     n_cases,
@@ -44,8 +44,9 @@ def default_cube_path(name: str) -> Path:
     return Path("outputs") / f"{name}.zarr"
 
 
-# the driver merges its workers' case logs into the cube at most this often [s] (and at the
-# end): readers of a running sweep's cube see its cases this late at most
+# the driver merges its workers' case logs into the cube at most this often [s] (and at each
+# case of the tail, and at the end): readers of a running sweep's cube see its cases this late
+# at most
 MERGE_EVERY_S = 5.0
 
 
@@ -102,9 +103,10 @@ class SweepReport:
     queued: int = 0  # cases this run computes
     note: str = ""  # what the run changed in the cube beyond its cases (it grew)
     connected: bool = False  # the run got its cluster (workers may have logged cases)
-    # where the wall went: seconds from the start of the computation to the cluster being
-    # connected (connected_s) and to the first and the last case delivered (first_case_s,
-    # last_case_s); the rest of ``wall_s`` is the last merge
+    # where the wall went: seconds from the run's start (its lock taken) to the cube set up
+    # (set_up_s), to the cluster connected (connected_s: opened and warmed during the set-up
+    # for a new cube) and to the first and the last case delivered (first_case_s,
+    # last_case_s); the rest of ``wall_s``, which counts from the same start, is the last merge
     timeline: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -349,15 +351,19 @@ def _compute(
     run_id: str,
     catalog_folder: Optional[Path],
     watchers: Watchers,
+    begun: tuple[Optional[EarlyCluster], float],
 ) -> None:
     """Run the cases of ``costs`` (by index, with their costs) on the cluster ``where`` says,
     each case written as it finishes; the tasks are planned for the threads of the cluster the
-    run got."""
+    run got. ``begun``: the cluster opened during the set-up (or None), and the run's start on
+    :func:`time.perf_counter` (the timeline counts from it)."""
+    early, started = begun
     folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
-    if not costs:  # nothing to compute: no cluster is started
+    if not costs:  # nothing to compute: no cluster is started, or the one opened is closed
+        if early is not None:
+            early.close()
         return
-    plan, on_result, on_cluster = _callbacks(report, spec, costs, catalog_folder, watchers)
-    assert spec.layout is not None
+    plan, on_result, on_cluster = _callbacks(report, spec, costs, catalog_folder, (watchers, started))
     execute(
         plan,
         TaskSpec(
@@ -372,21 +378,33 @@ def _compute(
         where.workers,
         on_result,
         task=run_task,
-        warm=functools.partial(warm_up, spec.surface, spec.layout, folder),
+        warm=_warm(spec, catalog_folder),
         on_cluster=on_cluster,
         worker_wait_s=where.worker_wait_s,
         check_reach=True,
+        early=early,
     )
 
 
+def _warm(spec: SweepSpec, catalog_folder: Optional[Path]) -> Callable[[], float]:
+    """The warm-up every worker runs once before its first task (:func:`warm_up`)."""
+    folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
+    assert spec.layout is not None
+    return functools.partial(warm_up, spec.surface, spec.layout, folder)
+
+
 def _callbacks(
-    report: SweepReport, spec: SweepSpec, costs: Costs, catalog_folder: Optional[Path], watchers: Watchers
+    report: SweepReport,
+    spec: SweepSpec,
+    costs: Costs,
+    catalog_folder: Optional[Path],
+    watched: tuple[Watchers, float],
 ) -> tuple[Callable[[int], list[list[int]]], Callable[[list[dict]], None], Callable[[Cluster], None]]:
     """What the executor calls during a run: the planner of the tasks for the cluster's threads,
     the delivery of finished cases (merged every :data:`MERGE_EVERY_S`, progress told) and the
-    announcement of the cluster; each marks the report's timeline."""
-    progress, announce, lease = watchers
-    started = time.perf_counter()
+    announcement of the cluster; each marks the report's timeline, in seconds from the run's
+    start (``watched``'s second item, on :func:`time.perf_counter`)."""
+    (progress, announce, lease), started = watched
     merged = [time.monotonic()]
 
     def plan(threads: int) -> list[list[int]]:
@@ -398,7 +416,10 @@ def _callbacks(
         report.timeline.setdefault("first_case_s", time.perf_counter() - started)
         report.timeline["last_case_s"] = time.perf_counter() - started
         report.rows.extend(rows)
-        if time.monotonic() - merged[0] >= MERGE_EVERY_S:
+        # in the tail (fewer cases left than threads) a core is free: merging now leaves the
+        # last merge, after the last case, only that case's log
+        tail = report.queued - len(report.rows) < report.threads
+        if tail or time.monotonic() - merged[0] >= MERGE_EVERY_S:
             _merge_fenced(report.cube, lease)  # a writer whose lease was taken over stops here
             merged[0] = time.monotonic()
         if progress is not None:
@@ -462,25 +483,25 @@ def _run_locked(
 ) -> SweepReport:
     name, run_id = names
     lease = watchers[2]
-    created = not out.exists()
-    _, note = prepare_cube(name, spec, out, restart, catalog_folder, lease)
-    status, damaged = _undamaged_status(out, lease)
-    already = int(np.count_nonzero(status == cube.DONE))
-    pending, status = _wanted_cases(spec, out, status, rerun, run_id, catalog_folder, lease)
-    report = SweepReport(
-        cube=out, total=n_cases(spec), skipped=already, workers=where.workers, damaged=damaged
-    )
-    report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
-    # the cases sent: every wanted one not refused, with its cost for planning the tasks
-    report.refused, costs = _fenced(
-        lease, lambda fence: refuse_cases(spec, out, pending, run_id, catalog_folder, fence)
-    )
-    report.queued = len(costs)
-    report.note = note
     start = time.perf_counter()
+    created = not out.exists()
+    # a new cube, or one started over, has every case to compute: its cluster opens and warms
+    # while the cube is made (ftsweep.sweeps.connection)
+    early = None
+    if (created or restart) and where.scheduler != SYNCHRONOUS:
+        early = EarlyCluster(where.scheduler, where.workers, where.worker_wait_s, _warm(spec, catalog_folder))
     try:
-        _compute(report, spec, costs, where, run_id, catalog_folder, watchers)
+        report, costs = _set_up(names, spec, out, restart, rerun, catalog_folder, lease, where.workers)
     except BaseException:
+        if early is not None:
+            early.close()
+        raise
+    report.timeline["set_up_s"] = time.perf_counter() - start
+    try:
+        _compute(report, spec, costs, where, run_id, catalog_folder, watchers, (early, start))
+    except BaseException:
+        if early is not None:
+            early.close()  # one the run did not take (it broke before it needed it)
         if created and not report.connected:
             # a cube this run made whose cluster never came (a wrong --scheduler): no task ran,
             # so nothing was computed, and nothing is left behind
@@ -501,87 +522,31 @@ def _run_locked(
     return report
 
 
-def refuse_cases(
+def _set_up(
+    names: tuple[str, str],
     spec: SweepSpec,
     out: Place,
-    pending: list[int],
-    run_id: str,
+    restart: bool,
+    rerun: tuple[bool, Optional[float]],
     catalog_folder: Optional[Path],
-    fence: Optional[Callable[[], None]] = None,
-) -> tuple[dict[int, str], Costs]:
-    """Mark ``refused`` the pending cases whose planning would refuse them, known before any
-    is sent (:func:`ftsweep.sweeps.spec.case_costs`: over the controller's capacity, a layout
-    the aperture rules out, ...), with the reason; returns them by index, and the costs of the
-    others, which plan the tasks."""
-    costs, refused = case_costs(spec, pending, catalog_folder)
-    if refused:  # a writer on object storage lists the cube first: only when there is something to write
-        cube.CubeWriter(out, fence).write(
-            [(index, cube.ended_values(cube.REFUSED, reason, run_id)) for index, reason in refused.items()]
-        )
-    return refused, costs
-
-
-def prune_cases(
-    spec: SweepSpec,
-    out: Place,
-    status: np.ndarray,
-    factor: float,
-    run_id: str,
-    catalog_folder: Optional[Path],
-    fence: Optional[Callable[[], None]] = None,
-) -> int:
-    """Mark pending cases hopeless by the estimate as pruned (see :func:`run_sweep`); returns
-    how many this call pruned."""
-    if not factor > 1.0:
-        raise CubeError(f"the prune factor must be above 1, got {factor:g}")
-    estimate = registry.kind(spec.layout).estimate
-    assert estimate is not None
-    est = estimate(spec, coordinates(spec), catalog_folder)["pv_estimate_nm"]
-    values = est.transpose(*coordinates(spec)).values
-    finite = np.where(np.isfinite(values), values, np.inf)
-    best = finite.min(axis=1, keepdims=True)  # over the aspect ratios of each row
-    hopeless = (np.isfinite(values) & (values > factor * best)).ravel()
-    targets = np.flatnonzero(hopeless & (status == cube.PENDING))
-    best_flat = np.broadcast_to(best, values.shape).ravel()
-    message = "pruned: estimated P-V {:.4g} nm > {:g} × {:.4g} nm, the best estimate of its point count"
-    cases = [
-        (
-            int(flat),
-            cube.ended_values(
-                cube.PRUNED, message.format(values.ravel()[flat], factor, best_flat[flat]), run_id
-            ),
-        )
-        for flat in targets
-    ]
-    if cases:
-        cube.CubeWriter(out, fence).write(cases)
-    return int(targets.size)
-
-
-def cube_counts(path: PathLike) -> dict[str, int]:
-    """Cases pending, done, failed, pruned and refused in a cube."""
-    status = cube.read_status(path)
-    return {
-        "pending": int(np.sum(status == cube.PENDING)),
-        "done": int(np.sum(status == cube.DONE)),
-        "failed": int(np.sum(status == cube.FAILED)),
-        "pruned": int(np.sum(status == cube.PRUNED)),
-        "refused": int(np.sum(status == cube.REFUSED)),
-    }
-
-
-def axis_summary(spec: SweepSpec) -> str:
-    """One line per axis: its length and range, for the start of a run."""
-    parts = []
-    for axis, values in coordinates(spec).items():
-        if axis in NAMED_AXES:
-            parts.append(f"{axis} ×{values.size} [{', '.join(map(str, values))}]")
-        else:
-            low, high = (_number(v) for v in (values.min(), values.max()))
-            parts.append(f"{axis} ×{values.size} [{low} … {high}]")
-    return ", ".join(parts)
-
-
-def _number(value: float) -> str:
-    """A whole number with thousands separators (counts: 950,000), else 4 significant digits."""
-    return f"{value:,.0f}" if float(value).is_integer() and abs(value) < 1e15 else f"{value:.4g}"
+    lease: Optional[Lease],
+    workers: int,
+) -> tuple[SweepReport, Costs]:
+    """The cube made, grown or checked, and the cases this run computes with their costs (the
+    others refused before dispatch, pruned or done already), in a report of the run."""
+    name, run_id = names
+    fresh = restart or not out.exists()
+    _, note = prepare_cube(name, spec, out, restart, catalog_folder, lease)
+    # a cube made just now has nothing to repair (reading every chunk of it took 0.5 s)
+    status, damaged = (cube.read_status(out).ravel(), {}) if fresh else _undamaged_status(out, lease)
+    already = int(np.count_nonzero(status == cube.DONE))
+    pending, status = _wanted_cases(spec, out, status, rerun, run_id, catalog_folder, lease)
+    report = SweepReport(cube=out, total=n_cases(spec), skipped=already, workers=workers, damaged=damaged)
+    report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
+    # the cases sent: every wanted one not refused, with its cost for planning the tasks
+    report.refused, costs = _fenced(
+        lease, lambda fence: refuse_cases(spec, out, pending, run_id, catalog_folder, fence)
+    )
+    report.queued = len(costs)
+    report.note = note
+    return report, costs

@@ -301,9 +301,10 @@ def format_sweep(sweep: dict[str, Any]) -> str:
     (to the cluster, to the first case, between the first and the last, after the last)."""
     line = _throughput(sweep)
     tl, wall = sweep.get("timeline", {}), sweep["wall_s"]
-    if {"connected_s", "first_case_s", "last_case_s"} <= set(tl):
+    if {"set_up_s", "connected_s", "first_case_s", "last_case_s"} <= set(tl):
         line += (
-            f"\n  wall {wall:.1f} s: cluster connected at {tl['connected_s']:.1f} s, first case "
+            f"\n  wall {wall:.1f} s: cube set up at {tl['set_up_s']:.1f} s, cluster connected and "
+            f"warmed at {tl['connected_s']:.1f} s, first case "
             f"delivered at {tl['first_case_s']:.1f} s, last at {tl['last_case_s']:.1f} s, then "
             f"{wall - tl['last_case_s']:.1f} s to the end (the last merge)"
         )
@@ -313,7 +314,8 @@ def format_sweep(sweep: dict[str, Any]) -> str:
 def _throughput(sweep: dict[str, Any]) -> str:
     return (
         f"sweep {sweep['sweep']} on {sweep['workers']} worker(s) ({sweep['scheduler']}): {sweep['cases']} "
-        f"cases in {sweep['wall_s']:.1f} s wall ({sweep['whole_s']:.1f} s with the cube's set-up): "
+        f"cases in {sweep['wall_s']:.1f} s wall from the run's start ({sweep['whole_s']:.1f} s with the "
+        "spec's loading and the lock): "
         f"{sweep['cases_per_s']:.2f} cases/s, summed case time {sweep['summed_case_s']:.1f} s, "
         f"efficiency {sweep['efficiency']:.2f}"
     )

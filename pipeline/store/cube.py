@@ -26,16 +26,18 @@ import subprocess
 import warnings
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import TYPE_CHECKING, Any, Literal, Optional
 
 import numpy as np
-import xarray as xr
 import zarr
 
 from ftsweep.engine import plugins as registry
 from ftsweep.engine import result
 from ftsweep.store.fenced import fenced_store, write_point
 from ftsweep.store.storage import PathLike, Place, place
+
+if TYPE_CHECKING:  # a sweep's workers write cases with zarr alone: xarray and pandas cost each 0.5 s
+    import xarray as xr
 
 # refused: planning refuses the case as specified (over the machine's capacity, a layout the
 # aperture rules out, ...): known before it is sent, or raised by its planning; never retried
@@ -161,6 +163,8 @@ def open_group(where: PathLike, mode: Literal["r", "r+"] = "r") -> zarr.Group:
 
 def open_dataset(where: PathLike) -> xr.Dataset:
     """The cube as a lazy :class:`xarray.Dataset` (a path or URL, with its storage options)."""
+    import xarray as xr
+
     return xr.open_zarr(place(where).zarr_store(read_only=True), consolidated=True)
 
 

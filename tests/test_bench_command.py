@@ -150,6 +150,12 @@ def test_a_measured_sweep_is_replayed_on_more_threads_and_its_cases_run_again_al
     tl, wall = data["sweeps"][0]["timeline"], data["sweeps"][0]["wall_s"]
     assert 0 < tl["set_up_s"] <= tl["connected_s"] <= tl["first_case_s"] <= tl["last_case_s"] <= wall
     assert "cube set up at" in r.output and "cluster connected and warmed at" in r.output
+    sweep = data["sweeps"][0]
+    # the workers' share of the wall is shorter than the wall: its efficiency is the larger
+    assert sweep["efficiency_warmed"] == pytest.approx(
+        sweep["summed_case_s"] / ((wall - tl["connected_s"]) * sweep["workers"])
+    )
+    assert sweep["efficiency_warmed"] >= sweep["efficiency"]
 
 
 def test_simulated_workers_need_a_sweep():

@@ -280,6 +280,8 @@ def sweep_throughput(name: str, workers: int, scheduler: str | None = None) -> d
     recorded = {int(r["index"]): float(r["seconds"]) for r in report.rows if r.get("seconds") is not None}
     summed = float(sum(recorded.values()))
     wall = report.wall_s
+    # the workers' share of the wall: from their warm-up's end (the cluster handed over) on
+    busy = wall - report.timeline.get("connected_s", 0.0)
     return {
         "sweep": name,
         "scheduler": scheduler or "local cluster",
@@ -291,6 +293,7 @@ def sweep_throughput(name: str, workers: int, scheduler: str | None = None) -> d
         "summed_case_s": summed,
         "cases_per_s": len(report.rows) / wall if wall > 0 else float("nan"),
         "efficiency": summed / (wall * report.workers) if wall > 0 else float("nan"),
+        "efficiency_warmed": summed / (busy * report.workers) if busy > 0 else float("nan"),
         "case_seconds": recorded,
         "timeline": dict(report.timeline),
     }
@@ -306,7 +309,8 @@ def format_sweep(sweep: dict[str, Any]) -> str:
             f"\n  wall {wall:.1f} s: cube set up at {tl['set_up_s']:.1f} s, cluster connected and "
             f"warmed at {tl['connected_s']:.1f} s, first case "
             f"delivered at {tl['first_case_s']:.1f} s, last at {tl['last_case_s']:.1f} s, then "
-            f"{wall - tl['last_case_s']:.1f} s to the end (the last merge)"
+            f"{wall - tl['last_case_s']:.1f} s to the end (the cluster closed, the last merge); "
+            f"efficiency from the workers warmed to the end {sweep['efficiency_warmed']:.2f}"
         )
     return line
 

@@ -116,9 +116,9 @@ def _connect(scheduler: Optional[str], workers: int) -> tuple[Any, Any]:
 #   CPU and memory plots) every 2 s, not 0.5 s; the nannies' memory check every 0.5 s, not
 #   0.1 s (a worker still stops at its memory limit); no work stealing (tasks are queued on the
 #   scheduler and handed to free workers, longest first, so there is nothing to steal).
-#   Reference sweep on 2 workers, alternating runs: wall 37.3 and 33.7 s against 41.0 and
-#   40.7 s; the driver's CPU 7.4 and 6.4 s against 9.1 and 8.9 s; summed case time 56.8 and
-#   53.8 s against 65.8 and 63.8 s (docs/performance.md)
+#   Reference sweep on 2 workers, alternating runs (the memory check then every 1 s): wall
+#   37.3 and 33.7 s against 41.0 and 40.7 s; the driver's CPU 7.4 and 6.4 s against 9.1 and
+#   8.9 s; summed case time 56.8 and 53.8 s against 65.8 and 63.8 s (docs/performance.md)
 LOCAL_CLUSTER_CONFIG = {  # dotted keys: the nanny merges a worker's config shallowly
     "distributed.worker.profile.enabled": False,
     "distributed.admin.tick.interval": "1s",
@@ -154,6 +154,9 @@ class Opened:
     cluster: Any
     got: Cluster
 
+    def close(self) -> None:
+        _close_quietly(self.client, self.cluster)
+
 
 def open_cluster(
     scheduler: Optional[str], workers: int, wait_s: float, warm: Optional[Callable[[], Any]] = None
@@ -174,8 +177,9 @@ def open_cluster(
 
 class EarlyCluster:
     """:func:`open_cluster` started now on a thread of its own. :meth:`take` waits for it and
-    hands it over (its errors raise there, as they would have in the driver); :meth:`close`
-    closes a cluster nobody took (a set-up that failed, or found nothing to compute)."""
+    hands it over (its errors raise there, as they would have in the driver); :meth:`close`,
+    also on leaving a ``with`` block, closes a cluster nobody took (a set-up that failed, or
+    found nothing to compute) and does nothing to one taken."""
 
     def __init__(
         self, scheduler: Optional[str], workers: int, wait_s: float, warm: Optional[Callable[[], Any]]
@@ -183,6 +187,12 @@ class EarlyCluster:
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="ftsweep-cluster")
         self._future: Future[Opened] = self._pool.submit(open_cluster, scheduler, workers, wait_s, warm)
         self._taken = False
+
+    def __enter__(self) -> EarlyCluster:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     def take(self) -> Opened:
         try:
@@ -205,4 +215,4 @@ class EarlyCluster:
             return
         finally:
             self._pool.shutdown(wait=False)
-        _close_quietly(opened.client, opened.cluster)
+        opened.close()

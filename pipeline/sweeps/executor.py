@@ -32,14 +32,7 @@ from ftsweep.engine.lines import LineCache
 from ftsweep.simulate import run_case
 from ftsweep.store.caselog import CaseLog
 from ftsweep.store.storage import Place
-from ftsweep.sweeps.connection import (  # noqa: F401 - Cluster and ExecutorError are this module's API too
-    CONNECT_TIMEOUT_S,
-    Cluster,
-    EarlyCluster,
-    ExecutorError,
-    _close_quietly,
-    open_cluster,
-)
+from ftsweep.sweeps.connection import CONNECT_TIMEOUT_S, Cluster, EarlyCluster, ExecutorError, open_cluster
 from ftsweep.sweeps.spec import SweepSpec, case_at, case_lines
 
 
@@ -278,7 +271,7 @@ def execute(
             _check_reach(client, spec, scheduler)
         _run_distributed(client, groups, spec, (task, on_error), on_result, worker_wait_s)
     finally:
-        _close_quietly(client, opened.cluster)
+        opened.close()
 
 
 def _check_reach(client: Any, spec: TaskSpec, scheduler: Optional[str]) -> None:

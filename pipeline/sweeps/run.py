@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import math
@@ -358,10 +359,7 @@ def _compute(
     run got. ``begun``: the cluster opened during the set-up (or None), and the run's start on
     :func:`time.perf_counter` (the timeline counts from it)."""
     early, started = begun
-    folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
-    if not costs:  # nothing to compute: no cluster is started, or the one opened is closed
-        if early is not None:
-            early.close()
+    if not costs:  # nothing to compute: no cluster is started (one opened early is closed by the caller)
         return
     plan, on_result, on_cluster = _callbacks(report, spec, costs, catalog_folder, (watchers, started))
     execute(
@@ -369,7 +367,7 @@ def _compute(
         TaskSpec(
             report.cube.url,
             spec.model_dump_json(),
-            folder,
+            _worker_catalogs(catalog_folder),
             run_id,
             where.line_cache_mb,
             report.cube.options_json,
@@ -388,9 +386,14 @@ def _compute(
 
 def _warm(spec: SweepSpec, catalog_folder: Optional[Path]) -> Callable[[], float]:
     """The warm-up every worker runs once before its first task (:func:`warm_up`)."""
-    folder = str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
     assert spec.layout is not None
-    return functools.partial(warm_up, spec.surface, spec.layout, folder)
+    return functools.partial(warm_up, spec.surface, spec.layout, _worker_catalogs(catalog_folder))
+
+
+def _worker_catalogs(catalog_folder: Optional[Path]) -> Optional[str]:
+    """The catalog folder the workers read: this run's, or this process's ``FTSWEEP_CATALOGS``
+    (a worker elsewhere may not have it set), or None for the installed catalogs."""
+    return str(catalog_folder) if catalog_folder else os.environ.get("FTSWEEP_CATALOGS")
 
 
 def _callbacks(
@@ -481,61 +484,61 @@ def _run_locked(
     catalog_folder: Optional[Path],
     watchers: Watchers,
 ) -> SweepReport:
-    name, run_id = names
+    run_id = names[1]
     lease = watchers[2]
     start = time.perf_counter()
     created = not out.exists()
+    fresh = created or restart
     # a new cube, or one started over, has every case to compute: its cluster opens and warms
-    # while the cube is made (ftsweep.sweeps.connection)
-    early = None
-    if (created or restart) and where.scheduler != SYNCHRONOUS:
+    # while the cube is made (ftsweep.sweeps.connection); leaving the block closes it unless
+    # the run took it (a set-up that failed, nothing to compute, an error before it was needed)
+    early: Optional[EarlyCluster] = None
+    if fresh and where.scheduler != SYNCHRONOUS:
         early = EarlyCluster(where.scheduler, where.workers, where.worker_wait_s, _warm(spec, catalog_folder))
-    try:
-        report, costs = _set_up(names, spec, out, restart, rerun, catalog_folder, lease, where.workers)
-    except BaseException:
-        if early is not None:
-            early.close()
-        raise
-    report.timeline["set_up_s"] = time.perf_counter() - start
-    try:
-        _compute(report, spec, costs, where, run_id, catalog_folder, watchers, (early, start))
-    except BaseException:
-        if early is not None:
-            early.close()  # one the run did not take (it broke before it needed it)
-        if created and not report.connected:
-            # a cube this run made whose cluster never came (a wrong --scheduler): no task ran,
-            # so nothing was computed, and nothing is left behind
-            out.remove_all()
-            raise
-        # on an error or a signal too: what the workers finished goes into the blocks now,
-        # unless another writer took over the lease (then the first error is the one told)
+    with early or contextlib.nullcontext():
+        report, costs = _set_up(
+            names, spec, out, (restart, fresh), rerun, catalog_folder, lease, where.workers
+        )
+        report.timeline["set_up_s"] = time.perf_counter() - start
         try:
-            _merge_fenced(out, lease)
-        except LeaseLost:
-            pass
-        raise
-    _merge_fenced(out, lease)
-    if lease is not None:
-        # a writer that lost its lease during its last merge says so (LeaseLost: exit status 75)
-        lease.confirm()
-    report.wall_s = time.perf_counter() - start
-    return report
+            _compute(report, spec, costs, where, run_id, catalog_folder, watchers, (early, start))
+        except BaseException:
+            if created and not report.connected:
+                # a cube this run made whose cluster never came (a wrong --scheduler): no task
+                # ran, so nothing was computed, and nothing is left behind
+                out.remove_all()
+                raise
+            # on an error or a signal too: what the workers finished goes into the blocks now,
+            # unless another writer took over the lease (then the first error is the one told)
+            try:
+                _merge_fenced(out, lease)
+            except LeaseLost:
+                pass
+            raise
+        _merge_fenced(out, lease)
+        if lease is not None:
+            # a writer that lost its lease during its last merge says so (LeaseLost: exit status 75)
+            lease.confirm()
+        report.wall_s = time.perf_counter() - start
+        return report
 
 
 def _set_up(
     names: tuple[str, str],
     spec: SweepSpec,
     out: Place,
-    restart: bool,
+    restarting: tuple[bool, bool],
     rerun: tuple[bool, Optional[float]],
     catalog_folder: Optional[Path],
     lease: Optional[Lease],
     workers: int,
 ) -> tuple[SweepReport, Costs]:
     """The cube made, grown or checked, and the cases this run computes with their costs (the
-    others refused before dispatch, pruned or done already), in a report of the run."""
+    others refused before dispatch, pruned or done already), in a report of the run.
+    ``restarting``: whether the run starts the cube over, and whether it makes it anew (over,
+    or where there was none)."""
     name, run_id = names
-    fresh = restart or not out.exists()
+    restart, fresh = restarting
     _, note = prepare_cube(name, spec, out, restart, catalog_folder, lease)
     # a cube made just now has nothing to repair (reading every chunk of it took 0.5 s)
     status, damaged = (cube.read_status(out).ravel(), {}) if fresh else _undamaged_status(out, lease)

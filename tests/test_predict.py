@@ -161,6 +161,10 @@ def test_readable_summary_names_units():
             ["--surface", "sinewave2d", "--dx-um", "2", "--dy-um", "1"],
             "belongs to mesh layouts (--layout mesh), not to a ring layout",
         ),
+        (
+            ["--surface", "sinewave2d", "--points", "1000", "--aspect", "1", "--chord-um", "0.5"],
+            "--chord-um belongs to spiral programs (--layout spiral), not to a ring layout",
+        ),
         (["--surface", "sinewave2d", "--drho-um", "2"], "--dtheta-deg is missing"),
         (["--strict", "--surface", "sinewave2d", "--drho-um", "2", "--dtheta-deg", "0.7"], "not divide 360"),
         (["--surface", "lens_array", "--points", "5000000", "--aspect", "1"], "over the capacity"),

@@ -37,6 +37,30 @@ def test_help_loads_no_heavy_library(argv):
     assert not loaded & set(HEAVY), sorted(loaded & set(HEAVY))
 
 
+OTHER_KINDS = ("ftsweep.kinds.spiral.kind", "ftsweep.kinds.dpath.kind", "ftsweep.kinds.fresnel.kind")
+
+
+def test_a_case_loads_its_own_kind_and_no_other():
+    """A ring case, from predict's options to its record, loads the table kind only: no other
+    kind's planner, kernels or request model."""
+    code = (
+        "from ftsweep import registry\n"
+        "from ftsweep.engine.case import Case, Resolution, program_request\n"
+        "from ftsweep.simulate import run_case\n"
+        "options = {'points': 2000, 'aspect': 4.0, 'drho_um': None, 'dtheta_deg': None, 'dx_um': None,"
+        " 'dy_um': None, 'chord_um': None}\n"
+        "request, _ = registry.request_from_options('ring', options)\n"
+        "record = run_case(Case(surface='sinewave2d', layout=program_request(**request),"
+        " resolution=Resolution(n_theta=16)))\n"
+        "assert record['pv_nm'] > 0\n"
+        "import json, sys\nprint(json.dumps(sorted(m for m in sys.modules if m.startswith('ftsweep.kinds'))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    loaded = set(json.loads(out.stdout.strip().splitlines()[-1]))
+    assert "ftsweep.kinds.table.kind" in loaded
+    assert not loaded & set(OTHER_KINDS), sorted(loaded & set(OTHER_KINDS))
+
+
 def test_import_ftsweep_is_light_and_the_accessor_comes_with_xarray_in_either_order():
     assert not _modules_after("import ftsweep") & set(HEAVY)
     for code in ("import ftsweep, xarray as xr", "import xarray as xr, ftsweep"):

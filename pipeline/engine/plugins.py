@@ -40,21 +40,34 @@ class RegistryError(ValueError):
 
 
 @functools.cache
-def _installed() -> dict[str, ProgramKind]:
-    found: dict[str, ProgramKind] = {}
+def _points() -> dict[str, Any]:
+    """The installed kinds' entry points by name, not loaded (the first of a name wins, as
+    when every kind is loaded)."""
+    found: dict[str, Any] = {}
     for point in entry_points(group=GROUP):
-        try:
-            value = point.load()
-        except Exception as exc:  # a broken plug-in names itself, not a bare ImportError
-            raise RegistryError(
-                f"program kind {point.name!r} ({point.value}) cannot be loaded: {exc}"
-            ) from exc
-        if not isinstance(value, ProgramKind):
-            raise RegistryError(f"entry point {point.name!r} ({point.value}) is not a ProgramKind")
-        if value.name != point.name:
-            raise RegistryError(f"entry point {point.name!r} names the kind {value.name!r}")
-        found[value.name] = value
+        found.setdefault(point.name, point)
     return found
+
+
+@functools.cache
+def _load(name: str) -> ProgramKind:
+    """The installed kind ``name``, its entry point loaded and checked (RegistryError naming a
+    broken one); loaded once per process, and only when asked for, so a case imports no other
+    kind's planner, kernels or request model."""
+    point = _points()[name]
+    try:
+        value = point.load()
+    except Exception as exc:  # a broken plug-in names itself, not a bare ImportError
+        raise RegistryError(f"program kind {point.name!r} ({point.value}) cannot be loaded: {exc}") from exc
+    if not isinstance(value, ProgramKind):
+        raise RegistryError(f"entry point {point.name!r} ({point.value}) is not a ProgramKind")
+    if value.name != point.name:
+        raise RegistryError(f"entry point {point.name!r} names the kind {value.name!r}")
+    return value
+
+
+def _installed() -> dict[str, ProgramKind]:
+    return {name: _load(name) for name in _points()}
 
 
 def kinds() -> dict[str, ProgramKind]:
@@ -83,11 +96,13 @@ def unregister(name: str) -> None:
 
 
 def kind(name: Any) -> ProgramKind:
-    """The registered kind ``name`` (ValueError naming the known ones)."""
-    known = kinds()
-    if name not in known:
-        raise ValueError(f"unknown program kind {name!r}; known: {', '.join(known)}")
-    return known[name]
+    """The registered kind ``name`` (ValueError naming the known ones); of the installed kinds,
+    only that one is loaded."""
+    if name in _added:
+        return _added[name]
+    if isinstance(name, str) and name in _points():
+        return _load(name)
+    raise ValueError(f"unknown program kind {name!r}; known: {', '.join(names())}")
 
 
 def names() -> tuple[str, ...]:

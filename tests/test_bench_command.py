@@ -9,7 +9,14 @@ import pytest
 from click.testing import CliRunner
 
 from ftsweep.cli.main import main
-from ftsweep.tools.bench import format_whole_process, whole_process, whole_process_rows
+from ftsweep.engine.case import Case, program_request
+from ftsweep.tools.bench import (
+    against_reference,
+    format_against_reference,
+    format_whole_process,
+    whole_process,
+    whole_process_rows,
+)
 
 
 def test_bench_prints_a_row_per_case_and_writes_json(tmp_path):
@@ -161,3 +168,26 @@ def test_a_measured_sweep_is_replayed_on_more_threads_and_its_cases_run_again_al
 def test_simulated_workers_need_a_sweep():
     r = CliRunner().invoke(main, ["bench", "--case", "sinewave-ring-1.00deg", "--simulate-workers", "4"])
     assert r.exit_code == 2 and "give --sweep too" in r.output
+
+
+def test_the_whole_predict_is_timed_beside_the_brute_force_model_of_its_case():
+    case = Case(surface="sinewave2d", layout=program_request(kind="ring", points=5000, aspect=8.0))
+    r = against_reference(1, "predict 5k-point ring", case)
+    assert r["predict_s"] > 0 and r["reference_s"] > 0
+    assert r["ratio"] == pytest.approx(r["reference_s"] / r["predict_s"])
+    # the same case: predict's P-V adds the exact cusp peaks to the reference's nodes
+    assert r["reference_pv_nm"] - 1e-3 <= r["predict_pv_nm"] <= r["reference_pv_nm"] * 1.005
+    assert "the reference takes" in format_against_reference(r)
+
+
+def test_bench_reference_is_wired_to_its_own_json(tmp_path, monkeypatch):
+    import ftsweep.tools.bench as bench_module
+
+    row = {"case": "c", "predict_s": 1.0, "predict_case_s": 0.5, "predict_pv_nm": 9.0}
+    row.update({"reference_s": 30.0, "reference_pv_nm": 9.0, "ratio": 30.0})
+    monkeypatch.setattr(bench_module, "against_reference", lambda repeat: row)
+    out = tmp_path / "bench.json"
+    r = CliRunner().invoke(main, ["bench", "--reference", "--json", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "the reference takes 30.0× the whole predict" in r.output
+    assert json.loads(out.read_text()) == {"against_reference": row}

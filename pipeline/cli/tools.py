@@ -303,6 +303,14 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
     "lines, a first predict with and without numba's cache) as on a fresh install, and print "
     "the written figure beside the measured one (about 80 s on 2 cores).",
 )
+@click.option(
+    "--reference",
+    is_flag=True,
+    help="Only this: the 950k-point ring case as a whole `predict` process on one thread beside "
+    "the brute-force evaluation of the same case (ftsweep.testing.reference, straight from the "
+    "model: every node against every arc within Rc), their P-V and how many times the whole "
+    "predict the reference takes (about 3 minutes on 2 cores).",
+)
 def bench(
     names: tuple[str, ...],
     repeat: int,
@@ -314,28 +322,30 @@ def bench(
     cube_cases: Optional[int],
     simulated: tuple[int, ...],
     documented: bool,
+    reference: bool,
 ) -> None:
     """Time whole commands, the case runner per stage, and optionally a sweep.
 
-    Prints the seconds of whole commands, each run as its own process (start-up, imports,
-    kernel loading and exit included: what a user waits for): help, predict (5k and 950k
-    ring points, a 990k-point chord spiral; one thread and all cores), verify of a header,
-    dpath (alone, with its 1M-line program, verify of that program), fresnel. Then the
-    seconds per case of the published reference cases and two 10⁶-point layouts split into
-    compensation, surface sampling, interpolation, envelope and metrics, after a warm-up that
-    pays numba's compile cost, on one thread (and the 10⁶-point ones on --threads). With
-    --sweep, the throughput of a whole sweep on each --workers count and on --scheduler; with
-    --cube-cases, a synthetic cube's object count and open and select times; with
-    --documented, only the README's times beside their measurements. Nothing is asserted
-    about time (about 3 minutes without --sweep).
+    Prints the seconds of whole commands, each its own process (start-up, imports, kernel
+    loading and exit included: what a user waits for): help, predict (5k and 950k ring
+    points, a 990k-point chord spiral; one thread and all cores), verify of a header, dpath
+    (alone, with its 1M-line program, verify of that program), fresnel. Then the seconds per
+    case of the published reference cases and two 10⁶-point layouts split by stage, after a
+    warm-up that pays numba's compile cost, on one thread (the 10⁶-point ones also on
+    --threads). --sweep: a whole sweep's throughput on each --workers count and --scheduler;
+    --cube-cases: a synthetic cube's objects and open and select times. Only --documented:
+    the README's times beside their measurements; only --reference: the 950k-point predict
+    beside a brute-force evaluation of its case. Nothing is asserted about time (about 3
+    minutes without --sweep).
 
     Examples:
       ftsweep bench
       ftsweep bench --case ring-1M-a8 --repeat 3 --threads 1
       ftsweep bench --documented
+      ftsweep bench --reference
     """
-    if documented:
-        _bench_documented(json_path)
+    if documented or reference:
+        _bench_documented(json_path) if documented else _bench_reference(json_path, repeat)
         return
     if simulated and sweep_name is None:
         raise click.UsageError("--simulate-workers replays a run's case times: give --sweep too")
@@ -357,12 +367,18 @@ def bench(
     if sweep_name is not None:
         result.update(_bench_sweep(sweep_name, workers, scheduler, simulated))
     if cube_cases:
-        from ftsweep.tools.cubescale import cube_scale, format_cube_scale
-
-        result["cube_scale"] = cube_scale(cube_cases)
-        click.echo(format_cube_scale(result["cube_scale"]))
+        result["cube_scale"] = _bench_cube_scale(cube_cases)
     write_json_atomic(json_path, result)
     click.echo(f"wrote {json_path}")
+
+
+def _bench_cube_scale(cases: int) -> dict[str, Any]:
+    """``bench --cube-cases``: a synthetic cube's objects and open and select times, printed."""
+    from ftsweep.tools.cubescale import cube_scale, format_cube_scale
+
+    scale = cube_scale(cases)
+    click.echo(format_cube_scale(scale))
+    return scale
 
 
 def _bench_documented(json_path: str) -> None:
@@ -379,6 +395,23 @@ def _bench_documented(json_path: str) -> None:
         raise click.ClickException(str(exc)) from None
     click.echo(format_documented(measured))
     write_json_atomic(json_path, {"documented": measured})
+    click.echo(f"wrote {json_path}")
+
+
+def _bench_reference(json_path: str, repeat: int) -> None:
+    """``bench --reference``: the whole 950k-point predict beside the brute-force reference model."""
+    from ftsweep.store.io import write_json_atomic
+    from ftsweep.tools.bench import against_reference, format_against_reference
+
+    click.echo(
+        "timing the 950k-point predict, then the brute-force reference model on its case ...", err=True
+    )
+    try:
+        row = against_reference(max(repeat, 3))
+    except ValueError as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(format_against_reference(row))
+    write_json_atomic(json_path, {"against_reference": row})
     click.echo(f"wrote {json_path}")
 
 

@@ -158,6 +158,10 @@ class ProgramKind:
         a million points (``ftsweep bench``); its ``warm_request`` on the same surface pays the
         compile first.
     bench_rows : its whole-process benchmark rows (:class:`BenchRow`).
+    reference : ``(resolved case) -> {pv_nm, rms_nm, pv_interp_nm, n_eval, seconds}``: a
+        brute-force evaluation of a case straight from the model, independent of the stages'
+        kernels, that the simulator is tested and timed against (``ftsweep bench
+        --reference``); None where the kind has none.
     options_dumped_unset : a sweep spec's dump writes its options key as null when unset, so
         that the hashes of specs written when the key was declared for every sweep stay the same.
     """
@@ -195,6 +199,7 @@ class ProgramKind:
     seed: Optional[Callable[..., tuple[float, float, float]]] = None
     bench_cases: Callable[[], dict[str, tuple[str, Any]]] = lambda: {}
     bench_rows: tuple[BenchRow, ...] = ()
+    reference: Optional[Callable[[Any], dict[str, Any]]] = None
 
     @property
     def axis_names(self) -> tuple[str, ...]:

@@ -197,16 +197,81 @@ def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[
             row = known[name]
             if row.needs is not None and row.needs not in ran:
                 _run(head, known[row.needs], folder, made)  # writes this row's input
-            best, inside = float("inf"), float("nan")
+            best, record = float("inf"), dict[str, Any]()
             for _ in range(max(1, min(repeat, row.runs))):
                 took, stdout = _run(head, row, folder, made)
                 if took < best:
                     best = took
-                    if "--json" in row.args:
-                        inside = float(json.loads(stdout).get("seconds", math.nan))
+                    record = json.loads(stdout) if "--json" in row.args else {}
             ran.add(name)
-            rows.append({"command": name, "seconds": best, "case_seconds": inside})
+            rows.append(
+                {
+                    "command": name,
+                    "seconds": best,
+                    "case_seconds": float(record.get("seconds", math.nan)),
+                    "pv_nm": float(record.get("pv_nm", math.nan)),
+                }
+            )
     return rows
+
+
+# the whole-process row the brute-force reference model is run beside, and its case
+REFERENCE_ROW = "predict 950k-point ring, 1 thread"
+
+
+def reference_row_case() -> Case:
+    """The case :data:`REFERENCE_ROW`'s predict simulates: its surface's own layout at its
+    pitches."""
+    surface = _RING_950K[1]
+    pitch = (float(_RING_950K[3]), float(_RING_950K[5]))
+    return Case(
+        surface=surface, layout=program_request(kind=catalogs.entry("surfaces", surface).layout, pitch=pitch)
+    )
+
+
+def against_reference(
+    repeat: int = 3, row: str = REFERENCE_ROW, case: Optional[Case] = None
+) -> dict[str, Any]:
+    """The whole-process ``predict`` row ``row`` (default the 950k-point ring case on one
+    thread), best of ``repeat``, beside its kind's brute-force evaluation of the same ``case``
+    (default :func:`reference_row_case`) in this process, once (the kind's ``reference``, e.g.
+    :mod:`ftsweep.kinds.table.reference`: a dense scan of eq. (3) for every control value,
+    every node against every arc within Rc): both seconds, both P-V [nm], and how many times
+    the whole predict the reference takes. ValueError for a kind without a reference."""
+    from ftsweep.engine.planning import resolve_case
+
+    case = case or reference_row_case()
+    kind = registry.kind(case.layout.kind)
+    if kind.reference is None:
+        raise ValueError(f"{kind.noun}s have no brute-force reference model")
+    predicted = whole_process(repeat, [row])[0]
+    reference = kind.reference(resolve_case(case, kind))
+    return {
+        "case": f"{row} ({case.surface})",
+        "predict_s": predicted["seconds"],
+        "predict_case_s": predicted["case_seconds"],
+        "predict_pv_nm": predicted["pv_nm"],
+        "reference_s": reference["seconds"],
+        "reference_pv_nm": reference["pv_nm"],
+        "ratio": reference["seconds"] / predicted["seconds"],
+    }
+
+
+def format_against_reference(r: dict[str, Any]) -> str:
+    """The lines of :func:`against_reference`."""
+    predict = (
+        f"{r['predict_s']:8.2f} s  P-V {r['predict_pv_nm']:.2f} nm  (its case {r['predict_case_s']:.2f} s)"
+    )
+    reference = f"{r['reference_s']:8.2f} s  P-V {r['reference_pv_nm']:.2f} nm"
+    return "\n".join(
+        [
+            f"{r['case']}:",
+            f"  predict, whole process (best of runs)  {predict}",
+            f"  brute-force reference model, once      {reference}",
+            f"  the reference takes {r['ratio']:.1f}× the whole predict (its P-V is over the nodes alone; "
+            "predict's adds the exact cusp peaks between them)",
+        ]
+    )
 
 
 def _run(head: list[str], row: BenchRow, folder: str, made: dict[str, str]) -> tuple[float, str]:

@@ -173,6 +173,14 @@ AXES = ("points", "aspect")
 POINTS = Axis("points", "1", "target number of control points", dumped_unset=True, count=True)
 
 
+def _reference(rcase: Any) -> dict[str, Any]:
+    """The brute-force evaluation of a table case (:mod:`ftsweep.kinds.table.reference`),
+    imported when asked for: a case does not load it."""
+    from ftsweep.kinds.table.reference import reference_case
+
+    return reference_case(rcase)
+
+
 def _aspect(units: str, long_name: str) -> Axis:
     return Axis("aspect", units, long_name, dumped_unset=True)
 
@@ -214,6 +222,7 @@ RING = ProgramKind(
     from_options=lambda o: _table_options("ring", o),
     aspect_range=(0.3, 400.0),
     aspect_units="um/deg",
+    reference=_reference,
 )
 # a mesh is a ring's kind in Cartesian coordinates: its own names, points, cells and options
 MESH = dataclasses.replace(

@@ -1,4 +1,4 @@
-"""A brute-force evaluation of a table case, straight from the model (docs/physics.md §1–§6):
+"""A brute-force evaluation of a table case, straight from the model (§1–§6):
 the yardstick the simulator is checked and timed against.
 
 Nothing here searches, sorts arcs into a hull, shares work between rays or stops early:

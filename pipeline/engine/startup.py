@@ -26,11 +26,16 @@ the 950k-point one on one thread 2.53 → 2.39 s, on a VM twice as slow as the f
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import importlib.abc
 import importlib.machinery
 import importlib.util
 import os
 import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 PROBED = "scipy.linalg.cython_blas"
@@ -161,6 +166,98 @@ def lazy_cache_loads() -> bool:
     load_overload._ftsweep_lazy = True  # type: ignore[attr-defined]
     cache.load_overload = load_overload  # type: ignore[method-assign]
     return True
+
+
+class _Spent(Exception):
+    """The time given to :func:`kernel_calls` ran out."""
+
+
+def kernel_calls(run: Callable[[], Any], budget_s: float) -> list[tuple[Any, tuple[Any, ...]]]:
+    """The compiled kernels ``run()`` calls from Python, each with the argument types numba
+    would compile it for, in the order first called, found without compiling anything: during
+    the call every kernel runs as the plain Python it is written in (its ``py_func``; the
+    kernels it calls inside run so too), so give it a case small enough for that (a line or
+    two). Stops once ``budget_s`` seconds are spent, with the kernels found so far; an error
+    of ``run`` ends it the same way. The process's kernels are themselves again on return."""
+    from numba.core.registry import CPUDispatcher
+    from numba.core.typing.typeof import Purpose, typeof
+
+    found: dict[tuple[int, tuple[Any, ...]], tuple[Any, tuple[Any, ...]]] = {}
+    depth = [0]
+    started = time.perf_counter()
+
+    def as_python(kernel: Any, *args: Any) -> Any:
+        if time.perf_counter() - started > budget_s:
+            raise _Spent
+        if depth[0] == 0:  # a kernel called inside another compiles with it
+            types = tuple(typeof(a, Purpose.argument) for a in args)
+            found.setdefault((id(kernel), types), (kernel, types))
+        depth[0] += 1
+        try:
+            return kernel.py_func(*args)
+        finally:
+            depth[0] -= 1
+
+    # on the class: every kernel, however it is reached (a module's name, a table of
+    # families, a partial), runs as Python; deleting it gives the compiled call back
+    CPUDispatcher.__call__ = as_python  # type: ignore[method-assign, assignment]
+    try:
+        run()
+    except Exception:  # noqa: BLE001 - _Spent, or a kernel that does not run as Python
+        pass
+    finally:
+        del CPUDispatcher.__call__
+    return list(found.values())
+
+
+def compile_shared(calls: list[tuple[Any, tuple[Any, ...]]], claims: str, wait_s: float) -> float:
+    """Compile every kernel of ``calls`` (:func:`kernel_calls`) for its argument types together
+    with the processes given the same ``claims`` folder, which share numba's cache: each takes
+    the next kernel nobody is compiling (its claim, a file made only if absent, removed once
+    the kernel is in the cache), so the kernels are compiled in parallel, each once; then it
+    loads from the cache those the others compiled, waiting for one still claimed at most
+    ``wait_s`` seconds (a process that died leaves its claim: the kernel is compiled here).
+    Returns seconds. A kernel that fails to compile is left to the case that calls it."""
+    t = time.perf_counter()
+    folder = Path(claims)
+    folder.mkdir(parents=True, exist_ok=True)
+    others = [call for call in calls if not _compile_claimed(call, folder)]
+    deadline = time.monotonic() + wait_s
+    for call in others:
+        while _claim_of(call, folder).exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        _compile(call)  # from the cache now, unless its claimant is gone
+    with contextlib.suppress(OSError):  # the last process to finish removes the folder
+        folder.rmdir()
+    return time.perf_counter() - t
+
+
+def _claim_of(call: tuple[Any, tuple[Any, ...]], folder: Path) -> Path:
+    """The claim file of a kernel and argument types in ``folder``."""
+    kernel, types = call
+    key = f"{kernel.py_func.__module__}.{kernel.py_func.__qualname__}{types}"
+    return folder / hashlib.sha256(key.encode()).hexdigest()[:32]
+
+
+def _compile_claimed(call: tuple[Any, tuple[Any, ...]], folder: Path) -> bool:
+    """Claim the kernel of ``call`` and compile it; False if another process holds its claim."""
+    claim = _claim_of(call, folder)
+    try:
+        os.close(os.open(claim, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except FileExistsError:
+        return False
+    try:
+        _compile(call)
+    finally:
+        claim.unlink(missing_ok=True)
+    return True
+
+
+def _compile(call: tuple[Any, tuple[Any, ...]]) -> None:
+    """Compile a kernel for its argument types, or load it from numba's cache."""
+    kernel, types = call
+    with contextlib.suppress(Exception):  # the case that calls it reports its error
+        kernel.compile(types)
 
 
 # seconds numba takes to compile the kernels a first run needs, on the project's 2 cores (a

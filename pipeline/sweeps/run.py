@@ -7,6 +7,7 @@ import functools
 import json
 import math
 import os
+import tempfile
 import time
 import uuid
 import warnings
@@ -376,7 +377,7 @@ def _compute(
         where.workers,
         on_result,
         task=run_task,
-        warm=_warm(spec, catalog_folder),
+        warm=_warm(spec, catalog_folder, where),
         on_cluster=on_cluster,
         worker_wait_s=where.worker_wait_s,
         check_reach=True,
@@ -384,10 +385,15 @@ def _compute(
     )
 
 
-def _warm(spec: SweepSpec, catalog_folder: Optional[Path]) -> Callable[[], float]:
-    """The warm-up every worker runs once before its first task (:func:`warm_up`)."""
+def _warm(spec: SweepSpec, catalog_folder: Optional[Path], where: Where) -> Callable[..., float]:
+    """The warm-up every worker runs once before its first task (:func:`warm_up`); a local
+    cluster's workers, on this machine, share a first run's compiling through a claims folder
+    of this run's own in the temporary directory."""
     assert spec.layout is not None
-    return functools.partial(warm_up, spec.surface, spec.layout, _worker_catalogs(catalog_folder))
+    claims = None
+    if where.scheduler is None and where.workers > 1:
+        claims = os.path.join(tempfile.gettempdir(), f"ftsweep-compiling-{uuid.uuid4().hex}")
+    return functools.partial(warm_up, spec.surface, spec.layout, _worker_catalogs(catalog_folder), claims)
 
 
 def _worker_catalogs(catalog_folder: Optional[Path]) -> Optional[str]:
@@ -494,7 +500,9 @@ def _run_locked(
     # the run took it (a set-up that failed, nothing to compute, an error before it was needed)
     early: Optional[EarlyCluster] = None
     if fresh and where.scheduler != SYNCHRONOUS:
-        early = EarlyCluster(where.scheduler, where.workers, where.worker_wait_s, _warm(spec, catalog_folder))
+        early = EarlyCluster(
+            where.scheduler, where.workers, where.worker_wait_s, _warm(spec, catalog_folder, where)
+        )
     with early or contextlib.nullcontext():
         report, costs = _set_up(
             names, spec, out, (restart, fresh), rerun, catalog_folder, lease, where.workers

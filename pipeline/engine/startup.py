@@ -221,7 +221,11 @@ def compile_shared(calls: list[tuple[Any, tuple[Any, ...]]], claims: str, wait_s
     t = time.perf_counter()
     folder = Path(claims)
     folder.mkdir(parents=True, exist_ok=True)
-    others = [call for call in calls if not _compile_claimed(call, folder)]
+    # the largest first (longest-processing-time order): compile time follows the bytecode a
+    # kernel compiles, its own and its kernels' (docs/performance.md, "A first run's compile,
+    # shared"), so the last kernels taken are short and the processes finish together
+    ordered = sorted(calls, key=lambda call: -_code_size(call[0].py_func, set()))
+    others = [call for call in ordered if not _compile_claimed(call, folder)]
     deadline = time.monotonic() + wait_s
     for call in others:
         while _claim_of(call, folder).exists() and time.monotonic() < deadline:
@@ -230,6 +234,21 @@ def compile_shared(calls: list[tuple[Any, tuple[Any, ...]]], claims: str, wait_s
     with contextlib.suppress(OSError):  # the last process to finish removes the folder
         folder.rmdir()
     return time.perf_counter() - t
+
+
+def _code_size(function: Any, seen: set[int]) -> int:
+    """Bytes of bytecode numba compiles for ``function``: its own and, once each, that of the
+    kernels it calls (inlined or compiled with it)."""
+    from numba.core.registry import CPUDispatcher
+
+    if id(function) in seen:
+        return 0
+    seen.add(id(function))
+    code = function.__code__
+    called = (function.__globals__.get(name) for name in code.co_names)
+    return len(code.co_code) + sum(
+        _code_size(k.py_func, seen) for k in called if isinstance(k, CPUDispatcher)
+    )
 
 
 def _claim_of(call: tuple[Any, tuple[Any, ...]], folder: Path) -> Path:

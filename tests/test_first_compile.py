@@ -120,3 +120,34 @@ def test_a_first_sweep_on_two_workers_compiles_between_them_and_leaves_no_claims
     assert "[2/2] 0 failed, 0 refused, 0 pending" in out.stderr
     assert not list(tmp.glob("ftsweep-compiling-*"))
     assert list((tmp_path / "numba").rglob("arcs.*.nbi"))  # the kernels are in the cache
+
+
+@pytest.mark.integration  # a first predict, numba's cache empty
+def test_a_first_predict_compiles_with_a_helper_process_and_leaves_nothing_behind(tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    args = ["predict", "--surface", "sinewave2d", "--layout", "ring", "--points", "20000", "--aspect", "8"]
+    first = subprocess.run(
+        [str(BIN / "ftsweep"), *args, "--json"],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), TMPDIR=str(tmp)),
+        timeout=600,
+    )
+    assert first.returncode == 0, first.stderr
+    assert not list(tmp.iterdir())  # the helper's claims folder is gone
+    # and so is the helper (its command line names the folder, in this test's own TMPDIR)
+    helpers = subprocess.run(
+        ["pgrep", "-f", f"ftsweep.engine.compiling {tmp}"], capture_output=True, text=True
+    )
+    assert not helpers.stdout.strip()
+    # the record is the one a run with every kernel cached gives
+    again = subprocess.run(
+        [str(BIN / "ftsweep"), *args, "--json"],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba")),
+        timeout=600,
+        check=True,
+    )
+    assert json.loads(first.stdout)["pv_nm"] == json.loads(again.stdout)["pv_nm"]

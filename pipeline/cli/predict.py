@@ -220,24 +220,32 @@ def predict(**opts: Any) -> None:
     """
     if opts["program"] is not None:
         return _predict_program(opts)
+    record = _simulate(_build_case(opts), opts)
+    if opts["as_json"]:
+        echo_json(record)
+    else:
+        click.echo(summary_text(record))
+
+
+def _simulate(case: Case, opts: dict[str, Any]) -> dict[str, Any]:
+    """The case's record, its progress on stderr; on a machine's first run a helper process
+    compiles half the kernels beside this one (:func:`ftsweep.engine.compiling.with_helper`)."""
+    from ftsweep import registry
+    from ftsweep.defaults import usable_cores
+    from ftsweep.engine import compiling
     from ftsweep.engine.case import CaseError
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.inputs.usersurfaces import SurfaceLoadError
     from ftsweep.simulate import run_case
 
-    case = _build_case(opts)
-    as_json = opts["as_json"]
-    progress = stderr_progress("simulating", as_json)
+    progress = stderr_progress("simulating", opts["as_json"])
     try:
-        record = run_case(case, progress=progress, max_nodes=opts["max_nodes"])
+        with compiling.with_helper(case, registry.kind(case.layout.kind), None, usable_cores()):
+            return run_case(case, progress=progress, max_nodes=opts["max_nodes"])
     except (CaseError, CatalogError, SurfaceLoadError) as exc:
         raise click.ClickException(str(exc)) from None
     finally:
         progress_done(progress)
-    if as_json:
-        echo_json(record)
-    else:
-        click.echo(summary_text(record))
 
 
 def _predict_program(opts: dict[str, Any]) -> None:

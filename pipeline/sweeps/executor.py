@@ -26,8 +26,8 @@ import dask
 
 from ftsweep import registry
 from ftsweep.defaults import WORKER_WAIT_S
-from ftsweep.engine import allocator, startup
-from ftsweep.engine.case import Case, CaseError, Resolution
+from ftsweep.engine import allocator, compiling, startup
+from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.lines import LineCache
 from ftsweep.simulate import run_case
 from ftsweep.store.caselog import CaseLog
@@ -191,14 +191,6 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
     return out
 
 
-# seconds a first run's worker may spend finding the kernels a case calls, run as Python on a
-# line of the warm-up's case (docs/performance.md, "A first run's compile, shared"); a kind whose
-# planning runs longer as Python shares what was found by then
-SHARE_BUDGET_S = 2.0
-# seconds a worker waits for a kernel another is compiling before it compiles it too
-SHARE_WAIT_S = 120.0
-
-
 def warm_up(
     surface: str,
     kind: str,
@@ -210,14 +202,14 @@ def warm_up(
     allocator (:mod:`ftsweep.engine.allocator`: Dask's nanny starts workers with settings that make
     every batch page-fault its arrays afresh); returns seconds. On a machine's first run, the
     workers of a local cluster (``dask_worker``: this one, as ``Client.run`` gives it) that
-    share the ``claims`` folder share the compiling (:func:`_share_compiling`)."""
+    share the ``claims`` folder share the compiling (:func:`ftsweep.engine.compiling.shared`)."""
     t = time.perf_counter()
     allocator.tune()
     startup.install()  # numba's set-up imports no scipy.linalg (ftsweep.engine.startup)
     folder = Path(catalog_folder) if catalog_folder else None
     case = Case(surface=surface, layout=registry.kind(kind).warm_request())
     if claims is not None and dask_worker is not None:
-        _share_compiling(case, folder, claims)
+        compiling.shared(case, registry.kind(kind), folder, claims)
     try:
         run_case(case, folder)
     except Exception:  # noqa: BLE001
@@ -225,19 +217,6 @@ def warm_up(
         # kernels compiled anyway, and each case then records its own failure with its message
         pass
     return time.perf_counter() - t
-
-
-def _share_compiling(case: Case, folder: Optional[Path], claims: str) -> None:
-    """On a first run (numba's cache empty), find the kernels ``case`` calls without compiling
-    them (on one line of it, :func:`ftsweep.engine.startup.kernel_calls`) and compile them with
-    the other workers that share ``claims``, each kernel once
-    (:func:`ftsweep.engine.startup.compile_shared`), instead of every worker compiling every
-    kernel. Nothing is done for kernels cached already or a kind not sampled on spindle angles."""
-    if registry.kind(case.layout.kind).angular_cells is None or startup.kernels_cached():
-        return
-    line = case.model_copy(update={"resolution": Resolution(n_theta=2)})
-    calls = startup.kernel_calls(lambda: run_case(line, folder), SHARE_BUDGET_S)
-    startup.compile_shared(calls, claims, SHARE_WAIT_S)
 
 
 Plan = list[list[int]] | Callable[[int], list[list[int]]]

@@ -7,7 +7,6 @@ import functools
 import json
 import math
 import os
-import tempfile
 import time
 import uuid
 import warnings
@@ -20,6 +19,7 @@ import numpy as np
 
 from ftsweep import registry
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
+from ftsweep.engine import compiling
 from ftsweep.engine.case import CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.store import caselog, cube
@@ -390,9 +390,7 @@ def _warm(spec: SweepSpec, catalog_folder: Optional[Path], where: Where) -> Call
     cluster's workers, on this machine, share a first run's compiling through a claims folder
     of this run's own in the temporary directory."""
     assert spec.layout is not None
-    claims = None
-    if where.scheduler is None and where.workers > 1:
-        claims = os.path.join(tempfile.gettempdir(), f"ftsweep-compiling-{uuid.uuid4().hex}")
+    claims = compiling.claims_folder() if where.scheduler is None and where.workers > 1 else None
     return functools.partial(warm_up, spec.surface, spec.layout, _worker_catalogs(catalog_folder), claims)
 
 

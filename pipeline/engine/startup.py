@@ -279,10 +279,11 @@ def _compile(call: tuple[Any, tuple[Any, ...]]) -> None:
         kernel.compile(types)
 
 
-# seconds numba takes to compile the kernels a first run needs, on the project's 2 cores (a
-# first ring predict with an empty cache less the same with the cache it filled): the estimate
-# a first sweep prints, measured again by `ftsweep bench --documented`
-FIRST_COMPILE_S = 15.0
+# seconds numba takes to compile the kernels a first run needs, on the project's 2 cores with
+# two processes sharing them (a first ring predict with an empty cache, its helper beside it,
+# less the same with the cache it filled): the estimate a first sweep prints, measured again
+# by `ftsweep bench --documented` (2026-11-29: 9.8 s less 1.7 s)
+FIRST_COMPILE_S = 8.0
 
 
 def kernels_cached() -> bool:

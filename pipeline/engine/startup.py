@@ -199,14 +199,18 @@ def kernel_calls(run: Callable[[], Any], budget_s: float) -> list[tuple[Any, tup
             depth[0] -= 1
 
     # on the class: every kernel, however it is reached (a module's name, a table of
-    # families, a partial), runs as Python; deleting it gives the compiled call back
+    # families, a partial), runs as Python; removing it gives the compiled call back
+    own = CPUDispatcher.__dict__.get("__call__")
     CPUDispatcher.__call__ = as_python  # type: ignore[method-assign, assignment]
     try:
         run()
     except Exception:  # noqa: BLE001 - _Spent, or a kernel that does not run as Python
         pass
     finally:
-        del CPUDispatcher.__call__
+        if own is None:
+            del CPUDispatcher.__call__
+        else:
+            CPUDispatcher.__call__ = own  # type: ignore[method-assign]
     return list(found.values())
 
 

@@ -135,6 +135,7 @@ def test_a_first_predict_compiles_with_a_helper_process_and_leaves_nothing_behin
         timeout=600,
     )
     assert first.returncode == 0, first.stderr
+    assert "compiling    numba's kernels: the first run on this machine" in first.stderr
     assert not list(tmp.iterdir())  # the helper's claims folder is gone
     # and so is the helper (its command line names the folder, in this test's own TMPDIR)
     helpers = subprocess.run(
@@ -151,3 +152,4 @@ def test_a_first_predict_compiles_with_a_helper_process_and_leaves_nothing_behin
         check=True,
     )
     assert json.loads(first.stdout)["pv_nm"] == json.loads(again.stdout)["pv_nm"]
+    assert "compiling" not in again.stderr  # cached: nothing to say

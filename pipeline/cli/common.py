@@ -157,3 +157,16 @@ class KindChoice(click.Choice):
     @choices.setter
     def choices(self, value: Any) -> None:
         pass  # click sets its choices once; these are the registry's
+
+
+def first_compile_notice() -> None:
+    """On a machine's first run (numba's cache without the kernels), say on stderr that they
+    compile now and about how long that takes (:data:`ftsweep.engine.startup.FIRST_COMPILE_S`)."""
+    from ftsweep.engine.startup import FIRST_COMPILE_S, kernels_cached
+
+    if not kernels_cached():
+        click.echo(
+            f"compiling    numba's kernels: the first run on this machine "
+            f"(about {FIRST_COMPILE_S:.0f} s) ...",
+            err=True,
+        )

@@ -13,6 +13,7 @@ from ftsweep.cli.common import (
     KindChoice,
     echo_json,
     fail,
+    first_compile_notice,
     progress_done,
     stderr_progress,
     threads_option,
@@ -238,6 +239,7 @@ def _simulate(case: Case, opts: dict[str, Any]) -> dict[str, Any]:
     from ftsweep.inputs.usersurfaces import SurfaceLoadError
     from ftsweep.simulate import run_case
 
+    first_compile_notice()
     progress = stderr_progress("simulating", opts["as_json"])
     try:
         with compiling.with_helper(case, registry.kind(case.layout.kind), None, usable_cores()):

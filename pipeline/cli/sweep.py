@@ -11,7 +11,15 @@ from typing import Any, Optional
 
 import click
 
-from ftsweep.cli.common import COUNT, NON_NEGATIVE, STORAGE_OPTIONS, FiniteRange, cube_place, one_line
+from ftsweep.cli.common import (
+    COUNT,
+    NON_NEGATIVE,
+    STORAGE_OPTIONS,
+    FiniteRange,
+    cube_place,
+    first_compile_notice,
+    one_line,
+)
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S
 
 # exit statuses a scheduler can act on: 0 every case done; 1 cases failed or are pending, or
@@ -146,7 +154,6 @@ def _prepare(
     """Load the spec (naming what is wrong with it), refuse a cube the sweep cannot write, and
     say what runs, and when the kernels compile first; returns the cube's place (None: the
     default)."""
-    from ftsweep.engine.startup import FIRST_COMPILE_S, kernels_cached
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.sweeps.cases import axis_summary
     from ftsweep.sweeps.spec import load_sweep
@@ -159,12 +166,7 @@ def _prepare(
     if where is not None:
         _check_destination(where, scheduler)
     click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
-    if not kernels_cached():
-        click.echo(
-            f"compiling    numba's kernels: the first run on this machine "
-            f"(about {FIRST_COMPILE_S:.0f} s) ...",
-            err=True,
-        )
+    first_compile_notice()
     return where
 
 

@@ -307,9 +307,9 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
     "--reference",
     is_flag=True,
     help="Only this: the 950k-point ring case as a whole `predict` process on one thread beside "
-    "the brute-force evaluation of the same case (ftsweep.testing.reference, straight from the "
-    "model: every node against every arc within Rc), their P-V and how many times the whole "
-    "predict the reference takes (about 3 minutes on 2 cores).",
+    "its kind's brute-force evaluation of the same case (ftsweep.kinds.table.reference, straight "
+    "from the model: every node against every arc within Rc), their P-V and how many times the "
+    "whole predict the reference takes (about 100 s on 2 cores).",
 )
 def bench(
     names: tuple[str, ...],

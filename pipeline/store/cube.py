@@ -36,9 +36,8 @@ from ftsweep.engine import result
 from ftsweep.store.fenced import fenced_store, write_point
 from ftsweep.store.storage import PathLike, Place, place
 
-if (
-    TYPE_CHECKING
-):  # a sweep's workers write cases with zarr alone: xarray and pandas were 0.5 s of their start
+# a sweep's workers write cases with zarr alone: xarray and pandas were 0.5 s of their start
+if TYPE_CHECKING:
     import xarray as xr
 
 # refused: planning refuses the case as specified (over the machine's capacity, a layout the

@@ -207,9 +207,10 @@ def warm_up(
     allocator.tune()
     startup.install()  # numba's set-up imports no scipy.linalg (ftsweep.engine.startup)
     folder = Path(catalog_folder) if catalog_folder else None
-    case = Case(surface=surface, layout=registry.kind(kind).warm_request())
+    own = registry.kind(kind)
+    case = Case(surface=surface, layout=own.warm_request())
     if claims is not None and dask_worker is not None:
-        compiling.shared(case, registry.kind(kind), folder, claims)
+        compiling.shared(case, own, folder, claims)
     try:
         run_case(case, folder)
     except Exception:  # noqa: BLE001

@@ -127,7 +127,17 @@ def format_table(result: dict[str, Any]) -> str:
 # command's arguments ("{dir}": a scratch folder, "{header}": an exported header of the
 # 950k-point case, made first) and its most runs (the slow ones run once); the kinds add theirs
 _RING_5K = ("--surface", "sinewave2d", "--points", "5000", "--aspect", "8")
-_RING_950K = ("--surface", "sinewave2d", "--drho-um", "3.04", "--dtheta-deg", "0.125")
+# the 950k-point ring: its surface and pitches (Δρ [µm], Δθ [deg]), which the brute-force
+# reference model is run on too (:func:`reference_row_case`)
+_RING_950K_SURFACE, _RING_950K_PITCH = "sinewave2d", (3.04, 0.125)
+_RING_950K = (
+    "--surface",
+    _RING_950K_SURFACE,
+    "--drho-um",
+    str(_RING_950K_PITCH[0]),
+    "--dtheta-deg",
+    str(_RING_950K_PITCH[1]),
+)
 GENERIC_ROWS = (
     BenchRow("ftsweep --help", ("--help",), 3),
     BenchRow("ftsweep predict --help", ("predict", "--help"), 3),
@@ -222,11 +232,8 @@ REFERENCE_ROW = "predict 950k-point ring, 1 thread"
 def reference_row_case() -> Case:
     """The case :data:`REFERENCE_ROW`'s predict simulates: its surface's own layout at its
     pitches."""
-    surface = _RING_950K[1]
-    pitch = (float(_RING_950K[3]), float(_RING_950K[5]))
-    return Case(
-        surface=surface, layout=program_request(kind=catalogs.entry("surfaces", surface).layout, pitch=pitch)
-    )
+    layout = catalogs.entry("surfaces", _RING_950K_SURFACE).layout
+    return Case(surface=_RING_950K_SURFACE, layout=program_request(kind=layout, pitch=_RING_950K_PITCH))
 
 
 def against_reference(

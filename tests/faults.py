@@ -18,8 +18,8 @@ from ftsweep.store.storage import place
 from ftsweep.sweeps import cases, run
 from ftsweep.sweeps.run import run_sweep
 
-# two cases, merged one at a time (MERGE_EVERY_S = 0): the second merge lands on blocks that
-# already hold the first case
+# two cases, merged one at a time (no pacing: MERGE_EVERY_S = MERGE_MAX_S = 0): the second
+# merge lands on blocks that already hold the first case
 SPEC = """
 surface: small_sine
 layout: ring
@@ -55,6 +55,7 @@ def points(spec: Path, url: str, catalog: Path, monkeypatch: Any) -> list[tuple[
     """The write points of a clean run of ``spec`` into ``url``, in order."""
     seen: list[tuple[str, str]] = []
     monkeypatch.setattr(run, "MERGE_EVERY_S", 0.0)
+    monkeypatch.setattr(run, "MERGE_MAX_S", 0.0)
     monkeypatch.setattr(fenced, "WRITE_POINT", lambda event, key: seen.append((event, key)))
     run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog)
     monkeypatch.setattr(fenced, "WRITE_POINT", None)
@@ -100,6 +101,7 @@ def faulted_run(spec: Path, url: str, catalog: Path, at: int, fault: str, monkey
             fenced.WRITE_POINT = fenced_hook
 
     monkeypatch.setattr(run, "MERGE_EVERY_S", 0.0)
+    monkeypatch.setattr(run, "MERGE_MAX_S", 0.0)
     monkeypatch.setattr(fenced, "WRITE_POINT", hook)
     try:
         run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog)

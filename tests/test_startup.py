@@ -127,3 +127,44 @@ def test_predict_help_groups_each_kinds_options_under_its_layouts():
     assert "--drho-um" in sections["ring, mesh"] and "--dx-um" in sections["ring, mesh"]
     assert "--chord-um" in sections["spiral"] and "--spacing-um" in sections["dpath"]
     assert "--facet-height-um" in sections["fresnel"]
+
+
+def test_a_new_cube_is_made_without_dask_array_and_reads_as_before(tmp_path):
+    """A sweep's driver makes its cube while its workers start: xarray's check of every array
+    for dask is answered without importing ``dask.array``; the store is the one xarray writes
+    with the check (every object byte for byte, but the ``created`` time), and a later
+    dask-backed read still gets dask arrays."""
+    code = (
+        "import sys, json\n"
+        "from ftsweep.sweeps import run\n"
+        "from ftsweep.sweeps.spec import load_sweep\n"
+        "name, spec = load_sweep('sinewave-ring', None)\n"
+        f"run.prepare_cube(name, spec, {str(tmp_path / 'quick.zarr')!r}, False, None)\n"
+        "quick = 'dask.array' in sys.modules\n"
+        "from ftsweep.store import cube\n"
+        "import dask.array\n"
+        f"run.prepare_cube(name, spec, {str(tmp_path / 'plain.zarr')!r}, False, None)\n"
+        f"ds = cube.open_dataset({str(tmp_path / 'quick.zarr')!r})\n"
+        "print(json.dumps([quick, type(ds['pv_nm'].data).__module__]))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    quick, backing = json.loads(out.stdout.strip().splitlines()[-1])
+    assert quick is False and backing.startswith("dask.array")
+
+    def objects(root):
+        found = {}
+        for path in sorted(root.rglob("*")):
+            if path.is_file():
+                text = path.read_bytes()
+                if path.name == "zarr.json":
+                    meta = json.loads(text)
+                    meta.get("attributes", {}).pop("created", None)
+                    for inner in meta.get("consolidated_metadata", {}).get("metadata", {}).values():
+                        inner.get("attributes", {}).pop("created", None)
+                    text = json.dumps(meta, sort_keys=True).encode()
+                found[str(path.relative_to(root))] = text
+        return found
+
+    quick, plain = objects(tmp_path / "quick.zarr"), objects(tmp_path / "plain.zarr")
+    assert sorted(quick) == sorted(plain) and len(quick) > 40
+    assert quick == plain

@@ -4,6 +4,7 @@ lease lock's rules, and what a store without conditional writes gets."""
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -249,3 +250,41 @@ def test_logs_a_taken_over_run_writes_after_the_takeover_are_never_read():
             first.confirm()
     finally:
         second.release()
+
+
+def test_merges_are_paced_by_their_own_duration(tmp_path, catalog_dir, monkeypatch):
+    from ftsweep.sweeps import run
+
+    assert run.merge_interval(0.0) == run.MERGE_EVERY_S
+    assert run.merge_interval(0.3) == pytest.approx(0.3 / run.MERGE_SHARE)
+    assert run.merge_interval(60.0) == run.MERGE_MAX_S
+    # merges of 10 ms each: with no floor and a share of 10⁹ (a pause of 10 ps) the driver
+    # merges at every delivery of cases (and at the end); with a share of 1/1000 a merge makes
+    # the next one wait 10 s, so only the first delivery's (the floor is 0), the tail's (its
+    # last delivery, on one thread) and the final one are left
+    merges: list[float] = []
+    real = run._merge_fenced
+
+    def slow(out, lease):
+        merges.append(1.0)
+        time.sleep(0.01)
+        real(out, lease)
+
+    monkeypatch.setattr(run, "_merge_fenced", slow)
+    monkeypatch.setattr(run, "MERGE_EVERY_S", 0.0)
+    spec = tmp_path / "m.yaml"
+    spec.write_text(SPEC)
+    for share in (1e9, 0.001):
+        monkeypatch.setattr(run, "MERGE_SHARE", share)
+        merges.clear()
+        deliveries: list[int] = []
+        told = deliveries.append
+        run_sweep(
+            str(spec),
+            tmp_path / f"paced-{share}.zarr",
+            scheduler="synchronous",
+            catalog_folder=catalog_dir,
+            progress=lambda report, rows, told=told: told(len(rows)),
+        )
+        assert sum(deliveries) == 4 and len(deliveries) >= 2
+        assert len(merges) == (len(deliveries) + 1 if share > 1 else 3), (share, deliveries)

@@ -46,10 +46,21 @@ def default_cube_path(name: str) -> Path:
     return Path("outputs") / f"{name}.zarr"
 
 
-# the driver merges its workers' case logs into the cube at most this often [s] (and at each
-# case of the tail, and at the end): readers of a running sweep's cube see its cases this late
-# at most
+# the driver merges its workers' case logs into the cube every MERGE_EVERY_S at the soonest [s],
+# and later when its merges take longer: each waits its predecessor's duration over MERGE_SHARE,
+# so merging keeps at most that share of a core from the workers, and at most MERGE_MAX_S [s]
+# (besides at each case of the tail, and at the end). Readers of a running sweep's blocks see
+# its cases this late at most; `status` and the other readers lay the logs over them anyway.
+# A merge of the reference cube takes 0.2-0.6 s: every 5 s it was 2 s of the driver's CPU in a
+# 33 s sweep on 2 cores (docs/performance.md, "Tuned constants")
 MERGE_EVERY_S = 5.0
+MERGE_SHARE = 0.03
+MERGE_MAX_S = 30.0
+
+
+def merge_interval(merge_s: float) -> float:
+    """Seconds until the next periodic merge after one that took ``merge_s`` seconds."""
+    return min(MERGE_MAX_S, max(MERGE_EVERY_S, merge_s / MERGE_SHARE))
 
 
 # a cube's template is built in memory: beyond this it would not fit
@@ -184,7 +195,8 @@ def prepare_cube(
             _warn_other_revision(out, attrs)
             return int(np.count_nonzero(cube.read_status(out) == cube.DONE)), note
     entries = catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, catalog_folder)
-    cube.create(out, template(spec, name, entries))
+    with cube.numpy_only():  # the template's arrays are numpy's
+        cube.create(out, template(spec, name, entries))
     return 0, note
 
 
@@ -408,11 +420,11 @@ def _callbacks(
     watched: tuple[Watchers, float],
 ) -> tuple[Callable[[int], list[list[int]]], Callable[[list[dict]], None], Callable[[Cluster], None]]:
     """What the executor calls during a run: the planner of the tasks for the cluster's threads,
-    the delivery of finished cases (merged every :data:`MERGE_EVERY_S`, progress told) and the
+    the delivery of finished cases (merged as :func:`merge_interval` paces it, progress told) and the
     announcement of the cluster; each marks the report's timeline, in seconds from the run's
     start (``watched``'s second item, on :func:`time.perf_counter`)."""
     (progress, announce, lease), started = watched
-    merged = [time.monotonic()]
+    next_merge = [time.monotonic() + MERGE_EVERY_S]
 
     def plan(threads: int) -> list[list[int]]:
         tasks = plan_tasks(spec, list(costs), threads, catalog_folder, costs)
@@ -426,9 +438,10 @@ def _callbacks(
         # in the tail (fewer cases left than threads) a core is free: merging now leaves the
         # last merge, after the last case, only that case's log
         tail = report.queued - len(report.rows) < report.threads
-        if tail or time.monotonic() - merged[0] >= MERGE_EVERY_S:
+        if tail or time.monotonic() >= next_merge[0]:
+            began = time.monotonic()
             _merge_fenced(report.cube, lease)  # a writer whose lease was taken over stops here
-            merged[0] = time.monotonic()
+            next_merge[0] = time.monotonic() + merge_interval(time.monotonic() - began)
         if progress is not None:
             progress(report, rows)
 

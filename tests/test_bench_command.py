@@ -163,6 +163,8 @@ def test_a_measured_sweep_is_replayed_on_more_threads_and_its_cases_run_again_al
         sweep["summed_case_s"] / ((wall - tl["connected_s"]) * sweep["workers"])
     )
     assert sweep["efficiency_warmed"] >= sweep["efficiency"]
+    # the driver made the cube and merged its cases: CPU it spent, said beside the timeline
+    assert 0 < sweep["driver_cpu_s"] and f"the driver's CPU {sweep['driver_cpu_s']:.1f} s" in r.output
 
 
 def test_simulated_workers_need_a_sweep():

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from ftsweep.store.cube import CubeError
+from ftsweep.store.lock import LeaseLost
 from ftsweep.sweeps import connection, run
 from ftsweep.sweeps.connection import EarlyCluster, ExecutorError, Opened
 
@@ -97,3 +98,48 @@ def test_a_new_cube_with_nothing_to_compute_closes_the_cluster_it_opened(tmp_pat
     report = run.run_sweep(str(_sweep_spec(tmp_path, "[5000, 9000]")), tmp_path / "c.zarr", workers=1)
     assert report.queued == 0 and report.rows == []
     assert len(recorder.opened) == 1 and recorder.closed == [recorder.opened[0].client]
+
+
+class _SlowClient:
+    """A client whose close waits for ``meanwhile`` to have started: a close that ran before
+    ``meanwhile`` (or after it) never sees the event, and records so."""
+
+    def __init__(self, started: threading.Event, fail: bool = False) -> None:
+        self.started, self.fail, self.saw_meanwhile = started, fail, False
+
+    def close(self) -> None:
+        self.saw_meanwhile = self.started.wait(10)
+        if self.fail:
+            raise OSError("the scheduler was gone")
+
+
+def test_a_sweeps_last_merge_runs_while_its_cluster_closes():
+    started = threading.Event()
+    client = _SlowClient(started)
+    opened = Opened(client=client, cluster=None, got=connection.Cluster(2, 2))
+    ran: list[str] = []
+
+    def meanwhile() -> None:
+        started.set()
+        ran.append(threading.current_thread().name)
+
+    opened.close(meanwhile)
+    assert client.saw_meanwhile and ran == [threading.current_thread().name]
+
+
+def test_an_error_of_either_side_is_raised_once_both_are_done():
+    started = threading.Event()
+    client = _SlowClient(started, fail=True)
+    with pytest.raises(OSError, match="scheduler was gone"):
+        Opened(client=client, cluster=None, got=connection.Cluster(1, 1)).close(started.set)
+    assert client.saw_meanwhile
+
+    def merge_fails() -> None:
+        started.set()
+        raise LeaseLost("another writer took the lease")
+
+    started.clear()
+    client = _SlowClient(started, fail=True)
+    with pytest.raises(LeaseLost, match="another writer"):  # the merge's error comes first
+        Opened(client=client, cluster=None, got=connection.Cluster(1, 1)).close(merge_fails)
+    assert client.saw_meanwhile

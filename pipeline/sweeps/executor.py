@@ -236,6 +236,7 @@ def execute(
     worker_wait_s: float = WORKER_WAIT_S,
     check_reach: bool = False,
     early: Optional[EarlyCluster] = None,
+    finish: Optional[Callable[[], None]] = None,
 ) -> None:
     """Run ``task(spec, group)`` for every group of case indices and call ``on_result`` with
     each task's summaries as it finishes.
@@ -255,6 +256,8 @@ def execute(
     check_reach : one worker opens ``spec.cube`` before any task is sent (a sweep's run).
     early : the cluster, opened and warmed while the caller set up, with this ``warm``
         (:class:`ftsweep.sweeps.connection.EarlyCluster`); None opens it here.
+    finish : called once every task has delivered its cases, while the cluster closes (and
+        after the last task on the synchronous scheduler); not after an error.
     """
     on_error = on_error or task_failure
     if scheduler == SYNCHRONOUS:
@@ -266,11 +269,14 @@ def execute(
         if warm is not None:
             warm()
         _run_synchronous(groups, spec, task, on_error, on_result)
+        if finish is not None:
+            finish()
         return
     if early is None and not callable(plan) and not plan:  # an early cluster is closed below
         return
     opened = early.take() if early is not None else open_cluster(scheduler, workers, worker_wait_s, warm)
     client = opened.client
+    delivered = False
     try:
         groups = plan(opened.got.threads) if callable(plan) else plan
         if not groups:
@@ -280,8 +286,9 @@ def execute(
         if check_reach:
             _check_reach(client, spec, scheduler)
         _run_distributed(client, groups, spec, (task, on_error), on_result, worker_wait_s)
+        delivered = True
     finally:
-        opened.close()
+        opened.close(finish if delivered else None)
 
 
 def _check_reach(client: Any, spec: TaskSpec, scheduler: Optional[str]) -> None:

@@ -394,6 +394,7 @@ def _compute(
         worker_wait_s=where.worker_wait_s,
         check_reach=True,
         early=early,
+        finish=lambda: _merge_fenced(report.cube, watchers[2]),
     )
 
 
@@ -436,9 +437,10 @@ def _callbacks(
         report.timeline["last_case_s"] = time.perf_counter() - started
         report.rows.extend(rows)
         # in the tail (fewer cases left than threads) a core is free: merging now leaves the
-        # last merge, after the last case, only that case's log
-        tail = report.queued - len(report.rows) < report.threads
-        if tail or time.monotonic() >= next_merge[0]:
+        # last merge, after the last case, only that case's log; that one runs while the
+        # cluster closes (execute's ``finish``)
+        left = report.queued - len(report.rows)
+        if 0 < left < report.threads or (left > 0 and time.monotonic() >= next_merge[0]):
             began = time.monotonic()
             _merge_fenced(report.cube, lease)  # a writer whose lease was taken over stops here
             next_merge[0] = time.monotonic() + merge_interval(time.monotonic() - began)

@@ -168,3 +168,17 @@ def test_a_new_cube_is_made_without_dask_array_and_reads_as_before(tmp_path):
     quick, plain = objects(tmp_path / "quick.zarr"), objects(tmp_path / "plain.zarr")
     assert sorted(quick) == sorted(plain) and len(quick) > 40
     assert quick == plain
+
+
+def test_a_sweep_worker_logs_its_cases_without_xarray_pandas_or_zarr(tmp_path):
+    """What a worker imports to run a task and log its cases: the driver alone opens the store."""
+    code = (
+        "from ftsweep.sweeps.executor import run_task\n"
+        "from ftsweep.store.caselog import CaseLog\n"
+        f"log = CaseLog({str(tmp_path)!r}, 'run')\n"
+    )
+    (tmp_path / "zarr.json").write_text("{}")  # a cube's folder, as the log checks
+    code += "log.write_failed(3, 'a message', 'run')\n"
+    loaded = _modules_after(code)
+    assert not loaded & {"xarray", "pandas", "zarr"}, sorted(loaded & {"xarray", "pandas", "zarr"})
+    assert list((tmp_path / "_log" / "run").glob("*.npz"))

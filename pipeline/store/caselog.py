@@ -22,16 +22,15 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.store import cube
-from ftsweep.store.fenced import write_point
 from ftsweep.store.storage import PathLike, Place, place
+from ftsweep.store.values import DONE, FAILED, REFUSED, TEXT, CubeError, Values, done_values, ended_values
 
 LOG = "_log"
 # where logs that fail their checks are kept for inspection (zarr ignores the folder too)
 REJECTED = "_log_rejected"
 
 
-def _encode(cases: list[tuple[int, cube.Values]]) -> bytes:
+def _encode(cases: list[tuple[int, Values]]) -> bytes:
     """The cases as an ``.npz`` of plain arrays (no pickles): per variable the flat indices
     of the cases that set it and their values."""
     columns: dict[str, tuple[list[int], list[Any]]] = defaultdict(lambda: ([], []))
@@ -72,7 +71,7 @@ def _check_column(
         )
     if index.size and (index.min() < 0 or index.max() >= n_cases):
         raise BadLog(f"{var}: case index {int(index.min())}..{int(index.max())} outside 0..{n_cases - 1}")
-    kind = "U" if var in cube.TEXT else "biuf"
+    kind = "U" if var in TEXT else "biuf"
     if values.dtype.kind not in kind:
         held = "text" if kind == "U" else "numbers"
         raise BadLog(f"{var}: values of type {values.dtype} where the cube holds {held}")
@@ -102,7 +101,7 @@ def unpacked_cap(shapes: dict[str, tuple[int, ...]]) -> int:
     total = 0
     for var, shape in shapes.items():
         per_case = int(np.prod(shape[len(shapes["status"]) :], dtype=np.int64)) if len(shape) > 1 else 1
-        value = _BYTES_PER_TEXT if var in cube.TEXT else _BYTES_PER_VALUE * per_case
+        value = _BYTES_PER_TEXT if var in TEXT else _BYTES_PER_VALUE * per_case
         total += 2 * _HEADER_BYTES + n_cases * (8 + value)
     return total
 
@@ -111,7 +110,7 @@ def unpacked_cap(shapes: dict[str, tuple[int, ...]]) -> int:
 _NON_NEGATIVE = ("pv_nm", "rms_nm", "pv_inner_nm", "pv_outer_nm", "pv_interp_nm", "cusp_nm", "n_points")
 
 
-def _check_done(flat: int, values: cube.Values) -> None:
+def _check_done(flat: int, values: Values) -> None:
     """A done case's values: P-V and RMS present and finite, no infinity anywhere, the
     non-negative metrics non-negative, ``feasible`` 0 or 1, and the metrics consistent
     (P-V = max − min error to 1e-6 relative, RMS ≤ P-V)."""
@@ -177,7 +176,7 @@ def _columns(data: bytes, cap: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
 
 def checked_cases(
     data: bytes, shapes: dict[str, tuple[int, ...]], integers: frozenset[str] = frozenset()
-) -> list[tuple[int, cube.Values]]:
+) -> list[tuple[int, Values]]:
     """The cases of a log's bytes, every record checked as untrusted input (``shapes``: each
     cube variable's shape): a readable ``.npz`` without pickles, columns that pair up, indices
     within the cube, values of the variables' kinds, a status a worker writes, and a done
@@ -185,16 +184,16 @@ def checked_cases(
     naming the first problem otherwise. ``integers``: the cube's integer variables
     (:func:`ftsweep.store.cube.integer_variables`)."""
     columns = _columns(data, unpacked_cap(shapes))
-    by_case: dict[int, cube.Values] = defaultdict(dict)
+    by_case: dict[int, Values] = defaultdict(dict)
     for var, (index, values) in columns.items():
         _check_column(var, index, values, shapes, integers)
         for flat, value in zip(index.tolist(), values, strict=True):
             by_case[int(flat)][var] = value.item() if value.ndim == 0 else value
     for flat, case_values in by_case.items():
         status = case_values.get("status")
-        if status not in (cube.DONE, cube.FAILED, cube.REFUSED):
+        if status not in (DONE, FAILED, REFUSED):
             raise BadLog(f"case {flat}: status {status!r} is not one a worker writes (done, failed, refused)")
-        if status == cube.DONE:
+        if status == DONE:
             _check_done(flat, case_values)
     return list(by_case.items())
 
@@ -205,16 +204,16 @@ class CaseLog:
     def __init__(self, where: PathLike, run_id: str) -> None:
         self.place = place(where)
         self.prefix = f"{LOG}/{run_id}/{uuid.uuid4().hex[:12]}"
-        self.cases: list[tuple[int, cube.Values]] = []
+        self.cases: list[tuple[int, Values]] = []
         self.version = 0
 
     def _key(self, version: int) -> str:
         return f"{self.prefix}-{version:06d}.npz"
 
-    def _add(self, flat: int, values: cube.Values) -> None:
+    def _add(self, flat: int, values: Values) -> None:
         if not self.place.exists("zarr.json"):
             # a log would recreate the cube's folder and merge into nothing
-            raise cube.CubeError(f"the cube {self.place} is gone (deleted while the sweep ran)")
+            raise CubeError(f"the cube {self.place} is gone (deleted while the sweep ran)")
         self.cases.append((flat, values))
         self.version += 1
         self.place.write(self._key(self.version), _encode(self.cases))
@@ -222,13 +221,13 @@ class CaseLog:
             self.place.remove(self._key(self.version - 1))
 
     def write_done(self, flat: int, record: dict[str, Any], run_id: str) -> None:
-        self._add(flat, cube.done_values(record, run_id))
+        self._add(flat, done_values(record, run_id))
 
     def write_failed(self, flat: int, message: str, run_id: str) -> None:
-        self._add(flat, cube.ended_values(cube.FAILED, message, run_id))
+        self._add(flat, ended_values(FAILED, message, run_id))
 
     def write_refused(self, flat: int, message: str, run_id: str) -> None:
-        self._add(flat, cube.ended_values(cube.REFUSED, message, run_id))
+        self._add(flat, ended_values(REFUSED, message, run_id))
 
 
 # beside the logs of a run whose lease was taken over: none of its logs but those listed
@@ -282,6 +281,9 @@ def merge_logs(
     (:class:`ftsweep.store.cube.CubeWriter`); when it raises, nothing is deleted. Returns the
     number of cases merged. ``keep``: the logs of a fenced run that this writer may still read
     (:attr:`ftsweep.store.lock.Lease.inherited`); other logs of fenced runs are deleted unread."""
+    from ftsweep.store import cube  # the driver's: workers never open the store (module doc)
+    from ftsweep.store.fenced import write_point
+
     at: Place = place(where)
     keys = at.listing(LOG)
     for key in fenced_out(keys, keep)[1]:
@@ -292,7 +294,7 @@ def merge_logs(
     if not writers:
         return 0
     shapes, integers = cube.variable_shapes(at), cube.integer_variables(at)
-    cases: list[tuple[int, cube.Values]] = []
+    cases: list[tuple[int, Values]] = []
     merged: list[str] = []
     for stem in sorted(writers):  # the run id (a timestamp) leads the stem
         _, keys = writers[stem]
@@ -339,12 +341,14 @@ def pending_logs(where: PathLike) -> int:
     return len(_latest(place(where).listing(LOG)))
 
 
-def logged_cases(where: PathLike) -> list[tuple[int, cube.Values]]:
+def logged_cases(where: PathLike) -> list[tuple[int, Values]]:
     """The cases the logs hold, oldest run first, as the next merge would write them (read
     only: for reading a cube a run is writing, or one a killed run left, from elsewhere)."""
+    from ftsweep.store import cube
+
     at = place(where)
     shapes, integers = cube.variable_shapes(at), cube.integer_variables(at)
-    found: list[tuple[int, cube.Values]] = []
+    found: list[tuple[int, Values]] = []
     for _, (_, keys) in sorted(_latest(at.listing(LOG)).items()):
         try:
             found.extend(checked_cases(at.read_capped(keys[-1], unpacked_cap(shapes)), shapes, integers))
@@ -356,6 +360,8 @@ def logged_cases(where: PathLike) -> list[tuple[int, cube.Values]]:
 def current_status(where: PathLike) -> np.ndarray:
     """Every case's status as the next merge will make it: the cube's, with what the logs
     hold laid over (read only; for watching a running sweep from another process)."""
+    from ftsweep.store import cube
+
     at = place(where)
     status = cube.read_status(at)
     flat = status.reshape(-1)

@@ -130,6 +130,8 @@ class Deliveries:
 
 TaskFn = Callable[[TaskSpec, list[int]], list[dict]]
 ErrorFn = Callable[[TaskSpec, list[int], BaseException], list[dict]]
+# told the cluster, the warm-up, and what runs once every task delivered (:func:`execute`)
+Hooks = tuple[Optional[Callable[[Cluster], None]], Optional[Callable[[], Any]], Optional[Callable[[], None]]]
 
 SYNCHRONOUS = "synchronous"
 # how often the driver looks for published cases while no task finishes [s]
@@ -262,15 +264,8 @@ def execute(
     on_error = on_error or task_failure
     if scheduler == SYNCHRONOUS:
         groups = plan(1) if callable(plan) else plan
-        if not groups:
-            return
-        if on_cluster is not None:
-            on_cluster(Cluster(workers=1, threads=1))
-        if warm is not None:
-            warm()
-        _run_synchronous(groups, spec, task, on_error, on_result)
-        if finish is not None:
-            finish()
+        if groups:
+            _in_this_process(groups, spec, (task, on_error), on_result, (on_cluster, warm, finish))
         return
     if early is None and not callable(plan) and not plan:  # an early cluster is closed below
         return
@@ -289,6 +284,25 @@ def execute(
         delivered = True
     finally:
         opened.close(finish if delivered else None)
+
+
+def _in_this_process(
+    groups: list[list[int]],
+    spec: TaskSpec,
+    fns: tuple[TaskFn, ErrorFn],
+    on_result: Callable[[list[dict]], None],
+    hooks: Hooks,
+) -> None:
+    """:func:`execute` on the synchronous scheduler: told as a cluster of one thread, warmed,
+    every group in order, then ``finish`` (``hooks``: on_cluster, warm, finish)."""
+    on_cluster, warm, finish = hooks
+    if on_cluster is not None:
+        on_cluster(Cluster(workers=1, threads=1))
+    if warm is not None:
+        warm()
+    _run_synchronous(groups, spec, fns[0], fns[1], on_result)
+    if finish is not None:
+        finish()
 
 
 def _check_reach(client: Any, spec: TaskSpec, scheduler: Optional[str]) -> None:

@@ -108,14 +108,14 @@ def sweep(
     """Run a sweep of point counts and aspect ratios into a Zarr result cube.
 
     NAME is a spec in catalogs/sweeps/ (e.g. sinewave-ring, lens-array-mesh), or give a
-    path to a YAML file. Every case is logged as soon as it finishes and merged into the
-    cube within seconds. Re-running the same command computes only what is missing, so an
-    interrupted or killed run loses nothing already written; done cases whose data files are
-    missing or unreadable are recomputed. A cube made from a different spec is refused unless
-    --restart, which discards the cube and starts over — except a spec that only adds values to
-    its axes: the cube grows and only the new cases are computed. One process writes a cube at
-    a time: a second sweep on the same cube (also with --restart) is refused while the first
-    runs.
+    path to a YAML file. Every case is logged as soon as it finishes (`ftsweep status` counts
+    it at once) and merged into the cube's blocks within 5-30 s. Re-running the same command
+    computes only what is missing, so an interrupted or killed run loses nothing already
+    written; done cases whose data files are missing or unreadable are recomputed. A cube
+    made from a different spec is refused unless --restart, which discards the cube and
+    starts over — except a spec that only adds values to its axes: the cube grows and only
+    the new cases are computed. One process writes a cube at a time: a second sweep on the
+    same cube (also with --restart) is refused while the first runs.
 
     \b
     Exit status: 0 every case done; 1 cases failed, refused or pending, or the run could not go

@@ -49,8 +49,9 @@ def default_cube_path(name: str) -> Path:
 # the driver merges its workers' case logs into the cube every MERGE_EVERY_S at the soonest [s],
 # and later when its merges take longer: each waits its predecessor's duration over MERGE_SHARE,
 # so merging keeps at most that share of a core from the workers, and at most MERGE_MAX_S [s]
-# (besides at each case of the tail, and at the end). Readers of a running sweep's blocks see
-# its cases this late at most; `status` and the other readers lay the logs over them anyway.
+# (besides at each case of the tail but the last, whose merge runs while the cluster closes).
+# Readers of a running sweep's blocks see its cases this late at most; `status` and the other
+# readers lay the logs over them anyway.
 # A merge of the reference cube takes 0.2-0.6 s: every 5 s it was 2 s of the driver's CPU in a
 # 33 s sweep on 2 cores (docs/performance.md, "Tuned constants")
 MERGE_EVERY_S = 5.0

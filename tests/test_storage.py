@@ -259,9 +259,9 @@ def test_merges_are_paced_by_their_own_duration(tmp_path, catalog_dir, monkeypat
     assert run.merge_interval(0.3) == pytest.approx(0.3 / run.MERGE_SHARE)
     assert run.merge_interval(60.0) == run.MERGE_MAX_S
     # merges of 10 ms each: with no floor and a share of 10⁹ (a pause of 10 ps) the driver
-    # merges at every delivery of cases (and at the end); with a share of 1/1000 a merge makes
-    # the next one wait 10 s, so only the first delivery's (the floor is 0), the tail's (its
-    # last delivery, on one thread) and the final one are left
+    # merges at every delivery of cases, the last one's after the last task (the executor's
+    # finish); with a share of 1/1000 a merge makes the next one wait 10 s, so only the first
+    # delivery's (the floor is 0) and the last are left, and every case reaches the blocks
     merges: list[float] = []
     real = run._merge_fenced
 
@@ -287,4 +287,6 @@ def test_merges_are_paced_by_their_own_duration(tmp_path, catalog_dir, monkeypat
             progress=lambda report, rows, told=told: told(len(rows)),
         )
         assert sum(deliveries) == 4 and len(deliveries) >= 2
-        assert len(merges) == (len(deliveries) + 1 if share > 1 else 3), (share, deliveries)
+        assert len(merges) == (len(deliveries) if share > 1 else 2), (share, deliveries)
+        status = cube.read_status(tmp_path / f"paced-{share}.zarr")
+        assert np.sum(status == cube.DONE) == 4 and not caselog.pending_logs(tmp_path / f"paced-{share}.zarr")

@@ -444,7 +444,8 @@ def _callbacks(
         if 0 < left < report.threads or (left > 0 and time.monotonic() >= next_merge[0]):
             began = time.monotonic()
             _merge_fenced(report.cube, lease)  # a writer whose lease was taken over stops here
-            next_merge[0] = time.monotonic() + merge_interval(time.monotonic() - began)
+            ended = time.monotonic()
+            next_merge[0] = ended + merge_interval(ended - began)
         if progress is not None:
             progress(report, rows)
 
@@ -537,7 +538,8 @@ def _run_locked(
             except LeaseLost:
                 pass
             raise
-        _merge_fenced(out, lease)
+        # the last merge ran as the executor's ``finish`` (while the cluster closed): a run that
+        # computed nothing logged nothing
         if lease is not None:
             # a writer that lost its lease during its last merge says so (LeaseLost: exit status 75)
             lease.confirm()

@@ -81,7 +81,8 @@ def test_a_pvt_controller_needs_fewer_points_for_seed_003s_budget():
     assert pvt["pv_nm"] <= 2000.0 and linear["pv_nm"] <= 2000.0
 
 
-def test_spline1_refuses_a_segment_time_that_is_not_whole_milliseconds():
+def test_spline1_refuses_a_segment_time_that_is_not_whole_time_steps():
+    """720 points a revolution at 6 rpm: 13.888… ms a segment, not whole 1/4 µs steps."""
     from ftsweep.engine.case import CaseError
 
     case = Case(
@@ -90,7 +91,7 @@ def test_spline1_refuses_a_segment_time_that_is_not_whole_milliseconds():
         cutting="seed003-6rpm",
         layout=program_request(kind="spiral", points_per_rev=720),
     )
-    with pytest.raises(CaseError, match="whole 1 ms steps"):
+    with pytest.raises(CaseError, match=r"whole 0.25 µs steps: this spiral's take 13.8889 ms"):
         run_case(case)
 
 

@@ -315,11 +315,13 @@ def test_the_pmac_reader_takes_the_manuals_syntax():
 
 
 def test_pmac_time_rules_follow_the_profile():
+    """Times in ms on the controller's 1/4 µs steps; Power PMAC's spline<ms> carries its time,
+    a Turbo PMAC's spline mode is SPLINE1."""
     text = PMAC_MANUAL.replace("PVT100", "PVT60.36925").split("\n")
-    whole_ms = Controller(dialect="pmac-pvt", interpolation="pvt", i42=1)
-    with pytest.raises(dialects.DialectError, match=r"line 8 .*whole ms \(I42=1\)"):
-        dialects.read(text, "pmac-pvt", whole_ms)
-    assert dialects.read(text, "pmac-pvt").seconds[0] == pytest.approx(0.06036925)
+    assert dialects.read(text, "pmac-pvt").seconds[0] == pytest.approx(0.06036925, abs=1e-15)
+    # 60.3692501 ms is stored as the nearest 1/4 µs step
+    finer = PMAC_MANUAL.replace("PVT100", "PVT60.3692501").split("\n")
+    assert dialects.read(finer, "pmac-pvt").seconds[0] == pytest.approx(0.06036925, abs=1e-15)
     spline = [
         "OPEN PROG 1 CLEAR",
         "ABS",
@@ -332,8 +334,94 @@ def test_pmac_time_rules_follow_the_profile():
     ]
     power = Controller(dialect="pmac-spline", interpolation="spline1", pmac_syntax="power")
     assert dialects.read(spline, "pmac-spline", power).n_points == 3
-    with pytest.raises(dialects.DialectError, match=r"line 5 .*Turbo PMAC profile writes SPLINE1 with TA"):
+    with pytest.raises(dialects.DialectError, match=r"line 5 .*spline is SPLINE1, timed by TM \(I42=0\)"):
         dialects.read(spline, "pmac-spline")
+
+
+SPLINE_TURBO = [
+    "OPEN PROG 1 CLEAR",
+    "ABS",
+    "RAPID",
+    "C0 X1 Z0",
+    "SPLINE1 {word}4",
+    "C36 X0.999 Z0",
+    "C72 X0.998 Z0",
+    "C108 X0.997 Z0",
+    "CLOSE",
+]
+
+
+@pytest.mark.parametrize(("i42", "good", "bad"), [(0, "TM", "TA"), (1, "TA", "TM")])
+def test_i42_selects_the_word_that_times_spline_and_pvt_moves(i42, good, bad):
+    """The Turbo PMAC Software Reference's I42 entry: 0 makes TM, 1 makes TA the SPLINE and
+    PVT move time; the other word inside those modes is refused naming I42."""
+    ctrl = Controller(dialect="pmac-spline", interpolation="spline1", i42=i42)
+    text = [ln.format(word=good) for ln in SPLINE_TURBO]
+    moves = dialects.read(text, "pmac-spline", ctrl)
+    np.testing.assert_allclose(moves.seconds, 0.004)
+    with pytest.raises(
+        dialects.DialectError, match=rf"^line 5 .*{bad}4 in SPLINE1 mode: under I42={i42} .*{good}"
+    ):
+        dialects.read([ln.format(word=bad) for ln in SPLINE_TURBO], "pmac-spline", ctrl)
+
+
+@pytest.mark.parametrize("i42", [0, 1])
+def test_pvt_data_sets_the_time_in_either_mode_and_tm_is_honoured_in_pvt_mode(i42):
+    """``PVT<ms>`` sets the move time whatever I42 says; under I42 = 0 a TM8 in PVT mode
+    times the segments after it exactly as PVT8 would."""
+    ctrl = Controller(dialect="pmac-pvt", interpolation="pvt", i42=i42)
+    assert dialects.read(PMAC_MANUAL.split("\n"), "pmac-pvt", ctrl).seconds == pytest.approx([0.1] * 3)
+    lines = PMAC_MANUAL.split("\n")
+    lines.insert(9, "TM8" if i42 == 0 else "TA8")  # after the first PVT move
+    as_pvt = PMAC_MANUAL.split("\n")
+    as_pvt.insert(9, "PVT8")
+    got, want = dialects.read(lines, "pmac-pvt", ctrl), dialects.read(as_pvt, "pmac-pvt", ctrl)
+    np.testing.assert_allclose(got.seconds, [0.1, 0.008, 0.008])
+    np.testing.assert_allclose(got.seconds, want.seconds)
+    other = PMAC_MANUAL.split("\n")
+    other.insert(9, "TA8" if i42 == 0 else "TM8")
+    with pytest.raises(dialects.DialectError, match=rf"^line 10 .*in PVT mode: under I42={i42}"):
+        dialects.read(other, "pmac-pvt", ctrl)
+
+
+@pytest.mark.parametrize(
+    ("edit", "why"),
+    [
+        (
+            ("PVT100", "PVT0.0000001"),
+            r"^line 8 .*segment time PVT0.0000001 ms is outside .*0.44211 ms servo cycle",
+        ),
+        (("PVT100", "PVT5000"), r"^line 8 .*PVT5000 ms is outside .*4095.9998 ms\]"),
+        (("C36:360X", "C36:" + "9" * 400 + ".0X"), r"^line 9 .*C velocity 9+… is not a finite number"),
+        (
+            ("X-0.001:-0.01Z0:0\nC36:360 X", "X-0.001:-0.01Z0:0\nC36:360 X" + "1" * 400 + ".5"),
+            r"^line 11 .*X position .* is not a finite number",
+        ),
+    ],
+)
+def test_absurd_pmac_times_and_numbers_are_refused_by_line(edit, why):
+    text = PMAC_MANUAL.replace(*edit, 1)
+    with pytest.raises(dialects.DialectError, match=why):
+        dialects.read(text.split("\n"), "pmac-pvt")
+
+
+def test_c_modulo_360_needs_a_c_motor_that_rolls_over():
+    """C written modulo 360 on a profile without rollover (Ixx27 = 0) is refused naming the
+    line and Ixx27; with rollover every move takes the shorter way round."""
+    blocks = [f"C{(36.0 * k) % 360:g}:360 X{1 - 0.001 * k:g}:-0.01 Z0:0" for k in range(1, 16)]
+    text = ["OPEN PROG 1 CLEAR", "ABS", "RAPID", "C0 X1 Z0", "PVT100", *blocks, "CLOSE"]
+    with pytest.raises(dialects.DialectError, match=r"^line 15: C goes from 324 to 0.*\(Ixx27 = 0"):
+        dialects.read(text, "pmac-pvt", nc.profile_for("sts-pmac-pvt", "pmac-pvt"))
+    rolls = Controller(dialect="pmac-pvt", interpolation="pvt", c_wrap="revolution")
+    np.testing.assert_allclose(dialects.read(text, "pmac-pvt", rolls).c_deg, 36.0 * np.arange(16))
+
+
+def test_the_pmac_time_unit_is_named_per_controller_family():
+    turbo = Controller(dialect="pmac-pvt", interpolation="pvt")
+    power = Controller(dialect="pmac-pvt", interpolation="pvt", pmac_syntax="power")
+    want = "Isx90=1000 velocity per 1 s, I42=0 segment time by TM or PVT<ms>"
+    assert turbo.conventions()[0].startswith(want)
+    assert power.conventions()[0].startswith("Coord[x].FeedTime=1000 velocity per 1 s")
 
 
 # -------------------------------------------------------------------- what gcodeparser is not
@@ -490,3 +578,209 @@ def test_a_power_pmac_spline_program_is_written_in_its_syntax_and_read_alike(tmp
     np.testing.assert_allclose(
         got[1:].reshape(-1, len(want)), np.column_stack(list(want.values())), atol=1e-12
     )
+
+
+# ------------------------------------------------------------- programs as shops publish them
+def published(body: list[str] | None = None, passes: int = 2, blank: bool = True) -> str:
+    """A program shaped like a CAM's published Moore template: macro variables for the passes
+    and the depth, a WHILE loop whose every pass shifts Z with ``G52 Z[#8]``, approaches in
+    G94, then ``G93 F0.001`` and a zero-length first block where the approach left the tool,
+    the points with C written modulo 360 (a whole revolution as C360.), an air return
+    ``G93 F0.001 C0`` from C360 to C0, and blank lines between the sections."""
+    gap = [""] if blank else []
+    blocks = points() if body is None else body
+    head = [
+        "%",
+        "O1000",
+        "(MOORE 650FG STS TEMPLATE)",
+        f"#100 = {passes} (NUMBER OF PASSES)",
+        "#103 = 0.002 (DEPTH PER PASS)",
+        "#8 = [#100 - 1] * #103",
+        *gap,
+        "G52 G63 G71 G103 G40 G18 G90",
+        "G54",
+        "T0101",
+        "M78",
+        "M26.1",
+        *gap,
+        "WHILE [#100 GT 0] DO1",
+        "G52 Z[#8]",
+        "G94 G01 Z20. F500.",
+        f"X{RADIUS_MM:.6f} C0.",
+        "Z0. F10.",
+        "G93 F0.001",
+        f"C0.000000 X{RADIUS_MM:.6f} Z0.000000",
+    ]
+    tail = [
+        "G93 F0.001 C0",
+        "G94 G01 Z20. F500.",
+        "#8 = #8 - #103",
+        "#100 = #100 - 1",
+        "END1",
+        *gap,
+        "G52",
+        "M29",
+        "M30",
+        "%",
+    ]
+    return "\n".join([*head, *gap, *blocks, *gap, *tail]) + "\n"
+
+
+def whole_revolutions() -> list[str]:
+    """:func:`points` as a CAM prints a whole revolution's C: 360., not 0."""
+    return [b.replace("C0.000000 ", "C360.000000 ") for b in points()]
+
+
+def test_a_published_template_is_read_as_its_controller_runs_it():
+    """The zero-length first block and the air return C360 -> C0 move no axis: legal blocks
+    that take their time; the template's loop gives one cut per pass."""
+    text = published(whole_revolutions(), passes=3)
+    moves = _read(text)
+    lines = text.split("\n")
+    assert len(moves.cuts()) == 3
+    assert moves.n_points == 3 * (N_BLOCKS + 1)
+    # per pass: the zero-length block and the air return stand still for 1 ms each
+    assert moves.still_s == pytest.approx(3 * 2 * BLOCK_S)
+    stills = [line for line, what in moves.not_cut if "moving no axis" in what]
+    first = lines.index(f"C0.000000 X{RADIUS_MM:.6f} Z0.000000") + 1  # physical, blank lines counted
+    back = lines.index("G93 F0.001 C0") + 1
+    assert (first, back) == (20, first + N_BLOCKS + 3)  # a blank line before and after the points
+    assert stills[:2] == [first, back]
+    for k, (lo, hi) in enumerate(moves.cuts()):
+        np.testing.assert_allclose(moves.z_mm[lo:hi], (2 - k) * 0.002, atol=1e-12)
+        # a cut's start (where the approach left the tool) is named by its first block that turns C
+        assert moves.point_lines[lo] == first + 2 and moves.point_lines[hi - 1] == back - 2
+    summary = dialects.summary(moves)
+    assert summary["spindle_rpm_range"]["min"] == pytest.approx(summary["spindle_rpm_range"]["max"])
+    # a block's own drop is printed to 1 nm (6 decimals of mm): per block the feed is known to
+    # 1 nm over the block's turn, 0.36 µm/rev here, where over a revolution the rounding averages out
+    printed = 1e-3 * 360.0 / STEP_DEG
+    assert summary["feed_um_per_rev_by_block"]["median"] == pytest.approx(FEED_UM, abs=printed)
+    assert summary["feed_um_per_block"]["median"] == pytest.approx(FEED_UM * STEP_DEG / 360.0, abs=1e-3)
+    assert summary["feed_um_per_rev"]["median"] == pytest.approx(FEED_UM, rel=1e-4)
+
+
+def test_a_published_templates_form_error_is_the_feeds_cusp(tmp_path, flat_catalogs):
+    """The independent computation: on a flat part the last pass leaves the cusps f²/8r."""
+    code, out = _with_catalogs(
+        flat_catalogs,
+        tmp_path,
+        published(whole_revolutions()),
+        "--surface",
+        "flat",
+        "--nose-radius-um",
+        str(NOSE_UM),
+    )
+    assert code == 0, out
+    got = json.loads(out)
+    assert got["cuts"] == 2
+    assert got["pv_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    assert got["standstill_s"] == pytest.approx(4 * BLOCK_S)
+    assert any("moving no axis" in p["what"] for p in got["not_cut"])
+
+
+def test_a_bare_point_list_is_read_with_its_templates_preamble(tmp_path, flat_catalogs):
+    """The list (C X Z blocks only) read after the template's lines up to where the points go
+    predicts what the template with the list pasted in does."""
+    text = published(whole_revolutions(), passes=1, blank=False).split("\n")
+    cut = text.index("G93 F0.001") + 2  # after the zero-length block
+    pre, bare = tmp_path / "template.nc", tmp_path / "list.nc"
+    # a preamble opens no loop the list would have to close: the template's head, one pass
+    head = [line for line in text[:cut] if not line.startswith("WHILE")]
+    pre.write_text("\n".join(head) + "\n")
+    bare.write_text("\n".join(whole_revolutions()) + "\n")
+    env = {"FTSWEEP_CATALOGS": str(flat_catalogs)}
+    args = [
+        "predict",
+        "--program",
+        str(bare),
+        "--preamble",
+        str(pre),
+        "--machine",
+        "sts-moore",
+        "--surface",
+        "flat",
+        "--nose-radius-um",
+        str(NOSE_UM),
+        "--json",
+    ]
+    r = CliRunner().invoke(main, args, env=env)
+    assert r.exit_code == 0, r.output
+    got = json.loads(r.output)
+    assert got["preamble"] == str(pre) and got["started_from"].startswith("G01 G93 F0.001 G90, at C0 X0.5 Z0")
+    assert got["n_points"] == N_BLOCKS + 1 and got["pv_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    # without the preamble the list has no time (the Moore's power-on feed mode is G94)
+    r = CliRunner().invoke(main, [a for a in args if a not in ("--preamble", str(pre))], env=env)
+    assert r.exit_code != 0 and "power-on feed mode is G94" in r.output
+    # a refusal names the list's own line, and a preamble's as such
+    bad = whole_revolutions()
+    bad[99] = "C45.000000 X0.49 Q1 Z0.0"
+    bare.write_text("\n".join(bad) + "\n")
+    r = CliRunner().invoke(main, args, env=env)
+    assert r.exit_code != 0 and "line 100, column 18" in r.output
+    bare.write_text("\n".join(whole_revolutions()) + "\n")
+    pre.write_text("\n".join(head).replace("G54", "G54 Q1") + "\n")
+    r = CliRunner().invoke(main, args, env=env)
+    assert r.exit_code != 0 and "preamble line 8, column 5" in r.output
+    pre.write_text("\n".join(text[:cut]) + "\n")  # the loop's WHILE without its END
+    r = CliRunner().invoke(main, args, env=env)
+    loop = text.index("WHILE [#100 GT 0] DO1") + 1
+    assert r.exit_code != 0 and f"preamble line {loop} " in r.output and "has no END1" in r.output
+
+
+def test_refusals_name_the_physical_line_after_blank_lines(tmp_path):
+    """Blank and comment lines count as an editor counts them."""
+    body = whole_revolutions()[:50] + ["C45.000000 X0.49 Z0.0"]  # C turns back at the 51st point
+    text = published(body, passes=1)
+    want = text.split("\n").index("C45.000000 X0.49 Z0.0") + 1
+    path = tmp_path / "p.nc"
+    path.write_text(text)
+    with pytest.raises(dialects.DialectError, match=rf"^line {want} .*C turns back"):
+        nc.read_any(path, "sts-moore")
+    assert want == 72  # 69 written lines and 3 blank ones before it
+
+
+def test_a_refusal_about_a_point_names_its_line(tmp_path):
+    """The simulator's refusals about a point (here C turning back in a PMAC cut) name the
+    point's line."""
+    text = PMAC_MANUAL.replace("C36:360 X-0.001", "C-72:360 X-0.001")
+    code, out = predict(tmp_path, text, "--surface", "sinewave2d", "--nose-radius-um", "500")
+    assert code == 1 and "line 11: C stands still or turns back within a cut" in out, out
+
+
+SHOP_CUTTING = """
+shop-83rpm:
+  description: 720 blocks a revolution of 1 ms each (83.33 rpm), 38.9 um/rev, as a CAM's Moore programs.
+  feed_um: 38.9
+  nose_radius_um: 500.0
+  spindle_rpm: 83.33333333333333
+"""
+
+
+@pytest.mark.parametrize("machine", ["sts-moore", "sts-linuxcnc"])
+def test_an_export_never_refuses_its_own_plan(tmp_path, machine):
+    """At 720 points a revolution and 38.9 µm/rev, 1 ms a block, the spiral's last block into
+    the centre is under the servo period: the plan merges it into the one before, the header
+    says so, and the program exports and verifies."""
+    from conftest import make_catalog_dir
+
+    folder = make_catalog_dir(tmp_path / "catalogs")
+    with (folder / "cutting.yaml").open("a") as fh:
+        fh.write(SHOP_CUTTING)
+    env = {"FTSWEEP_CATALOGS": str(folder)}
+    spec = tmp_path / "s.yaml"
+    spec.write_text(
+        f"surface: flat\nlayout: spiral\nmachine: {machine}\ncutting: shop-83rpm\n"
+        "axes:\n  points_per_rev: [720]\n"
+    )
+    cube, out = tmp_path / "s.zarr", tmp_path / "p.nc"
+    run = CliRunner()
+    r = run.invoke(main, ["sweep", str(spec), "--out", str(cube), "--scheduler", "synchronous"], env=env)
+    assert r.exit_code == 0, r.output
+    r = run.invoke(main, ["export", str(cube), "--case", "0", "-o", str(out)], env=env)
+    assert r.exit_code == 0, r.output
+    end = next(line for line in out.read_text().split("\n") if "end: the last block" in line)
+    last_ms = float(end.split("takes ")[1].split(" ms")[0])
+    assert 1.0 <= last_ms < 2.0 and "merged into the one before it" in end
+    r = run.invoke(main, ["verify", str(out)], env=env)
+    assert r.exit_code == 0, r.output

@@ -86,6 +86,14 @@ class _PredictCommand(click.Command):
     "part, nm) as a PNG.",
 )
 @click.option(
+    "--preamble",
+    type=click.Path(exists=True, dir_okay=False),
+    help="With --program: a template's lines read before the program's own, so that a bare point "
+    "list (C X Z blocks only, published to be pasted into a template) is read with the template's "
+    "modal state (G93 and its F, G90, offsets, the position its approach left the tool at). The "
+    "summary says the state the program started from; refusals name preamble lines as such.",
+)
+@click.option(
     "--g93-f",
     type=click.Choice(["inverse_minutes", "seconds"]),
     default=None,
@@ -268,6 +276,7 @@ def _predict_program(opts: dict[str, Any]) -> None:
             progress,
             map_bins=160 if opts["map_png"] else None,
             nose_radius_um=opts["nose_radius_um"],
+            preamble=opts["preamble"],
         )
     except (nc.ProgramError, CaseError, CatalogError, SurfaceLoadError) as exc:
         raise click.ClickException(str(exc)) from None
@@ -293,17 +302,27 @@ def _echo_program(info: dict[str, Any]) -> None:
         + (f" in {info['cuts']:,} cuts" if info["cuts"] > 1 else "")
     )
     ppr, rpm = info["points_per_rev_range"], info["spindle_rpm_range"]
+    block, by_block = info["feed_um_per_block"], info["feed_um_per_rev_by_block"]
     click.echo(
-        f"feed         {feed['min']:.4g} / {feed['median']:.4g} / {feed['max']:.4g} µm/rev; points per "
-        f"revolution {ppr['min']:.4g} / {ppr['median']:.4g} / {ppr['max']:.4g} (min / median / max)"
+        f"feed         {feed['min']:.4g} / {feed['median']:.4g} / {feed['max']:.4g} µm/rev over each "
+        f"revolution; per block {by_block['median']:.4g} µm/rev ({block['median']:.4g} µm a block); points "
+        f"per revolution {ppr['min']:.4g} / {ppr['median']:.4g} / {ppr['max']:.4g} (min / median / max)"
     )
     click.echo(
         f"spindle      {rpm['min']:.4g} / {rpm['median']:.4g} / {rpm['max']:.4g} rpm, "
         f"{info['spindle_direction']}; {info['machining_s']:.4g} s cutting"
         + (f", {info['dwell_s']:.4g} s dwelling" if info["dwell_s"] else "")
+        + (f", {info['standstill_s']:.4g} s standing still" if info["standstill_s"] else "")
     )
+    click.echo(f"started from {info['started_from']}")
     for line in info["conventions"]:
         click.echo(f"read as      {line}")
+    click.echo(f"cuts         {info['cut_rule']}")
+    passed = info["not_cut"]
+    if passed:
+        shown = "; ".join(f"line {p['line']}: {p['what']}" for p in passed[:6])
+        more = f"; … ({len(passed)} listed in --json)" if len(passed) > 6 else ""
+        click.echo(f"not cut      {shown}{more}")
     for name, a in info["axes"].items():
         unit = name.rsplit("_", 2)[-2] + "/" + name.rsplit("_", 1)[-1]
         limit = (

@@ -118,6 +118,7 @@ def check_program(path: Path, moves: Any, adapter: Any, ctrl: Any) -> dict[str, 
         "1" if ctrl.g93_f == "seconds" else "0",
         "1" if ctrl.c_wrap == "revolution" and ctrl.dialect != "linuxcnc" else "0",
         "1" if ctrl.pmac_syntax == "power" else "0",
+        str(int(ctrl.i42)),
     ]
     with tempfile.TemporaryDirectory(prefix="ftsref-") as tmp:
         exe = _build(Path(tmp), [])

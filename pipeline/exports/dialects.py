@@ -158,8 +158,10 @@ def _spline(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     d = ctrl.decimals
     pos = {a: _num(v, d) for a, v in _axes(m).items()}
     out = _pmac_head(m, d)
-    ta = int(round(float(m.seconds[0]) * 1e3))
-    out.append(f"spline{ta}" if ctrl.pmac_syntax == "power" else f"SPLINE1 TA{ta}")
+    ta = f"{float(m.seconds[0]) * 1e3:.5f}".rstrip("0").rstrip(".")  # ms on whole 1/4 µs steps
+    # the Turbo PMAC times SPLINE moves by TM under I42 = 0 (its default), by TA under I42 = 1
+    timer = "TA" if ctrl.i42 == 1 else "TM"
+    out.append(f"spline{ta}" if ctrl.pmac_syntax == "power" else f"SPLINE1 {timer}{ta}")
     out += [" ".join(f"{a}{pos[a][k]}" for a in pos) for k in range(1, m.n_points)]
     return out + _retract(m, d) + ["CLOSE"]
 
@@ -176,11 +178,12 @@ def detect(lines: list[str]) -> str:
     return "iso-sts"
 
 
-def read(lines: list[str], dialect: str, ctrl: Any = None) -> Moves:
+def read(lines: list[str], dialect: str, ctrl: Any = None, preamble: int = 0) -> Moves:
     """The moves a program's lines command, read as the controller of profile ``ctrl``
     (:class:`ftsweep.inputs.controllers.Controller`, or its recorded dict; None: the dialect's
     defaults) reads ``dialect`` (:func:`detect`); :class:`DialectError` names the first line
-    it cannot evaluate."""
+    it cannot evaluate, as the file's physical line. The first ``preamble`` lines are a
+    template's, read before the program's own (refusals name them as preamble lines)."""
     if ctrl is None:
         ctrl = Controller(dialect=dialect, interpolation=INTERPOLATION[dialect])
     elif isinstance(ctrl, dict):
@@ -188,8 +191,8 @@ def read(lines: list[str], dialect: str, ctrl: Any = None) -> Moves:
             {**ctrl, "dialect": dialect, "interpolation": INTERPOLATION[dialect]}
         )
     if dialect.startswith("pmac"):
-        return read_pmac(lines, dialect, ctrl)
-    return IsoReader(lines, dialect, ctrl).run()
+        return read_pmac(lines, dialect, ctrl, preamble)
+    return IsoReader(lines, dialect, ctrl, preamble).run()
 
 
 __all__ = [

@@ -270,11 +270,12 @@ def where_in(raw: bytes, pos: int) -> str:
     return f"line {line}, column {column}"
 
 
-def check_controller_text(path: Path, raw: bytes) -> None:
+def check_controller_text(path: Path, raw: bytes, blank_lines: bool = False) -> None:
     """Refuse bytes a controller would read differently from export's lines: anything but
     printable ASCII and LF (a CR, alone or before LF, ends a line on a controller that
     splits lines at CR; NUL, tabs and non-ASCII bytes are not written by export), a blank
-    line, or a last line without its LF. Names the line and column."""
+    line (unless ``blank_lines``: a program from elsewhere), or a last line without its LF.
+    Names the line and column."""
     buf = np.frombuffer(raw, dtype=np.uint8)
     bad = ((buf < 32) & (buf != 10)) | (buf > 126)
     if bad.any():
@@ -285,8 +286,8 @@ def check_controller_text(path: Path, raw: bytes) -> None:
             else (f"byte 0x{raw[pos]:02x}, which export never writes")
         )
         raise ProgramError(f"{path}: {where_in(raw, pos)} holds {what}; do not run it")
-    blank = raw.find(b"\n\n")
-    if blank >= 0 or raw.startswith(b"\n"):
+    blank = -1 if blank_lines else raw.find(b"\n\n")
+    if blank >= 0 or (raw.startswith(b"\n") and not blank_lines):
         raise ProgramError(f"{path}: {where_in(raw, blank + 1)} is blank; export writes no blank line")
     if not raw.endswith(b"\n"):
         raise ProgramError(f"{path}: the last line has no line end (LF); the file was cut short")

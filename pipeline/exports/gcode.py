@@ -14,7 +14,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep.exports import macro
-from ftsweep.exports.moves import DialectError, Moves
+from ftsweep.exports.moves import DialectError, Moves, line_label
 
 # lines a program's loops and jumps may execute beyond the file's own (about 3 s here at
 # ~3.4 µs a line): no loop makes the reader run away, and a loop-made program of up to
@@ -44,6 +44,8 @@ END_M = {2.0, 30.0}
 AXES = ("C", "X", "Y", "Z", "W")
 # a G94 feed move turning C among this many in a row is a cut, not an approach
 G94_CUT_RUN = 3
+# moves that are not cuts listed in a summary (the rest counted by the cuts' rule alone)
+MAX_LISTED = 50
 # what a lathe's spindle program can be (a reading outside names the likely convention)
 RPM_RANGE = (0.1, 20_000.0)
 MAX_REVOLUTION_S = 3600.0
@@ -53,8 +55,14 @@ class IsoReader:
     """ISO STS / RS274 G-code as the controller of profile ``ctrl``
     (:class:`ftsweep.inputs.controllers.Controller`) reads it (module docstring)."""
 
-    def __init__(self, lines: list[str], dialect: str, ctrl: Any) -> None:
+    def __init__(self, lines: list[str], dialect: str, ctrl: Any, preamble: int = 0) -> None:
+        # ``preamble``: how many of ``lines`` are a template's, read before the program's own
+        # (a bare point list takes their modal state); refusals name those as preamble lines
         self.lines, self.dialect, self.ctrl = lines, dialect, ctrl
+        self.preamble = preamble
+        self.started_from = ""
+        self.still_s = 0.0
+        self.not_cut: list[tuple[int, str]] = []
         self.vars: dict[int, float] = {}
         self.pos = {a: math.nan for a in AXES}
         self.offset = {a: 0.0 for a in AXES}
@@ -83,10 +91,14 @@ class IsoReader:
         self._col = 0  # the column of the word being evaluated, for messages (0: the line)
         self._loops: dict[int, int] = {}
 
+    def line_no(self, n: int) -> int:
+        """The physical line of ``lines[n]`` in its file (1-based; a preamble's negative)."""
+        return n - self.preamble + 1 if n >= self.preamble else -(n + 1)
+
     def fail(self, n: int, why: str) -> DialectError:
         text = self.lines[n].strip()[:80] if 0 <= n < len(self.lines) else ""
         col = f", column {self._col}" if self._col else ""
-        return DialectError(f"line {n + 1}{col} ({text!r}): {why}")
+        return DialectError(f"{line_label(self.line_no(n))}{col} ({text!r}): {why}")
 
     def _column(self, n: int, token: str) -> int:
         """Where ``token`` (a word as cleaned) stands in line ``n`` as written (1-based; 0
@@ -101,12 +113,29 @@ class IsoReader:
             self.blocks += 1  # every line executed counts (loop tests too): no loop runs away
             if self.blocks > self.budget:
                 raise self.fail(n, self._over_budget())
+            if self.preamble and n >= self.preamble and not self.started_from:
+                self.started_from = self._state()
             n = self._step(n)
+        if self.preamble and not self.started_from:
+            raise DialectError(
+                "the preamble ends the program (M2/M30) or never reaches its end: the program's own "
+                "lines are not read"
+            )
         if not self.out["C"]:
             raise DialectError(self._no_cut())
         moves = self._moves()
         self._plausible(moves)
         return moves
+
+    def _state(self) -> str:
+        """The modal state and position the program's own lines start from."""
+        feed = f"G93 F{self.feed:g}" if self.g93 and self.feed > 0 else ("G93" if self.g93 else "G94")
+        motion = {None: "no motion mode", 0.0: "G00", 1.0: "G01"}[self.motion]
+        at = " ".join(f"{a}{self.pos[a]:g}" for a in AXES if math.isfinite(self.pos[a]))
+        offsets = " ".join(f"{a}{v:g}" for a, v in self.offset.items() if v)
+        return f"{motion} {feed} {'G90' if self.absolute else 'G91'}, at {at or 'no position'}" + (
+            f", G52 {offsets}" if offsets else ""
+        )
 
     def _no_cut(self) -> str:
         feed = "G93" if self.ctrl.power_on_feed == "G93" else "G94 (feed per minute)"
@@ -385,7 +414,7 @@ class IsoReader:
             )
         target = self._target(axes)
         if self.g93 and self.motion == 1.0:
-            self._cut(n, target)
+            self._inverse_time(n, target)
             return
         turns = "C" in target and target["C"] != self.pos["C"] and math.isfinite(self.pos["C"])
         self.g94_c_run = self.g94_c_run + 1 if turns and self.motion == 1.0 else 0
@@ -397,6 +426,45 @@ class IsoReader:
                 "G93" + (" (the profile's power-on feed mode is G94)" if not self.first_f else ""),
             )
         self.in_cut = False  # a move outside G93 (an approach, the retract) ends a cut
+        what = "rapid" if self.motion == 0.0 else "G94 feed"
+        self._passed(n, f"{what} move of {''.join(sorted(target))}")
+        self.pos.update(target)
+
+    def _passed(self, n: int, what: str) -> None:
+        """A move that is not a cut, listed (the first ones: a loop repeats its approaches)."""
+        if len(self.not_cut) < MAX_LISTED:
+            self.not_cut.append((self.line_no(n), what))
+
+    def _moved(self, target: dict[str, float]) -> list[str]:
+        """The axes ``target`` moves from where the tool stands (an unknown position counts as
+        moved); C read modulo 360 by a profile that wraps it (C360 is C0)."""
+        wraps = self.ctrl.c_wrap == "revolution" and self.dialect != "linuxcnc"
+        out = []
+        for axis, value in target.items():
+            here = self.pos[axis]
+            step = value - here
+            if axis == "C" and wraps and math.isfinite(step):
+                step = math.remainder(step, 360.0)
+            if not math.isfinite(here) or abs(step) > 1e-12 * max(1.0, abs(value)):
+                out.append(axis)
+        return out
+
+    def _inverse_time(self, n: int, target: dict[str, float]) -> None:
+        """A G93 feed block: a cut's block if it turns C; a standstill for its time if it moves no
+        axis (a zero-length block, C360 -> C0 read modulo 360); else an air move that is not
+        cut (an approach or a return with C still), which ends a cut."""
+        moved = self._moved(target)
+        if not moved:
+            seconds = self._seconds(n)
+            self.still_s += seconds
+            self._passed(n, f"G93 block moving no axis: {seconds:g} s standing still")
+        elif "C" not in moved:
+            self._seconds(n)
+            self.in_cut = False
+            self._passed(n, f"G93 move of {''.join(sorted(moved))} without turning C")
+        else:
+            self._cut(n, target)
+            return
         self.pos.update(target)
 
     def _cut(self, n: int, target: dict[str, float]) -> None:
@@ -470,6 +538,10 @@ class IsoReader:
             w,
             starts[1:] if starts.size > 1 else None,
             dwell_s=self.dwell_s,
+            still_s=self.still_s,
+            point_lines=np.array([self.line_no(k) for k in self.point_line], dtype=np.int64),
+            not_cut=self.not_cut,
+            started_from=self.started_from,
         )
 
     def _one_way(self, c: np.ndarray, lo: int, hi: int) -> None:
@@ -512,7 +584,7 @@ class IsoReader:
             return "the program"
         n, f = self.first_f
         how = "inverse minutes" if self.ctrl.g93_f == "inverse_minutes" else "seconds per block"
-        return f"line {n + 1}: G93 F{f:g} as {how}"
+        return f"{line_label(self.line_no(n))}: G93 F{f:g} as {how}"
 
     def _f_question(self) -> str:
         other = "seconds per block" if self.ctrl.g93_f == "inverse_minutes" else "inverse minutes"

@@ -39,6 +39,16 @@ class Moves:
     w_mm: Optional[np.ndarray] = None
     cut_starts: Optional[np.ndarray] = None
     dwell_s: float = 0.0  # time the program's dwells (G04) stand still, not in ``seconds``
+    # G93 blocks that move no axis (a zero-length block, C360 -> C0 read modulo 360): the
+    # tool stands still for their time [s], not in ``seconds``
+    still_s: float = 0.0
+    # each point's physical line in the file (1-based, as an editor counts; a preamble's
+    # lines negative: :func:`line_label`), for refusals that name a point
+    point_lines: Optional[np.ndarray] = None
+    # moves that are not cuts (approaches, returns, air moves): (line, what) in file order
+    not_cut: list[tuple[int, str]] = field(default_factory=list)
+    # the modal state the program was read from (a preamble's, or the profile's power-on)
+    started_from: str = ""
     # a PVT program's last segment is its stop after the planned path (:func:`with_stop`)
     stopped: bool = False
 
@@ -46,11 +56,23 @@ class Moves:
     def n_points(self) -> int:
         return int(self.c_deg.size)
 
+    def where(self, k: int) -> str:
+        """Where point ``k`` (0-based) stands in the file: its line, else its number."""
+        if self.point_lines is None or not 0 <= k < self.point_lines.size:
+            return f"point {k + 1}"
+        return line_label(int(self.point_lines[k]))
+
     def cuts(self) -> list[tuple[int, int]]:
         """(first, stop) point indices of every cut, in program order (one for most programs)."""
         starts = [] if self.cut_starts is None else [int(k) for k in self.cut_starts]
         edges = [0, *starts, self.n_points]
         return list(zip(edges[:-1], edges[1:], strict=True))
+
+
+def line_label(line: int) -> str:
+    """A physical line as a refusal names it: ``line N`` of the program, ``preamble line N``
+    for a line of the preamble it was read after (stored negative)."""
+    return f"line {line}" if line > 0 else f"preamble line {-line}"
 
 
 # PVT velocities in a file's units from the simulator's (C rad/s → deg/s, lengths µm/s → mm/s)
@@ -139,6 +161,7 @@ def with_stop(m: Moves, seconds: float) -> Moves:
         seconds=np.append(m.seconds, seconds),
         velocity=velocity,
         stopped=True,
+        point_lines=None if m.point_lines is None else np.append(m.point_lines, m.point_lines[-1]),
     )
 
 
@@ -157,6 +180,7 @@ def without_stop(m: Moves) -> Moves:
         seconds=m.seconds[:-1],
         velocity=velocity,
         stopped=False,
+        point_lines=None if m.point_lines is None else m.point_lines[:-1],
     )
 
 
@@ -190,11 +214,18 @@ def summary(m: Moves) -> dict[str, Any]:
     over a revolution of C, :func:`_feeds`), the time [s] and the spindle speed [rpm] of a program's moves,
     over its cuts (a layered program's approach moves between cuts left out); the spindle
     either way (revolutions counted as turned). Feed, points per revolution (per whole
-    revolution turned) and spindle speed (per block) also as min / median / max."""
-    revs, seconds, feeds, counts, rpm = 0.0, 0.0, [], [], []
+    revolution turned) and spindle speed (per block) also as min / median / max; the feed per
+    block too (X's drop in a block [µm], and that drop over the block's turn [µm/rev]); the
+    moves that are not cuts (approaches, returns, standstills) by line."""
+    revs, seconds, feeds, counts, rpm, drops, block_feeds = 0.0, 0.0, [], [], [], [], []
     for lo, hi in m.cuts():
         turn = np.abs(m.c_deg[lo:hi] - m.c_deg[lo]) / 360.0
         revs += float(turn[-1])
+        drop = -np.diff(m.x_mm[lo:hi] * 1e3)
+        drops.append(drop)
+        block_feeds.append(
+            np.divide(drop, np.diff(turn), out=np.full(drop.shape, np.nan), where=np.diff(turn) > 0)
+        )
         dt = m.seconds[lo : hi - 1]
         # SPLINE1 runs one TA more at each end (the controller's added pieces, from and to rest)
         seconds += float(np.sum(dt)) + (
@@ -213,8 +244,14 @@ def summary(m: Moves) -> dict[str, Any]:
         "points_per_rev": (m.n_points - len(m.cuts())) / revs if revs > 0 else math.nan,
         "points_per_rev_range": _stats(np.concatenate(counts)),
         "feed_um_per_rev": _stats(np.concatenate(feeds)),
+        # a block's own X drop [µm], and as a feed per revolution (drop / the block's turn), as CAM quotes it
+        "feed_um_per_block": _stats(np.concatenate(drops)),
+        "feed_um_per_rev_by_block": _stats(np.concatenate(block_feeds)),
         "machining_s": seconds,
         "dwell_s": float(m.dwell_s),
+        "standstill_s": float(m.still_s),
+        "not_cut": [{"line": line, "what": what} for line, what in m.not_cut],
+        "started_from": m.started_from or "the profile's power-on state",
         "spindle_rpm": revs / seconds * 60.0 if seconds > 0 else math.nan,
         "spindle_rpm_range": _stats(np.concatenate(rpm)),
         "spindle_direction": direction,

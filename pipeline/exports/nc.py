@@ -249,14 +249,15 @@ def _replace_digest(line: str, dialect: str, digest: str) -> str:
 
 def read_lines(path: Path, strict: bool) -> list[str]:
     """A program's lines: ASCII, bounded, a regular file; ``strict`` (a file ftsweep wrote)
-    as export writes them (LF only, no blank line), else CR LF line ends allowed."""
+    as export writes them (LF only, no blank line), else CR LF line ends allowed and every
+    line kept, blank ones too, so that ``lines[k]`` is the file's line k + 1 as an editor
+    counts it."""
     raw = read_regular(path, MAX_PROGRAM_BYTES, "program")
     if not strict:
         raw = raw.replace(b"\r\n", b"\n")
         if raw and not raw.endswith(b"\n"):
             raw += b"\n"
-        raw = b"\n".join(line for line in raw.split(b"\n") if line.strip()) + b"\n"
-    check_controller_text(path, raw)
+    check_controller_text(path, raw, blank_lines=not strict)
     return raw.decode("ascii").split("\n")[:-1]
 
 
@@ -461,6 +462,7 @@ def predict_program(
     progress: Any = None,
     map_bins: Optional[int] = None,
     nose_radius_um: Optional[float] = None,
+    preamble: Optional[Path] = None,
 ) -> dict[str, Any]:
     """Read a path program in any supported dialect (ftsweep's or another CAM's) as the
     profile of its machine (``machine``, else the one its header names, else its dialect's
@@ -469,14 +471,16 @@ def predict_program(
     ``surface``, predict the form error it leaves (with ``map_bins``, its error map) through
     the one simulator, as the program kind that reads programs from elsewhere (its adapter's
     ``stand_in``) simulates it, with the ``cutting`` entry's tool or ``nose_radius_um`` [µm]
-    (docs/controllers.md)."""
+    (docs/controllers.md). A ``preamble`` file's lines are read first, the program's
+    own from the modal state they leave (a bare point list in its template's state)."""
     from ftsweep.inputs import catalogs
 
     lines = read_lines(Path(path), strict=False)  # read once: its moves and the machine it names
-    dialect = _dialect_of(lines)
-    machine, machine_from = _machine_for(named_machine(lines), machine, dialect)
+    head = [] if preamble is None else read_lines(Path(preamble), strict=False)
+    dialect = _dialect_of(head + lines)
+    machine, machine_from = _machine_for(named_machine(head + lines), machine, dialect)
     ctrl = profile_for(machine, dialect, g93_f)
-    moves = dialects.read(lines, dialect, ctrl)
+    moves = dialects.read(head + lines, dialect, ctrl, preamble=len(head))
     info: dict[str, Any] = {
         "program": str(path),
         "dialect": moves.dialect,
@@ -484,7 +488,10 @@ def predict_program(
         "machine": machine,
         "machine_from": machine_from,
         "conventions": ctrl.conventions(),
+        "cut_rule": ctrl.cut_rule(),
     }
+    if preamble is not None:
+        info["preamble"] = str(preamble)
     info.update(dialects.summary(moves))
     entry = catalogs.entry("machines", machine)
     info["axes"] = _against(_peaks(moves), entry)

@@ -1,8 +1,15 @@
 """Delta Tau PMAC motion programs (PVT and SPLINE1) read as the controller its machine's
 profile describes reads them (docs/controllers.md): Turbo PMAC's syntax (``PVT<ms>``,
-``SPLINE1`` with ``TA<ms>``) or Power PMAC's (``pvt<ms>``, ``spline<ms>``), words with or
+``SPLINE1`` timed by TM or TA) or Power PMAC's (``pvt<ms>``, ``spline<ms>``), words with or
 without spaces, integer or decimal numbers, ABS and INC, TA/TS/TM; PVT velocities in units
-per Ix90 ms, segment times by I42."""
+per Isx90 ms (Ix90 on PMAC/PMAC2, ``Coord[x].FeedTime`` on Power PMAC).
+
+Segment times follow the Turbo PMAC Software Reference's I42 entry: I42 = 0 makes TM, I42 = 1
+makes TA the time of SPLINE and PVT moves, ``PVT<ms>`` sets it in either mode; the time is in
+ms, from 0 to 4,095.9998 ms at a resolution of 1/4 µs in both modes. The other of TM and TA
+inside SPLINE or PVT mode is refused naming I42. C written modulo 360 needs a C motor that
+rolls over (Ixx27, the profile's ``c_wrap: revolution``: an ABS move takes the shorter way
+round); without rollover a jump of C by most of a revolution is refused naming Ixx27."""
 
 from __future__ import annotations
 
@@ -12,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.exports.moves import DialectError, Moves
+from ftsweep.exports.moves import DialectError, Moves, line_label
 
 _NUM = r"-?(?:\d+\.?\d*|\.\d+)"
 # a cut block giving all three axes (with their velocities in PVT): read without the tokenizer
@@ -25,22 +32,37 @@ _STATEMENT = re.compile(
 )
 _WHOLE_LINE = re.compile(r"^(OPEN\s+PROG\s*\d+(\s+CLEAR)?|CLOSE|CLEAR|END\s+GATHER|DWELL\s*0)$")
 AXES = "CXYZ"
+# the Turbo PMAC's longest segment time and its resolution (Software Reference, I42) [ms]
+MAX_SEGMENT_MS = 4095.9998
+TIME_STEP_MS = 0.00025
+# a PMAC's servo cycle at its factory settings (I10 = 3,713,707: 442.11 µs) [s], where the
+# profile declares none: no segment is shorter than one servo cycle
+DEFAULT_SERVO_S = 442.11e-6
 
 
-def read_pmac(lines: list[str], dialect: str, ctrl: Any) -> Moves:
+def read_pmac(lines: list[str], dialect: str, ctrl: Any, preamble: int = 0) -> Moves:
     """A PMAC motion program: moves to the start (RAPID or LINEAR), then PVT moves (each
-    ``AXISpos:vel``, ``PVT<ms>`` setting the segment time) or SPLINE1 moves at one TA [ms]."""
-    reader = _PmacReader(dialect, ctrl)
+    ``AXISpos:vel``, ``PVT<ms>`` or the I42-selected TM/TA setting the segment time) or
+    SPLINE1 moves at one time [ms]. The first ``preamble`` lines are a template's."""
+    reader = _PmacReader(dialect, ctrl, preamble)
     for n, line in enumerate(lines):
         reader.line(n, line)
     return reader.moves()
 
 
+def velocity_variable(ctrl: Any) -> str:
+    """The name of the variable that sets the PVT velocities' time unit on the profile's
+    controller family."""
+    return "Coord[x].FeedTime" if ctrl.pmac_syntax == "power" else "Isx90"
+
+
 class _PmacReader:
     """The state of a PMAC program read line by line (:func:`read_pmac`)."""
 
-    def __init__(self, dialect: str, ctrl: Any) -> None:
-        self.dialect, self.ctrl = dialect, ctrl
+    def __init__(self, dialect: str, ctrl: Any, preamble: int = 0) -> None:
+        self.dialect, self.ctrl, self.preamble = dialect, ctrl, preamble
+        self.lines: list[int] = []  # each point's physical line (a preamble's negative)
+        self.last_line = 0
         self.comments: list[str] = []
         self.pos: dict[str, float] = {a: math.nan for a in AXES}
         self.mode, self.seconds, self.ta_s = "", math.nan, math.nan
@@ -53,10 +75,14 @@ class _PmacReader:
         # velocities in a file's units per Ix90 ms, made per second
         self.per_second = 1000.0 / float(ctrl.ix90_ms)
 
+    def line_no(self, n: int) -> int:
+        return n - self.preamble + 1 if n >= self.preamble else -(n + 1)
+
     def fail(self, n: int, line: str, why: str) -> DialectError:
-        return DialectError(f"line {n + 1} ({line.strip()[:60]!r}): {why}")
+        return DialectError(f"{line_label(self.line_no(n))} ({line.strip()[:60]!r}): {why}")
 
     def line(self, n: int, line: str) -> None:
+        self.last_line = n
         fast = (
             _PMAC_PLAIN.match(line)
             if self.points and self.absolute and self.mode in ("PVT", "SPLINE1")
@@ -64,7 +90,7 @@ class _PmacReader:
         )
         speeds = (fast.group(2), fast.group(4), fast.group(6)) if fast else ()
         if fast and all((v is None) == (self.mode == "SPLINE1") for v in speeds):
-            self._plain(fast)
+            self._plain(n, line, fast)
             return
         if line.startswith("; "):
             self.comments.append(line[2:])
@@ -93,9 +119,15 @@ class _PmacReader:
         axis = m.group(6)
         if axis not in AXES:
             raise self.fail(n, line, f"the axis {axis} is not one of a path program's (C, X, Y, Z)")
-        move[axis] = float(m.group(7))
+        move[axis] = self._finite(n, line, m.group(7), f"{axis} position")
         if m.group(8) is not None:
-            speeds[axis] = float(m.group(8)) * self.per_second
+            speeds[axis] = self._finite(n, line, m.group(8), f"{axis} velocity") * self.per_second
+
+    def _finite(self, n: int, line: str, text: str, what: str) -> float:
+        value = float(text)
+        if not math.isfinite(value):
+            raise self.fail(n, line, f"the {what} {text[:24]}… is not a finite number")
+        return value
 
     def _statement(self, n: int, line: str, m: re.Match[str]) -> None:
         word, power = m.group(1), self.ctrl.pmac_syntax == "power"
@@ -104,33 +136,69 @@ class _PmacReader:
         elif word in ("RAPID", "LINEAR"):
             self.ended = bool(self.points)  # after the cut: the retract, never cut
             self.mode = word
-        elif m.group(3) is not None:
+        elif m.group(3) is not None:  # PVT<ms> sets the time whatever I42 says
             self.mode = "PVT"
-            self.seconds = self._time(n, line, m.group(3), "PVT")
+            self.seconds = self.ta_s = self._time(n, line, m.group(3), "PVT")
         elif m.group(2) is not None:
-            # Turbo PMAC: SPLINE1 the mode, TA its time; Power PMAC: spline<ms>, the time in it
+            # Turbo PMAC: SPLINE1 the mode, its time TM or TA by I42; Power PMAC: spline<ms>
             if not power and m.group(2) != "1":
-                raise self.fail(n, line, "a Turbo PMAC profile writes SPLINE1 with TA<ms>")
+                raise self.fail(
+                    n,
+                    line,
+                    f"a Turbo PMAC's uniform spline is SPLINE1, timed by {self._timer()} "
+                    f"(I42={self.ctrl.i42})",
+                )
             self.mode = "SPLINE1"
             if power:
                 self.ta_s = self._time(n, line, m.group(2), "spline")
-        elif m.group(4) == "A":
-            self.ta_s = self._time(n, line, m.group(5), "TA")
-        # TS (S-curve time) and TM (move time) shape LINEAR moves only: the cut's segments
-        # are PVT's or SPLINE1's, timed by PVT and TA
+        elif m.group(4) in ("A", "M"):
+            self._timer_word(n, line, "T" + m.group(4), m.group(5))
+        # TS (S-curve time) shapes LINEAR moves only
+
+    def _timer(self) -> str:
+        """The word that sets SPLINE and PVT move times under the profile's I42."""
+        return "TA" if self.ctrl.i42 == 1 else "TM"
+
+    def _timer_word(self, n: int, line: str, word: str, ms: str) -> None:
+        """TM or TA: the I42-selected one sets the SPLINE and PVT move time; the other, inside
+        SPLINE or PVT mode, is refused naming I42 (outside, it shapes LINEAR moves only)."""
+        if word == self._timer():
+            self.ta_s = self._time(n, line, ms, word)
+            if self.mode == "PVT":
+                self.seconds = self.ta_s
+        elif self.mode in ("PVT", "SPLINE1"):
+            raise self.fail(
+                n,
+                line,
+                f"{word}{ms} in {self.mode} mode: under I42={self.ctrl.i42} the SPLINE and PVT move time is "
+                f"{self._timer()} (the Turbo PMAC Software Reference's I42 entry: 0 selects TM, 1 TA); "
+                "see machine.controller.i42",
+            )
 
     def _time(self, n: int, line: str, ms: str, what: str) -> float:
-        value = float(ms)
-        if self.ctrl.i42 == 1 and value != round(value):
-            raise self.fail(n, line, f"{what} time {ms} ms: this controller takes whole ms (I42=1)")
-        if not 0.0 < value <= 4095.9998 + 1e-9:
-            raise self.fail(n, line, f"a segment time of {ms} ms is outside (0, 4095.9998]")
+        """A segment time [s] from its word [ms], on the controller's 1/4 µs steps; refused
+        outside (one servo cycle, 4,095.9998 ms]."""
+        value = round(self._finite(n, line, ms, f"{what} time") / TIME_STEP_MS) * TIME_STEP_MS
+        servo_ms = (self.ctrl.servo_period_s or DEFAULT_SERVO_S) * 1e3
+        if not servo_ms * (1.0 - 1e-9) <= value <= MAX_SEGMENT_MS + 1e-9:
+            declared = (
+                ""
+                if self.ctrl.servo_period_s
+                else " (a PMAC's factory servo cycle; the profile declares none)"
+            )
+            raise self.fail(
+                n,
+                line,
+                f"a segment time {what}{ms[:24]} ms is outside the controller's ({servo_ms:g} ms servo "
+                f"cycle{declared}, {MAX_SEGMENT_MS} ms]",
+            )
         return value * 1e-3
 
-    def _plain(self, m: re.Match[str]) -> None:
+    def _plain(self, n: int, line: str, m: re.Match[str]) -> None:
         """A cut block of :data:`_PMAC_PLAIN`'s form: what :meth:`_move` makes of it."""
         self.pos = {**self.pos, "C": float(m.group(1)), "X": float(m.group(3)), "Z": float(m.group(5))}
         self.points.append(self.pos)
+        self.lines.append(self.line_no(n))
         if self.mode == "PVT":
             k = self.per_second
             v = {"C": float(m.group(2)) * k, "X": float(m.group(4)) * k, "Z": float(m.group(6)) * k}
@@ -155,9 +223,11 @@ class _PmacReader:
         if not self.points:
             self.cut_mode = self.mode
             self.points.append(dict(self.pos))
+            self.lines.append(self.line_no(n))
             self.vel.append({a: 0.0 for a in AXES})  # a RAPID ends at rest
         self.pos.update(target)
         self.points.append(dict(self.pos))
+        self.lines.append(self.line_no(n))
         if self.mode == "PVT":
             if set(speeds) != set(move):
                 raise self.fail(n, line, "every PVT axis word needs its velocity (pos:vel)")
@@ -175,6 +245,8 @@ class _PmacReader:
                 raise DialectError(f"the cut starts before {axis} is given a position")
             if axis not in axes and np.any(np.isfinite(cols[axis])):
                 raise DialectError(f"{axis} is given during the cut but not at its start")
+        self._all_finite(cols, axes)
+        cols["C"] = self._rolled_over(cols["C"])
         velocity = None
         interp = "spline1" if self.cut_mode == "SPLINE1" else "pvt"
         if interp == "pvt":
@@ -196,4 +268,37 @@ class _PmacReader:
             self.dialect,
             self.comments,
             stopped=stopped,
+            point_lines=np.array(self.lines, dtype=np.int64),
         )
+
+    def _all_finite(self, cols: dict[str, np.ndarray], axes: str) -> None:
+        """Every position and velocity a finite number (a 400-digit word is not), by line."""
+        for name, values in [*cols.items(), *((f"{a} velocity", [v[a] for v in self.vel]) for a in axes)]:
+            bad = np.flatnonzero(~np.isfinite(np.asarray(values, dtype=np.float64)))
+            if name in axes or name.endswith("velocity"):
+                if bad.size:
+                    raise DialectError(
+                        f"{line_label(self.lines[int(bad[0])])}: the {name} is not a finite number"
+                    )
+
+    def _rolled_over(self, c: np.ndarray) -> np.ndarray:
+        """C as the motor turns: with rollover (Ixx27 one revolution, the profile's ``c_wrap:
+        revolution``) every move the shorter way round; without, as written, a step of more
+        than half a revolution refused naming Ixx27 (a program written modulo 360)."""
+        step = np.diff(c)
+        if self.ctrl.c_wrap == "revolution":
+            step = np.mod(step, 360.0)
+            return np.concatenate([c[:1], c[0] + np.cumsum(np.where(step > 180.0, step - 360.0, step))])
+        # C as written; a step back by more than half a revolution against the way the spindle
+        # turns is a program written modulo 360 (its C drops from near 360 to near 0)
+        turning = np.sign(np.median(step)) if step.size else 0.0
+        jumps = np.flatnonzero((np.abs(step) > 180.0) & (np.sign(step) == -turning))
+        if jumps.size:
+            k = int(jumps[0]) + 1
+            raise DialectError(
+                f"{line_label(self.lines[k])}: C goes from {c[k - 1]:g} to {c[k]:g}, turning the spindle "
+                f"{step[k - 1]:+g} deg in one segment: the program is written modulo 360, and this C motor "
+                "does not roll over (Ixx27 = 0, the profile's c_wrap: cumulative); set machine.controller."
+                "c_wrap: revolution for a C motor whose Ixx27 is one revolution"
+            )
+        return c

@@ -29,6 +29,9 @@ DIALECT_CONVENTIONS: dict[str, dict[str, object]] = {
         "dwell_p": "s",
         "c_wrap": "cumulative",
     },
+    # a PMAC motor's factory Ixx27 is 0: no rollover, C as written
+    "pmac-pvt": {"c_wrap": "cumulative"},
+    "pmac-spline": {"c_wrap": "cumulative"},
 }
 
 
@@ -81,19 +84,20 @@ class Controller(Strict):
     )
     ix90_ms: PositiveFloat = Field(
         1000.0,
-        description="PMAC Ix90 (Isx90 on Power PMAC): the time unit of PVT velocities and feed rates [ms]; "
-        "1000: per second, 60000: per minute",
+        description="the time unit of PVT velocities and feed rates [ms] (Turbo PMAC Isx90, PMAC/PMAC2 "
+        "Ix90, Power PMAC Coord[x].FeedTime); 1000: per second, 60000: per minute",
     )
     i42: Literal[0, 1] = Field(
         0,
-        description="Turbo PMAC I42: 0, PVT times in ms with 1/4 µs resolution up to 4,095.9998 ms; 1, "
-        "whole ms",
+        description="Turbo PMAC I42: which word times SPLINE and PVT moves, 0 TM, 1 TA (PVT<ms> sets the "
+        "time in either); times in ms, 0-4,095.9998 ms at 1/4 µs in both",
     )
     pmac_syntax: Literal["turbo", "power"] = Field(
-        "turbo", description="Turbo PMAC (PVT<ms>, SPLINE1 TA<ms>) or Power PMAC (pvt<ms>, spline<ms>)"
+        "turbo",
+        description="Turbo PMAC (PVT<ms>, SPLINE1 timed by TM or TA) or Power PMAC (pvt<ms>, spline<ms>)",
     )
     time_quantum_s: PositiveFloat = Field(
-        1e-6, description="resolution of a segment's time [s] (PMAC PVT: 0.25 µs; SPLINE1: 1 ms)"
+        1e-6, description="resolution of a segment's time [s] (PMAC PVT and SPLINE: 0.25 µs)"
     )
     max_segment_s: PositiveFloat = Field(60.0, description="longest time one segment may take [s]")
     decimals: int = Field(6, ge=3, le=9, description="digits after the point of positions (mm, deg)")
@@ -126,15 +130,44 @@ class Controller(Strict):
             raise ValueError(f"f_min {self.f_min:g} is above f_max {self.f_max:g}")
         return self
 
+    def cut_rule(self) -> str:
+        """How a reader of this dialect tells a cut from the moves that are not cuts, where a
+        cut starts and how it ends (docs/controllers.md, "What a cut is")."""
+        if self.dialect.startswith("pmac"):
+            ends = (
+                "SPLINE1's added pieces: one segment time from rest before the first point and one to rest "
+                "after the last"
+                if self.interpolation == "spline1"
+                else "a PVT cut starts at rest (velocity 0 at the RAPID's end point) and ends at its last "
+                "point's velocity, or at rest where that is 0 (a stop segment)"
+            )
+            return (
+                "a cut is the PVT or SPLINE moves after the RAPID or LINEAR moves to the start; it ends at "
+                f"the next RAPID or LINEAR (the retract, not cut) or CLOSE; {ends}"
+            )
+        return (
+            "a cut is a run of G93 (inverse-time) feed blocks that turn C, from where the tool stands; "
+            "a G93 block that moves no axis (C360 -> C0 modulo 360) stands still for its time, a G93 move "
+            "that does not turn C and every G94 or G00 move are not cuts and end one; M2/M30 ends the program"
+        )
+
     def conventions(self) -> list[str]:
         """The conventions a program of this controller's dialect relies on, in the
         controller's words (each exported file's header states them; verify compares)."""
         if self.dialect.startswith("pmac"):
-            step = "whole ms" if self.i42 else "ms, 1/4 us steps"
-            ta = "PVT" if self.interpolation == "pvt" else "SPLINE1"
+            mode = "PVT" if self.interpolation == "pvt" else "SPLINE1"
+            rollover = (
+                "rolls over each revolution (Ixx27)" if self.c_wrap == "revolution" else "without rollover"
+            )
+            if self.pmac_syntax == "power":
+                unit = f"Coord[x].FeedTime={self.ix90_ms:g}"
+                timing = "segment time in pvt<ms>/spline<ms>"
+            else:
+                unit = f"Isx90={self.ix90_ms:g}"
+                timing = f"I42={self.i42} segment time by {'TA' if self.i42 else 'TM'} or PVT<ms>"
             return [
-                f"Ix90={self.ix90_ms:g} velocity per {self.ix90_ms / 1000.0:g} s, I42={self.i42} "
-                f"segment time {step}, {self.pmac_syntax.title()} PMAC {ta} syntax, ABS"
+                f"{unit} velocity per {self.ix90_ms / 1000.0:g} s, {timing} in ms at 1/4 us steps, "
+                f"{self.pmac_syntax.title()} PMAC {mode} syntax, ABS, C {rollover}"
             ]
         f = "block time in s" if self.g93_f == "seconds" else "1/block time in 1/min"
         words = {"mm": "mm", "increments": f"{self.input_increment_um:g} um increments", "refuse": "refused"}

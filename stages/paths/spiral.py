@@ -161,6 +161,16 @@ def _close(phi: np.ndarray, end: float) -> np.ndarray:
     return np.append(phi, end)
 
 
+def merged_short_end(phi: np.ndarray, min_step_rad: float) -> np.ndarray:
+    """The points' angles [rad] with a last segment shorter than ``min_step_rad`` [rad] (a
+    controller's servo period at the spindle's speed) merged into the one before it: the
+    point before the centre is dropped, so the last block runs from the point before that
+    to the centre and no block takes less than the controller can execute."""
+    if phi.size > 2 and phi[-1] - phi[-2] < min_step_rad * (1.0 - 1e-9):
+        return np.delete(phi, -2)
+    return phi
+
+
 def constant_angle(rho0_um: float, feed_um: float, points_per_rev: int) -> SpiralPath:
     """Points at a constant spindle-angle step 2π/Np from the outer edge to the centre."""
     _check("points_per_rev", points_per_rev)

@@ -4,7 +4,7 @@
  *   reads pairs of doubles from stdin -- (rho [um], theta [deg]) for a ring, (x [um], y [um])
  *   for a mesh -- and writes the bilinear lookup (model section 3, eq. 2) of the header's own
  *   table and macros [um] as doubles to stdout.
- * Built without: ftsref PROGRAM M IX90_MS G93_SECONDS C_WRAPS POWER reads a path program as its
+ * Built without: ftsref PROGRAM M IX90_MS G93_SECONDS C_WRAPS POWER [I42] reads a path program as its
  *   controller's manual describes it and writes the axes the program moves (C, X, Y, Z, W, in
  *   that order: first a double holding their bit mask 1, 2, 4, 8, 16), for every segment k of
  *   every cut and j = 0..M-1, at the segment's time fraction u = (j + 0.5)/M:
@@ -12,7 +12,9 @@
  *     without spaces, ABS/INC, RAPID to the start (the cut starts there at rest), PVT<ms>
  *     moves AXISpos:vel whose velocities are in units per IX90_MS ms, evaluated as the
  *     manual's cubic in time p(t) = p0 + v0 t + c2 t^2 + c3 t^3 through the end positions
- *     and velocities; SPLINE1 TA<ms> moves (Power PMAC, POWER 1: spline<ms>) evaluated by
+ *     and velocities; SPLINE1 moves timed by TM<ms> (I42 0, the default) or TA<ms> (I42 1),
+ *     as the manual's I42 entry says, PVT<ms> setting the time in either (Power PMAC,
+ *     POWER 1: spline<ms>), evaluated by
  *     the uniform cubic B-spline's basis functions over the control points with the
  *     manual's added pieces (a zero-distance segment of TA at each end: from and to rest,
  *     one segment more at each end);
@@ -106,7 +108,7 @@ static void push(Program *p, const double *pos, const double *vel, double t, int
 
 typedef struct {
     double pos[AXES], vel[AXES], word[AXES], speed[AXES], seconds, ta, feed, ix90, prev_c;
-    int given[AXES], has_speed[AXES], inc, pmac_cut, g93, motion, cutting, g93_seconds, wraps, power;
+    int given[AXES], has_speed[AXES], inc, pmac_cut, g93, motion, cutting, g93_seconds, wraps, power, i42;
 } Reader;
 
 /* a decimal number as controllers write it: sign, digits, point, digits (strtod alone would
@@ -138,7 +140,7 @@ static size_t token(Reader *r, Program *p, const char *s)
     int a = axis_of(s[0]);
     if (strncmp(s, "RAPID", 5) == 0 || strncmp(s, "LINEAR", 6) == 0) { r->seconds = 0.0; return s[0] == 'R' ? 5 : 6; }
     if (strncmp(s, "ABS", 3) == 0 || strncmp(s, "INC", 3) == 0) { r->inc = s[0] == 'I'; return 3; }
-    if (strncmp(s, "SPLINE", 6) == 0) {  /* Turbo: SPLINE1 (then TA<ms>); Power: spline<ms> */
+    if (strncmp(s, "SPLINE", 6) == 0) {  /* Turbo: SPLINE1, its time TM (I42=0) or TA (I42=1); Power: spline<ms> */
         v = number(s + 6, &end);
         p->spline = 1;
         if (r->power) r->ta = v / 1000.0;
@@ -148,7 +150,8 @@ static size_t token(Reader *r, Program *p, const char *s)
     if (strncmp(s, "PVT", 3) == 0) { r->seconds = number(s + 3, &end) / 1000.0; p->spline = 0; return (size_t)(end - s); }
     if (s[0] == 'T' && (s[1] == 'A' || s[1] == 'S' || s[1] == 'M')) {
         v = number(s + 2, &end);
-        if (s[1] == 'A') { r->ta = v / 1000.0; if (p->spline) r->seconds = r->ta; }
+        /* Turbo PMAC I42: TM (0) or TA (1) is the SPLINE and PVT move time; PVT<ms> sets it too */
+        if ((s[1] == 'M' && !r->i42) || (s[1] == 'A' && r->i42)) { r->ta = v / 1000.0; if (r->seconds > 0.0 || p->spline) r->seconds = r->ta; }
         return (size_t)(end - s);
     }
     v = number(s + 1, &end);
@@ -294,14 +297,15 @@ int main(int argc, char **argv)
     double value;
     memset(&p, 0, sizeof p);
     memset(&r, 0, sizeof r);
-    if (argc != 7 || (m = atol(argv[2])) < 1) {
-        fputs("usage: ftsref PROGRAM SAMPLES_PER_SEGMENT IX90_MS G93_SECONDS C_WRAPS POWER_PMAC\n", stderr);
+    if ((argc != 7 && argc != 8) || (m = atol(argv[2])) < 1) {
+        fputs("usage: ftsref PROGRAM SAMPLES_PER_SEGMENT IX90_MS G93_SECONDS C_WRAPS POWER_PMAC [I42]\n", stderr);
         return 2;
     }
     r.ix90 = strtod(argv[3], NULL);
     r.g93_seconds = atoi(argv[4]);
     r.wraps = atoi(argv[5]);
     r.power = atoi(argv[6]);
+    r.i42 = argc == 8 ? atoi(argv[7]) : 0;
     r.prev_c = NAN;
     r.motion = -1;
     if (!read_program(argv[1], &p, &r)) { fputs("ftsref: no cut in the program\n", stderr); return 1; }

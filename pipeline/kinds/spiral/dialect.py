@@ -53,6 +53,13 @@ def _planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str],
         f"points: {path.n_points}, {path.max_points_per_rev} per revolution at most, "
         f"{path.revolutions:.6g} revolutions",
     ]
+    servo_s = specs[1].controller.servo_period_s if specs[1].controller is not None else None
+    if servo_s and path.interpolation != "spline1":
+        last_ms = float(path.phi[-1] - path.phi[-2]) / angular_speed(rpm) * 1e3
+        lines.append(
+            f"end: the last block into the centre takes {last_ms:.6g} ms, a last block under the "
+            f"controller's servo period {servo_s * 1e3:g} ms is merged into the one before it"
+        )
     plan = layer_plan(rcase, np.asarray(rcase.values, dtype=np.float64))
     if plan is None:
         return moves_of(path, rcase.values, rpm), lines, rcase
@@ -137,8 +144,8 @@ def program_of(moves: Moves) -> tuple[SpiralPath, np.ndarray]:
     worst = int(np.argmax(off))
     if off[worst] > SPIRAL_SLACK_UM + SPIRAL_SLACK_FEED * feed:
         raise DialectError(
-            f"point {worst + 1}: X is {off[worst]:.4g} µm off the spiral of constant feed {feed:.6g} µm/rev "
-            "through the first and last points: the one simulator predicts constant-feed spirals only"
+            f"{moves.where(worst)}: X is {off[worst]:.4g} µm off the spiral of constant feed {feed:.6g} "
+            "µm/rev through the first and last points: the one simulator predicts constant-feed spirals only"
         )
     z_um = moves.z_mm * 1e3
     path = SpiralPath("spiral", phi, rho0, feed, "chord", 0.0)
@@ -184,7 +191,7 @@ def commanded_of(moves: Moves) -> tuple[CommandedPath, np.ndarray]:
         if np.any(np.diff(angle[lo:hi]) <= 0.0):
             k = lo + int(np.flatnonzero(np.diff(angle[lo:hi]) <= 0.0)[0]) + 1
             raise DialectError(
-                f"point {k + 1}: C stands still or turns back within a cut; the spindle turns one way"
+                f"{moves.where(k)}: C stands still or turns back within a cut; the spindle turns one way"
             )
     tangents = None
     if moves.interpolation == "pvt":

@@ -80,12 +80,25 @@ def plan_spiral(
             extra["chord_error_um"] = float(errors.max()) if errors.size else 0.0
         if mode == "pvt":
             path = path._replace(phi=_on_time_steps(path, machine.controller, rpm))
+        path = _whole_last_block(path, machine, rpm)
     except ValueError as exc:
         raise CaseError(f"spiral program: {exc}") from None
     values, gouge = compensated(path.phi)
     if mode != "linear":
         path, values = controller_form(path, values, machine, rpm)
     return path, {"values": values, "gouge": gouge, **extra}
+
+
+def _whole_last_block(path: spiral.SpiralPath, machine: Any, rpm: float) -> spiral.SpiralPath:
+    """The path with a last block into the centre shorter than the controller's servo period
+    merged into the one before it (:func:`ftsweep.stages.paths.spiral.merged_short_end`), so
+    that an export never refuses its own plan; SPLINE1 runs every segment in one time, the
+    last too, so its path is left as it is."""
+    controller = machine.controller if machine is not None else None
+    if controller is None or not controller.servo_period_s or controller.interpolation == "spline1":
+        return path
+    step = controller.servo_period_s * spiral.angular_speed(rpm)
+    return path._replace(phi=spiral.merged_short_end(path.phi, step))
 
 
 def _on_time_steps(path: spiral.SpiralPath, controller: Any, rpm: float) -> np.ndarray:
@@ -107,8 +120,8 @@ def controller_form(
     (docs/controllers.md) and the commands [µm] it passes through: PVT the natural spline
     through the points (the velocities export writes), SPLINE1 the uniform B-spline whose
     way-points are the points (its control points are what export writes). Refuses (CaseError)
-    a segment time the controller cannot run: over its longest, or for SPLINE1 not one
-    whole time step (TA is whole milliseconds) or not the same for every segment."""
+    a segment time the controller cannot run: over its longest, or for SPLINE1 not whole
+    time steps of the controller (1/4 µs on a PMAC) or not the same for every segment."""
     ctrl = machine.controller
     seconds = np.diff(path.phi) / spiral.angular_speed(rpm)
     longest = float(seconds.max(initial=0.0))
@@ -128,9 +141,9 @@ def controller_form(
         )
     if not segments.whole_steps(float(inner[0]), ctrl.time_quantum_s):
         raise CaseError(
-            f"SPLINE1 segments are one time TA of whole {ctrl.time_quantum_s * 1e3:g} ms steps: this "
-            f"spiral's take {float(inner[0]) * 1e3:.6g} ms (use the points_per_rev rule with "
-            "60000/(rpm·TA) points per revolution)"
+            f"SPLINE1 segments all take one time (TM, or TA under I42 = 1) of whole "
+            f"{ctrl.time_quantum_s * 1e6:g} µs steps: this spiral's take {float(inner[0]) * 1e3:.6g} ms (use "
+            "the points_per_rev rule with 60000/(rpm·T) points per revolution, T the segment time in ms)"
         )
     way, d0, d1 = segments.bspline_segments(segments.control_points(values))
     return path._replace(interpolation="spline1", d0=d0, d1=d1), way

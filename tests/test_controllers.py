@@ -338,11 +338,15 @@ def test_what_the_reader_cannot_evaluate_is_refused_by_line(line, named):
     assert "line 4" in str(err.value)
 
 
-def test_a_text_export_of_a_cubic_controller_is_refused(tmp_path):
+def test_a_dialect_the_machines_controller_does_not_read_is_refused(tmp_path):
+    """A PVT machine's cube as G-code or as ftsweep's linear text would cut another part; the
+    refusal names the machines whose controllers read the dialect asked for."""
     cube = _sweep(tmp_path, "p", SPIRAL.format(m="sts-pmac-pvt", c="seed003", axis="chord_um: [1.0]"))
-    r = CliRunner().invoke(
-        main, ["export", str(cube), "--case", "0", "--dialect", "iso-sts", "-o", str(tmp_path / "x.nc")]
-    )
+    out = str(tmp_path / "x.nc")
+    r = CliRunner().invoke(main, ["export", str(cube), "--case", "0", "--dialect", "iso-sts", "-o", out])
+    assert r.exit_code == 1 and "has a pmac-pvt controller, which does not read iso-sts" in r.output
+    assert "export --dialect pmac-pvt" in r.output and "reads iso-sts: sts-moore" in r.output
+    r = CliRunner().invoke(main, ["export", str(cube), "--case", "0", "--dialect", "text", "-o", out])
     assert r.exit_code == 1 and "interpolates pvt" in r.output
 
 

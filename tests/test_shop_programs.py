@@ -128,8 +128,9 @@ def test_its_form_error_is_the_feeds_cusp(tmp_path, flat_catalogs):
     )
     assert code == 0, out
     got = json.loads(out)
-    # the peaks are the exact arcs' meeting points; the valleys lie within a node step
-    assert got["pv_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    # beyond the centre the peaks are the exact arcs' meeting points, the valleys within a node step
+    assert got["pv_beyond_centre_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    assert got["pv_nm"] >= got["pv_centre_nm"] > got["pv_beyond_centre_nm"]
     assert got["extremes"]["highest"]["error_nm"] > got["extremes"]["lowest"]["error_nm"]
 
 
@@ -172,7 +173,7 @@ def test_a_spindle_turning_the_other_way_is_read_and_predicted(tmp_path, flat_ca
     assert got["spindle_direction"] == "C decreasing"
     assert got["revolutions"] == pytest.approx(REVS, rel=1e-9)
     assert got["spindle_rpm"] == pytest.approx(STEP_DEG / 360.0 / BLOCK_S * 60.0, rel=1e-6)
-    assert got["pv_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    assert got["pv_beyond_centre_nm"] == pytest.approx(CUSP_NM, rel=0.02)
 
 
 def test_c_turning_back_within_a_cut_is_refused_by_line():
@@ -282,7 +283,7 @@ def test_a_varying_feed_is_predicted_pass_by_pass(tmp_path, flat_catalogs):
     feed_there = 4.0 + 12.0 * outer_mm / RADIUS_MM
     assert info["feed_um_per_rev"]["max"] > 1.3 * info["feed_um_per_rev"]["min"]
     # the cusp grows with the feed: the judged ring's outer cusps bound the P-V
-    assert info["pv_nm"] == pytest.approx(feed_there**2 / (8.0 * NOSE_UM) * 1e3, rel=0.05)
+    assert info["pv_beyond_centre_nm"] == pytest.approx(feed_there**2 / (8.0 * NOSE_UM) * 1e3, rel=0.05)
 
 
 # ------------------------------------------------------------------------------------- PMAC
@@ -660,6 +661,33 @@ def test_a_published_template_is_read_as_its_controller_runs_it():
     assert summary["feed_um_per_rev"]["median"] == pytest.approx(FEED_UM, rel=1e-4)
 
 
+def brute_force_pv_nm(moves: dialects.Moves, got: dict) -> float:
+    """An independent P-V [nm] of a linear program on a flat part (model §5, §6) over the
+    zone ftsweep judged: on rays at ftsweep's angles, every pass of every cut where C crosses
+    the ray (X and Z linear in C between blocks) and the opposite ray's at −X, the lowest
+    nose arc over nodes 0.25 µm apart, no hull and no kernel."""
+    rc = got["nose_radius_um"]
+    n = got["record"]["n_theta"]
+    lo, hi = (v * 1e3 for v in got["judged_radii_mm"])
+    r = np.arange(lo, hi, 0.25)
+    worst = [math.inf, -math.inf]
+    for theta in (np.arange(n) + 0.5) / n * 360.0:
+        pos, z = [], []
+        for side, sign in ((theta, 1.0), (theta + 180.0, -1.0)):
+            for a, b in moves.cuts():
+                c = moves.c_deg[a:b]
+                k = np.arange(math.ceil((c[0] - side) / 360.0), math.floor((c[-1] - side) / 360.0) + 1)
+                at = side + 360.0 * k
+                pos.append(sign * np.interp(at, c, moves.x_mm[a:b]) * 1e3)
+                z.append(np.interp(at, c, moves.z_mm[a:b]) * 1e3)
+        p, zp = np.concatenate(pos), np.concatenate(z)
+        d = r[:, None] - p[None, :]
+        arcs = np.where(np.abs(d) < rc, zp[None, :] + rc - np.sqrt(np.maximum(rc * rc - d * d, 0.0)), np.inf)
+        e = arcs.min(axis=1)
+        worst = [min(worst[0], float(e.min())), max(worst[1], float(e.max()))]
+    return (worst[1] - worst[0]) * 1e3
+
+
 def test_a_published_templates_form_error_is_the_feeds_cusp(tmp_path, flat_catalogs):
     """The independent computation: on a flat part the last pass leaves the cusps f²/8r."""
     code, out = _with_catalogs(
@@ -674,7 +702,10 @@ def test_a_published_templates_form_error_is_the_feeds_cusp(tmp_path, flat_catal
     assert code == 0, out
     got = json.loads(out)
     assert got["cuts"] == 2
-    assert got["pv_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    assert got["pv_beyond_centre_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    # the whole judged zone, the centre included: a brute-force envelope of the file's passes
+    want = brute_force_pv_nm(_read(published(whole_revolutions())), got)
+    assert got["pv_nm"] == pytest.approx(want, rel=0.02)
     assert got["standstill_s"] == pytest.approx(4 * BLOCK_S)
     assert any("moving no axis" in p["what"] for p in got["not_cut"])
 
@@ -708,7 +739,10 @@ def test_a_bare_point_list_is_read_with_its_templates_preamble(tmp_path, flat_ca
     assert r.exit_code == 0, r.output
     got = json.loads(r.output)
     assert got["preamble"] == str(pre) and got["started_from"].startswith("G01 G93 F0.001 G90, at C0 X0.5 Z0")
-    assert got["n_points"] == N_BLOCKS + 1 and got["pv_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    assert got["n_points"] == N_BLOCKS + 1
+    assert got["pv_beyond_centre_nm"] == pytest.approx(CUSP_NM, rel=0.02)
+    pasted = _read(published(whole_revolutions(), passes=1, blank=False))
+    assert got["pv_nm"] == pytest.approx(brute_force_pv_nm(pasted, got), rel=0.02)
     # without the preamble the list has no time (the Moore's power-on feed mode is G94)
     r = CliRunner().invoke(main, [a for a in args if a not in ("--preamble", str(pre))], env=env)
     assert r.exit_code != 0 and "power-on feed mode is G94" in r.output
@@ -784,3 +818,39 @@ def test_an_export_never_refuses_its_own_plan(tmp_path, machine):
     assert 1.0 <= last_ms < 2.0 and "merged into the one before it" in end
     r = run.invoke(main, ["verify", str(out)], env=env)
     assert r.exit_code == 0, r.output
+
+
+def macro_free(passes: int = 2) -> str:
+    """:func:`published` as a shop writes it without macros: each pass written out under its
+    own literal ``G52 Z…``, a dwell before the cut, power-on G01 (no G word on the approach's
+    X C block), blank lines."""
+    out = ["%", "O1001", "(MACRO-FREE, TWO PASSES)", "", "G52 G63 G71 G103 G40 G18 G90", "G54"]
+    for k in range(passes):
+        out += [f"G52 Z{(passes - 1 - k) * 0.002:.3f}", "G94 Z20. F500.", f"X{RADIUS_MM:.6f} C0."]
+        out += ["Z0. F10.", "G04 X0.5", "G93 F0.001", f"C0.000000 X{RADIUS_MM:.6f} Z0.000000", ""]
+        out += [*whole_revolutions()[:720], "G93 F0.001 C0", "G94 Z20. F500.", ""]
+    return "\n".join([*out, "G52", "M30", "%"]) + "\n"
+
+
+@pytest.mark.skipif(not shutil.which("cc"), reason="no C compiler on this machine")
+def test_the_compiled_reference_reads_a_shop_program_as_the_reader_does(tmp_path):
+    """Power-on G01, G04 (a time, not a move to X 0.5 mm), G52 offsets (not moves), blank
+    lines, a zero-length block and an air return: the C reference and the strict reader read
+    the same cuts, every axis alike; a macro statement is refused by the reference by line."""
+    path = tmp_path / "shop.nc"
+    path.write_text(macro_free())
+    r = CliRunner().invoke(
+        main, ["predict", "--program", str(path), "--machine", "sts-moore", "--compiled", "--json"]
+    )
+    assert r.exit_code == 0, r.output
+    got = json.loads(r.output)
+    assert got["cuts"] == 2 and got["dwell_s"] == pytest.approx(1.0)
+    axes = got["compiled"]["compiled_axes"]
+    assert set(axes) == {"C", "X", "Z"} and all(d <= b for d, b in axes.values())
+    path.write_text(published(whole_revolutions()[:720]))
+    r = CliRunner().invoke(main, ["predict", "--program", str(path), "--machine", "sts-moore", "--compiled"])
+    assert (
+        r.exit_code == 1
+        and "the reference interpolator refused" in r.output
+        and "line 4: a macro" in r.output
+    )

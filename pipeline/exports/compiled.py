@@ -112,6 +112,36 @@ def check_program(path: Path, moves: Any, adapter: Any, ctrl: Any) -> dict[str, 
     takes from the same file (:func:`file_segments`) at ``M`` fractions of every segment of
     every cut, at least ``MIN_POINTS`` in all; a spiral's Z also against the simulator's own
     commands (its adapter's ``commands``). ``ctrl``: the profile the file was written for."""
+    per, got, out = _reference_axes(path, moves, ctrl)
+    if adapter.commands is not None and moves.cut_starts is None:
+        z, planned = got[:, list(out).index("Z")] * 1e3, adapter.commands(moves, per)
+        if moves.interpolation == "spline1":
+            # the planner takes natural ends (P_-1 = 2P_0 - P_1) where the controller adds a
+            # piece from and to rest: the segments agree but for two at each end (and the
+            # two added ones), which lie in the part's unjudged edge and centre bands
+            z = z.reshape(-1, per)[2:-2].ravel()
+            planned = planned.reshape(-1, per)[1:-1].ravel()
+        out["Z_simulated"] = _compared(z, planned, "Z as simulated")
+    return _worst(out)
+
+
+def compare_reading(path: Path, moves: Any, ctrl: Any) -> dict[str, Any]:
+    """Any program (ftsweep's or another CAM's) read by the compiled reference and by the
+    strict reader (``moves``, read with the profile ``ctrl``): every axis at ``M`` fractions
+    of every segment of every cut, as :func:`check_program` compares them. The reference's
+    limits (macro statements, block delete) are refused naming the line."""
+    return _worst(_reference_axes(path, moves, ctrl)[2])
+
+
+def _worst(out: dict[str, Any]) -> dict[str, Any]:
+    worst = max(out.values(), key=lambda r: r["compiled_max_diff_um"] / r["compiled_bound_um"])
+    axes = {k: [v["compiled_max_diff_um"], v["compiled_bound_um"]] for k, v in out.items()}
+    return {**worst, "compiled_axes": axes}
+
+
+def _reference_axes(path: Path, moves: Any, ctrl: Any) -> tuple[int, np.ndarray, dict[str, Any]]:
+    """The reference run on ``path``: samples per segment, its values (points, axes) and each
+    axis compared with the reader's segments."""
     per = max(1, math.ceil(MIN_POINTS / max(moves.n_points - len(moves.cuts()), 1)))
     args = [
         f"{float(ctrl.ix90_ms):g}",
@@ -119,6 +149,7 @@ def check_program(path: Path, moves: Any, adapter: Any, ctrl: Any) -> dict[str, 
         "1" if ctrl.c_wrap == "revolution" and ctrl.dialect != "linuxcnc" else "0",
         "1" if ctrl.pmac_syntax == "power" else "0",
         str(int(ctrl.i42)),
+        power_on(ctrl),
     ]
     with tempfile.TemporaryDirectory(prefix="ftsref-") as tmp:
         exe = _build(Path(tmp), [])
@@ -136,18 +167,13 @@ def check_program(path: Path, moves: Any, adapter: Any, ctrl: Any) -> dict[str, 
     out: dict[str, Any] = {}
     for k, (axis, values) in enumerate(want.items()):
         out[axis] = _compared(got[:, k], values, f"{axis} at points along the path ({per} per segment)", 1e-3)
-    if adapter.commands is not None and moves.cut_starts is None:
-        z, planned = got[:, list(want).index("Z")] * 1e3, adapter.commands(moves, per)
-        if moves.interpolation == "spline1":
-            # the planner takes natural ends (P_-1 = 2P_0 - P_1) where the controller adds a
-            # piece from and to rest: the segments agree but for two at each end (and the
-            # two added ones), which lie in the part's unjudged edge and centre bands
-            z = z.reshape(-1, per)[2:-2].ravel()
-            planned = planned.reshape(-1, per)[1:-1].ravel()
-        out["Z_simulated"] = _compared(z, planned, "Z as simulated")
-    worst = max(out.values(), key=lambda r: r["compiled_max_diff_um"] / r["compiled_bound_um"])
-    axes = {k: [v["compiled_max_diff_um"], v["compiled_bound_um"]] for k, v in out.items()}
-    return {**worst, "compiled_axes": axes}
+    return per, got, out
+
+
+def power_on(ctrl: Any) -> str:
+    """The profile's power-on modes as the block of G words the reference runs first."""
+    motion = "" if ctrl.power_on_motion == "none" else ctrl.power_on_motion
+    return f"{motion} {ctrl.power_on_feed} {ctrl.power_on_distance}".strip()
 
 
 def file_segments(moves: Any, per: int) -> dict[str, np.ndarray]:

@@ -12,6 +12,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep.stages.interpolation import timed_path
+from ftsweep.stages.kinematics import axes as kinematics
 from ftsweep.store.io import ExportError
 
 
@@ -255,4 +256,44 @@ def summary(m: Moves) -> dict[str, Any]:
         "spindle_rpm": revs / seconds * 60.0 if seconds > 0 else math.nan,
         "spindle_rpm_range": _stats(np.concatenate(rpm)),
         "spindle_direction": direction,
+    }
+
+
+def peaks(moves: Moves) -> dict[str, float]:
+    """Peak X, (Y of a four-axis program), Z and (W, a layered program's servo) speeds [mm/s]
+    and accelerations [m/s²] of a program's segments (speeds per segment, accelerations between
+    consecutive segments' speeds), over its cuts."""
+    cols = {"x": moves.x_mm, "y": moves.y_mm, "z": moves.z_mm, "w": moves.w_mm}
+    present = {a: v for a, v in cols.items() if v is not None}
+    names = list(present)
+    q = np.column_stack(list(present.values())) * 1e-3
+    out: dict[str, float] = {f"{a}_{k}": 0.0 for a in names for k in ("speed_mm_s", "accel_m_s2")}
+    for lo, hi in moves.cuts():
+        if hi - lo < 2:
+            continue
+        motion = kinematics.over_steps(q[lo:hi], moves.seconds[lo : hi - 1])
+        for j, axis in enumerate(names):
+            v = float(np.max(np.abs(motion.velocity[:, j]), initial=0.0)) * 1e3
+            a = float(np.max(np.abs(motion.accel[:, j]), initial=0.0))
+            out[f"{axis}_speed_mm_s"] = max(out[f"{axis}_speed_mm_s"], v)
+            out[f"{axis}_accel_m_s2"] = max(out[f"{axis}_accel_m_s2"], a)
+    return out
+
+
+def against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
+    """The peaks beside the machine's limits (its X-Z axes, or the servo's acceleration)."""
+    axes = machine.axes
+    limits = {
+        "x_speed_mm_s": axes.x_feed_mm_s if axes else None,
+        "x_accel_m_s2": axes.x_accel_m_s2 if axes else None,
+        "y_speed_mm_s": axes.y_feed_mm_s if axes else None,
+        "y_accel_m_s2": axes.y_accel_m_s2 if axes else None,
+        "z_speed_mm_s": axes.z_velocity_mm_s if axes else None,
+        "z_accel_m_s2": axes.z_accel_m_s2 if axes else machine.peak_accel_m_s2,
+        "w_speed_mm_s": None,
+        "w_accel_m_s2": machine.peak_accel_m_s2,
+    }
+    return {
+        k: {"peak": v, "limit": limits[k], "ok": limits[k] is None or v <= limits[k]}
+        for k, v in peaks.items()
     }

@@ -33,9 +33,9 @@ from ftsweep.exports.files import (
     sidecar_digest,
     sidecar_naming,
 )
+from ftsweep.exports.moves import against, peaks
 from ftsweep.inputs.catalogs import Controller
 from ftsweep.stages.interpolation import segments
-from ftsweep.stages.kinematics import axes as kinematics
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     dumps_json,
@@ -379,45 +379,6 @@ def dialect_format() -> Any:
     )
 
 
-def _peaks(moves: Moves) -> dict[str, float]:
-    """Peak X, (Y of a four-axis program), Z and (W, a layered program's servo) speeds [mm/s]
-    and accelerations [m/s²] of a program's segments (speeds per segment, accelerations between
-    consecutive segments' speeds), over its cuts."""
-    cols = {"x": moves.x_mm, "y": moves.y_mm, "z": moves.z_mm, "w": moves.w_mm}
-    names = [a for a, v in cols.items() if v is not None]
-    q = np.column_stack([cols[a] for a in names]) * 1e-3
-    out: dict[str, float] = {f"{a}_{k}": 0.0 for a in names for k in ("speed_mm_s", "accel_m_s2")}
-    for lo, hi in moves.cuts():
-        if hi - lo < 2:
-            continue
-        motion = kinematics.over_steps(q[lo:hi], moves.seconds[lo : hi - 1])
-        for j, axis in enumerate(names):
-            v = float(np.max(np.abs(motion.velocity[:, j]), initial=0.0)) * 1e3
-            a = float(np.max(np.abs(motion.accel[:, j]), initial=0.0))
-            out[f"{axis}_speed_mm_s"] = max(out[f"{axis}_speed_mm_s"], v)
-            out[f"{axis}_accel_m_s2"] = max(out[f"{axis}_accel_m_s2"], a)
-    return out
-
-
-def _against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
-    """The peaks beside the machine's limits (its X-Z axes, or the servo's acceleration)."""
-    axes = machine.axes
-    limits = {
-        "x_speed_mm_s": axes.x_feed_mm_s if axes else None,
-        "x_accel_m_s2": axes.x_accel_m_s2 if axes else None,
-        "y_speed_mm_s": axes.y_feed_mm_s if axes else None,
-        "y_accel_m_s2": axes.y_accel_m_s2 if axes else None,
-        "z_speed_mm_s": axes.z_velocity_mm_s if axes else None,
-        "z_accel_m_s2": axes.z_accel_m_s2 if axes else machine.peak_accel_m_s2,
-        "w_speed_mm_s": None,
-        "w_accel_m_s2": machine.peak_accel_m_s2,
-    }
-    return {
-        k: {"peak": v, "limit": limits[k], "ok": limits[k] is None or v <= limits[k]}
-        for k, v in peaks.items()
-    }
-
-
 def read_any(path: Path, machine: Optional[str] = None) -> Moves:
     """The moves of a program file in any supported dialect (ftsweep's own dialect files by
     their first line, others by their blocks: :func:`ftsweep.exports.dialects.detect`), read
@@ -463,6 +424,7 @@ def predict_program(
     map_bins: Optional[int] = None,
     nose_radius_um: Optional[float] = None,
     preamble: Optional[Path] = None,
+    compiled: bool = False,
 ) -> dict[str, Any]:
     """Read a path program in any supported dialect (ftsweep's or another CAM's) as the
     profile of its machine (``machine``, else the one its header names, else its dialect's
@@ -472,7 +434,9 @@ def predict_program(
     the one simulator, as the program kind that reads programs from elsewhere (its adapter's
     ``stand_in``) simulates it, with the ``cutting`` entry's tool or ``nose_radius_um`` [µm]
     (docs/controllers.md). A ``preamble`` file's lines are read first, the program's
-    own from the modal state they leave (a bare point list in its template's state)."""
+    own from the modal state they leave (a bare point list in its template's state). With
+    ``compiled``, the C reference reads the same file (after its preamble) and every axis
+    of every cut is compared with this reading (:func:`ftsweep.exports.compiled.compare_reading`)."""
     from ftsweep.inputs import catalogs
 
     lines = read_lines(Path(path), strict=False)  # read once: its moves and the machine it names
@@ -492,9 +456,11 @@ def predict_program(
     }
     if preamble is not None:
         info["preamble"] = str(preamble)
+    if compiled:
+        info["compiled"] = _compiled_reading(head + lines, moves, ctrl, path)
     info.update(dialects.summary(moves))
     entry = catalogs.entry("machines", machine)
-    info["axes"] = _against(_peaks(moves), entry)
+    info["axes"] = against(peaks(moves), entry)
     info["notes"] = list(moves.notes)
     if entry.interpolation != moves.interpolation:
         info["notes"].append(
@@ -505,6 +471,19 @@ def predict_program(
         return info
     info.update(_predicted(moves, surface, machine, cutting, progress, map_bins, nose_radius_um))
     return info
+
+
+def _compiled_reading(lines: list[str], moves: Moves, ctrl: Controller, path: Path) -> dict[str, Any]:
+    """The C reference's reading of a program's ``lines`` (its preamble's first) against
+    ``moves``, the strict reader's."""
+    import tempfile
+
+    from ftsweep.exports.compiled import compare_reading
+
+    with tempfile.TemporaryDirectory(prefix="ftsweep-program-") as tmp:
+        whole = Path(tmp) / Path(path).name
+        whole.write_text("\n".join(lines) + "\n", encoding="ascii")
+        return compare_reading(whole, moves, ctrl)
 
 
 def _predicted(
@@ -530,11 +509,15 @@ def _predicted(
     for key in ("cut_radii_mm", "judged_radii_mm"):
         if key in record:
             info[key] = list(record[key])
+    info.update({k: record[k] for k in PROGRAM_ERRORS if k in record})
     if not map_bins:
         record = {k: v for k, v in record.items() if not k.startswith("error_map")}
     info["record"] = record
     return info
 
+
+# a program's form error by cause and by zone (:mod:`ftsweep.kinds.spiral.commanded`)
+PROGRAM_ERRORS = ("pv_departure_nm", "centre_radius_mm", "pv_centre_nm", "pv_beyond_centre_nm")
 
 # bins per side of the map that locates a program's highest and lowest error
 WHERE_BINS = 64

@@ -121,7 +121,12 @@ class KindTests:
         )
         ds = xr.open_zarr(out)
         case, _ = recorded_case(open_cube(out), 0)
-        interpolation = _machine(case, folder).interpolation
+        machine = _machine(case, folder)
+        interpolation = machine.interpolation
+        if machine.controller is not None and machine.controller.dialect != dialect:
+            assert res.exit_code == 1 and f"controller, which does not read {dialect}" in res.output
+            assert not path.exists()
+            return
         if dialects.INTERPOLATION[dialect] != interpolation:
             assert res.exit_code == 1 and f"interpolates {interpolation}" in res.output
             assert not path.exists()

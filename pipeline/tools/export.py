@@ -160,6 +160,7 @@ def _export_locked(
         "platform": fingerprint(),
     }
     dialect = dialect or nc.default_dialect(specs[1])
+    _check_dialect(case.machine, specs[1], dialect)
     if dialect == "text" and specs[1].interpolation != "linear":
         raise ExportError(
             f"machine '{case.machine}' interpolates {specs[1].interpolation}; ftsweep's text programs are "
@@ -180,6 +181,25 @@ def _export_locked(
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return meta
+
+
+def _check_dialect(name: str, machine: Any, dialect: str) -> None:
+    """Refuse a dialect that the machine's controller does not read (a file is written in the
+    conventions of the machine it is exported for: a Moore's G-code on a LinuxCNC machine
+    would carry F in the other's units), naming the machines whose controllers read it. A
+    machine that declares no controller takes any linear dialect in that dialect's defaults."""
+    from ftsweep.inputs import catalogs
+
+    own = machine.controller.dialect if machine.controller is not None else None
+    if own is None or dialect in ("text", own):
+        return
+    machines = catalogs.entries("machines").items()
+    readers = sorted(m for m, e in machines if e.controller is not None and e.controller.dialect == dialect)
+    raise ExportError(
+        f"machine '{name}' has a {own} controller, which does not read {dialect}: export --dialect {own} "
+        f"(or text), or sweep the case on a machine whose controller reads {dialect}: "
+        f"{', '.join(readers) or 'none in the catalog'}"
+    )
 
 
 def _publish(stage: Path, out: Path) -> None:

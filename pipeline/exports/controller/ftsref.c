@@ -18,9 +18,14 @@
  *     the uniform cubic B-spline's basis functions over the control points with the
  *     manual's added pieces (a zero-distance segment of TA at each end: from and to rest,
  *     one segment more at each end);
- *   - G-code (RS274NGC): G93 G01 blocks, linear in time, F the block's time in seconds
- *     (G93_SECONDS 1) or 1/minutes (0); a cut is a run of G93 blocks; C printed modulo 360
- *     (C_WRAPS 1) turns the shorter way round.
+ *   - G-code (RS274NGC, ISO STS as a Moore reads it): G93 G01 blocks, linear in time, F the
+ *     block's time in seconds (G93_SECONDS 1) or 1/minutes (0); a cut is a run of G93 feed
+ *     blocks that turn C; a G93 block that moves no axis stands still, one that moves other
+ *     axes only is not a cut; C printed modulo 360 (C_WRAPS 1) turns the shorter way round;
+ *     the profile's power-on modes (POWER_ON, a block of G words run before the file, e.g.
+ *     "G01 G94 G90"), G90/G91, G04 dwells (no move), G52 local offsets (G52 alone cancels
+ *     them), M2/M30 ending the program. Not read, refused naming the line: macro statements
+ *     (#, WHILE, IF, GOTO), block delete (/); axis words without a point are read as mm.
  * Compile with -std=c99 -ffp-contract=off so that no multiply-add is fused.
  */
 #include <stdio.h>
@@ -109,6 +114,8 @@ static void push(Program *p, const double *pos, const double *vel, double t, int
 typedef struct {
     double pos[AXES], vel[AXES], word[AXES], speed[AXES], seconds, ta, feed, ix90, prev_c;
     int given[AXES], has_speed[AXES], inc, pmac_cut, g93, motion, cutting, g93_seconds, wraps, power, i42;
+    int dwell, g52, ended;
+    double offset[AXES];
 } Reader;
 
 /* a decimal number as controllers write it: sign, digits, point, digits (strtod alone would
@@ -166,6 +173,11 @@ static size_t token(Reader *r, Program *p, const char *s)
     } else if (s[0] == 'G') {
         if (v == 93.0 || v == 94.0) r->g93 = v == 93.0;
         if (v == 0.0 || v == 1.0) r->motion = (int)v;
+        if (v == 90.0 || v == 91.0) r->inc = v == 91.0;
+        if (v == 4.0) r->dwell = 1;
+        if (v == 52.0) r->g52 = 1;
+    } else if (s[0] == 'M') {
+        if (v == 2.0 || v == 30.0) r->ended = 1;
     } else if (s[0] == 'F') {
         r->feed = v;
     }
@@ -179,7 +191,7 @@ static void move(Reader *r, Program *p)
     for (a = 0; a < AXES; a++) {
         double target;
         if (!r->given[a]) continue;
-        target = r->inc ? r->pos[a] + r->word[a] : r->word[a];
+        target = r->inc ? r->pos[a] + r->word[a] : r->word[a] + r->offset[a];
         if (a == 0 && r->wraps && !isnan(r->prev_c)) {
             double step = fmod(target - r->prev_c, 360.0);
             if (step < 0.0) step += 360.0;
@@ -201,11 +213,18 @@ static void block(Reader *r, Program *p, const char *line)
     double rest[AXES] = {0.0, 0.0, 0.0, 0.0, 0.0};
     size_t used;
     for (a = 0; a < AXES; a++) { r->given[a] = 0; r->has_speed[a] = 0; }
+    r->dwell = r->g52 = 0;
     while (*line) {
         if (*line == ' ' || *line == '\t' || *line == '\r' || *line == '\n') { line++; continue; }
         used = token(r, p, line);
         if (used == 0) { line++; continue; }  /* a keyword the path does not depend on */
         line += used;
+    }
+    if (r->dwell) return;  /* G04: its X, U or P is a time, the tool stands */
+    if (r->g52) {  /* a local offset added to the positions programmed after it */
+        for (a = 0; a < AXES; a++) any |= r->given[a];
+        for (a = 0; a < AXES; a++) if (r->given[a] || !any) r->offset[a] = r->given[a] ? r->word[a] : 0.0;
+        return;
     }
     for (a = 0; a < AXES; a++) any |= r->given[a];
     if (!any) return;
@@ -216,9 +235,17 @@ static void block(Reader *r, Program *p, const char *line)
         return;
     }
     if (r->g93 && r->motion == 1) {
-        double t = r->g93_seconds ? r->feed : 60.0 / r->feed;
-        if (!r->cutting) { push(p, r->pos, rest, 0.0, 1); r->cutting = 1; }
+        double t = r->g93_seconds ? r->feed : 60.0 / r->feed, before[AXES];
+        int moved = 0, turned;
+        /* C printed modulo 360 gives each cut its angle, not the revolutions turned before it */
+        if (!r->cutting && r->wraps && !isnan(r->prev_c)) r->pos[0] = r->prev_c;
+        for (a = 0; a < AXES; a++) before[a] = r->pos[a];
         move(r, p);
+        for (a = 0; a < AXES; a++) moved |= (r->pos[a] != before[a]) << a;
+        turned = moved & 1;
+        if (!moved) return;  /* a block that moves no axis: the tool stands for its time */
+        if (!turned) { r->cutting = 0; return; }  /* C still: an approach or a return, not a cut */
+        if (!r->cutting) { push(p, before, rest, 0.0, 1); r->cutting = 1; }
         push(p, r->pos, rest, t, 0);
         return;
     }
@@ -239,16 +266,37 @@ static void strip_comments(char *line)
     *out = '\0';
 }
 
+/* a statement the reference does not read (its documented limits), or NULL */
+static const char *unread(const char *line)
+{
+    const char *c = line;
+    while (*c == ' ' || *c == '\t') c++;
+    if (*c == '/') return "a block-delete block (/): whether it runs depends on a switch";
+    if (strchr(line, '#') || strstr(line, "WHILE") || strstr(line, "IF") || strstr(line, "GOTO")
+        || strstr(line, "END"))
+        return "a macro statement (#, WHILE, IF, GOTO): the reference reads macro-free programs";
+    return NULL;
+}
+
+/* 1: read; 0: no cut; -1: refused (the line named on stderr) */
 static int read_program(const char *path, Program *p, Reader *r)
 {
     char line[1024];
+    long number = 0;
+    const char *why;
     FILE *f = fopen(path, "r");
-    if (!f) { perror(path); return 0; }
-    while (fgets(line, sizeof line, f)) {
+    if (!f) { perror(path); return -1; }
+    while (!r->ended && fgets(line, sizeof line, f)) {
         char *c;
+        number++;
         strip_comments(line);
         for (c = line; *c; c++) *c = (char)toupper((unsigned char)*c);  /* PMAC reads either case */
         if (strncmp(line, "OPEN", 4) == 0 || strncmp(line, "CLOSE", 5) == 0) continue;
+        if (!r->seconds && (why = unread(line)) != NULL) {
+            fprintf(stderr, "ftsref: line %ld: %s\n", number, why);
+            fclose(f);
+            return -1;
+        }
         block(r, p, line);
     }
     fclose(f);
@@ -297,18 +345,29 @@ int main(int argc, char **argv)
     double value;
     memset(&p, 0, sizeof p);
     memset(&r, 0, sizeof r);
-    if ((argc != 7 && argc != 8) || (m = atol(argv[2])) < 1) {
-        fputs("usage: ftsref PROGRAM SAMPLES_PER_SEGMENT IX90_MS G93_SECONDS C_WRAPS POWER_PMAC [I42]\n", stderr);
+    if (argc < 7 || argc > 9 || (m = atol(argv[2])) < 1) {
+        fputs("usage: ftsref PROGRAM SAMPLES_PER_SEGMENT IX90_MS G93_SECONDS C_WRAPS POWER_PMAC [I42 [POWER_ON]]\n",
+              stderr);
         return 2;
     }
     r.ix90 = strtod(argv[3], NULL);
     r.g93_seconds = atoi(argv[4]);
     r.wraps = atoi(argv[5]);
     r.power = atoi(argv[6]);
-    r.i42 = argc == 8 ? atoi(argv[7]) : 0;
+    r.i42 = argc >= 8 ? atoi(argv[7]) : 0;
     r.prev_c = NAN;
     r.motion = -1;
-    if (!read_program(argv[1], &p, &r)) { fputs("ftsref: no cut in the program\n", stderr); return 1; }
+    for (a = 0; a < AXES; a++) r.pos[a] = NAN;
+    if (argc == 9) {  /* the profile's power-on modes: a block of G words before the file */
+        char modes[128];
+        snprintf(modes, sizeof modes, "%s", argv[8]);
+        block(&r, &p, modes);
+    }
+    switch (read_program(argv[1], &p, &r)) {
+    case -1: return 1;
+    case 0: fputs("ftsref: no cut in the program\n", stderr); return 1;
+    default: break;
+    }
     linear = !r.pmac_cut;
     value = (double)p.mask;
     fwrite(&value, sizeof(double), 1, stdout);

@@ -1,16 +1,25 @@
 """Any lathe program as its controller commands it, simulated (docs/controllers.md,
 "Predicting any program"): the passes of every cut over rays evenly round the part
-(:mod:`ftsweep.stages.paths.commanded`), the arc envelope of them all (model §5) and the
-metrics (model §6) on radial nodes between the program's innermost and outermost cut radii,
-for a program read from a file. The spiral kind's simulation of a
-:class:`~ftsweep.stages.paths.commanded.CommandedPath`; no spiral of constant feed is assumed.
+(:mod:`ftsweep.stages.paths.commanded`), with the opposite ray's passes near the centre, the
+arc envelope of them all (model §5) and the metrics (model §6) on radial nodes over the part
+the program machines: from the centre (where its innermost pass reaches it) to its outermost
+cut radius less the edge band, for a program read from a file. The spiral kind's simulation
+of a :class:`~ftsweep.stages.paths.commanded.CommandedPath`; no spiral of constant feed is
+assumed.
+
+Its form error is split by cause (model §6): the *departure* of the program's Z from the
+design-compensated tool path (model §4) at its own points, carried along by its
+interpolation; the *interpolation* between its blocks (the design-compensated path at the
+program's points against the exact one at every pass); what is left is the feed's cusps.
+The centre, inside the innermost pass and one band beyond it, is also judged on its own.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 import time
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 
@@ -20,7 +29,7 @@ from ftsweep.engine.record import layer_record, motion_fields, non_finite, simul
 from ftsweep.engine.simulator import ExactRows, Machined, exact_at_passes, require_finite
 from ftsweep.inputs import catalogs
 from ftsweep.stages.envelope import arcs as envelope
-from ftsweep.stages.interpolation import compensation
+from ftsweep.stages.interpolation import compensation, segments
 from ftsweep.stages.kinematics import dynamics
 from ftsweep.stages.paths.commanded import CommandedPath, crossings
 
@@ -47,7 +56,11 @@ class CommandedSimulation:
             max(float(path.rho[lo:hi].max()) for lo, hi in path.cuts()), rcase.aperture.outer_radius_um
         )
         step = path.feed_um / res.points_per_feed
-        lo, hi = inner + self.band, outer - self.band
+        # the innermost pass's arc reaches the centre when it passes within the nose radius:
+        # then the part is judged from the centre, the opposite ray's passes taken there
+        self.reaches_centre = inner < rc
+        self.centre_um = inner + self.band
+        lo, hi = (0.0 if self.reaches_centre else self.centre_um), outer - self.band
         if not (step > 0 and hi > lo):
             raise CaseError(
                 f"the program cuts radii {inner / 1e3:.6g} to {outer / 1e3:.6g} mm of the part: no fully "
@@ -68,13 +81,83 @@ class CommandedSimulation:
         self.n_batches = math.ceil(self.rays.size / self.per_batch)
         self.zone_split_um = res.zone_split * rcase.aperture.inner_radius_um
         self.curvature = catalogs.curvature_bound(rcase.surface_spec)
+        self.design: Optional[tuple[CommandedPath, np.ndarray]] = (
+            self._design_path() if res.interp_error else None
+        )
+        # extremes [min, max] over the batches [µm]: the departure, the form error within the
+        # centre disc and beyond it
+        self.departure = np.array([math.inf, -math.inf])
+        self.centre = np.array([math.inf, -math.inf])
+        self.beyond = np.array([math.inf, -math.inf])
+        self._lock = threading.Lock()
+
+    def _design_path(self) -> tuple[CommandedPath, np.ndarray]:
+        """The design-compensated tool path at the program's own points (model §4: its Z where
+        the part is, the program's beyond it) and its segments as the program's are formed:
+        linear, or the natural cubic through the values over each cut's angle for cubic ones."""
+        rcase, path = self.rcase, self.path
+        res = rcase.case.resolution
+        z = self.z.copy()
+        on = path.rho <= rcase.aperture.outer_radius_um
+        theta = np.mod(path.sense * path.angle, 2.0 * math.pi)
+        z[on], _ = compensation.compensate(
+            rcase.surface,
+            path.rho[on],
+            theta[on],
+            rcase.nose_radius_um,
+            rcase.case.compensation,
+            rcase.gradient_bound,
+            n_scan=res.compensation_scan,
+            curvature_bound=self.curvature,
+        )
+        if path.tangents is None:
+            return path, z
+        tangents = path.tangents.copy()
+        for lo, hi in path.cuts():
+            if hi - lo >= 2:
+                tangents[lo : hi - 1, 4], tangents[lo : hi - 1, 5] = segments.natural_spline(
+                    path.angle[lo:hi], z[lo:hi]
+                )
+        return path._replace(tangents=tangents), z
+
+    def _passes(self, theta: np.ndarray) -> tuple[np.ndarray, list[Optional[np.ndarray]], np.ndarray]:
+        """The passes over the rays at ``theta`` [rad] sorted by position [µm], with the
+        program's commands, the design's at its points and the exact ones (None when the case
+        asks the split off); near the centre the opposite ray's passes at −ρ, those within
+        the nose radius of the centre (their arcs reach this ray)."""
+        sides = [self._side(theta, 1.0)]
+        if self.reaches_centre:
+            sides.append(self._side(theta + math.pi, -1.0))
+        pos = np.concatenate([p for p, _ in sides], axis=1)
+        order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
+        values: list[Optional[np.ndarray]] = []
+        for k in range(3):
+            parts = [v[k] for _, v in sides]
+            values.append(
+                None if parts[0] is None else np.take_along_axis(np.concatenate(parts, axis=1), order, axis=1)  # type: ignore[arg-type]
+            )
+        pos = np.take_along_axis(pos, order, axis=1)
+        return pos, values, np.isfinite(pos).sum(axis=1).astype(np.int64)
+
+    def _side(self, theta: np.ndarray, sign: float) -> tuple[np.ndarray, list[Optional[np.ndarray]]]:
+        """The passes over rays at ``theta`` [rad] at ``sign`` × their radius [µm] (−1: the
+        opposite rays', only those within the nose radius of the centre), with their commands."""
+        pos, w, _ = crossings(self.path, self.z, theta)
+        if sign < 0:
+            pos[~(pos < self.rcase.nose_radius_um)] = np.nan
+        w_design = w_exact = None
+        if self.design is not None:
+            _, w_design, _ = crossings(self.design[0], self.design[1], theta)
+            w_exact = self._exact(pos, np.mod(theta, 2.0 * math.pi), w_design)
+        return sign * pos, [w, w_design, w_exact]
 
     def batch(self, b: int, timer: Any) -> Machined:
         """Batch ``b`` of rays through crossings, sampling, exact commands and the envelope."""
         theta = self.rays[b * self.per_batch : (b + 1) * self.per_batch]
         rcase, rc = self.rcase, self.rcase.nose_radius_um
         t = time.perf_counter()
-        pos, w, n_valid = crossings(self.path, self.z, theta)
+        pos, (w, w_design, w_exact), n_valid = self._passes(theta)
+        t = timer.add("interpolation", t)
         ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
         query = np.broadcast_to(self.nodes[None, :], (theta.size, self.nodes.size))
         px, py = query * ct, query * st
@@ -82,14 +165,16 @@ class CommandedSimulation:
         f = np.zeros(query.shape)
         f[inside] = rcase.surface(px[inside], py[inside])[0]
         t = timer.add("sampling", t)
-        w_exact = self._exact(pos, theta)
-        t = timer.add("compensation", t)
-        z, cusp_r, cusp_z = envelope.machined_rows(pos, w, n_valid, rc, np.ascontiguousarray(query))
-        exact = (
-            None
-            if w_exact is None
-            else ExactRows(pos, w, w_exact, n_valid, rc, np.ascontiguousarray(query), z)
-        )
+        query = np.ascontiguousarray(query)
+        z, cusp_r, cusp_z = envelope.machined_rows(pos, w, n_valid, rc, query)
+        exact = None
+        if w_design is not None and w_exact is not None:
+            # interpolation between blocks: the design at the program's points against the exact
+            z_design = envelope.machined_rows(pos, w_design, n_valid, rc, query)[0]
+            exact = ExactRows(pos, w_design, w_exact, n_valid, rc, query, z_design)
+            departure = np.array([math.inf, -math.inf])
+            envelope.interp_extrema_rows(pos, w, w_design, n_valid, rc, query, z, inside, departure)
+            self._extend(self.departure, departure)
         t = timer.add("envelope", t)
         cx, cy = cusp_r * ct, cusp_r * st
         cusp_in = (
@@ -100,21 +185,33 @@ class CommandedSimulation:
         )
         cusp_f = np.full(cusp_r.shape, np.nan)
         cusp_f[cusp_in] = rcase.surface(cx[cusp_in], cy[cusp_in])[0]
+        e, e_cusp = z - f, cusp_z - cusp_f
+        for found, near in ((self.centre, True), (self.beyond, False)):
+            part = np.concatenate(
+                [
+                    e[inside & ((query < self.centre_um) == near)],
+                    e_cusp[cusp_in & ((cusp_r < self.centre_um) == near)],
+                ]
+            )
+            if part.size:
+                self._extend(found, np.array([part.min(), part.max()]))
         timer.add("metrics", t)
         return Machined(
             z, f, inside, np.hypot(px, py), px, py, cusp_z, cusp_f, cusp_in, np.hypot(cx, cy), exact
         )
 
-    def _exact(self, pos: np.ndarray, theta: np.ndarray) -> Any:
+    def _extend(self, found: np.ndarray, batch: np.ndarray) -> None:
+        """Extremes [min, max] of a batch into those found so far (batches run on threads)."""
+        with self._lock:
+            found[0], found[1] = min(found[0], batch[0]), max(found[1], batch[1])
+
+    def _exact(self, pos: np.ndarray, theta: np.ndarray, base: np.ndarray) -> Any:
         """The compensated design's commands at the passes (model §4): what the program would
-        command with every point exact; None when the case asks the exact envelope off."""
+        command with every point exact at every pass; beyond the part, where there is no
+        design, ``base`` (the design path's commands, there the program's own)."""
         rcase = self.rcase
-        if not rcase.case.resolution.interp_error:
-            return None
         on = np.isfinite(pos) & (pos <= rcase.aperture.outer_radius_um)
-        return exact_at_passes(
-            rcase, rcase.surface, pos, theta, on, np.full(pos.shape, np.nan), self.curvature
-        )
+        return exact_at_passes(rcase, rcase.surface, pos, theta, on, base, self.curvature)
 
     def record(self, errors: dict[str, float], timer: Any) -> dict[str, Any]:
         """The record: the shared fields, the spiral kind's (its rule 'program') and the Z
@@ -145,9 +242,18 @@ class CommandedSimulation:
         record.update(
             cut_radii_mm=self.span_mm,
             judged_radii_mm=(float(self.nodes[0]) / 1e3, float(self.nodes[-1]) / 1e3),
+            centre_radius_mm=self.centre_um / 1e3,
+            pv_centre_nm=_pv_nm(self.centre),
+            pv_beyond_centre_nm=_pv_nm(self.beyond),
+            pv_departure_nm=_pv_nm(self.departure) if self.design is not None else math.nan,
         )
         record.update(layer_record(rcase, None, dyn.stroke_um))
         return record
+
+
+def _pv_nm(extremes: np.ndarray) -> float:
+    """The P-V [nm] of extremes [min, max] in µm (NaN where nothing was judged)."""
+    return float(extremes[1] - extremes[0]) * 1e3 if extremes[1] >= extremes[0] else math.nan
 
 
 def _motion(path: CommandedPath, z_um: np.ndarray) -> dynamics.Dynamics:

@@ -166,9 +166,12 @@ def _simulate(
     progress: Any = None,
     rcase: Any = None,
 ) -> dict[str, Any]:
-    """The case with its program as ``moves`` command it (a layered program's single pass
-    through the planned spiral's ``rcase``: :func:`single_pass`)."""
-    if rcase is None:  # a program from elsewhere: every pass it makes, as its controller makes it
+    """The case with its program as ``moves`` command it: ftsweep's own program (``rcase``,
+    the case it was planned as) as the spiral it plans, judged as its cube was, from the
+    centre to the outer edge band (a layered program's single pass: :func:`single_pass`); a
+    program from elsewhere as every pass it makes, as its controller makes it
+    (:func:`commanded_of`), judged over the same zone."""
+    if rcase is None:
         return run_case(case, specs=specs, progress=progress, program=commanded_of(moves))
     program = program_of(moves) if moves.w_mm is None else single_pass(moves, rcase)
     return run_case(case, specs=specs, progress=progress, program=program)

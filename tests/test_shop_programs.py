@@ -854,3 +854,43 @@ def test_the_compiled_reference_reads_a_shop_program_as_the_reader_does(tmp_path
         and "the reference interpolator refused" in r.output
         and "line 4: a macro" in r.output
     )
+
+
+@pytest.mark.parametrize(
+    ("block", "why"),
+    [
+        ("G93 F" + "9" * 400 + ".0", r"^line 20, column 5 .*F9+ is not a finite number"),
+        ("#7 = " + "9" * 400, r"^line 20.*"),
+    ],
+)
+def test_non_finite_g_code_numbers_are_refused_by_line(block, why):
+    """A 400-digit literal is infinite as a double: refused naming the word, never a spindle of
+    0 rpm and an infinite time."""
+    lines = published(whole_revolutions()[:50], passes=1).split("\n")
+    lines[19] = block  # the cut's G93 F0.001
+    if block.startswith("#7"):
+        lines[19] = f"{block}\nG93 F#7"
+        why = r"^line 21, column 5 .*F#7 is not a finite number"
+    with pytest.raises(dialects.DialectError, match=why):
+        _read("\n".join(lines))
+
+
+def test_a_pvt_velocity_over_the_machines_limit_is_refused_by_line(tmp_path):
+    """xzc-pmac-pvt declares X 250 mm/s: a velocity word of 300 mm/s is refused naming its line."""
+    text = PMAC_MANUAL.replace("C36:360 X-0.001:-0.01 Z0:0", "C36:360 X-0.001:-300 Z0:0")
+    code, out = predict(tmp_path, text, "--machine", "xzc-pmac-pvt")
+    assert (
+        code == 1 and "line 11: a X velocity of -300 mm/s, over the 250 mm/s of machine 'xzc-pmac-pvt'" in out
+    )
+
+
+def test_a_block_whose_f_gives_no_lathes_spindle_is_refused_by_its_line():
+    """One block of 1 µs turning C 1°: 166,667 rpm, refused at that block's line."""
+    body = whole_revolutions()[:360]
+    body[29] = "G93 F0.000001 " + body[29]
+    text = published(body, passes=1)
+    want = text.split("\n").index(body[29]) + 1
+    with pytest.raises(
+        dialects.DialectError, match=rf"^line {want}: a block of 1e-06 s turning C 1 deg gives"
+    ):
+        _read(text)

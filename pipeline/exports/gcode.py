@@ -14,6 +14,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep.exports import macro
+from ftsweep.exports.feedrate import check_timing
 from ftsweep.exports.moves import DialectError, Moves, line_label
 
 # lines a program's loops and jumps may execute beyond the file's own (about 3 s here at
@@ -44,11 +45,11 @@ END_M = {2.0, 30.0}
 AXES = ("C", "X", "Y", "Z", "W")
 # a G94 feed move turning C among this many in a row is a cut, not an approach
 G94_CUT_RUN = 3
+# the longest cutting block read without the tokenizer: its numbers then have at most ~80
+# digits, all finite as floats
+MAX_PLAIN_CHARS = 300
 # moves that are not cuts listed in a summary (the rest counted by the cuts' rule alone)
 MAX_LISTED = 50
-# what a lathe's spindle program can be (a reading outside names the likely convention)
-RPM_RANGE = (0.1, 20_000.0)
-MAX_REVOLUTION_S = 3600.0
 
 
 class IsoReader:
@@ -124,7 +125,7 @@ class IsoReader:
         if not self.out["C"]:
             raise DialectError(self._no_cut())
         moves = self._moves()
-        self._plausible(moves)
+        check_timing(moves, self.ctrl, self._f_hint())
         return moves
 
     def _state(self) -> str:
@@ -254,7 +255,7 @@ class IsoReader:
             raise self.fail(n, f"an expression has no value: {exc}") from None
 
     def _block(self, n: int, text: str) -> None:
-        plain = _PLAIN.match(text)
+        plain = _PLAIN.match(text) if len(text) < MAX_PLAIN_CHARS else None
         if plain and self.absolute and self.g93 and not any(self.offset.values()):
             self._plain(n, plain)  # the common cutting block: no word the modal state needs parsed
             return
@@ -280,7 +281,8 @@ class IsoReader:
 
     def _plain(self, n: int, m: re.Match[str]) -> None:
         """A block of :data:`_PLAIN`'s form: what :meth:`_words`, :meth:`_modes` and
-        :meth:`_move` make of it, without the tokenizer."""
+        :meth:`_move` make of it, without the tokenizer (its numbers finite: a literal of
+        hundreds of digits is not, and goes to the tokenizer's refusal)."""
         if m.group(1):
             self.motion = 1.0
         if m.group(6):
@@ -294,7 +296,12 @@ class IsoReader:
         parsed = self._parsed.get(n)
         if parsed is None:
             parsed = self._parsed[n] = self._split_words(n, text)
-        return [(letter, self._value(n, letter, raw)) for letter, raw in parsed]
+        words = [(letter, self._value(n, letter, raw)) for letter, raw in parsed]
+        for (letter, raw), (_, value) in zip(parsed, words, strict=True):
+            if not math.isfinite(value):
+                self._col = self._column(n, f"{letter}{raw}")
+                raise self.fail(n, f"{letter}{raw[:24]} is not a finite number")
+        return words
 
     def _value(self, n: int, letter: str, raw: str) -> float:
         if raw[0] in "[#":
@@ -554,41 +561,14 @@ class IsoReader:
                 self.point_line[lo + back + 1], "C turns back: a spindle program's C turns one way"
             )
 
-    def _plausible(self, m: Moves) -> None:
-        """Refuse a reading that cannot be a lathe program, naming the convention behind it."""
-        seconds = np.asarray(m.seconds, dtype=np.float64)
-        turn = np.abs(np.diff(m.c_deg)) / 360.0
-        timed = np.isfinite(seconds) & (seconds > 0)
-        total, revs = float(np.sum(seconds[timed])), float(np.sum(turn[timed]))
-        rpm = revs / total * 60.0 if total > 0 else math.nan
-        hint = self._f_hint()
-        if revs > 0 and not RPM_RANGE[0] <= rpm <= RPM_RANGE[1]:
-            raise DialectError(f"{hint} gives a spindle of {rpm:.3g} rpm, not a lathe's{self._f_question()}")
-        per_rev = np.divide(seconds, turn, out=np.zeros_like(seconds), where=timed & (turn > 0))
-        if np.any(per_rev > MAX_REVOLUTION_S):
-            raise DialectError(
-                f"{hint} gives {per_rev.max() / 3600.0:.3g} hours a revolution{self._f_question()}"
-            )
-        period = self.ctrl.servo_period_s
-        short = timed & (seconds < (period or 0.0) * (1 - 1e-9))
-        if np.any(short):
-            k = int(np.flatnonzero(short)[0])
-            raise self.fail(
-                self.point_line[k + 1],
-                f"a block of {seconds[k]:.3g} s, under the controller's servo period "
-                f"{period:g} s ({hint}){self._f_question()}",
-            )
-
-    def _f_hint(self) -> str:
+    def _f_hint(self) -> Optional[str]:
+        """Where the first G93 F stands and how it was read (the likely cause of a reading no
+        lathe could run)."""
         if self.first_f is None:
-            return "the program"
+            return None
         n, f = self.first_f
         how = "inverse minutes" if self.ctrl.g93_f == "inverse_minutes" else "seconds per block"
         return f"{line_label(self.line_no(n))}: G93 F{f:g} as {how}"
-
-    def _f_question(self) -> str:
-        other = "seconds per block" if self.ctrl.g93_f == "inverse_minutes" else "inverse minutes"
-        return f": does this controller read F as {other}? see machine.controller.g93_f"
 
 
 def _unwrap(c_deg: np.ndarray) -> np.ndarray:

@@ -297,3 +297,27 @@ def against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
         k: {"peak": v, "limit": limits[k], "ok": limits[k] is None or v <= limits[k]}
         for k, v in peaks.items()
     }
+
+
+def check_velocities(m: Moves, machine: Any, name: str) -> None:
+    """Refuse a PVT program's velocity over the machine's declared axis limits (its ``axes``:
+    X and Y feed, Z velocity [mm/s], C speed [rpm] as deg/s), naming the point's line."""
+    axes = machine.axes
+    if m.velocity is None or axes is None:
+        return
+    limits = {
+        "C": axes.c_speed_rpm * 6.0,
+        "X": axes.x_feed_mm_s,
+        "Y": axes.y_feed_mm_s,
+        "Z": axes.z_velocity_mm_s,
+    }
+    units = {"C": "deg/s", "X": "mm/s", "Y": "mm/s", "Z": "mm/s"}
+    for axis, v in m.velocity.items():
+        limit = limits.get(axis)
+        over = np.flatnonzero(np.abs(v) > limit) if limit is not None else np.empty(0, dtype=np.int64)
+        if over.size:
+            k = int(over[0])
+            raise DialectError(
+                f"{m.where(k)}: a {axis} velocity of {float(v[k]):.6g} {units[axis]}, over the "
+                f"{limit:g} {units[axis]} of machine '{name}'"
+            )

@@ -33,7 +33,7 @@ from ftsweep.exports.files import (
     sidecar_digest,
     sidecar_naming,
 )
-from ftsweep.exports.moves import against, peaks
+from ftsweep.exports.moves import against, check_velocities, peaks
 from ftsweep.inputs.catalogs import Controller
 from ftsweep.stages.interpolation import segments
 from ftsweep.store.io import (
@@ -460,6 +460,7 @@ def predict_program(
         info["compiled"] = _compiled_reading(head + lines, moves, ctrl, path)
     info.update(dialects.summary(moves))
     entry = catalogs.entry("machines", machine)
+    check_velocities(moves, entry, machine)
     info["axes"] = against(peaks(moves), entry)
     info["notes"] = list(moves.notes)
     if entry.interpolation != moves.interpolation:

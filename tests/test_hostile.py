@@ -330,3 +330,92 @@ def test_a_g_code_loop_executes_no_more_blocks_than_its_budget(monkeypatch, pass
     # refused for its loop exactly when the passes after the first (three lines each) pass it
     over = 3 * (passes - 1) > budget
     assert ("loops and jumps executed more than" in message) == over, (passes, budget, reader.blocks, message)
+
+
+SPECIAL_PROBE = """
+import json, sys, warnings
+from ftsweep.store import caselog
+from ftsweep.tools.status import cube_status
+from ftsweep.tools.select import open_cube
+out = {}
+status = cube_status(sys.argv[1])
+out["done"], out["unreadable"] = status["counts"]["done"], status["unreadable"]
+try:
+    open_cube(sys.argv[1])
+    out["select"] = "read"
+except Exception as exc:
+    out["select"] = f"{type(exc).__name__}: {exc}"
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    caselog.merge_logs(sys.argv[1])
+out["warnings"] = [str(w.message) for w in caught]
+print(json.dumps(out))
+"""
+
+
+@pytest.fixture(scope="module")
+def ring_cube(tmp_path_factory, module_catalog_dir):
+    folder = tmp_path_factory.mktemp("special")
+    (folder / "ring.yaml").write_text(RING)
+    run_sweep(
+        str(folder / "ring.yaml"),
+        folder / "ring.zarr",
+        scheduler="synchronous",
+        catalog_folder=module_catalog_dir,
+    )
+    return folder / "ring.zarr"
+
+
+def _special(path: Path, kind: str) -> None:
+    import socket
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.unlink(missing_ok=True)
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "socket":  # bound at a short path (AF_UNIX's limit), then moved into the cube
+        import tempfile
+
+        short = Path(tempfile.mkdtemp(prefix="s", dir="/tmp")) / "s"
+        sock = socket.socket(socket.AF_UNIX)
+        sock.bind(str(short))
+        sock.close()
+        os.rename(short, path)
+        short.parent.rmdir()
+    else:
+        path.symlink_to("/dev/zero")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "socket", "dev-zero"])
+@pytest.mark.parametrize("where", ["log", "block"])
+def test_a_special_file_in_a_cube_blocks_no_reader(ring_cube, tmp_path, kind, where):
+    """A FIFO, a socket or a link to /dev/zero among a cube's logs is quarantined by the merge
+    (a warning naming it) and skipped by status and select; among its blocks it is named by
+    status and refused by select, never opened to read. (memory:// holds no special files.)"""
+    import shutil
+    import subprocess
+    import sys
+
+    cube = tmp_path / "c.zarr"
+    shutil.copytree(ring_cube, cube)
+    if where == "log":
+        entry = cube / "_log" / "20261206T000000-aaaaaaaa" / "0123456789ab-000001.npz"
+    else:
+        entry = next(p for p in sorted((cube / "pv_nm").rglob("*")) if p.is_file() and p.name != "zarr.json")
+    _special(entry, kind)
+    # the timeout only guards the suite against a hang: the outcome is asserted, not the time
+    run = subprocess.run(
+        [sys.executable, "-c", SPECIAL_PROBE, str(cube)], capture_output=True, text=True, timeout=120
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    got = json.loads(run.stdout)
+    if where == "log":
+        assert got["done"] == 1 and got["select"] == "read" and not got["unreadable"]
+        assert any(
+            "is not what a worker writes" in w and "not a file ftsweep writes" in w for w in got["warnings"]
+        )
+        assert not os.path.lexists(entry)  # quarantined: deleted unread
+    else:
+        assert got["done"] == 0 and "not a block ftsweep writes" in got["unreadable"][0]
+        assert "unreadable chunks" in got["select"] and str(entry) in got["select"]
+        assert os.path.lexists(entry)  # named, left for the next sweep to rewrite

@@ -58,6 +58,8 @@ def status_lines(s: dict[str, Any]) -> list[str]:
         for group in groups:
             lines.append(f"{name:<12s} {group['count']} case(s), e.g. {one_line(group['example'], 200)}")
     lines.append(f"writer       {_writer_text(s['writer'])}")
+    for entry in s.get("unreadable", []):
+        lines.append(f"unreadable   {entry}: its cases count as pending; the next sweep rewrites it")
     for step in s["grown"]:
         lines.append(f"grown        {step.get('at')}: {step.get('added')}")
     run = s["last_run"]

@@ -448,13 +448,21 @@ def read_status_shape(where: PathLike) -> tuple[int, ...]:
     return tuple(status.shape)
 
 
-def check_readable(where: PathLike) -> None:
-    """Raise :class:`CubeError` naming every unreadable chunk of the cube (at most five)."""
+def unreadable_chunks(where: PathLike) -> list[str]:
+    """Every chunk of the cube that cannot be read, with why (a damaged block, or an entry
+    that is not a file ftsweep writes: a FIFO, device, socket or link, never opened)."""
     at = place(where)
     found: list[str] = []
     for name, _ in open_group(at).arrays():
         _, bad = _read_array(at, name)
         found.extend(f"{chunk_path(at, name, idx)} ({err})" for idx, err in bad.items())
+    return found
+
+
+def check_readable(where: PathLike) -> None:
+    """Raise :class:`CubeError` naming every unreadable chunk of the cube (at most five)."""
+    at = place(where)
+    found = unreadable_chunks(at)
     if found:
         more = f" and {len(found) - 5} more" if len(found) > 5 else ""
         raise CubeError(

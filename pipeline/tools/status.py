@@ -56,6 +56,8 @@ def cube_status(where: PathLike) -> dict[str, Any]:
             if value in (cube.FAILED, cube.REFUSED, cube.PRUNED) and np.any(status == value)
         },
         "writer": writer_of(at),
+        # blocks that cannot be read count their cases pending: name them (the next run rewrites them)
+        "unreadable": cube.unreadable_chunks(at)[:5],
         "grown": json.loads(attrs.get("growth_history", "[]")),
         "last_run": _last_run(runs, status),
         "created": attrs.get("created"),

@@ -240,7 +240,7 @@ def test_an_independent_gcode_parser_reads_the_same_moves(moore):
     np.testing.assert_allclose(moves.seconds, [p["F"] for p in parsed], rtol=1e-6)
 
 
-def test_linuxcnc_rs274_interprets_the_linuxcnc_dialect(moore, tmp_path):
+def test_linuxcnc_rs274_interprets_the_linuxcnc_dialect(tmp_path):
     """LinuxCNC's own interpreter (rs274, canonical output at 4 decimals) runs the linuxcnc
     dialect: the same X, Z, C on every inverse-time block as the strict reader, and its feed
     rate the block's F times its XZ length."""
@@ -252,11 +252,9 @@ def test_linuxcnc_rs274_interprets_the_linuxcnc_dialect(moore, tmp_path):
         pytest.skip(
             "LinuxCNC's standalone rs274 is not installed (.ci/run installs linuxcnc-uspace where apt is)"
         )
-    cube, _ = moore
+    cube = _sweep(tmp_path, "l", SPIRAL.format(m="sts-linuxcnc", c="seed003", axis="chord_um: [0.5]"))
     out = tmp_path / "p.ngc"
-    r = CliRunner().invoke(
-        main, ["export", str(cube), "--case", "0", "--dialect", "linuxcnc", "-o", str(out)]
-    )
+    r = CliRunner().invoke(main, ["export", str(cube), "--case", "0", "-o", str(out)])
     assert r.exit_code == 0, r.output
     done = subprocess.run(
         [rs274, "-g", str(out)], capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL
@@ -464,14 +462,14 @@ def test_verify_compiled_says_when_there_is_no_compiler(monkeypatch):
 def test_a_loop_that_does_not_end_is_refused(monkeypatch):
     from ftsweep.exports import gcode
 
-    monkeypatch.setattr(gcode, "MAX_READ_BLOCKS", 10_000)
+    monkeypatch.setattr(gcode, "WORK_FLOOR", 10_000)
     lines = ["G90 G18", "#1=0", "WHILE [#1 LT 1] DO1", "#2=1", "END1", "M30"]
     with pytest.raises(dialects.DialectError, match="a loop that does not end"):
         dialects.read(lines, "iso-sts")
 
 
-def test_a_billion_pass_loop_is_refused_within_the_block_budget():
-    # counted work, not time: the reader stops once its loops executed the budget's lines
+def test_a_billion_pass_loop_is_refused_within_the_work_budget():
+    # counted work, not time: the reader stops once its lines and expression nodes pass the budget
     from ftsweep.exports import gcode
 
     lines = ["G90 G21 G18 G94", "#1 = 0", "G93", "WHILE [#1 LT 1000000000] DO1",
@@ -480,9 +478,10 @@ def test_a_billion_pass_loop_is_refused_within_the_block_budget():
 
     ctrl = Controller(dialect="iso-sts", interpolation="linear", g93_f="seconds")
     reader = gcode.IsoReader(lines, "iso-sts", ctrl)
-    with pytest.raises(dialects.DialectError, match="loops and jumps executed more than 1,000,000 lines"):
+    with pytest.raises(dialects.DialectError, match=r"^line \d+.*work passed 1,000,000 units"):
         reader.run()
-    assert reader.blocks == len(lines) + gcode.MAX_READ_BLOCKS + 1
+    # over by at most the line it stopped on (its own nodes and one more line)
+    assert gcode.WORK_FLOOR < reader.work <= gcode.WORK_FLOOR + 20
 
 
 @pytest.mark.parametrize(

@@ -311,10 +311,18 @@ LOOP = ["G90 G21 G18 G94", "#1 = 0", "G93", "WHILE [#1 LT {n}] DO1",
         "G01 C[#1*0.1] X[10.0-#1*0.00001] Z0.0 F0.001", "#1 = #1 + 1", "END1", "M30"]  # fmt: skip
 
 
+# the units one pass of LOOP's body costs: its three lines, the G01's two expressions (5 and 4
+# nodes), the assignment (3) and the WHILE's condition (3)
+PASS_UNITS = 3 * gcode.LINE_UNITS + 9 + 3 + 3
+
+
 @settings(HOSTILE, max_examples=2000 if THOROUGH else 20)
-@given(passes=st.one_of(st.integers(1, 3000), st.integers(1, 10**15)), budget=st.integers(100, 5000))
-def test_a_g_code_loop_executes_no_more_blocks_than_its_budget(monkeypatch, passes, budget):
-    monkeypatch.setattr(gcode, "MAX_READ_BLOCKS", budget)
+@given(passes=st.one_of(st.integers(1, 3000), st.integers(1, 10**15)), floor=st.integers(100, 50_000))
+def test_a_g_code_loop_does_no_more_work_than_its_budget(monkeypatch, passes, floor):
+    """The budget counts lines executed and expression nodes parsed and evaluated; a loop
+    stops within one line of it, whatever the count it asks for."""
+    monkeypatch.setattr(gcode, "WORK_FLOOR", floor)
+    monkeypatch.setattr(gcode, "WORK_PER_BYTE", 0)
     lines = [line.format(n=passes) for line in LOOP]
     from ftsweep.inputs.controllers import Controller
 
@@ -323,13 +331,47 @@ def test_a_g_code_loop_executes_no_more_blocks_than_its_budget(monkeypatch, pass
     try:
         reader.run()
         message = ""
-    except dialects.DialectError as exc:  # the loop's budget, or what the program then lacks
+    except dialects.DialectError as exc:  # the budget, or what the program then lacks
         message = str(exc)
-    # counted work: the file's own lines plus at most the budget, whatever the loop asks
-    assert reader.blocks <= len(lines) + budget + 1
-    # refused for its loop exactly when the passes after the first (three lines each) pass it
-    over = 3 * (passes - 1) > budget
-    assert ("loops and jumps executed more than" in message) == over, (passes, budget, reader.blocks, message)
+    assert reader.work <= floor + PASS_UNITS
+    over = "work passed" in message
+    # refused exactly when the passes' work passes the budget (counted: the first pass and
+    # the lines around the loop make up the rest)
+    assert over == (reader.work > floor)
+    if not over:
+        assert passes * PASS_UNITS <= floor
+
+
+@pytest.mark.parametrize(
+    ("expression", "why"),
+    [
+        ("1" + "+1" * 100_000, "more than 100,000 tokens"),
+        ("[" * 10_000 + "1" + "]" * 10_000, ""),
+        ("[" * 1_000_000 + "1", "more than 100,000 tokens"),
+        ("##1", "indirect variable"),
+        ("#" + "9" * 5000, "does not exist"),
+        ("1\n#" + "9" * 5000 + " = 1", "does not exist"),
+        ("ROUND[1" + "0" * 400 + "]", "not a finite number|no finite value"),
+        ("FIX[1" + "0" * 400 + "] + #2", "no finite value|not a finite number"),
+    ],
+)
+def test_an_expression_is_parsed_in_counted_linear_work(expression, why):
+    """Iterative precedence parsing: brackets any depth cost their tokens, an expression of
+    more than MAX_TOKENS tokens is refused before it is parsed whole, and every refusal is
+    the reader's line and reason, never a raw Python message."""
+    from ftsweep.exports import macro
+
+    lines = ["G90 G18", "#2 = 1", *f"#1 = {expression}".split("\n"), "M30"]
+    from ftsweep.inputs.controllers import Controller
+
+    reader = gcode.IsoReader(lines, "iso-sts", Controller(dialect="iso-sts"))
+    if not why:
+        with pytest.raises(dialects.DialectError, match="no cutting block"):
+            reader.run()
+        assert reader.vars[1] == 1.0 and reader.work <= 2 * macro.MAX_TOKENS
+        return
+    with pytest.raises(dialects.DialectError, match=rf"^line [34] .*({why})"):
+        reader.run()
 
 
 SPECIAL_PROBE = """

@@ -860,7 +860,7 @@ def test_the_compiled_reference_reads_a_shop_program_as_the_reader_does(tmp_path
     ("block", "why"),
     [
         ("G93 F" + "9" * 400 + ".0", r"^line 20, column 5 .*F9+ is not a finite number"),
-        ("#7 = " + "9" * 400, r"^line 20.*"),
+        ("#7 = " + "9" * 400, r"^line 20 .*#7 = 9+.*not a finite number"),
     ],
 )
 def test_non_finite_g_code_numbers_are_refused_by_line(block, why):
@@ -868,9 +868,6 @@ def test_non_finite_g_code_numbers_are_refused_by_line(block, why):
     0 rpm and an infinite time."""
     lines = published(whole_revolutions()[:50], passes=1).split("\n")
     lines[19] = block  # the cut's G93 F0.001
-    if block.startswith("#7"):
-        lines[19] = f"{block}\nG93 F#7"
-        why = r"^line 21, column 5 .*F#7 is not a finite number"
     with pytest.raises(dialects.DialectError, match=why):
         _read("\n".join(lines))
 

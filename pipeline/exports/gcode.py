@@ -17,10 +17,17 @@ from ftsweep.exports import macro
 from ftsweep.exports.feedrate import check_timing
 from ftsweep.exports.moves import DialectError, Moves, line_label
 
-# lines a program's loops and jumps may execute beyond the file's own (about 3 s here at
-# ~3.4 µs a line): no loop makes the reader run away, and a loop-made program of up to
-# ~300,000 points is read; larger programs are written out, as CAM and ftsweep write them
-MAX_READ_BLOCKS = 1_000_000
+# the work a program may make its reader do, in units of one expression node parsed or
+# evaluated (a line executed: LINE_UNITS): WORK_PER_BYTE a byte of the file, at least
+# WORK_FLOOR (a small file's loops: well under a second here) and at most MAX_WORK. A file
+# written out block by block costs about LINE_UNITS a line; a loop that does not end, or an
+# expression that would take long, is refused as soon as its work passes the budget.
+WORK_PER_BYTE = 40
+WORK_FLOOR = 1_000_000
+MAX_WORK = 50_000_000
+# a line executed costs as much as about ten expression nodes (its cleaning, matching and
+# modal state: ~1.4 µs against ~0.1 µs a node here), so it counts LINE_UNITS units
+LINE_UNITS = 10
 
 # a cutting block of numbers only (each with its decimal point): read without the tokenizer
 _PLAIN = re.compile(
@@ -81,13 +88,15 @@ class IsoReader:
         self.comments: dict[int, str] = {}
         self.dwell_s = 0.0
         self.offset_used = False
-        self.blocks = 0
+        self.work = 0  # lines executed and expression nodes parsed or evaluated
+        size = sum(len(line) + 1 for line in lines)
+        self.budget = min(max(WORK_FLOOR, WORK_PER_BYTE * size), MAX_WORK)
         self.ended = False
         # a loop's lines are read and its expressions parsed once, then evaluated each pass
         self._cleaned: dict[int, str] = {}
         self._parsed: dict[int, list[tuple[str, str]]] = {}
         self._exprs: dict[str, macro.Expr] = {}
-        self._conds: dict[str, Any] = {}
+        self._conds: dict[str, macro.Condition] = {}
         self._labels: dict[int, int] = {}
         self._col = 0  # the column of the word being evaluated, for messages (0: the line)
         self._loops: dict[int, int] = {}
@@ -108,11 +117,10 @@ class IsoReader:
 
     def run(self) -> Moves:
         self._scan()
-        self.budget = len(self.lines) + MAX_READ_BLOCKS
         n = 0
         while n < len(self.lines) and not self.ended:
-            self.blocks += 1  # every line executed counts (loop tests too): no loop runs away
-            if self.blocks > self.budget:
+            self.work += LINE_UNITS  # every line executed counts (loop tests too): no loop runs away
+            if self.work > self.budget:
                 raise self.fail(n, self._over_budget())
             if self.preamble and n >= self.preamble and not self.started_from:
                 self.started_from = self._state()
@@ -202,8 +210,9 @@ class IsoReader:
 
     def _over_budget(self) -> str:
         return (
-            f"its loops and jumps executed more than {MAX_READ_BLOCKS:,} lines beyond the file's own (a "
-            "loop that does not end, or a program to write out block by block)"
+            f"the program's work passed {self.budget:,} units ({LINE_UNITS} a line executed, 1 an expression "
+            f"node parsed or evaluated; {WORK_PER_BYTE} a byte of the file, at least {WORK_FLOOR:,}, at most "
+            f"{MAX_WORK:,}): a loop that does not end, or a program to write out block by block"
         )
 
     def _clean(self, n: int) -> str:
@@ -234,16 +243,24 @@ class IsoReader:
         return float(self._evaluated(n, self._once(n, text, self._exprs, macro.parse)))
 
     def _once(self, n: int, text: str, cache: dict[str, Any], parse: Any) -> Any:
-        """``text`` parsed by ``parse`` once (a loop's lines are evaluated again and again)."""
+        """``text`` parsed by ``parse`` once (a loop's lines are evaluated again and again),
+        its nodes charged to the work budget."""
         found = cache.get(text)
         if found is None:
             try:
                 found = cache[text] = parse(text)
             except macro.MacroError as exc:
                 raise self.fail(n, str(exc)) from None
+            self._charge(n, found.nodes)
         return found
 
+    def _charge(self, n: int, units: int) -> None:
+        self.work += units
+        if self.work > self.budget:
+            raise self.fail(n, self._over_budget())
+
     def _evaluated(self, n: int, f: Any) -> Any:
+        self._charge(n, f.nodes)
         try:
             return f(self.vars)
         except KeyError as exc:
@@ -263,7 +280,11 @@ class IsoReader:
             return
         assign = _ASSIGN.match(text)
         if assign:
-            self.vars[int(assign.group(1))] = self._expr(n, assign.group(2))
+            try:
+                target = macro.variable(assign.group(1))
+            except macro.MacroError as exc:
+                raise self.fail(n, str(exc)) from None
+            self.vars[target] = self._expr(n, assign.group(2))
             return
         if re.search(r"\b(IF|GOTO|THEN|WHILE|DO|END)\b", text):
             raise self.fail(n, "a macro statement the reader does not evaluate in this form")

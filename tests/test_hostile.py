@@ -214,6 +214,33 @@ def test_a_macro_expansion_bomb_is_refused_before_it_expands(header_text, monkey
     assert expanded["tokens"] <= clean + 10 * depth * width
 
 
+@pytest.mark.parametrize("depth", [12, 16, 20, 40])
+def test_a_forward_macro_chain_is_refused_at_its_first_line(header_text, monkeypatch, depth):
+    """#define M0 M1 M1 … #define M(d-1) Md Md, #define Md 1 and one use: each replacement
+    names a macro defined after it, which C expands only at the use (2^depth tokens). The
+    first definition holds an identifier: refused there, before anything is expanded."""
+    expanded = {"tokens": 0}
+
+    def counting(self, tokens, *args, **kwargs):  # type: ignore[no-untyped-def]
+        expanded["tokens"] += len(tokens)
+        return _EXPAND(self, tokens, *args, **kwargs)
+
+    monkeypatch.setattr(Preprocessor, "expand_macros", counting)
+    read_c(header_text.encode(), "clean")
+    clean = expanded["tokens"]
+    chain = [f"#define M{k} M{k + 1} M{k + 1}" for k in range(depth)] + [f"#define M{depth} 1"]
+    rows = header_text.split("\n")
+    first_define = next(i for i, r in enumerate(rows) if r.startswith("#define ") and "_H" not in r)
+    use = "enum { BOMB = sizeof((int[]){M0}) };"
+    forged = "\n".join(rows[:first_define] + chain + rows[first_define:-2] + [use] + rows[-2:])
+    expanded["tokens"] = 0
+    with pytest.raises(
+        ExportError, match=rf"line {first_define + 1}: M0's replacement holds the identifier M1"
+    ):
+        read_c(forged.encode(), "chain")
+    assert expanded["tokens"] <= clean + 10
+
+
 def _zip_bomb(megabytes: int, level: int) -> bytes:
     """A one-member npz whose member deflates ``megabytes`` MiB of zeros (honestly declared)."""
     buffer = io.BytesIO()

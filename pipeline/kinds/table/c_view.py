@@ -25,6 +25,7 @@ from __future__ import annotations
 import io
 import re
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pcpp import Action, OutputDirective, Preprocessor
@@ -158,6 +159,8 @@ class _Strict(Preprocessor):  # type: ignore[misc]
         if kind not in check:
             raise self.refuse(line, f"#{kind} is not written by export")
         check[kind](line, values, words)
+        if kind == _DEFINE:
+            self._literal(line, words[0], [t for t in toks[1:] if t.type == "CPP_ID"])
         if kind == _INCLUDE:
             raise OutputDirective(Action.IgnoreAndRemove)  # <stdint.h> is never looked up
         return True
@@ -175,19 +178,23 @@ class _Strict(Preprocessor):  # type: ignore[misc]
             raise self.refuse(line, f"a second definition of {name[:60]}")
         if after == "(":
             raise self.refuse(line, f"{name[:60]} is a function-like macro")
-        # judged before anything is expanded: export's replacements are literals (numbers,
-        # strings, a brace list of numbers), so one that names another macro is refused here;
-        # chained macros would double their expansion at every line, and without them what C
-        # expands is at most the file's own tokens once per use
-        body = [w for w in words[1:] if not w.startswith(("/*", "//"))]
-        named = next((w for w in body if w in self.defined or w in self.macros), None)
-        if named is not None:
-            raise self.refuse(
-                line,
-                f"{name[:60]}'s replacement names the macro {named[:60]} (export's are literals); "
-                "nothing expanded",
-            )
         self.defined[name] = line
+
+    def _literal(self, line: int, name: str, identifiers: list[Any]) -> None:
+        """Judged before anything is expanded: export's replacements are literals (numbers,
+        strings, a brace list of numbers), so one holding an identifier is refused here, a
+        macro defined before it or after it alike (a chain defined forwards expands only at its
+        use, after the last definition); chained macros would double their expansion at every
+        level, and without them what C expands is at most the file's own tokens once per use."""
+        if not identifiers:
+            return
+        word = identifiers[0].value
+        what = f"names the macro {word[:60]}" if word in self.macros else f"holds the identifier {word[:60]}"
+        raise self.refuse(
+            line,
+            f"{name[:60]}'s replacement {what} (export's replacements are literals: numbers and "
+            "strings); nothing expanded",
+        )
 
     def _guard(self, line: int, values: list[str], words: list[str]) -> None:
         if len(self.order) != 1 or len(words) != 1 or _IDENT.fullmatch(words[0]) is None:

@@ -488,3 +488,50 @@ def test_a_special_file_in_a_cube_blocks_no_reader(ring_cube, tmp_path, kind, wh
         assert got["done"] == 0 and "not a block ftsweep writes" in got["unreadable"][0]
         assert "unreadable chunks" in got["select"] and str(entry) in got["select"]
         assert os.path.lexists(entry)  # named, left for the next sweep to rewrite
+
+
+@pytest.mark.parametrize("var", ["pv_inner_nm", "pv_outer_nm", "mean_nm", "error_min_nm"])
+def test_a_done_log_with_a_non_finite_metric_is_refused(var):
+    """Every metric the simulator refuses a case without is finite in a done case's log, or
+    the log is quarantined: a NaN P-V of a zone or a NaN mean error included."""
+    values = {
+        "pv_nm": 10.0,
+        "rms_nm": 2.0,
+        "error_min_nm": -4.0,
+        "error_max_nm": 6.0,
+        "mean_nm": 0.5,
+        "pv_inner_nm": 9.0,
+        "pv_outer_nm": 10.0,
+        "status": caselog.DONE,
+    }
+    shapes = {name: (4,) for name in values}
+    assert caselog.checked_cases(caselog._encode([(1, values)]), shapes)  # the honest log passes
+    values[var] = float("nan")
+    with pytest.raises(caselog.BadLog, match=rf"case 1 is done but its {var} is nan"):
+        caselog.checked_cases(caselog._encode([(1, values)]), shapes)
+
+
+def test_a_sweep_spec_with_a_list_past_the_bound_is_refused_before_it_is_built(tmp_path, monkeypatch):
+    """A list past MAX_LIST_ITEMS is refused from the YAML event stream, at the item past the
+    bound: the events counted, never the whole file's objects built."""
+    import yaml
+
+    from ftsweep.inputs import yamlfiles
+    from ftsweep.inputs.catalogs import CatalogError
+
+    monkeypatch.setattr(yamlfiles, "MAX_LIST_ITEMS", 1000)
+    events = {"n": 0}
+    real = yaml.parse
+
+    def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
+        for event in real(*args, **kwargs):
+            events["n"] += 1
+            yield event
+
+    monkeypatch.setattr(yaml, "parse", counting)
+    spec = tmp_path / "big.yaml"
+    values = ", ".join(str(1000 + k) for k in range(50_000))
+    spec.write_text(f"surface: sinewave2d\nlayout: ring\naxes:\n  points: [{values}]\n  aspect: [4.0]\n")
+    with pytest.raises(CatalogError, match=r"line 4: a list of more than 1,000 items"):
+        yamlfiles.read_yaml_file(spec)
+    assert events["n"] < 1100  # stopped at the item past the bound

@@ -193,11 +193,43 @@ def test_every_cell_one_unit_off_is_refused_on_the_platform_it_was_planned_on(he
     forge_header_from_sidecar(header, lambda meta: None, cells=lambda ints: ints + 1)
     with pytest.raises(ExportError, match=r"cell\(s\) differ by more than 0 unit"):
         verify(header)
-    # the same table as planned on another platform: one unit is the last digit's noise there
+    # the same table as planned on another platform: one unit is the last digit's noise there,
+    # allowed when the operator asks for it, never because the file says so
     forge_header_from_sidecar(header, _other_platform)
-    record = verify(header)
+    with pytest.raises(ExportError, match=r"cell\(s\) differ by more than 0 unit"):
+        verify(header)
+    record = verify(header, across_platforms=True)
     assert record["replanned"].startswith("planned on another platform (numpy 0.0.1 here ")
-    assert "one unit allowed" in record["replanned"]
+    assert "one unit allowed (as --across-platforms asks)" in record["replanned"]
+
+
+def _no_platform(meta):  # type: ignore[no-untyped-def]
+    del meta["platform"]
+
+
+@pytest.mark.parametrize("edit", [_no_platform, _other_platform])
+def test_the_file_does_not_choose_its_rule(header, edit):
+    """Without a trusted key, removing or editing the sidecar's platform (its hashes re-made)
+    leaves the exact rule: a one-unit edit is refused unless the operator asks for one unit
+    across platforms, and the re-planned line says which rule judged it."""
+    forge_header_from_sidecar(header, edit, cells=lambda ints: ints + 1)
+    with pytest.raises(ExportError, match=r"cell\(s\) differ by more than 0 unit"):
+        verify(header)
+    res = CliRunner().invoke(main, ["verify", str(header), "--across-platforms"])
+    assert res.exit_code == 0, res.output
+    assert "one unit allowed (as --across-platforms asks)" in res.output
+
+
+def test_a_signed_platform_allows_one_unit_without_the_operator_asking(cubes, tmp_path, catalogs_env):
+    """With a trusted key the platform is in the signed statement: a file signed as planned
+    elsewhere is judged with one unit; its statement names the platform."""
+    keys = origin.new_keys(tmp_path / "k")
+    out = tmp_path / "s.h"
+    export(cubes["ring"], out, index=0, sign_key=str(keys[0]))
+    signed = json.loads(out.with_name("s.h.sig").read_text())["statement"]
+    assert signed["platform"] == fingerprint()
+    record = verify(out, trusted=(str(keys[1]),))
+    assert record["replanned"] == "planned on this platform: every value exactly as re-planned"
 
 
 def test_a_checkerboard_of_one_unit_is_refused_on_the_platform_it_was_planned_on(header):
@@ -226,8 +258,11 @@ def test_every_z_of_a_program_moved_by_a_fraction_of_a_nanometre_is_refused(cube
     forge_program(program, lambda meta: None, lines=shift_z)
     with pytest.raises(ExportError, match=r"has Z_mm .* \(tolerance 0;"):
         verify(program)
-    forge_program(program, _other_platform)  # planned elsewhere: 0.9 nm is inside 1 nm there
-    assert verify(program)["replanned"].startswith("planned on another platform")
+    forge_program(program, _other_platform)  # planned elsewhere: still exact unless asked
+    with pytest.raises(ExportError, match=r"has Z_mm .* \(tolerance 0;"):
+        verify(program)
+    # asked for: 0.9 nm is inside the 1 nm allowed across platforms
+    assert verify(program, across_platforms=True)["replanned"].startswith("planned on another platform")
 
 
 # ------------------------------------------------------------------ bounded before work

@@ -230,6 +230,13 @@ def export(
     help="Refuse the file unless it is this case (flat index) of its cube: a swapped file fails.",
 )
 @click.option("--expect-surface", help="Refuse the file unless it is for this catalog surface (by name).")
+@click.option(
+    "--across-platforms",
+    is_flag=True,
+    help="Allow one unit of the last printed digit (a table unit, 1 µs, 1e-6°, 1 nm) where the file was "
+    "planned on another platform or records none. Without it (or a trusted key's signature over the "
+    "platform) every number must be exactly as re-planned: the file does not choose its rule.",
+)
 @TRUST_PLUGINS
 @threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
@@ -241,6 +248,7 @@ def verify(
     compiled: bool,
     expect_case: Optional[int],
     expect_surface: Optional[str],
+    across_platforms: bool,
     trust_plugins: bool,
     as_json: bool,
 ) -> None:
@@ -258,9 +266,10 @@ def verify(
       the file's SHA-256 of the sidecar;
     - the file is exactly what export writes for the recorded case: every macro value (no
       comment or expression inside one), every header and layer/segment line; every table
-      cell and every program number equal to the re-planned one when the sidecar's platform
-      (ftsweep, numpy, numba, llvmlite, CPU) is this machine's, else within one table unit
-      and 1 µs, 1e-6° and 1 nm (the re-planned line says which rule applied);
+      cell and every program number equal to the re-planned one; within one table unit and
+      1 µs, 1e-6° and 1 nm only where the file was planned on another platform (ftsweep,
+      numpy, numba, llvmlite, CPU) or records none and --across-platforms asks for it or a
+      trusted key signed that platform (the re-planned line says which rule applied);
     - a D-path or Fresnel program: every line within the machine's axis limits;
     - a table or spiral/D-path program: the P-V re-simulated from the file as stored within
       the tolerance of the P-V predicted at export.
@@ -283,8 +292,17 @@ def verify(
     progress = stderr_progress("re-simulating", as_json)
     expect = {"case": expect_case, "surface": expect_surface}
     try:
-        record = exp.verify(header, progress, pv_tolerance_nm, trust_plugins, trusted, accept_recorded,
-                            compiled, expect)  # fmt: skip
+        record = exp.verify(
+            header,
+            progress,
+            pv_tolerance_nm,
+            trust_plugins,
+            trusted,
+            accept_recorded,
+            compiled,
+            expect,
+            across_platforms=across_platforms,
+        )
     except (exp.ExportError, CaseError, CatalogError) as exc:
         raise click.ClickException(str(exc)) from None
     finally:

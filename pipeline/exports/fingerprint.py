@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import hashlib
 import platform
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from functools import cache
 from typing import Any
 
@@ -41,16 +44,39 @@ def fingerprint() -> dict[str, str]:
     }
 
 
+# why verify may allow one unit across platforms ('' for never): the operator asked for it,
+# or a trusted key signed the statement that names the platform the file was planned on
+_ACROSS: ContextVar[str] = ContextVar("ftsweep_across_platforms", default="")
+
+
+@contextmanager
+def one_unit_across_platforms(why: str) -> Iterator[None]:
+    """Within the block, a file planned on another platform (or recording none) is judged
+    with one unit of the last printed digit allowed, for the reason ``why`` (the operator's
+    ``--across-platforms``, or a trusted signature); outside it, exactly."""
+    token = _ACROSS.set(why)
+    try:
+        yield
+    finally:
+        _ACROSS.reset(token)
+
+
 def exact_on_this_platform(recorded: Any) -> tuple[bool, str]:
-    """Whether verify must find every cell and program number equal to the re-planned one
-    (``True``: the ``recorded`` fingerprint is this machine's) or may allow one unit of the
-    last printed digit (another platform, or a file with no fingerprint); the reason, for the
-    operator."""
+    """Whether verify must find every cell and program number equal to the re-planned one, and
+    why, for the operator. The file does not choose its rule: a ``recorded`` fingerprint of
+    this machine, a missing one or another platform's all mean the exact rule, unless the
+    operator asked for one unit of the last printed digit across platforms or a trusted key
+    signed the platform (:func:`one_unit_across_platforms`)."""
     here = fingerprint()
-    if not isinstance(recorded, dict):
-        return False, "the sidecar records no platform: one unit allowed, as across platforms"
-    differ = sorted(k for k in set(here) | set(recorded) if recorded.get(k) != here.get(k))
-    if differ:
+    if isinstance(recorded, dict):
+        differ = sorted(k for k in set(here) | set(recorded) if recorded.get(k) != here.get(k))
+        if not differ:
+            return True, "planned on this platform: every value exactly as re-planned"
         named = ", ".join(f"{k} {recorded.get(k)!s:.40} here {here.get(k)!s:.40}" for k in differ[:3])
-        return False, f"planned on another platform ({named}): one unit allowed"
-    return True, "planned on this platform: every value exactly as re-planned"
+        where = f"planned on another platform ({named})"
+    else:
+        where = "the sidecar records no platform"
+    why = _ACROSS.get()
+    if why:
+        return False, f"{where}: one unit allowed ({why})"
+    return True, f"{where}: every value exactly as re-planned (verify --across-platforms allows one unit)"

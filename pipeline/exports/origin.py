@@ -48,7 +48,7 @@ from ftsweep.store.io import (
 )
 
 # what a signature covers: this line, then the statement as canonical JSON
-SCHEME = "ftsweep export statement v2"
+SCHEME = "ftsweep export statement v3"
 DOMAIN = SCHEME.encode("ascii") + b"\n"
 MAX_KEY_BYTES = 64 * 2**10
 TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
@@ -199,6 +199,8 @@ def statement(
         "sha256": hashlib.sha256(file_bytes).hexdigest(),
         "sidecar_sha256": hashlib.sha256(side_bytes).hexdigest(),
         **purpose(meta),
+        # where it was planned: verify allows one unit across platforms only on a signed platform
+        "platform": meta.get("platform"),
         "ftsweep": stamp.get("ftsweep"),
         "signed_at": stamp.get("signed_at"),
         "expires": stamp.get("expires"),

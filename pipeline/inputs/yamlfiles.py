@@ -35,18 +35,49 @@ def _read_capped(path: Path) -> bytes:
         return fh.read(MAX_YAML_BYTES + 1)[:MAX_YAML_BYTES]
 
 
+# the longest list a catalog or sweep file holds: a sweep's axis (its values, checked again
+# against the spec's own bound) or a catalog's table of parameters
+MAX_LIST_ITEMS = 100_000
+
+
+def _check_lists(text: str, path: Path, loader: Any) -> None:
+    """Refuse a list of more than :data:`MAX_LIST_ITEMS` items from the YAML event stream,
+    before any object is built: the parser stops at the item past the bound."""
+    open_lists: list[int] = []  # items so far of every open list, innermost last; -1: a mapping
+    for event in yaml.parse(text, Loader=loader):
+        if isinstance(event, (yaml.ScalarEvent, yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+            if open_lists and open_lists[-1] >= 0:
+                open_lists[-1] += 1
+                if open_lists[-1] > MAX_LIST_ITEMS:
+                    where = f"line {event.start_mark.line + 1}: " if event.start_mark is not None else ""
+                    raise CatalogError(
+                        f"{path}: {where}a list of more than {MAX_LIST_ITEMS:,} "
+                        "items, more than any catalog or sweep holds (give an axis as start, stop, num); "
+                        "nothing was built from it"
+                    )
+        if isinstance(event, yaml.SequenceStartEvent):
+            open_lists.append(0)
+        elif isinstance(event, yaml.MappingStartEvent):
+            open_lists.append(-1)
+        elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+            open_lists.pop()
+
+
 def read_yaml_file(path: Path) -> Any:
     """Parse a YAML file, turning every way it can be unreadable into a :class:`CatalogError`
-    that names the file."""
+    that names the file; its size is checked before it is read and its lists' lengths before
+    any object is built (:func:`_check_lists`)."""
     try:
         text = _read_capped(path).decode("utf-8")
     except UnicodeDecodeError as exc:
         raise CatalogError(f"{path}: not UTF-8 text (byte {exc.start}); save it as UTF-8") from None
     except OSError as exc:
         raise CatalogError(f"{path}: cannot be read ({exc.strerror})") from None
+    # libyaml's parser when PyYAML was built with it: the same documents, 8× faster
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
     try:
-        # libyaml's parser when PyYAML was built with it: the same documents, 8× faster
-        return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        _check_lists(text, path, loader)
+        return yaml.load(text, Loader=loader)
     except yaml.YAMLError as exc:
         raise CatalogError(f"{path}: not valid YAML: {' '.join(str(exc).split())[:300]}") from None
     except RecursionError:

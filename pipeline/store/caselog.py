@@ -86,8 +86,9 @@ def _check_column(
             raise BadLog(f"{var}: {bad} is not a whole number, and the cube holds counts")
 
 
-# every done case has these finite (where the cube holds them): the form error's extremes
-_FINITE_WHEN_DONE = ("error_min_nm", "error_max_nm")
+# every done case has these finite (where the cube holds them): the form error's metrics the
+# simulator refuses a case without (model §6; the interpolation-only P-V may be asked off)
+_FINITE_WHEN_DONE = ("error_min_nm", "error_max_nm", "mean_nm", "pv_inner_nm", "pv_outer_nm")
 # bytes a log's member may unpack to per case and value: numbers 8, text up to the longest
 # message a case records (2,000 characters of 4 bytes in numpy's unicode arrays)
 _BYTES_PER_VALUE, _BYTES_PER_TEXT, _HEADER_BYTES = 8, 4 * 2000, 4096

@@ -225,6 +225,7 @@ def verify(
     accept_recorded: bool = False,
     compiled: bool = False,
     expect: dict[str, Any] | None = None,
+    across_platforms: bool = False,
 ) -> dict[str, Any]:
     """Verify any exported file by its format (:func:`format_of_file`): what the machine
     reads, parsed as the machine parses it, against what the recorded case plans; and its
@@ -233,19 +234,24 @@ def verify(
     ``accept_recorded``). With ``compiled``, the C reference interpolator's commands from
     the file (:mod:`ftsweep.exports.compiled`) must equal the simulator's. ``expect``: facts
     of :func:`~ftsweep.exports.origin.purpose` the file must be for (``case``, ``surface``).
+    Numbers are judged exactly as re-planned unless ``across_platforms`` (the operator's
+    choice) or a trusted signature names the other platform the file was planned on: then one
+    unit of the last printed digit is allowed (the file never chooses its rule).
     The record's ``purpose`` says what the file is for, ``replanned`` which rule judged its
     numbers, ``origin`` what was proved. Raises
     :class:`~ftsweep.exports.files.ExportError` naming the first difference."""
     from ftsweep.engine.cost import bounded_by_default_resolution
     from ftsweep.exports import origin as org
-    from ftsweep.exports.fingerprint import exact_on_this_platform
+    from ftsweep.exports.fingerprint import exact_on_this_platform, one_unit_across_platforms
 
     path = Path(path)
     fmt = format_of_file(path)
     side = sidecar_of(path)
     before = _identity(path, side)  # nothing read yet: the format's own cap judges the file first
+    keys = org.trusted_keys(trusted)
+    why = "as --across-platforms asks" if across_platforms else ""
     # the file as the machine reads it first (its own errors name what is wrong with it) ...
-    with bounded_by_default_resolution():  # a recorded resolution costs what the file's size warrants
+    with bounded_by_default_resolution(), one_unit_across_platforms(why or _signed_platform(path, keys)):
         record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
     if compiled:
         if fmt.compiled is None:
@@ -256,10 +262,10 @@ def verify(
         raise ExportError(f"{path} or its sidecar changed while it was verified; verify it again")
     meta = read_sidecar(path, side_bytes)
     record["purpose"] = org.purpose(meta)
-    record["replanned"] = exact_on_this_platform(meta.get("platform"))[1]
+    with one_unit_across_platforms(why or _signed_platform(path, keys)):
+        record["replanned"] = exact_on_this_platform(meta.get("platform"))[1]
     _check_expected(path, record["purpose"], expect or {})
     # ... then who made it
-    keys = org.trusted_keys(trusted)
     if keys:
         signed = org.check_signature(path, file_bytes, side_bytes, meta, keys)
         record["origin"] = {"proved": "signed", **signed}
@@ -273,6 +279,25 @@ def verify(
             f"the sidecar has the older name {side.name}; export again to name it {sidecar_path(path).name}"
         )
     return record
+
+
+def _signed_platform(path: Path, keys: list[Path]) -> str:
+    """Why one unit may be allowed across platforms without the operator asking: a trusted
+    key's valid signature over a statement naming the platform the file was planned on ('' when
+    there is none; the signature itself is checked, and any fault refused, after the content)."""
+    from ftsweep.exports import origin as org
+
+    if not keys:
+        return ""
+    side = sidecar_of(path)
+    file_bytes, side_bytes = _contents(path, side)
+    if side_bytes is None:
+        return ""
+    try:
+        signed = org.check_signature(path, file_bytes, side_bytes, read_sidecar(path, side_bytes), keys)
+    except ExportError:
+        return ""  # the content is judged exactly; the origin check then names the fault
+    return "the platform is in the statement a trusted key signed" if signed.get("platform") else ""
 
 
 def _check_expected(path: Path, purpose: dict[str, Any], expect: dict[str, Any]) -> None:

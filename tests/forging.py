@@ -8,6 +8,8 @@ import hashlib
 import json
 import re
 import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from hypothesis import strategies as st
@@ -90,3 +92,27 @@ def mutated_copy(data, original: Path, alphabet, factory) -> tuple[bytes, bytes,
         original.with_name(original.name + ".json"), folder / original.with_name(original.name + ".json").name
     )
     return text, mutated, copy
+
+
+@contextmanager
+def entered_in_ledger(path: Path) -> Iterator[None]:
+    """Within the block, ``path``'s current bytes are the latest export of its name in its
+    cube's ledger, as a forger who can write the cube could make them: what the ledger then
+    cannot tell, the checks after it (re-planning, re-simulation, a catalog or a signature)
+    must. The entry is taken out again at the block's end (the cube is shared by tests)."""
+    from ftsweep.store import ledger
+    from ftsweep.store.storage import place
+
+    side = path.with_name(path.name + ".json")
+    at = place(json.loads(side.read_text())["cube"])
+    sequence = ledger.next_sequence(at, path.name)
+    entry = {
+        "sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
+        "sidecar_sha256": hashlib.sha256(side.read_bytes()).hexdigest(),
+        "created": "forged",
+    }
+    ledger.record(at, path.name, sequence, entry)
+    try:
+        yield
+    finally:
+        at.remove(f"{ledger.LEDGER}/{path.name}/{sequence:08d}.json")

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from forging import forge_header_from_sidecar, forge_program
+from forging import entered_in_ledger, forge_header_from_sidecar, forge_program
 
 from ftsweep.cli.main import main
 from ftsweep.engine.case import CaseError
@@ -196,9 +196,10 @@ def test_every_cell_one_unit_off_is_refused_on_the_platform_it_was_planned_on(he
     # the same table as planned on another platform: one unit is the last digit's noise there,
     # allowed when the operator asks for it, never because the file says so
     forge_header_from_sidecar(header, _other_platform)
-    with pytest.raises(ExportError, match=r"cell\(s\) differ by more than 0 unit"):
-        verify(header)
-    record = verify(header, across_platforms=True)
+    with entered_in_ledger(header):  # as its export on that platform would have recorded it
+        with pytest.raises(ExportError, match=r"cell\(s\) differ by more than 0 unit"):
+            verify(header)
+        record = verify(header, across_platforms=True)
     assert record["replanned"].startswith("planned on another platform (numpy 0.0.1 here ")
     assert "one unit allowed (as --across-platforms asks)" in record["replanned"]
 
@@ -213,9 +214,10 @@ def test_the_file_does_not_choose_its_rule(header, edit):
     leaves the exact rule: a one-unit edit is refused unless the operator asks for one unit
     across platforms, and the re-planned line says which rule judged it."""
     forge_header_from_sidecar(header, edit, cells=lambda ints: ints + 1)
-    with pytest.raises(ExportError, match=r"cell\(s\) differ by more than 0 unit"):
-        verify(header)
-    res = CliRunner().invoke(main, ["verify", str(header), "--across-platforms"])
+    with entered_in_ledger(header):  # the rule alone is under test here, not the ledger
+        with pytest.raises(ExportError, match=r"cell\(s\) differ by more than 0 unit"):
+            verify(header)
+        res = CliRunner().invoke(main, ["verify", str(header), "--across-platforms"])
     assert res.exit_code == 0, res.output
     assert "one unit allowed (as --across-platforms asks)" in res.output
 
@@ -262,7 +264,8 @@ def test_every_z_of_a_program_moved_by_a_fraction_of_a_nanometre_is_refused(cube
     with pytest.raises(ExportError, match=r"has Z_mm .* \(tolerance 0;"):
         verify(program)
     # asked for: 0.9 nm is inside the 1 nm allowed across platforms
-    assert verify(program, across_platforms=True)["replanned"].startswith("planned on another platform")
+    with entered_in_ledger(program):
+        assert verify(program, across_platforms=True)["replanned"].startswith("planned on another platform")
 
 
 # ------------------------------------------------------------------ bounded before work
@@ -289,3 +292,41 @@ def test_a_recorded_resolution_past_the_files_size_is_refused_before_any_work(
     forge(out, lambda m: m["case"].update(resolution={**m["case"]["resolution"], **study}))
     with pytest.raises(ExportError, match="re-simulates|P-V"):  # judged, not refused: its P-V moved
         verify(out, pv_tolerance_nm=1e-9)
+
+
+# ------------------------------------------------------------------ rollback
+def test_an_older_export_of_the_same_name_is_refused_while_its_cube_is_reachable(
+    cubes, keys, tmp_path, module_catalog_dir
+):
+    """Each export appends its statement's sequence to the cube's ledger: an older signed
+    export put back under the same name verifies no more (it is not the latest), however
+    valid its signature; a copy of the cube elsewhere leaves verify saying it did not check."""
+    import shutil
+
+    cube = tmp_path / "ring.zarr"
+    shutil.copytree(cubes["ring"], cube)
+    out, keep = tmp_path / "shop.h", tmp_path / "kept"
+    args = ["export", str(cube), "-o", str(out), "--sign-key", str(keys[0]), "--force"]
+    assert cli([*args, "--case", "0"], module_catalog_dir).exit_code == 0
+    keep.mkdir()
+    for f in (out, out.with_name("shop.h.json"), out.with_name("shop.h.sig")):
+        shutil.copy(f, keep / f.name)
+    assert cli([*args, "--case", "1"], module_catalog_dir).exit_code == 0
+    trusted = ["--trusted-key", str(keys[1])]
+    res = cli(["verify", str(out), *trusted], module_catalog_dir)
+    assert (
+        res.exit_code == 0
+        and "latest       the latest export of shop.h in the cube's ledger (sequence 2)" in res.output
+    )
+    statement = json.loads(out.with_name("shop.h.sig").read_text())["statement"]
+    assert statement["ledger"] == {"name": "shop.h", "sequence": 2}
+    for f in keep.iterdir():  # the rollback: the older signed export put back
+        shutil.copy(f, tmp_path / f.name)
+    res = cli(["verify", str(out), *trusted], module_catalog_dir)
+    assert (
+        res.exit_code == 1
+        and "is export 1 of shop.h, not the latest: the cube's ledger records sequence 2" in res.output
+    )
+    cube.rename(tmp_path / "moved.zarr")  # the cube out of reach: said, not silently passed
+    res = cli(["verify", str(out), *trusted], module_catalog_dir)
+    assert res.exit_code == 0 and f"not checked: the cube {cube} is not reachable" in res.output, res.output

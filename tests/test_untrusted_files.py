@@ -19,7 +19,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import THOROUGH
-from forging import forge_header_from_sidecar, forge_header_text, forge_program, mutated_copy
+from forging import (
+    entered_in_ledger,
+    forge_header_from_sidecar,
+    forge_header_text,
+    forge_program,
+    mutated_copy,
+)
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -399,13 +405,15 @@ def test_a_consistent_forgery_of_the_recorded_surface_is_refused_against_the_cat
         side.write_text(json.dumps(meta, indent=2))
 
     forge()  # and the predicted P-V re-simulated from the forged table, as a forger would
-    meta["pv_nm"] = verify(header, pv_tolerance_nm=1e9, accept_recorded=True)["pv_nm"]
+    with entered_in_ledger(header):  # a forger who can write the cube: the ledger cannot tell
+        meta["pv_nm"] = verify(header, pv_tolerance_nm=1e9, accept_recorded=True)["pv_nm"]
     forge()
-    res = cli(["verify", str(header)], module_catalog_dir)
-    assert res.exit_code == 1 and f"surface 'small_sine'.params.{key}: recorded" in res.output, res.output
-    # against its own recorded entries it is consistent, and verify says that is all it proved
-    res = cli(["verify", str(header), "--accept-recorded"], module_catalog_dir)
-    assert res.exit_code == 0 and "not compared with a catalog" in res.output, res.output
+    with entered_in_ledger(header):
+        res = cli(["verify", str(header)], module_catalog_dir)
+        assert res.exit_code == 1 and f"surface 'small_sine'.params.{key}: recorded" in res.output, res.output
+        # against its own recorded entries it is consistent, and verify says that is all it proved
+        res = cli(["verify", str(header), "--accept-recorded"], module_catalog_dir)
+        assert res.exit_code == 0 and "not compared with a catalog" in res.output, res.output
 
 
 def test_a_fresh_export_is_consistent_with_this_catalog(originals, module_catalog_dir):

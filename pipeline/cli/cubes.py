@@ -321,6 +321,7 @@ def _print_verified(header: Path, record: dict[str, Any], compiled: bool) -> Non
     for line in [*exp.purpose_lines(record), *exp.format_of_file(header).verified(record)]:
         click.echo(line)
     click.echo(exp.replanned_line(record))
+    click.echo(f"latest       {record['latest']}")
     if compiled and "compiled_axes" in record:
         # a program: every axis the file moves, C in degrees, lengths in µm
         unit = {"C": (1e-3, "deg")}

@@ -41,9 +41,10 @@ from ftsweep.store.io import (
     write_texts_atomic,
 )
 
-# the export's time stamp: provenance beside the file, not part of what the machine runs, so
-# the same case exported twice gives the same file, byte for byte (a signature covers it)
-STAMP_FIELDS = ("created",)
+# the export's time stamp and its place in the cube's ledger (:mod:`ftsweep.store.ledger`):
+# provenance beside the file, not part of what the machine runs, so the same case exported
+# twice gives the same file, byte for byte (a signature covers them)
+STAMP_FIELDS = ("created", "ledger")
 
 
 def sidecar_digest(sidecar: dict[str, Any], text_fields: tuple[str, ...] = ("crc32", "header_sha256")) -> str:
@@ -357,8 +358,8 @@ def _numbers(path: Path, raw: bytes, start: int, n_cols: int) -> np.ndarray:
 
 def recorded_extra(meta: dict[str, Any]) -> dict[str, Any]:
     """The provenance a program's sidecar records beside its case (the cube it came from,
-    the platform it was planned on)."""
-    return {k: meta.get(k) for k in ("cube", "cube_git_revision", "platform") if k in meta}
+    the platform it was planned on, its place in the cube's export ledger)."""
+    return {k: meta.get(k) for k in ("cube", "cube_git_revision", "platform", "ledger") if k in meta}
 
 
 def check_document(

@@ -201,6 +201,8 @@ def statement(
         **purpose(meta),
         # where it was planned: verify allows one unit across platforms only on a signed platform
         "platform": meta.get("platform"),
+        # its place in the cube's export ledger: the name and sequence number it was exported as
+        "ledger": meta.get("ledger"),
         "ftsweep": stamp.get("ftsweep"),
         "signed_at": stamp.get("signed_at"),
         "expires": stamp.get("expires"),

@@ -146,7 +146,8 @@ class KindTests:
         self, cube: Cube, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     ) -> None:
         """Exports at two different times: the exported file is the same, byte for byte (its
-        sidecar differs in its time stamp alone), and both verify."""
+        sidecar differs in its time stamp and its sequence in the cube's export ledger alone),
+        and the latest verifies as the latest."""
         import itertools
         import time
 
@@ -163,11 +164,14 @@ class KindTests:
             sidecars.append(json.loads(path.with_name(path.name + ".json").read_text()))
         assert files[0] == files[1]
         assert sidecars[0]["created"] != sidecars[1]["created"]
-        assert {k: v for k, v in sidecars[0].items() if k != "created"} == {
-            k: v for k, v in sidecars[1].items() if k != "created"
+        assert sidecars[1]["ledger"]["sequence"] == sidecars[0]["ledger"]["sequence"] + 1
+        stamps = ("created", "ledger")
+        assert {k: v for k, v in sidecars[0].items() if k not in stamps} == {
+            k: v for k, v in sidecars[1].items() if k not in stamps
         }
         res = CliRunner().invoke(main, ["verify", str(path), "--json"], env=env)
         assert res.exit_code == 0, res.output
+        assert json.loads(res.stdout)["latest"].startswith(f"the latest export of {path.name}")
 
     def test_select_and_report_read_its_cube(self, cube: Cube, tmp_path: Path) -> None:
         _, out, folder = cube

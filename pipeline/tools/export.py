@@ -7,6 +7,7 @@ This is the export command's layer (tools): it selects from cubes and asks the r
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import tempfile
@@ -20,6 +21,7 @@ from ftsweep import registry
 from ftsweep.exports.files import FileFormat, Progress
 from ftsweep.exports.origin import sign, signature_path, signing_key
 from ftsweep.freetext import TextError, check_text
+from ftsweep.store import ledger
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     MAX_SIDECAR_BYTES,
@@ -30,7 +32,7 @@ from ftsweep.store.io import (
     sidecar_of,
     sidecar_path,
 )
-from ftsweep.store.storage import PathLike
+from ftsweep.store.storage import PathLike, StorageError, place
 
 
 def formats() -> tuple[FileFormat, ...]:
@@ -158,6 +160,7 @@ def _export_locked(
         "cube": str(cube_path),
         "cube_git_revision": ds.attrs.get("git_revision"),
         "platform": fingerprint(),
+        "ledger": {"name": out.name, "sequence": ledger.next_sequence(place(cube_path), out.name)},
     }
     dialect = dialect or nc.default_dialect(specs[1])
     _check_dialect(case.machine, specs[1], dialect)
@@ -177,6 +180,10 @@ def _export_locked(
             meta = fmt.export(staged, staged_side, case, specs, chosen, extra, name=name)
         if signer is not None:  # signed before anything is published: a failed signing publishes nothing
             meta = {**meta, "signature": sign(staged, signer[0], signer[1])}
+        # appended before the file is published: a file verify finds is always in the ledger
+        ledger.record(
+            place(cube_path), out.name, extra["ledger"]["sequence"], _ledger_entry(stage, out, meta)
+        )
         _publish(stage, out)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
@@ -199,6 +206,56 @@ def _check_dialect(name: str, machine: Any, dialect: str) -> None:
         f"machine '{name}' has a {own} controller, which does not read {dialect}: export --dialect {own} "
         f"(or text), or sweep the case on a machine whose controller reads {dialect}: "
         f"{', '.join(readers) or 'none in the catalog'}"
+    )
+
+
+def _ledger_entry(stage: Path, out: Path, meta: dict[str, Any]) -> dict[str, Any]:
+    """What the cube's ledger records of a staged export: the file's and its sidecar's
+    SHA-256 and when (the sidecar's ``created``)."""
+    return {
+        "sha256": hashlib.sha256((stage / out.name).read_bytes()).hexdigest(),
+        "sidecar_sha256": hashlib.sha256((stage / sidecar_path(out).name).read_bytes()).hexdigest(),
+        "created": str(meta.get("created")),
+    }
+
+
+def check_latest(path: Path, file_bytes: bytes, meta: dict[str, Any]) -> str:
+    """Refuse a file that is not the latest export of its name in its cube's ledger (a
+    rolled-back file: an older export of the same name); what was checked, or why not (no
+    cube recorded, the cube not reachable, no ledger entry of that name)."""
+    cube, recorded = meta.get("cube"), meta.get("ledger")
+    name = (
+        recorded.get("name")
+        if isinstance(recorded, dict) and isinstance(recorded.get("name"), str)
+        else path.name
+    )
+    if not isinstance(cube, str):
+        return "not checked: the file records no cube (a study's program)"
+    try:
+        at = place(cube)
+        reachable = at.exists("zarr.json")
+        found = ledger.sequences(at, name) if reachable else []
+    except (OSError, StorageError, ValueError) as exc:
+        return f"not checked: the cube {cube} is not reachable ({str(exc)[:120]})"
+    if not reachable:
+        return f"not checked: the cube {cube} is not reachable from here"
+    if not found:
+        return f"not checked: the cube's ledger records no export named {name} (exported before ledgers)"
+    digest = hashlib.sha256(file_bytes).hexdigest()
+    latest = ledger.entry(at, name, found[-1])
+    if latest is not None and latest["sha256"] == digest:
+        return f"the latest export of {name} in the cube's ledger (sequence {found[-1]})"
+    mine = next(
+        (k for k in reversed(found) if (ledger.entry(at, name, k) or {}).get("sha256") == digest), None
+    )
+    if mine is None:
+        raise ExportError(
+            f"{path} is no export of {name} the cube's ledger records (its latest is sequence {found[-1]}, "
+            f"{latest['created'] if latest else '?'}); do not load it"
+        )
+    raise ExportError(
+        f"{path} is export {mine} of {name}, not the latest: the cube's ledger records sequence {found[-1]} "
+        f"({latest['created'] if latest else '?'}), a rolled-back file; do not load it"
     )
 
 
@@ -265,6 +322,10 @@ def verify(
     with one_unit_across_platforms(why or _signed_platform(path, keys)):
         record["replanned"] = exact_on_this_platform(meta.get("platform"))[1]
     _check_expected(path, record["purpose"], expect or {})
+    try:
+        record["latest"] = check_latest(path, file_bytes, meta)
+    except ledger.LedgerError as exc:
+        raise ExportError(f"{path}: {exc}; do not load it") from None
     # ... then who made it
     if keys:
         signed = org.check_signature(path, file_bytes, side_bytes, meta, keys)

@@ -1,0 +1,80 @@
+"""The ledger of a cube's exports (docs/architecture.md "Trust"): every export of a cube
+appends an entry under ``_exports/<file name>/<sequence>.json`` — its sequence number for that
+name, the SHA-256 of the file and of its sidecar, when — created only if absent (``O_EXCL``
+locally, a conditional PUT on object storage), so entries are never rewritten. The sidecar
+and the signed statement carry the sequence; verify refuses a file that is not the latest
+export of its name while the cube is reachable (a rolled-back file, as TUF refuses metadata
+older than the version it recorded) and says when it is not. Entries are read back as
+untrusted data: capped, JSON, every field checked."""
+
+from __future__ import annotations
+
+import json
+import re
+from typing import Any, Optional
+
+from ftsweep.store.storage import Place, StorageError
+
+LEDGER = "_exports"
+# an entry is a few hundred bytes: a larger object is not one export wrote
+MAX_ENTRY_BYTES = 64 * 1024
+_SEQUENCE = re.compile(r"^(\d{8})\.json$")
+
+
+class LedgerError(ValueError):
+    """The ledger cannot record an export, or refuses a file that is not the latest."""
+
+
+def _folder(name: str) -> str:
+    return f"{LEDGER}/{name}"
+
+
+def sequences(at: Place, name: str) -> list[int]:
+    """The sequence numbers recorded for exports named ``name``, ascending."""
+    found = []
+    for key in at.listing(_folder(name)):
+        m = _SEQUENCE.match(key.rsplit("/", 1)[-1])
+        if m:
+            found.append(int(m.group(1)))
+    return sorted(found)
+
+
+def next_sequence(at: Place, name: str) -> int:
+    """The sequence number the next export named ``name`` takes (1 for the first)."""
+    recorded = sequences(at, name)
+    return recorded[-1] + 1 if recorded else 1
+
+
+def record(at: Place, name: str, sequence: int, entry: dict[str, Any]) -> None:
+    """Append export ``sequence`` of ``name``: created only if no entry holds that number
+    (another export took it: :class:`LedgerError`, and nothing should be published)."""
+    key = f"{_folder(name)}/{sequence:08d}.json"
+    body = json.dumps({"name": name, "sequence": sequence, **entry}, sort_keys=True).encode("ascii")
+    try:
+        at.create(key, body)
+    except FileExistsError:
+        raise LedgerError(
+            f"another export of {name} took sequence {sequence} in the cube's ledger meanwhile; export again"
+        ) from None
+    except (OSError, StorageError) as exc:
+        raise LedgerError(f"the cube's export ledger cannot be written ({exc}); nothing exported") from None
+
+
+def entry(at: Place, name: str, sequence: int) -> Optional[dict[str, Any]]:
+    """The recorded entry of export ``sequence`` of ``name``, checked (None if absent)."""
+    try:
+        raw = at.read_capped(f"{_folder(name)}/{sequence:08d}.json", MAX_ENTRY_BYTES)
+        data = json.loads(raw.decode("ascii"))
+    except FileNotFoundError:
+        return None
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise LedgerError(f"the ledger entry {sequence} of {name} is not one export writes ({exc})") from None
+    ok = (
+        isinstance(data, dict)
+        and data.get("name") == name
+        and data.get("sequence") == sequence
+        and all(isinstance(data.get(k), str) for k in ("sha256", "sidecar_sha256", "created"))
+    )
+    if not ok:
+        raise LedgerError(f"the ledger entry {sequence} of {name} is not one export writes")
+    return data

@@ -535,3 +535,25 @@ def test_a_sweep_spec_with_a_list_past_the_bound_is_refused_before_it_is_built(t
     with pytest.raises(CatalogError, match=r"line 4: a list of more than 1,000 items"):
         yamlfiles.read_yaml_file(spec)
     assert events["n"] < 1100  # stopped at the item past the bound
+
+
+def test_a_fenced_runs_workers_write_nothing_and_the_taker_removes_their_logs(ring_cube, tmp_path):
+    """Once a run's lease is taken over (its log folder fenced), its workers' next log write
+    raises before anything is written; a log one of them wrote before the fence is deleted
+    unread by the taking run's merge, so the cube's objects are the taker's."""
+    import shutil
+
+    cube = tmp_path / "c.zarr"
+    shutil.copytree(ring_cube, cube)
+    stale = caselog.CaseLog(cube, "20261206T000000-stale000")
+    stale.write_failed(0, "written before the takeover", "20261206T000000-stale000")
+    listed = caselog.fence_run(cube, "20261206T000000-stale000")
+    assert len(listed) == 1  # the taker may read the log listed before the fence, none after
+    late = caselog.CaseLog(cube, "20261206T000000-stale000")
+    with pytest.raises(caselog.Fenced, match="taken over: its workers write nothing more"):
+        late.write_failed(1, "written after the takeover", "20261206T000000-stale000")
+    logs = sorted(p.name for p in (cube / "_log" / "20261206T000000-stale000").iterdir())
+    assert len(logs) == 2 and "FENCED" in logs  # the one before the fence, and the marker
+    caselog.merge_logs(cube, keep=frozenset())  # a taker that kept none of them
+    left = [p for p in (cube / "_log").rglob("*") if p.is_file() and p.name != "FENCED"]
+    assert not left

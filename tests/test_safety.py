@@ -660,3 +660,69 @@ def test_every_probe_ends_in_one_line_and_a_nonzero_exit(
     result = cli(args, catalog_dir)
     assert_one_line_error(result, fragment)
     assert time.perf_counter() - start < 60  # refused up front, not after the work
+
+
+HELD_DRIVER = """
+import sys, threading
+from ftsweep.store import fenced
+from ftsweep.sweeps.run import run_sweep
+
+
+def hold(event, key):  # the driver held at its first write into the cube, its workers running
+    print("HELD", flush=True)
+    threading.Event().wait()
+
+
+fenced.WRITE_POINT = hold
+run_sweep(sys.argv[1], sys.argv[2], workers=2, catalog_folder=sys.argv[3])
+"""
+
+
+def _descendants(pid: int) -> set[int]:
+    """Every process below ``pid`` (from /proc: each process's parent)."""
+    parents: dict[int, int] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat_line = (entry / "stat").read_text()
+            except OSError:
+                continue
+            parents[int(entry.name)] = int(stat_line.rsplit(")", 1)[1].split()[1])
+    found, todo = set(), [pid]
+    while todo:
+        parent = todo.pop()
+        children = {p for p, pp in parents.items() if pp == parent}
+        todo.extend(children - found)
+        found |= children
+    return found
+
+
+@pytest.mark.integration  # a sweep's driver and its local cluster's workers
+@pytest.mark.serial
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads the process table from /proc")
+def test_a_killed_drivers_workers_end_within_seconds(tmp_path, catalog_dir):
+    """kill -9 of a sweep's driver held at its first write into the cube (a fault point, not a
+    workload's length): no process of its run is left 10 s later."""
+    spec = write(tmp_path, "six.yaml", SIX_CASES)
+    env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))
+    driver = subprocess.Popen(
+        [sys.executable, "-c", HELD_DRIVER, str(spec), str(tmp_path / "six.zarr"), str(catalog_dir)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        env=env,
+    )
+    try:
+        assert driver.stdout is not None and driver.stdout.readline().strip() == "HELD"
+        run = _descendants(driver.pid)
+        assert run  # its workers (and multiprocessing's helpers) are running
+        driver.kill()
+        driver.wait(timeout=30)
+        deadline = time.time() + 10.0
+        while time.time() < deadline and any(Path(f"/proc/{p}").exists() for p in run):
+            time.sleep(0.1)
+        alive = [p for p in run if Path(f"/proc/{p}").exists()]
+        assert not alive, f"processes of the killed run still alive after 10 s: {alive}"
+    finally:
+        if driver.poll() is None:
+            driver.kill()

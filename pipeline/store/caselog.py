@@ -199,11 +199,16 @@ def checked_cases(
     return list(by_case.items())
 
 
+class Fenced(CubeError):
+    """A worker of a run whose lease was taken over: it writes no log."""
+
+
 class CaseLog:
     """One task's log (worker side), with :class:`~ftsweep.store.cube.CubeWriter`'s writing methods."""
 
     def __init__(self, where: PathLike, run_id: str) -> None:
         self.place = place(where)
+        self.fence_key = f"{LOG}/{run_id}/{FENCED}"
         self.prefix = f"{LOG}/{run_id}/{uuid.uuid4().hex[:12]}"
         self.cases: list[tuple[int, Values]] = []
         self.version = 0
@@ -215,6 +220,12 @@ class CaseLog:
         if not self.place.exists("zarr.json"):
             # a log would recreate the cube's folder and merge into nothing
             raise CubeError(f"the cube {self.place} is gone (deleted while the sweep ran)")
+        if self.place.exists(self.fence_key):
+            # another run took the cube over: this run's workers write nothing more, and the
+            # task stops here (its remaining cases are the taking run's)
+            raise Fenced(
+                f"the lease of this run on {self.place} was taken over: its workers write nothing more"
+            )
         self.cases.append((flat, values))
         self.version += 1
         self.place.write(self._key(self.version), _encode(self.cases))

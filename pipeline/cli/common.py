@@ -5,6 +5,8 @@ JSON, progress, ``--threads``, signing), are :mod:`ftsweep.options`, re-exported
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Optional
 
@@ -170,3 +172,15 @@ def first_compile_notice() -> None:
             f"(about {FIRST_COMPILE_S:.0f} s) ...",
             err=True,
         )
+
+
+@contextmanager
+def reported_errors(progress: Any, *errors: type[Exception]) -> Iterator[Any]:
+    """The block's ``progress`` on stderr, ended whatever happens; the ``errors`` a command
+    expects are one ``Error:`` line each."""
+    try:
+        yield progress
+    except errors as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        progress_done(progress)

@@ -24,6 +24,7 @@ from ftsweep.cli.common import (
     guard_complete,
     local_output,
     progress_done,
+    reported_errors,
     sign_options,
     stderr_progress,
     threads_option,
@@ -195,7 +196,26 @@ def export(
         click.echo(f"signature    {exp.signature_path(target)} (key {meta['signature']})")
 
 
-@click.command()
+# verify --help's closing paragraphs: the origin, and the export ledger (click prints an
+# epilog after the options)
+VERIFY_EPILOG = """\b
+Origin (what the hashes above cannot prove: anyone can re-make them):
+- with a trusted key (--trusted-key, or the config file's trusted_keys): the file must
+  carry FILE.sig, an ed25519 signature of that key over a statement naming this file
+  (name, length, digest), its sidecar's digest, the platform it was planned on, its
+  sequence in the cube's export ledger and what it is for, not expired;
+- without: the sidecar's recorded surface, machine and cutting entries must equal the
+  local catalog's (--accept-recorded verifies against the recorded ones instead).
+The output's origin line says which of the two was proved.
+
+\b
+Rollback: while the file's cube is reachable, the file must be the latest export of its
+name in the cube's export ledger (an older export put back is refused, signed or not);
+the output's latest line says so, or why it was not checked.
+"""
+
+
+@click.command(epilog=VERIFY_EPILOG)
 @click.argument("header", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option(
     "--pv-tolerance-nm",
@@ -275,23 +295,15 @@ def verify(
       the tolerance of the P-V predicted at export.
     Otherwise exit 1 naming the first difference: do not load that file. Files are data: a
     plug-in surface they name runs only if the local catalog declares it (--trust-plugins).
-
-    \b
-    Origin (what the hashes above cannot prove: anyone can re-make them):
-    - with a trusted key (--trusted-key, or the config file's trusted_keys): the file must
-      carry FILE.sig, an ed25519 signature of that key over a statement naming this file
-      (name, length, digest), its sidecar's digest and what it is for, not expired;
-    - without: the sidecar's recorded surface, machine and cutting entries must equal the
-      local catalog's (--accept-recorded verifies against the recorded ones instead).
-    The output's origin line says which of the two was proved.
     """
     from ftsweep.engine.case import CaseError
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.tools import export as exp
 
-    progress = stderr_progress("re-simulating", as_json)
     expect = {"case": expect_case, "surface": expect_surface}
-    try:
+    with reported_errors(
+        stderr_progress("re-simulating", as_json), exp.ExportError, CaseError, CatalogError
+    ) as progress:
         record = exp.verify(
             header,
             progress,
@@ -301,12 +313,8 @@ def verify(
             accept_recorded,
             compiled,
             expect,
-            across_platforms=across_platforms,
+            across_platforms,
         )
-    except (exp.ExportError, CaseError, CatalogError) as exc:
-        raise click.ClickException(str(exc)) from None
-    finally:
-        progress_done(progress)
     if as_json:
         echo_json(record)
     else:

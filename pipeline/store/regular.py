@@ -1,6 +1,6 @@
 """A local cube as zarr reads it, every entry checked to be a regular file first: a FIFO,
 device, socket or symbolic link among a cube's blocks is refused in an instant, naming it
-(:class:`ftsweep.store.storage.SpecialEntry`), instead of blocking or redirecting the read.
+(:class:`ftsweep.store.entries.SpecialEntry`), instead of blocking or redirecting the read.
 Imported only where a zarr store is opened (workers that log cases never import zarr)."""
 
 from __future__ import annotations
@@ -10,12 +10,12 @@ from typing import Any
 
 from zarr.storage import LocalStore
 
-from ftsweep.store.storage import check_entry
+from ftsweep.store.entries import check_entry
 
 
 class RegularLocalStore(LocalStore):
     """zarr's :class:`~zarr.storage.LocalStore` whose reads check the entry first
-    (:func:`ftsweep.store.storage.check_entry`: opened without blocking or following a link,
+    (:func:`ftsweep.store.entries.check_entry`: opened without blocking or following a link,
     judged by ``fstat``). Between the check and zarr's own open a swapped entry is not seen:
     the check guards against what lies in a cube, not against a race with a local attacker."""
 

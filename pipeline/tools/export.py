@@ -306,9 +306,9 @@ def verify(
     side = sidecar_of(path)
     before = _identity(path, side)  # nothing read yet: the format's own cap judges the file first
     keys = org.trusted_keys(trusted)
-    why = "as --across-platforms asks" if across_platforms else ""
+    across = "as --across-platforms asks" if across_platforms else _signed_platform(path, keys)
     # the file as the machine reads it first (its own errors name what is wrong with it) ...
-    with bounded_by_default_resolution(), one_unit_across_platforms(why or _signed_platform(path, keys)):
+    with bounded_by_default_resolution(), one_unit_across_platforms(across):
         record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
     if compiled:
         if fmt.compiled is None:
@@ -319,7 +319,7 @@ def verify(
         raise ExportError(f"{path} or its sidecar changed while it was verified; verify it again")
     meta = read_sidecar(path, side_bytes)
     record["purpose"] = org.purpose(meta)
-    with one_unit_across_platforms(why or _signed_platform(path, keys)):
+    with one_unit_across_platforms(across):
         record["replanned"] = exact_on_this_platform(meta.get("platform"))[1]
     _check_expected(path, record["purpose"], expect or {})
     try:
@@ -327,19 +327,31 @@ def verify(
     except ledger.LedgerError as exc:
         raise ExportError(f"{path}: {exc}; do not load it") from None
     # ... then who made it
-    if keys:
-        signed = org.check_signature(path, file_bytes, side_bytes, meta, keys)
-        record["origin"] = {"proved": "signed", **signed}
-    elif accept_recorded:
-        record["origin"] = {"proved": "recorded entries (--accept-recorded): not compared with a catalog"}
-    else:
-        catalog = org.check_catalog(meta, side)
-        record["origin"] = {"proved": "consistent with this catalog", "catalog": catalog}
+    record["origin"] = _proved_origin(path, meta, file_bytes, side_bytes, keys, accept_recorded)
     if side != sidecar_path(path):
         record["note"] = (
             f"the sidecar has the older name {side.name}; export again to name it {sidecar_path(path).name}"
         )
     return record
+
+
+def _proved_origin(
+    path: Path,
+    meta: dict[str, Any],
+    file_bytes: bytes,
+    side_bytes: bytes,
+    keys: list[Path],
+    accept_recorded: bool,
+) -> dict[str, Any]:
+    """What verify proved of who made the file: with trusted ``keys`` its signed statement,
+    else its recorded catalog entries against the local catalog (unless ``accept_recorded``)."""
+    from ftsweep.exports import origin as org
+
+    if keys:
+        return {"proved": "signed", **org.check_signature(path, file_bytes, side_bytes, meta, keys)}
+    if accept_recorded:
+        return {"proved": "recorded entries (--accept-recorded): not compared with a catalog"}
+    return {"proved": "consistent with this catalog", "catalog": org.check_catalog(meta, sidecar_of(path))}
 
 
 def _signed_platform(path: Path, keys: list[Path]) -> str:

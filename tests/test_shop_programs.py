@@ -891,3 +891,10 @@ def test_a_block_whose_f_gives_no_lathes_spindle_is_refused_by_its_line():
         dialects.DialectError, match=rf"^line {want}: a block of 1e-06 s turning C 1 deg gives"
     ):
         _read(text)
+
+
+def test_a_block_turning_the_spindle_past_the_machines_limit_is_refused_by_line(tmp_path):
+    """xzc-pmac-pvt declares C at most 100 rpm: 36° in 10 ms (600 rpm) is refused at its block's
+    line, whatever velocity the block's words give."""
+    code, out = predict(tmp_path, PMAC_MANUAL.replace("PVT100", "PVT10"), "--machine", "xzc-pmac-pvt")
+    assert code == 1 and "line 9: the block turns the spindle at 600 rpm, over the 100 rpm" in out, out

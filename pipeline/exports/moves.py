@@ -300,13 +300,27 @@ def against(peaks: dict[str, float], machine: Any) -> dict[str, Any]:
 
 
 def check_velocities(m: Moves, machine: Any, name: str) -> None:
-    """Refuse a PVT program's velocity over the machine's declared axis limits (its ``axes``:
-    X and Y feed, Z velocity [mm/s], C speed [rpm] as deg/s), naming the point's line."""
+    """Refuse a program's speed over the machine's declared axis limits (its ``axes``: X and Y
+    feed, Z velocity [mm/s], C speed [rpm] as deg/s), naming the point's line: a PVT
+    program's velocity words, and any program's spindle speed over a block (C's turn over
+    the block's time)."""
     axes = machine.axes
-    if m.velocity is None or axes is None:
+    if axes is None:
+        return
+    limit_c = axes.c_speed_rpm * 6.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        spindle = np.abs(np.diff(m.c_deg)) / np.asarray(m.seconds, dtype=np.float64)
+    fast = np.flatnonzero(np.isfinite(spindle) & (spindle > limit_c))
+    if fast.size:
+        k = int(fast[0])
+        raise DialectError(
+            f"{m.where(k + 1)}: the block turns the spindle at {spindle[k] / 6.0:.6g} rpm, over the "
+            f"{axes.c_speed_rpm:g} rpm of machine '{name}'"
+        )
+    if m.velocity is None:
         return
     limits = {
-        "C": axes.c_speed_rpm * 6.0,
+        "C": limit_c,
         "X": axes.x_feed_mm_s,
         "Y": axes.y_feed_mm_s,
         "Z": axes.z_velocity_mm_s,

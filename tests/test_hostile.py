@@ -188,10 +188,9 @@ def header_text(tmp_path_factory, module_catalog_dir):
     return (folder / "r.h").read_text()
 
 
-@HOSTILE
-@given(depth=st.integers(2, 60), width=st.integers(2, 8), at=st.integers(0, 20))
-def test_a_macro_expansion_bomb_is_refused_before_it_expands(header_text, monkeypatch, depth, width, at):
-    # D0 = 1; Dk = D(k-1) repeated `width` times: width^depth tokens if expanded
+def _count_expansion(monkeypatch) -> dict[str, int]:  # type: ignore[no-untyped-def]
+    """The tokens the C preprocessor expands from now on, counted (the count shown to count
+    by a clean header's expansion first)."""
     expanded = {"tokens": 0}
 
     def counting(self, tokens, *args, **kwargs):  # type: ignore[no-untyped-def]
@@ -199,6 +198,14 @@ def test_a_macro_expansion_bomb_is_refused_before_it_expands(header_text, monkey
         return _EXPAND(self, tokens, *args, **kwargs)
 
     monkeypatch.setattr(Preprocessor, "expand_macros", counting)
+    return expanded
+
+
+@HOSTILE
+@given(depth=st.integers(2, 60), width=st.integers(2, 8), at=st.integers(0, 20))
+def test_a_macro_expansion_bomb_is_refused_before_it_expands(header_text, monkeypatch, depth, width, at):
+    # D0 = 1; Dk = D(k-1) repeated `width` times: width^depth tokens if expanded
+    expanded = _count_expansion(monkeypatch)
     read_c(header_text.encode(), "clean")
     clean = expanded["tokens"]
     assert clean > 0  # the counter sees the preprocessor's work
@@ -219,13 +226,7 @@ def test_a_forward_macro_chain_is_refused_at_its_first_line(header_text, monkeyp
     """#define M0 M1 M1 … #define M(d-1) Md Md, #define Md 1 and one use: each replacement
     names a macro defined after it, which C expands only at the use (2^depth tokens). The
     first definition holds an identifier: refused there, before anything is expanded."""
-    expanded = {"tokens": 0}
-
-    def counting(self, tokens, *args, **kwargs):  # type: ignore[no-untyped-def]
-        expanded["tokens"] += len(tokens)
-        return _EXPAND(self, tokens, *args, **kwargs)
-
-    monkeypatch.setattr(Preprocessor, "expand_macros", counting)
+    expanded = _count_expansion(monkeypatch)
     read_c(header_text.encode(), "clean")
     clean = expanded["tokens"]
     chain = [f"#define M{k} M{k + 1} M{k + 1}" for k in range(depth)] + [f"#define M{depth} 1"]

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from typing import Any, Optional
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
@@ -36,6 +36,19 @@ from ftsweep.stages.paths.commanded import CommandedPath, crossings
 # rays round the part when the resolution does not set n_theta: samples_per_cell per point
 # step of the program's finest revolution, within these bounds
 MIN_RAYS, MAX_RAYS = 360, 20_000
+
+
+class Passes(NamedTuple):
+    """The passes over a batch of rays: positions [µm] along each ray (NaN padding last), the
+    program's commands [µm], the design-compensated path's at the program's points and the
+    exact design's at every pass (None when the case asks the split off), and how many passes
+    each ray has."""
+
+    pos: np.ndarray
+    w: np.ndarray
+    w_design: Optional[np.ndarray]
+    w_exact: Optional[np.ndarray]
+    n_valid: np.ndarray
 
 
 class CommandedSimulation:
@@ -120,43 +133,50 @@ class CommandedSimulation:
                 )
         return path._replace(tangents=tangents), z
 
-    def _passes(self, theta: np.ndarray) -> tuple[np.ndarray, list[Optional[np.ndarray]], np.ndarray]:
-        """The passes over the rays at ``theta`` [rad] sorted by position [µm], with the
-        program's commands, the design's at its points and the exact ones (None when the case
-        asks the split off); near the centre the opposite ray's passes at −ρ, those within
-        the nose radius of the centre (their arcs reach this ray)."""
+    def _passes(self, theta: np.ndarray) -> Passes:
+        """The passes over the rays at ``theta`` [rad] sorted by position (:class:`Passes`);
+        near the centre the opposite ray's passes at −ρ, those within the nose radius of the
+        centre (their arcs reach this ray)."""
         sides = [self._side(theta, 1.0)]
         if self.reaches_centre:
             sides.append(self._side(theta + math.pi, -1.0))
-        pos = np.concatenate([p for p, _ in sides], axis=1)
+        pos = np.concatenate([side.pos for side in sides], axis=1)
         order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)
-        values: list[Optional[np.ndarray]] = []
-        for k in range(3):
-            parts = [v[k] for _, v in sides]
-            values.append(
-                None if parts[0] is None else np.take_along_axis(np.concatenate(parts, axis=1), order, axis=1)  # type: ignore[arg-type]
-            )
-        pos = np.take_along_axis(pos, order, axis=1)
-        return pos, values, np.isfinite(pos).sum(axis=1).astype(np.int64)
 
-    def _side(self, theta: np.ndarray, sign: float) -> tuple[np.ndarray, list[Optional[np.ndarray]]]:
+        def merged(values: list[Optional[np.ndarray]]) -> Optional[np.ndarray]:
+            if any(v is None for v in values):
+                return None
+            return np.take_along_axis(np.concatenate(values, axis=1), order, axis=1)  # type: ignore[arg-type]
+
+        w = merged([side.w for side in sides])
+        assert w is not None
+        pos = np.take_along_axis(pos, order, axis=1)
+        return Passes(
+            pos,
+            w,
+            merged([side.w_design for side in sides]),
+            merged([side.w_exact for side in sides]),
+            np.isfinite(pos).sum(axis=1).astype(np.int64),
+        )
+
+    def _side(self, theta: np.ndarray, sign: float) -> Passes:
         """The passes over rays at ``theta`` [rad] at ``sign`` × their radius [µm] (−1: the
         opposite rays', only those within the nose radius of the centre), with their commands."""
-        pos, w, _ = crossings(self.path, self.z, theta)
+        pos, w, n_valid = crossings(self.path, self.z, theta)
         if sign < 0:
             pos[~(pos < self.rcase.nose_radius_um)] = np.nan
         w_design = w_exact = None
         if self.design is not None:
             _, w_design, _ = crossings(self.design[0], self.design[1], theta)
             w_exact = self._exact(pos, np.mod(theta, 2.0 * math.pi), w_design)
-        return sign * pos, [w, w_design, w_exact]
+        return Passes(sign * pos, w, w_design, w_exact, n_valid)
 
     def batch(self, b: int, timer: Any) -> Machined:
         """Batch ``b`` of rays through crossings, sampling, exact commands and the envelope."""
         theta = self.rays[b * self.per_batch : (b + 1) * self.per_batch]
         rcase, rc = self.rcase, self.rcase.nose_radius_um
         t = time.perf_counter()
-        pos, (w, w_design, w_exact), n_valid = self._passes(theta)
+        pos, w, w_design, w_exact, n_valid = self._passes(theta)
         t = timer.add("interpolation", t)
         ct, st = np.cos(theta)[:, None], np.sin(theta)[:, None]
         query = np.broadcast_to(self.nodes[None, :], (theta.size, self.nodes.size))

@@ -118,3 +118,33 @@ def test_a_count_axis_is_an_integer_coordinate(mixed_cube):
     ds = xr.open_zarr(mixed_cube)
     assert ds["points"].dtype.kind == "i" and ds["points"].values.tolist() == [8000, 20000, 60000]
     assert ds["points"].attrs["units"] == "1" and ds["aspect"].dtype.kind == "f"
+
+
+def test_the_optimum_of_a_lazily_opened_cube_is_computed(mixed_cube):
+    """A notebook's ``xr.open_zarr`` cube is dask-backed: the accessor's optimum is still an
+    answer (numpy values), not a lazy graph."""
+    lazy = cube.open_dataset(mixed_cube)
+    assert lazy["pv_nm"].chunks is not None  # the cube as a notebook opens it
+    optimum = lazy.ftsweep.optimum()
+    assert isinstance(optimum.data, np.ndarray)
+    np.testing.assert_array_equal(optimum.values, open_cube(mixed_cube).ftsweep.optimum().values)
+
+
+def test_a_budget_below_every_case_names_the_smallest_count(mixed_cube):
+    ds = open_cube(mixed_cube)
+    counts = ds["n_points"].where(ds["feasible"] == 1).values
+    smallest = int(np.nanmin(counts))
+    with pytest.raises(
+        ValueError, match=rf"its smallest has {smallest:,} points \(--budget-points {smallest}\)"
+    ):
+        choose(ds, budget_points=10)
+
+
+def test_an_unknown_sweep_name_gets_a_did_you_mean():
+    from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.sweeps.spec import load_sweep
+
+    with pytest.raises(
+        CatalogError, match=r"unknown sweep 'sinewave-rng' \(did you mean 'sinewave-ring'\?\)"
+    ):
+        load_sweep("sinewave-rng")

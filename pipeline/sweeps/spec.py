@@ -329,7 +329,10 @@ def resolve_sweep_path(name_or_path: str) -> Path:
     path = sweep_dir() / f"{name_or_path}.yaml"
     if not path.is_file():
         known = sorted(p.stem for p in sweep_dir().glob("*.yaml"))
-        raise CatalogError(f"unknown sweep '{name_or_path}' (no {path}); known: {', '.join(known) or 'none'}")
+        raise CatalogError(
+            f"unknown sweep '{name_or_path}'{did_you_mean(name_or_path, known)} (no {path}); "
+            f"known: {', '.join(known) or 'none'}"
+        )
     return path
 
 

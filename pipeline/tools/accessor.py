@@ -89,7 +89,8 @@ class FtsweepAccessor:
         pv = self.pv()
         found = pv.notnull().any("aspect")
         best = pv.fillna(np.inf).idxmin("aspect").where(found)
-        return best.rename("aspect").assign_attrs(self._ds["aspect"].attrs)
+        # computed: an answer, not a lazy graph (the cube is small)
+        return best.rename("aspect").assign_attrs(self._ds["aspect"].attrs).compute()
 
     # ------------------------------------------------------------------ plots
     def plot_pv(self, ax: Any = None) -> Any:

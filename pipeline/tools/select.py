@@ -14,7 +14,7 @@ import xarray as xr
 
 from ftsweep.store import cube
 from ftsweep.store.storage import PathLike, place
-from ftsweep.tools.query import best_flat, capacity_of, describe, eligible, position
+from ftsweep.tools.query import best_flat, capacity_of, describe, eligible, eligible_pv, position
 
 
 class SelectError(ValueError):
@@ -77,7 +77,15 @@ def select_budget(ds: xr.Dataset, budget_points: int) -> dict[str, Any]:
     """The eligible case with the lowest P-V among layouts of at most ``budget_points``."""
     flat = best_flat(ds, ds["n_points"] <= budget_points)
     if flat is None:
-        raise SelectError(f"no computed, feasible case has at most {budget_points:,} points in this cube")
+        counts = ds["n_points"].where(eligible_pv(ds).notnull()).values
+        smallest = (
+            f"; its smallest has {int(np.nanmin(counts)):,} points (--budget-points {int(np.nanmin(counts))})"
+            if np.any(np.isfinite(counts))
+            else ""
+        )
+        raise SelectError(
+            f"no computed, feasible case has at most {budget_points:,} points in this cube{smallest}"
+        )
     chosen = describe(ds, flat)
     chosen["rule"] = f"lowest P-V at or under {budget_points:,} points"
     return chosen

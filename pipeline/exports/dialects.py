@@ -159,9 +159,7 @@ def _spline(m: Moves, dialect: str, ctrl: Any) -> list[str]:
     pos = {a: _num(v, d) for a, v in _axes(m).items()}
     out = _pmac_head(m, d)
     ta = f"{float(m.seconds[0]) * 1e3:.5f}".rstrip("0").rstrip(".")  # ms on whole 1/4 µs steps
-    # the Turbo PMAC times SPLINE moves by TM under I42 = 0 (its default), by TA under I42 = 1
-    timer = "TA" if ctrl.i42 == 1 else "TM"
-    out.append(f"spline{ta}" if ctrl.pmac_syntax == "power" else f"SPLINE1 {timer}{ta}")
+    out.append(f"spline{ta}" if ctrl.pmac_syntax == "power" else f"SPLINE1 {ctrl.pmac_timer}{ta}")
     out += [" ".join(f"{a}{pos[a][k]}" for a in pos) for k in range(1, m.n_points)]
     return out + _retract(m, d) + ["CLOSE"]
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from ftsweep.exports import macro
 from ftsweep.exports.feedrate import check_timing
-from ftsweep.exports.moves import DialectError, Moves, line_label
+from ftsweep.exports.moves import DialectError, Moves, line_label, physical_line
 
 # the work a program may make its reader do, in units of one expression node parsed or
 # evaluated (a line executed: LINE_UNITS): WORK_PER_BYTE a byte of the file, at least
@@ -103,7 +103,7 @@ class IsoReader:
 
     def line_no(self, n: int) -> int:
         """The physical line of ``lines[n]`` in its file (1-based; a preamble's negative)."""
-        return n - self.preamble + 1 if n >= self.preamble else -(n + 1)
+        return physical_line(n, self.preamble)
 
     def fail(self, n: int, why: str) -> DialectError:
         text = self.lines[n].strip()[:80] if 0 <= n < len(self.lines) else ""

@@ -70,6 +70,13 @@ class Moves:
         return list(zip(edges[:-1], edges[1:], strict=True))
 
 
+def physical_line(n: int, preamble: int) -> int:
+    """The physical line (1-based) of a reader's line ``n`` (0-based) when its first
+    ``preamble`` lines are a template's read first: the program's own numbered from its first
+    line, a preamble's negative (:func:`line_label`)."""
+    return n - preamble + 1 if n >= preamble else -(n + 1)
+
+
 def line_label(line: int) -> str:
     """A physical line as a refusal names it: ``line N`` of the program, ``preamble line N``
     for a line of the preamble it was read after (stored negative)."""

@@ -441,10 +441,11 @@ def predict_program(
 
     lines = read_lines(Path(path), strict=False)  # read once: its moves and the machine it names
     head = [] if preamble is None else read_lines(Path(preamble), strict=False)
-    dialect = _dialect_of(head + lines)
-    machine, machine_from = _machine_for(named_machine(head + lines), machine, dialect)
+    whole = head + lines
+    dialect = _dialect_of(whole)
+    machine, machine_from = _machine_for(named_machine(whole), machine, dialect)
     ctrl = profile_for(machine, dialect, g93_f)
-    moves = dialects.read(head + lines, dialect, ctrl, preamble=len(head))
+    moves = dialects.read(whole, dialect, ctrl, preamble=len(head))
     info: dict[str, Any] = {
         "program": str(path),
         "dialect": moves.dialect,
@@ -457,7 +458,7 @@ def predict_program(
     if preamble is not None:
         info["preamble"] = str(preamble)
     if compiled:
-        info["compiled"] = _compiled_reading(head + lines, moves, ctrl, path)
+        info["compiled"] = _compiled_reading(whole, moves, ctrl, path)
     info.update(dialects.summary(moves))
     entry = catalogs.entry("machines", machine)
     check_velocities(moves, entry, machine)

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.exports.moves import DialectError, Moves, line_label
+from ftsweep.exports.moves import DialectError, Moves, line_label, physical_line
 
 _NUM = r"-?(?:\d+\.?\d*|\.\d+)"
 # a cut block giving all three axes (with their velocities in PVT): read without the tokenizer
@@ -50,19 +50,12 @@ def read_pmac(lines: list[str], dialect: str, ctrl: Any, preamble: int = 0) -> M
     return reader.moves()
 
 
-def velocity_variable(ctrl: Any) -> str:
-    """The name of the variable that sets the PVT velocities' time unit on the profile's
-    controller family."""
-    return "Coord[x].FeedTime" if ctrl.pmac_syntax == "power" else "Isx90"
-
-
 class _PmacReader:
     """The state of a PMAC program read line by line (:func:`read_pmac`)."""
 
     def __init__(self, dialect: str, ctrl: Any, preamble: int = 0) -> None:
         self.dialect, self.ctrl, self.preamble = dialect, ctrl, preamble
         self.lines: list[int] = []  # each point's physical line (a preamble's negative)
-        self.last_line = 0
         self.comments: list[str] = []
         self.pos: dict[str, float] = {a: math.nan for a in AXES}
         self.mode, self.seconds, self.ta_s = "", math.nan, math.nan
@@ -76,13 +69,12 @@ class _PmacReader:
         self.per_second = 1000.0 / float(ctrl.ix90_ms)
 
     def line_no(self, n: int) -> int:
-        return n - self.preamble + 1 if n >= self.preamble else -(n + 1)
+        return physical_line(n, self.preamble)
 
     def fail(self, n: int, line: str, why: str) -> DialectError:
         return DialectError(f"{line_label(self.line_no(n))} ({line.strip()[:60]!r}): {why}")
 
     def line(self, n: int, line: str) -> None:
-        self.last_line = n
         fast = (
             _PMAC_PLAIN.match(line)
             if self.points and self.absolute and self.mode in ("PVT", "SPLINE1")
@@ -145,7 +137,7 @@ class _PmacReader:
                 raise self.fail(
                     n,
                     line,
-                    f"a Turbo PMAC's uniform spline is SPLINE1, timed by {self._timer()} "
+                    f"a Turbo PMAC's uniform spline is SPLINE1, timed by {self.ctrl.pmac_timer} "
                     f"(I42={self.ctrl.i42})",
                 )
             self.mode = "SPLINE1"
@@ -155,14 +147,10 @@ class _PmacReader:
             self._timer_word(n, line, "T" + m.group(4), m.group(5))
         # TS (S-curve time) shapes LINEAR moves only
 
-    def _timer(self) -> str:
-        """The word that sets SPLINE and PVT move times under the profile's I42."""
-        return "TA" if self.ctrl.i42 == 1 else "TM"
-
     def _timer_word(self, n: int, line: str, word: str, ms: str) -> None:
         """TM or TA: the I42-selected one sets the SPLINE and PVT move time; the other, inside
         SPLINE or PVT mode, is refused naming I42 (outside, it shapes LINEAR moves only)."""
-        if word == self._timer():
+        if word == self.ctrl.pmac_timer:
             self.ta_s = self._time(n, line, ms, word)
             if self.mode == "PVT":
                 self.seconds = self.ta_s
@@ -170,9 +158,9 @@ class _PmacReader:
             raise self.fail(
                 n,
                 line,
-                f"{word}{ms} in {self.mode} mode: under I42={self.ctrl.i42} the SPLINE and PVT move time is "
-                f"{self._timer()} (the Turbo PMAC Software Reference's I42 entry: 0 selects TM, 1 TA); "
-                "see machine.controller.i42",
+                f"{word}{ms} in {self.mode} mode: under I42={self.ctrl.i42} the SPLINE and PVT move time "
+                f"is {self.ctrl.pmac_timer} (the Turbo PMAC Software Reference's I42 entry: 0 selects TM, "
+                "1 TA); see machine.controller.i42",
             )
 
     def _time(self, n: int, line: str, ms: str, what: str) -> float:

@@ -130,6 +130,12 @@ class Controller(Strict):
             raise ValueError(f"f_min {self.f_min:g} is above f_max {self.f_max:g}")
         return self
 
+    @property
+    def pmac_timer(self) -> str:
+        """The word that times a Turbo PMAC's SPLINE and PVT moves under its I42 (the Software
+        Reference's I42 entry: 0 TM, 1 TA; ``PVT<ms>`` sets the time in either)."""
+        return "TA" if self.i42 == 1 else "TM"
+
     def cut_rule(self) -> str:
         """How a reader of this dialect tells a cut from the moves that are not cuts, where a
         cut starts and how it ends (docs/controllers.md, "What a cut is")."""
@@ -164,7 +170,7 @@ class Controller(Strict):
                 timing = "segment time in pvt<ms>/spline<ms>"
             else:
                 unit = f"Isx90={self.ix90_ms:g}"
-                timing = f"I42={self.i42} segment time by {'TA' if self.i42 else 'TM'} or PVT<ms>"
+                timing = f"I42={self.i42} segment time by {self.pmac_timer} or PVT<ms>"
             return [
                 f"{unit} velocity per {self.ix90_ms / 1000.0:g} s, {timing} in ms at 1/4 us steps, "
                 f"{self.pmac_syntax.title()} PMAC {mode} syntax, ABS, C {rollover}"

@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 from ftsweep import registry
 from ftsweep.exports.files import FileFormat, Progress
@@ -224,11 +224,9 @@ def check_latest(path: Path, file_bytes: bytes, meta: dict[str, Any]) -> str:
     rolled-back file: an older export of the same name); what was checked, or why not (no
     cube recorded, the cube not reachable, no ledger entry of that name)."""
     cube, recorded = meta.get("cube"), meta.get("ledger")
-    name = (
-        recorded.get("name")
-        if isinstance(recorded, dict) and isinstance(recorded.get("name"), str)
-        else path.name
-    )
+    name = path.name
+    if isinstance(recorded, dict) and isinstance(recorded.get("name"), str):
+        name = recorded["name"]
     if not isinstance(cube, str):
         return "not checked: the file records no cube (a study's program)"
     try:
@@ -241,7 +239,15 @@ def check_latest(path: Path, file_bytes: bytes, meta: dict[str, Any]) -> str:
         return f"not checked: the cube {cube} is not reachable from here"
     if not found:
         return f"not checked: the cube's ledger records no export named {name} (exported before ledgers)"
-    digest = hashlib.sha256(file_bytes).hexdigest()
+    try:
+        return _latest_of(path, name, at, found, hashlib.sha256(file_bytes).hexdigest())
+    except ledger.LedgerError as exc:  # an entry that is not one export writes
+        raise ExportError(f"{path}: {exc}; do not load it") from None
+
+
+def _latest_of(path: Path, name: str, at: Any, found: list[int], digest: str) -> str:
+    """:func:`check_latest` once the ledger's sequences of ``name`` are ``found``: the file
+    (its SHA-256 ``digest``) is the latest export, or refused as an older or unrecorded one."""
     latest = ledger.entry(at, name, found[-1])
     if latest is not None and latest["sha256"] == digest:
         return f"the latest export of {name} in the cube's ledger (sequence {found[-1]})"
@@ -306,7 +312,8 @@ def verify(
     side = sidecar_of(path)
     before = _identity(path, side)  # nothing read yet: the format's own cap judges the file first
     keys = org.trusted_keys(trusted)
-    across = "as --across-platforms asks" if across_platforms else _signed_platform(path, keys)
+    signed = _signed_statement(path, keys)
+    across = _why_one_unit(across_platforms, signed)
     # the file as the machine reads it first (its own errors name what is wrong with it) ...
     with bounded_by_default_resolution(), one_unit_across_platforms(across):
         record = fmt.verify(path, progress, pv_tolerance_nm, trust_plugins)
@@ -322,12 +329,9 @@ def verify(
     with one_unit_across_platforms(across):
         record["replanned"] = exact_on_this_platform(meta.get("platform"))[1]
     _check_expected(path, record["purpose"], expect or {})
-    try:
-        record["latest"] = check_latest(path, file_bytes, meta)
-    except ledger.LedgerError as exc:
-        raise ExportError(f"{path}: {exc}; do not load it") from None
+    record["latest"] = check_latest(path, file_bytes, meta)
     # ... then who made it
-    record["origin"] = _proved_origin(path, meta, file_bytes, side_bytes, keys, accept_recorded)
+    record["origin"] = _proved_origin(path, meta, file_bytes, side_bytes, keys, accept_recorded, signed)
     if side != sidecar_path(path):
         record["note"] = (
             f"the sidecar has the older name {side.name}; export again to name it {sidecar_path(path).name}"
@@ -342,35 +346,46 @@ def _proved_origin(
     side_bytes: bytes,
     keys: list[Path],
     accept_recorded: bool,
+    signed: Optional[dict[str, Any]],
 ) -> dict[str, Any]:
-    """What verify proved of who made the file: with trusted ``keys`` its signed statement,
+    """What verify proved of who made the file: with trusted ``keys`` its signed statement
+    (``signed``, checked already on these bytes, else checked here, which names the fault),
     else its recorded catalog entries against the local catalog (unless ``accept_recorded``)."""
     from ftsweep.exports import origin as org
 
     if keys:
-        return {"proved": "signed", **org.check_signature(path, file_bytes, side_bytes, meta, keys)}
+        statement = signed or org.check_signature(path, file_bytes, side_bytes, meta, keys)
+        return {"proved": "signed", **statement}
     if accept_recorded:
         return {"proved": "recorded entries (--accept-recorded): not compared with a catalog"}
     return {"proved": "consistent with this catalog", "catalog": org.check_catalog(meta, sidecar_of(path))}
 
 
-def _signed_platform(path: Path, keys: list[Path]) -> str:
-    """Why one unit may be allowed across platforms without the operator asking: a trusted
-    key's valid signature over a statement naming the platform the file was planned on ('' when
-    there is none; the signature itself is checked, and any fault refused, after the content)."""
+def _why_one_unit(asked: bool, signed: Optional[dict[str, Any]]) -> str:
+    """Why verify may allow one unit across platforms ('' for never): the operator asked, or a
+    trusted key signed the statement naming the platform the file was planned on."""
+    if asked:
+        return "as --across-platforms asks"
+    return "the platform is in the statement a trusted key signed" if (signed or {}).get("platform") else ""
+
+
+def _signed_statement(path: Path, keys: list[Path]) -> Optional[dict[str, Any]]:
+    """The statement a trusted key validly signed for the file as it is now (None: no trusted
+    key, or no valid signature: the content is then judged exactly, and the origin check after
+    it names the fault). Its platform lets verify allow one unit across platforms; verify's
+    later check that neither file changed makes it the statement of the bytes it judged."""
     from ftsweep.exports import origin as org
 
     if not keys:
-        return ""
+        return None
     side = sidecar_of(path)
     file_bytes, side_bytes = _contents(path, side)
     if side_bytes is None:
-        return ""
+        return None
     try:
-        signed = org.check_signature(path, file_bytes, side_bytes, read_sidecar(path, side_bytes), keys)
+        return org.check_signature(path, file_bytes, side_bytes, read_sidecar(path, side_bytes), keys)
     except ExportError:
-        return ""  # the content is judged exactly; the origin check then names the fault
-    return "the platform is in the statement a trusted key signed" if signed.get("platform") else ""
+        return None
 
 
 def _check_expected(path: Path, purpose: dict[str, Any], expect: dict[str, Any]) -> None:

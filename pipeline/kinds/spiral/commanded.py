@@ -192,9 +192,10 @@ class CommandedSimulation:
             # interpolation between blocks: the design at the program's points against the exact
             z_design = envelope.machined_rows(pos, w_design, n_valid, rc, query)[0]
             exact = ExactRows(pos, w_design, w_exact, n_valid, rc, query, z_design)
-            departure = np.array([math.inf, -math.inf])
-            envelope.interp_extrema_rows(pos, w, w_design, n_valid, rc, query, z, inside, departure)
-            self._extend(self.departure, departure)
+            # the departure: the program's envelope against the design path's, node by node
+            d = (z - z_design)[inside & np.isfinite(z) & np.isfinite(z_design)]
+            if d.size:
+                self._extend(self.departure, np.array([d.min(), d.max()]))
         t = timer.add("envelope", t)
         cx, cy = cusp_r * ct, cusp_r * st
         cusp_in = (

@@ -10,7 +10,8 @@ equation k of "The model" in the project's README.md; "[n]" is reference n liste
 Importing ftsweep is light: the ``ds.ftsweep`` accessor (:mod:`ftsweep.tools.accessor`) is registered
 with xarray at once if xarray is loaded, else the moment it is, so that ``import ftsweep`` in
 either order with ``import xarray`` gives the accessor while the command line, which may not
-need xarray at all, does not pay for loading it.
+need xarray at all, does not pay for loading it. numba's cache of ftsweep's kernels is the
+user's cache directory, never the installed package (:mod:`ftsweep.caches`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,12 @@ from collections.abc import Callable, Sequence
 from types import ModuleType
 from typing import Any, Optional
 
+from ftsweep.caches import use_user_numba_cache
 from ftsweep.version import __version__
+
+# before any kernel of ftsweep.stages is defined: numba caches them in the user's cache
+# directory, never inside the installed package (ftsweep.caches)
+use_user_numba_cache()
 
 __all__ = ["__version__"]
 

@@ -240,3 +240,60 @@ def test_wheel_installs_one_package_named_ftsweep(tmp_path):
     pred = run(str(venv / "bin" / "ftsweep"), *args)
     assert pred.returncode == 0, pred.stderr
     assert json.loads(pred.stdout)["n_points"] == 21 * 36  # catalogs shipped in the wheel
+
+
+@pytest.mark.integration  # three installs into one fresh virtual environment
+def test_installs_in_any_order_leave_every_command_working_and_nothing_in_the_package(tmp_path):
+    """The README's sequence in one environment: the set-up's regular install and a first run
+    (numba compiles), then the test block's editable install over it, then a regular install
+    with an extra over that; every command works after each, and no run writes inside the
+    installed package (numba's cache is the user cache directory, ftsweep.caches). The
+    environment borrows this one's dependencies through a .pth line, so pip installs only
+    ftsweep (--no-deps) and the test needs no index but for the build backend."""
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    py = venv / "bin" / "python"
+    site = subprocess.run(
+        [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    (Path(site) / "borrowed_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    cache = tmp_path / "user-cache"
+    drop = ("FTSWEEP_CATALOGS", "PYTHONPATH", "NUMBA_CACHE_DIR")
+    env = {**{k: v for k, v in os.environ.items() if k not in drop}, "XDG_CACHE_HOME": str(cache)}
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(list(args), capture_output=True, text=True, env=env, cwd=work, timeout=600)
+
+    def install(*args: str) -> None:
+        done = run(str(py), "-m", "pip", "install", "-q", "--no-deps", *args)
+        assert done.returncode == 0, done.stderr
+
+    predict = [str(venv / "bin" / "ftsweep"), "predict", "--surface", "sinewave2d", "--drho-um", "50"]
+    predict += ["--dtheta-deg", "10", "--json"]
+    where = [str(py), "-c", "import ftsweep, ftsweep.stages.envelope.arcs as a; print(a.__file__)"]
+
+    install(str(REPO))  # the set-up: a regular install, then its first run
+    first = run(*predict)
+    assert first.returncode == 0, first.stderr
+    assert "compiling    numba's kernels" in first.stderr
+    assert not list((Path(site) / "ftsweep").rglob("*.nb[ic]"))  # nothing inside the package
+    assert list((cache / "ftsweep" / "numba").rglob("arcs.*.nbi"))  # ... but in the user's cache
+
+    install("-e", str(REPO))  # the test block's install, over it
+    for command in (where, predict, [str(venv / "bin" / "ftsweep"), "--help"]):
+        ok = run(*command)
+        assert ok.returncode == 0, (command, ok.stderr)
+        assert "Traceback" not in ok.stderr
+    assert run(*where).stdout.strip().startswith(str(REPO / "stages"))  # the checkout's own
+    assert json.loads(run(*predict).stdout)["n_points"] == json.loads(first.stdout)["n_points"]
+
+    install(f"{REPO}[s3]")  # an extra the guide names, as a regular install over the editable one
+    again = run(*predict)
+    assert again.returncode == 0 and "Traceback" not in again.stderr, again.stderr
+    assert run(*where).stdout.strip().startswith(site)
+    assert not list((Path(site) / "ftsweep").rglob("*.nb[ic]"))

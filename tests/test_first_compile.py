@@ -135,7 +135,11 @@ def test_a_first_predict_compiles_with_a_helper_process_and_leaves_nothing_behin
         timeout=600,
     )
     assert first.returncode == 0, first.stderr
-    assert "compiling    numba's kernels: the first run on this machine" in first.stderr
+    # nothing measured in this cache yet: the notice gives no figure, then the run records one
+    assert "compiling    numba's kernels: a first run of this install (not yet measured here)" in first.stderr
+    from ftsweep.caches import recorded_compile_s
+
+    assert recorded_compile_s(tmp_path / "numba") > 0
     assert not list(tmp.iterdir())  # the helper's claims folder is gone
     # and so is the helper (its command line names the folder, in this test's own TMPDIR)
     helpers = subprocess.run(
@@ -153,3 +157,38 @@ def test_a_first_predict_compiles_with_a_helper_process_and_leaves_nothing_behin
     )
     assert json.loads(first.stdout)["pv_nm"] == json.loads(again.stdout)["pv_nm"]
     assert "compiling" not in again.stderr  # cached: nothing to say
+
+
+# ----------------------------------------------------------------------------- where the cache is
+def test_numbas_cache_is_the_user_cache_directory_unless_the_user_names_one(tmp_path):
+    """A fresh process: with NUMBA_CACHE_DIR unset, importing ftsweep points numba at
+    $XDG_CACHE_HOME/ftsweep/numba, also where numba was imported first; a user's own setting
+    stands."""
+    code = (
+        "import sys, numba\n"
+        "import ftsweep\n"
+        "from numba.core import config\n"
+        "print(config.CACHE_DIR)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == str(tmp_path / "xdg" / "ftsweep" / "numba")
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "mine")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert out.stdout.strip() == str(tmp_path / "mine")
+
+
+def test_a_first_compile_record_is_read_bounded_and_checked(tmp_path):
+    from ftsweep.caches import COMPILE_RECORD, recorded_compile_s
+
+    assert recorded_compile_s(tmp_path) is None  # nothing measured here
+    record = tmp_path / COMPILE_RECORD
+    for text in ('{"seconds": "9"}', '{"seconds": NaN}', '{"seconds": -1}', '{"seconds": true}', "[]", "{"):
+        record.write_text(text)
+        assert recorded_compile_s(tmp_path) is None, text
+    record.write_text('{"seconds": 1' + "0" * 5000 + "}")
+    assert recorded_compile_s(tmp_path) is None  # past the record's bound: not read
+    record.write_text('{"seconds": 9.25, "measured": "2026-12-06T21:00:00+0000"}')
+    assert recorded_compile_s(tmp_path) == 9.25

@@ -162,16 +162,16 @@ class KindChoice(click.Choice):
 
 
 def first_compile_notice() -> None:
-    """On a machine's first run (numba's cache without the kernels), say on stderr that they
-    compile now and about how long that takes (:data:`ftsweep.engine.startup.FIRST_COMPILE_S`)."""
-    from ftsweep.engine.startup import FIRST_COMPILE_S, kernels_cached
+    """On a first run (numba's cache without this install's kernels), say on stderr that they
+    compile now, with how long that took when last measured on this machine
+    (:func:`ftsweep.caches.recorded_compile_s`), or no figure where none was measured."""
+    from ftsweep.caches import recorded_compile_s
+    from ftsweep.engine.startup import kernels_cached
 
     if not kernels_cached():
-        click.echo(
-            f"compiling    numba's kernels: the first run on this machine "
-            f"(about {FIRST_COMPILE_S:.0f} s) ...",
-            err=True,
-        )
+        seconds = recorded_compile_s()
+        took = f"{seconds:.0f} s when last measured on this machine" if seconds else "not yet measured here"
+        click.echo(f"compiling    numba's kernels: a first run of this install ({took}) ...", err=True)
 
 
 @contextmanager

@@ -385,11 +385,15 @@ def _bench_documented(json_path: str) -> None:
     """``bench --documented``: the README's times beside their measurements."""
     from ftsweep.store.io import write_json_atomic
     from ftsweep.tools.bench import ftsweep_command
-    from ftsweep.tools.documented import documented_times, format_documented, measure, readme_path
+    from ftsweep.tools.documented import documented_times, format_documented, measure, readme_text
 
     try:
-        rows = documented_times(readme_path().read_text(encoding="utf-8"))
-        click.echo("running the README's timed commands in a fresh folder, numba's cache empty ...", err=True)
+        readme, where = readme_text()
+        rows = documented_times(readme)
+        click.echo(
+            f"running the README's timed commands (README: {where}) in a fresh folder, numba's cache empty ...",
+            err=True,
+        )
         measured = measure(rows, shlex.join(ftsweep_command()))
     except ValueError as exc:
         raise click.ClickException(str(exc)) from None

@@ -17,6 +17,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -41,15 +42,20 @@ def shared(case: Case, kind: Any, catalog_folder: Optional[Path], claims: str) -
     compensation: the same kernels and types, found in about a second) and compile them with
     the other processes that share the ``claims`` folder, each kernel once.
     Nothing is done for kernels cached already or a kind not sampled on spindle angles (its
-    planning would run as Python)."""
+    planning would run as Python). The seconds it took are recorded as this machine's first
+    compile (:func:`ftsweep.caches.record_compile_s`), the figure the next first run's notice
+    gives."""
+    from ftsweep.caches import record_compile_s
     from ftsweep.simulate import run_case
 
     if kind.angular_cells is None or startup.kernels_cached():
         return
+    started = time.perf_counter()
     # the same kernels on the kind's coarse warm-up table, on one line: quick as Python
     line = case.model_copy(update={"layout": kind.warm_request(), "resolution": Resolution(n_theta=2)})
     calls = startup.kernel_calls(lambda: run_case(line, catalog_folder), SHARE_BUDGET_S)
     startup.compile_shared(calls, claims, SHARE_WAIT_S)
+    record_compile_s(time.perf_counter() - started)
 
 
 def claims_folder() -> str:

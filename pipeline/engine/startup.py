@@ -283,25 +283,16 @@ def _compile(call: tuple[Any, tuple[Any, ...]]) -> None:
         kernel.compile(types)
 
 
-# seconds numba takes to compile the kernels a first run needs, on the project's 2 cores with
-# two processes sharing them (a first ring predict with an empty cache, its helper beside it,
-# less the same with the cache it filled): the estimate a first sweep prints, measured again
-# by `ftsweep bench --documented` (2026-11-29: 9.8 s less 1.7 s)
-FIRST_COMPILE_S = 8.0
-
-
 def kernels_cached() -> bool:
-    """Whether numba's cache holds the compiled kernels already (a run then starts at once;
-    the first run on a machine compiles them, :data:`FIRST_COMPILE_S`): the index files of the envelope
-    stage (``ftsweep.stages.envelope.arcs``), in ``NUMBA_CACHE_DIR`` where set, else beside the
-    stages' sources."""
-    import os
-    from pathlib import Path
+    """Whether numba's cache holds this install's compiled kernels already (a run then starts
+    at once): the index files of the envelope stage (``ftsweep.stages.envelope.arcs``) in the
+    folder numba's ``UserProvidedCacheLocator`` gives its source under ``NUMBA_CACHE_DIR``
+    (:mod:`ftsweep.caches`), so another install's kernels in the same cache do not count."""
+    from numba.core.caching import UserProvidedCacheLocator
 
     import ftsweep.stages
+    from ftsweep.caches import numba_cache_dir
 
-    where = os.environ.get("NUMBA_CACHE_DIR")
-    root = (
-        Path(where) if where else Path(ftsweep.stages.__file__).resolve().parent / "envelope" / "__pycache__"
-    )
-    return root.is_dir() and any(root.rglob("arcs.*.nbi"))
+    source = Path(ftsweep.stages.__file__).resolve().parent / "envelope" / "arcs.py"
+    root = numba_cache_dir() / UserProvidedCacheLocator.get_suitable_cache_subpath(str(source))
+    return root.is_dir() and any(root.glob("arcs.*.nbi"))

@@ -9,8 +9,12 @@ would, and prints the documented figure beside the measured one. Three sources:
   the kernels as on a fresh install;
 - the README's first-compile sentence ("a first `predict` of a ring: N s against M s once
   they are cached"): the same predict with an empty cache, then with the cache it filled;
-- the compile estimate ``sweep`` prints on a first run
-  (:data:`ftsweep.engine.startup.FIRST_COMPILE_S`), against the difference of those two.
+- the compile figure a first run's notice gives (the first predict's own record,
+  :func:`ftsweep.caches.recorded_compile_s`), against the difference of those two.
+
+The README is the checkout's where ftsweep runs from one (an editable install), else the copy
+every install carries in its package metadata (the project's long description), so the bench
+runs from a regular install too.
 
 The install line and the test commands are not run here (the network and half an hour):
 their figures come from a fresh clone's CI log. Nothing is asserted about time.
@@ -42,18 +46,27 @@ class Documented(NamedTuple):
     command: Optional[str]
 
 
-def readme_path() -> Path:
-    """The README of the checkout this ftsweep is installed from (an editable install); a
-    regular install has none, and the documented figures are the checkout's."""
+def readme_text() -> tuple[str, str]:
+    """The README whose figures are measured, and where it was read: the checkout's beside
+    this ftsweep (an editable install), else the one the installed package's metadata carries
+    (``readme`` of pyproject.toml, read through :mod:`importlib.metadata`)."""
+    from importlib import metadata
+
     import ftsweep
 
     path = Path(ftsweep.__file__).resolve().parent.parent / "README.md"
-    if not path.is_file():
+    if path.is_file() and (path.parent / "pyproject.toml").is_file():
+        return path.read_text(encoding="utf-8"), str(path)
+    try:
+        text = metadata.metadata("ftsweep").get_payload()
+    except metadata.PackageNotFoundError:
+        text = None
+    if not isinstance(text, str) or "## Quickstart" not in text:
         raise ValueError(
-            f"no README.md beside this ftsweep ({path.parent}): the documented times are a "
-            "checkout's; run the bench from an editable install of a clone (pip install -e .)"
+            "this ftsweep carries no README: neither a checkout's beside it nor its package "
+            "metadata's description (reinstall it: pip install ftsweep)"
         )
-    return path
+    return text, "the installed package's metadata"
 
 
 def documented_times(readme: str) -> list[Documented]:
@@ -76,8 +89,9 @@ def documented_times(readme: str) -> list[Documented]:
 def measure(rows: list[Documented], executable: str = "ftsweep") -> list[dict[str, Any]]:
     """Run every row's command as :mod:`this module <ftsweep.tools.documented>` describes
     (``executable`` stands for the leading ``ftsweep``) and return the rows with their
-    measured seconds, then the printed compile estimate against the measured compile time."""
-    from ftsweep.engine.startup import FIRST_COMPILE_S
+    measured seconds, then the compile figure the first predict recorded (what a later first
+    run's notice prints) against the measured compile time."""
+    from ftsweep.caches import recorded_compile_s
     from ftsweep.tools.bench import timed_process
 
     out: list[dict[str, Any]] = []
@@ -96,11 +110,12 @@ def measure(rows: list[Documented], executable: str = "ftsweep") -> list[dict[st
             command = executable + row.command[len("ftsweep") :]
             took, _ = timed_process(shlex.split(command), f"`{command}`", root / group, env)
             out.append({**row._asdict(), "measured": took})
+        recorded = recorded_compile_s(caches["predict"])
     compiled = [r["measured"] for r in out if r["command"] == FIRST_PREDICT]
     out.append(
         {
-            "label": "compile estimate `ftsweep sweep` prints on a first run",
-            "seconds": FIRST_COMPILE_S,
+            "label": "compile figure a first run's notice gives (recorded by it)",
+            "seconds": recorded,
             "command": None,
             "measured": compiled[0] - compiled[1] if len(compiled) == 2 else None,
         }

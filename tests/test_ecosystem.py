@@ -283,6 +283,13 @@ def test_installs_in_any_order_leave_every_command_working_and_nothing_in_the_pa
     assert "compiling    numba's kernels" in first.stderr
     assert not list((Path(site) / "ftsweep").rglob("*.nb[ic]"))  # nothing inside the package
     assert list((cache / "ftsweep" / "numba").rglob("arcs.*.nbi"))  # ... but in the user's cache
+    # bench --documented's figures come with any install: the README in the package metadata
+    readme = "from ftsweep.tools.documented import documented_times as d, readme_text as r; t, w = r(); "
+    readme += "print(w); print(sum(x.seconds is not None for x in d(t)))"
+    shipped = run(str(py), "-c", readme)
+    assert shipped.returncode == 0, shipped.stderr
+    assert shipped.stdout.split("\n")[0] == "the installed package's metadata"
+    assert int(shipped.stdout.split("\n")[1]) >= 6  # the quickstart's four and the compile pair
 
     install("-e", str(REPO))  # the test block's install, over it
     for command in (where, predict, [str(venv / "bin" / "ftsweep"), "--help"]):

@@ -55,29 +55,94 @@ def test_added_point_counts_and_aspects_compute_only_the_new_cases(tmp_path, cat
     xr.testing.assert_equal(after.sel(points=before["points"], aspect=before["aspect"]), before)
     ids = xr.open_zarr(out)["run_id"].sel(points=before["points"], aspect=before["aspect"]).values
     assert (ids == ids_before).all() and len(set(xr.open_zarr(out)["run_id"].values.ravel())) == 2
-    # and the whole equals a sweep of the grown spec from scratch
+    # and the whole equals a sweep of the grown spec from scratch, but for the case numbers:
+    # there C order over the grown axes, here the old cases' own and the new ones after them
     clean = tmp_path / "clean.zarr"
     run_sweep(str(spec), clean, scheduler="synchronous", catalog_folder=catalog_dir)
-    xr.testing.assert_equal(_data(out), _data(clean))
+    numbered = cube.CASE_NUMBER
+    xr.testing.assert_equal(_data(out).drop_vars(numbered), _data(clean).drop_vars(numbered))
+    assert sorted(_data(out)[numbered].values.ravel().tolist()) == list(range(12))
     assert xr.open_zarr(out).attrs["sweep_spec_hash"] == xr.open_zarr(clean).attrs["sweep_spec_hash"]
     again = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_dir)
     assert again.queued == 0 and again.note == ""
 
 
-@pytest.mark.parametrize(
-    ("points", "aspect", "changed"),
-    [
-        ("[8000]", "[2.0, 8.0]", "may only add values"),  # a value removed
-        ("[8000, 20001]", "[2.0, 8.0]", "may only add values"),  # a value moved
-    ],
-)
-def test_anything_but_added_values_is_refused(tmp_path, catalog_dir, points, aspect, changed):
+def test_a_value_moved_is_refused(tmp_path, catalog_dir):
     out = tmp_path / "r.zarr"
     run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
-    with pytest.raises(CubeError, match=changed):
+    with pytest.raises(CubeError, match="may only add values"):
         run_sweep(
-            str(_spec(tmp_path, points, aspect)), out, scheduler="synchronous", catalog_folder=catalog_dir
+            str(_spec(tmp_path, "[8000, 20001]")), out, scheduler="synchronous", catalog_folder=catalog_dir
         )
+
+
+def test_a_spec_whose_cases_the_cube_holds_resumes_the_cube_as_recorded(tmp_path, catalog_dir):
+    """A spec with fewer values (the catalog's sweep, once its cube was grown from a copy of
+    it) changes nothing: the cube, larger, is resumed as it records, under its own name."""
+    out = tmp_path / "r.zarr"
+    run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    before = _data(out)
+    fewer = _spec(tmp_path, "[8000]")
+    again = run_sweep(str(fewer), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert again.queued == 0 and again.total == 4
+    assert "holds every case of this spec and more (points +1, aspect +0" in again.note
+    xr.testing.assert_equal(_data(out), before)
+
+
+def test_a_grown_cube_keeps_its_name_and_case_numbers_and_its_catalog_command(tmp_path, catalog_dir):
+    """Grown from a copy of its spec under another file name: the sweep keeps its name, every
+    case its number (new cases numbered after), select names cases by coordinates, the original
+    spec still runs on the cube, and a header exported before the growth verifies as the
+    cube's case of its coordinates."""
+    out = tmp_path / "g.zarr"
+    first = tmp_path / "nightly.yaml"
+    first.write_text(BASE.format(points="[8000, 20000]", aspect="[2.0, 8.0]"))
+    run_sweep(str(first), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    env = {"FTSWEEP_CATALOGS": str(catalog_dir)}
+    header = tmp_path / "before.h"
+    r = CliRunner().invoke(main, ["export", str(out), "--case", "points=20000,aspect=8", "-o", str(header)], env=env)
+    assert r.exit_code == 0, r.output
+    assert "case         points=20000 aspect=8 (case number 3;" in r.output
+    numbers = xr.open_zarr(out)["case_number"].load()
+    copy = tmp_path / "copy.yaml"
+    copy.write_text(BASE.format(points="[8000, 12000, 20000]", aspect="[2.0, 8.0]"))
+    grown = run_sweep(str(copy), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert grown.done == 2
+    ds = xr.open_zarr(out).load()
+    assert ds.attrs["sweep_name"] == "nightly"  # not the copy's file name
+    # every old case keeps its number; the two new ones come after
+    xr.testing.assert_equal(ds["case_number"].sel(points=[8000, 20000]), numbers)
+    assert sorted(ds["case_number"].sel(points=12000).values.tolist()) == [4, 5]
+    # number 3 is still points=20000 aspect=8, whose flat index is now 5
+    for how in ("3", "points=20000 aspect=8.0"):
+        r = CliRunner().invoke(main, ["export", str(out), "--case", how, "-o", str(tmp_path / "n.h"), "--force"], env=env)
+        assert r.exit_code == 0 and "case         points=20000 aspect=8 (case number 3;" in r.output, r.output
+    # the cube's first spec still runs on it: nothing to compute
+    again = run_sweep(str(first), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    assert again.queued == 0 and "resuming sweep 'nightly'" in again.note
+    # the header exported before the growth is still the cube's case of its coordinates
+    v = CliRunner().invoke(main, ["verify", str(header), "--expect-case", "points=20000,aspect=8"], env=env)
+    assert v.exit_code == 0, v.output
+    assert "for          case points=20000 aspect=8 of" in v.output
+    assert "in cube      the cube's case points=20000 aspect=8 (number 3) is the file's case" in v.output
+    wrong = CliRunner().invoke(main, ["verify", str(header), "--expect-case", "points=8000,aspect=8"], env=env)
+    assert wrong.exit_code != 0 and "not the expected points=8000 aspect=8" in wrong.output
+    # a case the cube does not hold is refused naming the axis' values
+    r = CliRunner().invoke(main, ["export", str(out), "--case", "points=9000,aspect=8", "-o", str(tmp_path / "x.h")], env=env)
+    assert r.exit_code != 0 and "axis points has no value 9000 (its values: 8000, 12000, 20000)" in r.output
+
+
+def test_verify_says_when_the_cube_no_longer_holds_the_files_case(tmp_path, catalog_dir):
+    out = tmp_path / "s.zarr"
+    run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
+    env = {"FTSWEEP_CATALOGS": str(catalog_dir)}
+    header = tmp_path / "h.h"
+    r = CliRunner().invoke(main, ["export", str(out), "--case", "points=8000,aspect=2", "-o", str(header)], env=env)
+    assert r.exit_code == 0, r.output
+    # started over with another aspect axis: the file's coordinates are gone
+    run_sweep(str(_spec(tmp_path, aspect="[3.0]")), out, scheduler="synchronous", catalog_folder=catalog_dir, restart=True)
+    v = CliRunner().invoke(main, ["verify", str(header), "--json"], env=env)
+    assert "no longer holds the file's case points=8000 aspect=2" in v.output, v.output
 
 
 def test_another_change_with_added_values_is_refused(tmp_path, catalog_dir):

@@ -74,7 +74,7 @@ def test_predict_json_and_the_cube_use_the_declared_names_and_units(tmp_path, ca
     ds = xr.open_zarr(out)
     stored = result.stored(registry.kind("ring"))
     assert set(stored) <= set(ds.data_vars)
-    assert set(ds.data_vars) - set(stored) == {"status", *cube.TEXT}
+    assert set(ds.data_vars) - set(stored) == {"status", cube.CASE_NUMBER, *cube.TEXT}
     for name, (_, units, long_name, _) in stored.items():
         assert ds[name].attrs == {"units": units, "long_name": long_name}, name
     # describe reads the same names back, target and realised aspect named apart

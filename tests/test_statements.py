@@ -72,7 +72,7 @@ def test_verify_says_first_what_a_signed_file_is_for(cubes, keys, tmp_path, modu
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()
     at = next(i for i, line in enumerate(lines) if line.startswith("for "))
-    assert lines[at] == f"for          case 1 of {cubes['ring']}"
+    assert lines[at] == f"for          case points=15000 aspect=8 of {cubes['ring']}"
     assert at < next(i for i, line in enumerate(lines) if line.startswith("checksum"))
     said = "\n".join(lines[at : at + 4])
     for fact in ("surface small_sine", "machine fts-1m", "cutting reference", "compensation exact", "header"):
@@ -80,6 +80,7 @@ def test_verify_says_first_what_a_signed_file_is_for(cubes, keys, tmp_path, modu
     assert "points, predicted P-V" in said and "signed       by key" in said and ", expires 20" in said
     statement = json.loads(out.with_name("part.h.sig").read_text())["statement"]
     assert statement["file"] == "part.h" and statement["case"] == 1
+    assert statement["case_name"] == "points=15000 aspect=8"  # the case by its coordinates
     assert statement["length"] == out.stat().st_size and statement["signed_at"].endswith("Z")
 
 
@@ -93,7 +94,7 @@ def test_a_signed_file_copied_over_another_case_is_refused(cubes, keys, tmp_path
     assert res.exit_code == 1 and "signed as 'a.h', not 'b.h'" in res.output, res.output
     # without a key the swap is still visible, and refused where the operator expects a case
     res = cli(["verify", str(b)], module_catalog_dir)
-    assert res.exit_code == 0 and "for          case 0 of" in res.output, res.output
+    assert res.exit_code == 0 and "for          case points=15000 aspect=4 of" in res.output, res.output
     res = cli(["verify", str(b), "--expect-case", "1"], module_catalog_dir)
     assert res.exit_code == 1 and "is for case 0, not the expected 1" in res.output, res.output
     res = cli(["verify", str(a), "--expect-case", "0", "--expect-surface", "lens_array"], module_catalog_dir)

@@ -69,7 +69,7 @@ def _selection_text(chosen: dict[str, Any]) -> str:
     return "\n".join(
         [
             f"rule         {chosen['rule']}",
-            f"case         {chosen['index']} ({targets})",
+            f"case         {chosen['name']} (case number {chosen['index']}; targets {targets})",
             f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch}{alpha}",
             f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, {interp})",
         ]
@@ -120,7 +120,13 @@ def select(
 @click.argument("cube_path", metavar="CUBE", type=CUBE)
 @click.option("--budget-points", type=COUNT, help="Export the best layout at or under this many points.")
 @click.option("--tolerance-nm", type=POSITIVE, help="Export the smallest layout meeting this P-V [nm].")
-@click.option("--case", "index", type=int, help="Export the case at this flat index of the cube.")
+@click.option(
+    "--case",
+    "index",
+    metavar="COORDINATES|NUMBER",
+    help="Export this case: its coordinates, every axis of the cube ('points=950000,aspect=16', as "
+    "select prints them), or its case number (the same case however the cube grows).",
+)
 @click.option(
     "-o",
     "--output",
@@ -146,7 +152,7 @@ def export(
     cube_path: str,
     budget_points: Optional[int],
     tolerance_nm: Optional[float],
-    index: Optional[int],
+    index: Optional[str],
     out: str,
     name: Optional[str],
     dialect: Optional[str],
@@ -246,8 +252,9 @@ the output's latest line says so, or why it was not checked.
 )
 @click.option(
     "--expect-case",
-    type=click.IntRange(min=0),
-    help="Refuse the file unless it is this case (flat index) of its cube: a swapped file fails.",
+    metavar="COORDINATES|NUMBER",
+    help="Refuse the file unless it is this case of its cube ('points=950000,aspect=16', or its case "
+    "number): a swapped file fails.",
 )
 @click.option("--expect-surface", help="Refuse the file unless it is for this catalog surface (by name).")
 @click.option(
@@ -266,7 +273,7 @@ def verify(
     trusted: tuple[str, ...],
     accept_recorded: bool,
     compiled: bool,
-    expect_case: Optional[int],
+    expect_case: Optional[str],
     expect_surface: Optional[str],
     across_platforms: bool,
     trust_plugins: bool,
@@ -330,6 +337,7 @@ def _print_verified(header: Path, record: dict[str, Any], compiled: bool) -> Non
         click.echo(line)
     click.echo(exp.replanned_line(record))
     click.echo(f"latest       {record['latest']}")
+    click.echo(f"in cube      {record['in_cube']}")
     if compiled and "compiled_axes" in record:
         # a program: every axis the file moves, C in degrees, lengths in µm
         unit = {"C": (1e-3, "deg")}
@@ -373,9 +381,9 @@ def _print_verified(header: Path, record: dict[str, Any], compiled: bool) -> Non
 @click.option(
     "--case",
     "index",
-    type=int,
-    help="Case (flat index) for the error map and spectrum. Default (none of the three): the best at the "
-    "largest budget.",
+    metavar="COORDINATES|NUMBER",
+    help="Case for the error map and spectrum ('points=950000,aspect=16', or its case number). Default "
+    "(none of the three): the case export chooses at the largest budget.",
 )
 @click.option(
     "--map-bins",
@@ -392,7 +400,7 @@ def report(
     out_dir: Optional[str],
     budget_points: Optional[int],
     tolerance_nm: Optional[float],
-    index: Optional[int],
+    index: Optional[str],
     map_bins: int,
     trust_plugins: bool,
     allow_incomplete: bool,

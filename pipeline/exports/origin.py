@@ -48,7 +48,7 @@ from ftsweep.store.io import (
 )
 
 # what a signature covers: this line, then the statement as canonical JSON
-SCHEME = "ftsweep export statement v3"
+SCHEME = "ftsweep export statement v4"
 DOMAIN = SCHEME.encode("ascii") + b"\n"
 MAX_KEY_BYTES = 64 * 2**10
 TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
@@ -163,10 +163,24 @@ def _now() -> datetime:
     return datetime.now(UTC)
 
 
+def case_name_of(selection: dict[str, Any]) -> str | None:
+    """A recorded selection's case named by its coordinates (``points=950000 aspect=16``):
+    its ``<axis>_target`` values in their recorded order; None where it records none."""
+    from ftsweep.store.values import case_name
+
+    targets = {
+        k[: -len("_target")]: v
+        for k, v in selection.items()
+        if k.endswith("_target") and isinstance(v, (int, float, str)) and not isinstance(v, bool)
+    }
+    return case_name(targets) if targets else None
+
+
 def purpose(meta: dict[str, Any]) -> dict[str, Any]:
     """What an exported file is for, from its sidecar ``meta`` (read by
-    :func:`~ftsweep.store.io.read_sidecar`): the cube and case index it was exported from
-    (None for a study's program), surface, machine, cutting, compensation, dialect (``header``
+    :func:`~ftsweep.store.io.read_sidecar`): the cube and case it was exported from (its case
+    number, which growth never changes, and its name by coordinates, :func:`case_name_of`;
+    None for a study's program), surface, machine, cutting, compensation, dialect (``header``
     for a C table, ``text`` for ftsweep's lines), points and the predicted P-V [nm] of the
     file as written."""
     raw = meta.get("selection")
@@ -178,6 +192,7 @@ def purpose(meta: dict[str, Any]) -> dict[str, Any]:
     return {
         "cube": meta.get("cube"),
         "case": index if isinstance(index, int) and not isinstance(index, bool) else None,
+        "case_name": case_name_of(selection),
         **entry_names(meta),
         "compensation": meta.get("compensation", case.get("compensation")),
         "dialect": meta.get("dialect") or ("header" if "header" in meta else "text"),

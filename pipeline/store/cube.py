@@ -61,6 +61,12 @@ if TYPE_CHECKING:
     import xarray as xr
 
 
+# a cube's case numbers: given to each case as it enters the cube (C order when it is made,
+# after every case it held when it grows, ftsweep.sweeps.grow), so a number names the same
+# case however the cube grows; the variable is written with the template, never by a case
+CASE_NUMBER = "case_number"
+
+
 def git_revision(source: Optional[Path] = None) -> str:
     """The git revision of ftsweep's own source checkout, or ``unknown``: only when this very
     file (or ``source``) is tracked by the repository around it (an editable install of

@@ -77,3 +77,16 @@ def done_values(record: dict[str, Any], run_id: str) -> Values:
 def ended_values(status: int, message: str, run_id: str) -> Values:
     """A case that failed, or that ``--prune`` left out, with its message."""
     return {"message": message[:2000], "run_id": run_id, "status": status}
+
+
+def value_text(value: Any) -> str:
+    """A coordinate value as a case's name writes it: names as they are, whole numbers
+    without a decimal point (``950000``), others to 12 significant digits."""
+    if isinstance(value, str):
+        return value
+    return str(int(value)) if float(value).is_integer() and abs(value) < 1e15 else f"{value:.12g}"
+
+
+def case_name(coordinates: dict[str, Any]) -> str:
+    """A case named by what it is: ``points=950000 aspect=16``, every axis of its cube."""
+    return " ".join(f"{axis}={value_text(value)}" for axis, value in coordinates.items())

@@ -61,6 +61,17 @@ def growth(old_spec_json: str, new: SweepSpec) -> Optional[dict[str, Any]]:
     return plan
 
 
+def _numbers(old: Any, shape: tuple[int, ...], index: Any) -> np.ndarray:
+    """The grown cube's case numbers: every kept case its own (a cube from before numbers:
+    its flat index, which were its numbers), the new cases the next ones in C order."""
+    held = old[cube.CASE_NUMBER].values if cube.CASE_NUMBER in old else np.arange(old["status"].size)
+    numbers = np.full(shape, -1, dtype=np.int64)
+    numbers[index] = np.asarray(held, dtype=np.int64).reshape(old["status"].shape)
+    new = numbers < 0
+    numbers[new] = int(numbers.max()) + 1 + np.arange(int(new.sum()))
+    return numbers
+
+
 def describe(plan: dict[str, Any]) -> str:
     """``points +2, aspect +0`` for a notice."""
     return ", ".join(f"{axis} +{n}" for axis, n in plan["added"].items())
@@ -71,13 +82,15 @@ def grow(out: Place, spec: SweepSpec, name: str, plan: dict[str, Any]) -> None:
     (the caller holds the lock and has merged the case logs)."""
     old = cube.open_dataset(out).load()
     entries = json.loads(old.attrs["catalog_entries"])
-    new = template(spec, name, entries)
+    # the cube keeps its sweep's name whatever file the grown spec came from
+    new = template(spec, str(old.attrs.get("sweep_name") or name), entries)
     index = np.ix_(*plan["positions"].values())
     for var in new.data_vars:
         if var in old.data_vars:
             values = new[var].values.copy()
             values[index] = old[var].values
             new[var].values = values
+    new[cube.CASE_NUMBER].values = _numbers(old, new[cube.CASE_NUMBER].shape, index)
     new.attrs["grown_from"] = old.attrs.get("sweep_spec_hash", "")
     history = json.loads(old.attrs.get("growth_history", "[]"))
     history.append(

@@ -240,6 +240,30 @@ def _grow_or_refuse(name: str, spec: SweepSpec, out: Place, attrs: dict[str, Any
     return f"grown: {grow.describe(plan)} values; {n_cases(spec) - before} new case(s), {before} kept"
 
 
+def _held_by(out: Place, spec: SweepSpec, name: str) -> tuple[SweepSpec, str, str]:
+    """A spec all of whose cases an existing cube holds (a catalog's sweep whose cube was grown
+    from another file) resumes that cube as it was recorded, under its own sweep name: returns
+    the spec and name to run and a note saying so; else ``spec`` and ``name`` as given."""
+    try:
+        attrs = cube.read_attrs(out) if out.exists() and not cube.unfinished(out) else None
+    except CubeError:
+        attrs = None  # not a cube this run can resume: prepare_cube says why
+    if attrs is None or attrs.get("sweep_spec_hash") == spec.spec_hash():
+        return spec, name, ""
+    try:
+        recorded = SweepSpec.model_validate_json(attrs["sweep_spec"])
+    except (KeyError, ValueError):
+        return spec, name, ""
+    plan = grow.growth(spec.model_dump_json(), recorded)
+    if plan is None:
+        return spec, name, ""
+    kept = str(attrs.get("sweep_name") or name)
+    return recorded, kept, (
+        f"the cube holds every case of this spec and more ({grow.describe(plan)} values, grown since); "
+        f"resuming sweep '{kept}' as the cube records it"
+    )
+
+
 def _warn_other_revision(out: Place, attrs: dict[str, Any]) -> None:
     now = cube.git_revision()
     if attrs.get("git_revision") not in (now, "unknown") and now != "unknown":
@@ -508,6 +532,8 @@ def _run_locked(
     run_id = names[1]
     lease = watchers[2]
     start = time.perf_counter()
+    spec, name, held = (spec, names[0], "") if restart else _held_by(out, spec, names[0])
+    names = (name, run_id)
     created = not out.exists()
     fresh = created or restart
     # a new cube, or one started over, has every case to compute: its cluster opens and warms
@@ -523,6 +549,7 @@ def _run_locked(
             names, spec, out, (restart, fresh), rerun, catalog_folder, lease, where.workers
         )
         report.timeline["set_up_s"] = time.perf_counter() - start
+        report.note = "; ".join(n for n in (held, report.note) if n)
         try:
             _compute(report, spec, costs, where, run_id, catalog_folder, watchers, (early, start))
         except BaseException:

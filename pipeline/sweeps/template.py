@@ -1,5 +1,5 @@
 """The empty cube of a sweep (docs/architecture.md, "The flow of a case"): every variable at
-its fill value, status ``pending``, the sweep's axes as coordinates with their units, the error
+its fill value, status ``pending``, every case's number, the sweep's axes as coordinates with their units, the error
 map's bins, and the provenance attributes (version, git revision, the resolved spec and the
 catalog entries used). :mod:`ftsweep.store.cube` writes it once, before any case runs.
 """
@@ -13,7 +13,14 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ftsweep.store.cube import MAP_VARS, SCHEMA_VERSION, STATUS_MEANINGS, case_variables, git_revision
+from ftsweep.store.cube import (
+    CASE_NUMBER,
+    MAP_VARS,
+    SCHEMA_VERSION,
+    STATUS_MEANINGS,
+    case_variables,
+    git_revision,
+)
 from ftsweep.sweeps.spec import SweepSpec, axis_attrs, axis_counts, coordinates
 from ftsweep.version import __version__
 
@@ -35,6 +42,12 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
     shape = tuple(v.size for v in coords.values())
     assert spec.layout is not None
     data = case_variables(dims, shape, spec.layout)
+    # numbered in C order as the cube is made; growth keeps them and numbers new cases after
+    data[CASE_NUMBER] = (
+        dims,
+        np.arange(int(np.prod(shape)), dtype=np.int64).reshape(shape),
+        {"long_name": "case number: given as the case entered the cube, kept as the cube grows"},
+    )
     coord_vars = {k: (k, counted(k, v, spec.layout), axis_attrs(k, spec.layout)) for k, v in coords.items()}
     bins = spec.resolution.error_map_bins
     if bins:

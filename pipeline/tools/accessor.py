@@ -66,13 +66,15 @@ class FtsweepAccessor:
         """The case ``ftsweep select`` chooses (best under a budget, or fewest points meeting
         a tolerance; :mod:`ftsweep.tools.select`) as a selection of the cube: every variable,
         every dimension kept at length 1 with its coordinate (units and names intact), its
-        flat index in ``attrs["index"]``. ``best(...).pv_nm.item()`` is the P-V [nm]."""
+        case number in ``attrs["index"]`` (the same case however the cube grows) and its name
+        by coordinates in ``attrs["case"]`` (``points=950000 aspect=16``).
+        ``best(...).pv_nm.item()`` is the P-V [nm]."""
         from ftsweep.tools import query
         from ftsweep.tools.select import choose
 
-        index = int(choose(self._ds, budget_points=budget_points, tolerance_nm=tolerance_nm)["index"])
-        at = {d: [i] for d, i in query.position(self._ds, index).items()}
-        return self._ds.isel(at).compute().assign_attrs(index=index)
+        chosen = choose(self._ds, budget_points=budget_points, tolerance_nm=tolerance_nm)
+        at = {d: [i] for d, i in query.position(self._ds, query.flat_of(self._ds, chosen["index"])).items()}
+        return self._ds.isel(at).compute().assign_attrs(index=int(chosen["index"]), case=chosen["name"])
 
     def _need_aspect(self, what: str) -> None:
         if "aspect" not in self._ds.dims:
@@ -206,8 +208,9 @@ class FtsweepAccessor:
             index = self.best(budget_points=int(self._ds["n_points"].max())).attrs["index"]
         from ftsweep.tools import query
 
-        emap = self._ds[var].isel(query.position(self._ds, index))
-        return plot_map(emap["map_x"].values, emap.values, query.describe(self._ds, index), kind, ax)
+        flat = query.flat_of(self._ds, index)
+        emap = self._ds[var].isel(query.position(self._ds, flat))
+        return plot_map(emap["map_x"].values, emap.values, query.describe(self._ds, flat), kind, ax)
 
 
 def _cmap(n: int) -> Any:

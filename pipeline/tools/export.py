@@ -83,7 +83,7 @@ def export(
     out: Path,
     budget_points: int | None = None,
     tolerance_nm: float | None = None,
-    index: int | None = None,
+    index: int | str | None = None,
     force: bool = False,
     name: str | None = None,
     trust_plugins: bool = False,
@@ -133,13 +133,14 @@ def _export_lock(out: Path) -> Iterator[None]:
 
 def _export_locked(
     paths: tuple[PathLike, Path],
-    selection: tuple[int | None, float | None, int | None],
+    selection: tuple[int | None, float | None, int | str | None],
     options: tuple[str | None, bool, tuple[Path, datetime | None] | None, str | None],
 ) -> dict[str, Any]:
     """:func:`export` once its lock is held: the files are written and signed in a staging
     folder beside ``out`` under their final names, then published (:func:`_publish`)."""
     from ftsweep.exports import nc
     from ftsweep.exports.fingerprint import fingerprint
+    from ftsweep.tools.query import flat_of
     from ftsweep.tools.select import check_exportable, choose, open_cube, recorded_case
 
     cube_path, out = paths
@@ -152,7 +153,7 @@ def _export_locked(
             f"no case meets P-V ≤ {tolerance_nm:g} nm (best found: {chosen['pv_nm']:.2f} nm at "
             f"{chosen['n_points']:,} points); nothing exported"
         )
-    flat = int(chosen["index"])
+    flat = flat_of(ds, chosen["index"])
     check_exportable(ds, flat)
     case, specs = recorded_case(ds, flat, trust_plugins)
     # the platform decides whether verify must find every number exactly as re-planned
@@ -245,6 +246,44 @@ def check_latest(path: Path, file_bytes: bytes, meta: dict[str, Any]) -> str:
         raise ExportError(f"{path}: {exc}; do not load it") from None
 
 
+def check_cube_case(meta: dict[str, Any]) -> str:
+    """Whether the case a file names by its coordinates is still, in its cube, the case the
+    file was planned from (a cube grown, or started over from another spec, may hold another
+    case there): the cube's recorded case spec under those coordinates against the sidecar's.
+    One line saying which, or why it was not checked (the cube not reachable)."""
+    from ftsweep.exports.origin import case_name_of
+    from ftsweep.store import cube
+    from ftsweep.tools.query import case_numbers, find_case
+    from ftsweep.tools.select import recorded_case
+
+    selection = meta.get("selection") if isinstance(meta.get("selection"), dict) else {}
+    cube_path, name = meta.get("cube"), case_name_of(selection)
+    if not isinstance(cube_path, str) or name is None:
+        return "not checked: the file names no case of a cube (a study's program)"
+    try:
+        at = place(cube_path)
+        if not at.exists("zarr.json"):
+            return f"not checked: the cube {cube_path} is not reachable from here"
+        ds = cube.open_dataset(at)
+    except (OSError, StorageError, ValueError) as exc:
+        return f"not checked: the cube {cube_path} is not reachable ({str(exc)[:120]})"
+    try:
+        flat = find_case(ds, name)
+    except ValueError as exc:
+        return f"the cube no longer holds the file's case {name} ({str(exc)[:160]}): it was started over"
+    number = int(case_numbers(ds)[flat])
+    try:
+        planned, _ = recorded_case(ds, flat)
+    except ValueError as exc:  # the cube's record of it cannot be read as a case
+        return f"not checked: the cube's case {name} cannot be read ({str(exc)[:160]})"
+    if planned.model_dump(mode="json") != meta.get("case") or number != selection.get("index"):
+        return (
+            f"the cube's case {name} (number {number}) is no longer the case this file was planned from: "
+            "the cube was started over from another spec; export it again"
+        )
+    return f"the cube's case {name} (number {number}) is the file's case"
+
+
 def _latest_of(path: Path, name: str, at: Any, found: list[int], digest: str) -> str:
     """:func:`check_latest` once the ledger's sequences of ``name`` are ``found``: the file
     (its SHA-256 ``digest``) is the latest export, or refused as an older or unrecorded one."""
@@ -330,6 +369,7 @@ def verify(
         record["replanned"] = exact_on_this_platform(meta.get("platform"))[1]
     _check_expected(path, record["purpose"], expect or {})
     record["latest"] = check_latest(path, file_bytes, meta)
+    record["in_cube"] = check_cube_case(meta)
     # ... then who made it
     record["origin"] = _proved_origin(path, meta, file_bytes, side_bytes, keys, accept_recorded, signed)
     if side != sidecar_path(path):
@@ -392,11 +432,33 @@ def _check_expected(path: Path, purpose: dict[str, Any], expect: dict[str, Any])
     """Refuse a file that is not for what the operator expects (``--expect-case``,
     ``--expect-surface``), naming both."""
     for key, wanted in expect.items():
-        if wanted is not None and purpose.get(key) != wanted:
+        if wanted is None:
+            continue
+        got = purpose.get(key)
+        if key == "case":  # a case number, or the case's coordinates however they are spaced
+            number = str(wanted).strip().isdigit()
+            got = got if number else purpose.get("case_name")
+            wanted = int(wanted) if number else _spelled(str(wanted))
+            got = got if number or got is None else _spelled(str(got))
+        if got != wanted:
             raise ExportError(
-                f"{path} is for {key} {purpose.get(key)!s:.80}, not the expected {wanted}: a swapped or "
+                f"{path} is for {key} {got!s:.80}, not the expected {wanted}: a swapped or "
                 "wrong file; do not load it"
             )
+
+
+def _spelled(name: str) -> str:
+    """A case's coordinates ``points=950000,aspect=16.0`` spelled as its name is."""
+    from ftsweep.store.values import value_text
+
+    def one(part: str) -> str:
+        axis, _, value = part.partition("=")
+        try:
+            return f"{axis}={value_text(float(value))}"
+        except ValueError:
+            return part
+
+    return " ".join(one(p) for p in name.replace(",", " ").split())
 
 
 def _identity(path: Path, side: Path) -> tuple[tuple[int, ...], ...]:
@@ -424,7 +486,8 @@ def purpose_lines(record: dict[str, Any]) -> list[str]:
     compensation, dialect, points, predicted P-V) and, when its statement was checked, who
     signed it when, until when."""
     p = record["purpose"]
-    case = f"case {p['case']} of {p['cube']}" if p["case"] is not None else "a study's program (no cube)"
+    named = p.get("case_name") or f"number {p['case']}"
+    case = f"case {named} of {p['cube']}" if p["case"] is not None else "a study's program (no cube)"
     points = f"{p['points']:,} points" if p["points"] is not None else "points not recorded"
     pv = f"predicted P-V {p['pv_nm']:.2f} nm" if isinstance(p["pv_nm"], (int, float)) else "no P-V recorded"
     lines = [

@@ -16,7 +16,8 @@ import xarray as xr
 
 from ftsweep import registry
 from ftsweep.store import cube
-from ftsweep.store.cube import DONE
+from ftsweep.store.cube import CASE_NUMBER, DONE
+from ftsweep.store.values import case_name, value_text
 from ftsweep.store.storage import PathLike
 
 
@@ -38,6 +39,76 @@ def eligible(ds: xr.Dataset) -> xr.DataArray:
 def eligible_pv(ds: xr.Dataset) -> xr.DataArray:
     """P-V [nm] of the eligible cases, NaN elsewhere."""
     return ds["pv_nm"].where(eligible(ds))
+
+
+def case_numbers(ds: xr.Dataset) -> np.ndarray:
+    """The case number of every case, in flat (C) order: the cube's ``case_number`` variable
+    (:data:`CASE_NUMBER`), or the flat index in a cube made before cubes carried one (never
+    grown since: growth writes the variable)."""
+    if CASE_NUMBER in ds:
+        return np.asarray(ds[CASE_NUMBER].values).ravel().astype(np.int64)
+    return np.arange(int(ds["status"].size), dtype=np.int64)
+
+
+def flat_of(ds: xr.Dataset, number: int) -> int:
+    """The flat (C-order) index in this cube of case number ``number``."""
+    hits = np.flatnonzero(case_numbers(ds) == int(number))
+    if hits.size != 1:
+        raise ValueError(f"the cube has no case number {number}")
+    return int(hits[0])
+
+
+def coordinates_of(ds: xr.Dataset, flat: int) -> dict[str, Any]:
+    """The coordinates of the case at flat index ``flat``: ``{axis: value}`` in the cube's
+    axis order, numbers as Python numbers, names as text."""
+    return {d: _plain(ds[d].values[i]) for d, i in position(ds, flat).items()}
+
+
+def find_case(ds: xr.Dataset, text: str) -> int:
+    """The flat index of the case ``text`` names: its coordinates (``points=950000
+    aspect=16``, separated by spaces or commas; every axis of the cube, values as the cube
+    holds them) or its case number (``66``). A ValueError names what does not match."""
+    text = text.strip()
+    if text.lstrip("-").isdigit():
+        try:
+            return flat_of(ds, int(text))
+        except ValueError:
+            numbers = case_numbers(ds)
+            raise ValueError(
+                f"the cube has no case number {text} (its numbers run {numbers.min()}..{numbers.max()}; "
+                "or name the case by its coordinates, e.g. " + case_name(coordinates_of(ds, 0)) + ")"
+            ) from None
+    axes = [str(d) for d in ds["status"].dims]
+    given: dict[str, str] = {}
+    for part in text.replace(",", " ").split():
+        axis, sep, value = part.partition("=")
+        if not sep or axis not in axes:
+            raise ValueError(
+                f"--case {text!r}: {part!r} is not AXIS=VALUE of this cube's axes ({', '.join(axes)})"
+            )
+        given[axis] = value
+    missing = [a for a in axes if a not in given]
+    if missing:
+        raise ValueError(f"--case {text!r} names no value of {', '.join(missing)} (every axis: {', '.join(axes)})")
+    at = {axis: _axis_position(ds, axis, value) for axis, value in given.items()}
+    return int(np.ravel_multi_index(tuple(at[a] for a in axes), ds["status"].shape))
+
+
+def _axis_position(ds: xr.Dataset, axis: str, value: str) -> int:
+    """Where ``value`` (text) lies on the cube's ``axis``, or a ValueError listing its values."""
+    values = ds[axis].values
+    if values.dtype.kind in "OUS":
+        hits = np.flatnonzero(values.astype(str) == value)
+    else:
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        hits = np.flatnonzero(np.isclose(values.astype(float), number, rtol=1e-9, atol=0.0))
+    if hits.size != 1:
+        shown = ", ".join(value_text(_plain(v)) for v in values[:12]) + (" ..." if values.size > 12 else "")
+        raise ValueError(f"the cube's axis {axis} has no value {value} (its values: {shown})")
+    return int(hits[0])
 
 
 def position(ds: xr.Dataset, flat: int) -> dict[str, int]:
@@ -82,10 +153,12 @@ def _plain(value: Any) -> Any:
 
 
 def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
-    """The coordinates (``<axis>_target``) and key results of the case at flat index ``flat``."""
+    """The case at flat index ``flat``: its name (``name``, :func:`case_name`), its case number
+    (``index``: the same case however the cube grows, :data:`CASE_NUMBER`), its coordinates
+    (``<axis>_target``) and key results."""
     pos = position(ds, flat)
     point = ds.isel(pos)
-    out: dict[str, Any] = {"index": int(flat)}
+    out: dict[str, Any] = {"name": case_name(coordinates_of(ds, flat)), "index": int(case_numbers(ds)[flat])}
     # a named axis (the compensation) keeps its names
     out.update({f"{d}_target": _plain(ds[d].values[i]) for d, i in pos.items()})
     layout = ds.attrs.get("layout_method", "")
@@ -119,6 +192,7 @@ def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
                     "pv_nm": None,
                     "n_points": None,
                     "index": None,
+                    "name": None,
                     "swept_aspect": "aspect" in ds.dims,
                 }
             )
@@ -132,7 +206,8 @@ def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
                 "swept_aspect": "aspect" in ds.dims,
                 "pv_nm": case["pv_nm"],
                 "n_points": case["n_points"],
-                "index": flat,
+                "index": case["index"],
+                "name": case["name"],
             }
         )
     return rows

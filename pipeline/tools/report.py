@@ -29,6 +29,7 @@ from ftsweep.store import cube
 from ftsweep.store.io import save_figure, write_text_atomic
 from ftsweep.store.storage import PathLike, place
 from ftsweep.tools.accessor import _axes, plot_map
+from ftsweep.tools.query import flat_of
 from ftsweep.tools.select import SelectError, choose, describe, eligible, open_cube, recorded_case
 
 FIGURES = {
@@ -113,7 +114,7 @@ def plot_spectrum(record: dict[str, Any], layout: Any, table: np.ndarray, specs:
 def make_report(
     cube_path: PathLike,
     out_dir: Optional[Path] = None,
-    index: Optional[int] = None,
+    index: Optional[int | str] = None,
     map_bins: int = 160,
     progress: Optional[Callable[[int, int], None]] = None,
     trust_plugins: bool = False,
@@ -142,10 +143,9 @@ def make_report(
     if index is None and budget_points is None and tolerance_nm is None:
         budget_points = int(np.nanmax(ds["points"].values if "points" in ds.dims else ds["n_points"].values))
     chosen = choose(ds, budget_points, tolerance_nm, index)
-    record, (case, layout, table, specs) = resimulate(
-        at, int(chosen["index"]), map_bins, progress, trust_plugins
-    )
-    shown = dict(describe(ds, int(chosen["index"])), pv_nm=record["pv_nm"])
+    flat = flat_of(ds, chosen["index"])
+    record, (case, layout, table, specs) = resimulate(at, flat, map_bins, progress, trust_plugins)
+    shown = dict(describe(ds, flat), pv_nm=record["pv_nm"])
     paths["error_map"] = _save(
         plot_map(record["error_map_x_um"], record["error_map_peak_nm"], shown, "peak"), out / "error_map.png"
     )

@@ -14,7 +14,7 @@ import xarray as xr
 
 from ftsweep.store import cube
 from ftsweep.store.storage import PathLike, place
-from ftsweep.tools.query import best_flat, capacity_of, describe, eligible, eligible_pv, position
+from ftsweep.tools.query import best_flat, capacity_of, describe, eligible, eligible_pv, find_case, position
 
 
 class SelectError(ValueError):
@@ -118,9 +118,10 @@ def choose(
     ds: xr.Dataset,
     budget_points: Optional[int] = None,
     tolerance_nm: Optional[float] = None,
-    index: Optional[int] = None,
+    index: Optional[int | str] = None,
 ) -> dict[str, Any]:
-    """One of: a budget, a tolerance, or an explicit flat case index."""
+    """One of: a budget, a tolerance, or an explicit case (``index``: its coordinates as
+    ``points=950000 aspect=16`` or its case number, :func:`~ftsweep.tools.query.find_case`)."""
     given = [v is not None for v in (budget_points, tolerance_nm, index)]
     if sum(given) != 1:
         raise SelectError("give exactly one of budget_points, tolerance_nm or index")
@@ -129,11 +130,12 @@ def choose(
     if tolerance_nm is not None:
         return select_tolerance(ds, tolerance_nm)
     assert index is not None
-    size = int(ds["status"].size)
-    if not 0 <= index < size:
-        raise SelectError(f"--case {index} is outside the cube's {size} cases (0..{size - 1})")
-    chosen = describe(ds, index)
-    chosen["rule"] = f"case {index} as asked"
+    try:
+        flat = find_case(ds, str(index))
+    except ValueError as exc:
+        raise SelectError(str(exc)) from None
+    chosen = describe(ds, flat)
+    chosen["rule"] = f"case {chosen['name']} as asked"
     return chosen
 
 

@@ -120,6 +120,10 @@ def test_every_readme_block_runs_as_written(folder):
     env = {k: v for k, v in os.environ.items() if not k.startswith(("FTSWEEP_", "FSSPEC_", "AWS_"))}
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     env["HOME"] = str(folder)  # keys and configs of this user only
+    # ... but the kernels this environment compiled already (numba's cache is the user's)
+    from ftsweep.caches import numba_cache_dir
+
+    env["NUMBA_CACHE_DIR"] = str(numba_cache_dir())
     previous, ran = "", []
     for line, lang, text in blocks():
         if lang not in ("bash", "console", "python", "text") or _skip_reason(text):

@@ -479,12 +479,50 @@ def test_progress_in_a_log_is_plain_periodic_lines():
     assert log.getvalue().splitlines() == ["work: 100/100"]  # nothing in between within the interval
 
 
-def test_eta_comes_from_measured_case_times_once_two_finished():
-    from ftsweep.cli.sweep import _eta_text
+def test_eta_comes_from_the_cost_estimate_scaled_by_the_cases_measured():
+    """Cases arrive costliest first (the tasks' order): the time left is the cost not yet
+    finished times the seconds measured per unit of cost, right from the first case; a mean
+    of seconds per case would have said several times the time left."""
+    from ftsweep.cli.sweep import Eta
 
-    assert _eta_text(5.0, 1, remaining=10, workers=2) == "ETA –"
-    # 4 s a case over 2 workers, 10 cases left: 20 s, whatever the wall time so far
-    assert _eta_text(3.0 + 5.0, 2, remaining=10, workers=2).split() == ["ETA", "20", "s"]
+    eta = Eta()
+    costs = [100.0, 80.0, 50.0, 30.0, 20.0, 10.0, 5.0, 5.0]  # 300 units, 0.1 s a unit
+    assert eta.text(sum(costs), remaining=8, threads=2) == "ETA –"  # nothing measured yet
+    for cost in costs[:2]:
+        eta.finished(cost, 0.1 * cost)
+    left = sum(costs[2:]) * 0.1 / 2
+    assert eta.seconds_left(sum(costs), threads=2) == pytest.approx(left)  # 6 s, not 27 s
+    mean_per_case = (10.0 + 8.0) / 2 * 6 / 2
+    assert mean_per_case > 4 * left
+    eta.finished(50.0, None)  # a case finished untimed (refused) still leaves the cost undone
+    assert eta.seconds_left(sum(costs), threads=2) == pytest.approx(sum(costs[3:]) * 0.1 / 2)
+    assert eta.text(sum(costs), remaining=0, threads=2) == "ETA 0 s"
+
+
+def test_the_bar_and_its_text_are_drawn_from_one_snapshot(monkeypatch):
+    """On a terminal every line the bar draws holds the same count in the bar and its text."""
+    import io
+    import re
+    import sys
+    from types import SimpleNamespace
+
+    from ftsweep.cli.sweep import SweepProgress
+
+    screen = io.StringIO()
+    screen.isatty = lambda: True  # type: ignore[method-assign]
+    monkeypatch.setattr(sys, "stderr", screen)
+    progress = SweepProgress(0.0)
+    report = SimpleNamespace(rows=[], queued=18, refused={}, costs=dict.fromkeys(range(18), 1.0), workers=2, threads=2)
+    for i in range(18):
+        row = {"index": i, "status": "done", "seconds": 0.5, "pv_nm": 1.0, "message": ""}
+        report.rows.append(row)
+        progress(report, [row])
+    progress.close()
+    drawn = [line for line in re.split(r"[\r\n]", screen.getvalue()) if "|" in line]
+    assert len(drawn) >= 18
+    for line in drawn:
+        n = int(re.search(r"sweep: (\d+)/18", line).group(1))
+        assert f"{n:>2} done" in line and f"{18 - n:>2} pending" in line, line
 
 
 def test_figures_and_files_respect_the_umask_and_write_errors_name_the_file(tmp_path, monkeypatch):

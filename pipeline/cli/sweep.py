@@ -250,23 +250,21 @@ class SweepProgress:
         self.shown = 0.0  # the command's start: a first line after an interval, not at once
         self.bar: Any = None
         # counted as rows arrive: a sweep of 10⁵ cases must not rescan every row on each one
-        self.failed = self.refused = self.timed = 0
-        self.case_s = 0.0
+        self.failed = self.refused = 0
+        self.eta = Eta()
 
     def __call__(self, report: Any, rows: list[dict]) -> None:
         for r in rows:
             self.failed += r["status"] == "failed"
             self.refused += r["status"] == "refused"
-            if r.get("seconds"):
-                self.timed += 1
-                self.case_s += r["seconds"]
+            self.eta.finished(report.costs.get(r.get("index"), 0.0), r.get("seconds"))
         done, total = len(report.rows), report.queued
         elapsed = time.perf_counter() - self.started
         if not self.tty and elapsed - self.shown < self.interval_s and done < total:
             return
         refused = len(report.refused) + self.refused
         state = f"{self.failed} failed, {refused} refused, {total - done} pending"
-        eta = _eta_text(self.case_s, self.timed, total - done, report.workers)
+        eta = self.eta.text(sum(report.costs.values()), total - done, max(report.threads, report.workers, 1))
         if self.tty:
             self._draw(len(rows), total, len(report.refused), f"{elapsed:6.1f} s, {eta}")
             return
@@ -282,6 +280,7 @@ class SweepProgress:
         """One bar: ftsweep's counts, clock and ETA after it, none of tqdm's own (its rate, ETA
         and clock disagreed with ftsweep's), the counts from the bar's own so that they add up
         to its total, and a text of fixed width so that the bar does not jump."""
+        total = queued + upfront
         if self.bar is None:
             import shutil
 
@@ -292,25 +291,30 @@ class SweepProgress:
             size = shutil.get_terminal_size((100, 24))
             # the cases refused before dispatch count as finished: the counts add up to the total
             self.bar = tqdm(
-                total=queued + upfront,
+                total=total,
                 initial=upfront,
                 file=sys.stderr,
                 unit="case",
                 desc="sweep:",
                 ncols=size.columns,
                 nrows=size.lines,
-                bar_format="{desc} {n_fmt}/{total_fmt} |{bar}|",
+                bar_format=self._format(upfront, total, upfront, clock),
             )
+        # one snapshot: the text is made for the count the bar is about to show, and set before
+        # the update draws it (set after, the line drawn held the new count and the old text)
+        self.bar.bar_format = self._format(self.bar.n + new, total, upfront, clock)
         self.bar.update(new)
-        total, refused = queued + upfront, upfront + self.refused
-        width = len(str(total))
-        counts = (
-            f"{self.bar.n - self.failed - refused:>{width}} done, {self.failed:>{width}} failed, "
-            f"{refused:>{width}} refused, {total - self.bar.n:>{width}} pending"
-        )
-        # the text after the bar is ftsweep's own, not tqdm's postfix (which it prefixes with ", ")
-        self.bar.bar_format = "{desc} {n_fmt}/{total_fmt} |{bar}| " + f"{counts} | {clock:<20s}"
         self.bar.refresh()
+
+    def _format(self, n: int, total: int, upfront: int, clock: str) -> str:
+        """tqdm's bar format for ``n`` of ``total`` cases finished: the bar, then ftsweep's own
+        text (not tqdm's postfix, which it prefixes with ", ")."""
+        refused, width = upfront + self.refused, len(str(total))
+        counts = (
+            f"{n - self.failed - refused:>{width}} done, {self.failed:>{width}} failed, "
+            f"{refused:>{width}} refused, {total - n:>{width}} pending"
+        )
+        return "{desc} {n_fmt}/{total_fmt} |{bar}| " + f"{counts} | {clock:<20s}"
 
     def close(self) -> None:
         """End the bar (on a terminal), so the summary starts on its own line."""
@@ -319,13 +323,38 @@ class SweepProgress:
             self.bar = None
 
 
-def _eta_text(case_s: float, timed: int, remaining: int, workers: int) -> str:
-    """The time left, from the measured times of the ``timed`` cases finished so far (their
-    summed case seconds ``case_s`` over the workers), not from the wall time, which holds the
-    cluster's start and the kernels' compilation; none until two cases have finished."""
-    if timed < 2 or remaining <= 0:
-        return "ETA –" if remaining > 0 else "ETA 0 s"
-    return f"ETA {case_s / timed * remaining / max(workers, 1):6.0f} s"
+class Eta:
+    """A sweep's time left from its kinds' cost estimate, corrected by the cases measured: the
+    cost of the cases not finished (``SweepReport.costs``, work units proportional to a case's
+    seconds) times the seconds measured per unit of the cases finished so far, over the
+    cluster's threads. Tasks run the costliest cases first, so a mean of seconds per case
+    would count every early case as costly as the first (5-7 times the time left at case 5
+    of the reference sweep); per unit of cost it is not. The wall time is not used: it holds
+    the cluster's start and the kernels' compilation."""
+
+    def __init__(self) -> None:
+        self.cost_done = 0.0  # every finished case's cost, timed or not
+        self.timed_cost = 0.0
+        self.timed_s = 0.0
+
+    def finished(self, cost: float, seconds: Optional[float]) -> None:
+        self.cost_done += cost
+        if seconds and cost > 0:
+            self.timed_cost += cost
+            self.timed_s += float(seconds)
+
+    def seconds_left(self, cost_total: float, threads: int) -> Optional[float]:
+        """Seconds left [s], or None before a case was measured."""
+        if self.timed_cost <= 0:
+            return None
+        left = max(cost_total - self.cost_done, 0.0)
+        return left * (self.timed_s / self.timed_cost) / max(threads, 1)
+
+    def text(self, cost_total: float, remaining: int, threads: int) -> str:
+        if remaining <= 0:
+            return "ETA 0 s"
+        seconds = self.seconds_left(cost_total, threads)
+        return "ETA –" if seconds is None else f"ETA {seconds:6.0f} s"
 
 
 def _print_refused(report: Any) -> None:

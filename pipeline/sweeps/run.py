@@ -115,6 +115,9 @@ class SweepReport:
     pruned: int = 0  # cases left out by --prune (this run's and earlier ones kept)
     refused: dict[int, str] = field(default_factory=dict)  # refused before dispatch, by reason
     queued: int = 0  # cases this run computes
+    # the kinds' cost estimate of each case this run computes (work units, proportional to a
+    # case's seconds: the progress's ETA scales it by the seconds measured per unit)
+    costs: dict[int, float] = field(default_factory=dict)
     note: str = ""  # what the run changed in the cube beyond its cases (it grew)
     connected: bool = False  # the run got its cluster (workers may have logged cases)
     # where the wall went: seconds from the run's start (its lock taken) to the cube set up
@@ -602,5 +605,6 @@ def _set_up(
         lease, lambda fence: refuse_cases(spec, out, pending, run_id, catalog_folder, fence)
     )
     report.queued = len(costs)
+    report.costs = {index: float(cost[0]) for index, cost in costs.items()}
     report.note = note
     return report, costs

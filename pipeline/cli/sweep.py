@@ -226,13 +226,15 @@ def _report_problems(report: Any) -> None:
     if errors:
         first = errors[0]
         raise click.ClickException(
-            f"{len(errors)} case(s) could not be run and stay pending; first: {_case_label(first)}: "
+            f"{len(errors)} case(s) could not be run and stay pending; first: {_case_label(report, first)}: "
             f"{first['message']}"
         )
 
 
-def _case_label(row: dict[str, Any]) -> str:
-    return f"case {row['index']} ({row['request']})" if row.get("request") else f"case {row['index']}"
+def _case_label(report: Any, row: dict[str, Any]) -> str:
+    """A case of the run by its coordinates, with its layout as requested where known."""
+    name = report.case_name(int(row["index"]))
+    return f"case {name} ({row['request']})" if row.get("request") else f"case {name}"
 
 
 class SweepProgress:
@@ -270,7 +272,7 @@ class SweepProgress:
             return
         self.shown = elapsed
         last = rows[-1]
-        what = f"{_case_label(last)}: " + (
+        what = f"{_case_label(report, last)}: " + (
             f"P-V {last['pv_nm']:.2f} nm" if last["status"] == "done" else one_line(last["message"], 300)
         )
         width = len(str(total))
@@ -397,7 +399,7 @@ def _print_sweep_summary(report: Any, wall_s: float) -> dict[str, int]:
             "computed by an earlier case on the same worker"
         )
     for r in [r for r in report.rows if r["status"] == "failed"][:5]:
-        click.echo(f"failed       {_case_label(r)}: {one_line(r['message'], 300)}")
+        click.echo(f"failed       {_case_label(report, r)}: {one_line(r['message'], 300)}")
     _print_refused(report)
     click.echo("best P-V per point count (among the cases select may choose):")
     rows = best_per_point_count(report.cube)

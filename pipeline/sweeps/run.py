@@ -118,6 +118,8 @@ class SweepReport:
     # the kinds' cost estimate of each case this run computes (work units, proportional to a
     # case's seconds: the progress's ETA scales it by the seconds measured per unit)
     costs: dict[int, float] = field(default_factory=dict)
+    # the cube's axes as this run holds them (its spec's coordinates): a case's name
+    axes: dict[str, Any] = field(default_factory=dict)
     note: str = ""  # what the run changed in the cube beyond its cases (it grew)
     connected: bool = False  # the run got its cluster (workers may have logged cases)
     # where the wall went: seconds from the run's start (its lock taken) to the cube set up
@@ -125,6 +127,15 @@ class SweepReport:
     # for a new cube) and to the first and the last case delivered (first_case_s,
     # last_case_s); the rest of ``wall_s``, which counts from the same start, is the last merge
     timeline: dict[str, float] = field(default_factory=dict)
+
+    def case_name(self, index: int) -> str:
+        """The case at flat index ``index`` of this run's cube named by its coordinates
+        (``points=950000 aspect=16``), as select and export name it."""
+        from ftsweep.store.values import case_name
+
+        shape = tuple(len(v) for v in self.axes.values())
+        at = np.unravel_index(index, shape)
+        return case_name({a: _plain(v[i]) for (a, v), i in zip(self.axes.items(), at, strict=True)})
 
     @property
     def done(self) -> int:
@@ -158,6 +169,11 @@ class Where:
     workers: int
     line_cache_mb: float
     worker_wait_s: float
+
+
+def _plain(value: Any) -> Any:
+    """An axis value as a Python number, or text for a name."""
+    return value.item() if hasattr(value, "item") else value
 
 
 def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
@@ -606,5 +622,6 @@ def _set_up(
     )
     report.queued = len(costs)
     report.costs = {index: float(cost[0]) for index, cost in costs.items()}
+    report.axes = coordinates(spec)
     report.note = note
     return report, costs

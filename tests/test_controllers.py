@@ -343,9 +343,67 @@ def test_a_dialect_the_machines_controller_does_not_read_is_refused(tmp_path):
     out = str(tmp_path / "x.nc")
     r = CliRunner().invoke(main, ["export", str(cube), "--case", "0", "--dialect", "iso-sts", "-o", out])
     assert r.exit_code == 1 and "has a pmac-pvt controller, which does not read iso-sts" in r.output
-    assert "export --dialect pmac-pvt" in r.output and "reads iso-sts: sts-moore" in r.output
+    assert "export --dialect pmac-pvt" in r.output and "reads iso-sts (--machine sts-moore)" in r.output
     r = CliRunner().invoke(main, ["export", str(cube), "--case", "0", "--dialect", "text", "-o", out])
     assert r.exit_code == 1 and "interpolates pvt" in r.output
+
+
+def test_export_for_another_machine_plans_and_predicts_the_case_there(moore, tmp_path):
+    """The Moore cube's spiral as a PVT program for a PMAC lathe: planned for that controller,
+    predicted there, its P-V stated, and the file verifies as the cube's case for that machine;
+    a machine that cannot take it is refused naming why."""
+    cube, _ = moore
+    out = tmp_path / "pvt.pmc"
+    r = CliRunner().invoke(
+        main, ["export", str(cube), "--case", "0", "--machine", "sts-pmac-pvt", "-o", str(out)]
+    )
+    assert r.exit_code == 0, r.output
+    assert (
+        "machine      sts-pmac-pvt: planned and predicted there (the cube's case, for sts-moore:" in r.output
+    )
+    meta = json.loads(out.with_name(out.name + ".json").read_text())
+    assert meta["dialect"] == "pmac-pvt" and meta["case"]["machine"] == "sts-pmac-pvt"
+    assert meta["planned_for"]["cube"]["machine"] == "sts-moore"
+    # the P-V stated is the prediction on the PMAC machine, which predict --program confirms
+    p = CliRunner().invoke(
+        main,
+        ["predict", "--program", str(out), "--surface", "sinusoidal_mesh", "--cutting", "seed003", "--json"],
+    )
+    assert p.exit_code == 0, p.output
+    assert json.loads(p.output)["pv_nm"] == pytest.approx(meta["pv_nm_as_written"], rel=0.01)
+    v = CliRunner().invoke(main, ["verify", str(out)])
+    assert v.exit_code == 0, v.output
+    assert "machine sts-pmac-pvt" in v.output and "(number 0) is the file's case" in v.output
+    # a dialect the new machine does not read, an unknown machine, a table for a program controller
+    r = CliRunner().invoke(
+        main,
+        [
+            "export",
+            str(cube),
+            "--case",
+            "0",
+            "--machine",
+            "sts-pmac-pvt",
+            "--dialect",
+            "iso-sts",
+            "-o",
+            str(out),
+            "--force",
+        ],
+    )
+    assert r.exit_code == 1 and "does not read iso-sts" in r.output and "--machine sts-moore" in r.output
+    r = CliRunner().invoke(
+        main, ["export", str(cube), "--case", "0", "--machine", "sts-pmac", "-o", str(out), "--force"]
+    )
+    assert r.exit_code == 1 and "unknown machine 'sts-pmac'" in r.output and "did you mean" in r.output
+    ring = _sweep(
+        tmp_path, "ring", "surface: sinewave2d\nlayout: ring\naxes:\n  points: [20000]\n  aspect: [8]\n"
+    )
+    r = CliRunner().invoke(
+        main, ["export", str(ring), "--case", "0", "--machine", "sts-moore", "-o", str(tmp_path / "r.h")]
+    )
+    assert r.exit_code == 1 and "reads iso-sts programs, not a ring table" in r.output
+    assert "sweep the part as a path program (layout: spiral)" in r.output and "fts-1m" in r.output
 
 
 # ----------------------------------------------------------------------- the compiled reference

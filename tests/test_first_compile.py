@@ -164,12 +164,7 @@ def test_numbas_cache_is_the_user_cache_directory_unless_the_user_names_one(tmp_
     """A fresh process: with NUMBA_CACHE_DIR unset, importing ftsweep points numba at
     $XDG_CACHE_HOME/ftsweep/numba, also where numba was imported first; a user's own setting
     stands."""
-    code = (
-        "import sys, numba\n"
-        "import ftsweep\n"
-        "from numba.core import config\n"
-        "print(config.CACHE_DIR)\n"
-    )
+    code = "import sys, numba\nimport ftsweep\nfrom numba.core import config\nprint(config.CACHE_DIR)\n"
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)

@@ -100,7 +100,9 @@ def test_a_grown_cube_keeps_its_name_and_case_numbers_and_its_catalog_command(tm
     run_sweep(str(first), out, scheduler="synchronous", catalog_folder=catalog_dir)
     env = {"FTSWEEP_CATALOGS": str(catalog_dir)}
     header = tmp_path / "before.h"
-    r = CliRunner().invoke(main, ["export", str(out), "--case", "points=20000,aspect=8", "-o", str(header)], env=env)
+    r = CliRunner().invoke(
+        main, ["export", str(out), "--case", "points=20000,aspect=8", "-o", str(header)], env=env
+    )
     assert r.exit_code == 0, r.output
     assert "case         points=20000 aspect=8 (case number 3;" in r.output
     numbers = xr.open_zarr(out)["case_number"].load()
@@ -115,7 +117,9 @@ def test_a_grown_cube_keeps_its_name_and_case_numbers_and_its_catalog_command(tm
     assert sorted(ds["case_number"].sel(points=12000).values.tolist()) == [4, 5]
     # number 3 is still points=20000 aspect=8, whose flat index is now 5
     for how in ("3", "points=20000 aspect=8.0"):
-        r = CliRunner().invoke(main, ["export", str(out), "--case", how, "-o", str(tmp_path / "n.h"), "--force"], env=env)
+        r = CliRunner().invoke(
+            main, ["export", str(out), "--case", how, "-o", str(tmp_path / "n.h"), "--force"], env=env
+        )
         assert r.exit_code == 0 and "case         points=20000 aspect=8 (case number 3;" in r.output, r.output
     # the cube's first spec still runs on it: nothing to compute
     again = run_sweep(str(first), out, scheduler="synchronous", catalog_folder=catalog_dir)
@@ -125,10 +129,14 @@ def test_a_grown_cube_keeps_its_name_and_case_numbers_and_its_catalog_command(tm
     assert v.exit_code == 0, v.output
     assert "for          case points=20000 aspect=8 of" in v.output
     assert "in cube      the cube's case points=20000 aspect=8 (number 3) is the file's case" in v.output
-    wrong = CliRunner().invoke(main, ["verify", str(header), "--expect-case", "points=8000,aspect=8"], env=env)
+    wrong = CliRunner().invoke(
+        main, ["verify", str(header), "--expect-case", "points=8000,aspect=8"], env=env
+    )
     assert wrong.exit_code != 0 and "not the expected points=8000 aspect=8" in wrong.output
     # a case the cube does not hold is refused naming the axis' values
-    r = CliRunner().invoke(main, ["export", str(out), "--case", "points=9000,aspect=8", "-o", str(tmp_path / "x.h")], env=env)
+    r = CliRunner().invoke(
+        main, ["export", str(out), "--case", "points=9000,aspect=8", "-o", str(tmp_path / "x.h")], env=env
+    )
     assert r.exit_code != 0 and "axis points has no value 9000 (its values: 8000, 12000, 20000)" in r.output
 
 
@@ -137,10 +145,18 @@ def test_verify_says_when_the_cube_no_longer_holds_the_files_case(tmp_path, cata
     run_sweep(str(_spec(tmp_path)), out, scheduler="synchronous", catalog_folder=catalog_dir)
     env = {"FTSWEEP_CATALOGS": str(catalog_dir)}
     header = tmp_path / "h.h"
-    r = CliRunner().invoke(main, ["export", str(out), "--case", "points=8000,aspect=2", "-o", str(header)], env=env)
+    r = CliRunner().invoke(
+        main, ["export", str(out), "--case", "points=8000,aspect=2", "-o", str(header)], env=env
+    )
     assert r.exit_code == 0, r.output
     # started over with another aspect axis: the file's coordinates are gone
-    run_sweep(str(_spec(tmp_path, aspect="[3.0]")), out, scheduler="synchronous", catalog_folder=catalog_dir, restart=True)
+    run_sweep(
+        str(_spec(tmp_path, aspect="[3.0]")),
+        out,
+        scheduler="synchronous",
+        catalog_folder=catalog_dir,
+        restart=True,
+    )
     v = CliRunner().invoke(main, ["verify", str(header), "--json"], env=env)
     assert "no longer holds the file's case points=8000 aspect=2" in v.output, v.output
 

@@ -143,7 +143,10 @@ def test_the_circle_finder_finds_a_circle():
 # and those below, never above (function-level imports count); ``ftsweep`` itself is the face
 LAYERS = (
     ("stages", ("ftsweep.stages",)),
-    ("base", ("ftsweep.version", "ftsweep.defaults", "ftsweep.freetext", "ftsweep.progress")),
+    (
+        "base",
+        ("ftsweep.version", "ftsweep.defaults", "ftsweep.freetext", "ftsweep.progress", "ftsweep.caches"),
+    ),
     ("inputs", ("ftsweep.inputs",)),
     ("engine", ("ftsweep.engine", "ftsweep.simulate")),
     ("store and export formats", ("ftsweep.store", "ftsweep.exports", "ftsweep.options")),

@@ -331,3 +331,26 @@ def test_an_older_export_of_the_same_name_is_refused_while_its_cube_is_reachable
     cube.rename(tmp_path / "moved.zarr")  # the cube out of reach: said, not silently passed
     res = cli(["verify", str(out), *trusted], module_catalog_dir)
     assert res.exit_code == 0 and f"not checked: the cube {cube} is not reachable" in res.output, res.output
+
+
+def test_a_new_private_key_is_kept_out_of_git_by_default(tmp_path, monkeypatch, module_catalog_dir):
+    """A key made inside a clone (the guide's secure/) is ignored by git; with no -o the pair
+    goes to the user's config folder, outside any clone."""
+    import subprocess
+
+    clone = tmp_path / "clone"
+    subprocess.run(["git", "init", "-q", str(clone)], check=True)
+    res = cli(["keys", "new", "-o", str(clone / "secure" / "shop")], module_catalog_dir)
+    assert res.exit_code == 0, res.output
+    ignored = subprocess.run(
+        ["git", "check-ignore", "-q", "secure/shop.key"], cwd=clone, capture_output=True, check=False
+    )
+    assert ignored.returncode == 0  # ignored: `git add -A` leaves the private key out
+    shown = subprocess.run(
+        ["git", "status", "--porcelain", "-uall"], cwd=clone, capture_output=True, text=True
+    )
+    assert "shop.pub" in shown.stdout and "shop.key" not in shown.stdout
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "config"))
+    res = cli(["keys", "new"], module_catalog_dir)
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "config" / "ftsweep" / "keys" / "ftsweep-signing.key").is_file()

@@ -512,7 +512,9 @@ def test_the_bar_and_its_text_are_drawn_from_one_snapshot(monkeypatch):
     screen.isatty = lambda: True  # type: ignore[method-assign]
     monkeypatch.setattr(sys, "stderr", screen)
     progress = SweepProgress(0.0)
-    report = SimpleNamespace(rows=[], queued=18, refused={}, costs=dict.fromkeys(range(18), 1.0), workers=2, threads=2)
+    report = SimpleNamespace(
+        rows=[], queued=18, refused={}, costs=dict.fromkeys(range(18), 1.0), workers=2, threads=2
+    )
     for i in range(18):
         row = {"index": i, "status": "done", "seconds": 0.5, "pv_nm": 1.0, "message": ""}
         report.rows.append(row)

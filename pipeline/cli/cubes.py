@@ -1,5 +1,5 @@
-"""The commands on cubes and exported files: ``sweep``, ``select``, ``export``, ``verify``,
-``report`` and ``compare``."""
+"""The commands on cubes and exported files: ``select``, ``export``, ``verify``, ``report`` and
+``compare`` (the signing keys they use: :mod:`ftsweep.cli.keys`)."""
 
 from __future__ import annotations
 
@@ -143,6 +143,13 @@ def select(
     "LinuxCNC G-code, Delta Tau PMAC PVT or SPLINE1 (docs/controllers.md). Default: the machine's "
     "controller entry's dialect (text when it declares none).",
 )
+@click.option(
+    "--machine",
+    metavar="NAME",
+    help="Plan the chosen case for this catalog machine instead of the one the cube was swept for (its "
+    "controller, capacity, units and limits), predict it there and state that P-V; refused, naming why, "
+    "where the machine cannot run it. `ftsweep catalogs` lists the machines and their dialects.",
+)
 @click.option("--force", is_flag=True, help="Replace an existing header and sidecar.")
 @sign_options
 @TRUST_PLUGINS
@@ -156,6 +163,7 @@ def export(
     out: str,
     name: Optional[str],
     dialect: Optional[str],
+    machine: Optional[str],
     force: bool,
     sign_key: Optional[str],
     expires: Optional[datetime],
@@ -191,10 +199,17 @@ def export(
             guard_complete(current_status(cube), allow_incomplete)
         chosen = {"budget_points": budget_points, "tolerance_nm": tolerance_nm, "index": index}
         meta = exp.export(cube, target, **chosen, force=force, name=name, trust_plugins=trust_plugins,
-                          sign_key=sign_key, dialect=dialect, expires=expires)  # fmt: skip
+                          sign_key=sign_key, dialect=dialect, expires=expires, machine=machine)  # fmt: skip
     except (exp.ExportError, SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(_selection_text(meta["selection"]))
+    moved = meta.get("planned_for")
+    if isinstance(moved, dict):
+        was = moved["cube"]
+        click.echo(
+            f"machine      {moved['machine']}: planned and predicted there (the cube's case, for "
+            f"{was['machine']}: {was['n_points']:,} points, P-V {was['pv_nm']:.2f} nm)"
+        )
     for line in exp.format_of_file(target).exported(target, meta):
         click.echo(line)
     click.echo(f"sidecar      {exp.sidecar_path(target)}")
@@ -567,39 +582,3 @@ def _print_compare(
         )
     if out is not None:
         click.echo(f"plot         {out}")
-
-
-@click.group("keys")
-def keys() -> None:
-    """Make the ed25519 key pair export signs with and verify trusts.
-
-    \b
-    A shop keeps the private key (NAME.key, mode 0600) on the machine that exports, named by
-    --sign-key, FTSWEEP_SIGNING_KEY or signing_key in the config file
-    ($XDG_CONFIG_HOME/ftsweep/config.toml, or FTSWEEP_CONFIG); the public key (NAME.pub) goes
-    to every machine that verifies, named by --trusted-key or trusted_keys there.
-    """
-
-
-@keys.command("new")
-@click.option(
-    "-o",
-    "--output",
-    "stem",
-    default="ftsweep-signing",
-    show_default=True,
-    type=click.Path(dir_okay=False),
-    help="Name of the pair: writes NAME.key (private) and NAME.pub (public); never replaces a key.",
-)
-def keys_new(stem: str) -> None:
-    """Make a new ed25519 key pair (NAME.key, NAME.pub) and print its key ID."""
-    from ftsweep.exports.origin import new_keys
-    from ftsweep.store.io import ExportError
-
-    try:
-        private, public, ident = new_keys(Path(stem))
-    except ExportError as exc:
-        raise click.ClickException(str(exc)) from None
-    click.echo(f"private key  {private} (mode 0600: keep it on the exporting machine only)")
-    click.echo(f"public key   {public} (give it to every machine that verifies)")
-    click.echo(f"key ID       {ident}")

@@ -31,7 +31,7 @@ COMMANDS = {
     "compare": ("ftsweep.cli.cubes", "compare"),
     "estimate": ("ftsweep.cli.tools", "estimate"),
     "optimize": ("ftsweep.cli.tools", "optimize"),
-    "keys": ("ftsweep.cli.cubes", "keys"),
+    "keys": ("ftsweep.cli.keys", "keys"),
     "bench": ("ftsweep.cli.tools", "bench"),
 }
 # the order `ftsweep --help` lists them: a run's (sweep → status → select → export → verify),

@@ -391,7 +391,8 @@ def _bench_documented(json_path: str) -> None:
         readme, where = readme_text()
         rows = documented_times(readme)
         click.echo(
-            f"running the README's timed commands (README: {where}) in a fresh folder, numba's cache empty ...",
+            f"running the README's timed commands (README: {where}) in a fresh folder, "
+            "numba's cache empty ...",
             err=True,
         )
         measured = measure(rows, shlex.join(ftsweep_command()))

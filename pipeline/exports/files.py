@@ -358,8 +358,10 @@ def _numbers(path: Path, raw: bytes, start: int, n_cols: int) -> np.ndarray:
 
 def recorded_extra(meta: dict[str, Any]) -> dict[str, Any]:
     """The provenance a program's sidecar records beside its case (the cube it came from,
-    the platform it was planned on, its place in the cube's export ledger)."""
-    return {k: meta.get(k) for k in ("cube", "cube_git_revision", "platform", "ledger") if k in meta}
+    the platform it was planned on, its place in the cube's export ledger, the machine it was
+    planned for where export --machine moved it)."""
+    keys = ("cube", "cube_git_revision", "platform", "ledger", "planned_for")
+    return {k: meta.get(k) for k in keys if k in meta}
 
 
 def check_document(

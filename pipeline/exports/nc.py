@@ -60,7 +60,11 @@ def adapter_of(kind: str) -> Adapter:
     """The dialect adapter of a path kind (its file format's); refused for a kind without."""
     fmt = registry.kind(kind).file_format()
     if fmt.dialect is None:
-        raise ProgramError(f"a {kind} case is written in ftsweep's own format only: --dialect text")
+        raise ProgramError(
+            f"a {kind} case is written in ftsweep's own format only: --dialect text (a {kind} case is a "
+            "table its FTS controller interpolates; a controller's dialect carries a path program: sweep "
+            "the part as one, layout: spiral, for a machine whose controller reads the dialect)"
+        )
     return fmt.dialect  # type: ignore[no-any-return]
 
 

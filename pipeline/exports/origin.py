@@ -59,12 +59,16 @@ def signature_path(path: Path) -> Path:
     return path.with_name(path.name + ".sig")
 
 
+def config_dir() -> Path:
+    """The user's ftsweep config folder: ``$XDG_CONFIG_HOME/ftsweep`` (else ``~/.config/ftsweep``)."""
+    return Path(os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")) / "ftsweep"
+
+
 def config_path() -> Path:
     """The config file: ``FTSWEEP_CONFIG``, else ``$XDG_CONFIG_HOME/ftsweep/config.toml``."""
     if os.environ.get("FTSWEEP_CONFIG"):
         return Path(os.environ["FTSWEEP_CONFIG"])
-    base = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
-    return Path(base) / "ftsweep" / "config.toml"
+    return config_dir() / "config.toml"
 
 
 def _config() -> dict[str, Any]:
@@ -102,7 +106,9 @@ def trusted_keys(options: tuple[str, ...]) -> list[Path]:
 
 def new_keys(stem: Path) -> tuple[Path, Path, str]:
     """A new ed25519 key pair written as ``STEM.key`` (private, mode 0600) and ``STEM.pub``;
-    returns both paths and the key's ID. Refuses to replace either file."""
+    returns both paths and the key's ID. Refuses to replace either file. A folder without a
+    ``.gitignore`` gets one that ignores ``*.key``, so a private key made inside a clone (the
+    guide's ``secure/``) is never committed by default."""
     from cryptography.hazmat.primitives import serialization
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
@@ -117,6 +123,11 @@ def new_keys(stem: Path) -> tuple[Path, Path, str]:
     public = private.public_key().public_bytes(
         serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo
     )
+    key_file.parent.mkdir(parents=True, exist_ok=True)
+    ignore = key_file.parent / ".gitignore"
+    if not ignore.exists():
+        note = b"# private signing keys (ftsweep keys new) stay out of version control\n*.key\n"
+        write_texts_atomic({ignore: note})
     old = os.umask(0o077)  # the private key is written readable by its owner only
     try:
         write_texts_atomic({key_file: pem, pub_file: public})

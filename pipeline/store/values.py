@@ -90,3 +90,13 @@ def value_text(value: Any) -> str:
 def case_name(coordinates: dict[str, Any]) -> str:
     """A case named by what it is: ``points=950000 aspect=16``, every axis of its cube."""
     return " ".join(f"{axis}={value_text(value)}" for axis, value in coordinates.items())
+
+
+def case_name_at(axes: dict[str, Any], index: int) -> str:
+    """The name (:func:`case_name`) of the case at flat C-order ``index`` of a cube whose axes
+    hold ``axes`` (``{axis: values}``)."""
+    at = np.unravel_index(index, tuple(len(values) for values in axes.values()))
+    plain = {
+        a: v[i].item() if hasattr(v[i], "item") else v[i] for (a, v), i in zip(axes.items(), at, strict=True)
+    }
+    return case_name(plain)

@@ -7,8 +7,9 @@ ratios, feeds ... anywhere, or a range with more values that keeps the old ones)
 rebuilt for the new spec with every recorded case moved to its new place (the cube is small:
 its blocks are few), written beside it as ``NAME.zarr.grow`` and then moved in; a run killed
 during the move finishes it on its next start (:func:`finish_interrupted`), one killed before
-leaves the old cube as it was. Removing values, or any other change, is still refused
-without ``--restart``.
+leaves the old cube as it was. A spec whose every case the cube holds (values removed, or
+the catalog's spec of a cube grown from a copy) resumes the cube as it records
+(:func:`held_by`); any other change is still refused without ``--restart``.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ftsweep.store import cube
+from ftsweep.store.cube import CubeError
 from ftsweep.store.storage import Place
 from ftsweep.sweeps.spec import SweepSpec, coordinates
 from ftsweep.sweeps.template import template
@@ -128,3 +130,31 @@ def finish_interrupted(out: Place) -> None:
         staging.remove_all()
         return
     _move_in(staging, out)
+
+
+def held_by(out: Place, spec: SweepSpec, name: str) -> tuple[SweepSpec, str, str]:
+    """A spec all of whose cases an existing cube holds (a catalog's sweep whose cube was grown
+    from another file) resumes that cube as it was recorded, under its own sweep name: returns
+    the spec and name to run and a note saying so; else ``spec`` and ``name`` as given."""
+    try:
+        attrs = cube.read_attrs(out) if out.exists() and not cube.unfinished(out) else None
+    except CubeError:
+        attrs = None  # not a cube this run can resume: prepare_cube says why
+    if attrs is None or attrs.get("sweep_spec_hash") == spec.spec_hash():
+        return spec, name, ""
+    try:
+        recorded = SweepSpec.model_validate_json(attrs["sweep_spec"])
+    except (KeyError, ValueError):
+        return spec, name, ""
+    plan = growth(spec.model_dump_json(), recorded)
+    if plan is None:
+        return spec, name, ""
+    kept = str(attrs.get("sweep_name") or name)
+    return (
+        recorded,
+        kept,
+        (
+            f"the cube holds every case of this spec and more ({describe(plan)} values, grown since); "
+            f"resuming sweep '{kept}' as the cube records it"
+        ),
+    )

@@ -131,11 +131,9 @@ class SweepReport:
     def case_name(self, index: int) -> str:
         """The case at flat index ``index`` of this run's cube named by its coordinates
         (``points=950000 aspect=16``), as select and export name it."""
-        from ftsweep.store.values import case_name
+        from ftsweep.store.values import case_name_at
 
-        shape = tuple(len(v) for v in self.axes.values())
-        at = np.unravel_index(index, shape)
-        return case_name({a: _plain(v[i]) for (a, v), i in zip(self.axes.items(), at, strict=True)})
+        return case_name_at(self.axes, index)
 
     @property
     def done(self) -> int:
@@ -169,11 +167,6 @@ class Where:
     workers: int
     line_cache_mb: float
     worker_wait_s: float
-
-
-def _plain(value: Any) -> Any:
-    """An axis value as a Python number, or text for a name."""
-    return value.item() if hasattr(value, "item") else value
 
 
 def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
@@ -257,30 +250,6 @@ def _grow_or_refuse(name: str, spec: SweepSpec, out: Place, attrs: dict[str, Any
     before = int(np.prod([len(p) for p in plan["positions"].values()]))
     grow.grow(out, spec, name, plan)
     return f"grown: {grow.describe(plan)} values; {n_cases(spec) - before} new case(s), {before} kept"
-
-
-def _held_by(out: Place, spec: SweepSpec, name: str) -> tuple[SweepSpec, str, str]:
-    """A spec all of whose cases an existing cube holds (a catalog's sweep whose cube was grown
-    from another file) resumes that cube as it was recorded, under its own sweep name: returns
-    the spec and name to run and a note saying so; else ``spec`` and ``name`` as given."""
-    try:
-        attrs = cube.read_attrs(out) if out.exists() and not cube.unfinished(out) else None
-    except CubeError:
-        attrs = None  # not a cube this run can resume: prepare_cube says why
-    if attrs is None or attrs.get("sweep_spec_hash") == spec.spec_hash():
-        return spec, name, ""
-    try:
-        recorded = SweepSpec.model_validate_json(attrs["sweep_spec"])
-    except (KeyError, ValueError):
-        return spec, name, ""
-    plan = grow.growth(spec.model_dump_json(), recorded)
-    if plan is None:
-        return spec, name, ""
-    kept = str(attrs.get("sweep_name") or name)
-    return recorded, kept, (
-        f"the cube holds every case of this spec and more ({grow.describe(plan)} values, grown since); "
-        f"resuming sweep '{kept}' as the cube records it"
-    )
 
 
 def _warn_other_revision(out: Place, attrs: dict[str, Any]) -> None:
@@ -551,7 +520,7 @@ def _run_locked(
     run_id = names[1]
     lease = watchers[2]
     start = time.perf_counter()
-    spec, name, held = (spec, names[0], "") if restart else _held_by(out, spec, names[0])
+    spec, name, held = (spec, names[0], "") if restart else grow.held_by(out, spec, names[0])
     names = (name, run_id)
     created = not out.exists()
     fresh = created or restart

@@ -1,7 +1,7 @@
 """The empty cube of a sweep (docs/architecture.md, "The flow of a case"): every variable at
-its fill value, status ``pending``, every case's number, the sweep's axes as coordinates with their units, the error
-map's bins, and the provenance attributes (version, git revision, the resolved spec and the
-catalog entries used). :mod:`ftsweep.store.cube` writes it once, before any case runs.
+its fill value, status ``pending``, every case's number, the sweep's axes as coordinates with
+their units, the error map's bins, and the provenance attributes (version, git revision, the
+resolved spec and the catalog entries used). :mod:`ftsweep.store.cube` writes it once, before any case runs.
 """
 
 from __future__ import annotations
@@ -46,7 +46,10 @@ def template(spec: SweepSpec, name: str, catalog_entries: dict[str, Any]) -> xr.
     data[CASE_NUMBER] = (
         dims,
         np.arange(int(np.prod(shape)), dtype=np.int64).reshape(shape),
-        {"long_name": "case number: given as the case entered the cube, kept as the cube grows"},
+        {
+            "units": "1",
+            "long_name": "case number: given as the case entered the cube, kept as the cube grows",
+        },
     )
     coord_vars = {k: (k, counted(k, v, spec.layout), axis_attrs(k, spec.layout)) for k, v in coords.items()}
     bins = spec.resolution.error_map_bins

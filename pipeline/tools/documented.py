@@ -58,7 +58,8 @@ def readme_text() -> tuple[str, str]:
     if path.is_file() and (path.parent / "pyproject.toml").is_file():
         return path.read_text(encoding="utf-8"), str(path)
     try:
-        text = metadata.metadata("ftsweep").get_payload()
+        # the description is the metadata's body (Core Metadata 2.1), an email.message.Message
+        text = getattr(metadata.metadata("ftsweep"), "get_payload", lambda: None)()
     except metadata.PackageNotFoundError:
         text = None
     if not isinstance(text, str) or "## Quickstart" not in text:

@@ -90,6 +90,7 @@ def export(
     sign_key: str | None = None,
     dialect: str | None = None,
     expires: datetime | None = None,
+    machine: str | None = None,
 ) -> dict[str, Any]:
     """Choose a case of a cube (a path or URL; ``select``'s rules), plan it again from the cube's recorded
     spec and catalog entries and write it in its kind's format with its sidecar, atomically
@@ -98,7 +99,9 @@ def export(
     ``trust_plugins``. Signed (``FILE.sig``: a statement of what the file is for, valid until
     ``expires`` when given) when a signing key is configured
     (:func:`ftsweep.exports.origin.signing_key` of ``sign_key``). A path program is written in
-    ``dialect`` (default: the machine's controller's, :mod:`ftsweep.exports.nc`)."""
+    ``dialect`` (default: the machine's controller's, :mod:`ftsweep.exports.nc`). ``machine``:
+    plan the chosen case for another machine of the local catalog (its controller, capacity,
+    units and limits) and predict it there (:func:`for_machine`); the file states that P-V."""
     out = Path(out)
     side = sidecar_path(out)
     try:  # the sidecar names the file and the file its sidecar: both are rendered
@@ -110,7 +113,10 @@ def export(
     with _export_lock(out):
         check_overwrite((out, side, signature_path(out)), force)
         return _export_locked(
-            (cube_path, out), (budget_points, tolerance_nm, index), (name, trust_plugins, signer, dialect)
+            (cube_path, out),
+            (budget_points, tolerance_nm, index),
+            (name, trust_plugins, signer, dialect),
+            machine,
         )
 
 
@@ -135,11 +141,13 @@ def _export_locked(
     paths: tuple[PathLike, Path],
     selection: tuple[int | None, float | None, int | str | None],
     options: tuple[str | None, bool, tuple[Path, datetime | None] | None, str | None],
+    machine: str | None = None,
 ) -> dict[str, Any]:
     """:func:`export` once its lock is held: the files are written and signed in a staging
     folder beside ``out`` under their final names, then published (:func:`_publish`)."""
     from ftsweep.exports import nc
     from ftsweep.exports.fingerprint import fingerprint
+    from ftsweep.tools.machines import dialect_for, for_machine
     from ftsweep.tools.query import flat_of
     from ftsweep.tools.select import check_exportable, choose, open_cube, recorded_case
 
@@ -156,20 +164,18 @@ def _export_locked(
     flat = flat_of(ds, chosen["index"])
     check_exportable(ds, flat)
     case, specs = recorded_case(ds, flat, trust_plugins)
+    planned_for = None
+    if machine is not None and machine != case.machine:
+        case, specs, chosen, planned_for = for_machine(case, specs, chosen, machine, dialect)
     # the platform decides whether verify must find every number exactly as re-planned
     extra = {
         "cube": str(cube_path),
         "cube_git_revision": ds.attrs.get("git_revision"),
         "platform": fingerprint(),
         "ledger": {"name": out.name, "sequence": ledger.next_sequence(place(cube_path), out.name)},
+        **({"planned_for": planned_for} if planned_for else {}),
     }
-    dialect = dialect or nc.default_dialect(specs[1])
-    _check_dialect(case.machine, specs[1], dialect)
-    if dialect == "text" and specs[1].interpolation != "linear":
-        raise ExportError(
-            f"machine '{case.machine}' interpolates {specs[1].interpolation}; ftsweep's text programs are "
-            f"linear: export --dialect {specs[1].controller.dialect}"
-        )
+    dialect = dialect_for(case.machine, specs[1], dialect)
     stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".export", dir=out.parent))
     try:
         staged, staged_side = stage / out.name, stage / sidecar_path(out).name
@@ -189,25 +195,6 @@ def _export_locked(
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return meta
-
-
-def _check_dialect(name: str, machine: Any, dialect: str) -> None:
-    """Refuse a dialect that the machine's controller does not read (a file is written in the
-    conventions of the machine it is exported for: a Moore's G-code on a LinuxCNC machine
-    would carry F in the other's units), naming the machines whose controllers read it. A
-    machine that declares no controller takes any linear dialect in that dialect's defaults."""
-    from ftsweep.inputs import catalogs
-
-    own = machine.controller.dialect if machine.controller is not None else None
-    if own is None or dialect in ("text", own):
-        return
-    machines = catalogs.entries("machines").items()
-    readers = sorted(m for m, e in machines if e.controller is not None and e.controller.dialect == dialect)
-    raise ExportError(
-        f"machine '{name}' has a {own} controller, which does not read {dialect}: export --dialect {own} "
-        f"(or text), or sweep the case on a machine whose controller reads {dialect}: "
-        f"{', '.join(readers) or 'none in the catalog'}"
-    )
 
 
 def _ledger_entry(stage: Path, out: Path, meta: dict[str, Any]) -> dict[str, Any]:
@@ -256,7 +243,8 @@ def check_cube_case(meta: dict[str, Any]) -> str:
     from ftsweep.tools.query import case_numbers, find_case
     from ftsweep.tools.select import recorded_case
 
-    selection = meta.get("selection") if isinstance(meta.get("selection"), dict) else {}
+    raw = meta.get("selection")
+    selection: dict[str, Any] = raw if isinstance(raw, dict) else {}
     cube_path, name = meta.get("cube"), case_name_of(selection)
     if not isinstance(cube_path, str) or name is None:
         return "not checked: the file names no case of a cube (a study's program)"
@@ -276,6 +264,9 @@ def check_cube_case(meta: dict[str, Any]) -> str:
         planned, _ = recorded_case(ds, flat)
     except ValueError as exc:  # the cube's record of it cannot be read as a case
         return f"not checked: the cube's case {name} cannot be read ({str(exc)[:160]})"
+    moved = meta.get("planned_for")
+    if isinstance(moved, dict) and isinstance(moved.get("machine"), str):  # export --machine
+        planned = planned.model_copy(update={"machine": moved["machine"]})
     if planned.model_dump(mode="json") != meta.get("case") or number != selection.get("index"):
         return (
             f"the cube's case {name} (number {number}) is no longer the case this file was planned from: "

@@ -17,8 +17,8 @@ import xarray as xr
 from ftsweep import registry
 from ftsweep.store import cube
 from ftsweep.store.cube import CASE_NUMBER, DONE
-from ftsweep.store.values import case_name, value_text
 from ftsweep.store.storage import PathLike
+from ftsweep.store.values import case_name, value_text
 
 
 def capacity_of(ds: xr.Dataset) -> int:
@@ -89,7 +89,9 @@ def find_case(ds: xr.Dataset, text: str) -> int:
         given[axis] = value
     missing = [a for a in axes if a not in given]
     if missing:
-        raise ValueError(f"--case {text!r} names no value of {', '.join(missing)} (every axis: {', '.join(axes)})")
+        raise ValueError(
+            f"--case {text!r} names no value of {', '.join(missing)} (every axis: {', '.join(axes)})"
+        )
     at = {axis: _axis_position(ds, axis, value) for axis, value in given.items()}
     return int(np.ravel_multi_index(tuple(at[a] for a in axes), ds["status"].shape))
 

@@ -99,3 +99,97 @@ def test_a_cases_label_names_its_own_fields_with_units_never_none(fields, label)
 
     text = program_request(**fields).label()
     assert text == label and "None" not in text
+
+
+# ----------------------------------------------------------------------------- surface plug-ins
+PLUGIN = textwrap.dedent(
+    """
+    import numpy as np
+    from ftsweep.stages.sampling import Param, surface_family
+
+    @surface_family("tilted_plane", {"slope_x": Param(float, "slope along x [-]")},
+                    gradient_bound=lambda slope_x, **_: abs(slope_x))
+    def tilted_plane(x, y, *, slope_x):
+        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+        return slope_x * x, np.full(x.shape, slope_x), np.zeros(y.shape)
+    """
+)
+TILTED = """
+tilted:
+  description: A tilted plane whose family a plug-in declares.
+  family: tilted_plane
+  params: {slope_x: 0.001}
+  aperture: {shape: circle, radius_um: 500.0}
+  layout: ring
+"""
+
+
+@pytest.fixture()
+def plugin_folder(tmp_path, catalog_dir):
+    """A plug-in module, the metadata of a package that names it by entry point (a
+    dist-info folder on the path, as an installed package has), and a catalog using it."""
+    import shutil
+
+    (tmp_path / "tilted_surfaces.py").write_text(PLUGIN)
+    (tmp_path / "broken_surfaces.py").write_text("raise RuntimeError('this plug-in is broken')\n")
+    info = tmp_path / "tilted_optics-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: tilted-optics\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[ftsweep.surfaces]\ntilted = tilted_surfaces\n")
+    cat = tmp_path / "with-tilted"
+    shutil.copytree(catalog_dir, cat)
+    (cat / "surfaces.yaml").write_text((cat / "surfaces.yaml").read_text() + TILTED)
+    return tmp_path
+
+
+def _ftsweep(folder, *args, **env):  # type: ignore[no-untyped-def]
+    import os
+
+    from clusters import BIN
+
+    base = {k: v for k, v in os.environ.items() if k not in ("FTSWEEP_SURFACE_MODULES", "PYTHONPATH")}
+    base.update(FTSWEEP_CATALOGS=str(folder / "with-tilted"), **env)
+    return subprocess.run(
+        [str(BIN / "ftsweep"), *args], capture_output=True, text=True, env=base, cwd=folder, timeout=300
+    )
+
+
+PREDICT = ("predict", "--surface", "tilted", "--drho-um", "20", "--dtheta-deg", "4", "--json")
+
+
+def test_a_surface_plugin_named_by_an_entry_point_works_from_the_command_line(plugin_folder):
+    import json
+
+    found = _ftsweep(plugin_folder, "catalogs", PYTHONPATH=str(plugin_folder))
+    assert found.returncode == 0, found.stderr
+    assert "tilted_plane: from entry point 'tilted' (tilted_surfaces) of tilted-optics" in found.stdout
+    assert f"catalogs     {plugin_folder / 'with-tilted'} ($FTSWEEP_CATALOGS)" in found.stdout
+    listed = json.loads(_ftsweep(plugin_folder, "catalogs", "--json", PYTHONPATH=str(plugin_folder)).stdout)
+    assert listed["surface_families"]["sinewave2d"] == "ftsweep (built in)"
+    predicted = _ftsweep(plugin_folder, *PREDICT, PYTHONPATH=str(plugin_folder))
+    assert predicted.returncode == 0, predicted.stderr
+    assert json.loads(predicted.stdout)["pv_nm"] > 0
+
+
+def test_a_surface_plugin_named_by_the_environment_and_a_broken_one(plugin_folder):
+    import json
+
+    # the module named by the variable (a notebook's, a script's), no package metadata needed
+    (plugin_folder / "tilted_optics-0.1.dist-info" / "entry_points.txt").unlink()
+    env = {"PYTHONPATH": str(plugin_folder), "FTSWEEP_SURFACE_MODULES": "broken_surfaces, tilted_surfaces"}
+    predicted = _ftsweep(plugin_folder, *PREDICT, **env)
+    assert predicted.returncode == 0, predicted.stderr
+    assert json.loads(predicted.stdout)["pv_nm"] > 0
+    # the broken one is warned about, named, and skipped
+    assert (
+        "surface plug-in module broken_surfaces (FTSWEEP_SURFACE_MODULES) failed to load" in predicted.stderr
+    )
+    assert "RuntimeError: this plug-in is broken" in predicted.stderr
+    # without any plug-in the catalog entry is refused saying how a family is registered
+    refused = _ftsweep(plugin_folder, *PREDICT, PYTHONPATH=str(plugin_folder))
+    assert refused.returncode != 0 and "Traceback" not in refused.stderr
+    assert "unknown surface family 'tilted_plane'" in refused.stderr
+    assert (
+        "entry point of group 'ftsweep.surfaces'" in refused.stderr
+        and "FTSWEEP_SURFACE_MODULES" in refused.stderr
+    )

@@ -205,8 +205,11 @@ def main() -> None:
 
     \b
     Units: lengths µm, errors nm, angles degrees, feed µm/rev.
-    Catalogs (surfaces, machines, cutting conditions) are YAML files in catalogs/ or in
-    the folder named by $FTSWEEP_CATALOGS; `ftsweep catalogs` lists them.
+    Catalogs (surfaces, machines, cutting conditions, sweeps) are YAML files in the folder
+    named by $FTSWEEP_CATALOGS, else a checkout's catalogs/ (an editable install), else the
+    copy the installed package ships; surface families of your own come from plug-ins
+    (entry points 'ftsweep.surfaces', or $FTSWEEP_SURFACE_MODULES). `ftsweep catalogs`
+    lists them with the folder read and where each family comes from.
     """
     from ftsweep.engine import allocator, startup
 
@@ -227,7 +230,14 @@ def _one_line_warning(message: Any, category: Any, *_: Any, **__: Any) -> str:
 @main.command("catalogs")
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object on stdout.")
 def list_catalogs(as_json: bool) -> None:
-    """List the surfaces, machines, cutting conditions and sweeps the catalogs define.
+    """List the surfaces, machines, cutting conditions and sweeps the catalogs define, the
+    folder they are read from and why, and the surface families with where each comes from.
+
+    \b
+    The folder: $FTSWEEP_CATALOGS where set, else the checkout's catalogs/ (an editable
+    install), else the copy a regular install ships (ftsweep/catalogs_data). Surface families:
+    ftsweep's own, plus those of plug-ins: modules named by entry points of group
+    'ftsweep.surfaces' of installed packages, or by $FTSWEEP_SURFACE_MODULES (comma-separated).
 
     Descriptions are printed whole, wrapped to the terminal. With --json, one object maps
     each kind to its entries (every field, units in the field names) and the sweep names.
@@ -235,12 +245,15 @@ def list_catalogs(as_json: bool) -> None:
     import shutil
     import textwrap
 
-    from ftsweep.inputs import catalogs
+    from ftsweep.inputs import catalogs, surfaceplugins
     from ftsweep.sweeps.spec import sweep_dir
 
     kinds = ("surfaces", "machines", "cutting")
     found = {kind: catalogs.entries(kind) for kind in kinds}
     sweeps = sorted(p.stem for p in sweep_dir().glob("*.yaml"))
+    families = {
+        f: surfaceplugins.source_of(f) for f in [*catalogs.registered_surfaces(), *catalogs.USER_FAMILIES]
+    }
     if as_json:
         data: dict[str, Any] = {
             kind: {name: spec.model_dump(mode="json") for name, spec in entries.items()}
@@ -248,8 +261,17 @@ def list_catalogs(as_json: bool) -> None:
         }
         data["sweeps"] = sweeps
         data["catalog_dir"] = str(catalogs.catalog_dir())
+        data["catalog_dir_from"] = catalogs.catalog_dir_reason()
+        data["surface_families"] = families
         echo_json(data)
         return
+    click.echo(f"catalogs     {catalogs.catalog_dir()} ({catalogs.catalog_dir_reason()})")
+    plugins = sorted({source for source in families.values() if not source.startswith("ftsweep")})
+    own = [f for f, source in families.items() if source.startswith("ftsweep")]
+    click.echo(f"families     ftsweep's own: {', '.join(own)}")
+    for source in plugins:
+        names = [f for f, s in families.items() if s == source]
+        click.echo(f"             {', '.join(names)}: from {source}")
     width = max(40, min(shutil.get_terminal_size((100, 24)).columns, 120))
     for kind in kinds:
         click.echo(f"{kind} ({catalogs.catalog_dir() / (kind + '.yaml')}):")

@@ -66,7 +66,8 @@ class _PredictCommand(click.Command):
 @click.option(
     "--surface",
     metavar="NAME",
-    help="Surface from catalogs/surfaces.yaml (required, but with --program: then only to predict its P-V).",
+    help="Surface of the catalog, as `ftsweep catalogs` lists them (required, but with --program: then "
+    "only to predict its P-V).",
 )
 @click.option(
     "--program",
@@ -127,13 +128,13 @@ class _PredictCommand(click.Command):
 )
 @click.option(
     "--machine",
-    help="Machine from catalogs/machines.yaml. Default: the program kind's (tables and spirals fts-1m, "
-    "D paths sts-xzc, Fresnel xyzc-nanoform).",
+    help="Machine of the catalog (`ftsweep catalogs`). Default: the program kind's (tables and spirals "
+    "fts-1m, D paths sts-xzc, Fresnel xyzc-nanoform).",
 )
 @click.option(
     "--cutting",
-    help="Entry of catalogs/cutting.yaml. Default: the program kind's (tables and spirals reference, "
-    "D paths dpath-finish, Fresnel fresnel-finish).",
+    help="Cutting entry of the catalog (`ftsweep catalogs`). Default: the program kind's (tables and "
+    "spirals reference, D paths dpath-finish, Fresnel fresnel-finish).",
 )
 @click.option(
     "--layers",

@@ -107,7 +107,8 @@ def sweep(
 ) -> None:
     """Run a sweep of point counts and aspect ratios into a Zarr result cube.
 
-    NAME is a spec in catalogs/sweeps/ (e.g. sinewave-ring, lens-array-mesh), or give a
+    NAME is a spec in the catalog's sweeps/ (e.g. sinewave-ring, lens-array-mesh: `ftsweep
+    catalogs` lists them and the folder), or give a
     path to a YAML file. Every case is logged as soon as it finishes (`ftsweep status` counts
     it at once) and merged into the cube's blocks within 5-30 s. Re-running the same command
     computes only what is missing, so an interrupted or killed run loses nothing already

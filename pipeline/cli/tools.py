@@ -37,8 +37,15 @@ from ftsweep.cli.common import COUNT, FINITE, POSITIVE, KindChoice, echo_json, f
     show_default=True,
     help="Point count of the first, coarse round.",
 )
-@click.option("--machine", default="fts-1m", show_default=True, help="Machine from catalogs/machines.yaml.")
-@click.option("--cutting", default="reference", show_default=True, help="Entry of catalogs/cutting.yaml.")
+@click.option(
+    "--machine", default="fts-1m", show_default=True, help="Machine of the catalog (`ftsweep catalogs`)."
+)
+@click.option(
+    "--cutting",
+    default="reference",
+    show_default=True,
+    help="Cutting entry of the catalog (`ftsweep catalogs`).",
+)
 @click.option(
     "-o",
     "--out",

@@ -27,6 +27,7 @@ from pydantic import (
     model_validator,
 )
 
+from ftsweep.inputs import surfaceplugins
 from ftsweep.inputs.controllers import Controller
 from ftsweep.inputs.strict import Strict, did_you_mean
 from ftsweep.inputs.yamlfiles import CatalogError, read_yaml_file
@@ -186,12 +187,15 @@ def surface_spec() -> Any:
     """The catalog entry type of a surface: one generated model per family registered with
     ``stages.surfaces.surface_family`` (also one registered after this module was imported),
     plus the families users bring (height maps, plug-ins), which load files or code and so
-    are declared here. ``SurfaceSpec`` names it too."""
+    are declared here, and those of surface plug-ins (:mod:`ftsweep.inputs.surfaceplugins`,
+    imported first). ``SurfaceSpec`` names it too."""
+    surfaceplugins.load()
     return _generated(tuple(FAMILIES))[1]
 
 
 def registered_surfaces() -> dict[str, type[BaseModel]]:
-    """The generated entry model of every registered family."""
+    """The generated entry model of every registered family (plug-ins' included)."""
+    surfaceplugins.load()
     return _generated(tuple(FAMILIES))[0]
 
 
@@ -443,6 +447,15 @@ def recorded_entries(
 
 
 # --------------------------------------------------------------------------- loading
+def catalog_dir_reason() -> str:
+    """Why :func:`catalog_dir` is the folder it is (what ``ftsweep catalogs`` says)."""
+    if os.environ.get("FTSWEEP_CATALOGS"):
+        return "$FTSWEEP_CATALOGS"
+    if catalog_dir().name == "catalogs":
+        return "the checkout's catalogs/, beside this editable install"
+    return "the copy this installed package ships; set $FTSWEEP_CATALOGS to read another folder"
+
+
 def catalog_dir() -> Path:
     """Folder holding the catalog YAML files: ``$FTSWEEP_CATALOGS``, else the repository's
     ``catalogs/`` (a source checkout or editable install), else the copy a regular install
@@ -466,6 +479,13 @@ def _format_error(path: Path, name: str, err: ValidationError, model: Any) -> st
             lines.append(f"  - {where}: unknown key{hint}")
         elif e["type"] == "missing":
             lines.append(f"  - {where}: required key is missing")
+        elif e["type"] == "union_tag_invalid":  # a family nobody registered
+            known = ", ".join(sorted(registered_surfaces()) + list(USER_FAMILIES))
+            got = e.get("ctx", {}).get("tag")
+            lines.append(
+                f"  - {where}: unknown surface family {got!r}{did_you_mean(str(got), known.split(', '))}"
+            )
+            lines.append(f"    (known: {known}); {surfaceplugins.HOW}")
         else:
             lines.append(f"  - {where}: {error_text(e)} (got {short_repr(e.get('input'))})")
     return "\n".join(lines)

@@ -148,3 +148,21 @@ def test_an_unknown_sweep_name_gets_a_did_you_mean():
         CatalogError, match=r"unknown sweep 'sinewave-rng' \(did you mean 'sinewave-ring'\?\)"
     ):
         load_sweep("sinewave-rng")
+
+
+def test_a_missing_cube_names_the_cubes_beside_it(tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    from ftsweep.cli.main import main
+
+    for name in ("sinewave-ring.zarr", "lens-array-mesh.zarr"):
+        (tmp_path / "outputs" / name).mkdir(parents=True)
+    monkeypatch.chdir(tmp_path)
+    r = CliRunner().invoke(main, ["status", "outputs/sinewave-rng.zarr"])
+    assert r.exit_code == 2
+    flat = " ".join(r.output.split())
+    assert "no cube of that name (did you mean 'sinewave-ring.zarr'?)" in flat
+    assert "cubes in outputs: outputs/lens-array-mesh.zarr, outputs/sinewave-ring.zarr" in flat
+    # a folder with no cube: how to make one
+    r = CliRunner().invoke(main, ["status", str(tmp_path / "none" / "sinewave-ring.zarr")])
+    assert "run `ftsweep sweep sinewave-ring --out" in " ".join(r.output.split())

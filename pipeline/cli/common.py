@@ -59,15 +59,28 @@ CUBE = CubeLocation()
 
 
 def _maker_of(path: Path) -> str:
-    """Which command makes the cube at ``path``: the catalog sweep of its name, else any sweep."""
+    """The cubes beside a missing ``path`` (the closest names first: a mistyped name), or which
+    command makes the cube there: the catalog sweep of its name, else any sweep."""
+    from ftsweep.inputs.strict import did_you_mean
     from ftsweep.sweeps.spec import sweep_dir
 
+    folder = path.parent if str(path.parent) else Path(".")
+    try:
+        near = sorted(p.name for p in folder.iterdir() if p.suffix == ".zarr" and p.is_dir())[:200]
+    except OSError:  # no such folder, or not readable: nothing beside it to name
+        near = []
     stem = path.name.removesuffix(".zarr")
     if stem and (sweep_dir() / f"{stem}.yaml").is_file():
         default = Path("outputs") / f"{stem}.zarr"
         out = "" if path == default else f" --out {path}"
-        return f"run `ftsweep sweep {stem}{out}` first"
-    return f"run `ftsweep sweep SWEEP --out {path}` first (`ftsweep catalogs` lists the sweeps)"
+        maker = f"run `ftsweep sweep {stem}{out}` first"
+    else:
+        maker = f"run `ftsweep sweep SWEEP --out {path}` first (`ftsweep catalogs` lists the sweeps)"
+    if not near:
+        return maker
+    guess = did_you_mean(path.name, near)
+    shown = ", ".join(str(folder / n) for n in near[:6]) + (" ..." if len(near) > 6 else "")
+    return f"no cube of that name{guess}; cubes in {folder}: {shown}; or {maker}"
 
 
 # storage options of a cube given as a URL; the usual places come first (fsspec's configuration)

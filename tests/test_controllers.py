@@ -624,3 +624,29 @@ def test_each_dialects_header_states_only_its_own_units(moore):
     _, out = moore
     units = next(line for line in out.read_text().splitlines() if "units:" in line)
     assert "G93 F inverse time" in units and "PVT" not in units and " W " not in units
+
+
+def test_a_pvt_programs_header_counts_the_points_export_and_verify_count(tmp_path):
+    """The stop a PVT program adds past the centre is one of its points: the header says so
+    and its count is the sidecar's (what export and verify print)."""
+    cube, _ = _predicted(tmp_path, "stop", "sts-pmac-pvt", "seed003", "chord_um: [1.0]")
+    program = tmp_path / "stop.pmc"
+    meta = json.loads(program.with_name(program.name + ".json").read_text())
+    stop = [line for line in program.read_text().splitlines() if line.startswith("; stop:")]
+    assert stop == [
+        f"; stop: one point past the {meta['n_points'] - 1} planned brings every axis to rest, "
+        f"{meta['n_points']} points in all"
+    ]
+
+
+def test_a_spiral_sweeps_summary_names_its_rule_axis_with_its_values(tmp_path):
+    text = SPIRAL.format(m="sts-moore", c="seed003", axis="chord_um: [0.5, 1.0]")
+    (tmp_path / "s.yaml").write_text(text)
+    r = CliRunner().invoke(
+        main,
+        ["sweep", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "s.zarr"), "--scheduler", "synchronous"],
+    )
+    assert r.exit_code == 0, r.output
+    assert "best P-V per chord_um (among the cases select may choose):" in r.output
+    rows = r.output.split("P-V nm\n", 1)[1].splitlines()[:2]
+    assert [row.split()[0] for row in rows] == ["0.5", "1"]  # not 0 and 1

@@ -372,6 +372,7 @@ def _print_refused(report: Any) -> None:
 def _print_sweep_summary(report: Any, wall_s: float) -> dict[str, int]:
     """The end-of-run summary on stdout: counts, throughput, failures, best per point count;
     ``wall_s`` the command's time so far (the clock progress shows)."""
+    from ftsweep.store.values import value_text
     from ftsweep.sweeps.cases import cube_counts
     from ftsweep.tools.query import best_per_point_count
 
@@ -402,16 +403,22 @@ def _print_sweep_summary(report: Any, wall_s: float) -> dict[str, int]:
     for r in [r for r in report.rows if r["status"] == "failed"][:5]:
         click.echo(f"failed       {_case_label(report, r)}: {one_line(r['message'], 300)}")
     _print_refused(report)
-    click.echo("best P-V per point count (among the cases select may choose):")
     rows = best_per_point_count(report.cube)
-    # tables are swept over aspect ratios; a path program's best is named by its case
+    axis = rows[0]["axis"] if rows else "points"
+    # tables are swept over aspect ratios; a path program's best is named by its case number
     tables = any(r["swept_aspect"] for r in rows)
     third = "best α" if tables else "case"
-    click.echo(f"  {'target':>10s} {'actual N':>10s} {third:>8s} {'P-V nm':>9s}")
+    label = "target N" if axis == "points" else axis
+    click.echo(
+        f"best P-V per {'point count' if axis == 'points' else axis} (among the cases select may choose):"
+    )
+    click.echo(f"  {label:>10s} {'actual N':>10s} {third:>8s} {'P-V nm':>9s}")
     for row in rows:
+        # a count with thousands separators; a rule's value (a chord [µm], ...) as it is swept
+        target = f"{row['points']:10,.0f}" if axis == "points" else f"{value_text(row['points']):>10s}"
         if row["pv_nm"] is None:
-            click.echo(f"  {row['points']:10,.0f} {'–':>10s} {'–':>8s} {'–':>9s}")
+            click.echo(f"  {target} {'–':>10s} {'–':>8s} {'–':>9s}")
             continue
         which = f"{row['aspect']:8.3g}" if tables else f"{row['index']:8d}"
-        click.echo(f"  {row['points']:10,.0f} {row['n_points']:10,d} {which} {row['pv_nm']:9.2f}")
+        click.echo(f"  {target} {row['n_points']:10,d} {which} {row['pv_nm']:9.2f}")
     return counts

@@ -157,7 +157,14 @@ def _document(
     adapter = adapter_of(case.layout.kind)
     moves, kind_lines, rcase = adapter.planned(case, specs)
     if ctrl.interpolation == "pvt" and moves.cut_starts is None:
+        planned = moves.n_points
         moves = dialects.with_stop(moves, dialects.stop_seconds(moves, specs[1], ctrl.time_quantum_s))
+        # the kind's own line counts its points; the file holds the stop too, as export says
+        kind_lines = [
+            *kind_lines,
+            f"stop: one point past the {planned} planned brings every axis to rest, "
+            f"{moves.n_points} points in all",
+        ]
     _limits(moves, ctrl)
     meta = {
         **meta_in,

@@ -182,8 +182,10 @@ def describe(ds: xr.Dataset, flat: int) -> dict[str, Any]:
 def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
     """For each target point count: its best eligible case, the one ``select`` and
     ``ds.ftsweep.optimum()`` name too (None where no case is eligible); ``swept_aspect`` says
-    whether the cube has an aspect axis (a table sweep) to name the best α by."""
+    whether the cube has an aspect axis (a table sweep) to name the best α by; ``axis`` names
+    the axis the rows run over (``points``, or a spiral cube's rule axis, e.g. ``chord_um``)."""
     ds = cube.open_dataset(path).load()
+    axis = "points" if "points" in ds.dims else str(ds["status"].dims[0])
     rows = []
     for target, flat in best_per_points(ds):
         if flat is None:
@@ -195,6 +197,7 @@ def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
                     "n_points": None,
                     "index": None,
                     "name": None,
+                    "axis": axis,
                     "swept_aspect": "aspect" in ds.dims,
                 }
             )
@@ -210,6 +213,7 @@ def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
                 "n_points": case["n_points"],
                 "index": case["index"],
                 "name": case["name"],
+                "axis": axis,
             }
         )
     return rows

@@ -190,10 +190,14 @@ def _html(ds: Any, chosen: dict[str, Any], record: dict[str, Any], paths: dict[s
         else f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
         for k, v in chosen.items()
     )
+    content = (
+        f"content up to {record['w_freq_max_hz']:.0f} Hz"
+        if math.isfinite(record.get("w_freq_max_hz", math.nan))
+        else "no spectrum (a program's own block times)"
+    )
     dyn = (
         f"stroke {record['stroke_um']:.3g} µm, peak velocity {record['w_velocity_peak_mm_s']:.3g} mm/s, "
-        f"peak acceleration {record['w_accel_peak_m_s2']:.3g} m/s², content up to "
-        f"{record['w_freq_max_hz']:.0f} Hz"
+        f"peak acceleration {record['w_accel_peak_m_s2']:.3g} m/s², {content}"
         if "w_freq_max_hz" in record
         else "; ".join(line.split(None, 1)[1] for line in registry.kind(record["layout"]).describe(record))
     )

@@ -54,3 +54,17 @@ def test_feasibility_names_every_limit():
         True,
         "",
     )
+
+
+@given(st.integers(1, 40), st.floats(0.1, 10.0), st.floats(-50.0, 50.0), st.integers(200, 3000))
+def test_the_feeds_drift_leaves_no_leakage_in_a_revolutions_spectrum(n, amplitude, drift, k):
+    """A harmonic n on the feed's drift (the command change over a revolution, its next
+    command given): the spectrum is that harmonic alone, at its amplitude; no 1/f line of the
+    jump a periodic extension of the drift would have (the least-squares line left one)."""
+    t = np.arange(k + 1)
+    w = amplitude * np.sin(2 * np.pi * n * t / k) + drift * t / k
+    freq, amp = dynamics.spectrum(w, k, 60.0)  # 1 rev/s: harmonic n at n Hz
+    assert freq[n - 1] == pytest.approx(n)
+    assert amp[n - 1] == pytest.approx(amplitude, rel=1e-9)
+    others = np.delete(amp, n - 1)
+    assert others.max() <= 1e-9 * (amplitude + abs(drift))

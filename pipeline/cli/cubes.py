@@ -324,7 +324,11 @@ def verify(
 
     expect = {"case": expect_case, "surface": expect_surface}
     with reported_errors(
-        stderr_progress("re-simulating", as_json), exp.ExportError, CaseError, CatalogError
+        # the simulation runs in batches of spindle angles (each a ray of the part, model §5)
+        stderr_progress("re-simulating the file's commands, batches of spindle angles", as_json),
+        exp.ExportError,
+        CaseError,
+        CatalogError,
     ) as progress:
         record = exp.verify(
             header,
@@ -524,7 +528,7 @@ def compare(
     from ftsweep.tools.compare import common_sampling, compare_rows, plot_compare
     from ftsweep.tools.select import SelectError, current_status
 
-    progress = stderr_progress("re-simulating", as_json)
+    progress = stderr_progress("re-simulating the cases at one angular sampling", as_json)
     try:
         for c in cubes:
             guard_complete(current_status(cube_place(c, storage_options)), allow_incomplete)

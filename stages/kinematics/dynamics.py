@@ -55,15 +55,23 @@ def revolution_commands(
 
 
 def spectrum(w_um: np.ndarray, k: int, spindle_rpm: float) -> tuple[np.ndarray, np.ndarray]:
-    """One-sided amplitude spectrum of one revolution of commands (linear trend removed).
+    """One-sided amplitude spectrum of one revolution of commands, the feed's drift removed.
 
-    Returns frequencies [Hz] (multiples of the spindle frequency n/60) and amplitudes [µm]
-    of each harmonic, DC excluded.
+    ``w_um`` holds the revolution's ``k`` commands and, where given, the next one (the first
+    of the next revolution): the drift is then the change over the revolution, ``(w[k] −
+    w[0])·t/k``, which makes the revolution periodic, so its spectrum holds no leakage from
+    the jump a periodic extension would have (a straight 1/f line on log axes); with ``k``
+    commands only, the least-squares line is removed. Returns frequencies [Hz] (multiples of
+    the spindle frequency n/60) and amplitudes [µm] of each harmonic, DC excluded.
     """
-    w = np.asarray(w_um[:k], dtype=np.float64)
-    t = np.arange(w.size)
-    trend = np.polyval(np.polyfit(t, w, 1), t)  # the feed's drift is not vibration
-    amp = 2.0 * np.abs(np.fft.rfft(w - trend)) / w.size
+    t = np.arange(k)
+    if len(w_um) > k:
+        w = np.asarray(w_um[: k + 1], dtype=np.float64)
+        detrended = w[:k] - (w[k] - w[0]) * t / k
+    else:
+        w = np.asarray(w_um[:k], dtype=np.float64)
+        detrended = w - np.polyval(np.polyfit(t, w, 1), t)
+    amp = 2.0 * np.abs(np.fft.rfft(detrended)) / k
     freq = np.arange(amp.size) * (spindle_rpm / 60.0)
     return freq[1:], amp[1:]
 
@@ -74,6 +82,33 @@ def highest_significant_frequency(freq: np.ndarray, amp: np.ndarray, floor_um: f
     return float(freq[keep[-1]]) if keep.size else 0.0
 
 
+# the fractions of the start radius whose revolutions the dynamics are judged on (model §6)
+ANALYSED_RADII = (1.0, 0.75, 0.5, 0.25)
+
+
+def analysed_revolution(
+    layout: Program, table: np.ndarray, rho0_um: float, feed_um: float, k: int, fraction: float
+) -> np.ndarray:
+    """The ``k + 2`` commands [µm] of the revolution :func:`analyse` reads at ``fraction`` of the
+    start radius ``rho0_um``: one revolution plus its neighbouring commands, so that its
+    differences cover all of it (its spectrum is that of ``[1 : k + 2]``: the revolution and the
+    next revolution's first command, :func:`spectrum`)."""
+    start = fraction * rho0_um
+    if isinstance(layout, SpiralPath):
+        # a path program is only defined on its own spiral: start on its revolution nearest,
+        # one revolution in at least, so that the command before the first (first=-1) lies
+        # on the program and not a revolution on, across the spiral's start
+        start = rho0_um - feed_um * max(round((rho0_um - start) / feed_um), 1)
+    return revolution_commands(layout, table, start, feed_um, k, k + 2, first=-1)
+
+
+def significance_floor(spectra: list[tuple[np.ndarray, np.ndarray]], threshold: float) -> float:
+    """The amplitude [µm] from which a component is significant: ``threshold`` of the dominant
+    component over every analysed revolution's spectrum, and at least 1 pm."""
+    dominant = max(float(amp.max()) for _, amp in spectra)
+    return max(threshold * dominant, 1e-6)
+
+
 def analyse(
     layout: Program,
     table: np.ndarray,
@@ -82,7 +117,7 @@ def analyse(
     spindle_rpm: float,
     command_rate_hz: float,
     threshold: float = 0.01,
-    radii_fraction: tuple[float, ...] = (1.0, 0.75, 0.5, 0.25),
+    radii_fraction: tuple[float, ...] = ANALYSED_RADII,
 ) -> Dynamics:
     """Stroke, peak velocity, peak and RMS acceleration and highest significant frequency of
     the W command at the spindle speed (model §6).
@@ -104,14 +139,7 @@ def analyse(
     n_acc = 0
     spectra = []
     for frac in radii_fraction:
-        # one revolution plus its neighbouring commands, so the differences cover all of it
-        start = frac * rho0_um
-        if isinstance(layout, SpiralPath):
-            # a path program is only defined on its own spiral: start on its revolution nearest,
-            # one revolution in at least, so that the command before the first (first=-1) lies
-            # on the program and not a revolution on, across the spiral's start
-            start = rho0_um - feed_um * max(round((rho0_um - start) / feed_um), 1)
-        w = revolution_commands(layout, table, start, feed_um, k, k + 2, first=-1)
+        w = analysed_revolution(layout, table, rho0_um, feed_um, k, frac)
         m = kinematics.over_steps(w[:, None] * 1e-6, np.full(w.size - 1, dt))
         v = m.velocity[:, 0] * 1e3  # m/s → mm/s
         a = m.accel[1:-1, 0]
@@ -119,9 +147,8 @@ def analyse(
         a_peak = max(a_peak, float(np.max(np.abs(a))))
         a_sq += float(np.sum(a * a))
         n_acc += a.size
-        spectra.append(spectrum(w[1 : k + 1], k, spindle_rpm))
-    dominant = max(float(amp.max()) for _, amp in spectra)
-    floor = max(threshold * dominant, 1e-6)
+        spectra.append(spectrum(w[1 : k + 2], k, spindle_rpm))
+    floor = significance_floor(spectra, threshold)
     f_max = max(highest_significant_frequency(freq, amp, floor) for freq, amp in spectra)
     return Dynamics(
         stroke_um=float(np.max(table) - np.min(table)),

@@ -76,6 +76,29 @@ def test_report_maps_the_case_export_chooses_with_the_same_budget(small_cube, tm
     assert both.exit_code == 2 and "at most one of --budget-points, --tolerance-nm and --case" in both.output
 
 
+def test_report_maps_the_case_last_exported_by_default(small_cube, tmp_path):
+    """With no rule the error map shows the case the cube's last export wrote (its ledger
+    records it), not the best at the largest budget; a cube never exported keeps that best."""
+    import json
+    import shutil
+
+    cube = tmp_path / "copy.zarr"
+    shutil.copytree(small_cube, cube)
+    picked = json.loads(
+        CliRunner().invoke(main, ["select", str(cube), "--budget-points", "9000", "--json"]).stdout
+    )
+    r = CliRunner().invoke(
+        main, ["export", str(cube), "--budget-points", "9000", "-o", str(tmp_path / "p.h")]
+    )
+    assert r.exit_code == 0, r.output
+    out = tmp_path / "default"
+    r = CliRunner().invoke(main, ["report", str(cube), "--out", str(out), "--map-bins", "16"])
+    assert r.exit_code == 0, r.output
+    page = (out / "index.html").read_text()
+    assert f"<th>name</th><td>{picked['name']}</td>" in page
+    assert "the case last exported from the cube (p.h)" in page
+
+
 def test_accessor_best_optimum_and_plots(small_cube):
     ds = xr.open_zarr(small_cube)
     best = ds.ftsweep.best(budget_points=16000)
@@ -89,8 +112,10 @@ def test_accessor_best_optimum_and_plots(small_cube):
         ds.ftsweep.plot_error_map,
     ):
         ax = plot()
-        assert ax.get_xlabel() and ax.get_ylabel()  # units on every axis
-        assert "[" in ax.get_xlabel() and "[" in ax.get_ylabel()
+        assert ax.get_xlabel() and ax.get_ylabel()  # units on every axis, in words where a count
+        for label in (ax.get_xlabel(), ax.get_ylabel()):
+            assert "[" in label or "(count)" in label or "(dimensionless)" in label, label
+            assert "[1]" not in label, label
 
 
 def test_stored_error_maps_match_the_case_pv(small_cube):

@@ -402,7 +402,8 @@ def _print_verified(header: Path, record: dict[str, Any], compiled: bool) -> Non
     "index",
     metavar="COORDINATES|NUMBER",
     help="Case for the error map and spectrum ('points=950000,aspect=16', or its case number). Default "
-    "(none of the three): the case export chooses at the largest budget.",
+    "(none of the three): the case last exported from the cube (its export ledger), else the best at "
+    "the largest budget.",
 )
 @click.option(
     "--map-bins",

@@ -75,6 +75,31 @@ def entry(at: Place, name: str, sequence: int) -> Optional[dict[str, Any]]:
         and data.get("sequence") == sequence
         and all(isinstance(data.get(k), str) for k in ("sha256", "sidecar_sha256", "created"))
     )
+    number = data.get("case") if isinstance(data, dict) else None
+    if ok and number is not None:  # the case exported (entries written before it name none)
+        ok = isinstance(number, int) and not isinstance(number, bool) and number >= 0
     if not ok:
         raise LedgerError(f"the ledger entry {sequence} of {name} is not one export writes")
     return data
+
+
+def latest_case(at: Place) -> Optional[tuple[int, str]]:
+    """The case number of the cube's most recent export (by its entry's time, then sequence)
+    and the file's name, or None where no export recorded a case. An unreadable entry is no
+    export here: this names a default, it judges nothing."""
+    found: list[tuple[str, int, str, int]] = []
+    for key in at.listing(LEDGER):
+        parts = key.split("/")
+        m = _SEQUENCE.match(parts[-1])
+        if len(parts) != 3 or m is None:
+            continue
+        try:
+            data = entry(at, parts[1], int(m.group(1)))
+        except LedgerError:
+            continue
+        if data is not None and data.get("case") is not None:
+            found.append((data["created"], data["sequence"], parts[1], data["case"]))
+    if not found:
+        return None
+    _, _, name, number = max(found)
+    return number, name

@@ -28,7 +28,8 @@ def aspect_label(ds: xr.Dataset) -> str:
     kind = str(ds.attrs.get("layout_method"))
     first, second = (n.split("_")[0][1:] for n in registry.kind(kind).pitches)
     units = registry.kind(kind).aspect_units.replace("um", "µm")
-    return f"aspect ratio α = Δ{_greek(first)}/Δ{_greek(second)} [{units}]"
+    unit = "(dimensionless)" if units == "1" else f"[{units}]"
+    return f"aspect ratio α = Δ{_greek(first)}/Δ{_greek(second)} {unit}"
 
 
 def _shown(value: Any) -> str:
@@ -132,7 +133,7 @@ class FtsweepAccessor:
             legend_title = aspect_label(self._ds)
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("control points N [1]")
+        ax.set_xlabel("control points N (count)")
         ax.set_ylabel("P-V form error [nm]")
         ax.set_title(f"{self._ds.attrs.get('sweep_name', '')}: P-V against point count")
         ax.grid(True, which="both", alpha=0.3)
@@ -190,7 +191,7 @@ class FtsweepAccessor:
             if np.any(np.isfinite(values[:, j])):
                 i = int(np.nanargmin(values[:, j]))
                 ax.plot(j + 0.5, i + 0.5, "*", color="white", ms=9, markeredgecolor="black")
-        ax.set_xlabel("target control points N [1]")
+        ax.set_xlabel("target control points N (count)")
         ax.set_ylabel(aspect_label(self._ds))
         ax.set_title("P-V [nm] over point count and aspect ratio (★ optimum)")
         ax.figure.colorbar(im, ax=ax, label="P-V form error [nm]")

@@ -141,7 +141,7 @@ def plot_compare(rows: list[dict[str, Any]], title: str = "") -> Any:
         )
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("control points N [1]")
+    ax.set_xlabel("control points N (count)")
     ax.set_ylabel("P-V form error [nm]")
     ax.set_title(title or "table against path: P-V against point count", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)

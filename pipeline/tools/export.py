@@ -199,11 +199,13 @@ def _export_locked(
 
 def _ledger_entry(stage: Path, out: Path, meta: dict[str, Any]) -> dict[str, Any]:
     """What the cube's ledger records of a staged export: the file's and its sidecar's
-    SHA-256 and when (the sidecar's ``created``)."""
+    SHA-256, when (the sidecar's ``created``) and the case number exported."""
     return {
         "sha256": hashlib.sha256((stage / out.name).read_bytes()).hexdigest(),
         "sidecar_sha256": hashlib.sha256((stage / sidecar_path(out).name).read_bytes()).hexdigest(),
         "created": str(meta.get("created")),
+        # the case exported: report maps it by default
+        "case": int(meta["selection"]["index"]),
     }
 
 

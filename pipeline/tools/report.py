@@ -25,9 +25,10 @@ from ftsweep.engine.planning import control_table
 from ftsweep.inputs.catalogs import aperture_of
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages.kinematics import dynamics
-from ftsweep.store import cube
+from ftsweep.store import cube, ledger
 from ftsweep.store.io import save_figure, write_text_atomic
 from ftsweep.store.storage import PathLike, place
+from ftsweep.tools import query
 from ftsweep.tools.accessor import _axes, plot_map
 from ftsweep.tools.query import flat_of
 from ftsweep.tools.select import SelectError, choose, describe, eligible, open_cube, recorded_case
@@ -135,7 +136,8 @@ def make_report(
 ) -> dict[str, Path]:
     """Write the figures and ``index.html`` into ``out_dir``; returns their paths. The error map
     and spectrum show the case ``export`` chooses with the same ``budget_points``,
-    ``tolerance_nm`` or ``index`` (none given: the best at the largest budget)."""
+    ``tolerance_nm`` or ``index``; none given, the case the cube's last export wrote (its
+    ledger), else the best at the largest budget."""
     at = place(cube_path)
     ds = open_cube(at)
     if not bool(eligible(ds).any()):
@@ -152,9 +154,19 @@ def make_report(
         paths["pv_vs_aspect"] = _save(ds.ftsweep.plot_aspect(), out / "pv_vs_aspect.png")
         paths["pv_heatmap"] = _save(ds.ftsweep.plot_heatmap(), out / "pv_heatmap.png")
 
+    exported = None
     if index is None and budget_points is None and tolerance_nm is None:
-        budget_points = int(np.nanmax(ds["points"].values if "points" in ds.dims else ds["n_points"].values))
+        exported = ledger.latest_case(at)  # the case its last export chose, where it has one
+        if exported is not None and exported[0] in query.case_numbers(ds):
+            index = exported[0]
+        else:
+            exported = None
+            budget_points = int(
+                np.nanmax(ds["points"].values if "points" in ds.dims else ds["n_points"].values)
+            )
     chosen = choose(ds, budget_points, tolerance_nm, index)
+    if exported is not None:
+        chosen["rule"] = f"the case last exported from the cube ({exported[1]})"
     flat = flat_of(ds, chosen["index"])
     record, (case, layout, table, specs) = resimulate(at, flat, map_bins, progress, trust_plugins)
     shown = dict(describe(ds, flat), pv_nm=record["pv_nm"])

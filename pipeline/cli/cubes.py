@@ -219,6 +219,10 @@ def export(
 
 # verify --help's closing paragraphs: the origin, and the export ledger (click prints an
 # epilog after the options)
+# what verify's progress counts: the simulation runs in batches of spindle angles (each a ray
+# of the part, model §5)
+RESIMULATING = "re-simulating the file's commands, batches of spindle angles"
+
 VERIFY_EPILOG = """\b
 Origin (what the hashes above cannot prove: anyone can re-make them):
 - with a trusted key (--trusted-key, or the config file's trusted_keys): the file must
@@ -323,13 +327,8 @@ def verify(
     from ftsweep.tools import export as exp
 
     expect = {"case": expect_case, "surface": expect_surface}
-    with reported_errors(
-        # the simulation runs in batches of spindle angles (each a ray of the part, model §5)
-        stderr_progress("re-simulating the file's commands, batches of spindle angles", as_json),
-        exp.ExportError,
-        CaseError,
-        CatalogError,
-    ) as progress:
+    progress = stderr_progress(RESIMULATING, as_json)
+    with reported_errors(progress, exp.ExportError, CaseError, CatalogError):
         record = exp.verify(
             header,
             progress,

@@ -266,12 +266,7 @@ def list_catalogs(as_json: bool) -> None:
         echo_json(data)
         return
     click.echo(f"catalogs     {catalogs.catalog_dir()} ({catalogs.catalog_dir_reason()})")
-    plugins = sorted({source for source in families.values() if not source.startswith("ftsweep")})
-    own = [f for f, source in families.items() if source.startswith("ftsweep")]
-    click.echo(f"families     ftsweep's own: {', '.join(own)}")
-    for source in plugins:
-        names = [f for f, s in families.items() if s == source]
-        click.echo(f"             {', '.join(names)}: from {source}")
+    _echo_families(families)
     width = max(40, min(shutil.get_terminal_size((100, 24)).columns, 120))
     for kind in kinds:
         click.echo(f"{kind} ({catalogs.catalog_dir() / (kind + '.yaml')}):")
@@ -290,6 +285,15 @@ def list_catalogs(as_json: bool) -> None:
     click.echo(f"sweeps ({sweep_dir()}):")
     for name in sweeps:
         click.echo(f"  {name}")
+
+
+def _echo_families(families: dict[str, str]) -> None:
+    """The surface families, ftsweep's own on one line, each plug-in's after it with its origin."""
+    own = [f for f, source in families.items() if source.startswith("ftsweep")]
+    click.echo(f"families     ftsweep's own: {', '.join(own)}")
+    for source in sorted({s for s in families.values() if not s.startswith("ftsweep")}):
+        names = [f for f, s in families.items() if s == source]
+        click.echo(f"             {', '.join(names)}: from {source}")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -265,9 +265,9 @@ def list_catalogs(as_json: bool) -> None:
         data["surface_families"] = families
         echo_json(data)
         return
-    click.echo(f"catalogs     {catalogs.catalog_dir()} ({catalogs.catalog_dir_reason()})")
-    _echo_families(families)
     width = max(40, min(shutil.get_terminal_size((100, 24)).columns, 120))
+    click.echo(f"catalogs     {catalogs.catalog_dir()} ({catalogs.catalog_dir_reason()})")
+    _echo_families(families, width)
     for kind in kinds:
         click.echo(f"{kind} ({catalogs.catalog_dir() / (kind + '.yaml')}):")
         for name, spec in found[kind].items():
@@ -287,13 +287,18 @@ def list_catalogs(as_json: bool) -> None:
         click.echo(f"  {name}")
 
 
-def _echo_families(families: dict[str, str]) -> None:
-    """The surface families, ftsweep's own on one line, each plug-in's after it with its origin."""
+def _echo_families(families: dict[str, str], width: int) -> None:
+    """The surface families, ftsweep's own first, each plug-in's after them with its origin,
+    wrapped to ``width``."""
+    import textwrap
+
     own = [f for f, source in families.items() if source.startswith("ftsweep")]
-    click.echo(f"families     ftsweep's own: {', '.join(own)}")
+    lines = [f"ftsweep's own: {', '.join(own)}"]
     for source in sorted({s for s in families.values() if not s.startswith("ftsweep")}):
-        names = [f for f, s in families.items() if s == source]
-        click.echo(f"             {', '.join(names)}: from {source}")
+        lines.append(f"{', '.join(f for f, s in families.items() if s == source)}: from {source}")
+    for i, line in enumerate(lines):
+        head = "families     " if i == 0 else " " * 13
+        click.echo(textwrap.fill(line, width=width, initial_indent=head, subsequent_indent=" " * 15))
 
 
 if __name__ == "__main__":  # pragma: no cover

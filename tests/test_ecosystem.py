@@ -166,8 +166,24 @@ def test_catalogs_prints_whole_descriptions_and_json():
     assert "sinewave-ring" in data["sweeps"]
 
 
-@pytest.mark.integration  # builds a wheel into a fresh virtual environment
 # ----------------------------------------------------------------------------- packaging
+def _borrowing_venv(venv: Path) -> tuple[Path, str]:
+    """A fresh virtual environment at ``venv`` that borrows this one's dependencies through a
+    .pth line (whose own .pth files, the editable install among them, are not processed):
+    its python and its site-packages folder."""
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    py = venv / "bin" / "python"
+    site = subprocess.run(
+        [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    (Path(site) / "borrowed_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    return py, site
+
+
+@pytest.mark.integration  # builds a wheel into a fresh virtual environment
 def test_wheel_installs_one_package_named_ftsweep(tmp_path):
     """A regular (non-editable) install: build the wheel, install it without dependencies into
     a fresh virtual environment that borrows this environment's dependencies through a .pth
@@ -193,21 +209,13 @@ def test_wheel_installs_one_package_named_ftsweep(tmp_path):
     assert "License-File: LICENSE" in meta.splitlines()
     assert "project.license` as a TOML table is deprecated" not in build.stderr
     venv = tmp_path / "fresh"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
-    py = venv / "bin" / "python"
+    py, site = _borrowing_venv(venv)
     subprocess.run(
         [str(py), "-m", "pip", "install", "-q", "--no-deps", "--no-index", str(wheel)],
         check=True,
         capture_output=True,
         timeout=300,
     )
-    site = subprocess.run(
-        [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.strip()
-    (Path(site) / "borrowed_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
     env = {k: v for k, v in os.environ.items() if k not in ("FTSWEEP_CATALOGS", "PYTHONPATH")}
     work = tmp_path / "elsewhere"
     work.mkdir()
@@ -251,15 +259,7 @@ def test_installs_in_any_order_leave_every_command_working_and_nothing_in_the_pa
     environment borrows this one's dependencies through a .pth line, so pip installs only
     ftsweep (--no-deps) and the test needs no index but for the build backend."""
     venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
-    py = venv / "bin" / "python"
-    site = subprocess.run(
-        [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.strip()
-    (Path(site) / "borrowed_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    py, site = _borrowing_venv(venv)
     cache = tmp_path / "user-cache"
     drop = ("FTSWEEP_CATALOGS", "PYTHONPATH", "NUMBA_CACHE_DIR")
     env = {**{k: v for k, v in os.environ.items() if k not in drop}, "XDG_CACHE_HOME": str(cache)}

@@ -193,3 +193,15 @@ def test_a_surface_plugin_named_by_the_environment_and_a_broken_one(plugin_folde
         "entry point of group 'ftsweep.surfaces'" in refused.stderr
         and "FTSWEEP_SURFACE_MODULES" in refused.stderr
     )
+
+
+def test_the_help_says_where_catalogs_and_surface_families_come_from():
+    from click.testing import CliRunner
+
+    from ftsweep.cli.main import main
+
+    text = " ".join(CliRunner().invoke(main, ["--help"]).output.split())
+    assert "$FTSWEEP_CATALOGS, else a checkout's catalogs/" in text
+    assert "'ftsweep.surfaces'" in text and "$FTSWEEP_SURFACE_MODULES" in text
+    listing = " ".join(CliRunner().invoke(main, ["catalogs", "--help"]).output.split())
+    assert "entry points of group 'ftsweep.surfaces'" in listing

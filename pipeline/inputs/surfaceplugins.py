@@ -17,6 +17,7 @@ named; nothing read from a file (a cube, a sidecar, a catalog) ever names one to
 
 from __future__ import annotations
 
+import functools
 import importlib
 import os
 import warnings
@@ -45,7 +46,7 @@ def load() -> dict[str, str]:
         _import(f"entry point '{ep.name}' ({ep.value}) of {dist}", ep.load)
     for name in (n.strip() for n in os.environ.get(ENV, "").split(",")):
         if name:
-            _import(f"module {name} ({ENV})", lambda name=name: importlib.import_module(name))
+            _import(f"module {name} ({ENV})", functools.partial(importlib.import_module, name))
     return dict(_sources)
 
 

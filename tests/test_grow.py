@@ -104,7 +104,7 @@ def test_a_grown_cube_keeps_its_name_and_case_numbers_and_its_catalog_command(tm
         main, ["export", str(out), "--case", "points=20000,aspect=8", "-o", str(header)], env=env
     )
     assert r.exit_code == 0, r.output
-    assert "case         points=20000 aspect=8 (case number 3;" in r.output
+    assert "case         points=20000 aspect=8 (case number 3)" in r.output
     numbers = xr.open_zarr(out)["case_number"].load()
     copy = tmp_path / "copy.yaml"
     copy.write_text(BASE.format(points="[8000, 12000, 20000]", aspect="[2.0, 8.0]"))
@@ -120,7 +120,7 @@ def test_a_grown_cube_keeps_its_name_and_case_numbers_and_its_catalog_command(tm
         r = CliRunner().invoke(
             main, ["export", str(out), "--case", how, "-o", str(tmp_path / "n.h"), "--force"], env=env
         )
-        assert r.exit_code == 0 and "case         points=20000 aspect=8 (case number 3;" in r.output, r.output
+        assert r.exit_code == 0 and "case         points=20000 aspect=8 (case number 3)" in r.output, r.output
     # the cube's first spec still runs on it: nothing to compute
     again = run_sweep(str(first), out, scheduler="synchronous", catalog_folder=catalog_dir)
     assert again.queued == 0 and "resuming sweep 'nightly'" in again.note

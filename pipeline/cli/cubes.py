@@ -31,14 +31,6 @@ from ftsweep.cli.common import (
 )
 
 
-def _target_text(value: float | str) -> str:
-    """A sweep axis value: whole counts with thousands separators, others to 4 digits, names
-    (the compensation) as they are."""
-    if isinstance(value, str):
-        return value
-    return f"{value:,.0f}" if value == round(value) and abs(value) >= 1000 else f"{value:.4g}"
-
-
 def _one_criterion(**options: Any) -> None:
     """Refuse, before any cube is opened, a command given no selection rule or more than
     one (each keyword is an option's parameter, named as the command line spells it)."""
@@ -58,18 +50,13 @@ def _selection_text(chosen: dict[str, Any]) -> str:
         if math.isfinite(chosen["pv_interp_nm"])
         else "interpolation alone not simulated"
     )
-    targets = ", ".join(
-        f"{name[: -len('_target')]} {_target_text(value)}"
-        for name, value in chosen.items()
-        if name.endswith("_target")
-    )
     aspect = chosen.get("aspect_actual", math.nan)
     # path programs off the spindle's spiral (D paths, Fresnel) have no aspect ratio
     alpha = f" (α = {aspect:.4g})" if math.isfinite(aspect) else ""
     return "\n".join(
         [
             f"rule         {chosen['rule']}",
-            f"case         {chosen['name']} (case number {chosen['index']}; targets {targets})",
+            f"case         {chosen['name']} (case number {chosen['index']})",
             f"layout       {chosen['layout']}: {chosen['n_points']:,} points, {pitch}{alpha}",
             f"P-V          {chosen['pv_nm']:.2f} nm (RMS {chosen['rms_nm']:.2f} nm, {interp})",
         ]

@@ -404,6 +404,11 @@ def test_export_for_another_machine_plans_and_predicts_the_case_there(moore, tmp
     )
     assert r.exit_code == 1 and "reads iso-sts programs, not a ring table" in r.output
     assert "sweep the part as a path program (layout: spiral)" in r.output and "fts-1m" in r.output
+    # a table asked for as a PVT program: why not, and what gives one
+    r = CliRunner().invoke(
+        main, ["export", str(ring), "--case", "0", "--dialect", "pmac-pvt", "-o", str(tmp_path / "r.pmc")]
+    )
+    assert r.exit_code == 1 and "own format only" in r.output and "layout: spiral" in r.output
 
 
 # ----------------------------------------------------------------------- the compiled reference

@@ -129,6 +129,8 @@ def test_a_grown_cube_keeps_its_name_and_case_numbers_and_its_catalog_command(tm
     assert v.exit_code == 0, v.output
     assert "for          case points=20000 aspect=8 of" in v.output
     assert "in cube      the cube's case points=20000 aspect=8 (number 3) is the file's case" in v.output
+    # the growth rebuilt the cube, its export ledger with it: the rollback check still holds
+    assert "latest       the latest export of before.h in the cube's ledger (sequence 1)" in v.output
     wrong = CliRunner().invoke(
         main, ["verify", str(header), "--expect-case", "points=8000,aspect=8"], env=env
     )

@@ -63,7 +63,8 @@ def adapter_of(kind: str) -> Adapter:
         raise ProgramError(
             f"a {kind} case is written in ftsweep's own format only: --dialect text (a {kind} case is a "
             "table its FTS controller interpolates; a controller's dialect carries a path program: sweep "
-            "the part as one, layout: spiral, for a machine whose controller reads the dialect)"
+            "the part as one, layout: spiral, on a machine whose controller reads the dialect, as "
+            "`ftsweep catalogs` lists them)"
         )
     return fmt.dialect  # type: ignore[no-any-return]
 
@@ -103,10 +104,18 @@ def controller_of(machine: Any, dialect: str) -> Controller:
     one the machine's programs were simulated with."""
     want = dialects.INTERPOLATION[dialect]
     if machine.interpolation != want:
+        from ftsweep.inputs import catalogs
+
+        readers = ", ".join(
+            f"--machine {m}"
+            for m, e in sorted(catalogs.entries("machines").items())
+            if e.controller is not None and e.controller.dialect == dialect
+        )
         raise ProgramError(
             f"the machine's controller interpolates {machine.interpolation}, but a {dialect} program is cut "
             f"with {want} segments: not the program the cube predicted; export --dialect "
-            f"{DIALECT_OF[machine.interpolation]}"
+            f"{DIALECT_OF[machine.interpolation]}, or plan and predict the case for a machine whose "
+            f"controller reads {dialect}: {readers or 'none in the catalog'}"
         )
     ctrl = machine.controller
     if ctrl is None:

@@ -83,6 +83,24 @@ def entry(at: Place, name: str, sequence: int) -> Optional[dict[str, Any]]:
     return data
 
 
+def carry(src: Place, dst: Place) -> int:
+    """Copy every entry of ``src``'s ledger into ``dst``, each created only if absent there (a
+    repeat after a kill adds what is missing): a cube rebuilt in ``src``'s place (growth,
+    :mod:`ftsweep.sweeps.grow`) keeps the record of every export of it, and verify's rollback
+    check with it. An object that is no ledger entry (over the cap, a special file) is left
+    behind. Returns the entries copied."""
+    copied = 0
+    for key in src.listing(LEDGER):
+        try:
+            dst.create(key, src.read_capped(key, MAX_ENTRY_BYTES))
+            copied += 1
+        except FileExistsError:
+            continue
+        except ValueError:  # not an entry export writes: nothing of the record is lost
+            continue
+    return copied
+
+
 def latest_case(at: Place) -> Optional[tuple[int, str]]:
     """The case number of the cube's most recent export (by its entry's time, then sequence)
     and the file's name, or None where no export recorded a case. An unreadable entry is no

@@ -21,7 +21,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.store import cube
+from ftsweep.store import cube, ledger
 from ftsweep.store.cube import CubeError
 from ftsweep.store.storage import Place
 from ftsweep.sweeps.spec import SweepSpec, coordinates
@@ -108,7 +108,10 @@ def grow(out: Place, spec: SweepSpec, name: str, plan: dict[str, Any]) -> None:
 
 def _move_in(staging: Place, out: Place) -> None:
     """Replace ``out`` by the complete cube at ``staging``: a rename on a local disk; on object
-    storage a copy of every object, the root metadata last, then the staging deleted."""
+    storage a copy of every object, the root metadata last, then the staging deleted. The
+    cube's export ledger is carried over first (:func:`ftsweep.store.ledger.carry`), so a
+    growth, or its finish after a kill, never forgets an export."""
+    ledger.carry(out, staging)
     out.remove_all()
     if out.local:
         os.replace(staging.path, out.path)

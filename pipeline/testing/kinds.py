@@ -123,16 +123,17 @@ class KindTests:
         case, _ = recorded_case(open_cube(out), 0)
         machine = _machine(case, folder)
         interpolation = machine.interpolation
+        # a kind without programs in dialects is told so first: no machine would change that
+        if registry.kind(self.kind).file_format().dialect is None:
+            assert res.exit_code == 1 and "own format only" in res.output
+            assert not path.exists()
+            return
         if machine.controller is not None and machine.controller.dialect != dialect:
             assert res.exit_code == 1 and f"controller, which does not read {dialect}" in res.output
             assert not path.exists()
             return
         if dialects.INTERPOLATION[dialect] != interpolation:
             assert res.exit_code == 1 and f"interpolates {interpolation}" in res.output
-            assert not path.exists()
-            return
-        if registry.kind(self.kind).file_format().dialect is None:
-            assert res.exit_code == 1 and "own format only" in res.output
             assert not path.exists()
             return
         assert res.exit_code == 0, res.output

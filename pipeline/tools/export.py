@@ -175,7 +175,7 @@ def _export_locked(
         "ledger": {"name": out.name, "sequence": ledger.next_sequence(place(cube_path), out.name)},
         **({"planned_for": planned_for} if planned_for else {}),
     }
-    dialect = dialect_for(case.machine, specs[1], dialect)
+    dialect = dialect_for(case.machine, specs[1], dialect, case.layout.kind)
     stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".export", dir=out.parent))
     try:
         staged, staged_side = stage / out.name, stage / sidecar_path(out).name

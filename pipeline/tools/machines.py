@@ -78,12 +78,16 @@ def _table_machines() -> list[str]:
     return sorted(m for m, e in catalogs.entries("machines").items() if e.controller is None)
 
 
-def dialect_for(name: str, machine: Any, dialect: str | None) -> str:
-    """The dialect a file for machine ``name`` is written in: ``dialect`` as asked (checked by
-    :func:`check_dialect`), else its controller's (:func:`ftsweep.exports.nc.default_dialect`);
-    ftsweep's text lines only where the machine interpolates linearly."""
+def dialect_for(name: str, machine: Any, dialect: str | None, kind: str) -> str:
+    """The dialect a file of a ``kind`` case for machine ``name`` is written in: ``dialect`` as
+    asked (checked by :func:`check_dialect`; a kind without programs in controllers' dialects,
+    a table, refused first, saying what would give one), else its controller's
+    (:func:`ftsweep.exports.nc.default_dialect`); ftsweep's text lines only where the machine
+    interpolates linearly."""
     from ftsweep.exports import nc
 
+    if dialect not in (None, "text"):
+        nc.adapter_of(kind)
     dialect = dialect or nc.default_dialect(machine)
     check_dialect(name, machine, dialect)
     if dialect == "text" and machine.interpolation != "linear":

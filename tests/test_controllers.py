@@ -498,7 +498,7 @@ def test_dialect_programs_state_their_limits():
     moves = dialects.Moves(np.arange(5.0), np.ones(5), np.zeros(5), np.full(4, 10.0))
     ctrl = m.controller.model_copy(update={"max_segment_s": 1.0})
     with pytest.raises(Exception, match="longer than the controller"):
-        nc._limits(moves, ctrl)
+        dialects.check_limits(moves, ctrl)
     assert math.isfinite(dialects.summary(moves)["revolutions"])
 
 
@@ -506,9 +506,9 @@ def test_a_program_over_the_controllers_limits_is_refused_by_name():
     ctrl = _machine("sts-pmac-spline").controller
     moves = dialects.Moves(np.arange(5.0), np.ones(5), np.zeros(5), np.full(4, 0.0105))
     with pytest.raises(Exception, match="SPLINE1 needs one TA of whole milliseconds"):
-        nc._limits(moves, ctrl)
+        dialects.check_limits(moves, ctrl)
     with pytest.raises(Exception, match="more than the controller's 3"):
-        nc._limits(moves, ctrl.model_copy(update={"max_blocks": 3}))
+        dialects.check_limits(moves, ctrl.model_copy(update={"max_blocks": 3}))
 
 
 def test_verify_compiled_says_when_there_is_no_compiler(monkeypatch):

@@ -472,8 +472,8 @@ def test_a_cumulative_c_past_the_controllers_soft_limit_is_refused_at_export():
     moves = dialects.Moves(np.arange(5) * 500.0, np.linspace(1.0, 0.99, 5), np.zeros(5), np.full(4, 0.01))
     soft = Controller(dialect="linuxcnc", interpolation="linear", c_limit_deg=1500.0)
     with pytest.raises(ProgramError, match=r"C reaches 2,000° accumulated, past the controller's soft limit"):
-        nc._limits(moves, soft)
-    nc._limits(moves, soft.model_copy(update={"c_limit_deg": None}))  # a wrapped rotary: no limit
+        dialects.check_limits(moves, soft)
+    dialects.check_limits(moves, soft.model_copy(update={"c_limit_deg": None}))  # a wrapped rotary: no limit
 
 
 def test_a_programs_simulation_is_bounded_before_any_work(flat_catalogs):

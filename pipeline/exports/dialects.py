@@ -209,3 +209,44 @@ __all__ = [
     "comment",
     "comment_text",
 ]
+
+
+def check_limits(moves: Moves, ctrl: Controller) -> None:
+    """Refuse, naming the limit, a program the controller cannot run (its blocks, C's soft
+    limit where C accumulates, a segment's longest time, SPLINE1's one whole-millisecond TA)."""
+    from ftsweep.exports.files import ProgramError
+    from ftsweep.stages.interpolation import segments
+
+    blocks = moves.n_points - 1
+    if blocks > ctrl.max_blocks:
+        raise ProgramError(
+            f"the program has {blocks:,} blocks, more than the controller's {ctrl.max_blocks:,}"
+        )
+    cumulative = ctrl.c_wrap == "cumulative" or ctrl.dialect == "linuxcnc"
+    turned = float(np.max(np.abs(moves.c_deg)))
+    if cumulative and ctrl.c_limit_deg is not None and turned > ctrl.c_limit_deg:
+        raise ProgramError(
+            f"C reaches {turned:,.0f}° accumulated, past the controller's soft limit of "
+            f"{ctrl.c_limit_deg:,.0f}° (machine.controller.c_limit_deg): raise the limit or make C a "
+            "wrapped rotary"
+        )
+    longest = float(np.nanmax(moves.seconds, initial=0.0))  # a layered program's approaches: NaN
+    if longest > ctrl.max_segment_s:
+        raise ProgramError(
+            f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's "
+            f"{ctrl.max_segment_s * 1e3:g} ms"
+        )
+    if ctrl.interpolation == "spline1":
+        ta = float(moves.seconds[0])
+        if not np.allclose(moves.seconds[:-1], ta, rtol=1e-9) or not segments.whole_steps(ta * 1e3, 1.0):
+            raise ProgramError(
+                f"SPLINE1 needs one TA of whole milliseconds; this program's is {ta * 1e3:.6g} ms"
+            )
+
+
+def machines_reading(dialect: str) -> list[str]:
+    """The catalog's machines whose controller reads ``dialect``, by name."""
+    from ftsweep.inputs import catalogs
+
+    machines = catalogs.entries("machines").items()
+    return sorted(m for m, e in machines if e.controller is not None and e.controller.dialect == dialect)

@@ -35,7 +35,6 @@ from ftsweep.exports.files import (
 )
 from ftsweep.exports.moves import against, check_velocities, peaks
 from ftsweep.inputs.catalogs import Controller
-from ftsweep.stages.interpolation import segments
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     dumps_json,
@@ -104,13 +103,7 @@ def controller_of(machine: Any, dialect: str) -> Controller:
     one the machine's programs were simulated with."""
     want = dialects.INTERPOLATION[dialect]
     if machine.interpolation != want:
-        from ftsweep.inputs import catalogs
-
-        readers = ", ".join(
-            f"--machine {m}"
-            for m, e in sorted(catalogs.entries("machines").items())
-            if e.controller is not None and e.controller.dialect == dialect
-        )
+        readers = ", ".join(f"--machine {m}" for m in dialects.machines_reading(dialect))
         raise ProgramError(
             f"the machine's controller interpolates {machine.interpolation}, but a {dialect} program is cut "
             f"with {want} segments: not the program the cube predicted; export --dialect "
@@ -126,35 +119,6 @@ def controller_of(machine: Any, dialect: str) -> Controller:
     # conventions of that dialect's controller
     limits = ("time_quantum_s", "max_segment_s", "decimals", "max_blocks", "servo_period_s", "c_limit_deg")
     return Controller(dialect=dialect, interpolation=want, **{k: getattr(ctrl, k) for k in limits})
-
-
-def _limits(moves: Moves, ctrl: Controller) -> None:
-    """Refuse, naming the limit, a program the controller cannot run."""
-    blocks = moves.n_points - 1
-    if blocks > ctrl.max_blocks:
-        raise ProgramError(
-            f"the program has {blocks:,} blocks, more than the controller's {ctrl.max_blocks:,}"
-        )
-    cumulative = ctrl.c_wrap == "cumulative" or ctrl.dialect == "linuxcnc"
-    turned = float(np.max(np.abs(moves.c_deg)))
-    if cumulative and ctrl.c_limit_deg is not None and turned > ctrl.c_limit_deg:
-        raise ProgramError(
-            f"C reaches {turned:,.0f}° accumulated, past the controller's soft limit of "
-            f"{ctrl.c_limit_deg:,.0f}° (machine.controller.c_limit_deg): raise the limit or make C a "
-            "wrapped rotary"
-        )
-    longest = float(np.nanmax(moves.seconds, initial=0.0))  # a layered program's approaches: NaN
-    if longest > ctrl.max_segment_s:
-        raise ProgramError(
-            f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's "
-            f"{ctrl.max_segment_s * 1e3:g} ms"
-        )
-    if ctrl.interpolation == "spline1":
-        ta = float(moves.seconds[0])
-        if not np.allclose(moves.seconds[:-1], ta, rtol=1e-9) or not segments.whole_steps(ta * 1e3, 1.0):
-            raise ProgramError(
-                f"SPLINE1 needs one TA of whole milliseconds; this program's is {ta * 1e3:.6g} ms"
-            )
 
 
 def _document(
@@ -174,7 +138,7 @@ def _document(
             f"stop: one point past the {planned} planned brings every axis to rest, "
             f"{moves.n_points} points in all",
         ]
-    _limits(moves, ctrl)
+    dialects.check_limits(moves, ctrl)
     meta = {
         **meta_in,
         "layout": case.layout.kind,

@@ -103,13 +103,12 @@ def check_dialect(name: str, machine: Any, dialect: str) -> None:
     conventions of the machine it is exported for: a Moore's G-code on a LinuxCNC machine
     would carry F in the other's units), naming the machines whose controllers read it. A
     machine that declares no controller takes any linear dialect in that dialect's defaults."""
-    from ftsweep.inputs import catalogs
+    from ftsweep.exports.dialects import machines_reading
 
     own = machine.controller.dialect if machine.controller is not None else None
     if own is None or dialect in ("text", own):
         return
-    machines = catalogs.entries("machines").items()
-    readers = sorted(m for m, e in machines if e.controller is not None and e.controller.dialect == dialect)
+    readers = machines_reading(dialect)
     raise ExportError(
         f"machine '{name}' has a {own} controller, which does not read {dialect}: export --dialect {own} "
         f"(or text), or export for a machine whose controller reads {dialect} "

@@ -131,10 +131,16 @@ def best_flat(ds: xr.Dataset, where: Optional[xr.DataArray] = None) -> Optional[
     return int(np.nanargmin(values))
 
 
+def rows_axis(ds: xr.Dataset) -> str:
+    """The axis a cube's best cases are listed over: its point counts, or a spiral cube's rule
+    axis (its first dimension)."""
+    return "points" if "points" in ds.dims else str(ds["status"].dims[0])
+
+
 def best_per_points(ds: xr.Dataset) -> list[tuple[float, Optional[int]]]:
     """For each target point count: (target, flat index of its best eligible case or None);
     for a spiral cube, for each value of its rule axis (its first dimension)."""
-    axis = "points" if "points" in ds.dims else str(ds["status"].dims[0])
+    axis = rows_axis(ds)
     index = xr.DataArray(np.arange(ds.sizes[axis]), dims=axis)
     return [(float(p), best_flat(ds, index == i)) for i, p in enumerate(ds[axis].values)]
 
@@ -185,7 +191,7 @@ def best_per_point_count(path: PathLike) -> list[dict[str, Any]]:
     whether the cube has an aspect axis (a table sweep) to name the best α by; ``axis`` names
     the axis the rows run over (``points``, or a spiral cube's rule axis, e.g. ``chord_um``)."""
     ds = cube.open_dataset(path).load()
-    axis = "points" if "points" in ds.dims else str(ds["status"].dims[0])
+    axis = rows_axis(ds)
     rows = []
     for target, flat in best_per_points(ds):
         if flat is None:

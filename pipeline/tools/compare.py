@@ -103,7 +103,8 @@ def compare_rows(
                     "program": label,
                     "kind": str(ds.attrs.get("layout_method")),
                     "cube": str(place(path)),
-                    "index": int(flat),
+                    "index": case["index"],  # its case number, which growth never changes
+                    "name": case["name"],
                     "target": target,
                     "n_points": case["n_points"],
                     "pv_nm": case["pv_nm"],
@@ -171,7 +172,7 @@ def common_sampling(
     opened: dict[str, Any] = {}
     for i, r in enumerate(todo):
         ds = opened.setdefault(r["cube"], open_cube(_OPENED_AT.get(r["cube"], r["cube"])))
-        case, specs = recorded_case(ds, r["index"], trust_plugins)
+        case, specs = recorded_case(ds, query.flat_of(ds, r["index"]), trust_plugins)
         case = case.model_copy(update={"resolution": case.resolution.model_copy(update={"n_theta": n_theta})})
         record = run_case(case, specs=specs)
         r.update({k: record[k] for k in ("pv_nm", "rms_nm", "pv_interp_nm", "n_theta")})

@@ -417,25 +417,48 @@ def _start_sweep(spec: Path, out: Path, catalogs: Path, *extra: str) -> subproce
     )
 
 
-def _wait_for(condition, seconds: float = 120.0) -> None:  # type: ignore[no-untyped-def]
-    deadline = time.time() + seconds
-    while not condition():
-        assert time.time() < deadline, "timed out"
-        time.sleep(0.05)
+# a sweep held at its first write into the cube (a fault point: the lock is taken and the cube
+# made), until the test says go on with a line on its standard input
+HELD_UNTIL_TOLD = """
+import sys
+from ftsweep.store import fenced
+from ftsweep.sweeps.run import run_sweep
+
+held = []
 
 
-@pytest.mark.integration  # two sweep processes
-@pytest.mark.serial
+def hold(event, key):
+    if not held:
+        held.append(key)
+        print("HELD", flush=True)
+        sys.stdin.readline()
+
+
+fenced.WRITE_POINT = hold
+run_sweep(sys.argv[1], sys.argv[2], scheduler="synchronous", catalog_folder=sys.argv[3])
+"""
+
+
+@pytest.mark.integration  # three sweep processes
 def test_concurrent_sweeps_are_refused_and_the_cube_equals_a_single_run(tmp_path, catalog_dir):
-    # twelve cases keep the first run busy for several seconds after it takes the lock, while
-    # the other two start up (a run that ended too early fails this test, never passes it)
-    twelve = SIX_CASES.replace("[8000, 20000]", "[8000, 20000, 40000, 60000]")
-    spec = write(tmp_path, "twelve.yaml", twelve)
-    other = write(tmp_path, "other.yaml", twelve.replace("16.0", "32.0"))
+    """While a sweep holds the cube (held at its first write, not kept busy by a workload, so
+    a faster or slower machine gives the same result), the same sweep and a --restart of
+    another are refused naming the writer; the first, let go, finishes the cube a single run
+    makes."""
+    spec = write(tmp_path, "six.yaml", SIX_CASES)
+    other = write(tmp_path, "other.yaml", SIX_CASES.replace("16.0", "32.0"))
     out = tmp_path / "shared.zarr"
-    first = _start_sweep(spec, out, catalog_dir)
+    env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))
+    first = subprocess.Popen(
+        [sys.executable, "-c", HELD_UNTIL_TOLD, str(spec), str(out), str(catalog_dir)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     try:
-        _wait_for(lambda: lock_path(out).exists() and out.exists())
+        assert first.stdout is not None and first.stdout.readline().strip() == "HELD"
         same = _start_sweep(spec, out, catalog_dir)
         restart = _start_sweep(other, out, catalog_dir, "--restart")
         for proc in (same, restart):
@@ -443,8 +466,8 @@ def test_concurrent_sweeps_are_refused_and_the_cube_equals_a_single_run(tmp_path
             assert proc.returncode != 0
             assert "is being written by pid" in err and "Traceback" not in err
             assert err.strip().splitlines()[-1].startswith("Error:")
-        assert first.poll() is None or first.returncode == 0  # the first run was not disturbed
-        _, err = first.communicate(timeout=300)
+        assert first.poll() is None  # still held: the refusals did not disturb it
+        _, err = first.communicate("go on\n", timeout=300)
         assert first.returncode == 0, err
     finally:
         if first.poll() is None:

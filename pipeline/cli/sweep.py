@@ -255,6 +255,7 @@ class SweepProgress:
         # counted as rows arrive: a sweep of 10⁵ cases must not rescan every row on each one
         self.failed = self.refused = 0
         self.eta = Eta()
+        self.cost_total: Optional[float] = None  # the run's cases' summed cost, once
 
     def __call__(self, report: Any, rows: list[dict]) -> None:
         for r in rows:
@@ -267,7 +268,9 @@ class SweepProgress:
             return
         refused = len(report.refused) + self.refused
         state = f"{self.failed} failed, {refused} refused, {total - done} pending"
-        eta = self.eta.text(sum(report.costs.values()), total - done, max(report.threads, report.workers, 1))
+        if self.cost_total is None:  # the cases this run computes are known before the first arrives
+            self.cost_total = sum(report.costs.values())
+        eta = self.eta.text(self.cost_total, total - done, max(report.threads, report.workers, 1))
         if self.tty:
             self._draw(len(rows), total, len(report.refused), f"{elapsed:6.1f} s, {eta}")
             return

@@ -7,21 +7,18 @@ installed as ``ftsweep.stages``. docs/architecture.md draws the layers.
 Citations in docstrings, messages and exported headers: "model §N, eq. (k)" is section N and
 equation k of "The model" in the project's README.md; "[n]" is reference n listed there.
 
-Importing ftsweep is light: the ``ds.ftsweep`` accessor (:mod:`ftsweep.tools.accessor`) is registered
-with xarray at once if xarray is loaded, else the moment it is, so that ``import ftsweep`` in
-either order with ``import xarray`` gives the accessor while the command line, which may not
-need xarray at all, does not pay for loading it. numba's cache of ftsweep's kernels is the
-user's cache directory, never the installed package (:mod:`ftsweep.caches`).
+Importing ftsweep is light: the ``ds.ftsweep`` accessor (:mod:`ftsweep.tools.accessor`) is
+registered at once if xarray is loaded already, otherwise when xarray first opens a dataset
+(it loads every backend entry point then, ftsweep's among them:
+:mod:`ftsweep.tools.xarray_backend`), so the command line, which may not need xarray at all,
+does not pay for loading it. numba's cache of ftsweep's kernels
+is the user's cache directory, never the installed package (:mod:`ftsweep.caches`).
 """
 
 from __future__ import annotations
 
-import importlib.abc
-import importlib.util
 import sys
-from collections.abc import Callable, Sequence
-from types import ModuleType
-from typing import Any, Optional
+from typing import Any
 
 from ftsweep.caches import use_user_numba_cache
 from ftsweep.version import __version__
@@ -30,45 +27,17 @@ from ftsweep.version import __version__
 # directory, never inside the installed package (ftsweep.caches)
 use_user_numba_cache()
 
-__all__ = ["__version__"]
+__all__ = ["__version__", "open_cube"]
 
-
-def _register_accessor() -> None:
+if "xarray" in sys.modules:
     from ftsweep.tools import accessor  # noqa: F401  (registers ds.ftsweep)
 
 
-class _AfterImport(importlib.abc.MetaPathFinder):
-    """Runs ``action`` once module ``name`` has been imported, wherever that import happens
-    (it finds nothing itself: it wraps the loader the other finders give)."""
+def __getattr__(name: str) -> Any:
+    """``ftsweep.open_cube`` (:func:`ftsweep.tools.xarray_backend.open_cube`), imported when first
+    asked for: it needs xarray, which ``import ftsweep`` does not load."""
+    if name == "open_cube":
+        from ftsweep.tools.xarray_backend import open_cube
 
-    def __init__(self, name: str, action: Callable[[], Any]) -> None:
-        self.name, self.action = name, action
-
-    def find_spec(
-        self, fullname: str, path: Optional[Sequence[str]], target: Optional[ModuleType] = None
-    ) -> Any:
-        if fullname != self.name:
-            return None
-        sys.meta_path = [finder for finder in sys.meta_path if finder is not self]
-        spec = importlib.util.find_spec(fullname)
-        if spec is None or spec.loader is None:
-            return spec
-        load, action = spec.loader.exec_module, self.action
-
-        def exec_module(module: ModuleType) -> None:
-            load(module)
-            action()
-
-        spec.loader.exec_module = exec_module  # type: ignore[method-assign]
-        return spec
-
-
-def after_import(name: str, action: Callable[[], Any]) -> None:
-    """Run ``action`` now if module ``name`` is imported, else right after its import (once)."""
-    if name in sys.modules:
-        action()
-    elif not any(isinstance(f, _AfterImport) and f.name == name for f in sys.meta_path):
-        sys.meta_path.insert(0, _AfterImport(name, action))
-
-
-after_import("xarray", _register_accessor)
+        return open_cube
+    raise AttributeError(f"module 'ftsweep' has no attribute {name!r}")

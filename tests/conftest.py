@@ -9,6 +9,10 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
+# the tests open cubes with xarray's own zarr engine too, where ftsweep's backend entry point
+# is not looked for: the accessor is registered outright (ftsweep.tools.xarray_backend)
+import ftsweep.tools.accessor  # noqa: F401, E402
+
 # numba compiles on a kernel's first call (or loads it from cache); that one-off cost is not
 # what a property test measures, so examples get no deadline.
 settings.register_profile("ftsweep", deadline=None, max_examples=60)

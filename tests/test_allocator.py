@@ -33,15 +33,17 @@ def test_results_do_not_depend_on_the_allocator():
 
 
 def _advice_in_fresh_process(numpy_first: bool, env: dict[str, str]) -> str:
-    """numpy's huge-page advice after ``allocator.tune()`` in a fresh interpreter, numpy
-    imported before tune (a worker's warm-up) or after it (the command line)."""
+    """numpy's huge-page advice in a fresh interpreter after ``allocator.no_hugepage_advice()``:
+    in that process where numpy was imported after it (the command line), or in a process it
+    starts that imports numpy itself (a local cluster's worker, which imports numpy before its
+    warm-up tunes it)."""
+    show = "import numpy; print(numpy._core.multiarray._get_madvise_hugepage())"
     code = "\n".join(
         [
-            "import numpy" if numpy_first else "",
+            "import subprocess, sys",
             "from ftsweep.engine import allocator",
-            "allocator.tune()",
-            "import numpy",
-            "print(numpy._core.multiarray._get_madvise_hugepage())",
+            "allocator.no_hugepage_advice()",
+            f"subprocess.run([sys.executable, '-c', {show!r}], check=True)" if numpy_first else show,
         ]
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)

@@ -179,7 +179,7 @@ def first_compile_notice() -> None:
     compile now, with how long that took when last measured on this machine
     (:func:`ftsweep.caches.recorded_compile_s`), or no figure where none was measured."""
     from ftsweep.caches import recorded_compile_s
-    from ftsweep.engine.startup import kernels_cached
+    from ftsweep.engine.compiling import kernels_cached
 
     if not kernels_cached():
         seconds = recorded_compile_s()

@@ -83,21 +83,6 @@ class _Group(click.Group):
     FTSWEEP_DEBUG=1 to see the traceback of an unexpected one. Its commands are loaded when
     first asked for (:func:`commands`)."""
 
-    def __call__(self, *args: Any, **kwargs: Any) -> Any:
-        """Run as the console script (no arguments: ``sys.argv``) and leave at once: after
-        the command, the exit handlers run (clusters, zarr's event loop, logging) and the
-        streams are flushed, but the interpreter's teardown, which frees numba's and
-        llvmlite's objects one by one for nothing (0.15 s), is skipped. Called with arguments
-        (tests, other programs), it behaves as any click group."""
-        if args or kwargs:
-            return super().__call__(*args, **kwargs)
-        try:
-            super().__call__()
-            code: Any = 0
-        except SystemExit as exc:
-            code = exc.code
-        _leave(code)
-
     def list_commands(self, ctx: click.Context) -> list[str]:
         known = [*self.commands, *commands()]
         last = ("catalogs", "keys", "bench")
@@ -176,23 +161,6 @@ def user_cause(exc: BaseException) -> Optional[str]:
     return None
 
 
-def _leave(code: Any) -> None:
-    """Exit with ``code`` (a SystemExit's: None, a number or a message) without the
-    interpreter's teardown, once the exit handlers have run and the streams are flushed."""
-    import atexit
-
-    if code is not None and not isinstance(code, int):
-        sys.stderr.write(f"{code}\n")
-        code = 1
-    atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):  # a closed pipe: nothing more can be said on it
-            pass
-    os._exit(code or 0)
-
-
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="ftsweep")
 def main() -> None:
@@ -211,13 +179,12 @@ def main() -> None:
     (entry points 'ftsweep.surfaces', or $FTSWEEP_SURFACE_MODULES). `ftsweep catalogs`
     lists them with the folder read and where each family comes from.
     """
-    from ftsweep.engine import allocator, startup
+    from ftsweep.engine import allocator
 
     # figures go to files here: pyplot's file backend unless the user chose one; the library
     # itself never switches a caller's backend (a notebook's plots would stop showing)
     os.environ.setdefault("MPLBACKEND", "Agg")
     allocator.tune()  # large batch temporaries reused, not page-faulted afresh (see the module)
-    startup.install()  # numba's set-up imports no scipy.linalg (see the module)
     # a library warning (e.g. resuming a cube another code revision started) is one line on
     # stderr, not a file path, a line number and the source line that raised it
     warnings.formatwarning = _one_line_warning

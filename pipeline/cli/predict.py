@@ -248,10 +248,8 @@ def predict(**opts: Any) -> None:
 
 
 def _simulate(case: Case, opts: dict[str, Any]) -> dict[str, Any]:
-    """The case's record, its progress on stderr; on a machine's first run a helper process
-    compiles half the kernels beside this one (:func:`ftsweep.engine.compiling.with_helper`)."""
-    from ftsweep import registry
-    from ftsweep.defaults import usable_cores
+    """The case's record, its progress on stderr; a machine's first run records how long its
+    compile took (:func:`ftsweep.engine.compiling.recorded_first_compile`)."""
     from ftsweep.engine import compiling
     from ftsweep.engine.case import CaseError
     from ftsweep.inputs.catalogs import CatalogError
@@ -261,7 +259,7 @@ def _simulate(case: Case, opts: dict[str, Any]) -> dict[str, Any]:
     first_compile_notice()
     progress = stderr_progress("simulating", opts["as_json"])
     try:
-        with compiling.with_helper(case, registry.kind(case.layout.kind), None, usable_cores()):
+        with compiling.recorded_first_compile():
             return run_case(case, progress=progress, max_nodes=opts["max_nodes"])
     except (CaseError, CatalogError, SurfaceLoadError) as exc:
         raise click.ClickException(str(exc)) from None

@@ -16,7 +16,6 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import os
-import sys
 
 # glibc's mallopt parameters (malloc.h)
 M_TRIM_THRESHOLD = -1
@@ -37,18 +36,12 @@ HUGEPAGE_ENV = "NUMPY_MADVISE_HUGEPAGE"
 
 def no_hugepage_advice() -> None:
     """Stop numpy's huge-page advice in this process and the processes it starts (workers),
-    unless the user set ``NUMPY_MADVISE_HUGEPAGE``: numpy reads the variable when imported;
-    where it is imported already, its switch is turned off."""
-    if os.environ.get(HUGEPAGE_ENV) is not None:
-        return
-    os.environ[HUGEPAGE_ENV] = "0"
-    numpy = sys.modules.get("numpy")
-    if numpy is None:
-        return
-    core = getattr(numpy, "_core", None) or getattr(numpy, "core", None)
-    switch = getattr(getattr(core, "multiarray", None), "_set_madvise_hugepage", None)
-    if switch is not None:
-        switch(False)
+    unless the user set ``NUMPY_MADVISE_HUGEPAGE``. numpy reads the variable when it is
+    imported, and has no public switch after that: a process that imported numpy before (a
+    notebook) keeps the advice, while the command line (which calls this before numpy loads)
+    and a sweep's workers (started with this environment) run without it."""
+    if os.environ.get(HUGEPAGE_ENV) is None:
+        os.environ[HUGEPAGE_ENV] = "0"
 
 
 def tune() -> bool:

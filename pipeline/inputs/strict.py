@@ -91,7 +91,7 @@ class Strict(BaseModel):
     """Base of every spec: unknown keys, mutation, non-finite numbers and numbers outside
     their unit's physically meaningful range (:func:`physical_range`) are refused."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, defer_build=True)
 
     @model_validator(mode="after")
     def _physical(self) -> Strict:

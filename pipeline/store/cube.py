@@ -22,11 +22,9 @@ Write protocol (crash safety):
 
 from __future__ import annotations
 
-import contextlib
 import subprocess
-import sys
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, Optional
 
@@ -195,40 +193,6 @@ def create(where: PathLike, ds: xr.Dataset) -> None:
         # consolidated metadata is a zarr-python extension in format 3; readers here use it
         warnings.filterwarnings("ignore", message="Consolidated metadata", category=UserWarning)
         ds.to_zarr(at.zarr_store(), zarr_format=3, encoding=_encoding(ds), consolidated=True, mode="w-")
-
-
-@contextlib.contextmanager
-def numpy_only() -> Iterator[None]:
-    """Within this block xarray wraps numpy arrays without importing ``dask.array``.
-
-    xarray asks of every array it wraps whether it is a dask array, and to ask it imports
-    ``dask.array``: 0.9 s of the driver's CPU while a sweep's workers start beside it on 2 cores
-    (docs/performance.md). While ``dask.array`` is not imported, no dask array can exist, so
-    "no dask arrays" is the exact answer: the block sets it in xarray's cache of array modules
-    and takes it back at its end (a later dask-backed read imports ``dask.array`` as before).
-    Where ``dask.array`` is imported already, or xarray's cache is not the one this knows,
-    the block changes nothing."""
-    cache: Optional[dict[str, Any]] = None
-    absent: Any = None
-    if "dask.array" not in sys.modules:
-        try:
-            from packaging.version import Version
-            from xarray.namedarray import pycompat
-
-            cache = pycompat._cached_duck_array_modules  # type: ignore[assignment]
-            absent = object.__new__(pycompat.DuckArrayModule)
-            absent.module, absent.version, absent.type, absent.available = None, Version("0"), (), False
-        except (ImportError, AttributeError):
-            cache = None
-    if cache is None or "dask" in cache:
-        yield
-        return
-    cache["dask"] = absent
-    try:
-        yield
-    finally:
-        if cache.get("dask") is absent:
-            del cache["dask"]
 
 
 def open_group(where: PathLike, mode: Literal["r", "r+"] = "r") -> zarr.Group:

@@ -93,6 +93,11 @@ def _connect(scheduler: Optional[str], workers: int) -> tuple[Any, Any]:
                 f"no dask scheduler answered at {scheduler[:200]} within {CONNECT_TIMEOUT_S} s "
                 f"({type(exc).__name__}); start one (dask scheduler) or omit --scheduler for a local cluster"
             ) from None
+    # the workers inherit this process's environment: numpy reads its huge-page setting when
+    # a worker imports it (ftsweep.engine.allocator)
+    from ftsweep.engine import allocator
+
+    allocator.no_hugepage_advice()
     # the scheduler and the nannies live in this process and read their settings when made
     with dask.config.set(LOCAL_CLUSTER_CONFIG):
         cluster = LocalCluster(

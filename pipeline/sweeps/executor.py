@@ -26,7 +26,7 @@ import dask
 
 from ftsweep import registry
 from ftsweep.defaults import WORKER_WAIT_S
-from ftsweep.engine import allocator, compiling, startup
+from ftsweep.engine import allocator, compiling
 from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.lines import LineCache
 from ftsweep.simulate import run_case
@@ -193,28 +193,18 @@ def run_task(task: TaskSpec, indices: list[int]) -> list[dict]:
     return out
 
 
-def warm_up(
-    surface: str,
-    kind: str,
-    catalog_folder: Optional[str] = None,
-    claims: Optional[str] = None,
-    dask_worker: Any = None,
-) -> float:
+def warm_up(surface: str, kind: str, catalog_folder: Optional[str] = None) -> float:
     """Compile (or load from numba's cache) every kernel once in this process, after tuning its
     allocator (:mod:`ftsweep.engine.allocator`: Dask's nanny starts workers with settings that make
-    every batch page-fault its arrays afresh); returns seconds. On a machine's first run, the
-    workers of a local cluster (``dask_worker``: this one, as ``Client.run`` gives it) that
-    share the ``claims`` folder share the compiling (:func:`ftsweep.engine.compiling.shared`)."""
+    every batch page-fault its arrays afresh); returns seconds. On a machine's first run the
+    time is recorded as its first compile (:func:`ftsweep.engine.compiling.recorded_first_compile`)."""
     t = time.perf_counter()
     allocator.tune()
-    startup.install()  # numba's set-up imports no scipy.linalg (ftsweep.engine.startup)
     folder = Path(catalog_folder) if catalog_folder else None
-    own = registry.kind(kind)
-    case = Case(surface=surface, layout=own.warm_request())
-    if claims is not None and dask_worker is not None:
-        compiling.shared(case, own, folder, claims)
+    case = Case(surface=surface, layout=registry.kind(kind).warm_request())
     try:
-        run_case(case, folder)
+        with compiling.recorded_first_compile():
+            run_case(case, folder)
     except Exception:  # noqa: BLE001
         # a coarse pitch may not fit every surface, and a user's plug-in may raise: the
         # kernels compiled anyway, and each case then records its own failure with its message

@@ -19,7 +19,6 @@ import numpy as np
 
 from ftsweep import registry
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S, usable_cores
-from ftsweep.engine import compiling
 from ftsweep.engine.case import CaseError
 from ftsweep.inputs import catalogs
 from ftsweep.store import caselog, cube
@@ -208,8 +207,7 @@ def prepare_cube(
             _warn_other_revision(out, attrs)
             return int(np.count_nonzero(cube.read_status(out) == cube.DONE)), note
     entries = catalogs.recorded_entries(spec.surface, spec.machine, spec.cutting, catalog_folder)
-    with cube.numpy_only():  # the template's arrays are numpy's
-        cube.create(out, template(spec, name, entries))
+    cube.create(out, template(spec, name, entries))
     return 0, note
 
 
@@ -412,12 +410,9 @@ def _compute(
 
 
 def _warm(spec: SweepSpec, catalog_folder: Optional[Path], where: Where) -> Callable[..., float]:
-    """The warm-up every worker runs once before its first task (:func:`warm_up`); a local
-    cluster's workers, on this machine, share a first run's compiling through a claims folder
-    of this run's own in the temporary directory."""
+    """The warm-up every worker runs once before its first task (:func:`warm_up`)."""
     assert spec.layout is not None
-    claims = compiling.claims_folder() if where.scheduler is None and where.workers > 1 else None
-    return functools.partial(warm_up, spec.surface, spec.layout, _worker_catalogs(catalog_folder), claims)
+    return functools.partial(warm_up, spec.surface, spec.layout, _worker_catalogs(catalog_folder))
 
 
 def _worker_catalogs(catalog_folder: Optional[Path]) -> Optional[str]:

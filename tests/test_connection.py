@@ -32,7 +32,7 @@ class _Recorder:
         self.opened.append(opened)
         return opened
 
-    def close(self, client, cluster):  # type: ignore[no-untyped-def]
+    def close(self, client, cluster, scratch=None):  # type: ignore[no-untyped-def]
         self.closed.append(client)
 
 

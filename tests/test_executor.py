@@ -131,14 +131,16 @@ def test_local_workers_run_without_the_statistical_profiler():
 def test_the_local_dashboard_listens_on_loopback_only():
     from ftsweep.sweeps.connection import _close_quietly, _connect
 
-    client, cluster = _connect(None, 1)
+    conn = _connect(None, 1)
+    client, cluster = conn.client, conn.cluster
     try:
         link = cluster.dashboard_link
         assert link.startswith("http://127.0.0.1:"), link
         hosts = {sock.getsockname()[0] for sock in cluster.scheduler.http_server._sockets.values()}
         assert hosts == {"127.0.0.1"}, hosts
     finally:
-        _close_quietly(client, cluster)
+        _close_quietly(client, cluster, conn.scratch)
+    assert conn.scratch is not None and not os.path.exists(conn.scratch)  # the scratch folder went too
 
 
 class _Future:

@@ -80,14 +80,28 @@ def _dashboard(client: Any, scheduler: Optional[str] = None) -> Optional[str]:
     return str(link) if link else None
 
 
-def _connect(scheduler: Optional[str], workers: int) -> tuple[Any, Any]:
+@dataclass(frozen=True)
+class Connection:
+    """A client; the local cluster it talks to and that cluster's scratch folder (both None
+    for a running scheduler's, which keeps its own)."""
+
+    client: Any
+    cluster: Any = None
+    scratch: Optional[str] = None
+
+
+def _connect(scheduler: Optional[str], workers: int) -> Connection:
     """A client of the scheduler at ``scheduler`` (checked within :data:`CONNECT_TIMEOUT_S`),
-    or of a new LocalCluster of ``workers`` single-threaded processes."""
+    or of a new LocalCluster of ``workers`` single-threaded processes whose scratch space
+    (workers' spill folders, distributed's lock files) is a temporary folder of this run's,
+    removed when it closes (:func:`_close_quietly`)."""
+    import tempfile
+
     from distributed import Client, LocalCluster
 
     if scheduler:
         try:
-            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s"), None
+            return Connection(Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s"))
         except (OSError, TimeoutError, ValueError) as exc:
             raise ExecutorError(
                 f"no dask scheduler answered at {scheduler[:200]} within {CONNECT_TIMEOUT_S} s "
@@ -98,8 +112,11 @@ def _connect(scheduler: Optional[str], workers: int) -> tuple[Any, Any]:
     from ftsweep.engine import allocator
 
     allocator.no_hugepage_advice()
+    scratch = tempfile.mkdtemp(prefix="ftsweep-cluster-")
     # the scheduler and the nannies live in this process and read their settings when made
-    with dask.config.set(LOCAL_CLUSTER_CONFIG):
+    # the scheduler's and the nannies' work spaces too (their lock files) live in the scratch folder
+    config = {**LOCAL_CLUSTER_CONFIG, "temporary-directory": scratch}
+    with dask.config.set(config):
         cluster = LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
@@ -107,9 +124,10 @@ def _connect(scheduler: Optional[str], workers: int) -> tuple[Any, Any]:
             # a free port on this machine only: on ":0" it listened on every interface
             dashboard_address="127.0.0.1:0",
             silence_logs=logging.CRITICAL,  # task errors reach us through the futures
-            config=LOCAL_CLUSTER_CONFIG,
+            config=config,
+            local_directory=scratch,
         )
-    return Client(cluster), cluster
+    return Connection(Client(cluster), cluster, scratch)
 
 
 # the local cluster's Dask settings (an external cluster keeps its own). Every periodic callback
@@ -133,7 +151,7 @@ LOCAL_CLUSTER_CONFIG = {  # dotted keys: the nanny merges a worker's config shal
 }
 
 
-def _close_quietly(client: Any, cluster: Any) -> None:
+def _close_quietly(client: Any, cluster: Any, scratch: Optional[str] = None) -> None:
     # workers still heartbeating while the scheduler stops log tracebacks that mean nothing
     # here: quieten distributed for the shutdown only
     names = ("distributed", "distributed.worker", "distributed.nanny", "distributed.core", "distributed.comm")
@@ -148,16 +166,21 @@ def _close_quietly(client: Any, cluster: Any) -> None:
     finally:
         for lg, level in zip(quiet, levels, strict=True):
             lg.setLevel(level)
+        if scratch is not None:
+            import shutil
+
+            shutil.rmtree(scratch, ignore_errors=True)
 
 
 @dataclass
 class Opened:
-    """A connected cluster: its client, the local cluster (None for an external scheduler's)
-    and what it has."""
+    """A connected cluster: its client, the local cluster (None for an external scheduler's),
+    what it has and the local cluster's scratch folder (:class:`Connection`)."""
 
     client: Any
     cluster: Any
     got: Cluster
+    scratch: Optional[str] = None
 
     def close(self, meanwhile: Optional[Callable[[], None]] = None) -> None:
         """Close the client and the local cluster; with ``meanwhile``, run it in this thread
@@ -165,10 +188,10 @@ class Opened:
         driver's last merge of a sweep runs in that time), and return once both are done, with
         the first error of ``meanwhile`` or else of the close."""
         if meanwhile is None:
-            _close_quietly(self.client, self.cluster)
+            _close_quietly(self.client, self.cluster, self.scratch)
             return
         with ThreadPoolExecutor(1, thread_name_prefix="ftsweep-close") as pool:
-            closing = pool.submit(_close_quietly, self.client, self.cluster)
+            closing = pool.submit(_close_quietly, self.client, self.cluster, self.scratch)
             try:
                 meanwhile()
             finally:
@@ -183,15 +206,15 @@ def open_cluster(
     """Connect (:func:`_connect`), wait for a worker that imports
     ftsweep (``wait_s`` seconds at most) and run ``warm`` once in every worker; a failure
     closes what was opened and raises."""
-    client, cluster = _connect(scheduler, workers)
+    conn = _connect(scheduler, workers)
     try:
-        got = _cluster_of(client, scheduler, wait_s)
+        got = _cluster_of(conn.client, scheduler, wait_s)
         if warm is not None:
-            client.run(warm)
+            conn.client.run(warm)
     except BaseException:
-        _close_quietly(client, cluster)
+        _close_quietly(conn.client, conn.cluster, conn.scratch)
         raise
-    return Opened(client, cluster, got)
+    return Opened(conn.client, conn.cluster, got, conn.scratch)
 
 
 class EarlyCluster:

@@ -237,8 +237,8 @@ def test_wheel_installs_one_package_named_ftsweep(tmp_path):
         str(py),
         "-c",
         # the wheel's xarray.backends entry point: xarray's engine list loads it, and with it the accessor
-        "import ftsweep, xarray as xr; print(ftsweep.__file__); assert 'ftsweep' in xr.backends.list_engines();"
-        " print(type(xr.Dataset().ftsweep).__name__)",
+        "import ftsweep, xarray as xr; print(ftsweep.__file__);"
+        " assert 'ftsweep' in xr.backends.list_engines(); print(type(xr.Dataset().ftsweep).__name__)",
     )
     assert here.returncode == 0, here.stderr
     found, accessor = here.stdout.split()

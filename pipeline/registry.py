@@ -8,12 +8,12 @@ asks it for a case's kind instead of naming one.
 
 from __future__ import annotations
 
-from importlib.metadata import entry_points
 from typing import Any, Optional
 
 from ftsweep.engine.contract import ProgramKind
 from ftsweep.engine.plugins import (
     GROUP,
+    BrokenKindWarning,
     RegistryError,
     added,
     kind,
@@ -28,7 +28,7 @@ from ftsweep.options import flag
 
 __all__ = [
     "GROUP",
-    "OPTIONS_GROUP",
+    "BrokenKindWarning",
     "RegistryError",
     "added",
     "check_options_keys",
@@ -86,25 +86,22 @@ def request_from_options(name: str, options: dict[str, Any]) -> tuple[dict[str, 
     return own.from_options(options)
 
 
-OPTIONS_GROUP = "ftsweep.options"
-
-
 def predict_option_groups() -> dict[str, list[Any]]:
     """Every kind's ``predict`` options (click parameters) by group, titled with the layouts
-    they serve: the installed kinds' decorators, read from the entry points of group
-    ``ftsweep.options`` (named by their layouts, ``ring+mesh``) without loading the kinds, so
-    ``predict --help`` loads no kernel; then the ``click_options`` of the kinds :func:`register`
-    added. Each decorator is applied once, and an option two groups declare is kept in the first."""
-    decorators: dict[str, Any] = {p.name: p.load() for p in entry_points(group=OPTIONS_GROUP)}
-    for own in added().values():
-        if own.click_options is not None and own.click_options not in decorators.values():
-            decorators[own.name] = own.click_options
+    they serve: each kind's :meth:`~ftsweep.engine.contract.ProgramKind.click_options`, which
+    loads no kernel, so ``predict --help`` loads none. Kinds that share a decorator (ring and
+    mesh) share its group, and an option two groups declare is kept in the first."""
+    decorators: dict[Any, list[str]] = {}
+    for own in kinds().values():
+        decorator = own.click_options()
+        if decorator is not None:
+            decorators.setdefault(decorator, []).append(own.name)
     groups: dict[str, list[Any]] = {}
     seen: set[str] = set()
-    for layouts, decorator in decorators.items():
+    for decorator, layouts in decorators.items():
         params = [p for p in _params_of(decorator) if p.name not in seen]
         seen.update(p.name for p in params)
-        groups[f"Options of --layout {layouts.replace('+', ', ')}"] = params
+        groups[f"Options of --layout {', '.join(layouts)}"] = params
     return groups
 
 

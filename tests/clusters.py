@@ -31,10 +31,22 @@ class ExternalCluster:
     def start_scheduler(self) -> str:
         sched_file = self.folder / "scheduler.json"
         self.scheduler = subprocess.Popen(
-            [str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-             "--scheduler-file", str(sched_file)],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=self.env, start_new_session=True,
-        )  # fmt: skip
+            [
+                str(BIN / "dask"),
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--no-dashboard",
+                "--scheduler-file",
+                str(sched_file),
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=self.env,
+            start_new_session=True,
+        )
         deadline = time.time() + 60
         while not sched_file.exists() and time.time() < deadline:
             time.sleep(0.2)
@@ -43,14 +55,26 @@ class ExternalCluster:
         return self.address
 
     def add_worker(self, cwd: Path, preload: Optional[Path] = None) -> subprocess.Popen:
-        cmd = [str(BIN / "dask"), "worker", self.address, "--nthreads", "1", "--no-dashboard",
-               "--host", "127.0.0.1"]  # fmt: skip
+        cmd = [
+            str(BIN / "dask"),
+            "worker",
+            self.address,
+            "--nthreads",
+            "1",
+            "--no-dashboard",
+            "--host",
+            "127.0.0.1",
+        ]
         if preload is not None:
             cmd += ["--preload", str(preload)]
         proc = subprocess.Popen(
-            cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=self.env, cwd=cwd,
+            cmd,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=self.env,
+            cwd=cwd,
             start_new_session=True,
-        )  # fmt: skip
+        )
         self.workers.append(proc)
         return proc
 

@@ -66,8 +66,12 @@ def forge_program(path: Path, edit, lines=None) -> None:  # type: ignore[no-unty
     for key in ("created", "generator"):
         text = text.replace(str(old[key]), str(meta[key]), 1)
     rows = text.split("\n")
-    rows = [f"# sidecar: {side.name} sha256 {sidecar_digest(meta, ('program', 'program_sha256', 'crc32'))}"
-            if r.startswith("# sidecar:") else r for r in rows]  # fmt: skip
+    rows = [
+        f"# sidecar: {side.name} sha256 {sidecar_digest(meta, ('program', 'program_sha256', 'crc32'))}"
+        if r.startswith("# sidecar:")
+        else r
+        for r in rows
+    ]
     rows = rows if lines is None else lines(rows)
     at = next(i for i, r in enumerate(rows) if r.startswith("# CRC32:"))
     rows[at] = CRC_LINE.format(crc_of(rows[:at] + rows[at + 1 : -1]))

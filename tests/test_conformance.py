@@ -14,7 +14,8 @@ class KindTests(testing.KindTests):
     """The suite on the tests' catalog (small surfaces, short machines)."""
 
     @pytest.fixture(scope="class")
-    def catalog_folder(self, module_catalog_dir):  # type: ignore[no-untyped-def,override]
+    @classmethod
+    def catalog_folder(cls, module_catalog_dir):  # type: ignore[no-untyped-def,override]
         return module_catalog_dir
 
 

@@ -535,8 +535,16 @@ def test_a_billion_pass_loop_is_refused_within_the_work_budget():
     # counted work, not time: the reader stops once its lines and expression nodes pass the budget
     from ftsweep.exports import gcode
 
-    lines = ["G90 G21 G18 G94", "#1 = 0", "G93", "WHILE [#1 LT 1000000000] DO1",
-             "G01 C[#1*0.1] X[10.0-#1*0.00001] Z0.0 F0.001", "#1 = #1 + 1", "END1", "M30"]  # fmt: skip
+    lines = [
+        "G90 G21 G18 G94",
+        "#1 = 0",
+        "G93",
+        "WHILE [#1 LT 1000000000] DO1",
+        "G01 C[#1*0.1] X[10.0-#1*0.00001] Z0.0 F0.001",
+        "#1 = #1 + 1",
+        "END1",
+        "M30",
+    ]
     from ftsweep.inputs.controllers import Controller
 
     ctrl = Controller(dialect="iso-sts", interpolation="linear", g93_f="seconds")

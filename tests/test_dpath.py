@@ -316,11 +316,12 @@ def test_export_refuses_a_program_beyond_the_machine(tmp_path):
 
     case = d_case(spacing_um=500.0, points_per_cut=41)
     record = run_case(case)
-    surface, machine, cutting = resolve_specs(case)
+    specs = resolve_specs(case)
+    surface, machine, cutting = specs
     tight = machine.model_copy(update={"axes": machine.axes.model_copy(update={"x_max_mm": 60.0})})
     with pytest.raises(ExportError, match="X .* > limit 60 mm"):
         program.export_dpath(
-            tmp_path / "p.txt", tmp_path / "p.json", case, (surface, tight, cutting), record, {}
+            tmp_path / "p.txt", tmp_path / "p.json", case, specs._replace(machine=tight), record, {}
         )
     assert not (tmp_path / "p.txt").exists()
     # accelerations: the record's figure, on the planned path every controller period
@@ -328,12 +329,14 @@ def test_export_refuses_a_program_beyond_the_machine(tmp_path):
     assert record["x_accel_peak_m_s2"] > 0.5
     with pytest.raises(ExportError, match=r"X acceleration ([0-9.]+) m/s² > limit 0.5 m/s² \(line \d+, t = "):
         program.export_dpath(
-            tmp_path / "p.txt", tmp_path / "p.json", case, (surface, slow, cutting), record, {}
+            tmp_path / "p.txt", tmp_path / "p.json", case, specs._replace(machine=slow), record, {}
         )
     loose = machine.model_copy(
         update={"axes": machine.axes.model_copy(update={"x_accel_m_s2": 1.001 * record["x_accel_peak_m_s2"]})}
     )
-    program.export_dpath(tmp_path / "p.txt", tmp_path / "p.json", case, (surface, loose, cutting), record, {})
+    program.export_dpath(
+        tmp_path / "p.txt", tmp_path / "p.json", case, specs._replace(machine=loose), record, {}
+    )
 
 
 def test_verify_refuses_lines_beyond_the_machine_from_the_record_of_their_own_motion(tmp_path, monkeypatch):

@@ -279,8 +279,12 @@ def test_two_exports_to_one_name_leave_one_case_whole(ring_cube, tmp_path, catal
     header = tmp_path / "race.h"
     cmd = [str(BIN / "ftsweep"), "export", str(ring_cube), "-o", str(header), "--force"]
     env = {**os.environ, "FTSWEEP_CATALOGS": str(catalog_dir)}
-    procs = [subprocess.Popen([*cmd, "--case", str(i)], env=env, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True) for i in (0, 1)]  # fmt: skip
+    procs = [
+        subprocess.Popen(
+            [*cmd, "--case", str(i)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        for i in (0, 1)
+    ]
     results = [(p.wait(timeout=300), p.stderr.read()) for p in procs]  # type: ignore[union-attr]
     assert any(rc == 0 for rc, _ in results), results
     for rc, err in results:

@@ -307,10 +307,20 @@ def test_cli_fresnel_json_and_verify(coarse, tmp_path, monkeypatch):
     res = runner.invoke(
         main,
         [
-            "fresnel", "--cutting", "coarse-fresnel", "--points-per-turn", str(K_TEST),
-            "--facet-height-um", "10", "--json", "--plots", str(tmp_path), "-o", str(out),
+            "fresnel",
+            "--cutting",
+            "coarse-fresnel",
+            "--points-per-turn",
+            str(K_TEST),
+            "--facet-height-um",
+            "10",
+            "--json",
+            "--plots",
+            str(tmp_path),
+            "-o",
+            str(out),
         ],
-    )  # fmt: skip
+    )
     assert res.exit_code == 0, res.output
     doc = json.loads(res.stdout)
     assert doc["time_constant_s"] > doc["time_adaptive_s"] > 0

@@ -93,9 +93,21 @@ def test_predict_layout_fresnel_json():
 
 def test_fresnel_options_belong_to_fresnel_programs():
     res = CliRunner().invoke(
-        main, ["predict", "--surface", "sinewave2d", "--layout", "ring", "--points", "1e4", "--aspect", "4",
-               "--facet-height-um", "10"],
-    )  # fmt: skip
+        main,
+        [
+            "predict",
+            "--surface",
+            "sinewave2d",
+            "--layout",
+            "ring",
+            "--points",
+            "1e4",
+            "--aspect",
+            "4",
+            "--facet-height-um",
+            "10",
+        ],
+    )
     assert res.exit_code != 0 and "--facet-height-um belongs to Fresnel programs" in res.output
     with pytest.raises(ValueError, match="facet_height_um belongs to Fresnel programs"):
         Case(surface="sinewave2d", layout={"kind": "spiral", "points_per_rev": 60, "facet_height_um": 5.0})

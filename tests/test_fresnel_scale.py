@@ -214,10 +214,20 @@ def test_predict_takes_the_kinds_machine_and_cutting():
     res = CliRunner().invoke(
         main,
         [
-            "predict", "--layout", "fresnel", "--surface", "chebyshev_example",
-            "--facet-height-um", "10", "--points-per-turn", "60", "--feed-um", "6", "--json",
+            "predict",
+            "--layout",
+            "fresnel",
+            "--surface",
+            "chebyshev_example",
+            "--facet-height-um",
+            "10",
+            "--points-per-turn",
+            "60",
+            "--feed-um",
+            "6",
+            "--json",
         ],
-    )  # fmt: skip
+    )
     assert res.exit_code == 0, res.output
     record = json.loads(res.stdout)
     assert record["machine"] == "xyzc-nanoform" and math.isfinite(record["pv_nm"])

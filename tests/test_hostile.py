@@ -335,8 +335,16 @@ def test_a_file_past_its_cap_is_refused_having_read_its_first_line_at_most(
     assert read["bytes"] <= 200  # the head that names the format, never the body
 
 
-LOOP = ["G90 G21 G18 G94", "#1 = 0", "G93", "WHILE [#1 LT {n}] DO1",
-        "G01 C[#1*0.1] X[10.0-#1*0.00001] Z0.0 F0.001", "#1 = #1 + 1", "END1", "M30"]  # fmt: skip
+LOOP = [
+    "G90 G21 G18 G94",
+    "#1 = 0",
+    "G93",
+    "WHILE [#1 LT {n}] DO1",
+    "G01 C[#1*0.1] X[10.0-#1*0.00001] Z0.0 F0.001",
+    "#1 = #1 + 1",
+    "END1",
+    "M30",
+]
 
 
 # the units one pass of LOOP's body costs: its three lines, the G01's two expressions (5 and 4

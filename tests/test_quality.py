@@ -1,9 +1,11 @@
 """Code quality gates that CI runs with the tests, the same for pipeline/ and stages/: ruff
-(lint, import order, complexity ≤ 10), mypy with every function typed, the size of modules
-and functions, and an import graph without a circle."""
+(lint, import order, cyclomatic complexity ≤ 10), mypy over the package as installed (every
+function typed, the kind contract strict), the size of modules, and an import graph without
+a circle."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -28,38 +30,52 @@ def test_ruff_lint_and_complexity():
     assert out.returncode == 0, out.stdout + out.stderr
 
 
+def _installed_layout(root: Path) -> Path:
+    """A folder ``ftsweep`` under ``root`` laid out as the package installs (pipeline/'s entries,
+    stages/ as ftsweep/stages), by links, so that mypy follows every ``ftsweep.`` import."""
+    package = root / "ftsweep"
+    package.mkdir()
+    for entry in (REPO / "pipeline").iterdir():
+        if entry.name != "__pycache__":
+            (package / entry.name).symlink_to(entry)
+    (package / "stages").symlink_to(REPO / "stages")
+    return root
+
+
 @pytest.mark.integration  # mypy over the package
-def test_mypy_every_function_typed():
+def test_mypy_every_function_typed_and_the_kind_contract_strict(tmp_path):
+    """mypy over the package as installed (pyproject's settings: every function typed; the
+    contract, the registry and the kinds with --strict's flags)."""
+    env = dict(os.environ, MYPYPATH=str(_installed_layout(tmp_path)))
     out = subprocess.run(
-        [_tool("mypy"), "--disallow-untyped-defs", "--no-error-summary", "pipeline", "stages"],
+        [_tool("mypy"), "--no-error-summary", "--cache-dir", str(tmp_path / "cache"), "-p", "ftsweep"],
         cwd=REPO,
         capture_output=True,
         text=True,
         timeout=600,
+        env=env,
     )
     assert out.returncode == 0, out.stdout + out.stderr
 
 
 MAX_MODULE_LINES = 600
-MAX_FUNCTION_LINES = 60
+MAX_COMPLEXITY = 10
 
 
-def test_modules_and_functions_stay_small():
-    """Modules by responsibility: no module of pipeline/ or stages/ over 600 lines, no
-    function over 60 (its ``def`` line to its last, docstring included)."""
-    import ast
+def test_modules_stay_small_and_functions_simple():
+    """Modules by responsibility: none of pipeline/ or stages/ over 600 lines. Functions by
+    their branches, not their lines (docs/architecture.md, "Sizes"): ruff's McCabe check
+    (C901) is on at a cyclomatic complexity of 10, which test_ruff_clean then enforces."""
+    import tomllib
 
     too_long = []
     for path in sorted([*(REPO / "pipeline").rglob("*.py"), *(REPO / "stages").rglob("*.py")]):
-        text = path.read_text(encoding="utf-8")
-        if len(text.splitlines()) > MAX_MODULE_LINES:
-            too_long.append(f"{path.name}: {len(text.splitlines())} lines")
-        for node in ast.walk(ast.parse(text)):
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                length = (node.end_lineno or node.lineno) - node.lineno + 1
-                if length > MAX_FUNCTION_LINES:
-                    too_long.append(f"{path.name}:{node.lineno} {node.name}: {length} lines")
+        lines = len(path.read_text(encoding="utf-8").splitlines())
+        if lines > MAX_MODULE_LINES:
+            too_long.append(f"{path.relative_to(REPO)}: {lines} lines")
     assert not too_long, too_long
+    lint = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["ruff"]["lint"]
+    assert "C90" in lint["select"] and lint["mccabe"]["max-complexity"] == MAX_COMPLEXITY
 
 
 def _module_names() -> dict[str, Path]:
@@ -73,14 +89,25 @@ def _module_names() -> dict[str, Path]:
     return names
 
 
-def _imports(name: str, path: Path, known: dict[str, Path]) -> set[str]:
+def _imports(name: str, path: Path, known: dict[str, Path], runtime_only: bool = False) -> set[str]:
     """The package's modules ``name`` imports anywhere in its text (inside functions too,
-    where a lazy import would hide a circle from a run-time check)."""
+    where a lazy import would hide a circle from a run-time check); with ``runtime_only``,
+    not those under ``if TYPE_CHECKING:``."""
     import ast
 
     package = name.split(".") if path.stem == "__init__" else name.split(".")[:-1]
     found = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    typing_only = {
+        id(n)
+        for block in ast.walk(tree)
+        if isinstance(block, ast.If) and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
+        for stmt in block.body
+        for n in ast.walk(stmt)
+    }
+    for node in ast.walk(tree):
+        if runtime_only and id(node) in typing_only:
+            continue
         if isinstance(node, ast.Import):
             targets = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -126,9 +153,11 @@ def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_no_circle_of_imports():
     """The import graph of ftsweep's modules has no circle, counting the imports inside
-    functions; the registry reaches the kinds through entry points, which are not imports."""
+    functions; the registry reaches the kinds through entry points, which are not imports.
+    Imports for annotations only (under ``TYPE_CHECKING``: the contract naming the case types
+    the engine builds) run never, so they close no circle; the layer test counts them."""
     known = _module_names()
-    graph = {name: _imports(name, path, known) for name, path in known.items()}
+    graph = {name: _imports(name, path, known, runtime_only=True) for name, path in known.items()}
     assert len(graph) > 50 and sum(map(len, graph.values())) > 200  # the walk did find the imports
     assert not _circles(graph)
 

@@ -50,8 +50,10 @@ def test_a_nose_radius_under_a_nanometre_in_the_catalog_is_named(tmp_path, catal
         cutting.read_text()
         + "\natomic:\n  feed_um: 1.0e-301\n  nose_radius_um: 1.0e-300\n  spindle_rpm: 50.0\n"
     )
-    res = _cli(["predict", "--surface", "sinewave2d", "--drho-um", "5", "--dtheta-deg", "1", "--cutting",
-                "atomic"], catalog_dir)  # fmt: skip
+    res = _cli(
+        ["predict", "--surface", "sinewave2d", "--drho-um", "5", "--dtheta-deg", "1", "--cutting", "atomic"],
+        catalog_dir,
+    )
     assert res.exit_code != 0 and "range of nose_radius_um (0.001 to 1e+07)" in res.output, res.output
 
 

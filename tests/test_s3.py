@@ -412,7 +412,12 @@ def test_an_s3_cube_survives_a_paused_writer_at_each_write_point(s3, tmp_path, c
     from faults import SPEC, check_every_point
 
     checked = check_every_point(
-        SPEC, lambda at: f"{s3}/p{at}.zarr", tmp_path, catalog_dir, monkeypatch, "pause",
+        SPEC,
+        lambda at: f"{s3}/p{at}.zarr",
+        tmp_path,
+        catalog_dir,
+        monkeypatch,
+        "pause",
         puts_of=("pv_nm", "status"),
-    )  # fmt: skip
+    )
     assert checked == 2 * 2  # two merges, two blocks

@@ -250,8 +250,18 @@ def test_if_goto_loops_read_as_while_loops():
 
 
 def test_incremental_blocks_and_macro_functions():
-    lines = ["G90 G18", "#100 = 1", "#101 = SQRT[4.0] * #100", "G01 X[#101] C0. Z0.", "G93 F0.001", "G91",
-             "C1. X-0.0001 Z0.", "C1. X-0.0001 Z0.", "G90", "M30"]  # fmt: skip
+    lines = [
+        "G90 G18",
+        "#100 = 1",
+        "#101 = SQRT[4.0] * #100",
+        "G01 X[#101] C0. Z0.",
+        "G93 F0.001",
+        "G91",
+        "C1. X-0.0001 Z0.",
+        "C1. X-0.0001 Z0.",
+        "G90",
+        "M30",
+    ]
     moves = dialects.read(lines, "iso-sts", nc.profile_for("sts-moore", "iso-sts"))
     np.testing.assert_allclose(moves.x_mm, [2.0, 1.9999, 1.9998])
     np.testing.assert_allclose(moves.c_deg, [0.0, 1.0, 2.0])
@@ -275,8 +285,15 @@ def test_a_varying_feed_is_predicted_pass_by_pass(tmp_path, flat_catalogs):
         feed_um = 4.0 + 12.0 * x / RADIUS_MM  # 16 µm/rev at the edge, 4 at the centre
         x -= STEP_DEG / 360.0 * feed_um * 1e-3
         out.append(f"C{(k * STEP_DEG) % 360.0:.6f} X{x:.6f} Z0.000000")
-    code, got = _with_catalogs(flat_catalogs, tmp_path, moore_650fg(out, passes=1), "--surface", "flat",
-                               "--nose-radius-um", str(NOSE_UM))  # fmt: skip
+    code, got = _with_catalogs(
+        flat_catalogs,
+        tmp_path,
+        moore_650fg(out, passes=1),
+        "--surface",
+        "flat",
+        "--nose-radius-um",
+        str(NOSE_UM),
+    )
     assert code == 0, got
     info = json.loads(got)
     outer_mm = info["judged_radii_mm"][1]

@@ -305,10 +305,16 @@ def test_spiral_sweep_is_scheduler_independent_and_selectable(tmp_path, catalog_
     assert common > 0 and all(r["n_theta"] == common for r in rows)
     recorded = CliRunner().invoke(
         main,
-        ["compare", str(tmp_path / "r.zarr"), str(tmp_path / "a.zarr"), "--json", "--allow-different",
-         "--as-recorded"],
+        [
+            "compare",
+            str(tmp_path / "r.zarr"),
+            str(tmp_path / "a.zarr"),
+            "--json",
+            "--allow-different",
+            "--as-recorded",
+        ],
         env={"FTSWEEP_CATALOGS": str(catalog_dir)},
-    )  # fmt: skip
+    )
     as_recorded = json.loads(recorded.stdout)["rows"]
     assert len({r["n_theta"] for r in as_recorded}) > 1  # each kind on its own sampling
     for r, again in zip(as_recorded, rows, strict=True):

@@ -137,7 +137,7 @@ def test_predict_help_groups_each_kinds_options_under_its_layouts():
     sections = {
         s.split(":")[0].strip(): s for s in ("Options of --layout" + by_kind).split("Options of --layout")[1:]
     }
-    assert "--drho-um" in sections["ring, mesh"] and "--dx-um" in sections["ring, mesh"]
+    assert "--drho-um" in sections["mesh, ring"] and "--dx-um" in sections["mesh, ring"]
     assert "--chord-um" in sections["spiral"] and "--spacing-um" in sections["dpath"]
     assert "--facet-height-um" in sections["fresnel"]
 

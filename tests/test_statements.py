@@ -163,8 +163,10 @@ def test_a_key_others_can_read_and_a_config_others_can_change_are_warned_about(
     config.write_text(f'trusted_keys = ["{keys[1]}"]\n')
     config.chmod(0o666)
     out = tmp_path / "w.h"
-    res = cli(["export", str(cubes["ring"]), "--case", "0", "-o", str(out), "--sign-key", str(key)],
-              module_catalog_dir)  # fmt: skip
+    res = cli(
+        ["export", str(cubes["ring"]), "--case", "0", "-o", str(out), "--sign-key", str(key)],
+        module_catalog_dir,
+    )
     assert res.exit_code == 0, res.output
     assert f"warning: private key {key} is -rw-r--r--: others can read it; chmod 600" in res.stderr
     res = cli(["verify", str(out)], module_catalog_dir, FTSWEEP_CONFIG=str(config))  # its trusted keys

@@ -147,10 +147,21 @@ def _bomb(values: dict) -> bytes:  # type: ignore[type-arg]
         (lambda v: None, "unpacks to .* bytes, more than a log of this cube can hold"),  # bomb
     ],
     ids=[
-        "nan-pv", "pv-0.5", "inf-rms", "status", "feasible", "index-negative", "index-huge", "truncated",
-        "nan-count", "half-count", "nan-extremes", "negative-count", "bomb",
+        "nan-pv",
+        "pv-0.5",
+        "inf-rms",
+        "status",
+        "feasible",
+        "index-negative",
+        "index-huge",
+        "truncated",
+        "nan-count",
+        "half-count",
+        "nan-extremes",
+        "negative-count",
+        "bomb",
     ],
-)  # fmt: skip
+)
 def test_a_bad_worker_log_is_moved_aside_and_its_case_computed_again(
     tmp_path, catalog_dir, forge, reason, request
 ):

@@ -76,8 +76,14 @@ def test_shape_is_kept():
 def test_sinewave_kernel_beyond_the_reach_and_nan():
     # phases k·x beyond the reach and NaN coordinates go through the C library's pass: the
     # same values as the formula evaluated by numpy, NaN where a coordinate is NaN
-    params = dict(amplitude_x_um=0.5, amplitude_y_um=0.3, wavelength_x_um=1e-3, wavelength_y_um=100.0,
-                  phase_x_deg=10.0, phase_y_deg=20.0)  # fmt: skip
+    params = dict(
+        amplitude_x_um=0.5,
+        amplitude_y_um=0.3,
+        wavelength_x_um=1e-3,
+        wavelength_y_um=100.0,
+        phase_x_deg=10.0,
+        phase_y_deg=20.0,
+    )
     x = np.array([1.0, 1e3, 2e5, np.nan, 3.0])  # kx·x = 2π·1e3·x: beyond 1e6 rad from x ≈ 160
     y = np.array([2.0, 5.0, 7.0, 1.0, np.nan])
     f, fx, fy = sinewave2d(x, y, **params)

@@ -144,7 +144,7 @@ EDITS = {
                 + "".join(f"#define FTS_B{k} FTS_B{k - 1}+FTS_B{k - 1}\n" for k in range(1, 31))
                 + UNIT,
             )
-        ],  # fmt: skip
+        ],
         "FTS_B1's replacement names the macro FTS_B0 .*nothing expanded",
     ),
 }
@@ -423,8 +423,10 @@ def test_a_fresh_export_is_consistent_with_this_catalog(originals, module_catalo
 
 # ------------------------------------------------------------------ causes a user made
 def test_tiny_pitches_are_one_line_naming_the_point_count(module_catalog_dir):
-    res = cli(["predict", "--surface", "sinewave2d", "--drho-um", "1e-300", "--dtheta-deg", "1e-300"],
-              module_catalog_dir)  # fmt: skip
+    res = cli(
+        ["predict", "--surface", "sinewave2d", "--drho-um", "1e-300", "--dtheta-deg", "1e-300"],
+        module_catalog_dir,
+    )
     assert res.exit_code == 1 and "about 1e605 points, over the capacity" in res.output, res.output
     assert "unexpected" not in res.output
 
@@ -445,8 +447,11 @@ def test_object_storage_without_credentials_is_one_line_naming_them(tmp_path, mo
     exe = str(Path(sys.executable).parent / "ftsweep")
     done = subprocess.run(
         [exe, "sweep", str(spec), "--out", "s3://bucket/c.zarr", "--scheduler", "synchronous"],
-        capture_output=True, text=True, env=env, timeout=300,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert done.returncode == 1, done.stderr
     last = done.stderr.strip().splitlines()[-1]
     assert "NoCredentialsError" in last and "AWS_ACCESS_KEY_ID" in last and "unexpected" not in last
@@ -523,8 +528,20 @@ def test_an_export_chosen_by_tolerance_verifies(originals, tmp_path, module_cata
 def test_a_study_program_name_that_would_become_syntax_is_refused(tmp_path, module_catalog_dir):
     # `fresnel -o` names the sidecar inside the program: the name is held to the text rule
     out = tmp_path / "f(1).txt"
-    res = cli(["fresnel", "--points-per-turn", "40", "--facet-height-um", "10", "--plots", str(tmp_path),
-               "-o", str(out)], module_catalog_dir)  # fmt: skip
+    res = cli(
+        [
+            "fresnel",
+            "--points-per-turn",
+            "40",
+            "--facet-height-um",
+            "10",
+            "--plots",
+            str(tmp_path),
+            "-o",
+            str(out),
+        ],
+        module_catalog_dir,
+    )
     assert res.exit_code == 1 and "holds '('" in res.output, res.output
     assert not out.exists() and not out.with_name(out.name + ".json").exists()
 

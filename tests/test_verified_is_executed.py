@@ -84,10 +84,21 @@ def exports(cubes, tmp_path_factory, catalogs_with_fresnel):
         out[kind] = path
     path = folder / "fresnel.txt"
     res = invoke(
-        ["fresnel", "--cutting", "coarse-fresnel", "--points-per-turn", "120", "--facet-height-um", "10",
-         "--plots", str(folder), "-o", str(path)],
+        [
+            "fresnel",
+            "--cutting",
+            "coarse-fresnel",
+            "--points-per-turn",
+            "120",
+            "--facet-height-um",
+            "10",
+            "--plots",
+            str(folder),
+            "-o",
+            str(path),
+        ],
         catalogs_with_fresnel,
-    )  # fmt: skip
+    )
     assert res.exit_code == 0, res.output
     out["fresnel"] = path
     return out

@@ -10,7 +10,7 @@ from __future__ import annotations
 import functools
 import math
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import click
 import numpy as np
@@ -18,7 +18,7 @@ from pydantic import PositiveFloat
 
 from ftsweep.engine import result
 from ftsweep.engine.case import Case, Request
-from ftsweep.engine.contract import Axis, Planning, ProgramKind
+from ftsweep.engine.contract import Axis, FileFormat, Planning, ProgramKind
 from ftsweep.engine.cost import angular_samples
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.planning import control_table
@@ -63,11 +63,11 @@ def _cost(case: Case, surface: Any, folder: Any, feed: float) -> tuple[float, An
 
 
 def _document(
-    case: Case, specs: tuple[Any, Any, Any], chosen: dict[str, Any], extra: dict[str, Any], created: str
+    case: Case, specs: Any, chosen: dict[str, Any], extra: dict[str, Any], created: str
 ) -> tuple[list[str], files.DataLines, dict[str, Any]]:
     rcase = resolve_case(case, specs=specs)
     layout = rcase.layout
-    table, _ = control_table(case, layout, specs[0], rcase.nose_radius_um)
+    table, _ = control_table(case, layout, specs.surface, rcase.nose_radius_um)
     x = layout.origin[0] + layout.pitch[0] * np.arange(layout.shape[0])
     y = layout.origin[1] + layout.pitch[1] * np.arange(layout.shape[1])
     gx, gy = np.meshgrid(x, y, indexing="ij")
@@ -113,8 +113,8 @@ def _verify(path: Path, progress: Any, pv_tolerance_nm: Any, trust_plugins: bool
 
 
 @functools.cache
-def _format() -> files.FileFormat:
-    return files.FileFormat(
+def _format() -> FileFormat:
+    return FileFormat(
         "square-mesh program",
         MAGIC,
         _export,
@@ -135,35 +135,84 @@ def _from_options(options: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
     return {"kind": NAME, "pitch_um": pitch}, []
 
 
-SQUARE = ProgramKind(
-    name=NAME,
-    noun="square mesh",
-    request=SquareRequest,
-    axes=(Axis("pitch_um", "um", "pitch of the square mesh"),),
-    fields=(
-        *result.TABLE,
-        result.number("pitch_actual_um", "um", "realised pitch of the square mesh"),
-        result.aspect_actual("1"),
-        *result.SPINDLE,
-    ),
-    pitches=("pitch_actual_um", "pitch_actual_um"),
-    file_format=_format,
-    request_at=lambda spec, value: SquareRequest(kind=NAME, pitch_um=value["pitch_um"]),
-    feed=lambda case, cutting, rc, surface, folder, program: case.feed_of(cutting),
-    plan=_plan,
-    record_fields=lambda rcase: {
-        "table_rows": rcase.layout.shape[0],
-        "table_cols": rcase.layout.shape[1],
-        "pitch_actual_um": rcase.layout.pitch[0],
-    },
-    cost=_cost,
-    simulation=LineSimulation,
-    pitch_text=lambda r: f"Δx = Δy = {r['pitch_actual_um']:.4g} µm",
-    point_text=lambda layout, flat: f"point {flat}",
-    angular_cells=_cells,
-    warm_request=lambda: SquareRequest(kind=NAME, pitch_um=50.0),
-    sweeps="square-mesh sweeps",
-    options=("square_pitch_um",),
-    click_options=square_options,
-    from_options=_from_options,
-)
+class SquareKind(ProgramKind):
+    """A square mesh swept over its one pitch."""
+
+    name: ClassVar[str] = NAME
+    noun: ClassVar[str] = "square mesh"
+    sweeps: ClassVar[str] = "square-mesh sweeps"
+    axes: ClassVar[tuple[Axis, ...]] = (Axis("pitch_um", "um", "pitch of the square mesh"),)
+    pitches: ClassVar[tuple[str, str]] = ("pitch_actual_um", "pitch_actual_um")
+    options: ClassVar[tuple[str, ...]] = ("square_pitch_um",)
+    machine: ClassVar[str] = "fts-1m"
+    cutting: ClassVar[str] = "reference"
+    aspect_units: ClassVar[str] = "1"
+    samples_spindle_angles: ClassVar[bool] = True
+
+    @property
+    def request(self) -> type[Request]:
+        return SquareRequest
+
+    @property
+    def fields(self) -> tuple[Any, ...]:
+        return (
+            *result.TABLE,
+            result.number("pitch_actual_um", "um", "realised pitch of the square mesh"),
+            result.aspect_actual("1"),
+            *result.SPINDLE,
+        )
+
+    def file_format(self) -> FileFormat:
+        return _format()
+
+    def request_at(self, spec: Any, point: Any) -> Request:
+        return SquareRequest(kind=NAME, pitch_um=point["pitch_um"])
+
+    def feed(
+        self,
+        case: Case,
+        cutting: Any,
+        nose_radius_um: float,
+        surface_spec: Any,
+        catalog_folder: Any,
+        program: Any,
+    ) -> float:
+        return case.feed_of(cutting)
+
+    def plan(self, planning: Planning) -> tuple[Any, dict[str, Any]]:
+        return _plan(planning)
+
+    def record_fields(self, rcase: Any) -> dict[str, Any]:
+        layout = rcase.layout
+        return {
+            "table_rows": layout.shape[0],
+            "table_cols": layout.shape[1],
+            "pitch_actual_um": layout.pitch[0],
+        }
+
+    def cost(self, case: Case, surface_spec: Any, catalog_folder: Any, feed_um: float) -> tuple[float, Any]:
+        return _cost(case, surface_spec, catalog_folder, feed_um)
+
+    def simulation(self, inputs: Any, timer: Any) -> Any:
+        return LineSimulation(inputs, timer)
+
+    def pitch_text(self, record: Any) -> str:
+        return f"Δx = Δy = {record['pitch_actual_um']:.4g} µm"
+
+    def point_text(self, program: Any, flat: int) -> str:
+        return f"point {flat}"
+
+    def angular_cells(self, program: Any, rho0_um: float) -> float:
+        return _cells(program, rho0_um)
+
+    def warm_request(self) -> Request:
+        return SquareRequest(kind=NAME, pitch_um=50.0)
+
+    def click_options(self) -> Any:
+        return square_options
+
+    def from_options(self, options: Any) -> tuple[dict[str, Any], list[str]]:
+        return _from_options(options)
+
+
+SQUARE = SquareKind()

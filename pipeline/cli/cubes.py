@@ -184,9 +184,20 @@ def export(
     try:
         if index is None:  # a case given by its index is the same case whatever else is computed
             guard_complete(current_status(cube), allow_incomplete)
-        chosen = {"budget_points": budget_points, "tolerance_nm": tolerance_nm, "index": index}
-        meta = exp.export(cube, target, **chosen, force=force, name=name, trust_plugins=trust_plugins,
-                          sign_key=sign_key, dialect=dialect, expires=expires, machine=machine)  # fmt: skip
+        meta = exp.export(
+            cube,
+            target,
+            budget_points=budget_points,
+            tolerance_nm=tolerance_nm,
+            index=index,
+            force=force,
+            name=name,
+            trust_plugins=trust_plugins,
+            sign_key=sign_key,
+            dialect=dialect,
+            expires=expires,
+            machine=machine,
+        )
     except (exp.ExportError, SelectError, CubeError) as exc:
         raise click.ClickException(str(exc)) from None
     click.echo(_selection_text(meta["selection"]))

@@ -1,6 +1,6 @@
 """The ``ftsweep`` command line: the group, its error handling and the ``catalogs`` command;
 the other commands live in ``ftsweep.cli``'s modules by family, and the kinds' own commands
-in their subpackages, found through the entry points of group ``ftsweep.commands``."""
+in their subpackages, each given by its kind (:meth:`ftsweep.engine.contract.ProgramKind.commands`)."""
 
 from __future__ import annotations
 
@@ -48,23 +48,33 @@ WORKFLOW = (
     "estimate",
     "optimize",
 )
-GROUP = "ftsweep.commands"
 
 
-def commands() -> dict[str, tuple[str, str]]:
-    """Every command but ``catalogs``: :data:`COMMANDS`, then the kinds' own (``dpath``,
-    ``fresnel``, a plug-in's), read from the entry points of group ``ftsweep.commands``
-    without loading them."""
-    from importlib.metadata import entry_points
+def kind_commands() -> dict[str, click.Command]:
+    """The commands the kinds add (``dpath``, ``fresnel``, a plug-in's), by name: each kind's
+    :meth:`~ftsweep.engine.contract.ProgramKind.commands`, which loads no kernel; a name of
+    :data:`COMMANDS` is never taken."""
+    from ftsweep import registry
 
-    added = {p.name: (p.module, p.attr) for p in entry_points(group=GROUP) if p.name not in COMMANDS}
-    return {**COMMANDS, **added}
+    found: dict[str, click.Command] = {}
+    for kind in registry.kinds().values():
+        for command in kind.commands():
+            if command.name and command.name not in COMMANDS:
+                found.setdefault(command.name, command)
+    return found
+
+
+def commands() -> list[str]:
+    """The name of every command but ``catalogs``: :data:`COMMANDS`, then the kinds' own."""
+    return [*COMMANDS, *(n for n in kind_commands() if n not in COMMANDS)]
 
 
 def short_help(name: str, limit: int = 45) -> str:
-    """The one-line summary of command ``name`` as click makes it from the command's docstring,
-    read from its module's source without importing the module."""
-    module, function = commands()[name]
+    """The one-line summary of command ``name`` as click makes it from the command's docstring;
+    for one of :data:`COMMANDS`, read from its module's source without importing the module."""
+    if name not in COMMANDS:
+        return kind_commands()[name].get_short_help_str(limit)
+    module, function = COMMANDS[name]
     spec = importlib.util.find_spec(module)
     assert spec is not None and spec.origin is not None
     with open(spec.origin, encoding="utf-8") as f:
@@ -103,10 +113,12 @@ class _Group(click.Group):
             raise
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> Optional[click.Command]:
-        known = commands()
-        if cmd_name in known and cmd_name not in self.commands:
-            module, function = known[cmd_name]
-            self.add_command(getattr(importlib.import_module(module), function), cmd_name)
+        if cmd_name not in self.commands:
+            if cmd_name in COMMANDS:
+                module, function = COMMANDS[cmd_name]
+                self.add_command(getattr(importlib.import_module(module), function), cmd_name)
+            elif cmd_name in (added := kind_commands()):
+                self.add_command(added[cmd_name], cmd_name)
         return super().get_command(ctx, cmd_name)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:

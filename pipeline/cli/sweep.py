@@ -3,10 +3,12 @@ and an end-of-run summary."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
 import time
+from collections.abc import Iterator
 from typing import Any, Optional
 
 import click
@@ -130,19 +132,24 @@ def sweep(
     """
     started = time.perf_counter()
     where = _prepare(sweep_name, out, storage_options, scheduler)
-    report = _run(
-        SweepProgress(started),
-        sweep_name,
-        where,
-        scheduler,
-        workers,
-        restart,
-        retry_failed,
-        max_cases=max_cases,
-        prune=prune,
-        line_cache_mb=line_cache_mb,
-        worker_wait_s=worker_wait,
-    )
+    from ftsweep.sweeps.run import run_sweep
+
+    progress = SweepProgress(started)
+    with _run_errors(progress):
+        report = run_sweep(
+            sweep_name,
+            where,
+            scheduler,
+            workers,
+            restart,
+            retry_failed,
+            progress=progress,
+            announce=_announce_cluster,
+            max_cases=max_cases,
+            prune=prune,
+            line_cache_mb=line_cache_mb,
+            worker_wait_s=worker_wait,
+        )
     _report_problems(report)
     counts = _print_sweep_summary(report, time.perf_counter() - started)
     if counts["pending"] or counts["failed"] or counts["refused"]:
@@ -182,15 +189,15 @@ def _check_destination(where: Any, scheduler: Optional[str]) -> None:
         raise click.BadParameter(str(exc), param_hint="--out") from None
 
 
-def _run(progress: SweepProgress, *args: Any, **kwargs: Any) -> Any:
-    """:func:`ftsweep.sweeps.run.run_sweep` with progress, its errors as one-line messages, and
-    a word on stderr when a signal ends it (its lock is released on the way out)."""
+@contextlib.contextmanager
+def _run_errors(progress: SweepProgress) -> Iterator[None]:
+    """Around :func:`ftsweep.sweeps.run.run_sweep`: its errors as one-line messages, a word on
+    stderr when a signal ends it (its lock is released on the way out), the progress closed."""
     from ftsweep.store.lock import LockError
     from ftsweep.sweeps.executor import ExecutorError
-    from ftsweep.sweeps.run import run_sweep
 
     try:
-        return run_sweep(*args, progress=progress, announce=_announce_cluster, **kwargs)
+        yield
     except LockError as exc:  # another run writes the cube: a scheduler should try again later
         click.echo(f"Error: {exc}", err=True)
         sys.exit(EXIT_LOCKED)

@@ -196,14 +196,14 @@ def estimate(sweep_name: str, cube_path: Optional[Path], as_json: bool) -> None:
         name, spec = load_sweep(sweep_name)
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
-    estimate = registry.kind(spec.layout).estimate
-    if estimate is None:
+    own = registry.kind(spec.layout)
+    if not own.estimates:
         raise click.ClickException(
             f"ftsweep estimate needs a first-order estimate of the P-V (tables have one); a {spec.layout} "
             "sweep has none: run it (ftsweep sweep) or predict a case"
         )
     started = time.perf_counter()
-    ds = estimate(spec, coordinates(spec), None)
+    ds = own.estimate(spec, coordinates(spec), None)
     seconds = time.perf_counter() - started
     pv = ds["pv_estimate_nm"]
     while pv.ndim > 2:  # optional feed/nose-radius axes: their first values

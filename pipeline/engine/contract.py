@@ -1,18 +1,42 @@
 """The program-kind contract (docs/architecture.md, "The program-kind contract").
 
-A program kind is one :class:`ProgramKind` value, in the spirit of flox's ``Aggregation``
-table and xarray's backend entrypoints: it names its sweep axes and says how a sweep point
-becomes its request, how its feed is set, how it is planned into a program, which record
-fields it adds, what a case of it costs, how the one simulator samples its program, and
-which file format exports it. The engine is handed a kind's value and never looks one up by
-name; :mod:`ftsweep.registry` finds the installed kinds through entry points.
+A program kind is a subclass of :class:`ProgramKind`, in the shape of xarray's
+``BackendEntrypoint``: class attributes that name it, its sweep axes and its defaults,
+capability flags that say what it offers beyond the required methods, and typed methods that
+say how a sweep point becomes its request, how its feed is set, how it is planned into a
+program, which record fields it adds, what a case of it costs, how the one simulator samples
+its program and which file format exports it. An installed kind is one entry point of group
+``ftsweep.kinds`` naming its class; the registry (:mod:`ftsweep.engine.plugins`) makes one
+instance of it, and its command-line options and commands are reached through that instance,
+so the class lives in a module that loads no kernel (the kind's package face): its methods
+import the planner, kernels and request model when first called. The engine is handed a
+kind and never looks one up by name.
+
+A kind's program (a table, a spiral path, a D path, ...) is its own type: the engine passes
+it between the kind's methods without reading it, so the contract types it ``Any``; so are the
+values that come from the layers above (a sweep spec, seen through :class:`SweepView`) and the
+catalog entries, which are validated models of :mod:`ftsweep.inputs.catalogs`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import abc
+from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass
-from typing import Any, NamedTuple, Optional, Protocol
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, Optional, Protocol
+
+if TYPE_CHECKING:  # types only: these modules import the contract
+    import xarray
+
+    from ftsweep.engine.case import Case, Request
+    from ftsweep.engine.lines import LineCache
+    from ftsweep.engine.planning import ResolvedCase
+    from ftsweep.engine.record import Timer
+    from ftsweep.engine.result import Quantity
+
+# a command-line decorator: a function of the command it adds options to
+Decorator = Callable[[Any], Any]
 
 
 class Planning(NamedTuple):
@@ -21,7 +45,7 @@ class Planning(NamedTuple):
     program (path, commands [µm]) read back from a file, or None to plan one, and a progress
     callback ``(done, total)`` for a long planning (None: silent)."""
 
-    case: Any
+    case: Case
     surface_spec: Any
     machine: Any
     cutting: Any
@@ -29,7 +53,7 @@ class Planning(NamedTuple):
     feed_um: float
     nose_radius_um: float
     gradient_bound: float
-    catalog_folder: Any
+    catalog_folder: Optional[Path]
     program: Optional[tuple[Any, Any]]
     progress: Optional[Callable[[int, int], None]] = None
 
@@ -42,12 +66,12 @@ class Simulating(NamedTuple):
     compensating a table, may split over the threads; :func:`ftsweep.engine.simulator.run_case` spreads
     the batches."""
 
-    rcase: Any
+    rcase: ResolvedCase
     table: Any
-    catalog_folder: Any
+    catalog_folder: Optional[Path]
     batch_nodes: int
     max_nodes: float
-    lines: Any
+    lines: Optional[LineCache]
 
 
 class Simulation(Protocol):
@@ -61,9 +85,9 @@ class Simulation(Protocol):
     n_batches: int
     zone_split_um: float
 
-    def batch(self, b: int, timer: Any) -> Any: ...
+    def batch(self, b: int, timer: Timer) -> Any: ...
 
-    def record(self, errors: dict[str, float], timer: Any) -> dict[str, Any]: ...
+    def record(self, errors: dict[str, float], timer: Timer) -> dict[str, Any]: ...
 
 
 class BenchRow(NamedTuple):
@@ -100,108 +124,258 @@ class Axis:
 
 
 @dataclass(frozen=True)
-class ProgramKind:
-    """One program kind.
+class FileFormat:
+    """How one kind of exported file is written, recognised, verified and reported (a kind's
+    :meth:`ProgramKind.file_format`; :mod:`ftsweep.exports.files` holds the machinery).
 
-    name : the request's ``kind``, the record's ``layout``.
-    noun : what a program of it is called in messages (``ring layout``, ``spiral program``).
-    axes : its own sweep axes, :class:`Axis` values (beside the feed, nose-radius and
-        compensation axes every kind may sweep).
-    fields : the fields its records add to every kind's (:mod:`ftsweep.engine.result`), in
-        the order a record lists them: :class:`ftsweep.engine.result.Quantity` values.
-    pitches : the names of its two pitch fields (Δρ, Δθ of a ring; a path's mean steps).
-    file_format : ``() -> FileFormat`` (:class:`ftsweep.exports.files.FileFormat`): how a case
-        of it is exported and verified; called when a file is written or read.
-    request : its request model (an :class:`ftsweep.engine.case.Request`), which validates its fields
-        and their combination rules once, when a request is built.
-    request_at : ``(sweep spec, {axis: value}) -> request`` of one sweep point.
-    feed : ``(case, cutting, nose radius, surface spec, catalog folder, program) -> F [µm/rev]``.
-    plan : ``(Planning) -> (program, extra fields of the resolved case)``.
-    record_fields : ``(resolved case) -> its fields of the record`` (:mod:`ftsweep.engine.result`).
-    cost : ``(case, surface spec, catalog folder, feed [µm/rev]) -> (relative cost, key of
-        shared lines)``, handed the feed its ``feed`` set; raises CaseError for a case its
-        planning would refuse where that is known without planning (over the controller's
-        capacity, a layout the aperture rules out), so a sweep refuses it before it is sent.
-    simulation : ``(Simulating, timer) -> Simulation``: how the one simulator samples its
-        program (:mod:`ftsweep.engine.lines` for spindle programs, tables and spirals).
-    pitch_text : ``(record) -> text`` of a program's pitches or mean steps, with units.
-    point_text : ``(program, flat index) -> text`` naming where a point lies, for errors.
-    angular_cells : ``(program, ρ0 [µm]) -> cells`` along the outer circumference that set
-        the spindle angles the line engine samples (:func:`ftsweep.engine.cost.angular_samples`).
-    warm_request : a coarse request of the kind that compiles its kernels in a new worker.
-    aspect_range : the aspect ratios [its units] a sweep or search may span, for kinds swept
-        over aspect ratios (tables); None for path programs.
-    aspect_units : units of its aspect ratio (model §2).
-    describe : ``(record) -> lines`` that describe a predicted program (``predict``).
-    check_sweep : ``(sweep spec) -> None``, raising ValueError naming the key, for the rules
-        of its sweep beyond "only its own axes" (one rule axis, a feed set twice, ...).
-    sweeps : how its sweeps are called in messages (``spiral sweeps``).
-    options : the command-line options (``predict``'s keys) that belong to it.
-    click_options : a decorator adding those options to a command (click options, built with
-        :mod:`ftsweep.options`); ``predict`` applies every kind's, each decorator once (the ring
-        and mesh kinds share theirs), so a kind outside the package adds its own. An installed
-        kind also names it in an entry point of group ``ftsweep.options``, so that ``predict
-        --help`` reads it without loading the kind.
-    from_options : ``(options) -> (request fields, notices)`` of ``predict``'s options,
-        raising ValueError naming the option for a combination it refuses.
-    machine, cutting : the catalog entries ``predict`` takes when none is given: a machine
-        that can run the kind (a Fresnel program needs X, Y, Z, C limits) and its cutting.
-    options_key : the sweep spec's key of options for every case of its sweeps (``dpath:``),
-        if it has one.
-    estimate : ``(sweep spec, its cube's coordinates, catalog folder) -> Dataset`` of a
-        first-order P-V estimate over its sweep's axes (``pv_estimate_nm``), which
-        ``sweep --prune`` uses; None where the kind has none.
-    seed : ``(surface spec, tolerance [nm], capacity, cusp [nm], aspect range, catalog folder)
-        -> (target N, α, estimated P-V [nm])`` where a tolerance search starts (``optimize
-        --seed estimate``); None where the kind has no estimate.
-    bench_cases : ``() -> {name: (surface, request)}``: its in-process benchmark cases of about
-        a million points (``ftsweep bench``); its ``warm_request`` on the same surface pays the
-        compile first.
-    bench_rows : its whole-process benchmark rows (:class:`BenchRow`).
-    reference : ``(resolved case) -> {pv_nm, rms_nm, pv_interp_nm, n_eval, seconds}``: a
-        brute-force evaluation of a case straight from the model, independent of the stages'
-        kernels, that the simulator is tested and timed against (``ftsweep bench
-        --reference``); None where the kind has none.
-    options_dumped_unset : a sweep spec's dump writes its options key as null when unset, so
-        that the hashes of specs written when the key was declared for every sweep stay the same.
+    magic : how its first line starts (None: the default format, read when no other's
+        first line matches).
+    export : ``(out, side, case, specs, chosen, extra, name) -> sidecar``.
+    verify : ``(path, progress, pv_tolerance_nm, trust_plugins) -> record``.
+    exported : the lines that say what ``export`` wrote (``(out, sidecar) -> lines``).
+    verified : the lines that say what ``verify`` found (``record -> lines``).
+    dialect : a path kind's :class:`ftsweep.exports.dialects.Adapter` (None: ftsweep's own
+        format only).
+    compiled : ``(path, trust_plugins) -> record fields`` of the compiled C reference's check
+        of a file verify has read (:mod:`ftsweep.exports.compiled`); None: no reference.
     """
 
     name: str
-    noun: str
-    request: type
-    axes: tuple[Axis, ...]
-    fields: tuple[Any, ...]
-    pitches: tuple[str, str]
-    file_format: Callable[[], Any]
-    request_at: Callable[[Any, dict[str, float]], Any]
-    feed: Callable[..., float]
-    plan: Callable[[Planning], tuple[Any, dict[str, Any]]]
-    record_fields: Callable[[Any], dict[str, Any]]
-    cost: Callable[[Any, Any, Any, float], tuple[float, Any]]
-    simulation: Callable[[Simulating, Any], Simulation]
-    pitch_text: Callable[[dict[str, Any]], str]
-    point_text: Callable[[Any, int], str]
-    angular_cells: Optional[Callable[[Any, float], float]]
-    warm_request: Callable[[], Any]
-    describe: Callable[[dict[str, Any]], list[str]] = lambda r: []
-    check_sweep: Callable[[Any], None] = lambda spec: None
-    sweeps: str = "table sweeps"
-    options: tuple[str, ...] = ()
-    click_options: Optional[Callable[[Any], Any]] = None
-    from_options: Callable[[dict[str, Any]], tuple[dict[str, Any], list[str]]] = lambda o: ({}, [])
-    aspect_range: Optional[tuple[float, float]] = None
-    aspect_units: str = "um/deg"
-    machine: str = "fts-1m"
-    cutting: str = "reference"
-    options_key: Optional[str] = None
-    options_dumped_unset: bool = False
-    estimate: Optional[Callable[[Any, Any, Any], Any]] = None
-    seed: Optional[Callable[..., tuple[float, float, float]]] = None
-    bench_cases: Callable[[], dict[str, tuple[str, Any]]] = lambda: {}
-    bench_rows: tuple[BenchRow, ...] = ()
-    reference: Optional[Callable[[Any], dict[str, Any]]] = None
+    magic: str | None
+    export: Callable[..., dict[str, Any]] | None
+    verify: Callable[..., dict[str, Any]]
+    exported: Callable[[Path, dict[str, Any]], list[str]]
+    verified: Callable[[dict[str, Any]], list[str]]
+    # an export-layer value (the Adapter of ftsweep.exports.dialects) the engine never reads
+    dialect: Any = None
+    compiled: Callable[[Path, bool], dict[str, Any]] | None = None
+
+
+class SweepView(Protocol):
+    """What a kind reads of a sweep spec (:class:`ftsweep.sweeps.spec.SweepSpec`, a layer above):
+    its layout, surface and cutting entries, its axes (``axes.get(name)``: a list, a range or
+    None) and the options of a kind's own key."""
+
+    @property
+    def layout(self) -> Optional[str]: ...
+
+    @property
+    def surface(self) -> str: ...
+
+    @property
+    def cutting(self) -> str: ...
+
+    @property
+    def axes(self) -> Any: ...
+
+    def options_of(self, key: str) -> Optional[dict[str, Any]]: ...
+
+
+class ProgramKind(abc.ABC):
+    """One program kind: subclass it, set the class attributes, implement the abstract methods.
+
+    Class attributes, all required but those given a value here:
+
+    name : the request's ``kind``, the record's ``layout``; also the entry point's name.
+    noun : what a program of it is called in messages (``ring layout``, ``spiral program``).
+    sweeps : how its sweeps are called in messages (``spiral sweeps``).
+    axes : its own sweep axes, :class:`Axis` values (beside the feed, nose-radius and
+        compensation axes every kind may sweep).
+    pitches : the names of its two pitch fields (Δρ, Δθ of a ring; a path's mean steps).
+    options : the command-line options (``predict``'s keys) that belong to it.
+    machine, cutting : the catalog entries ``predict`` takes when none is given: a machine
+        that can run the kind (a Fresnel program needs X, Y, Z, C limits) and its cutting.
+    aspect_units : units of its aspect ratio (model §2).
+    aspect_range : the aspect ratios [its units] a sweep or search may span, for kinds swept
+        over aspect ratios (tables); None for path programs.
+    options_key : the sweep spec's key of options for every case of its sweeps (``dpath:``),
+        if it has one; ``options_dumped_unset``: a sweep spec's dump writes it as null when
+        unset, so that the hashes of specs written when the key was declared for every sweep
+        stay the same.
+    bench_rows : its whole-process benchmark rows (:class:`BenchRow`).
+
+    Capability flags (xarray's ``open_dataset_parameters`` and the like), each saying that the
+    kind implements the optional methods named:
+
+    samples_spindle_angles : :meth:`angular_cells` (a spindle program whose cells set the
+        angles the line engine samples).
+    estimates : :meth:`estimate` and :meth:`seed` (a first-order P-V estimate over its sweep).
+    has_reference : :meth:`reference` (a brute-force evaluation straight from the model).
+    """
+
+    name: ClassVar[str]
+    noun: ClassVar[str]
+    sweeps: ClassVar[str]
+    axes: ClassVar[tuple[Axis, ...]]
+    pitches: ClassVar[tuple[str, str]]
+    options: ClassVar[tuple[str, ...]]
+    machine: ClassVar[str]
+    cutting: ClassVar[str]
+    aspect_units: ClassVar[str]
+    aspect_range: ClassVar[Optional[tuple[float, float]]] = None
+    options_key: ClassVar[Optional[str]] = None
+    options_dumped_unset: ClassVar[bool] = False
+    bench_rows: ClassVar[tuple[BenchRow, ...]] = ()
+
+    samples_spindle_angles: ClassVar[bool] = False
+    estimates: ClassVar[bool] = False
+    has_reference: ClassVar[bool] = False
+
+    # what a subclass must set itself (the registry refuses a kind that leaves one unset)
+    REQUIRED: ClassVar[tuple[str, ...]] = (
+        "name",
+        "noun",
+        "sweeps",
+        "axes",
+        "pitches",
+        "options",
+        "machine",
+        "cutting",
+        "aspect_units",
+    )
+
+    def __repr__(self) -> str:
+        return f"<program kind {self.name!r} ({type(self).__module__}.{type(self).__qualname__})>"
 
     @property
     def axis_names(self) -> tuple[str, ...]:
         """The names of its own sweep axes, in their order in a cube."""
         return tuple(a.name for a in self.axes)
+
+    # -- what every kind implements ---------------------------------------------------------
+
+    @property
+    @abc.abstractmethod
+    def request(self) -> type[Request]:
+        """Its request model (a :class:`ftsweep.engine.case.Request`), which validates its
+        fields and their combination rules once, when a request is built."""
+
+    @property
+    @abc.abstractmethod
+    def fields(self) -> tuple[Quantity, ...]:
+        """The fields its records add to every kind's (:mod:`ftsweep.engine.result`), in the
+        order a record lists them."""
+
+    @abc.abstractmethod
+    def file_format(self) -> FileFormat:
+        """How a case of it is exported and verified; called when a file is written or read."""
+
+    @abc.abstractmethod
+    def request_at(self, spec: SweepView, point: Mapping[str, float]) -> Request:
+        """The request of one sweep point (``{axis: value}``)."""
+
+    @abc.abstractmethod
+    def feed(
+        self,
+        case: Case,
+        cutting: Any,
+        nose_radius_um: float,
+        surface_spec: Any,
+        catalog_folder: Optional[Path],
+        program: Any,
+    ) -> float:
+        """The feed F [µm/rev] of a case: the cutting's, or one its own rule sets (a residual
+        budget), for a given program (read from a file) or None."""
+
+    @abc.abstractmethod
+    def plan(self, planning: Planning) -> tuple[Any, dict[str, Any]]:
+        """The case's program and the extra fields of its resolved case."""
+
+    @abc.abstractmethod
+    def record_fields(self, rcase: ResolvedCase) -> dict[str, Any]:
+        """Its fields of a finished case's record (:mod:`ftsweep.engine.result`)."""
+
+    @abc.abstractmethod
+    def cost(
+        self, case: Case, surface_spec: Any, catalog_folder: Optional[Path], feed_um: float
+    ) -> tuple[float, Hashable]:
+        """A case's relative cost and the key of the lines it shares with other cases, handed
+        the feed :meth:`feed` set; raises CaseError for a case its planning would refuse
+        where that is known without planning (over the controller's capacity, a layout the
+        aperture rules out), so a sweep refuses it before it is sent."""
+
+    @abc.abstractmethod
+    def simulation(self, inputs: Simulating, timer: Timer) -> Simulation:
+        """How the one simulator samples its program (:mod:`ftsweep.engine.lines` for spindle
+        programs, tables and spirals)."""
+
+    @abc.abstractmethod
+    def pitch_text(self, record: Mapping[str, Any]) -> str:
+        """A program's pitches or mean steps, with units."""
+
+    @abc.abstractmethod
+    def point_text(self, program: Any, flat: int) -> str:
+        """Where the point of flat index ``flat`` lies, for errors."""
+
+    @abc.abstractmethod
+    def warm_request(self) -> Request:
+        """A coarse request of the kind that compiles its kernels in a new worker."""
+
+    # -- what a kind may refine --------------------------------------------------------------
+
+    def describe(self, record: Mapping[str, Any]) -> list[str]:
+        """Lines that describe a predicted program (``predict``); none by default."""
+        return []
+
+    def check_sweep(self, spec: SweepView) -> None:  # noqa: B027 - a hook a kind may leave as it is
+        """Its sweep's rules beyond "only its own axes" (one rule axis, a feed set twice, ...),
+        raising ValueError naming the key; none by default."""
+
+    def from_options(self, options: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
+        """The request's fields from ``predict``'s options, and the notices to show, raising
+        ValueError naming an option for a combination it refuses; by default its own options
+        that were given."""
+        return {"kind": self.name, **{k: options[k] for k in self.options if options.get(k) is not None}}, []
+
+    def click_options(self) -> Optional[Decorator]:
+        """A decorator adding its options to a command (click options, built with
+        :mod:`ftsweep.options`), or None; ``predict`` applies every kind's, each decorator once
+        (the ring and mesh kinds share theirs). Must load no kernel: ``--help`` calls it."""
+        return None
+
+    def commands(self) -> tuple[Any, ...]:
+        """The click commands it adds to ``ftsweep`` (``ftsweep dpath``); none by default. Must
+        load no kernel: ``--help`` calls it."""
+        return ()
+
+    def bench_cases(self) -> dict[str, tuple[str, Request]]:
+        """Its in-process benchmark cases of about a million points (``ftsweep bench``) by
+        name: ``(surface, request)``; its :meth:`warm_request` on the same surface pays the
+        compile first. None by default."""
+        return {}
+
+    def angular_cells(self, program: Any, rho0_um: float) -> float:
+        """Cells along the outer circumference that set the spindle angles the line engine
+        samples (:func:`ftsweep.engine.cost.angular_samples`); with ``samples_spindle_angles``."""
+        raise NotImplementedError(f"the {self.noun} samples no spindle angles")
+
+    def estimate(
+        self, spec: SweepView, coords: Mapping[str, Any], catalog_folder: Optional[Path]
+    ) -> xarray.Dataset:
+        """A first-order P-V estimate (``pv_estimate_nm``) over its sweep's axes, which ``sweep
+        --prune`` uses; with ``estimates``."""
+        raise NotImplementedError(f"{self.sweeps} have no estimate")
+
+    def seed(
+        self,
+        surface_spec: Any,
+        tolerance_nm: float,
+        capacity: int,
+        cusp_nm: float,
+        aspect_range: tuple[float, float],
+        catalog_folder: Optional[Path],
+    ) -> tuple[float, float, float]:
+        """Where a tolerance search starts (``optimize --seed estimate``): target N, α and the
+        estimated P-V [nm]; with ``estimates``."""
+        raise NotImplementedError(f"{self.sweeps} have no estimate")
+
+    def reference(self, rcase: ResolvedCase) -> dict[str, Any]:
+        """``{pv_nm, rms_nm, pv_interp_nm, n_eval, seconds}`` of a brute-force evaluation of a
+        case straight from the model, independent of the stages' kernels, that the simulator is
+        tested and timed against (``ftsweep bench --reference``); with ``has_reference``."""
+        raise NotImplementedError(f"the {self.noun} has no reference evaluation")
+
+
+def unset_attributes(cls: type[ProgramKind]) -> list[str]:
+    """The required class attributes (:attr:`ProgramKind.REQUIRED`) a kind's class leaves unset."""
+    return [name for name in cls.REQUIRED if not hasattr(cls, name)]

@@ -55,11 +55,18 @@ def _pass_point(grid: Any, ray_theta: np.ndarray) -> Callable[[int], str]:
     return where
 
 
+def _cells_of(rcase: ResolvedCase) -> Optional[Callable[[Any, float], float]]:
+    """The kind's count of spindle cells, or None for a kind not sampled per cell."""
+    kind = rcase.kind
+    return kind.angular_cells if kind.samples_spindle_angles else None
+
+
 def _default_nodes(rcase: ResolvedCase, margin_um: float, n_theta: int) -> float:
     """The evaluation nodes of ``rcase`` at the default resolution (``n_theta`` kept for a
     kind not sampled per cell), with the same ray margin [µm]."""
-    usual = Resolution(n_theta=None if rcase.kind.angular_cells else n_theta)
-    theta = angular_samples(rcase.kind.angular_cells, rcase.layout, rcase.rho0_um, usual)
+    cells = _cells_of(rcase)
+    usual = Resolution(n_theta=None if cells else n_theta)
+    theta = angular_samples(cells, rcase.layout, rcase.rho0_um, usual)
     return ray_nodes(rcase.rho0_um, margin_um, usual.points_per_feed, rcase.feed_um) * theta
 
 
@@ -80,7 +87,7 @@ class LinePlan:
     def of(cls, rcase: ResolvedCase, batch_nodes: int, max_nodes: float) -> LinePlan:
         """The plan of a resolved case; refuses one too costly to run (:func:`check_cost`)."""
         res = rcase.case.resolution
-        n_theta = angular_samples(rcase.kind.angular_cells, rcase.layout, rcase.rho0_um, res)
+        n_theta = angular_samples(_cells_of(rcase), rcase.layout, rcase.rho0_um, res)
         window = compensation.contact_window_um(rcase.gradient_bound, rcase.nose_radius_um)
         margin = window + 2.0 * rcase.feed_um
         nodes_per_ray = ray_nodes(rcase.rho0_um, margin, res.points_per_feed, rcase.feed_um)

@@ -18,6 +18,7 @@ from ftsweep.engine.contract import Planning, ProgramKind
 from ftsweep.engine.cost import check_capacity, check_cost, ray_nodes
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.stages.interpolation import compensation
 from ftsweep.stages.kinematics import dynamics
 from ftsweep.stages.layouts import grids as layouts
@@ -51,6 +52,14 @@ class ResolvedCase:
     plan_seconds: float = 0.0
 
     @property
+    def commands_um(self) -> np.ndarray:
+        """The compensated commands [µm] of a path program, planned with it (``values``); a
+        table's case has none (its commands are the simulator's), and asking is a CaseError."""
+        if self.values is None:
+            raise CaseError(f"a {self.kind.noun} has no planned commands")
+        return self.values
+
+    @property
     def rho0_um(self) -> float:
         """Start radius of the spiral [µm] (model §1): the aperture's circumscribed radius, or
         that of a spiral program read from a file (where its X sets it)."""
@@ -62,7 +71,7 @@ def resolve_case(
     case: Case,
     kind: ProgramKind,
     catalog_folder: Any = None,
-    specs: Optional[tuple[Any, Any, Any]] = None,
+    specs: Optional[Entries] = None,
     program: Optional[tuple[Any, np.ndarray]] = None,
     progress: Optional[Callable[[int, int], None]] = None,
 ) -> ResolvedCase:
@@ -156,9 +165,9 @@ def layer_plan(rcase: ResolvedCase, table: np.ndarray) -> Optional[layers.LayerP
         raise CaseError(f"layered plan: {exc}") from None
 
 
-def resolve_specs(case: Case, catalog_folder: Any = None) -> tuple[Any, Any, Any]:
+def resolve_specs(case: Case, catalog_folder: Any = None) -> Entries:
     """The (surface, machine, cutting) catalog entries a case names."""
-    return (
+    return Entries(
         catalogs.entry("surfaces", case.surface, catalog_folder),
         catalogs.entry("machines", case.machine, catalog_folder),
         catalogs.entry("cutting", case.cutting, catalog_folder),

@@ -1,27 +1,33 @@
 """Where the program kinds are found (docs/architecture.md, "The program-kind contract").
 
 Kinds are found the way xarray finds its backends: through the entry points of group
-``ftsweep.kinds``, each naming one :class:`~ftsweep.engine.contract.ProgramKind` value
-(``ring = "ftsweep.kinds.table.kind:RING"`` in ``pyproject.toml``), so a package outside this
-repository adds a kind by declaring its own entry point; :func:`register` adds one at run time
-(a notebook, a test). Loading an entry point is not an import of this module's: the kinds
-import the engine, and the engine reaches them only here, by name, so every import still
-points down. :mod:`ftsweep.registry` is the public face, with the vocabularies built from
-every kind.
+``ftsweep.kinds``, each naming one subclass of :class:`~ftsweep.engine.contract.ProgramKind`
+(``ring = "ftsweep.kinds.table:RingKind"`` in ``pyproject.toml``), of which one instance is
+made, so a package outside this repository adds a kind by declaring its own entry point; a
+broken one (it cannot be imported, is no kind, leaves a required attribute unset or names
+another kind) is warned about and skipped, as xarray does with a broken backend.
+:func:`register` adds a kind at run time (a notebook, a test). Loading an entry point is
+not an import of this module's: the kinds import the engine, and the engine reaches them
+only here, by name, so every import still points down. :mod:`ftsweep.registry` is the
+public face, with the vocabularies built from every kind.
 """
 
 from __future__ import annotations
 
 import functools
+import inspect
+import warnings
 from importlib.metadata import entry_points
-from typing import Any
+from typing import Any, Optional
 
-from ftsweep.engine.contract import ProgramKind
+from ftsweep.engine.contract import ProgramKind, unset_attributes
 
 __all__ = [
     "GROUP",
+    "BrokenKindWarning",
     "RegistryError",
     "added",
+    "checked",
     "kind",
     "kinds",
     "names",
@@ -36,7 +42,11 @@ _added: dict[str, ProgramKind] = {}
 
 
 class RegistryError(ValueError):
-    """An entry point of group ``ftsweep.kinds`` that does not name a program kind."""
+    """An entry point of group ``ftsweep.kinds`` that does not name a usable program kind."""
+
+
+class BrokenKindWarning(UserWarning):
+    """An installed kind skipped: the warning says which entry point and why."""
 
 
 @functools.cache
@@ -49,25 +59,44 @@ def _points() -> dict[str, Any]:
     return found
 
 
+def checked(value: Any, name: Optional[str] = None) -> ProgramKind:
+    """One instance of the kind class ``value`` (an entry point's object), checked: a subclass
+    of ProgramKind with every abstract method and required attribute given, named ``name``
+    when that is given (RegistryError saying what is wrong)."""
+    if not isinstance(value, type) or not issubclass(value, ProgramKind):
+        raise RegistryError(f"{value!r} is not a subclass of ProgramKind")
+    if inspect.isabstract(value):
+        missing = ", ".join(sorted(getattr(value, "__abstractmethods__", ())))
+        raise RegistryError(f"{value.__qualname__} leaves abstract methods unimplemented: {missing}")
+    unset = unset_attributes(value)
+    if unset:
+        raise RegistryError(f"{value.__qualname__} leaves required attributes unset: {', '.join(unset)}")
+    if name is not None and value.name != name:
+        raise RegistryError(f"its class names the kind {value.name!r}")
+    return value()
+
+
 @functools.cache
-def _load(name: str) -> ProgramKind:
-    """The installed kind ``name``, its entry point loaded and checked (RegistryError naming a
-    broken one); loaded once per process, and only when asked for, so a case imports no other
-    kind's planner, kernels or request model."""
+def _load(name: str) -> Optional[ProgramKind]:
+    """The installed kind ``name``, its entry point loaded and checked, or None (with a
+    :class:`BrokenKindWarning` naming it and why) for a broken one; loaded once per process,
+    and only when asked for, so a case imports no other kind's planner, kernels or request
+    model."""
     point = _points()[name]
     try:
-        value = point.load()
-    except Exception as exc:  # a broken plug-in names itself, not a bare ImportError
-        raise RegistryError(f"program kind {point.name!r} ({point.value}) cannot be loaded: {exc}") from exc
-    if not isinstance(value, ProgramKind):
-        raise RegistryError(f"entry point {point.name!r} ({point.value}) is not a ProgramKind")
-    if value.name != point.name:
-        raise RegistryError(f"entry point {point.name!r} names the kind {value.name!r}")
-    return value
+        return checked(point.load(), point.name)
+    except Exception as exc:  # noqa: BLE001 - a broken plug-in is skipped, saying why
+        warnings.warn(
+            f"program kind {point.name!r} ({point.value}) skipped: {type(exc).__name__}: {exc}",
+            BrokenKindWarning,
+            stacklevel=2,
+        )
+        return None
 
 
 def _installed() -> dict[str, ProgramKind]:
-    return {name: _load(name) for name in _points()}
+    loaded = {name: _load(name) for name in _points()}
+    return {name: k for name, k in loaded.items() if k is not None}
 
 
 def kinds() -> dict[str, ProgramKind]:
@@ -77,7 +106,11 @@ def kinds() -> dict[str, ProgramKind]:
 
 
 def register(kind: ProgramKind) -> ProgramKind:
-    """Add ``kind`` for this process (ValueError if its name is taken by another value)."""
+    """Add ``kind`` (an instance of a subclass of ProgramKind, checked as an installed one is)
+    for this process (ValueError if its name is taken by another value)."""
+    if not isinstance(kind, ProgramKind):
+        raise RegistryError(f"{kind!r} is not a ProgramKind")
+    checked(type(kind))
     known = kinds().get(kind.name)
     if known is not None and known is not kind:
         raise ValueError(f"a program kind named {kind.name!r} is registered already")
@@ -100,8 +133,9 @@ def kind(name: Any) -> ProgramKind:
     only that one is loaded."""
     if name in _added:
         return _added[name]
-    if isinstance(name, str) and name in _points():
-        return _load(name)
+    found = _load(name) if isinstance(name, str) and name in _points() else None
+    if found is not None:
+        return found
     raise ValueError(f"unknown program kind {name!r}; known: {', '.join(names())}")
 
 
@@ -119,7 +153,7 @@ def noun(name: Any) -> str:
 
 def owners(field: str) -> str:
     """Which kinds' requests have ``field``, for the message refusing it elsewhere."""
-    found = [k for k in kinds().values() if field in k.request.model_fields]  # type: ignore[attr-defined]
+    found = [k for k in kinds().values() if field in k.request.model_fields]
     if not found:
         return "no program kind has it"
     return f"{field} belongs to " + " or ".join(f"{k.noun}s" for k in found)

@@ -28,6 +28,7 @@ from ftsweep.engine.record import ErrorMap, Timer, timed
 from ftsweep.engine.result import STAGES
 from ftsweep.engine.threads import current as current_threads
 from ftsweep.engine.threads import using_threads
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.stages.envelope import arcs as envelope
 from ftsweep.stages.interpolation import compensation
 from ftsweep.stages.interpolation import tables as interpolation
@@ -157,7 +158,7 @@ def run_case(
     progress: Optional[Callable[[int, int], None]] = None,
     batch_nodes: int = BATCH_NODES,
     table: Optional[np.ndarray] = None,
-    specs: Optional[tuple[Any, Any, Any]] = None,
+    specs: Optional[Entries] = None,
     max_nodes: float = MAX_NODES,
     lines: Any = None,
     program: Optional[tuple[Any, np.ndarray]] = None,
@@ -240,7 +241,7 @@ def _accumulate(
     t = time.perf_counter()
     metrics.accumulate(m.z, m.g, m.inside, m.r, split_um, stats)
     metrics.accumulate_extrema(m.cusp_z, m.cusp_g, m.cusp_inside, m.cusp_r, split_um, stats)
-    if emap is not None:
+    if emap is not None and m.x is not None and m.y is not None:
         emap.add_points(m.z, m.g, m.inside, m.x, m.y)
     t = timer.add("metrics", t)
     if m.exact is not None:

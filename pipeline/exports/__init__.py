@@ -9,7 +9,6 @@ from ftsweep.stages import face
 # the public names, each loaded from its module on first use (importing the face loads none)
 _EXPORTS = {
     "ExportError": "files",
-    "FileFormat": "files",
     "ProgramError": "files",
     "check_signature": "origin",
     "program_format": "programs",

@@ -15,7 +15,6 @@ import os
 import time
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +23,7 @@ import numpy as np
 from ftsweep.engine.case import Case
 from ftsweep.engine.planning import ResolvedCase, layer_plan
 from ftsweep.exports.fingerprint import exact_on_this_platform
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.inputs.trust import specs_from_entries
 from ftsweep.stages.numerics import decimals
@@ -57,7 +57,7 @@ def sidecar_digest(sidecar: dict[str, Any], text_fields: tuple[str, ...] = ("crc
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
-def recorded_entries(specs: tuple[Any, Any, Any]) -> dict[str, Any]:
+def recorded_entries(specs: Entries) -> dict[str, Any]:
     """The (surface, machine, cutting) entries as a sidecar records them."""
     keys = ("surface", "machine", "cutting")
     return {key: spec.model_dump(mode="json") for key, spec in zip(keys, specs, strict=True)}
@@ -66,7 +66,7 @@ def recorded_entries(specs: tuple[Any, Any, Any]) -> dict[str, Any]:
 def case_meta(
     layout: str,
     case: Case,
-    specs: tuple[Any, Any, Any],
+    specs: Entries,
     chosen: dict[str, Any],
     extra: dict[str, Any],
     stamp: tuple[str, str],
@@ -95,9 +95,7 @@ def case_meta(
     }
 
 
-def recorded_case_of(
-    meta: dict[str, Any], side: Path, trust_plugins: bool = False
-) -> tuple[Case, tuple[Any, Any, Any]]:
+def recorded_case_of(meta: dict[str, Any], side: Path, trust_plugins: bool = False) -> tuple[Case, Entries]:
     """The case and (surface, machine, cutting) specs a sidecar ``side`` recorded;
     :class:`ExportError` if they cannot be read. A plug-in the sidecar names must be one of
     the local catalog's unless ``trust_plugins`` (:func:`~ftsweep.inputs.trust.specs_from_entries`)."""
@@ -475,33 +473,6 @@ def checked_pv(
 
 
 Progress = Callable[[int, int], None] | None
-
-
-@dataclass(frozen=True)
-class FileFormat:
-    """How one kind of exported file is written, recognised, verified and reported.
-
-    magic : how its first line starts (None: the default format, read when no other's
-        first line matches).
-    export : ``(out, side, case, specs, chosen, extra, name) -> sidecar``.
-    verify : ``(path, progress, pv_tolerance_nm, trust_plugins) -> record``.
-    exported : the lines that say what ``export`` wrote (``(out, sidecar) -> lines``).
-    verified : the lines that say what ``verify`` found (``record -> lines``).
-    dialect : a path kind's :class:`ftsweep.exports.dialects.Adapter` (None: ftsweep's own
-        format only).
-    compiled : ``(path, trust_plugins) -> record fields`` of the compiled C reference's check
-        of a file verify has read (:mod:`ftsweep.exports.compiled`); None: no reference.
-    """
-
-    name: str
-    magic: str | None
-    export: Callable[..., dict[str, Any]] | None
-    verify: Callable[..., dict[str, Any]]
-    exported: Callable[[Path, dict[str, Any]], list[str]]
-    verified: Callable[[dict[str, Any]], list[str]]
-    # how the kind's programs go into controllers' dialects (:class:`ftsweep.exports.dialects.Adapter`)
-    dialect: Any = None
-    compiled: Callable[[Path, bool], dict[str, Any]] | None = None
 
 
 def pv_lines(record: dict[str, Any], source: str) -> list[str]:

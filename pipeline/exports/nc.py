@@ -34,6 +34,7 @@ from ftsweep.exports.files import (
     sidecar_naming,
 )
 from ftsweep.exports.moves import against, check_velocities, peaks
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.inputs.catalogs import Controller
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
@@ -122,16 +123,16 @@ def controller_of(machine: Any, dialect: str) -> Controller:
 
 
 def _document(
-    case: Case, specs: tuple[Any, Any, Any], dialect: str, meta_in: dict[str, Any]
+    case: Case, specs: Entries, dialect: str, meta_in: dict[str, Any]
 ) -> tuple[list[str], dict[str, Any], tuple[Adapter, Any]]:
     """The lines (CRC line not yet filled), sidecar, and the kind's adapter with the resolved
     case it planned, of a case's program."""
-    ctrl = controller_of(specs[1], dialect)
+    ctrl = controller_of(specs.machine, dialect)
     adapter = adapter_of(case.layout.kind)
     moves, kind_lines, rcase = adapter.planned(case, specs)
     if ctrl.interpolation == "pvt" and moves.cut_starts is None:
         planned = moves.n_points
-        moves = dialects.with_stop(moves, dialects.stop_seconds(moves, specs[1], ctrl.time_quantum_s))
+        moves = dialects.with_stop(moves, dialects.stop_seconds(moves, specs.machine, ctrl.time_quantum_s))
         # the kind's own line counts its points; the file holds the stop too, as export says
         kind_lines = [
             *kind_lines,
@@ -192,7 +193,7 @@ def export(
     out: Path,
     side: Path,
     case: Case,
-    specs: tuple[Any, Any, Any],
+    specs: Entries,
     chosen: dict[str, Any],
     extra: dict[str, Any],
     dialect: str,
@@ -336,7 +337,8 @@ def default_dialect(machine: Any) -> str:
 
 def dialect_format() -> Any:
     """The file format of dialect programs (:class:`ftsweep.exports.files.FileFormat`)."""
-    from ftsweep.exports.files import FileFormat, pv_lines
+    from ftsweep.engine.contract import FileFormat
+    from ftsweep.exports.files import pv_lines
 
     def exported(out: Path, meta: dict[str, Any]) -> list[str]:
         return [

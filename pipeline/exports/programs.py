@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.exports.files import FileFormat, pv_lines, read_program_file
+from ftsweep.engine.contract import FileFormat
+from ftsweep.exports.files import pv_lines, read_program_file
 
 __all__ = ["program_format", "read_program"]
 

@@ -474,8 +474,8 @@ def _format_error(path: Path, name: str, err: ValidationError, model: Any) -> st
         loc = ".".join(str(p) for p in e["loc"])
         where = f"{name}.{loc}" if loc else name
         if e["type"] == "extra_forbidden":
-            allowed = _allowed_keys(model, e["loc"][:-1])
-            hint = f"{did_you_mean(e['loc'][-1], allowed)} (allowed: {', '.join(allowed)})" if allowed else ""
+            allowed, key = _allowed_keys(model, e["loc"][:-1]), str(e["loc"][-1])
+            hint = f"{did_you_mean(key, allowed)} (allowed: {', '.join(allowed)})" if allowed else ""
             lines.append(f"  - {where}: unknown key{hint}")
         elif e["type"] == "missing":
             lines.append(f"  - {where}: required key is missing")

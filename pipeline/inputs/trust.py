@@ -12,6 +12,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.inputs.catalogs import (
     CatalogError,
     Cutting,
@@ -30,7 +31,7 @@ def specs_from_entries(
     cutting: dict[str, Any],
     trust_plugins: bool = False,
     folder: Path | None = None,
-) -> tuple[Any, Machine, Cutting]:
+) -> Entries:
     """(surface, machine, cutting) specs validated from recorded entries (a cube's or a
     header sidecar's provenance), so results are re-derived from what was used, not from the
     catalogs as they are now.
@@ -47,7 +48,7 @@ def specs_from_entries(
         raise CatalogError(f"the recorded surface entry is invalid ({one_error(exc)})") from None
     if spec.family == "plugin" and not trust_plugins:
         check_plugin_trusted(spec, folder)
-    return spec, Machine.model_validate(machine), Cutting.model_validate(cutting)
+    return Entries(spec, Machine.model_validate(machine), Cutting.model_validate(cutting))
 
 
 def check_plugin_trusted(spec: Any, folder: Path | None = None) -> None:

@@ -116,7 +116,7 @@ def _check_done(flat: int, values: Values) -> None:
     non-negative metrics non-negative, ``feasible`` 0 or 1, and the metrics consistent
     (P-V = max − min error to 1e-6 relative, RMS ≤ P-V)."""
     pv, rms = values.get("pv_nm"), values.get("rms_nm")
-    if not all(isinstance(v, (int, float)) and np.isfinite(v) for v in (pv, rms)):
+    if not (isinstance(pv, (int, float)) and isinstance(rms, (int, float)) and np.isfinite([pv, rms]).all()):
         raise BadLog(f"case {flat} is done but its P-V or RMS is missing or not finite ({pv}, {rms})")
     for var, value in values.items():
         if isinstance(value, (int, float)) and np.isinf(value):

@@ -239,9 +239,12 @@ def stacked_axes(rows: int, size: tuple[float, float], sharex: bool = False) -> 
     each = (height - bottom - top - gap * (rows - 1)) / rows
     fig = Figure(figsize=size)
     fig.subplots_adjust(
-        left=left / width, right=1.0 - right / width, bottom=bottom / height, top=1.0 - top / height,
+        left=left / width,
+        right=1.0 - right / width,
+        bottom=bottom / height,
+        top=1.0 - top / height,
         hspace=gap / each,
-    )  # fmt: skip
+    )
     return fig.subplots(rows, 1, sharex=sharex)
 
 

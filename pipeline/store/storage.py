@@ -39,9 +39,19 @@ class StorageError(ValueError):
 WRITABLE = ("file", "local", "s3", "s3a", "memory")
 # option names that carry secrets: they travel to workers only when the user passed them
 CREDENTIALS = frozenset(
-    {"key", "secret", "token", "password", "account_key", "sas_token",
-     "client_secret", "connection_string", "credentials", "anon_credentials"}
-)  # fmt: skip
+    {
+        "key",
+        "secret",
+        "token",
+        "password",
+        "account_key",
+        "sas_token",
+        "client_secret",
+        "connection_string",
+        "credentials",
+        "anon_credentials",
+    }
+)
 
 
 def is_url(text: Union[str, Path]) -> bool:

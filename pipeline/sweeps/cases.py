@@ -51,9 +51,8 @@ def prune_cases(
     how many this call pruned."""
     if not factor > 1.0:
         raise CubeError(f"the prune factor must be above 1, got {factor:g}")
-    estimate = registry.kind(spec.layout).estimate
-    assert estimate is not None
-    est = estimate(spec, coordinates(spec), catalog_folder)["pv_estimate_nm"]
+    own = registry.kind(spec.layout)  # a kind with estimates: sweep --prune checks it
+    est = own.estimate(spec, coordinates(spec), catalog_folder)["pv_estimate_nm"]
     values = est.transpose(*coordinates(spec)).values
     finite = np.where(np.isfinite(values), values, np.inf)
     best = finite.min(axis=1, keepdims=True)  # over the aspect ratios of each row

@@ -29,6 +29,7 @@ from ftsweep.sweeps import grow
 from ftsweep.sweeps.cases import prune_cases, refuse_cases
 from ftsweep.sweeps.connection import EarlyCluster
 from ftsweep.sweeps.executor import SYNCHRONOUS, Cluster, TaskSpec, execute, run_task, warm_up
+from ftsweep.sweeps.given import Rerun, RunNames, Where
 from ftsweep.sweeps.spec import (
     Costs,
     SweepSpec,
@@ -148,24 +149,15 @@ class SweepReport:
         return len(self.refused) + sum(r["status"] == "refused" for r in self.rows)
 
 
-# what a run tells as it goes: each finished case (progress), the cluster once connected
-# (announce); and the lease it writes under on object storage (None: a local lock)
-Watchers = tuple[
-    Optional[Callable[[SweepReport, list[dict]], None]],
-    Optional[Callable[[SweepReport], None]],
-    Optional[Lease],
-]
-
-
 @dataclass(frozen=True)
-class Where:
-    """Where a sweep's cases run: the scheduler (None: a local cluster of ``workers``), the
-    line cache per worker [MiB] and the wait for workers [s] (:func:`run_sweep`)."""
+class Watchers:
+    """What a run tells as it goes: each finished case (``progress``), the cluster once
+    connected (``announce``); and the lease it writes under on object storage (None: a local
+    lock)."""
 
-    scheduler: Optional[str]
-    workers: int
-    line_cache_mb: float
-    worker_wait_s: float
+    progress: Optional[Callable[[SweepReport, list[dict]], None]]
+    announce: Optional[Callable[[SweepReport], None]]
+    lease: Optional[Lease]
 
 
 def _changed_keys(old_json: str, new: SweepSpec) -> list[str]:
@@ -309,14 +301,14 @@ def run_sweep(
     fence_run = functools.partial(caselog.fence_run, out)  # a run whose lease is taken over
     with cube_lock(out, f"ftsweep sweep {name_or_path}", run_id, fence_run) as lease:
         return _run_locked(
-            (name, run_id),
+            RunNames(name, run_id),
             spec,
             out,
             Where(scheduler, workers, line_cache_mb, worker_wait_s),
             restart,
-            (retry_failed, prune),
+            Rerun(retry_failed, prune),
             catalog_folder,
-            (progress, announce, lease),
+            Watchers(progress, announce, lease),
         )
 
 
@@ -343,15 +335,15 @@ def _wanted_cases(
     spec: SweepSpec,
     out: Place,
     status: np.ndarray,
-    rerun: tuple[bool, Optional[float]],
+    rerun: Rerun,
     run_id: str,
     catalog_folder: Optional[Path],
     lease: Optional[Lease] = None,
 ) -> tuple[list[int], np.ndarray]:
     """The cases this run computes (after pruning, if asked) and the cube's status then."""
-    retry_failed, prune = rerun
+    retry_failed, prune = rerun.retry_failed, rerun.prune
     if prune is not None:
-        if registry.kind(spec.layout).estimate is None:
+        if not registry.kind(spec.layout).estimates:
             raise CaseError(
                 f"--prune needs a first-order estimate of the P-V (tables have one); a {spec.layout} "
                 "sweep has none"
@@ -376,16 +368,16 @@ def _compute(
     run_id: str,
     catalog_folder: Optional[Path],
     watchers: Watchers,
-    begun: tuple[Optional[EarlyCluster], float],
+    early: Optional[EarlyCluster],
+    started: float,
 ) -> None:
     """Run the cases of ``costs`` (by index, with their costs) on the cluster ``where`` says,
     each case written as it finishes; the tasks are planned for the threads of the cluster the
-    run got. ``begun``: the cluster opened during the set-up (or None), and the run's start on
-    :func:`time.perf_counter` (the timeline counts from it)."""
-    early, started = begun
+    run got. ``early``: the cluster opened during the set-up (or None); ``started``: the run's
+    start on :func:`time.perf_counter` (the timeline counts from it)."""
     if not costs:  # nothing to compute: no cluster is started (one opened early is closed by the caller)
         return
-    plan, on_result, on_cluster = _callbacks(report, spec, costs, catalog_folder, (watchers, started))
+    plan, on_result, on_cluster = _callbacks(report, spec, costs, catalog_folder, watchers, started)
     execute(
         plan,
         TaskSpec(
@@ -405,7 +397,7 @@ def _compute(
         worker_wait_s=where.worker_wait_s,
         check_reach=True,
         early=early,
-        finish=lambda: _merge_fenced(report.cube, watchers[2]),
+        finish=lambda: _merge_fenced(report.cube, watchers.lease),
     )
 
 
@@ -426,13 +418,14 @@ def _callbacks(
     spec: SweepSpec,
     costs: Costs,
     catalog_folder: Optional[Path],
-    watched: tuple[Watchers, float],
+    watchers: Watchers,
+    started: float,
 ) -> tuple[Callable[[int], list[list[int]]], Callable[[list[dict]], None], Callable[[Cluster], None]]:
     """What the executor calls during a run: the planner of the tasks for the cluster's threads,
     the delivery of finished cases (merged as :func:`merge_interval` paces it, progress told) and the
     announcement of the cluster; each marks the report's timeline, in seconds from the run's
-    start (``watched``'s second item, on :func:`time.perf_counter`)."""
-    (progress, announce, lease), started = watched
+    start (``started``, on :func:`time.perf_counter`)."""
+    progress, announce, lease = watchers.progress, watchers.announce, watchers.lease
     next_merge = [time.monotonic() + MERGE_EVERY_S]
 
     def plan(threads: int) -> list[list[int]]:
@@ -503,20 +496,19 @@ def _merge_fenced(out: Place, lease: Optional[Lease]) -> None:
 
 
 def _run_locked(
-    names: tuple[str, str],
+    names: RunNames,
     spec: SweepSpec,
     out: Place,
     where: Where,
     restart: bool,
-    rerun: tuple[bool, Optional[float]],
+    rerun: Rerun,
     catalog_folder: Optional[Path],
     watchers: Watchers,
 ) -> SweepReport:
-    run_id = names[1]
-    lease = watchers[2]
+    lease = watchers.lease
     start = time.perf_counter()
-    spec, name, held = (spec, names[0], "") if restart else grow.held_by(out, spec, names[0])
-    names = (name, run_id)
+    spec, name, held = (spec, names.sweep, "") if restart else grow.held_by(out, spec, names.sweep)
+    names = RunNames(name, names.run_id)
     created = not out.exists()
     fresh = created or restart
     # a new cube, or one started over, has every case to compute: its cluster opens and warms
@@ -528,13 +520,11 @@ def _run_locked(
             where.scheduler, where.workers, where.worker_wait_s, _warm(spec, catalog_folder, where)
         )
     with early or contextlib.nullcontext():
-        report, costs = _set_up(
-            names, spec, out, (restart, fresh), rerun, catalog_folder, lease, where.workers
-        )
+        report, costs = _set_up(names, spec, out, restart, fresh, rerun, catalog_folder, lease, where.workers)
         report.timeline["set_up_s"] = time.perf_counter() - start
         report.note = "; ".join(n for n in (held, report.note) if n)
         try:
-            _compute(report, spec, costs, where, run_id, catalog_folder, watchers, (early, start))
+            _compute(report, spec, costs, where, names.run_id, catalog_folder, watchers, early, start)
         except BaseException:
             if created and not report.connected:
                 # a cube this run made whose cluster never came (a wrong --scheduler): no task
@@ -558,28 +548,28 @@ def _run_locked(
 
 
 def _set_up(
-    names: tuple[str, str],
+    names: RunNames,
     spec: SweepSpec,
     out: Place,
-    restarting: tuple[bool, bool],
-    rerun: tuple[bool, Optional[float]],
+    restart: bool,
+    fresh: bool,
+    rerun: Rerun,
     catalog_folder: Optional[Path],
     lease: Optional[Lease],
     workers: int,
 ) -> tuple[SweepReport, Costs]:
     """The cube made, grown or checked, and the cases this run computes with their costs (the
     others refused before dispatch, pruned or done already), in a report of the run.
-    ``restarting``: whether the run starts the cube over, and whether it makes it anew (over,
-    or where there was none)."""
-    name, run_id = names
-    restart, fresh = restarting
+    ``restart``: whether the run starts the cube over; ``fresh``: whether it makes it anew
+    (over, or where there was none)."""
+    name, run_id = names.sweep, names.run_id
     _, note = prepare_cube(name, spec, out, restart, catalog_folder, lease)
     # a cube made just now has nothing to repair (reading every chunk of it took 0.5 s)
     status, damaged = (cube.read_status(out).ravel(), {}) if fresh else _undamaged_status(out, lease)
     already = int(np.count_nonzero(status == cube.DONE))
     pending, status = _wanted_cases(spec, out, status, rerun, run_id, catalog_folder, lease)
     report = SweepReport(cube=out, total=n_cases(spec), skipped=already, workers=workers, damaged=damaged)
-    report.pruned = int(np.sum(status == cube.PRUNED)) if rerun[1] is not None else 0
+    report.pruned = int(np.sum(status == cube.PRUNED)) if rerun.prune is not None else 0
     # the cases sent: every wanted one not refused, with its cost for planning the tasks
     report.refused, costs = _fenced(
         lease, lambda fence: refuse_cases(spec, out, pending, run_id, catalog_folder, fence)

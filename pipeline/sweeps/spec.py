@@ -199,9 +199,10 @@ class SweepSpec(Strict):
     @classmethod
     def _layout_of_the_surface(cls, data: Any, info: ValidationInfo) -> Any:
         applies, folder = _catalog_folder(info)
-        if applies and isinstance(data, dict) and data.get("layout") is None:
+        name = data.get("surface") if isinstance(data, dict) else None
+        if applies and isinstance(data, dict) and data.get("layout") is None and isinstance(name, str):
             try:
-                surface = catalogs.entry("surfaces", data.get("surface"), folder)
+                surface = catalogs.entry("surfaces", name, folder)
             except (CatalogError, TypeError):
                 return data  # the field validator names the surface key
             return {**data, "layout": surface.layout}

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, NamedTuple, Optional
 
 import pytest
 import xarray as xr
@@ -30,8 +30,14 @@ from ftsweep.tools.select import open_cube, recorded_case
 
 __all__ = ["KindTests"]
 
-# the sweep's spec file, its cube and the catalog folder it read
-Cube = tuple[Path, Path, Optional[Path]]
+
+class Cube(NamedTuple):
+    """The one-case sweep of a kind: its spec file, its cube and the catalog folder it read
+    (None: the installed catalogs or ``FTSWEEP_CATALOGS``)."""
+
+    spec: Path
+    out: Path
+    folder: Optional[Path]
 
 
 def _env(folder: Optional[Path]) -> dict[str, str]:
@@ -49,21 +55,23 @@ class KindTests:
     suffix = ".txt"
 
     @pytest.fixture(scope="class")
-    def catalog_folder(self) -> Optional[Path]:
+    @classmethod
+    def catalog_folder(cls) -> Optional[Path]:
         """The catalog folder the sweep reads (None: ``FTSWEEP_CATALOGS`` or the installed
         catalogs); a subclass overrides this fixture to point at its own."""
         return None
 
     @pytest.fixture(scope="class")
-    def cube(self, tmp_path_factory: pytest.TempPathFactory, catalog_folder: Optional[Path]) -> Cube:
+    @classmethod
+    def cube(cls, tmp_path_factory: pytest.TempPathFactory, catalog_folder: Optional[Path]) -> Cube:
         """The one-case sweep of :attr:`sweep`, run synchronously into a cube."""
-        folder = tmp_path_factory.mktemp(type(self).__name__)
+        folder = tmp_path_factory.mktemp(cls.__name__)
         spec = folder / "one.yaml"
-        spec.write_text(self.sweep)
+        spec.write_text(cls.sweep)
         out = folder / "one.zarr"
         report = run_sweep(str(spec), out, scheduler="synchronous", catalog_folder=catalog_folder)
         assert report.done == 1, report.rows
-        return spec, out, catalog_folder
+        return Cube(spec, out, catalog_folder)
 
     def test_the_kind_is_registered_and_has_a_file_format(self) -> None:
         entry = registry.kind(self.kind)

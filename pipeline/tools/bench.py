@@ -249,7 +249,7 @@ def against_reference(
 
     case = case or reference_row_case()
     kind = registry.kind(case.layout.kind)
-    if kind.reference is None:
+    if not kind.has_reference:
         raise ValueError(f"{kind.noun}s have no brute-force reference model")
     predicted = whole_process(repeat, [row])[0]
     reference = kind.reference(resolve_case(case, kind))

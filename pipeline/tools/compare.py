@@ -16,7 +16,7 @@ sampled on rays of their own geometry and keep theirs.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, Optional
 
 from ftsweep import registry
@@ -42,7 +42,7 @@ _OPENED_AT: dict[str, Place] = {}
 CONDITIONS = ("surface", "nose_radius_um", "feed_um", "machine", "compensation", "resolution")
 
 
-def _values_text(values: list[float]) -> str:
+def _values_text(values: Iterable[float]) -> str:
     return ", ".join(f"{v:g}" for v in sorted(set(values)))
 
 
@@ -55,10 +55,10 @@ def conditions(ds: Any) -> dict[str, str]:
     spec = SweepSpec.model_validate_json(ds.attrs["sweep_spec"])
     cutting = json.loads(ds.attrs["catalog_entries"])["cutting"][spec.cutting]
     axes = spec.axes
-    if getattr(axes, "residual_um", None) is not None:
-        feed = "set by the residual budget " + _values_text(axis_values(axes.residual_um)) + " um"
+    if axes.get("residual_um") is not None:
+        feed = "set by the residual budget " + _values_text(axis_values(axes.get("residual_um"))) + " um"
     else:
-        swept = axes.feed_um if axes.feed_um is not None else getattr(axes, "spacing_um", None)
+        swept = axes.feed_um if axes.feed_um is not None else axes.get("spacing_um")
         feed = _values_text(axis_values(swept) if swept is not None else [cutting["feed_um"]])
     radii = (
         axis_values(axes.nose_radius_um) if axes.nose_radius_um is not None else [cutting["nose_radius_um"]]
@@ -162,7 +162,7 @@ def common_sampling(
     spec and entries."""
     from ftsweep.simulate import run_case
 
-    spindle = [r for r in rows if registry.kind(r["kind"]).angular_cells is not None and r["n_theta"]]
+    spindle = [r for r in rows if registry.kind(r["kind"]).samples_spindle_angles and r["n_theta"]]
     if len(spindle) < 2:
         return None
     n_theta = max(int(r["n_theta"]) for r in spindle)

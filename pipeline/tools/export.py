@@ -13,12 +13,14 @@ import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 from typing import Any, Optional
 
 from ftsweep import registry
-from ftsweep.exports.files import FileFormat, Progress
+from ftsweep.engine.contract import FileFormat
+from ftsweep.exports.files import Progress
 from ftsweep.exports.origin import sign, signature_path, signing_key
 from ftsweep.freetext import TextError, check_text
 from ftsweep.store import ledger
@@ -109,15 +111,47 @@ def export(
     except TextError as exc:
         raise ExportError(f"-o {str(out)[:200]!r}: {exc}") from None
     key = signing_key(sign_key)
-    signer = None if key is None else (key, expires)
+    signer = None if key is None else Signer(key, expires)
     with _export_lock(out):
         check_overwrite((out, side, signature_path(out)), force)
         return _export_locked(
-            (cube_path, out),
-            (budget_points, tolerance_nm, index),
-            (name, trust_plugins, signer, dialect),
-            machine,
+            cube_path,
+            out,
+            Selection(budget_points, tolerance_nm, index),
+            Writing(name, trust_plugins, signer, dialect, machine),
         )
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which case of a cube is exported (``select``'s rules, :func:`ftsweep.tools.select.choose`):
+    the best within a budget of points, the fewest points within a tolerance [nm], or a case
+    by its index or name."""
+
+    budget_points: int | None
+    tolerance_nm: float | None
+    index: int | str | None
+
+
+@dataclass(frozen=True)
+class Signer:
+    """The signing key a statement is made with and the time it expires (None: never)."""
+
+    key: Path
+    expires: datetime | None
+
+
+@dataclass(frozen=True)
+class Writing:
+    """How the chosen case is written: the program's name in its header, whether plug-in
+    surfaces of the recorded entries are trusted, its signer (None: unsigned), its dialect
+    (None: the controller's) and another machine to plan it for (None: the cube's)."""
+
+    name: str | None
+    trust_plugins: bool
+    signer: Signer | None
+    dialect: str | None
+    machine: str | None
 
 
 @contextmanager
@@ -137,12 +171,7 @@ def _export_lock(out: Path) -> Iterator[None]:
         release(lock)
 
 
-def _export_locked(
-    paths: tuple[PathLike, Path],
-    selection: tuple[int | None, float | None, int | str | None],
-    options: tuple[str | None, bool, tuple[Path, datetime | None] | None, str | None],
-    machine: str | None = None,
-) -> dict[str, Any]:
+def _export_locked(cube_path: PathLike, out: Path, selection: Selection, writing: Writing) -> dict[str, Any]:
     """:func:`export` once its lock is held: the files are written and signed in a staging
     folder beside ``out`` under their final names, then published (:func:`_publish`)."""
     from ftsweep.exports import nc
@@ -151,11 +180,11 @@ def _export_locked(
     from ftsweep.tools.query import flat_of
     from ftsweep.tools.select import check_exportable, choose, open_cube, recorded_case
 
-    cube_path, out = paths
-    budget_points, tolerance_nm, index = selection
-    name, trust_plugins, signer, dialect = options
+    tolerance_nm = selection.tolerance_nm
+    name, trust_plugins, signer = writing.name, writing.trust_plugins, writing.signer
+    dialect, machine = writing.dialect, writing.machine
     ds = open_cube(cube_path)
-    chosen = choose(ds, budget_points, tolerance_nm, index)
+    chosen = choose(ds, selection.budget_points, tolerance_nm, selection.index)
     if tolerance_nm is not None and not chosen.get("met", True):
         raise ExportError(
             f"no case meets P-V ≤ {tolerance_nm:g} nm (best found: {chosen['pv_nm']:.2f} nm at "
@@ -168,14 +197,15 @@ def _export_locked(
     if machine is not None and machine != case.machine:
         case, specs, chosen, planned_for = for_machine(case, specs, chosen, machine, dialect)
     # the platform decides whether verify must find every number exactly as re-planned
-    extra = {
+    sequence = ledger.next_sequence(place(cube_path), out.name)
+    extra: dict[str, Any] = {
         "cube": str(cube_path),
         "cube_git_revision": ds.attrs.get("git_revision"),
         "platform": fingerprint(),
-        "ledger": {"name": out.name, "sequence": ledger.next_sequence(place(cube_path), out.name)},
+        "ledger": {"name": out.name, "sequence": sequence},
         **({"planned_for": planned_for} if planned_for else {}),
     }
-    dialect = dialect_for(case.machine, specs[1], dialect, case.layout.kind)
+    dialect = dialect_for(case.machine, specs.machine, dialect, case.layout.kind)
     stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".export", dir=out.parent))
     try:
         staged, staged_side = stage / out.name, stage / sidecar_path(out).name
@@ -186,11 +216,9 @@ def _export_locked(
             assert fmt.export is not None
             meta = fmt.export(staged, staged_side, case, specs, chosen, extra, name=name)
         if signer is not None:  # signed before anything is published: a failed signing publishes nothing
-            meta = {**meta, "signature": sign(staged, signer[0], signer[1])}
+            meta = {**meta, "signature": sign(staged, signer.key, signer.expires)}
         # appended before the file is published: a file verify finds is always in the ledger
-        ledger.record(
-            place(cube_path), out.name, extra["ledger"]["sequence"], _ledger_entry(stage, out, meta)
-        )
+        ledger.record(place(cube_path), out.name, sequence, _ledger_entry(stage, out, meta))
         _publish(stage, out)
     finally:
         shutil.rmtree(stage, ignore_errors=True)

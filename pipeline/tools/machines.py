@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.store.io import ExportError
 
 # what a case's prediction on another machine replaces in the selection the cube gave
@@ -13,8 +14,8 @@ _PREDICTED = ("n_points", "pv_nm", "rms_nm", "pv_interp_nm", "pv_inner_nm", "pv_
 
 
 def for_machine(
-    case: Any, specs: tuple[Any, Any, Any], chosen: dict[str, Any], machine: str, dialect: str | None
-) -> tuple[Any, tuple[Any, Any, Any], dict[str, Any], dict[str, Any]]:
+    case: Any, specs: Entries, chosen: dict[str, Any], machine: str, dialect: str | None
+) -> tuple[Any, Entries, dict[str, Any], dict[str, Any]]:
     """The cube's chosen ``case`` planned for ``machine`` of the local catalog instead of the
     machine it was swept for: its controller, capacity, units and limits; predicted there
     (the full simulation, model §1–§6), so the file states the P-V it will cut on that machine.
@@ -31,7 +32,7 @@ def for_machine(
     except catalogs.CatalogError as exc:
         raise ExportError(f"--machine: {exc}") from None
     moved = case.model_copy(update={"machine": machine})
-    specs = (specs[0], spec, specs[2])
+    specs = specs._replace(machine=spec)
     if dialect is not None:
         check_dialect(machine, spec, dialect)
     _check_kind_reads(moved, spec)

@@ -313,12 +313,12 @@ def _seeded(
     if seed == "estimate":
         from ftsweep.stages.layouts.estimate import cusp_nm
 
-        seed_of = registry.kind(opt.layout).seed
-        if seed_of is None:
+        own = registry.kind(opt.layout)
+        if not own.estimates:
             raise ValueError(f"a {registry.noun(opt.layout)} has no estimate to seed the search: --seed scan")
         cut = catalogs.entry("cutting", opt.cutting, opt.folder)
         cusp = cusp_nm(cut.feed_um, cut.nose_radius_um)
-        n, aspect, _ = seed_of(spec, opt.tol, cap, cusp, (lo, hi), opt.folder)
+        n, aspect, _ = own.seed(spec, opt.tol, int(cap), cusp, (lo, hi), opt.folder)
         n = min(n, cap)
         aspect, rec = opt.refine_aspect(n, aspect, math.sqrt(ratio), 2)
         return n, aspect, rec

@@ -69,7 +69,7 @@ def resimulate(
         record["gouge_points"] = int(np.count_nonzero(gouge))
         return record, (case, layout, table, specs)
     # a table is compensated once, here, and handed to the run (which would redo it)
-    table, gouge = control_table(case, layout, specs[0], rcase.nose_radius_um)
+    table, gouge = control_table(case, layout, specs.surface, rcase.nose_radius_um)
     record = run_case(case, progress=progress, specs=specs, table=table)
     record["gouge_points"] = int(np.count_nonzero(gouge))
     return record, (case, layout, table, specs)
@@ -173,7 +173,7 @@ def make_report(
     paths["error_map"] = _save(
         plot_map(record["error_map_x_um"], record["error_map_peak_nm"], shown, "peak"), out / "error_map.png"
     )
-    if registry.kind(case.layout.kind).angular_cells is not None:
+    if registry.kind(case.layout.kind).samples_spindle_angles:
         # the W spectrum of one revolution: programs about the spindle (tables, spirals); a D
         # path's motion is in its record (X feed and accelerations) and `ftsweep dpath`'s plots
         paths["w_spectrum"] = _save(plot_spectrum(record, layout, table, specs), out / "w_spectrum.png")

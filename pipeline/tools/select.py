@@ -12,6 +12,7 @@ from typing import Any, Optional
 import numpy as np
 import xarray as xr
 
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.store import cube
 from ftsweep.store.storage import PathLike, place
 from ftsweep.tools.query import best_flat, capacity_of, describe, eligible, eligible_pv, find_case, position
@@ -139,7 +140,7 @@ def choose(
     return chosen
 
 
-def recorded_case(ds: xr.Dataset, flat: int, trust_plugins: bool = False) -> tuple[Any, tuple[Any, Any, Any]]:
+def recorded_case(ds: xr.Dataset, flat: int, trust_plugins: bool = False) -> tuple[Any, Entries]:
     """The case at flat index ``flat`` of a cube and the (surface, machine, cutting) entries
     the cube recorded for it. A cube is data: a plug-in surface it names must be one of the
     local catalog's unless ``trust_plugins`` (:func:`~ftsweep.inputs.trust.specs_from_entries`)."""

@@ -245,9 +245,17 @@ class ExtremesOver:
         value, at = np.empty, lambda size: np.empty(size, dtype=np.int64)
         self.n, self.groups, self.started = n, groups, False
         self.out = Extremes(
-            value(axes), at(axes), value(axes), at(axes), value(axes), at(axes), value(axes), at(axes),
-            value((groups, axes)), value(axes),
-        )  # fmt: skip
+            value(axes),
+            at(axes),
+            value(axes),
+            at(axes),
+            value(axes),
+            at(axes),
+            value(axes),
+            at(axes),
+            value((groups, axes)),
+            value(axes),
+        )
         if n == 0:  # no point: nothing to exceed
             e = self.out
             e.low[:], e.high[:], e.speed[:], e.accel[:] = math.inf, -math.inf, -1.0, -1.0

@@ -1,5 +1,5 @@
 """``ftsweep dpath``: the D-path study of the seed ([5]), a command the D-path kind adds
-(entry point of group ``ftsweep.commands``): both transitions of the optimised program and
+(:meth:`ftsweep.kinds.dpath.DPathKind.commands`): both transitions of the optimised program and
 the spiral beside it on the same part, its plots, and its export with ``-o``."""
 
 from __future__ import annotations
@@ -117,11 +117,11 @@ def _dpath_study(opts: dict[str, Any], plots: Plots) -> tuple[dict[str, Any], Ca
     from pydantic import ValidationError
 
     from ftsweep.engine.case import CaseError
-    from ftsweep.inputs.catalogs import CatalogError
-    from ftsweep.kinds.dpath import kind as dpath_kind
+    from ftsweep.inputs.yamlfiles import CatalogError
     from ftsweep.kinds.dpath import study as dstudy
+    from ftsweep.kinds.dpath.names import request_options
 
-    options = dpath_kind.request_options(opts)
+    options = request_options(opts)
     progress = stderr_progress("dpath", opts["as_json"])
     try:
         base = dstudy.default_case(opts["surface"], opts["machine"], opts["cutting"], options)

@@ -15,10 +15,10 @@ from typing import Any
 import numpy as np
 
 from ftsweep.engine.case import Case
+from ftsweep.engine.contract import FileFormat
 from ftsweep.exports.dialects import Adapter, Moves, aligned
 from ftsweep.exports.files import (
     DataLines,
-    FileFormat,
     ProgramError,
     case_meta,
     check_document,
@@ -28,12 +28,13 @@ from ftsweep.exports.files import (
     read_program_file,
     recorded_case_of,
     recorded_extra,
-    sidecar_of,
     write_program,
 )
 from ftsweep.exports.moves import pvt_tangents, with_pvt, without_stop
 from ftsweep.exports.programs import program_format
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.simulate import resolve_case, run_case
+from ftsweep.store.io import sidecar_of
 from ftsweep.version import __version__
 
 D_MAGIC = "# ftsweep D-path program"
@@ -60,7 +61,7 @@ def _limits_of_lines(machine: Any, rpm: float, path: Any, data: np.ndarray) -> s
 
 def dpath_document(
     case: Case,
-    specs: tuple[Any, Any, Any],
+    specs: Entries,
     chosen: dict[str, Any],
     extra: dict[str, Any],
     created: str,
@@ -73,9 +74,9 @@ def dpath_document(
 
     rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     path, z = rcase.layout, rcase.values
-    rpm = specs[2].spindle_rpm
+    rpm = specs.cutting.spindle_rpm
     t = dprog.times(path, z, rpm)
-    period = dprog.period_of(specs[1])
+    period = dprog.period_of(specs.machine)
     lines = DataLines.of(t, np.degrees(path.phi), path.rho * 1e-3, z * 1e-3)
     g = path.geometry
     own = {
@@ -111,7 +112,7 @@ def export_dpath(
     out: Path,
     side: Path,
     case: Case,
-    specs: tuple[Any, Any, Any],
+    specs: Entries,
     chosen: dict[str, Any],
     extra: dict[str, Any],
     rcase: Any = None,
@@ -122,7 +123,7 @@ def export_dpath(
     :func:`ftsweep.engine.planning.resolve_case` planned it from these entries already (a study)."""
     rcase = rcase if rcase is not None else resolve_case(case, specs=specs)
     head, lines, meta = dpath_document(case, specs, chosen, extra, now(), f"ftsweep {__version__}", rcase)
-    reason = _limits_of_lines(specs[1], specs[2].spindle_rpm, rcase.layout, lines.printed)
+    reason = _limits_of_lines(specs.machine, specs.cutting.spindle_rpm, rcase.layout, lines.printed)
     if reason:
         raise ProgramError(
             f"the program leaves the axis limits of machine '{case.machine}': {reason}; nothing exported"
@@ -164,13 +165,13 @@ def verify_dpath(
     return checked_pv(path, meta, record, pv_tolerance_nm)
 
 
-def _dpath_planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str], Any]:
+def _dpath_planned(case: Case, specs: Entries) -> tuple[Moves, list[str], Any]:
     """A D path's moves as planned ([5]): its lines t, C, X, Z as G93 blocks."""
     from ftsweep.kinds.dpath import program as dprog
 
     rcase = resolve_case(case, specs=specs)
     path, z = rcase.layout, np.asarray(rcase.values)
-    rpm = specs[2].spindle_rpm
+    rpm = specs.cutting.spindle_rpm
     t = dprog.run_times(path, z, rpm)
     g = path.geometry
     lines = [
@@ -198,9 +199,7 @@ def _dpath_check(rcase: Any, moves: Moves) -> str:
     return _limits_of_lines(rcase.machine, rcase.cutting.spindle_rpm, path, _dpath_columns(moves, path))
 
 
-def _dpath_simulate(
-    case: Case, specs: tuple[Any, Any, Any], moves: Moves, progress: Any, rcase: Any
-) -> dict[str, Any]:
+def _dpath_simulate(case: Case, specs: Entries, moves: Moves, progress: Any, rcase: Any) -> dict[str, Any]:
     """The planned D path (``rcase``) run through the moves' t, C, X and Z (PVT: the
     segments their velocities form)."""
     data = _dpath_columns(moves, rcase.layout)

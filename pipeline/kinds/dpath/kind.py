@@ -17,15 +17,12 @@ import numpy as np
 
 from ftsweep.engine import result
 from ftsweep.engine.case import Case, CaseError
-from ftsweep.engine.contract import Axis, BenchRow, Planning, ProgramKind
+from ftsweep.engine.contract import Planning
 from ftsweep.engine.planning import compensator
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
-from ftsweep.kinds.dpath.options import dpath_options
-from ftsweep.kinds.dpath.request import DPathRequest
-
-AXES = ("spacing_um", "points_per_cut")
-
+from ftsweep.kinds.dpath.names import AXES
+from ftsweep.kinds.dpath.request import DPathRequest, request_of
 
 # compensated cut points kept for the plans made inside :func:`shared_cuts` (None: not kept)
 _SHARED_CUTS: ContextVar[Optional[dict[tuple[Any, ...], tuple[np.ndarray, np.ndarray]]]] = ContextVar(
@@ -109,7 +106,7 @@ def plan_dpath(
         raise CaseError(f"D path (machine '{case.machine}'): {exc}") from None
 
 
-def _request_at(spec: Any, value: dict[str, float]) -> DPathRequest:
+def request_at(spec: Any, value: dict[str, float]) -> DPathRequest:
     return DPathRequest(
         kind="dpath",
         **(spec.options_of("dpath") or {}),
@@ -117,15 +114,15 @@ def _request_at(spec: Any, value: dict[str, float]) -> DPathRequest:
     )
 
 
-def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
+def feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
     """A D path's feed is its spacing between cuts [µm]: a given program's, else the request's,
     the case's or the cutting entry's."""
     if program is not None:
         return float(program[0].geometry.spacing_um)
-    return float(case.layout.spacing_um or case.feed_of(cutting))
+    return float(request_of(case).spacing_um or case.feed_of(cutting))
 
 
-def _plan(p: Planning) -> tuple[Any, dict[str, Any]]:
+def plan(p: Planning) -> tuple[Any, dict[str, Any]]:
     """The D path ([5]); on a PVT machine with the segments its controller forms (cubic in
     time, :func:`ftsweep.kinds.dpath.program.pvt_form`); refused on a SPLINE1 machine, whose
     one segment time TA a D path's points (closer on the cuts than in the transitions) do
@@ -157,30 +154,30 @@ def _plan(p: Planning) -> tuple[Any, dict[str, Any]]:
     return path, extra
 
 
-def _record_fields(rcase: Any) -> dict[str, Any]:
+def record_fields(rcase: Any) -> dict[str, Any]:
     return {}  # the D-path engine writes its own fields (:func:`ftsweep.kinds.dpath.program.record_fields`)
 
 
-def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
+def cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
     """The evaluated nodes (rays × cuts × points per feed); its lines are its own."""
     from ftsweep.kinds.dpath import program as dpath_program
 
     ap = catalogs.aperture_of(surface)
-    ppc = case.layout.points_per_cut or dpath_program.DEFAULTS["points_per_cut"]
-    # its feed is its spacing between cuts (_feed)
+    ppc = request_of(case).points_per_cut or dpath_program.DEFAULTS["points_per_cut"]
+    # its feed is its spacing between cuts (feed)
     return 3.0 * ppc * 2.0 * ap.half_extent_um[0] / feed * case.resolution.points_per_feed, None
 
 
-def _pitch(r: dict[str, Any]) -> str:
+def pitch_text(r: dict[str, Any]) -> str:
     return f"mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
 
 
-def _point(path: Any, flat: int) -> str:
+def point_text(path: Any, flat: int) -> str:
     x, c = float(path.rho[flat]), math.degrees(path.phi[flat])
     return f"D-path point {flat} (X = {x:.6g} µm, C = {c:.6g}°)"
 
 
-def _describe(r: dict[str, Any]) -> list[str]:
+def describe(r: dict[str, Any]) -> list[str]:
     """The D path's cuts, transition and X motion at the spindle speed (``predict``)."""
     verdict = "feasible" if r["feasible"] else f"INFEASIBLE: {r['infeasible_reason']}"
     return [
@@ -196,7 +193,7 @@ def _describe(r: dict[str, Any]) -> list[str]:
     ]
 
 
-def _check_sweep(spec: Any) -> None:
+def check_sweep(spec: Any) -> None:
     """An axis of its own; the spacing is its feed, so not both; the D-path options valid."""
     if not any(spec.axes.get(n) is not None for n in AXES):
         raise ValueError("a D-path sweep needs an axis: spacing_um and/or points_per_cut")
@@ -206,35 +203,6 @@ def _check_sweep(spec: Any) -> None:
 
 
 # its command-line options: the request's fields, the off-axis distance in mm
-OPTIONS = ("spacing_um", "points_per_cut", "zones", "offaxis_mm", "cut_angle_deg", "transition_step_deg")
-
-
-def request_options(opts: dict[str, Any]) -> dict[str, Any]:
-    """The D-path request fields of command-line options (mm and choice strings converted;
-    options not given left out)."""
-    fields = {
-        "spacing_um": opts.get("spacing_um"),
-        "points_per_cut": opts.get("points_per_cut"),
-        "zones": int(opts["zones"]) if opts.get("zones") else None,
-        "offaxis_um": opts["offaxis_mm"] * 1e3 if opts.get("offaxis_mm") else None,
-        "cut_angle_deg": opts.get("cut_angle_deg"),
-        "transition_step_deg": opts.get("transition_step_deg"),
-    }
-    return {k: v for k, v in fields.items() if v is not None}
-
-
-def _simulation(inputs: Any, timer: Any) -> Any:
-    # the D-path engine (ftsweep.kinds.dpath.program, stages.dpath) is imported where a D path is
-    # simulated, not by every command that lists the kinds
-    from ftsweep.kinds.dpath.program import DPathSimulation
-
-    return DPathSimulation(inputs, timer)
-
-
-def _file_format() -> Any:
-    from ftsweep.kinds.dpath.format import dpath_format
-
-    return dpath_format()
 
 
 FIELDS = (
@@ -268,50 +236,4 @@ FIELDS = (
     result.number(
         "slope_jump_um_rad", "um/rad", "largest jump of d(rho)/d(theta) at a junction of cut and transition"
     ),
-)
-
-
-# its whole-process benchmark: the seed example, then its exported program ([5]) verified
-_DPATH_OUT = ("dpath", "-o", "{dir}/d.txt")
-_DPATH_OUT_LABEL = "ftsweep dpath -o (+ its 1M-line program)"
-
-
-DPATH = ProgramKind(
-    name="dpath",
-    noun="D-path program",
-    request=DPathRequest,
-    axes=(
-        Axis("spacing_um", "um", "spacing between the D path's cuts"),
-        Axis("points_per_cut", "1", "points on every cut of the D path", count=True),
-    ),
-    fields=FIELDS,
-    pitches=("dphi_deg", "ds_um"),
-    file_format=_file_format,
-    request_at=_request_at,
-    feed=_feed,
-    plan=_plan,
-    record_fields=_record_fields,
-    cost=_cost,
-    simulation=_simulation,
-    pitch_text=_pitch,
-    point_text=_point,
-    angular_cells=None,
-    warm_request=lambda: DPathRequest(kind="dpath", spacing_um=2000.0, points_per_cut=11),
-    bench_rows=(
-        BenchRow("ftsweep dpath (seed example)", ("dpath", "--json", "--plots", "{dir}")),
-        BenchRow(_DPATH_OUT_LABEL, (*_DPATH_OUT, "--json", "--plots", "{dir}", "--force")),
-        BenchRow(
-            "verify 1M-line D-path program", ("verify", "{dir}/d.txt", "--json"), 3, needs=_DPATH_OUT_LABEL
-        ),
-    ),
-    describe=_describe,
-    check_sweep=_check_sweep,
-    sweeps="D-path sweeps",
-    options=OPTIONS,
-    click_options=dpath_options,
-    from_options=lambda o: ({"kind": "dpath", **request_options(o)}, []),
-    machine="sts-xzc",
-    cutting="dpath-finish",
-    options_key="dpath",
-    options_dumped_unset=True,
 )

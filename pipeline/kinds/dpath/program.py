@@ -408,6 +408,8 @@ def _crossings(
     PVT program's C, X, Z columns, its segments cubic in time (None: linear)."""
     if chan is None:
         pos, w, seg = rays.crossings(path.phi, path.rho, z_prog, theta)
+    elif path.tangents is None:
+        raise ValueError("a D path timed as PVT segments needs its velocities (tangents)")
     else:
         pos, w, seg = timed_path.crossings(path.phi, chan, path.tangents, theta)
     order = np.argsort(np.where(np.isnan(pos), np.inf, pos), axis=1)

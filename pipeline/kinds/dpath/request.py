@@ -6,7 +6,7 @@ from typing import Any, ClassVar, Literal, Optional
 
 from pydantic import Field, PositiveFloat, model_serializer
 
-from ftsweep.engine.case import Request
+from ftsweep.engine.case import Case, Request
 
 DPATH_FIELDS = (
     "spacing_um",
@@ -48,3 +48,11 @@ class DPathRequest(Request):
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
         return self.stable_dump(handler(self), DPATH_FIELDS)
+
+
+def request_of(case: Case) -> DPathRequest:
+    """The dpath request of a case (TypeError for a case of another kind: a planner of this kind
+    is handed only its own)."""
+    if not isinstance(case.layout, DPathRequest):
+        raise TypeError(f"a {case.layout.kind} case is not a dpath program's")
+    return case.layout

@@ -57,8 +57,8 @@ def spiral_motion(case: Case, resolved: Optional[ResolvedCase] = None) -> dict[s
     rcase = resolved or resolve_case(case)
     path = rcase.layout
     rpm = rcase.cutting.spindle_rpm
-    t = dpath_motion.point_times(path.phi, path.rho, rcase.values, "spindle", rpm)
-    motion = dpath_motion.axis_motion(t, path.phi, path.rho, rcase.values)
+    t = dpath_motion.point_times(path.phi, path.rho, rcase.commands_um, "spindle", rpm)
+    motion = dpath_motion.axis_motion(t, path.phi, path.rho, rcase.commands_um)
     return {"t": t, "phi": path.phi, "x": path.rho, "z": rcase.values, **motion}
 
 
@@ -124,7 +124,8 @@ def _transition(rcase: ResolvedCase, feed_mm_min: float, progress: Any) -> dict[
     keep = {k: v for k, v in record.items() if not k.startswith("seconds") and k != "layers"}
     keep.update(continuity(rcase.layout))
     for name, cuts_only in (("feed_mode", False), ("feed_mode_cuts", True)):
-        keep[name] = feed_mode(rcase.layout, rcase.values, rcase.cutting.spindle_rpm, feed_mm_min, cuts_only)
+        rpm = rcase.cutting.spindle_rpm
+        keep[name] = feed_mode(rcase.layout, rcase.commands_um, rpm, feed_mm_min, cuts_only)
     return keep
 
 
@@ -182,7 +183,7 @@ def study(
     out: dict[str, Any] = {"surface": base.surface, "machine": base.machine, "cutting": base.cutting}
     with dpath_kind.shared_cuts():
         resolved = {kind: resolve_case(d_case(base, kind)) for kind in TRANSITIONS}
-    programs = {kind: (r.layout, r.values) for kind, r in resolved.items()}
+    programs = {kind: (r.layout, r.commands_um) for kind, r in resolved.items()}
     opt_case = resolved["optimised"]
     rpm = opt_case.cutting.spindle_rpm
     # the C step of one controller period (the records' accel_step_deg, formed alike)

@@ -1,5 +1,5 @@
 """``ftsweep fresnel``: the freeform Fresnel study of the seed ([2]), a command the Fresnel
-kind adds (entry point of group ``ftsweep.commands``): the quasi-spiral program of the part
+kind adds (:meth:`ftsweep.kinds.fresnel.FresnelKind.commands`): the quasi-spiral program of the part
 timed under the machine's limits, its figures, and its export with ``-o``."""
 
 from __future__ import annotations
@@ -107,11 +107,11 @@ def fresnel_command(**opts: Any) -> None:
     """
     from pydantic import ValidationError
 
-    from ftsweep.exports.files import ExportError, sidecar_path
     from ftsweep.exports.origin import signed, signing_key
-    from ftsweep.inputs.catalogs import CatalogError
+    from ftsweep.inputs.yamlfiles import CatalogError
     from ftsweep.kinds.fresnel import figures
     from ftsweep.kinds.fresnel import study as fstudy
+    from ftsweep.store.io import ExportError, sidecar_path
 
     keys = (
         "facet_height_um",

@@ -10,12 +10,13 @@ from typing import Any
 import numpy as np
 
 from ftsweep.exports.moves import pvt_tangents, with_pvt, without_stop
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel.study import lines_reason
 from ftsweep.stages.paths import fresnel as ff
 
 
-def _dialect_planned(case: Any, specs: tuple[Any, Any, Any]) -> tuple[Any, list[str], Any]:
+def _dialect_planned(case: Any, specs: Entries) -> tuple[Any, list[str], Any]:
     """A Fresnel case's moves as planned and timed ([2]): its four channels at its own
     timesteps, one G93 block a point."""
     from ftsweep.exports.dialects import Moves
@@ -60,9 +61,7 @@ def _dialect_check(rcase: Any, moves: Any) -> str:
     return lines_reason(_columns(moves, rcase), fp.limits_of(rcase.machine, rcase.case.machine))
 
 
-def _dialect_simulate(
-    case: Any, specs: tuple[Any, Any, Any], moves: Any, progress: Any, rcase: Any
-) -> dict[str, Any]:
+def _dialect_simulate(case: Any, specs: Entries, moves: Any, progress: Any, rcase: Any) -> dict[str, Any]:
     """The planned program (``rcase``) with the moves' X, Y, Z and C (eq. 9 back to the part)."""
     from ftsweep.simulate import run_case
 

@@ -38,10 +38,10 @@ def _plot_path(s: dict[str, Any]) -> Any:
     fplan, specs = s["_plan"], s["_specs"]
     k = fplan.path.points_per_turn
     fig, ax = plt.subplots(1, 2, figsize=(11, 5))
-    aperture = catalogs.aperture_of(specs[0])
+    aperture = catalogs.aperture_of(specs.surface)
     hx, hy = aperture.half_extent_um
     gx, gy = np.meshgrid(np.linspace(-hx, hx, 301), np.linspace(-hy, hy, 301))
-    fn = catalogs.base_callable(specs[0])
+    fn = catalogs.base_callable(specs.surface)
     fc = ff.sliced(fn(gx, gy)[0], fplan.f_ref_um, fplan.facet_height_um)[0]
     fc = np.where(aperture.contains(gx, gy), fc, np.nan)
     im = ax[0].pcolormesh(gx * 1e-3, gy * 1e-3, fc, shading="auto", cmap="viridis")

@@ -132,7 +132,7 @@ class FresnelSimulation:
     def _crossings(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
         """The passes crossing each ray, sorted outwards: distance from the lowest point [µm],
         tool tip Z [µm], facet level, and how many there are."""
-        if self.chan is None:
+        if self.chan is None or self.tangents is None:
             pos, w, seg = rays.crossings(self.psi, self.r, self.z, theta)
         else:
             # cubic in time (PVT): the path between points followed exactly through eq. 9

@@ -7,7 +7,8 @@ import functools
 from pathlib import Path
 from typing import Any
 
-from ftsweep.exports.files import FileFormat, Progress, pv_lines
+from ftsweep.engine.contract import FileFormat
+from ftsweep.exports.files import Progress, pv_lines
 
 
 @functools.cache

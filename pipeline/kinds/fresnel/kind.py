@@ -15,10 +15,10 @@ import numpy as np
 
 from ftsweep.engine import result
 from ftsweep.engine.case import Case, CaseError
-from ftsweep.engine.contract import Axis, BenchRow, Planning, ProgramKind
+from ftsweep.engine.contract import Planning
 from ftsweep.inputs import catalogs
-from ftsweep.kinds.fresnel.options import fresnel_options
-from ftsweep.kinds.fresnel.request import FRESNEL_FIELDS, FresnelRequest
+from ftsweep.kinds.fresnel.names import AXES
+from ftsweep.kinds.fresnel.request import FresnelRequest
 
 if TYPE_CHECKING:
     from ftsweep.kinds.fresnel import program as fresnel
@@ -26,7 +26,6 @@ if TYPE_CHECKING:
 # the planner (ftsweep.kinds.fresnel.program) and the engine (ftsweep.kinds.fresnel.form) are imported where a
 # Fresnel program is planned or simulated, not by every command that lists the kinds
 
-AXES = ("facet_height_um", "points_per_turn", "deviation_deg")
 # the request's fields → the planner's option names (ftsweep.kinds.fresnel.program.DEFAULTS)
 OPTION = {"control_points": "scheme"}
 
@@ -39,7 +38,7 @@ def option(request: Any, name: str) -> Any:
     return fresnel.DEFAULTS[OPTION.get(name, name)] if value is None else value
 
 
-def _request_at(spec: Any, value: dict[str, float]) -> FresnelRequest:
+def request_at(spec: Any, value: dict[str, float]) -> FresnelRequest:
     return FresnelRequest(
         kind="fresnel",
         **{
@@ -49,14 +48,14 @@ def _request_at(spec: Any, value: dict[str, float]) -> FresnelRequest:
     )
 
 
-def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
+def feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
     """The feed Δr per turn [µm]: a given program's, else the case's or the cutting entry's."""
     if program is not None:
         return float(program[0].plan.feed_um)
     return case.feed_of(cutting)
 
 
-def _plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
+def plan(p: Planning) -> tuple[fresnel.FresnelProgram, dict[str, Any]]:
     """The program ([2] §2.1–2.5): planned, then timed at T0 = one turn at the spindle speed;
     or the given one as it stands (no gouge flags)."""
     from ftsweep.kinds.fresnel import program as fresnel
@@ -110,11 +109,7 @@ def record_fields(rcase: Any) -> dict[str, Any]:
     return fields(rcase)
 
 
-def _record_fields(rcase: Any) -> dict[str, Any]:
-    return {}  # the Fresnel simulation writes its own fields (record_fields)
-
-
-def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
+def cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
     """Its rays × nodes (3 rays per point of a turn, points_per_feed per feed over the part's
     radius) and the points it times; its lines are its own."""
     k = int(option(case.layout, "points_per_turn"))
@@ -122,16 +117,16 @@ def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[f
     return 3.0 * k * turns * case.resolution.points_per_feed + 50.0 * k * turns, None
 
 
-def _pitch(r: dict[str, Any]) -> str:
+def pitch_text(r: dict[str, Any]) -> str:
     return f"mean ΔC = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
 
 
-def _point(prog: Any, flat: int) -> str:
+def point_text(prog: Any, flat: int) -> str:
     x, y = prog.xy[flat]
     return f"Fresnel point {flat} (x = {x:.6g} µm, y = {y:.6g} µm in the part's frame)"
 
 
-def _describe(r: dict[str, Any]) -> list[str]:
+def describe(r: dict[str, Any]) -> list[str]:
     """The program's facets, path and timing (``predict``)."""
     verdict = "feasible" if r["feasible"] else f"INFEASIBLE: {r['infeasible_reason']}"
     return [
@@ -145,7 +140,7 @@ def _describe(r: dict[str, Any]) -> list[str]:
     ]
 
 
-def _check_sweep(spec: Any) -> None:
+def check_sweep(spec: Any) -> None:
     """An axis of its own or of the compensation; the Fresnel options valid and not swept too."""
     if not any(spec.axes.get(n) is not None for n in (*AXES, "compensation")):
         raise ValueError(
@@ -161,18 +156,6 @@ def _check_sweep(spec: Any) -> None:
     FresnelRequest(kind="fresnel", **given)  # names a bad option
 
 
-def _simulation(inputs: Any, timer: Any) -> Any:
-    from ftsweep.kinds.fresnel.form import FresnelSimulation
-
-    return FresnelSimulation(inputs, timer)
-
-
-def _file_format() -> Any:
-    from ftsweep.kinds.fresnel.format import fresnel_format
-
-    return fresnel_format()
-
-
 FIELDS = (
     *result.PATH,
     # its options are inputs (a Fresnel cube's axes)
@@ -185,43 +168,4 @@ FIELDS = (
     result.text("facets", "P-V and RMS of every facet's interior, outermost first (predict, not cubes)"),
     result.number("time_constant_s", "s", "machining time at the least constant timestep within the limits"),
     result.number("speedup", "1", "machining time at the constant timestep over that of the adaptive ones"),
-)
-
-
-FRESNEL = ProgramKind(
-    name="fresnel",
-    noun="Fresnel program",
-    request=FresnelRequest,
-    axes=(
-        Axis("facet_height_um", "um", "height of every Fresnel facet"),
-        Axis("points_per_turn", "1", "control points on every turn of the quasi-spiral", count=True),
-        Axis("deviation_deg", "deg", "rake face turned from the cutting direction", signed=True),
-    ),
-    fields=FIELDS,
-    pitches=("dphi_deg", "ds_um"),
-    file_format=_file_format,
-    request_at=_request_at,
-    feed=_feed,
-    plan=_plan,
-    record_fields=_record_fields,
-    cost=_cost,
-    simulation=_simulation,
-    pitch_text=_pitch,
-    point_text=_point,
-    angular_cells=None,
-    warm_request=lambda: FresnelRequest(kind="fresnel", points_per_turn=16, facet_height_um=50.0),
-    bench_rows=(BenchRow("ftsweep fresnel (chebyshev_example)", ("fresnel", "--json", "--plots", "{dir}")),),
-    describe=_describe,
-    check_sweep=_check_sweep,
-    sweeps="Fresnel sweeps",
-    options=FRESNEL_FIELDS,
-    click_options=fresnel_options,
-    from_options=lambda o: (
-        {"kind": "fresnel", **{k: o[k] for k in FRESNEL_FIELDS if o.get(k) is not None}},
-        [],
-    ),
-    machine="xyzc-nanoform",
-    cutting="fresnel-finish",
-    options_key="fresnel",
-    options_dumped_unset=True,
 )

@@ -127,7 +127,7 @@ class FresnelPlan(NamedTuple):
     @property
     def tool_z_um(self) -> np.ndarray:
         """The Z axis: the sliced surface plus the compensation ([2] eq. 13) [µm]."""
-        return self.z_um + self.ez_um
+        return np.asarray(self.z_um + self.ez_um)
 
     def axes_si(self) -> np.ndarray:
         """(P, 4) positions C [rad], X, Y, Z [m] of every point."""
@@ -281,7 +281,8 @@ def limits_of(machine: Any, name: str = "machine") -> Limits:
             f"machine '{name}' is not a 4-axis X-Y-Z-C lathe (no {what}); a Fresnel program needs "
             "all four axes' limits"
         )
-    return ax.limits(AXES)
+    limits: Limits = ax.limits(AXES)
+    return limits
 
 
 def relative_peaks(q: np.ndarray, steps: np.ndarray, limits: Limits) -> tuple[np.ndarray, np.ndarray]:

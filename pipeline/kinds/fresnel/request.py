@@ -7,6 +7,7 @@ from typing import Any, Literal, Optional
 from pydantic import Field, PositiveFloat, model_serializer
 
 from ftsweep.engine.case import Request
+from ftsweep.kinds.fresnel.names import FRESNEL_FIELDS
 
 
 class FresnelRequest(Request):
@@ -42,6 +43,3 @@ class FresnelRequest(Request):
     @model_serializer(mode="wrap")
     def _stable_dump(self, handler: Any) -> Any:
         return self.stable_dump(handler(self), FRESNEL_FIELDS)
-
-
-FRESNEL_FIELDS = ("facet_height_um", "points_per_turn", "deviation_deg", "safety", "control_points", "timing")

@@ -17,11 +17,15 @@ import numpy as np
 from ftsweep.engine.case import Case, CaseError
 from ftsweep.exports.fingerprint import fingerprint
 from ftsweep.inputs import catalogs
+from ftsweep.inputs.case_entries import Entries
+from ftsweep.inputs.yamlfiles import CatalogError
 from ftsweep.kinds.fresnel import program as fp
 from ftsweep.kinds.fresnel.request import FresnelRequest
 from ftsweep.simulate import resolve_case
 from ftsweep.stages.kinematics import certificate as bounds
+from ftsweep.stages.kinematics.axes import Limits
 from ftsweep.stages.paths import fresnel as ff
+from ftsweep.store.io import sidecar_of
 from ftsweep.version import __version__
 
 if TYPE_CHECKING:
@@ -53,8 +57,8 @@ def inputs(surface: str, machine: str, cutting: str, **options: Any) -> Inputs:
     return Inputs(surface, machine, cutting, **merged)
 
 
-def _entries(inp: Inputs, folder: Optional[Path] = None) -> tuple[Any, Any, Any]:
-    return (
+def _entries(inp: Inputs, folder: Optional[Path] = None) -> Entries:
+    return Entries(
         catalogs.entry("surfaces", inp.surface, folder),
         catalogs.entry("machines", inp.machine, folder),
         catalogs.entry("cutting", inp.cutting, folder),
@@ -90,20 +94,20 @@ def study(
     inp: Inputs,
     folder: Optional[Path] = None,
     progress: Optional[Callable[[int, int], None]] = None,
-    specs: Optional[tuple[Any, Any, Any]] = None,
+    specs: Optional[Entries] = None,
 ) -> dict[str, Any]:
     """Plan, time and summarise a Fresnel program through its kind (the case of ``inp``,
     :func:`case_of`); ``_plan`` and ``_steps`` hold the arrays. ``specs`` (surface, machine,
     cutting) replace the catalog look-up of ``inp``'s names (verify re-plans from the entries
     a sidecar recorded)."""
     specs = specs or _entries(inp, folder)
-    limits = fp.limits_of(specs[1], inp.machine)
+    limits = fp.limits_of(specs.machine, inp.machine)
     try:
         rcase = resolve_case(case_of(inp), folder, specs, progress=progress)
     except CaseError as exc:
         raise ff.FresnelError(str(exc).removeprefix("Fresnel program: ")) from None
     fplan, steps = rcase.layout.plan, rcase.layout.steps
-    out = summary(inp, fplan, steps, limits, catalogs.aperture_of(specs[0]))
+    out = summary(inp, fplan, steps, limits, catalogs.aperture_of(specs.surface))
     out.update(_plan=fplan, _steps=steps, _specs=specs)
     return out
 
@@ -117,7 +121,7 @@ def feed_per_turn(fplan: fp.FresnelPlan) -> float:
 
 
 def summary(
-    inp: Inputs, fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: fp.Limits, aperture: Any
+    inp: Inputs, fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: Limits, aperture: Any
 ) -> dict[str, Any]:
     """The figures of one program (JSON-ready); units in the key names; the compensations over
     the points on the part (inside ``aperture``)."""
@@ -207,7 +211,7 @@ def _paper_fields(steps: fp.Timesteps) -> dict[str, Any]:
 
 
 def speedup_account(
-    fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: fp.Limits, safety: float
+    fplan: fp.FresnelPlan, steps: fp.Timesteps, limits: Limits, safety: float
 ) -> dict[str, Any]:
     """Where the speed-up of adaptive over constant timesteps comes from ([2] §2.5; README,
     "Fresnel"), the accelerations' bounds alone:
@@ -232,7 +236,7 @@ def speedup_account(
     step_plunging = fp.constant_step(plunged, limits, safety)
 
     def turnwise(peaks: np.ndarray) -> float:
-        return time_constant / float(np.sum(k * np.sqrt(safety * peaks) * t0))
+        return float(time_constant / float(np.sum(k * np.sqrt(safety * peaks) * t0)))
 
     paper = {}
     if steps.peak_constant is not None and steps.peak_optimised is not None:
@@ -420,7 +424,7 @@ def export(s: dict[str, Any], out: Path, side: Path, inp: Inputs) -> dict[str, A
     return files.write_program(out, side, head, F_COLUMNS, lines, meta)
 
 
-def lines_reason(data: np.ndarray, limits: fp.Limits) -> str:
+def lines_reason(data: np.ndarray, limits: Limits) -> str:
     """The limit lines (t [s], C [deg], X, Y, Z [mm]) exceed, checked on every line, or ''."""
     q = np.column_stack([np.radians(data[:, 1]), data[:, 2:] * 1e-3])
     # printed digits (1 ns, 1 pm) move accelerations by far less than this slack
@@ -457,18 +461,18 @@ def verify(
     meta = files.checked_sidecar(path, doc)
     if "case" in meta:  # exported from a cube case
         return verify_case(path, doc, meta, trust_plugins, progress, pv_tolerance_nm)
-    side = files.sidecar_of(path)
+    side = sidecar_of(path)
     inp = recorded_inputs(meta, side)
     try:
         entries = meta["catalog_entries"]
         specs = trust.specs_from_entries(
             entries["surface"], entries["machine"], entries["cutting"], trust_plugins=trust_plugins
         )
-    except catalogs.CatalogError as exc:
+    except CatalogError as exc:
         raise files.ProgramError(f"{side}: {exc}") from None
     except (KeyError, TypeError, ValueError) as exc:
         raise files.ProgramError(f"{side}: the recorded entries cannot be read ({str(exc)[:200]})") from None
-    reason = lines_reason(doc.data, fp.limits_of(specs[1], inp.machine))
+    reason = lines_reason(doc.data, fp.limits_of(specs.machine, inp.machine))
     if reason:
         raise files.ProgramError(f"{path}: a line leaves the machine's limits: {reason}; do not run it")
     s = study(inp, progress=progress, specs=specs)
@@ -489,7 +493,7 @@ def verify(
 # --------------------------------------------------------------------------- cube cases
 def case_document(
     case: Any,
-    specs: tuple[Any, Any, Any],
+    specs: Entries,
     chosen: dict[str, Any],
     extra: dict[str, Any],
     created: str,
@@ -541,7 +545,7 @@ def export_case(
     out: Path,
     side: Path,
     case: Any,
-    specs: tuple[Any, Any, Any],
+    specs: Entries,
     chosen: dict[str, Any],
     extra: dict[str, Any],
 ) -> dict[str, Any]:
@@ -551,7 +555,7 @@ def export_case(
 
     head, lines, meta = case_document(case, specs, chosen, extra, files.now(), f"ftsweep {__version__}")
     data = lines.printed  # as the machine reads the lines
-    reason = lines_reason(data, fp.limits_of(specs[1], case.machine))
+    reason = lines_reason(data, fp.limits_of(specs.machine, case.machine))
     if reason:
         raise files.ProgramError(f"the program leaves the limits of machine '{case.machine}': {reason}")
     return files.write_program(out, side, head, F_COLUMNS, lines, meta)
@@ -566,8 +570,8 @@ def verify_case(
     from ftsweep.exports import files
     from ftsweep.simulate import resolve_case, run_case
 
-    case, specs = files.recorded_case_of(meta, files.sidecar_of(path), trust_plugins)
-    reason = lines_reason(doc.data, fp.limits_of(specs[1], case.machine))
+    case, specs = files.recorded_case_of(meta, sidecar_of(path), trust_plugins)
+    reason = lines_reason(doc.data, fp.limits_of(specs.machine, case.machine))
     if reason:
         raise files.ProgramError(f"{path}: a line leaves the machine's limits: {reason}; do not run it")
     rcase = resolve_case(case, specs=specs)

@@ -13,6 +13,7 @@ from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.planning import layer_plan
 from ftsweep.exports.dialects import Adapter, DialectError, Moves
 from ftsweep.exports.moves import pvt_tangents
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages.interpolation import segments
 from ftsweep.stages.paths.commanded import CommandedPath
@@ -43,17 +44,17 @@ def moves_of(path: SpiralPath, values_um: np.ndarray, rpm: float) -> Moves:
     return Moves(np.degrees(phi), path.rho * 1e-3, z, seconds, None, velocity, path.interpolation)
 
 
-def _planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str], Any]:
+def _planned(case: Case, specs: Entries) -> tuple[Moves, list[str], Any]:
     rcase = resolve_case(case, specs=specs)
     path = rcase.layout
-    rpm = specs[2].spindle_rpm
+    rpm = specs.cutting.spindle_rpm
     lines = [
         f"tool: nose radius {rcase.nose_radius_um:.6g} um, feed {rcase.feed_um:.9g} um/rev",
         f"spindle: {rpm:g} rpm, C increasing, the spiral runs from the edge to the centre",
         f"points: {path.n_points}, {path.max_points_per_rev} per revolution at most, "
         f"{path.revolutions:.6g} revolutions",
     ]
-    servo_s = specs[1].controller.servo_period_s if specs[1].controller is not None else None
+    servo_s = specs.machine.controller.servo_period_s if specs.machine.controller is not None else None
     if servo_s and path.interpolation != "spline1":
         last_ms = float(path.phi[-1] - path.phi[-2]) / angular_speed(rpm) * 1e3
         lines.append(
@@ -62,10 +63,10 @@ def _planned(case: Case, specs: tuple[Any, Any, Any]) -> tuple[Moves, list[str],
         )
     plan = layer_plan(rcase, np.asarray(rcase.values, dtype=np.float64))
     if plan is None:
-        return moves_of(path, rcase.values, rpm), lines, rcase
+        return moves_of(path, rcase.commands_um, rpm), lines, rcase
     if path.interpolation != "linear":
         raise CaseError("a layered spiral ([3]) is planned for linear segments only")
-    moves = layered_moves(path, rcase.values, rpm, plan)
+    moves = layered_moves(path, rcase.commands_um, rpm, plan)
     lines.append(
         f"layers: {plan.n_layers} of {plan.zone_um:.6g} um, {len(moves.cuts())} cuts, Z the slide's "
         f"offset in each layer, W the servo's stroke from 0 to {plan.travel_um:.6g} um, the tool at Z + W"
@@ -161,7 +162,7 @@ def program_of(moves: Moves) -> tuple[SpiralPath, np.ndarray]:
 
 def _simulate(
     case: Case,
-    specs: Optional[tuple[Any, Any, Any]],
+    specs: Optional[Entries],
     moves: Moves,
     progress: Any = None,
     rcase: Any = None,

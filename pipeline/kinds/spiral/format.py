@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 
 from ftsweep.engine.case import Case
+from ftsweep.engine.contract import FileFormat
 from ftsweep.exports.files import (
     DataLines,
-    FileFormat,
     ProgramError,
     check_document,
     checked_pv,
@@ -30,12 +30,14 @@ from ftsweep.exports.files import (
     recorded_case_of,
     recorded_entries,
     recorded_extra,
-    sidecar_of,
     write_program,
 )
 from ftsweep.exports.programs import program_format
+from ftsweep.inputs.case_entries import Entries
+from ftsweep.kinds.spiral.request import request_of
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages.paths.spiral import SpiralPath
+from ftsweep.store.io import sidecar_of
 from ftsweep.version import __version__
 
 MAGIC = "# ftsweep spiral program"
@@ -48,7 +50,7 @@ def _data_lines(path: SpiralPath, values_um: np.ndarray) -> DataLines:
 
 def spiral_document(
     case: Case,
-    specs: tuple[Any, Any, Any],
+    specs: Entries,
     chosen: dict[str, Any],
     extra: dict[str, Any],
     created: str,
@@ -64,8 +66,8 @@ def spiral_document(
     lines = _data_lines(path, rcase.values)
     # planned from Z as printed, as the controller executes it
     schedule = layer_schedule(rcase, lines.printed[:, 2] * 1e3)
-    rule, value = case.layout.spiral_rule()
-    residual = case.layout.residual_um
+    rule, value = request_of(case).spiral_rule()
+    residual = request_of(case).residual_um
     meta = {
         "generator": generator,
         "created": created,
@@ -79,7 +81,7 @@ def spiral_document(
         "compensation": case.compensation,
         "feed_um": rcase.feed_um,
         "nose_radius_um": rcase.nose_radius_um,
-        "spindle_rpm": specs[2].spindle_rpm,
+        "spindle_rpm": specs.cutting.spindle_rpm,
         "pv_nm": chosen["pv_nm"],
         "layers": schedule,
         **extra,
@@ -93,7 +95,7 @@ def spiral_document(
         f"# generator: {generator}",
         f"# surface: {case.surface}; compensation: {case.compensation}",
         f"# tool: nose radius {rcase.nose_radius_um:.6g} um; feed {rcase.feed_um:.9g} um/rev; "
-        f"spindle {specs[2].spindle_rpm:g} rpm",
+        f"spindle {specs.cutting.spindle_rpm:g} rpm",
         f"# rule: {rule} {value:g} {unit}; residual budget "
         + (f"{residual:g} um" if residual is not None else "none (feed given)"),
         f"# predicted P-V: {chosen['pv_nm']:.6f} nm",
@@ -108,7 +110,7 @@ def export_program(
     out: Path,
     side: Path,
     case: Case,
-    specs: tuple[Any, Any, Any],
+    specs: Entries,
     chosen: dict[str, Any],
     extra: dict[str, Any],
 ) -> dict[str, Any]:
@@ -155,7 +157,7 @@ def verify_program(
     check_document(path, doc, planned, meta, COLUMNS)
     data = doc.data
     phi = np.radians(data[:, 0])
-    rule, value = case.layout.spiral_rule()
+    rule, value = request_of(case).spiral_rule()
     spiral_path = SpiralPath("spiral", phi, float(meta["rho0_um"]), float(meta["feed_um"]), rule, value)
     record = run_case(case, specs=specs, progress=progress, program=(spiral_path, data[:, 2] * 1e3))
     return checked_pv(path, meta, record, pv_tolerance_nm)

@@ -15,19 +15,18 @@ import numpy as np
 
 from ftsweep.engine import result
 from ftsweep.engine.case import Case, CaseError
-from ftsweep.engine.contract import Axis, BenchRow, Planning, ProgramKind
+from ftsweep.engine.contract import Planning, Simulating, Simulation
 from ftsweep.engine.cost import check_capacity
 from ftsweep.engine.lines import LineSimulation
 from ftsweep.engine.planning import compensator
+from ftsweep.engine.record import Timer
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
-from ftsweep.kinds.spiral.options import spiral_options
-from ftsweep.kinds.spiral.request import SpiralRequest
+from ftsweep.kinds.spiral.names import AXES
+from ftsweep.kinds.spiral.request import SpiralRequest, request_of
 from ftsweep.stages.interpolation import segments
 from ftsweep.stages.paths import cusp_budget, spiral
 from ftsweep.stages.paths.commanded import CommandedPath
-
-AXES = ("points_per_rev", "arc_um", "chord_um", "residual_um")
 
 
 def plan_spiral(
@@ -65,7 +64,7 @@ def plan_spiral(
             solve, spiral.spiral_radius(phi, rho0, feed_um), np.mod(phi, 2.0 * math.pi)
         )
 
-    rule, value = case.layout.spiral_rule()
+    rule, value = request_of(case).spiral_rule()
     extra: dict[str, Any] = {}
     mode = machine.interpolation if machine is not None else "linear"
     try:
@@ -209,23 +208,24 @@ def residual_error_um(sections: tuple[np.ndarray, ...], feed_um: float, rc: floa
     return float(np.nanmax(cusp)) if np.isfinite(cusp).any() else math.nan
 
 
-def _request_at(spec: Any, value: dict[str, float]) -> SpiralRequest:
+def request_at(spec: Any, value: dict[str, float]) -> SpiralRequest:
     return SpiralRequest(
         kind="spiral",
         **{k: (int(round(v)) if k == "points_per_rev" else v) for k, v in value.items() if k in AXES},
     )
 
 
-def _feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
+def feed(case: Case, cutting: Any, rc: float, surface_spec: Any, folder: Any, program: Any) -> float:
     """A given program's feed, else the one the residual budget sets ([4] eq. 1), else the
     case's or the cutting entry's [µm/rev]."""
     if program is not None:
         return float(program[0].feed_um)
-    if case.layout.residual_um is not None:
+    residual_um = request_of(case).residual_um
+    if residual_um is not None:
         if case.feed_um is not None:
             raise CaseError("give either a feed or a residual budget (which sets the feed), not both")
         sections = section_samples(surface_spec, folder)
-        return residual_feed_um(sections, case.layout.residual_um, rc, case.surface)
+        return residual_feed_um(sections, residual_um, rc, case.surface)
     return case.feed_of(cutting)
 
 
@@ -235,11 +235,11 @@ def spiral_points(case: Case, surface_spec: Any, feed_um: float) -> float:
     rule; 0 for the chord rule (known only once sampled;
     :func:`ftsweep.stages.paths.spiral.chord_budget` bounds its own sampling)."""
     rho0 = float(catalogs.aperture_of(surface_spec).outer_radius_um)
-    rule, value = case.layout.spiral_rule()
+    rule, value = request_of(case).spiral_rule()
     if rule == "angle":
-        return value * rho0 / feed_um
+        return float(value * rho0 / feed_um)
     if rule == "arc":
-        return spiral.path_length_um(rho0, feed_um) / value
+        return float(spiral.path_length_um(rho0, feed_um) / value)
     curvature = catalogs.curvature_bound(surface_spec)
     if curvature is not None and math.isfinite(curvature):
         # a chord of length s on a curve of curvature ≤ K deviates by ≤ K·s²/8 ([4] eq. 4), so
@@ -256,12 +256,13 @@ CHORD_ESTIMATE_MARGIN = 10.0
 
 def _check_estimate(case: Case, surface_spec: Any, feed_um: float, capacity: int) -> None:
     """Refuse a spiral whose rule's estimated point count is over the controller's capacity."""
-    note = " (estimated: a tenth of the count the curvature bound allows)" if case.layout.chord_um else ""
+    chord = request_of(case).chord_um
+    note = " (estimated: a tenth of the count the curvature bound allows)" if chord else ""
     estimate = spiral_points(case, surface_spec, feed_um)
     check_capacity(case, "spiral program", estimate, capacity, note)
 
 
-def _plan(p: Planning) -> tuple[spiral.SpiralPath, dict[str, Any]]:
+def plan(p: Planning) -> tuple[spiral.SpiralPath, dict[str, Any]]:
     """The points and commands, refused up front when the rule's estimated count is over the
     controller's capacity; the residual error the feed leaves."""
     t = time.perf_counter()
@@ -284,7 +285,7 @@ def _plan(p: Planning) -> tuple[spiral.SpiralPath, dict[str, Any]]:
     return path, extra
 
 
-def _record_fields(rcase: Any) -> dict[str, Any]:
+def record_fields(rcase: Any) -> dict[str, Any]:
     case, layout = rcase.case, rcase.layout
     # a program read from a file follows no rule of its own request's
     rule, value = ("program", math.nan) if isinstance(layout, CommandedPath) else case.layout.spiral_rule()
@@ -302,7 +303,7 @@ def _record_fields(rcase: Any) -> dict[str, Any]:
     }
 
 
-def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
+def cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[float, Any]:
     """A spiral's points (and with a chord budget its angular sampling) are only known once
     planned: its cost is its simulated nodes at the part's outer circumference, and its lines
     are its own. Refused (CaseError) when the rule's estimated count is over the controller's
@@ -313,21 +314,16 @@ def _cost(case: Case, surface: Any, catalog_folder: Any, feed: float) -> tuple[f
     return 3.0 * 2.0 * math.pi * rho0 * rho0 / feed, None
 
 
-def _pitch(r: dict[str, Any]) -> str:
+def pitch_text(r: dict[str, Any]) -> str:
     return f"mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
 
 
-def _point(path: spiral.SpiralPath, flat: int) -> str:
+def point_text(path: spiral.SpiralPath, flat: int) -> str:
     rho, theta = float(path.rho[flat]), float(path.theta[flat])
     return f"spiral point {flat} (ρ = {rho:.6g} µm, C = {math.degrees(theta):.6g}°)"
 
 
-def _cells(path: spiral.SpiralPath, rho0_um: float) -> float:
-    """The segments of the most densely sampled revolution."""
-    return path.max_points_per_rev
-
-
-def _describe(r: dict[str, Any]) -> list[str]:
+def describe(r: dict[str, Any]) -> list[str]:
     """The spiral's points by its rule, its steps and its feed (``predict``)."""
     rule = {
         "angle": f"{r['points_per_rev']:g} points per revolution",
@@ -348,7 +344,7 @@ def _describe(r: dict[str, Any]) -> list[str]:
     ]
 
 
-def _check_sweep(spec: Any) -> None:
+def check_sweep(spec: Any) -> None:
     """Exactly one rule axis; the residual budget sets the feed, so not both."""
     rules = [n for n in AXES[:3] if spec.axes.get(n) is not None]
     if len(rules) != 1:
@@ -360,7 +356,7 @@ def _check_sweep(spec: Any) -> None:
         raise ValueError("axes.residual_um sets the feed: give it or axes.feed_um, not both")
 
 
-def _simulation(inputs: Any, timer: Any) -> Any:
+def simulation(inputs: Simulating, timer: Timer) -> Simulation:
     """The line engine for a planned spiral; a program read from a file (a
     :class:`CommandedPath`) is sampled on rays by the passes it makes."""
     if isinstance(inputs.rcase.layout, CommandedPath):
@@ -370,63 +366,20 @@ def _simulation(inputs: Any, timer: Any) -> Any:
     return LineSimulation(inputs, timer)
 
 
-def _file_format() -> Any:
-    from ftsweep.kinds.spiral.format import spiral_format
-
-    return spiral_format()
-
-
-# its whole-process benchmark: a chord-budget program of about a million points
-_CHORD_1M = ("predict", "--surface", "sinewave2d", "--layout", "spiral", "--chord-um", "0.0013")
-
-
-SPIRAL = ProgramKind(
-    name="spiral",
-    noun="spiral program",
-    request=SpiralRequest,
-    axes=(
-        Axis("points_per_rev", "1", "points per revolution of the spiral", count=True),
-        Axis("arc_um", "um", "path length between the spiral's points"),
-        Axis("chord_um", "um", "chord-error budget of the spiral"),
-        Axis("residual_um", "um", "residual (cusp) budget that sets the feed"),
+FIELDS = (
+    result.text("spiral_rule", "spiral sampling rule: angle, arc or chord"),
+    # the rule's parameters are inputs (a spiral cube's axes), not stored per case
+    result.given("points_per_rev", "1", "points per revolution of the constant-angle rule"),
+    result.given("arc_um", "um", "path length between points of the constant-arc rule"),
+    result.given("chord_um", "um", "chord-error budget of the chord rule"),
+    result.given("residual_um", "um", "residual (cusp) budget that set the feed"),
+    *result.PATH,
+    result.number("chord_error_nm", "nm", "largest chord deviation from the compensated path"),
+    result.number(
+        "residual_error_nm",
+        "nm",
+        "largest residual (cusp) height from the feed and the section curvature",
     ),
-    fields=(
-        result.text("spiral_rule", "spiral sampling rule: angle, arc or chord"),
-        # the rule's parameters are inputs (a spiral cube's axes), not stored per case
-        result.given("points_per_rev", "1", "points per revolution of the constant-angle rule"),
-        result.given("arc_um", "um", "path length between points of the constant-arc rule"),
-        result.given("chord_um", "um", "chord-error budget of the chord rule"),
-        result.given("residual_um", "um", "residual (cusp) budget that set the feed"),
-        *result.PATH,
-        result.number("chord_error_nm", "nm", "largest chord deviation from the compensated path"),
-        result.number(
-            "residual_error_nm",
-            "nm",
-            "largest residual (cusp) height from the feed and the section curvature",
-        ),
-        result.aspect_actual("um/deg"),
-        *result.SPINDLE,
-    ),
-    pitches=("dphi_deg", "ds_um"),
-    file_format=_file_format,
-    request_at=_request_at,
-    feed=_feed,
-    plan=_plan,
-    record_fields=_record_fields,
-    cost=_cost,
-    simulation=_simulation,
-    pitch_text=_pitch,
-    point_text=_point,
-    angular_cells=_cells,
-    warm_request=lambda: SpiralRequest(kind="spiral", points_per_rev=16),
-    bench_rows=(
-        BenchRow("predict 990k-point chord spiral, 1 thread", (*_CHORD_1M, "--json", "--threads", "1")),
-        BenchRow("predict 990k-point chord spiral, all cores", (*_CHORD_1M, "--json")),
-    ),
-    describe=_describe,
-    check_sweep=_check_sweep,
-    sweeps="spiral sweeps",
-    options=AXES,
-    click_options=spiral_options,
-    from_options=lambda o: ({"kind": "spiral", **{k: o[k] for k in AXES if o.get(k) is not None}}, []),
+    result.aspect_actual("um/deg"),
+    *result.SPINDLE,
 )

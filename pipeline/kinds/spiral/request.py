@@ -6,7 +6,7 @@ from typing import Any, ClassVar, Literal, Optional
 
 from pydantic import Field, PositiveFloat, model_serializer, model_validator
 
-from ftsweep.engine.case import Request
+from ftsweep.engine.case import Case, Request
 from ftsweep.stages.paths import spiral
 
 SPIRAL_RULES = ("points_per_rev", "arc_um", "chord_um")
@@ -48,3 +48,11 @@ class SpiralRequest(Request):
             if value is not None:
                 return rule, float(value)
         raise AssertionError("validated with exactly one rule")
+
+
+def request_of(case: Case) -> SpiralRequest:
+    """The spiral request of a case (TypeError for a case of another kind: a planner of this kind
+    is handed only its own)."""
+    if not isinstance(case.layout, SpiralRequest):
+        raise TypeError(f"a {case.layout.kind} case is not a spiral program's")
+    return case.layout

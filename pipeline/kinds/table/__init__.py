@@ -1,3 +1,230 @@
 """Tables (model §2): ring and mesh layouts, their controller header, its C view, and the
 first-order estimate of a sweep plane.
+
+:class:`RingKind` and :class:`MeshKind` are the kinds' classes (entry points ``ring`` and
+``mesh`` of group ``ftsweep.kinds``); this face loads no kernel: each method imports what it
+runs (:mod:`ftsweep.kinds.table.kind` and the modules named there) when first called.
 """
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar, Optional
+
+from ftsweep.engine.contract import (
+    Axis,
+    Decorator,
+    FileFormat,
+    Planning,
+    ProgramKind,
+    Simulating,
+    Simulation,
+    SweepView,
+)
+from ftsweep.kinds.table.names import NOUNS, PITCHES
+
+if TYPE_CHECKING:
+    import xarray
+
+    from ftsweep.engine.case import Case, Request
+    from ftsweep.engine.planning import ResolvedCase
+    from ftsweep.engine.record import Timer
+    from ftsweep.engine.result import Quantity
+
+__all__ = ["MeshKind", "RingKind"]
+
+_POINTS = Axis("points", "1", "target number of control points", dumped_unset=True, count=True)
+
+
+class RingKind(ProgramKind):
+    """Rings in polar coordinates: Np points on every ring of pitch Δρ, Δθ = 360°/Np apart,
+    planned from a target point count N and aspect ratio α = Δρ/Δθ, or from the pitches."""
+
+    name: ClassVar[str] = "ring"
+    noun: ClassVar[str] = NOUNS["ring"]
+    sweeps: ClassVar[str] = "table sweeps"
+    axes: ClassVar[tuple[Axis, ...]] = (
+        _POINTS,
+        Axis("aspect", "um/deg", "target aspect ratio Δρ/Δθ of the pitches", dumped_unset=True),
+    )
+    pitches: ClassVar[tuple[str, str]] = PITCHES["ring"]
+    options: ClassVar[tuple[str, ...]] = ("drho_um", "dtheta_deg", "points", "aspect")
+    machine: ClassVar[str] = "fts-1m"
+    cutting: ClassVar[str] = "reference"
+    aspect_units: ClassVar[str] = "um/deg"
+    aspect_range: ClassVar[Optional[tuple[float, float]]] = (0.3, 400.0)
+    samples_spindle_angles: ClassVar[bool] = True
+    estimates: ClassVar[bool] = True
+    has_reference: ClassVar[bool] = True
+    # the in-process benchmark case: its surface, points and aspect ratio
+    _bench: ClassVar[tuple[str, str, float]] = ("ring-1M-a8", "sinewave2d", 8.0)
+    _coarse_pitch: ClassVar[tuple[float, float]] = (50.0, 10.0)
+
+    @property
+    def request(self) -> type[Request]:
+        from ftsweep.kinds.table.request import TableRequest
+
+        return TableRequest
+
+    @property
+    def fields(self) -> tuple[Quantity, ...]:
+        from ftsweep.engine import result
+
+        first, second = self.pitches
+        own = {"drho_um": ("um", "ring pitch Δρ"), "dtheta_deg": ("deg", "angular pitch Δθ")}
+        own |= {"dx_um": ("um", "mesh pitch Δx"), "dy_um": ("um", "mesh pitch Δy")}
+        return (
+            *result.TABLE,
+            result.number(first, *own[first]),
+            result.number(second, *own[second]),
+            result.aspect_actual(self.aspect_units),
+            *result.SPINDLE,
+        )
+
+    def file_format(self) -> FileFormat:
+        from ftsweep.kinds.table.verify import header_format
+
+        return header_format()
+
+    def request_at(self, spec: SweepView, point: Mapping[str, float]) -> Request:
+        from ftsweep.kinds.table import kind
+
+        return kind.request_at(spec, dict(point))
+
+    def feed(
+        self,
+        case: Case,
+        cutting: Any,
+        nose_radius_um: float,
+        surface_spec: Any,
+        catalog_folder: Optional[Path],
+        program: Any,
+    ) -> float:
+        return case.feed_of(cutting)
+
+    def plan(self, planning: Planning) -> tuple[Any, dict[str, Any]]:
+        from ftsweep.kinds.table import kind
+
+        return kind.plan(planning)
+
+    def record_fields(self, rcase: ResolvedCase) -> dict[str, Any]:
+        from ftsweep.kinds.table import kind
+
+        return kind.record_fields(rcase)
+
+    def cost(
+        self, case: Case, surface_spec: Any, catalog_folder: Optional[Path], feed_um: float
+    ) -> tuple[float, Hashable]:
+        from ftsweep.kinds.table import kind
+
+        return kind.cost(case, surface_spec, catalog_folder, feed_um)
+
+    def simulation(self, inputs: Simulating, timer: Timer) -> Simulation:
+        from ftsweep.engine.lines import LineSimulation
+
+        return LineSimulation(inputs, timer)
+
+    def pitch_text(self, record: Mapping[str, Any]) -> str:
+        return f"Δρ = {record['drho_um']:.4g} µm, Δθ = {record['dtheta_deg']:.4g}°"
+
+    def point_text(self, program: Any, flat: int) -> str:
+        from ftsweep.kinds.table import kind
+
+        return kind.ring_point(program, flat)
+
+    def angular_cells(self, program: Any, rho0_um: float) -> float:
+        from ftsweep.kinds.table import kind
+
+        return kind.ring_cells(program, rho0_um)
+
+    def warm_request(self) -> Request:
+        from ftsweep.kinds.table.request import TableRequest
+
+        return TableRequest(kind=self.name, pitch=self._coarse_pitch)
+
+    def describe(self, record: Mapping[str, Any]) -> list[str]:
+        from ftsweep.kinds.table import kind
+
+        return kind.describe(dict(record))
+
+    def check_sweep(self, spec: SweepView) -> None:
+        from ftsweep.kinds.table import kind
+
+        kind.check_sweep(spec)
+
+    def from_options(self, options: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
+        from ftsweep.kinds.table import kind
+
+        return kind.table_from_options(self.name, dict(options))
+
+    def click_options(self) -> Optional[Decorator]:
+        from ftsweep.kinds.table.options import table_options
+
+        return table_options
+
+    def bench_cases(self) -> dict[str, tuple[str, Request]]:
+        from ftsweep.kinds.table.request import TableRequest
+
+        label, surface, aspect = self._bench
+        return {label: (surface, TableRequest(kind=self.name, points=1_000_000, aspect=aspect))}
+
+    def estimate(
+        self, spec: SweepView, coords: Mapping[str, Any], catalog_folder: Optional[Path]
+    ) -> xarray.Dataset:
+        from ftsweep.kinds.table.sweep_estimate import estimate_sweep
+
+        return estimate_sweep(spec, coords, catalog_folder)
+
+    def seed(
+        self,
+        surface_spec: Any,
+        tolerance_nm: float,
+        capacity: int,
+        cusp_nm: float,
+        aspect_range: tuple[float, float],
+        catalog_folder: Optional[Path],
+    ) -> tuple[float, float, float]:
+        from ftsweep.kinds.table.sweep_estimate import seed_layout
+
+        return seed_layout(
+            surface_spec, self.name, tolerance_nm, capacity, cusp_nm, aspect_range, catalog_folder
+        )
+
+    def reference(self, rcase: ResolvedCase) -> dict[str, Any]:
+        """The brute-force evaluation of a table case (:mod:`ftsweep.kinds.table.reference`),
+        imported when asked for: a case does not load it."""
+        from ftsweep.kinds.table.reference import reference_case
+
+        return reference_case(rcase)
+
+
+class MeshKind(RingKind):
+    """A Cartesian mesh of pitches Δx, Δy: a ring's kind in Cartesian coordinates, with its own
+    names, points, cells and options."""
+
+    name: ClassVar[str] = "mesh"
+    noun: ClassVar[str] = NOUNS["mesh"]
+    axes: ClassVar[tuple[Axis, ...]] = (
+        _POINTS,
+        Axis("aspect", "1", "target aspect ratio Δx/Δy of the pitches", dumped_unset=True),
+    )
+    pitches: ClassVar[tuple[str, str]] = PITCHES["mesh"]
+    options: ClassVar[tuple[str, ...]] = ("dx_um", "dy_um", "points", "aspect")
+    aspect_units: ClassVar[str] = "1"
+    aspect_range: ClassVar[Optional[tuple[float, float]]] = (0.08, 16.0)
+    _bench: ClassVar[tuple[str, str, float]] = ("mesh-1M-a1", "lens_array", 1.0)
+    _coarse_pitch: ClassVar[tuple[float, float]] = (50.0, 50.0)
+
+    def pitch_text(self, record: Mapping[str, Any]) -> str:
+        return f"Δx = {record['dx_um']:.4g} µm, Δy = {record['dy_um']:.4g} µm"
+
+    def point_text(self, program: Any, flat: int) -> str:
+        from ftsweep.kinds.table import kind
+
+        return kind.mesh_point(program, flat)
+
+    def angular_cells(self, program: Any, rho0_um: float) -> float:
+        from ftsweep.kinds.table import kind
+
+        return kind.mesh_cells(program, rho0_um)

@@ -22,15 +22,11 @@ import numpy as np
 
 from ftsweep.engine.case import Case
 from ftsweep.engine.planning import control_table
-from ftsweep.exports.files import (
-    ExportError,
-    layer_schedule,
-    recorded_entries,
-    sidecar_digest,
-)
+from ftsweep.exports.files import layer_schedule, recorded_entries, sidecar_digest
+from ftsweep.inputs.case_entries import Entries
 from ftsweep.kinds.table.layout import build_layout
 from ftsweep.simulate import resolve_case
-from ftsweep.store.io import check_sidecar_text, dumps_json, write_texts_atomic
+from ftsweep.store.io import ExportError, check_sidecar_text, dumps_json, write_texts_atomic
 from ftsweep.version import __version__
 
 INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}
@@ -215,7 +211,7 @@ def render_header(name: str, meta: dict[str, Any], ints: np.ndarray, int_type: s
 
 
 def header_meta(
-    case: Case, specs: tuple[Any, Any, Any], layout: Any, pv_nm: float, created: str, generator: str
+    case: Case, specs: Entries, layout: Any, pv_nm: float, created: str, generator: str
 ) -> dict[str, Any]:
     """What a header states about a table case (everything but the layer schedule and the
     sidecar's digest): export writes it and verify re-derives it from the recorded case."""
@@ -238,7 +234,7 @@ def header_meta(
     }
 
 
-def planned_ints(case: Case, specs: tuple[Any, Any, Any], layout: Any) -> np.ndarray:
+def planned_ints(case: Case, specs: Entries, layout: Any) -> np.ndarray:
     """The table [table units] a table case plans: compensated commands (model §4) quantised
     to the machine's fixed-point unit."""
     surface, machine, cutting = specs
@@ -250,7 +246,7 @@ def export_header(
     out: Path,
     side: Path,
     case: Case,
-    specs: tuple[Any, Any, Any],
+    specs: Entries,
     chosen: dict[str, Any],
     extra: dict[str, Any],
     name: str | None = None,

@@ -43,7 +43,7 @@ SCAN_STEP_UM = 0.1
 
 def _lift(s: np.ndarray, rc: float) -> np.ndarray:
     """Height of the nose arc above its lowest point at offset ``s`` [µm] (model §4)."""
-    return rc - np.sqrt(np.maximum(rc * rc - s * s, 0.0))
+    return np.asarray(rc - np.sqrt(np.maximum(rc * rc - s * s, 0.0)))
 
 
 def exact_commands(surface: Any, rho: np.ndarray, theta: np.ndarray, rc: float, window: float) -> np.ndarray:
@@ -74,7 +74,7 @@ def _refined_max(h: np.ndarray) -> np.ndarray:
     hm, hp = h[rows, lo], h[rows, hi]
     curv = hm - 2.0 * best + hp
     vertex = best - (hp - hm) ** 2 / np.where(curv < 0.0, 8.0 * curv, -1.0)
-    return np.where(inner & (curv < 0.0), vertex, best)
+    return np.asarray(np.where(inner & (curv < 0.0), vertex, best))
 
 
 def control_table(rcase: ResolvedCase, window: float) -> np.ndarray:
@@ -119,12 +119,13 @@ def bilinear(layout: Any, table: np.ndarray, rho: np.ndarray, theta: np.ndarray)
         q1 = (rho * np.sin(theta) - layout.origin[1]) / layout.pitch[1]
     i, i1, t = _cell(q0, table.shape[0], False)
     j, j1, u = _cell(q1, table.shape[1], layout.kind == "ring")
-    return (
+    value = (
         (1 - t) * (1 - u) * table[i, j]
         + t * (1 - u) * table[i1, j]
         + t * u * table[i1, j1]
         + (1 - t) * u * table[i, j1]
     )
+    return np.asarray(value)
 
 
 def envelope(pos: np.ndarray, w: np.ndarray, rc: float, x: np.ndarray) -> np.ndarray:

@@ -5,6 +5,7 @@ cube. The estimate never replaces the simulation: it seeds and prunes it."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -79,7 +80,7 @@ def seed_layout(
     return float(points[i]), float(aspects[j]), float(pv[i, j])
 
 
-def estimate_sweep(spec: Any, coords: dict[str, np.ndarray], folder: Path | None = None) -> xr.Dataset:
+def estimate_sweep(spec: Any, coords: Mapping[str, np.ndarray], folder: Path | None = None) -> xr.Dataset:
     """The estimated P-V [nm] over the sweep's (points, aspect[, feed_um, nose_radius_um]) axes:
     a sweep spec (:class:`ftsweep.sweeps.spec.SweepSpec`) and its cube's coordinates."""
     assert spec.layout is not None

@@ -17,15 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.exports.files import (
-    ExportError,
-    FileFormat,
-    layer_schedule,
-    pv_lines,
-    recorded_case_of,
-    sidecar_digest,
-    sidecar_of,
-)
+from ftsweep.engine.contract import FileFormat
+from ftsweep.exports.files import layer_schedule, pv_lines, recorded_case_of, sidecar_digest
 from ftsweep.exports.fingerprint import exact_on_this_platform
 from ftsweep.kinds.table.c_view import read_c
 from ftsweep.kinds.table.header import (
@@ -41,7 +34,7 @@ from ftsweep.kinds.table.header import (
 )
 from ftsweep.kinds.table.layout import build_layout
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.store.io import read_regular, read_sidecar
+from ftsweep.store.io import ExportError, read_regular, read_sidecar, sidecar_of
 
 # a header holds at most a controller's table: this bounds what verify reads
 MAX_HEADER_BYTES = 200 * 2**20
@@ -327,5 +320,5 @@ def compiled_check(path: Path, trust_plugins: bool = False) -> dict[str, Any]:
 
     _, ints, meta, _, _ = check_integrity(Path(path))
     case, specs = recorded_case_of(meta, sidecar_of(Path(path)), trust_plugins)
-    layout = build_layout(specs[0], case.layout)
-    return check_header(path, layout, ints * specs[1].table_unit_nm * 1e-3)
+    layout = build_layout(specs.surface, case.layout)
+    return check_header(path, layout, ints * specs.machine.table_unit_nm * 1e-3)

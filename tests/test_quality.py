@@ -89,25 +89,14 @@ def _module_names() -> dict[str, Path]:
     return names
 
 
-def _imports(name: str, path: Path, known: dict[str, Path], runtime_only: bool = False) -> set[str]:
+def _imports(name: str, path: Path, known: dict[str, Path]) -> set[str]:
     """The package's modules ``name`` imports anywhere in its text (inside functions too,
-    where a lazy import would hide a circle from a run-time check); with ``runtime_only``,
-    not those under ``if TYPE_CHECKING:``."""
+    where a lazy import would hide a circle from a run-time check)."""
     import ast
 
     package = name.split(".") if path.stem == "__init__" else name.split(".")[:-1]
     found = set()
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    typing_only = {
-        id(n)
-        for block in ast.walk(tree)
-        if isinstance(block, ast.If) and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
-        for stmt in block.body
-        for n in ast.walk(stmt)
-    }
-    for node in ast.walk(tree):
-        if runtime_only and id(node) in typing_only:
-            continue
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
             targets = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -153,11 +142,10 @@ def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_no_circle_of_imports():
     """The import graph of ftsweep's modules has no circle, counting the imports inside
-    functions; the registry reaches the kinds through entry points, which are not imports.
-    Imports for annotations only (under ``TYPE_CHECKING``: the contract naming the case types
-    the engine builds) run never, so they close no circle; the layer test counts them."""
+    functions and those for annotations only; the registry reaches the kinds through entry
+    points, which are not imports."""
     known = _module_names()
-    graph = {name: _imports(name, path, known, runtime_only=True) for name, path in known.items()}
+    graph = {name: _imports(name, path, known) for name, path in known.items()}
     assert len(graph) > 50 and sum(map(len, graph.values())) > 200  # the walk did find the imports
     assert not _circles(graph)
 

@@ -66,7 +66,7 @@ def kind_commands() -> dict[str, click.Command]:
 
 def commands() -> list[str]:
     """The name of every command but ``catalogs``: :data:`COMMANDS`, then the kinds' own."""
-    return [*COMMANDS, *(n for n in kind_commands() if n not in COMMANDS)]
+    return [*COMMANDS, *kind_commands()]
 
 
 def short_help(name: str, limit: int = 45) -> str:

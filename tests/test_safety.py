@@ -406,6 +406,27 @@ def test_lock_refuses_a_live_holder_and_replaces_a_stale_one(tmp_path):
         acquire(target)
 
 
+def test_a_lock_appears_whole_and_leaves_no_spare_behind(tmp_path, monkeypatch):
+    # the record is written aside and linked into place: whoever sees the lock reads its holder
+    target = tmp_path / "c.zarr"
+    seen = []
+    real_link = os.link
+
+    def link_and_look(src, dst, **kw):
+        seen.append(Path(src).read_text())
+        real_link(src, dst, **kw)
+        seen.append(Path(dst).read_text())
+
+    monkeypatch.setattr(os, "link", link_and_look)
+    path = acquire(target, "whole")
+    assert [json.loads(text)["command"] for text in seen] == ["whole", "whole"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.zarr.lock"]
+    with pytest.raises(LockError, match=f"by pid {os.getpid()}"):
+        acquire(target, "second")
+    release(path)
+    assert not list(tmp_path.iterdir())
+
+
 def _start_sweep(spec: Path, out: Path, catalogs: Path, *extra: str) -> subprocess.Popen:
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalogs))
     return subprocess.Popen(

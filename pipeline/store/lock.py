@@ -1,11 +1,12 @@
 """A writer's lock beside a cube: one process writes a cube at a time.
 
 On a local file system the lock is a small JSON file ``NAME.zarr.lock`` next to the cube,
-created atomically (``O_CREAT | O_EXCL``) with the holder's pid, host and start time. It is
-removed when the writer finishes or raises. A lock left by a killed writer is stale: when its
-host is this machine and its pid no longer runs, the next writer removes it and goes on. A
-lock held by a live process, or by another host (whose processes cannot be seen from here),
-refuses the second writer with a message naming the holder.
+created atomically and whole (written aside, then hard-linked into place) with the holder's
+pid, host and start time. It is removed when the writer finishes or raises. A lock left by a
+killed writer is stale: when its host is this machine and its pid no longer runs, the next
+writer removes it and goes on. A lock held by a live process, or by another host (whose
+processes cannot be seen from here), refuses the second writer with a message naming the
+holder.
 
 On object storage (``s3://``; ``memory://`` in one process) no pid can be checked, so the lock
 object ``NAME.zarr.lock`` is a lease: created with a conditional write (If-None-Match: only
@@ -111,6 +112,26 @@ def _what_to_do(holder: dict[str, Any] | None, path: Path) -> str:
     return "wait for it to finish (a lock whose process has ended is taken over by the next run)"
 
 
+def _create(path: Path, text: str) -> None:
+    """Put a lock file with ``text`` at ``path``, or raise FileExistsError if one is there.
+
+    The record is written under a private name and hard-linked into place, so a second writer
+    always reads a whole holder, never an empty file; a file system without hard links gets
+    ``O_CREAT | O_EXCL`` and one small write instead."""
+    spare = path.with_name(f"{path.name}.new-{os.getpid()}-{uuid.uuid4().hex[:8]}")
+    spare.write_text(text)
+    try:
+        os.link(spare, path)
+    except FileExistsError:
+        raise
+    except OSError:
+        fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+    finally:
+        spare.unlink(missing_ok=True)
+
+
 def acquire(cube: PathLike, command: str = "") -> Path:
     """Create the lock of a local ``cube`` or raise :class:`LockError`; a stale lock is
     replaced."""
@@ -124,7 +145,7 @@ def acquire(cube: PathLike, command: str = "") -> Path:
     }
     for _ in range(3):
         try:
-            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            _create(path, json.dumps(record))
         except FileExistsError:
             holder = read_holder(path)
             if _is_stale(holder, path):
@@ -145,8 +166,6 @@ def acquire(cube: PathLike, command: str = "") -> Path:
             raise LockError(
                 f"{cube} is being written by {_describe(holder)}; {_what_to_do(holder, path)}"
             ) from None
-        with os.fdopen(fd, "w") as fh:
-            fh.write(json.dumps(record))
         return path
     raise LockError(f"could not take the lock {path}: it keeps changing hands")
 

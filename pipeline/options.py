@@ -197,7 +197,8 @@ def progress_done(bar: Any) -> None:
 
 def refuse_overwrite(out: Optional[Path], force: bool) -> None:
     """Refuse, before any work, to replace an existing program or its sidecar without --force."""
-    from ftsweep.store.io import ExportError, check_overwrite, sidecar_path
+    from ftsweep.errors import ExportError
+    from ftsweep.store.io import check_overwrite, sidecar_path
 
     if out is not None:
         try:

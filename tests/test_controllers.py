@@ -512,8 +512,8 @@ def test_a_program_over_the_controllers_limits_is_refused_by_name():
 
 
 def test_verify_compiled_says_when_there_is_no_compiler(monkeypatch):
+    from ftsweep.errors import ExportError
     from ftsweep.exports import compiled
-    from ftsweep.store.io import ExportError
 
     monkeypatch.setenv("CC", "")
     monkeypatch.setattr(shutil, "which", lambda name: None)
@@ -523,7 +523,7 @@ def test_verify_compiled_says_when_there_is_no_compiler(monkeypatch):
 
 @pytest.mark.integration
 def test_a_loop_that_does_not_end_is_refused(monkeypatch):
-    from ftsweep.exports import gcode
+    from ftsweep.inputs.programs import gcode
 
     monkeypatch.setattr(gcode, "WORK_FLOOR", 10_000)
     lines = ["G90 G18", "#1=0", "WHILE [#1 LT 1] DO1", "#2=1", "END1", "M30"]
@@ -533,7 +533,7 @@ def test_a_loop_that_does_not_end_is_refused(monkeypatch):
 
 def test_a_billion_pass_loop_is_refused_within_the_work_budget():
     # counted work, not time: the reader stops once its lines and expression nodes pass the budget
-    from ftsweep.exports import gcode
+    from ftsweep.inputs.programs import gcode
 
     lines = [
         "G90 G21 G18 G94",

@@ -293,7 +293,7 @@ def test_installs_in_any_order_leave_every_command_working_and_nothing_in_the_pa
     assert shipped.stdout.split("\n")[0] == "the installed package's metadata"
     assert int(shipped.stdout.split("\n")[1]) >= 6  # the quickstart's four and the compile pair
     # the revision a regular install records is its checkout's, its files being the checkout's
-    revision = run(str(py), "-c", "from ftsweep.store.cube import git_revision as g; print(g())")
+    revision = run(str(py), "-c", "from ftsweep.version import git_revision as g; print(g())")
     head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout
     assert revision.stdout.strip().split("+")[0] == head.strip(), revision.stderr
 

@@ -25,8 +25,9 @@ from hypothesis import strategies as st
 from pcpp.preprocessor import Preprocessor
 
 from ftsweep.cli.main import main
-from ftsweep.exports import dialects, gcode, nc
+from ftsweep.exports import dialects, nc
 from ftsweep.exports.files import crc_of
+from ftsweep.inputs.programs import gcode
 from ftsweep.kinds.table.c_view import read_c
 from ftsweep.kinds.table.verify import MAX_HEADER_BYTES
 from ftsweep.store import caselog
@@ -395,7 +396,7 @@ def test_an_expression_is_parsed_in_counted_linear_work(expression, why):
     """Iterative precedence parsing: brackets any depth cost their tokens, an expression of
     more than MAX_TOKENS tokens is refused before it is parsed whole, and every refusal is
     the reader's line and reason, never a raw Python message."""
-    from ftsweep.exports import macro
+    from ftsweep.inputs.programs import macro
 
     lines = ["G90 G18", "#2 = 1", *f"#1 = {expression}".split("\n"), "M30"]
     from ftsweep.inputs.controllers import Controller

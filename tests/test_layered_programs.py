@@ -15,8 +15,8 @@ from ftsweep.cli.main import main
 from ftsweep.engine.case import Case, program_request
 from ftsweep.engine.planning import layer_plan, resolve_specs
 from ftsweep.exports import dialects, nc
-from ftsweep.exports.moves import DialectError, Moves
 from ftsweep.inputs import catalogs
+from ftsweep.inputs.programs.moves import DialectError, Moves
 from ftsweep.simulate import resolve_case
 
 SWEEP = "surface: small_sine\nlayout: spiral\nmachine: short-fts\naxes: {points_per_rev: [60]}\n"

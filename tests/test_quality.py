@@ -162,7 +162,14 @@ LAYERS = (
     ("stages", ("ftsweep.stages",)),
     (
         "base",
-        ("ftsweep.version", "ftsweep.defaults", "ftsweep.freetext", "ftsweep.progress", "ftsweep.caches"),
+        (
+            "ftsweep.version",
+            "ftsweep.errors",
+            "ftsweep.defaults",
+            "ftsweep.freetext",
+            "ftsweep.progress",
+            "ftsweep.caches",
+        ),
     ),
     ("inputs", ("ftsweep.inputs",)),
     ("engine", ("ftsweep.engine", "ftsweep.simulate")),

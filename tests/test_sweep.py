@@ -369,7 +369,7 @@ def test_provenance_is_ftsweeps_own_revision_not_the_callers(tmp_path):
     import shutil
     import subprocess
 
-    from ftsweep.store import cube
+    from ftsweep import version
 
     def git(*args):
         return subprocess.run(["git", *args], cwd=tmp_path, capture_output=True, text=True, check=True)
@@ -380,11 +380,11 @@ def test_provenance_is_ftsweeps_own_revision_not_the_callers(tmp_path):
     git("-c", "user.name=u", "-c", "user.email=u@x", "commit", "-q", "-m", "user")
     installed = tmp_path / ".venv" / "lib" / "ftsweep"
     installed.mkdir(parents=True)
-    copy = Path(shutil.copy(cube.__file__, installed / "cube.py"))
-    assert cube.git_revision(copy) == "unknown"
+    copy = Path(shutil.copy(version.__file__, installed / "version.py"))
+    assert version.git_revision(copy) == "unknown"
     git("add", "-f", str(copy))  # tracked by that repository: a checkout of its own
     git("-c", "user.name=u", "-c", "user.email=u@x", "commit", "-q", "-m", "vendored")
-    assert cube.git_revision(copy) == git("rev-parse", "HEAD").stdout.strip()
+    assert version.git_revision(copy) == git("rev-parse", "HEAD").stdout.strip()
 
 
 @pytest.mark.slow  # 5-7 s on 2 cores: the full command runs it, the quick one leaves it out

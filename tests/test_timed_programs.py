@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 from ftsweep.cli.main import main
 from ftsweep.engine.case import Case, CaseError, program_request
 from ftsweep.exports import dialects, nc
-from ftsweep.exports.moves import DialectError
 from ftsweep.inputs import catalogs
+from ftsweep.inputs.programs.moves import DialectError
 from ftsweep.simulate import run_case
 from ftsweep.stages.interpolation import rays, timed_path
 

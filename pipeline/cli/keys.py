@@ -34,8 +34,8 @@ def keys() -> None:
 )
 def keys_new(stem: Optional[str]) -> None:
     """Make a new ed25519 key pair (NAME.key, NAME.pub) and print its key ID."""
+    from ftsweep.errors import ExportError
     from ftsweep.exports.origin import config_dir, new_keys
-    from ftsweep.store.io import ExportError
 
     try:
         private, public, ident = new_keys(Path(stem) if stem else config_dir() / "keys" / "ftsweep-signing")

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.store.io import ExportError
+from ftsweep.errors import ExportError
 
 BOUND_UM = 1e-9
 MIN_POINTS = 100_000

@@ -16,19 +16,18 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.exports.gcode import IsoReader
 from ftsweep.exports.moves import (
     Adapter,
-    DialectError,
-    Moves,
     aligned,
     stop_seconds,
     summary,
     with_stop,
     without_stop,
 )
-from ftsweep.exports.pmac import read_pmac
 from ftsweep.inputs.controllers import DIALECT_INTERPOLATION, Controller
+from ftsweep.inputs.programs.gcode import IsoReader
+from ftsweep.inputs.programs.moves import DialectError, Moves
+from ftsweep.inputs.programs.pmac import read_pmac
 
 # the interpolation each controller dialect commands (the catalog's table, ftsweep's text aside)
 INTERPOLATION = {d: i for d, i in DIALECT_INTERPOLATION.items() if d != "text"}

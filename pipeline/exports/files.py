@@ -22,6 +22,7 @@ import numpy as np
 
 from ftsweep.engine.case import Case
 from ftsweep.engine.planning import ResolvedCase, layer_plan
+from ftsweep.errors import ExportError
 from ftsweep.exports.fingerprint import exact_on_this_platform
 from ftsweep.inputs.case_entries import Entries
 from ftsweep.inputs.catalogs import CatalogError
@@ -30,7 +31,6 @@ from ftsweep.stages.numerics import decimals
 from ftsweep.stages.paths.spiral import spiral_radius
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
-    ExportError,
     check_sidecar_text,
     dumps_json,
     older_sidecar_path,

@@ -36,10 +36,10 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from ftsweep.errors import ExportError
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     MAX_SIDECAR_BYTES,
-    ExportError,
     dumps_json,
     read_regular,
     read_sidecar,

@@ -10,16 +10,13 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from ftsweep.errors import ExportError
+
 
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
-
-
-class ExportError(ValueError):
-    """The header cannot be written or verified; the message says why (raised by
-    :mod:`ftsweep.exports.files` and the exporters)."""
 
 
 def read_regular(

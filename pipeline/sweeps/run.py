@@ -39,6 +39,7 @@ from ftsweep.sweeps.spec import (
     plan_tasks,
 )
 from ftsweep.sweeps.template import template
+from ftsweep.version import git_revision
 
 
 def default_cube_path(name: str) -> Path:
@@ -243,7 +244,7 @@ def _grow_or_refuse(name: str, spec: SweepSpec, out: Place, attrs: dict[str, Any
 
 
 def _warn_other_revision(out: Place, attrs: dict[str, Any]) -> None:
-    now = cube.git_revision()
+    now = git_revision()
     if attrs.get("git_revision") not in (now, "unknown") and now != "unknown":
         warnings.warn(
             f"{out} was started by code revision {str(attrs.get('git_revision'))[:10]}, this is "

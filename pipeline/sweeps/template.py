@@ -19,10 +19,9 @@ from ftsweep.store.cube import (
     SCHEMA_VERSION,
     STATUS_MEANINGS,
     case_variables,
-    git_revision,
 )
 from ftsweep.sweeps.spec import SweepSpec, axis_attrs, axis_counts, coordinates
-from ftsweep.version import __version__
+from ftsweep.version import __version__, git_revision
 
 __all__ = ["counted", "template"]
 

@@ -20,6 +20,7 @@ from typing import Any, Optional
 
 from ftsweep import registry
 from ftsweep.engine.contract import FileFormat
+from ftsweep.errors import ExportError
 from ftsweep.exports.files import Progress
 from ftsweep.exports.origin import sign, signature_path, signing_key
 from ftsweep.freetext import TextError, check_text
@@ -27,7 +28,6 @@ from ftsweep.store import ledger
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     MAX_SIDECAR_BYTES,
-    ExportError,
     check_overwrite,
     read_regular,
     read_sidecar,

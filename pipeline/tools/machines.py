@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from ftsweep.errors import ExportError
 from ftsweep.inputs.case_entries import Entries
-from ftsweep.store.io import ExportError
 
 # what a case's prediction on another machine replaces in the selection the cube gave
 _PREDICTED = ("n_points", "pv_nm", "rms_nm", "pv_interp_nm", "pv_inner_nm", "pv_outer_nm")

@@ -31,11 +31,11 @@ from ftsweep.engine.case import Case, CaseError, Resolution, program_request
 from ftsweep.inputs import catalogs
 from ftsweep.simulate import run_case
 from ftsweep.store import cube
-from ftsweep.store.cube import SCHEMA_VERSION, CubeError, CubeWriter, git_revision
+from ftsweep.store.cube import SCHEMA_VERSION, CubeError, CubeWriter
 from ftsweep.store.lock import cube_lock
 from ftsweep.store.storage import PathLike, Place, place
 from ftsweep.sweeps.spec import axis_attrs
-from ftsweep.version import __version__
+from ftsweep.version import __version__, git_revision
 
 
 def _aspect_range(layout: str) -> tuple[float, float]:

@@ -139,11 +139,12 @@ def _export_dpath(base: Case, record: dict[str, Any], opts: dict[str, Any], plan
     same entries)."""
     from ftsweep.engine.case import CaseError
     from ftsweep.engine.planning import resolve_specs
+    from ftsweep.errors import ExportError
     from ftsweep.exports.fingerprint import fingerprint
     from ftsweep.exports.origin import signature_path, signed, signing_key
     from ftsweep.kinds.dpath import format as program
     from ftsweep.kinds.dpath import study as dstudy
-    from ftsweep.store.io import ExportError, check_overwrite, sidecar_path
+    from ftsweep.store.io import check_overwrite, sidecar_path
 
     out = opts["out"]
     side = sidecar_path(out)

@@ -107,11 +107,12 @@ def fresnel_command(**opts: Any) -> None:
     """
     from pydantic import ValidationError
 
+    from ftsweep.errors import ExportError
     from ftsweep.exports.origin import signed, signing_key
     from ftsweep.inputs.yamlfiles import CatalogError
     from ftsweep.kinds.fresnel import figures
     from ftsweep.kinds.fresnel import study as fstudy
-    from ftsweep.store.io import ExportError, sidecar_path
+    from ftsweep.store.io import sidecar_path
 
     keys = (
         "facet_height_um",

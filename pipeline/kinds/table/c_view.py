@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from pcpp import Action, OutputDirective, Preprocessor
 
-from ftsweep.store.io import ExportError
+from ftsweep.errors import ExportError
 
 # stands for the table's rows while the rest of the header is preprocessed
 SENTINEL = "FTSWEEP_TABLE_ROWS_"

@@ -22,11 +22,12 @@ import numpy as np
 
 from ftsweep.engine.case import Case
 from ftsweep.engine.planning import control_table
+from ftsweep.errors import ExportError
 from ftsweep.exports.files import layer_schedule, recorded_entries, sidecar_digest
 from ftsweep.inputs.case_entries import Entries
 from ftsweep.kinds.table.layout import build_layout
 from ftsweep.simulate import resolve_case
-from ftsweep.store.io import ExportError, check_sidecar_text, dumps_json, write_texts_atomic
+from ftsweep.store.io import check_sidecar_text, dumps_json, write_texts_atomic
 from ftsweep.version import __version__
 
 INT_RANGE = {"int16": (-(2**15), 2**15 - 1), "int32": (-(2**31), 2**31 - 1)}

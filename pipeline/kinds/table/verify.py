@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ftsweep.engine.contract import FileFormat
+from ftsweep.errors import ExportError
 from ftsweep.exports.files import layer_schedule, pv_lines, recorded_case_of, sidecar_digest
 from ftsweep.exports.fingerprint import exact_on_this_platform
 from ftsweep.kinds.table.c_view import read_c
@@ -34,7 +35,7 @@ from ftsweep.kinds.table.header import (
 )
 from ftsweep.kinds.table.layout import build_layout
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.store.io import ExportError, read_regular, read_sidecar, sidecar_of
+from ftsweep.store.io import read_regular, read_sidecar, sidecar_of
 
 # a header holds at most a controller's table: this bounds what verify reads
 MAX_HEADER_BYTES = 200 * 2**20

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ftsweep.exports.moves import DialectError, Moves, line_label, physical_line
+from ftsweep.inputs.programs.moves import DialectError, Moves, line_label, physical_line
 
 _NUM = r"-?(?:\d+\.?\d*|\.\d+)"
 # a cut block giving all three axes (with their velocities in PVT): read without the tokenizer

@@ -1,6 +1,6 @@
 """ISO STS and RS274 G-code read as the controller its machine's profile describes reads it
 (docs/controllers.md): the profile's power-on modal state, modal blocks without a G word, the
-macro language (:mod:`ftsweep.exports.macro`: variables, expressions, WHILE, IF, GOTO), G52
+macro language (:mod:`ftsweep.inputs.programs.macro`: variables, expressions, WHILE, IF, GOTO), G52
 offsets applied, G90/G91, dwells as time, the spindle either way, several passes; anything the
 profile does not define is refused naming the line, and values that cannot be a lathe program
 under the profile are refused naming the convention that is the likely cause."""
@@ -13,9 +13,9 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.exports import macro
-from ftsweep.exports.feedrate import check_timing
-from ftsweep.exports.moves import DialectError, Moves, line_label, physical_line
+from ftsweep.inputs.programs import macro
+from ftsweep.inputs.programs.feedrate import check_timing
+from ftsweep.inputs.programs.moves import DialectError, Moves, line_label, physical_line
 
 # the work a program may make its reader do, in units of one expression node parsed or
 # evaluated (a line executed: LINE_UNITS): WORK_PER_BYTE a byte of the file, at least

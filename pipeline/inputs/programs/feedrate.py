@@ -10,7 +10,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ftsweep.exports.moves import DialectError, Moves
+from ftsweep.inputs.programs.moves import DialectError, Moves
 
 # what a lathe's spindle program can be [rpm], and its slowest revolution [s]
 RPM_RANGE = (0.1, 20_000.0)

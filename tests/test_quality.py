@@ -320,6 +320,23 @@ TOP_LEVEL = {
 }
 
 
+def test_every_package_folder_is_one_the_wheel_lists():
+    """pyproject.toml names the packages a wheel holds one by one: a folder with an
+    ``__init__.py`` that it does not name would be missing from every regular install."""
+    import tomllib
+
+    tool = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    listed = set(tool["packages"])
+    folders = {"pipeline": "ftsweep", "stages": "ftsweep.stages"}
+    found = {
+        ".".join([root, *init.parent.relative_to(REPO / top).parts])
+        for top, root in folders.items()
+        for init in (REPO / top).rglob("__init__.py")
+    }
+    assert len(found) > 20
+    assert found <= listed, sorted(found - listed)
+
+
 def test_nothing_stray_is_committed_at_the_top_level():
     listed = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True)
     if listed.returncode != 0:

@@ -91,7 +91,7 @@ def test_spline1_refuses_a_segment_time_that_is_not_whole_time_steps():
         cutting="seed003-6rpm",
         layout=program_request(kind="spiral", points_per_rev=720),
     )
-    with pytest.raises(CaseError, match=r"whole 0.25 µs steps: this spiral's take 13.8889 ms"):
+    with pytest.raises(CaseError, match=r"0.25 µs steps: these take 13.8889 ms \(use the points_per_rev"):
         run_case(case)
 
 
@@ -504,9 +504,14 @@ def test_dialect_programs_state_their_limits():
 
 def test_a_program_over_the_controllers_limits_is_refused_by_name():
     ctrl = _machine("sts-pmac-spline").controller
-    moves = dialects.Moves(np.arange(5.0), np.ones(5), np.zeros(5), np.full(4, 0.0105))
-    with pytest.raises(Exception, match="SPLINE1 needs one TA of whole milliseconds"):
+    # the I42 entry: TM (or TA) in ms at 1/4 µs, so 10.5 ms is a time SPLINE1 runs; 10.0001 ms is not
+    dialects.check_limits(dialects.Moves(np.arange(5.0), np.ones(5), np.zeros(5), np.full(4, 0.0105)), ctrl)
+    moves = dialects.Moves(np.arange(5.0), np.ones(5), np.zeros(5), np.full(4, 0.0100001))
+    with pytest.raises(Exception, match=r"one time \(TM\) of whole 0.25 µs steps: these take 10.0001 ms"):
         dialects.check_limits(moves, ctrl)
+    uneven = dialects.Moves(np.arange(5.0), np.ones(5), np.zeros(5), np.array([0.01, 0.01, 0.02, 0.01]))
+    with pytest.raises(Exception, match=r"these take 10 to 20 ms"):
+        dialects.check_limits(uneven, ctrl)
     with pytest.raises(Exception, match="more than the controller's 3"):
         dialects.check_limits(moves, ctrl.model_copy(update={"max_blocks": 3}))
 

@@ -212,9 +212,8 @@ __all__ = [
 
 def check_limits(moves: Moves, ctrl: Controller) -> None:
     """Refuse, naming the limit, a program the controller cannot run (its blocks, C's soft
-    limit where C accumulates, a segment's longest time, SPLINE1's one whole-millisecond TA)."""
+    limit where C accumulates, and the segment times it runs: :meth:`Controller.segment_refusal`)."""
     from ftsweep.exports.files import ProgramError
-    from ftsweep.stages.interpolation import segments
 
     blocks = moves.n_points - 1
     if blocks > ctrl.max_blocks:
@@ -229,18 +228,9 @@ def check_limits(moves: Moves, ctrl: Controller) -> None:
             f"{ctrl.c_limit_deg:,.0f}° (machine.controller.c_limit_deg): raise the limit or make C a "
             "wrapped rotary"
         )
-    longest = float(np.nanmax(moves.seconds, initial=0.0))  # a layered program's approaches: NaN
-    if longest > ctrl.max_segment_s:
-        raise ProgramError(
-            f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's "
-            f"{ctrl.max_segment_s * 1e3:g} ms"
-        )
-    if ctrl.interpolation == "spline1":
-        ta = float(moves.seconds[0])
-        if not np.allclose(moves.seconds[:-1], ta, rtol=1e-9) or not segments.whole_steps(ta * 1e3, 1.0):
-            raise ProgramError(
-                f"SPLINE1 needs one TA of whole milliseconds; this program's is {ta * 1e3:.6g} ms"
-            )
+    why = ctrl.segment_refusal(moves.seconds)
+    if why:
+        raise ProgramError(why)
 
 
 def machines_reading(dialect: str) -> list[str]:

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 from typing import Literal, Optional
 
+import numpy as np
 from pydantic import Field, PositiveFloat, PositiveInt, model_validator
 
 from ftsweep.inputs.strict import Strict
+from ftsweep.stages.interpolation.segments import whole_steps
 
 # the interpolation each program dialect commands (docs/controllers.md)
 DIALECT_INTERPOLATION = {
@@ -135,6 +137,41 @@ class Controller(Strict):
         """The word that times a Turbo PMAC's SPLINE and PVT moves under its I42 (the Software
         Reference's I42 entry: 0 TM, 1 TA; ``PVT<ms>`` sets the time in either)."""
         return "TA" if self.i42 == 1 else "TM"
+
+    @property
+    def one_segment_time(self) -> bool:
+        """Whether every segment of a move takes one time (SPLINE1: one TM, or TA under I42 = 1,
+        for the whole sequence), so a program's points must lie evenly in time."""
+        return self.interpolation == "spline1"
+
+    def segment_refusal(self, seconds: np.ndarray) -> str:
+        """Why this controller cannot run segments taking ``seconds`` [s] one after another, or
+        '' where it can (docs/controllers.md, "Interpolation"): none may take longer than
+        ``max_segment_s``; under SPLINE1 every segment but the last (it ends where the path
+        does) takes one time, in whole ``time_quantum_s`` steps (Turbo PMAC's I42 entry: ms at
+        1/4 µs). NaN entries, a layered program's approach moves, are passed over."""
+        seconds = np.asarray(seconds, dtype=float)
+        longest = float(np.nanmax(seconds, initial=0.0))
+        if longest > self.max_segment_s:
+            return (
+                f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's "
+                f"{self.max_segment_s * 1e3:g} ms"
+            )
+        inner = seconds[:-1]
+        if not self.one_segment_time or not inner.size:
+            return ""
+        word = "spline<ms>" if self.pmac_syntax == "power" else self.pmac_timer
+        if not np.allclose(inner, inner[0], rtol=1e-9, atol=0.0):
+            return (
+                f"SPLINE1 segments all take one time ({word}): these take "
+                f"{float(inner.min()) * 1e3:.6g} to {float(inner.max()) * 1e3:.6g} ms"
+            )
+        if not whole_steps(float(inner[0]), self.time_quantum_s):
+            return (
+                f"SPLINE1 segments all take one time ({word}) of whole {self.time_quantum_s * 1e6:g} µs "
+                f"steps: these take {float(inner[0]) * 1e3:.6g} ms"
+            )
+        return ""
 
     def cut_rule(self) -> str:
         """How a reader of this dialect tells a cut from the moves that are not cuts, where a

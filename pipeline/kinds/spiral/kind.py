@@ -119,31 +119,22 @@ def controller_form(
     (docs/controllers.md) and the commands [µm] it passes through: PVT the natural spline
     through the points (the velocities export writes), SPLINE1 the uniform B-spline whose
     way-points are the points (its control points are what export writes). Refuses (CaseError)
-    a segment time the controller cannot run: over its longest, or for SPLINE1 not whole
-    time steps of the controller (1/4 µs on a PMAC) or not the same for every segment."""
+    a segment time the controller cannot run (its profile's rule,
+    :meth:`ftsweep.inputs.controllers.Controller.segment_refusal`)."""
     ctrl = machine.controller
-    seconds = np.diff(path.phi) / spiral.angular_speed(rpm)
-    longest = float(seconds.max(initial=0.0))
-    if longest > ctrl.max_segment_s:
+    if ctrl.one_segment_time and path.rule != "angle":
         raise CaseError(
-            f"a segment takes {longest * 1e3:.6g} ms, longer than the controller's "
-            f"{ctrl.max_segment_s * 1e3:g} ms"
+            f"SPLINE1 segments all take one time, so its points are evenly spaced in C: the {path.rule} "
+            "rule's are not; use the points_per_rev rule with 60000/(rpm·T) points per revolution"
         )
+    why = ctrl.segment_refusal(np.diff(path.phi) / spiral.angular_speed(rpm))
+    if why and ctrl.one_segment_time:
+        why += " (use the points_per_rev rule with 60000/(rpm·T) points per revolution, T in ms)"
+    if why:
+        raise CaseError(why)
     if ctrl.interpolation == "pvt":
         d0, d1 = segments.natural_spline(path.phi, values)
         return path._replace(interpolation="pvt", d0=d0, d1=d1), values
-    inner = seconds[:-1]  # the last segment ends at the centre wherever it falls
-    if path.rule != "angle":
-        raise CaseError(
-            f"SPLINE1 segments all take one time TA, so its points are evenly spaced in C: the {path.rule} "
-            "rule's are not; use the points_per_rev rule with 60000/(rpm·TA) points per revolution"
-        )
-    if not segments.whole_steps(float(inner[0]), ctrl.time_quantum_s):
-        raise CaseError(
-            f"SPLINE1 segments all take one time (TM, or TA under I42 = 1) of whole "
-            f"{ctrl.time_quantum_s * 1e6:g} µs steps: this spiral's take {float(inner[0]) * 1e3:.6g} ms (use "
-            "the points_per_rev rule with 60000/(rpm·T) points per revolution, T the segment time in ms)"
-        )
     way, d0, d1 = segments.bspline_segments(segments.control_points(values))
     return path._replace(interpolation="spline1", d0=d0, d1=d1), way
 

@@ -412,3 +412,26 @@ def test_resuming_another_revisions_cube_warns_in_one_line(tmp_path, catalog_dir
     lines = [ln for ln in r.stderr.splitlines() if "code revision" in ln]
     assert len(lines) == 1 and lines[0].startswith("Warning: ") and "0123456789" in lines[0], r.stderr
     assert "UserWarning" not in r.stderr and "warnings.warn(" not in r.stderr
+
+
+def test_the_sweep_command_reads_its_spec_once(tmp_path, monkeypatch):
+    """The command checks the spec before anything runs and hands what it read to the run: the
+    file is read once (refused here by --max-cases, after both had their look)."""
+    from click.testing import CliRunner
+
+    from ftsweep.cli.main import main
+    from ftsweep.inputs import catalogs
+
+    reads = []
+    real = catalogs.read_yaml_file
+
+    def counted(path, *args, **kwargs):
+        reads.append(Path(path).name)
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(catalogs, "read_yaml_file", counted)
+    out = tmp_path / "c.zarr"
+    r = CliRunner().invoke(main, ["sweep", "sinewave-ring", "--out", str(out), "--max-cases", "1"])
+    assert r.exit_code == 1 and "over the limit of 1 cases" in r.output, r.output
+    assert reads.count("sinewave-ring.yaml") == 1, reads
+    assert not out.exists()

@@ -9,7 +9,7 @@ import signal
 import sys
 import time
 from collections.abc import Iterator
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import click
 
@@ -23,6 +23,9 @@ from ftsweep.cli.common import (
     one_line,
 )
 from ftsweep.defaults import LINE_CACHE_MB, MAX_CASES, WORKER_WAIT_S
+
+if TYPE_CHECKING:
+    from ftsweep.sweeps.spec import LoadedSweep
 
 # exit statuses a scheduler can act on: 0 every case done; 1 cases failed or are pending, or
 # the run could not go on (the message says why: re-run, or --retry-failed); 2 a usage error;
@@ -131,13 +134,13 @@ def sweep(
       ftsweep sweep lens-array-mesh --scheduler tcp://127.0.0.1:8786
     """
     started = time.perf_counter()
-    where = _prepare(sweep_name, out, storage_options, scheduler)
+    sweep, where = _prepare(sweep_name, out, storage_options, scheduler)
     from ftsweep.sweeps.run import run_sweep
 
     progress = SweepProgress(started)
     with _run_errors(progress):
         report = run_sweep(
-            sweep_name,
+            sweep,
             where,
             scheduler,
             workers,
@@ -158,24 +161,25 @@ def sweep(
 
 def _prepare(
     sweep_name: str, out: Optional[str], storage_options: tuple[str, ...], scheduler: Optional[str]
-) -> Any:
-    """Load the spec (naming what is wrong with it), refuse a cube the sweep cannot write, and
-    say what runs, and when the kernels compile first; returns the cube's place (None: the
-    default)."""
+) -> tuple[LoadedSweep, Any]:
+    """Load the spec once (naming what is wrong with it), refuse a cube the sweep cannot write,
+    and say what runs, and when the kernels compile first; returns the sweep read and the
+    cube's place (None: the default)."""
     from ftsweep.inputs.catalogs import CatalogError
     from ftsweep.sweeps.cases import axis_summary
     from ftsweep.sweeps.spec import load_sweep
 
     try:
-        name, spec = load_sweep(sweep_name)
+        sweep = load_sweep(sweep_name)
     except CatalogError as exc:
         raise click.ClickException(str(exc)) from None
+    name, spec = sweep
     where = None if out is None else cube_place(out, storage_options)
     if where is not None:
         _check_destination(where, scheduler)
     click.echo(f"sweep {name}: {spec.surface}, {spec.layout} layouts, {axis_summary(spec)}", err=True)
     first_compile_notice()
-    return where
+    return sweep, where
 
 
 def _check_destination(where: Any, scheduler: Optional[str]) -> None:

@@ -32,6 +32,7 @@ from ftsweep.sweeps.executor import SYNCHRONOUS, Cluster, TaskSpec, execute, run
 from ftsweep.sweeps.given import Rerun, RunNames, Where
 from ftsweep.sweeps.spec import (
     Costs,
+    LoadedSweep,
     SweepSpec,
     coordinates,
     load_sweep,
@@ -254,7 +255,7 @@ def _warn_other_revision(out: Place, attrs: dict[str, Any]) -> None:
 
 
 def run_sweep(
-    name_or_path: str,
+    sweep: str | LoadedSweep,
     out: Optional[PathLike] = None,
     scheduler: Optional[str] = None,
     workers: Optional[int] = None,
@@ -270,6 +271,9 @@ def run_sweep(
     storage_options: Optional[dict[str, Any]] = None,
 ) -> SweepReport:
     """Run (or resume) a sweep; cases already done in the cube are skipped.
+
+    sweep : a sweep's name in the catalog or the path of its YAML file, or one already read
+        (:func:`ftsweep.sweeps.spec.load_sweep`, so a caller that checked it reads it once).
 
     The cube is locked for the whole run (:mod:`ftsweep.store.lock`): a second writer, or a
     ``restart`` while another run writes, is refused. Done cases whose data chunks are
@@ -290,7 +294,7 @@ def run_sweep(
     out : a local folder or an fsspec URL (:mod:`ftsweep.store.storage`), with ``storage_options``
         for it beyond fsspec's configuration (they travel to the workers).
     """
-    name, spec = load_sweep(name_or_path, catalog_folder)
+    name, spec = load_sweep(sweep, catalog_folder) if isinstance(sweep, str) else sweep
     check_sweep_size(spec, max_cases)
     # workers may run in another folder (an external scheduler's): they get absolute paths
     out = place(out if out is not None else default_cube_path(name), storage_options)
@@ -300,7 +304,8 @@ def run_sweep(
     workers = 1 if scheduler == "synchronous" else (workers or default_workers())
     run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
     fence_run = functools.partial(caselog.fence_run, out)  # a run whose lease is taken over
-    with cube_lock(out, f"ftsweep sweep {name_or_path}", run_id, fence_run) as lease:
+    command = f"ftsweep sweep {sweep if isinstance(sweep, str) else name}"
+    with cube_lock(out, command, run_id, fence_run) as lease:
         return _run_locked(
             RunNames(name, run_id),
             spec,

@@ -12,7 +12,7 @@ import hashlib
 import json
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal, NamedTuple, Optional, Union
 
 import numpy as np
 from pydantic import (
@@ -337,7 +337,14 @@ def resolve_sweep_path(name_or_path: str) -> Path:
     return path
 
 
-def load_sweep(name_or_path: str, catalog_folder: Path | None = None) -> tuple[str, SweepSpec]:
+class LoadedSweep(NamedTuple):
+    """A sweep read and validated once: its name (the file's stem) and its spec."""
+
+    name: str
+    spec: SweepSpec
+
+
+def load_sweep(name_or_path: str, catalog_folder: Path | None = None) -> LoadedSweep:
     """Load and validate a sweep; returns its name (the file stem) and spec.
 
     Every error names the file and the key: unknown keys, empty axes, non-positive values,
@@ -353,7 +360,7 @@ def load_sweep(name_or_path: str, catalog_folder: Path | None = None) -> tuple[s
         raise CatalogError(_sweep_error(path, exc)) from None
     except RecursionError:
         raise CatalogError(f"{path}: nested too deeply to be a sweep") from None
-    return path.stem, spec
+    return LoadedSweep(path.stem, spec)
 
 
 def _sweep_error(path: Path, exc: ValidationError) -> str:

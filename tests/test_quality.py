@@ -150,6 +150,30 @@ def test_no_circle_of_imports():
     assert not _circles(graph)
 
 
+def _room(module: str) -> str:
+    """The room a module sits in: a stage (``ftsweep.stages.paths``), a kind
+    (``ftsweep.kinds.spiral``), a folder of pipeline/ or a top-level module; ``ftsweep`` is the face."""
+    parts = module.split(".")
+    return ".".join(parts[:3] if parts[1:2] in (["stages"], ["kinds"]) else parts[:2])
+
+
+def test_no_two_rooms_import_each_other_and_none_imports_the_face():
+    """Rooms, not only modules, form no circle (a stage that imports another imports nothing
+    of it back), and no module imports the package face ``ftsweep``, which stands above all."""
+    known = _module_names()
+    rooms: dict[str, set[str]] = {}
+    for name, path in known.items():
+        if name == "ftsweep":
+            continue
+        for target in _imports(name, path, known):
+            if _room(target) != _room(name):
+                rooms.setdefault(_room(name), set()).add(_room(target))
+    assert len(rooms) > 20 and "ftsweep.stages.paths" in rooms
+    assert not [room for room, targets in rooms.items() if "ftsweep" in targets]
+    everything = set(rooms) | {t for targets in rooms.values() for t in targets}
+    assert not _circles({room: rooms.get(room, set()) for room in everything})
+
+
 def test_the_circle_finder_finds_a_circle():
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": set()}
     assert _circles(graph) == [["a", "b", "c"]]

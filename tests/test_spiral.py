@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from ftsweep.engine.case import Case, CaseError, Resolution, program_request
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages.interpolation import spiral_passes
+from ftsweep.stages.interpolation import spiral_passes, spiral_program
 from ftsweep.stages.interpolation import tables as interpolation
 from ftsweep.stages.interpolation.tables import path_grid
 from ftsweep.stages.paths import cusp_budget, spiral
@@ -31,7 +31,7 @@ from ftsweep.stages.paths import cusp_budget, spiral
 def test_constant_angle_counts_and_steps(rho0, feed, n):
     path = spiral.constant_angle(rho0, feed, n)
     steps = np.diff(path.phi)
-    end = spiral.spiral_end_rad(rho0, feed)
+    end = spiral_program.spiral_end_rad(rho0, feed)
     assert path.phi[0] == 0.0 and path.phi[-1] == pytest.approx(end, rel=1e-12)
     assert np.all(steps > 0) and np.all(steps <= 2 * math.pi / n * (1 + 1e-9))
     # the layout formula: Np points per revolution over ρ0/F revolutions, plus the centre
@@ -43,7 +43,7 @@ def test_constant_angle_counts_and_steps(rho0, feed, n):
 def test_constant_arc_spacing(rho0, feed, arc):
     path = spiral.constant_arc(rho0, feed, arc)
     b = feed / (2 * math.pi)
-    s = spiral._arc_from_centre(path.rho, b)
+    s = spiral_program._arc_from_centre(path.rho, b)
     ds = -np.diff(s)
     cap = 2 * math.pi / spiral.MIN_POINTS_PER_REV
     # every step is the arc length asked, or shorter near the centre, where the angular floor
@@ -55,7 +55,7 @@ def test_constant_arc_spacing(rho0, feed, arc):
 
 
 def _wavy(phi: np.ndarray, rho0: float, feed: float, amp: float, waves: int) -> np.ndarray:
-    rho = spiral.spiral_radius(phi, rho0, feed)
+    rho = spiral_program.spiral_radius(phi, rho0, feed)
     return amp * (rho / rho0) * np.sin(waves * phi) + 1e-3 * rho
 
 
@@ -394,17 +394,17 @@ def test_constant_arc_is_the_whole_array_newton_solve(rho0, feed, arc, floor):
     of ρ0 over b: φ = (ρ0 − ρ)/b carries a last-bit difference of ρ magnified by 1/b, which
     exceeds an ulp of Φ on fine feeds (hypothesis found 6 ulp of Φ at a 1.1 µm feed)."""
     b = feed / (2.0 * math.pi)
-    total = spiral.path_length_um(rho0, feed)
+    total = spiral_program.path_length_um(rho0, feed)
     if total / arc > 3e6:
         return
     target = np.maximum(total - np.arange(int(math.ceil(total / arc - 1e-9)) + 1) * arc, 0.0)
     rho = np.minimum(np.sqrt(2.0 * b * target), rho0)
     for _ in range(60):
-        step = (spiral._arc_from_centre(rho, b) - target) * b / np.sqrt(rho * rho + b * b)
+        step = (spiral_program._arc_from_centre(rho, b) - target) * b / np.sqrt(rho * rho + b * b)
         rho = np.clip(rho - step, 0.0, rho0)
         if np.max(np.abs(step)) < 1e-9 * max(rho0, 1.0):
             break
-    phi = spiral._close(np.sort((rho0 - rho) / b), spiral.spiral_end_rad(rho0, feed))
+    phi = spiral._close(np.sort((rho0 - rho) / b), spiral_program.spiral_end_rad(rho0, feed))
     gaps = np.diff(phi)
     pieces = np.maximum(np.ceil(gaps / (2.0 * math.pi / floor) - 1e-9), 1).astype(np.int64)
     starts = np.repeat(phi[:-1], pieces)
@@ -413,7 +413,7 @@ def test_constant_arc_is_the_whole_array_newton_solve(rho0, feed, arc, floor):
     got = spiral.constant_arc(rho0, feed, arc, floor).phi
     assert got.size == want.size
     assert np.abs(got - want).max() <= 4 * np.spacing(want[-1]) + 4 * np.spacing(rho0) / b
-    assert np.all(np.diff(got) >= 0.0) and got[-1] == spiral.spiral_end_rad(rho0, feed)
+    assert np.all(np.diff(got) >= 0.0) and got[-1] == spiral_program.spiral_end_rad(rho0, feed)
 
 
 @settings(max_examples=60, deadline=None)

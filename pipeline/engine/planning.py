@@ -19,18 +19,18 @@ from ftsweep.engine.cost import check_capacity, check_cost, ray_nodes
 from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.case_entries import Entries
-from ftsweep.stages.interpolation import compensation
+from ftsweep.stages.interpolation import compensation, spiral_program
 from ftsweep.stages.kinematics import dynamics
 from ftsweep.stages.layouts import grids as layouts
 from ftsweep.stages.layouts.grids import Layout
-from ftsweep.stages.paths import layers, spiral
+from ftsweep.stages.paths import layers
 
 
 @dataclass(frozen=True)
 class ResolvedCase:
     """A case with its catalog entries looked up and every rule checked: all the stages need
     (lengths µm). Built by :func:`resolve_case`. For a spiral program, ``layout`` is its
-    :class:`~ftsweep.stages.paths.spiral.SpiralPath` and ``values``/``gouge`` its compensated
+    :class:`~ftsweep.stages.interpolation.spiral_program.SpiralPath` and ``values``/``gouge`` its compensated
     commands [µm] and their gouge flags, planned with it (``plan_seconds``)."""
 
     case: Case
@@ -158,7 +158,7 @@ def layer_plan(rcase: ResolvedCase, table: np.ndarray) -> Optional[layers.LayerP
     def chunks() -> Any:
         return layers.command_stream(rcase.layout, table, rcase.rho0_um, rcase.feed_um, k)
 
-    phi_end = spiral.spiral_end_rad(rcase.rho0_um, rcase.feed_um)
+    phi_end = spiral_program.spiral_end_rad(rcase.rho0_um, rcase.feed_um)
     try:
         return layers.plan_layers(chunks, machine.travel_um, machine.layer_margin_um, phi_end)
     except ValueError as exc:

@@ -15,9 +15,10 @@ from ftsweep.engine import result
 from ftsweep.engine.case import CaseError
 from ftsweep.engine.planning import ResolvedCase, layer_change_of, z_error_of
 from ftsweep.engine.result import STAGES
+from ftsweep.stages.interpolation import spiral_program
 from ftsweep.stages.kinematics import dynamics
 from ftsweep.stages.metrics import moments as metrics
-from ftsweep.stages.paths import layers, spiral
+from ftsweep.stages.paths import layers
 
 
 class ErrorMap:
@@ -77,7 +78,7 @@ def layer_record(
     schedule per layer (None for a single pass, which is one layer: its zone the whole
     travel, its stroke the commands' range ``stroke_um``)."""
     rpm, machine = rcase.cutting.spindle_rpm, rcase.machine
-    single_s = spiral.spiral_end_rad(rcase.rho0_um, rcase.feed_um) / (rpm * 2.0 * math.pi / 60.0)
+    single_s = spiral_program.spiral_end_rad(rcase.rho0_um, rcase.feed_um) / (rpm * 2.0 * math.pi / 60.0)
     z_error = z_error_of(rcase)
     if layering is None:
         return dict(

@@ -27,8 +27,8 @@ from ftsweep.exports.fingerprint import exact_on_this_platform
 from ftsweep.inputs.case_entries import Entries
 from ftsweep.inputs.catalogs import CatalogError
 from ftsweep.inputs.trust import specs_from_entries
+from ftsweep.stages.interpolation.spiral_program import spiral_radius
 from ftsweep.stages.numerics import decimals
-from ftsweep.stages.paths.spiral import spiral_radius
 from ftsweep.store.io import (
     MAX_PROGRAM_BYTES,
     check_sidecar_text,

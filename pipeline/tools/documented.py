@@ -52,9 +52,8 @@ def readme_text() -> tuple[str, str]:
     (``readme`` of pyproject.toml, read through :mod:`importlib.metadata`)."""
     from importlib import metadata
 
-    import ftsweep
-
-    path = Path(ftsweep.__file__).resolve().parent.parent / "README.md"
+    # the package's folder (pipeline/ in a checkout) is two above this module
+    path = Path(__file__).resolve().parents[2] / "README.md"
     if path.is_file() and (path.parent / "pyproject.toml").is_file():
         return path.read_text(encoding="utf-8"), str(path)
     try:

@@ -2,7 +2,8 @@
 Tool-nose compensation of the stored values (``compensation``, ``ray_commands``), bilinear
 interpolation of a table along the spiral (``tables``), the segments a controller forms
 between a path program's points (``segments``: linear, PVT cubics, B-splines), a spiral
-program's commands at the simulator's passes, and where a program crosses the simulator's
+program as its controller runs it (``spiral_program``: its points, the spiral's geometry, its
+command at any angle) and its commands at the simulator's passes, and where a program crosses the simulator's
 rays (``rays``: linear segments; ``timed_path``: cubic ones).
 """
 
@@ -38,6 +39,11 @@ _EXPORTS = {
     "quantised": "segments",
     "whole_steps": "segments",
     "spiral_passes": "spiral_passes",
+    "spiral_program": "spiral_program",
+    "SpiralPath": "spiral_program",
+    "spiral_commands": "spiral_program",
+    "phi_on_path": "spiral_program",
+    "spiral_radius": "spiral_program",
     "pass_commands_kernel": "spiral_passes",
     "tables": "tables",
     "bilinear": "tables",

@@ -21,8 +21,8 @@ import numpy as np
 from numba import njit
 
 from ftsweep.stages.interpolation.spiral_passes import pass_commands_kernel
+from ftsweep.stages.interpolation.spiral_program import SpiralPath, phi_on_path, spiral_commands
 from ftsweep.stages.layouts.grids import Layout
-from ftsweep.stages.paths.spiral import SpiralPath, phi_on_path, spiral_commands
 
 # a program the controller executes: a table (bilinear, model §3) or a spiral path (linear
 # in the spindle angle between consecutive points, [4])
@@ -167,7 +167,7 @@ def table_indices(layout: Layout, rho: np.ndarray, theta: np.ndarray) -> tuple[n
 def interpolate(layout: Program, table: np.ndarray, rho: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """FTS command w [µm] at tool positions ρ [µm], θ [rad]: the controller's lookup (§3),
     or for a spiral program its linear interpolation along the path at the positions'
-    place on the spiral (:func:`ftsweep.stages.paths.spiral.phi_on_path`)."""
+    place on the spiral (:func:`ftsweep.stages.interpolation.spiral_program.phi_on_path`)."""
     if isinstance(layout, SpiralPath):
         return spiral_commands(layout, table, phi_on_path(layout, np.asarray(rho), np.asarray(theta)))
     u, v = table_indices(layout, rho, theta)

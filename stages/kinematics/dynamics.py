@@ -15,9 +15,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ftsweep.stages.interpolation.spiral_program import SpiralPath
 from ftsweep.stages.interpolation.tables import Program, interpolate
 from ftsweep.stages.kinematics import axes as kinematics
-from ftsweep.stages.paths.spiral import SpiralPath
 
 
 class Dynamics(NamedTuple):

@@ -42,8 +42,13 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from ftsweep.stages.interpolation.spiral_program import (
+    SpiralPath,
+    arc_length_between,
+    spiral_end_rad,
+    spiral_radius,
+)
 from ftsweep.stages.interpolation.tables import Program, interpolate
-from ftsweep.stages.paths.spiral import SpiralPath, arc_length_between, spiral_end_rad, spiral_radius
 
 # a plan whose zones need more segments than this is refused: it is no longer a layered
 # trajectory but a stop at every feature (and its schedule would not fit a controller)

@@ -16,8 +16,13 @@ from ftsweep.exports.moves import pvt_tangents
 from ftsweep.inputs.case_entries import Entries
 from ftsweep.simulate import resolve_case, run_case
 from ftsweep.stages.interpolation import segments
+from ftsweep.stages.interpolation.spiral_program import (
+    SpiralPath,
+    angular_speed,
+    spiral_commands,
+    spiral_radius,
+)
 from ftsweep.stages.paths.commanded import CommandedPath
-from ftsweep.stages.paths.spiral import SpiralPath, angular_speed, spiral_commands, spiral_radius
 
 
 def moves_of(path: SpiralPath, values_um: np.ndarray, rpm: float) -> Moves:
@@ -286,7 +291,7 @@ def single_pass(moves: Moves, rcase: Any) -> tuple[SpiralPath, np.ndarray]:
 
 def _commands(moves: Moves, per: int) -> np.ndarray:
     """The simulator's commands [µm] at u = (j + 0.5)/per of every segment, by the spiral's
-    own evaluation (:func:`ftsweep.stages.paths.spiral.spiral_commands`) at those angles."""
+    own evaluation (:func:`ftsweep.stages.interpolation.spiral_program.spiral_commands`) at those angles."""
     if moves.w_mm is not None:
         raise DialectError(
             "a layered program's cuts are checked by verify's reader and re-simulation; the compiled "

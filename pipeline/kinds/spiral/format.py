@@ -36,7 +36,7 @@ from ftsweep.exports.programs import program_format
 from ftsweep.inputs.case_entries import Entries
 from ftsweep.kinds.spiral.request import request_of
 from ftsweep.simulate import resolve_case, run_case
-from ftsweep.stages.paths.spiral import SpiralPath
+from ftsweep.stages.interpolation.spiral_program import SpiralPath
 from ftsweep.store.io import sidecar_of
 from ftsweep.version import __version__
 

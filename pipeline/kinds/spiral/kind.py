@@ -24,7 +24,7 @@ from ftsweep.engine.threads import compensate_in_parts
 from ftsweep.inputs import catalogs
 from ftsweep.kinds.spiral.names import AXES
 from ftsweep.kinds.spiral.request import SpiralRequest, request_of
-from ftsweep.stages.interpolation import segments
+from ftsweep.stages.interpolation import segments, spiral_program
 from ftsweep.stages.paths import cusp_budget, spiral
 from ftsweep.stages.paths.commanded import CommandedPath
 
@@ -36,10 +36,10 @@ def plan_spiral(
     feed_um: float,
     rc: float,
     bound: float,
-    program: Optional[tuple[spiral.SpiralPath, np.ndarray]] = None,
+    program: Optional[tuple[spiral_program.SpiralPath, np.ndarray]] = None,
     machine: Any = None,
     rpm: float = 0.0,
-) -> tuple[spiral.SpiralPath, dict[str, Any]]:
+) -> tuple[spiral_program.SpiralPath, dict[str, Any]]:
     """The spiral program of a case ([4]): its points by the request's rule from the
     aperture's circumscribed radius to the centre, and their commands compensated as a
     table's (model §4), with the segments ``machine``'s controller forms between them at
@@ -61,7 +61,7 @@ def plan_spiral(
 
     def compensated(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return compensate_in_parts(
-            solve, spiral.spiral_radius(phi, rho0, feed_um), np.mod(phi, 2.0 * math.pi)
+            solve, spiral_program.spiral_radius(phi, rho0, feed_um), np.mod(phi, 2.0 * math.pi)
         )
 
     rule, value = request_of(case).spiral_rule()
@@ -88,7 +88,7 @@ def plan_spiral(
     return path, {"values": values, "gouge": gouge, **extra}
 
 
-def _whole_last_block(path: spiral.SpiralPath, machine: Any, rpm: float) -> spiral.SpiralPath:
+def _whole_last_block(path: spiral_program.SpiralPath, machine: Any, rpm: float) -> spiral_program.SpiralPath:
     """The path with a last block into the centre shorter than the controller's servo period
     merged into the one before it (:func:`ftsweep.stages.paths.spiral.merged_short_end`), so
     that an export never refuses its own plan; SPLINE1 runs every segment in one time, the
@@ -96,15 +96,15 @@ def _whole_last_block(path: spiral.SpiralPath, machine: Any, rpm: float) -> spir
     controller = machine.controller if machine is not None else None
     if controller is None or not controller.servo_period_s or controller.interpolation == "spline1":
         return path
-    step = controller.servo_period_s * spiral.angular_speed(rpm)
+    step = controller.servo_period_s * spiral_program.angular_speed(rpm)
     return path._replace(phi=spiral.merged_short_end(path.phi, step))
 
 
-def _on_time_steps(path: spiral.SpiralPath, controller: Any, rpm: float) -> np.ndarray:
+def _on_time_steps(path: spiral_program.SpiralPath, controller: Any, rpm: float) -> np.ndarray:
     """The points' angles [rad] on whole time steps of a PVT controller (its time quantum at
     the spindle's angular speed), so every segment's time is a whole number of steps
     (docs/controllers.md); the last point never passes the centre."""
-    step = controller.time_quantum_s * spiral.angular_speed(rpm)
+    step = controller.time_quantum_s * spiral_program.angular_speed(rpm)
     phi = segments.quantised(path.phi[:-1], step)
     last = math.floor(float(path.phi[-1]) / step) * step
     if phi.size and not last > phi[-1]:
@@ -113,8 +113,8 @@ def _on_time_steps(path: spiral.SpiralPath, controller: Any, rpm: float) -> np.n
 
 
 def controller_form(
-    path: spiral.SpiralPath, values: np.ndarray, machine: Any, rpm: float
-) -> tuple[spiral.SpiralPath, np.ndarray]:
+    path: spiral_program.SpiralPath, values: np.ndarray, machine: Any, rpm: float
+) -> tuple[spiral_program.SpiralPath, np.ndarray]:
     """The path with the segments the machine's controller forms between its points
     (docs/controllers.md) and the commands [µm] it passes through: PVT the natural spline
     through the points (the velocities export writes), SPLINE1 the uniform B-spline whose
@@ -127,7 +127,7 @@ def controller_form(
             f"SPLINE1 segments all take one time, so its points are evenly spaced in C: the {path.rule} "
             "rule's are not; use the points_per_rev rule with 60000/(rpm·T) points per revolution"
         )
-    why = ctrl.segment_refusal(np.diff(path.phi) / spiral.angular_speed(rpm))
+    why = ctrl.segment_refusal(np.diff(path.phi) / spiral_program.angular_speed(rpm))
     if why and ctrl.one_segment_time:
         why += " (use the points_per_rev rule with 60000/(rpm·T) points per revolution, T in ms)"
     if why:
@@ -230,13 +230,13 @@ def spiral_points(case: Case, surface_spec: Any, feed_um: float) -> float:
     if rule == "angle":
         return float(value * rho0 / feed_um)
     if rule == "arc":
-        return float(spiral.path_length_um(rho0, feed_um) / value)
+        return float(spiral_program.path_length_um(rho0, feed_um) / value)
     curvature = catalogs.curvature_bound(surface_spec)
     if curvature is not None and math.isfinite(curvature):
         # a chord of length s on a curve of curvature ≤ K deviates by ≤ K·s²/8 ([4] eq. 4), so
         # the budget needs points no closer than sqrt(8Δ/K): an upper estimate of the count,
         # refused only when even a tenth of it is over the capacity
-        estimate = spiral.path_length_um(rho0, feed_um) * math.sqrt(curvature / (8.0 * value))
+        estimate = spiral_program.path_length_um(rho0, feed_um) * math.sqrt(curvature / (8.0 * value))
         return estimate / CHORD_ESTIMATE_MARGIN
     return 0.0
 
@@ -253,7 +253,7 @@ def _check_estimate(case: Case, surface_spec: Any, feed_um: float, capacity: int
     check_capacity(case, "spiral program", estimate, capacity, note)
 
 
-def plan(p: Planning) -> tuple[spiral.SpiralPath, dict[str, Any]]:
+def plan(p: Planning) -> tuple[spiral_program.SpiralPath, dict[str, Any]]:
     """The points and commands, refused up front when the rule's estimated count is over the
     controller's capacity; the residual error the feed leaves."""
     t = time.perf_counter()
@@ -309,7 +309,7 @@ def pitch_text(r: dict[str, Any]) -> str:
     return f"mean Δφ = {r['dphi_deg']:.4g}°, mean Δs = {r['ds_um']:.4g} µm"
 
 
-def point_text(path: spiral.SpiralPath, flat: int) -> str:
+def point_text(path: spiral_program.SpiralPath, flat: int) -> str:
     rho, theta = float(path.rho[flat]), float(path.theta[flat])
     return f"spiral point {flat} (ρ = {rho:.6g} µm, C = {math.degrees(theta):.6g}°)"
 

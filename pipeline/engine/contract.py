@@ -107,6 +107,14 @@ class BenchRow(NamedTuple):
     needs: Optional[str] = None
 
 
+class ReferenceBench(NamedTuple):
+    """What ``ftsweep bench --reference`` times a kind's brute-force reference beside: the
+    label of one of its whole-process rows (a ``predict``) and the case that predict simulates."""
+
+    row: str
+    case: Case
+
+
 @dataclass(frozen=True)
 class Axis:
     """One sweep axis of a kind: its key under a sweep spec's ``axes:`` and the cube's
@@ -206,7 +214,8 @@ class ProgramKind(abc.ABC):
     samples_spindle_angles : :meth:`angular_cells` (a spindle program whose cells set the
         angles the line engine samples).
     estimates : :meth:`estimate` and :meth:`seed` (a first-order P-V estimate over its sweep).
-    has_reference : :meth:`reference` (a brute-force evaluation straight from the model).
+    has_reference : :meth:`reference` (a brute-force evaluation straight from the model) and
+        :meth:`reference_bench`, the row it is timed beside.
     """
 
     name: ClassVar[str]
@@ -379,6 +388,11 @@ class ProgramKind(abc.ABC):
         """``{pv_nm, rms_nm, pv_interp_nm, n_eval, seconds}`` of a brute-force evaluation of a
         case straight from the model, independent of the stages' kernels, that the simulator is
         tested and timed against (``ftsweep bench --reference``); with ``has_reference``."""
+        raise NotImplementedError(f"the {self.noun} has no reference evaluation")
+
+    def reference_bench(self) -> ReferenceBench:
+        """The whole-process row and case its :meth:`reference` is timed beside, where the kind
+        has such a row (NotImplementedError where not)."""
         raise NotImplementedError(f"the {self.noun} has no reference evaluation")
 
 

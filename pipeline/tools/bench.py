@@ -16,7 +16,7 @@ from typing import Any, Optional
 
 from ftsweep import registry
 from ftsweep.engine.case import Case, Resolution, program_request
-from ftsweep.engine.contract import BenchRow
+from ftsweep.engine.contract import BenchRow, ReferenceBench
 from ftsweep.engine.lines import LineCache
 from ftsweep.engine.simulator import STAGE_TIMERS
 from ftsweep.inputs import catalogs
@@ -124,27 +124,11 @@ def format_table(result: dict[str, Any]) -> str:
 
 
 # whole-process figures: what a user waits for, start-up and exit included. Each row: the
-# command's arguments ("{dir}": a scratch folder, "{header}": an exported header of the
-# 950k-point case, made first) and its most runs (the slow ones run once); the kinds add theirs
-_RING_5K = ("--surface", "sinewave2d", "--points", "5000", "--aspect", "8")
-# the 950k-point ring: its surface and pitches (Δρ [µm], Δθ [deg]), which the brute-force
-# reference model is run on too (:func:`reference_row_case`)
-_RING_950K_SURFACE, _RING_950K_PITCH = "sinewave2d", (3.04, 0.125)
-_RING_950K = (
-    "--surface",
-    _RING_950K_SURFACE,
-    "--drho-um",
-    str(_RING_950K_PITCH[0]),
-    "--dtheta-deg",
-    str(_RING_950K_PITCH[1]),
-)
+# command's arguments ("{dir}": a scratch folder the rows share) and its most runs (the slow
+# ones run once); the kinds add theirs (``bench_rows``), the ones that run their programs
 GENERIC_ROWS = (
     BenchRow("ftsweep --help", ("--help",), 3),
     BenchRow("ftsweep predict --help", ("predict", "--help"), 3),
-    BenchRow("predict 5k-point ring", ("predict", *_RING_5K, "--json"), 3),
-    BenchRow("predict 950k-point ring, 1 thread", ("predict", *_RING_950K, "--json", "--threads", "1"), 3),
-    BenchRow("predict 950k-point ring, all cores", ("predict", *_RING_950K, "--json"), 3),
-    BenchRow("verify 950k-point ring header", ("verify", "{header}", "--json"), 3),
 )
 
 
@@ -152,12 +136,6 @@ def whole_process_rows() -> dict[str, BenchRow]:
     """Every whole-process row by label: the generic ones, then each kind's ``bench_rows``."""
     rows = [*GENERIC_ROWS, *(r for kind in registry.kinds().values() for r in kind.bench_rows)]
     return {row.label: row for row in rows}
-
-
-# the one-case sweep whose exported header the verify row checks
-_HEADER_SWEEP = """surface: sinewave2d
-axes: {points: [950000], aspect: [16.0]}
-"""
 
 
 def ftsweep_command() -> list[str]:
@@ -168,23 +146,6 @@ def ftsweep_command() -> list[str]:
     script = Path(sys.executable).with_name("ftsweep")
     found = str(script) if script.exists() else shutil.which("ftsweep")
     return [found] if found else [sys.executable, "-m", "ftsweep.cli.main"]
-
-
-def _exported_header(head: list[str], folder: str) -> str:
-    """Sweep the 950k-point ring case (synchronously) and export its header into ``folder``."""
-    import subprocess
-
-    spec = Path(folder) / "one.yaml"
-    spec.write_text(_HEADER_SWEEP)
-    cube, header = Path(folder) / "one.zarr", Path(folder) / "ring.h"
-    for args in (
-        ["sweep", str(spec), "--out", str(cube), "--scheduler", "synchronous"],
-        ["export", str(cube), "--case", "0", "-o", str(header)],
-    ):
-        done = subprocess.run([*head, *args], capture_output=True, text=True)
-        if done.returncode != 0:
-            raise ValueError(f"preparing the verify row failed: {done.stderr.strip()[-300:]}")
-    return str(header)
 
 
 def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[str, Any]]:
@@ -202,14 +163,15 @@ def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[
         raise ValueError(f"unknown whole-process row(s) {unknown}; known: {', '.join(known)}")
     rows, ran = [], set()
     with tempfile.TemporaryDirectory(prefix="ftsweep-bench-") as folder:
-        made: dict[str, str] = {}
         for name in names or list(known):
             row = known[name]
-            if row.needs is not None and row.needs not in ran:
-                _run(head, known[row.needs], folder, made)  # writes this row's input
+            for needed in _needs(known, name):
+                if needed not in ran:
+                    _run(head, known[needed], folder)  # writes the next one's input
+                    ran.add(needed)
             best, record = float("inf"), dict[str, Any]()
             for _ in range(max(1, min(repeat, row.runs))):
-                took, stdout = _run(head, row, folder, made)
+                took, stdout = _run(head, row, folder)
                 if took < best:
                     best = took
                     record = json.loads(stdout) if "--json" in row.args else {}
@@ -225,29 +187,31 @@ def whole_process(repeat: int = 3, names: list[str] | None = None) -> list[dict[
     return rows
 
 
-# the whole-process row the brute-force reference model is run beside, and its case
-REFERENCE_ROW = "predict 950k-point ring, 1 thread"
-
-
-def reference_row_case() -> Case:
-    """The case :data:`REFERENCE_ROW`'s predict simulates: its surface's own layout at its
-    pitches."""
-    layout = catalogs.entry("surfaces", _RING_950K_SURFACE).layout
-    return Case(surface=_RING_950K_SURFACE, layout=program_request(kind=layout, pitch=_RING_950K_PITCH))
+def reference_bench() -> ReferenceBench:
+    """The first kind's row and case its brute-force reference is timed beside (a kind with
+    ``has_reference`` and such a row, :meth:`ProgramKind.reference_bench`)."""
+    for kind in registry.kinds().values():
+        if kind.has_reference:
+            try:
+                return kind.reference_bench()
+            except NotImplementedError:
+                continue
+    raise ValueError("no kind has a brute-force reference timed beside a whole-process row")
 
 
 def against_reference(
-    repeat: int = 3, row: str = REFERENCE_ROW, case: Optional[Case] = None
+    repeat: int = 3, row: Optional[str] = None, case: Optional[Case] = None
 ) -> dict[str, Any]:
-    """The whole-process ``predict`` row ``row`` (default the 950k-point ring case on one
-    thread), best of ``repeat``, beside its kind's brute-force evaluation of the same ``case``
-    (default :func:`reference_row_case`) in this process, once (the kind's ``reference``, e.g.
+    """The whole-process ``predict`` row ``row``, best of ``repeat``, beside its kind's
+    brute-force evaluation of the same ``case`` (both by default :func:`reference_bench`'s) in
+    this process, once (the kind's ``reference``, e.g.
     :mod:`ftsweep.kinds.table.reference`: a dense scan of eq. (3) for every control value,
     every node against every arc within Rc): both seconds, both P-V [nm], and how many times
     the whole predict the reference takes. ValueError for a kind without a reference."""
     from ftsweep.engine.planning import resolve_case
 
-    case = case or reference_row_case()
+    if row is None or case is None:
+        row, case = reference_bench()
     kind = registry.kind(case.layout.kind)
     if not kind.has_reference:
         raise ValueError(f"{kind.noun}s have no brute-force reference model")
@@ -281,11 +245,22 @@ def format_against_reference(r: dict[str, Any]) -> str:
     )
 
 
-def _run(head: list[str], row: BenchRow, folder: str, made: dict[str, str]) -> tuple[float, str]:
+def _needs(known: dict[str, BenchRow], name: str) -> list[str]:
+    """The rows that must run before row ``name``, first first (each ``needs`` the one
+    before it); ValueError for a row that needs one not known, or a circle."""
+    chain: list[str] = []
+    needed = known[name].needs
+    while needed is not None:
+        if needed not in known or needed in chain or needed == name:
+            raise ValueError(f"the whole-process row {name!r} needs {needed!r}, which cannot run first")
+        chain.insert(0, needed)
+        needed = known[needed].needs
+    return chain
+
+
+def _run(head: list[str], row: BenchRow, folder: str) -> tuple[float, str]:
     """Run one row's command once: its seconds and stdout (ValueError naming it if it fails)."""
-    if "{header}" in row.args and "{header}" not in made:
-        made["{header}"] = _exported_header(head, folder)
-    args = [made.get(a, a.replace("{dir}", folder)) for a in row.args]
+    args = [a.replace("{dir}", folder) for a in row.args]
     return timed_process([*head, *args], row.label)
 
 

@@ -14,10 +14,12 @@ from typing import TYPE_CHECKING, Any, ClassVar, Optional
 
 from ftsweep.engine.contract import (
     Axis,
+    BenchRow,
     Decorator,
     FileFormat,
     Planning,
     ProgramKind,
+    ReferenceBench,
     Simulating,
     Simulation,
     SweepView,
@@ -33,6 +35,49 @@ if TYPE_CHECKING:
     from ftsweep.engine.result import Quantity
 
 __all__ = ["MeshKind", "RingKind"]
+
+# whole-process benchmark rows: a small and a ~950k-point ring predict, and the header of a
+# ~950k-point case swept and exported, then verified. The 950k predict's surface and pitches
+# (Δρ [µm], Δθ [deg]) are the case the brute-force reference is timed on beside it
+_RING_950K_SURFACE, _RING_950K_PITCH = "sinewave2d", (3.04, 0.125)
+_RING_5K = ("predict", "--surface", "sinewave2d", "--points", "5000", "--aspect", "8", "--json")
+_RING_950K = (
+    "predict",
+    "--surface",
+    _RING_950K_SURFACE,
+    "--drho-um",
+    str(_RING_950K_PITCH[0]),
+    "--dtheta-deg",
+    str(_RING_950K_PITCH[1]),
+    "--json",
+)
+_RING_950K_1 = "predict 950k-point ring, 1 thread"
+_RING_SWEEP = "sweep one 950k-point ring case (synchronous)"
+_RING_EXPORT = "export its header"
+_RING_ROWS = (
+    BenchRow("predict 5k-point ring", _RING_5K, 3),
+    BenchRow(_RING_950K_1, (*_RING_950K, "--threads", "1"), 3),
+    BenchRow("predict 950k-point ring, all cores", _RING_950K, 3),
+    BenchRow(
+        _RING_SWEEP,
+        (
+            "sweep",
+            "sinewave-ring-950k",
+            "--out",
+            "{dir}/ring.zarr",
+            "--scheduler",
+            "synchronous",
+            "--restart",
+        ),
+    ),
+    BenchRow(
+        _RING_EXPORT,
+        ("export", "{dir}/ring.zarr", "--case", "0", "-o", "{dir}/ring.h", "--force"),
+        1,
+        _RING_SWEEP,
+    ),
+    BenchRow("verify 950k-point ring header", ("verify", "{dir}/r.h", "--json"), 3, needs=_RING_EXPORT),
+)
 
 _POINTS = Axis("points", "1", "target number of control points", dumped_unset=True, count=True)
 
@@ -57,6 +102,7 @@ class RingKind(ProgramKind):
     samples_spindle_angles: ClassVar[bool] = True
     estimates: ClassVar[bool] = True
     has_reference: ClassVar[bool] = True
+    bench_rows: ClassVar[tuple[BenchRow, ...]] = _RING_ROWS
     # the in-process benchmark case: its surface, points and aspect ratio
     _bench: ClassVar[tuple[str, str, float]] = ("ring-1M-a8", "sinewave2d", 8.0)
     _coarse_pitch: ClassVar[tuple[float, float]] = (50.0, 10.0)
@@ -198,6 +244,13 @@ class RingKind(ProgramKind):
 
         return reference_case(rcase)
 
+    def reference_bench(self) -> ReferenceBench:
+        """The ~950k-point ring predict on one thread, and the case it simulates."""
+        from ftsweep.engine.case import Case, program_request
+
+        layout = program_request(kind=self.name, pitch=_RING_950K_PITCH)
+        return ReferenceBench(_RING_950K_1, Case(surface=_RING_950K_SURFACE, layout=layout))
+
 
 class MeshKind(RingKind):
     """A Cartesian mesh of pitches Δx, Δy: a ring's kind in Cartesian coordinates, with its own
@@ -215,9 +268,13 @@ class MeshKind(RingKind):
     aspect_range: ClassVar[Optional[tuple[float, float]]] = (0.08, 16.0)
     _bench: ClassVar[tuple[str, str, float]] = ("mesh-1M-a1", "lens_array", 1.0)
     _coarse_pitch: ClassVar[tuple[float, float]] = (50.0, 50.0)
+    bench_rows: ClassVar[tuple[BenchRow, ...]] = ()  # the ring's rows time the tables' commands
 
     def pitch_text(self, record: Mapping[str, Any]) -> str:
         return f"Δx = {record['dx_um']:.4g} µm, Δy = {record['dy_um']:.4g} µm"
+
+    def reference_bench(self) -> ReferenceBench:
+        raise NotImplementedError("the mesh's reference is timed beside the ring's row")
 
     def point_text(self, program: Any, flat: int) -> str:
         from ftsweep.kinds.table import kind

@@ -90,7 +90,7 @@ def test_cube_scale_counts_objects_and_times_open_and_select(tmp_path):
 
 # ----------------------------------------------------------------------------- documented times
 def test_every_time_the_readme_documents_is_found_with_the_command_that_measures_it():
-    from ftsweep.tools.documented import FIRST_PREDICT, documented_times, readme_text
+    from ftsweep.tools.documented import documented_times, readme_text
 
     readme, where = readme_text()
     assert where.endswith("README.md")  # the checkout's own, beside this editable install
@@ -100,7 +100,8 @@ def test_every_time_the_readme_documents_is_found_with_the_command_that_measures
     for step in ("ftsweep sweep sinewave-ring", "ftsweep status", "ftsweep export", "ftsweep verify"):
         assert any(label.startswith(step) for label in labels), (step, labels)
     assert all(r.seconds is not None and r.seconds > 0 for r in rows), rows
-    assert [r.command for r in rows[-2:]] == [FIRST_PREDICT, FIRST_PREDICT]
+    tour = "ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5"
+    assert [r.command for r in rows[-2:]] == [tour, tour]  # the tour's first "$ " line
 
 
 def test_a_figure_the_text_no_longer_states_shows_as_missing():
@@ -118,12 +119,10 @@ def test_documented_times_are_measured_beside_the_written_figures(tmp_path, monk
     from ftsweep.tools import documented
     from ftsweep.tools.bench import ftsweep_command
 
-    monkeypatch.setattr(
-        documented, "FIRST_PREDICT", "ftsweep predict --surface sinewave2d --drho-um 50 --dtheta-deg 10"
-    )
     readme = (
         "## Quickstart\n\n```bash\nftsweep --help       # the commands: 1.5 s\n```\n\n"
-        "a first `predict` of a ring: 12 s against 1 s once cached\n"
+        "a first `predict` of a ring: 12 s against 1 s once cached\n\n## A short tour\n\n```\n"
+        "$ ftsweep predict --surface sinewave2d --drho-um 50 --dtheta-deg 10\n```\n"
     )
     rows = documented.measure(documented.documented_times(readme), " ".join(ftsweep_command()))
     assert [r["seconds"] for r in rows[:3]] == [1.5, 12.0, 1.0]

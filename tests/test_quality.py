@@ -8,7 +8,9 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -284,6 +286,68 @@ def test_generic_modules_name_no_kind():
             if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in names:
                 offenders.append(f"{module}:{node.lineno} names the kind {node.value!r}")
     assert not offenders
+
+
+def _texts_shown(tree: Any) -> Iterator[tuple[int, str]]:
+    """The strings of a module a user reads or a kind could hide in: module-level literals
+    (in tables and tuples too), every ``help=`` text and the docstrings of click commands."""
+    import ast
+
+    def strings(node: Any) -> Iterator[tuple[int, str]]:
+        for c in ast.walk(node):
+            if isinstance(c, ast.Constant) and isinstance(c.value, str):
+                yield c.lineno, c.value
+
+    for node in tree.body:
+        if isinstance(node, (ast.Assign, ast.AnnAssign)) and node.value is not None:
+            yield from strings(node.value)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.keyword) and node.arg == "help":
+            yield from strings(node.value)
+        elif isinstance(node, ast.FunctionDef) and any(
+            "command" in ast.unparse(d) or "group" in ast.unparse(d) for d in node.decorator_list
+        ):
+            doc = ast.get_docstring(node)
+            if doc:
+                yield node.body[0].lineno, doc
+
+
+def _kind_words(source: str, names: set[str]) -> list[str]:
+    """``line: word`` for every kind name a module's shown strings hold as a word (a catalog
+    entry's name such as ``sinewave-ring`` or a path is not the word)."""
+    import ast
+    import re
+
+    alternatives = "|".join(sorted(map(re.escape, names), key=len, reverse=True))
+    word = re.compile(r"(?<![\w/.-])(" + alternatives + r")(?:e?s)?(?![\w/-]|\.\w)", re.I)
+    return [
+        f"{line}: {m.group(0)}" for line, text in _texts_shown(ast.parse(source)) for m in word.finditer(text)
+    ]
+
+
+def test_generic_modules_word_no_kind_in_what_they_show():
+    """Nor does a generic module name a kind inside its module-level literals, help texts or
+    command docstrings: the help a user reads of the kinds comes from the kinds themselves
+    (``description``, ``exports_as``, ``predict_help``, ``examples``)."""
+    from ftsweep import registry
+
+    names = set(registry.names())
+    offenders = []
+    for module, path in _module_names().items():
+        if LAYERS[min(_layer(module), len(LAYERS) - 1)][0] not in GENERIC or module == "ftsweep":
+            continue
+        offenders += [f"{module}:{hit}" for hit in _kind_words(path.read_text(encoding="utf-8"), names)]
+    assert not offenders
+
+
+def test_the_kind_word_gate_finds_a_kind_in_help_and_literals():
+    source = (
+        'ROWS = ("predict a 5k ring",)\nNAME = "sinewave-ring"\n'
+        '@click.command()\n@click.option("--x", help="Language of a spiral program")\n'
+        'def cmd():\n    """Compare meshes."""\n'
+        'def inner():\n    return "a ring inside a function is not shown"\n'
+    )
+    assert sorted(_kind_words(source, {"ring", "spiral", "mesh"})) == ["1: ring", "4: spiral", "6: meshes"]
 
 
 STAGES = ("sampling", "layouts", "interpolation", "envelope", "metrics", "kinematics", "paths", "numerics")

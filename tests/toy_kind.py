@@ -148,6 +148,8 @@ class SquareKind(ProgramKind):
     cutting: ClassVar[str] = "reference"
     aspect_units: ClassVar[str] = "1"
     samples_spindle_angles: ClassVar[bool] = True
+    description: ClassVar[str] = "a square mesh of one pitch (a test's kind)"
+    exports_as: ClassVar[str] = "the tables' C header"
 
     @property
     def request(self) -> type[Request]:

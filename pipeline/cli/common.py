@@ -174,6 +174,62 @@ class KindChoice(click.Choice):
         pass  # click sets its choices once; these are the registry's
 
 
+class DialectChoice(click.Choice):
+    """The program dialects controllers read (:data:`ftsweep.inputs.controllers.DIALECT_INTERPOLATION`),
+    read when the command runs or shows its help, so that importing the command loads no
+    catalog model."""
+
+    def __init__(self) -> None:
+        super().__init__(())
+
+    @property  # type: ignore[override]
+    def choices(self) -> tuple[str, ...]:
+        from ftsweep.inputs.controllers import DIALECT_INTERPOLATION
+
+        return tuple(DIALECT_INTERPOLATION)
+
+    @choices.setter
+    def choices(self, value: Any) -> None:
+        pass  # click sets its choices once; these are the controllers'
+
+
+class KindsHelp(click.Command):
+    """A command whose ``--help`` ends with what every registered kind says of itself
+    (:class:`ftsweep.engine.contract.ProgramKind`'s ``description`` and ``exports_as``, or for
+    ``predict`` its defaults, ``predict_help`` and ``examples``), read from the registry when
+    the help is shown: the command's own text names no kind, and a kind added later is
+    described too."""
+
+    def __init__(self, *args: Any, kinds_say: str = "exports_as", **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.kinds_say = kinds_say
+
+    def format_help_text(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        super().format_help_text(ctx, formatter)
+        from ftsweep import registry
+
+        kinds = registry.kinds().values()
+        with formatter.section("Program kinds"):
+            if self.kinds_say == "predict":
+                rows = [
+                    (k.name, f"{k.description}; default --machine {k.machine}, --cutting {k.cutting}")
+                    for k in kinds
+                ]
+            else:
+                rows = [(k.name, f"{k.description}; export writes {k.exports_as}") for k in kinds]
+            formatter.write_dl(rows)
+            if self.kinds_say == "predict":
+                for k in kinds:
+                    if k.predict_help:
+                        formatter.write_paragraph()
+                        formatter.write_text(k.predict_help)
+        examples = [line for k in kinds for line in k.examples] if self.kinds_say == "predict" else []
+        if examples:
+            with formatter.section("Examples of the kinds"):
+                for line in examples:
+                    formatter.write(f"{'':{formatter.current_indent}}{line}\n")
+
+
 def first_compile_notice() -> None:
     """On a first run (numba's cache without this install's kernels), say on stderr that they
     compile now, with how long that took when last measured on this machine

@@ -19,6 +19,8 @@ from ftsweep.cli.common import (
     POSITIVE,
     STORAGE_OPTIONS,
     TRUST_PLUGINS,
+    DialectChoice,
+    KindsHelp,
     cube_place,
     echo_json,
     guard_complete,
@@ -103,7 +105,7 @@ def select(
         sys.exit(1)
 
 
-@click.command()
+@click.command(cls=KindsHelp)
 @click.argument("cube_path", metavar="CUBE", type=CUBE)
 @click.option("--budget-points", type=COUNT, help="Export the best layout at or under this many points.")
 @click.option("--tolerance-nm", type=POSITIVE, help="Export the smallest layout meeting this P-V [nm].")
@@ -125,10 +127,11 @@ def select(
 @click.option("--name", help="Prefix of the C identifiers. Default: the file name.")
 @click.option(
     "--dialect",
-    type=click.Choice(["text", "iso-sts", "linuxcnc", "pmac-pvt", "pmac-spline"]),
-    help="Language of a spiral program: ftsweep's text lines, ISO STS G-code (Moore Nanotech), "
-    "LinuxCNC G-code, Delta Tau PMAC PVT or SPLINE1 (docs/controllers.md). Default: the machine's "
-    "controller entry's dialect (text when it declares none).",
+    type=DialectChoice(),
+    help="Language of a path program whose kind writes controllers' dialects: ftsweep's text lines, "
+    "ISO STS G-code (Moore Nanotech), LinuxCNC G-code, Delta Tau PMAC PVT or SPLINE1 "
+    "(docs/controllers.md). Default: the machine's controller entry's dialect (text when it "
+    "declares none).",
 )
 @click.option(
     "--machine",
@@ -158,16 +161,13 @@ def export(
     allow_incomplete: bool,
     storage_options: tuple[str, ...],
 ) -> None:
-    """Export the chosen case of a cube: a ring or mesh table (layered or not) as a C header
-    for the FTS controller (-o FILE.h), a spiral program (layered or not) as plain-text lines
-    C [deg] X [mm] Z [mm], or a D-path program as lines t [s] C [deg] X [mm] Z [mm] (-o
-    FILE.txt), each under a header of units, surface, tool, budgets and predicted P-V. Fresnel
-    programs are exported by `ftsweep fresnel -o FILE.txt`; `ftsweep verify FILE` checks any.
-    A spiral program can be written in a controller's dialect (--dialect: ISO STS or LinuxCNC
-    G-code under G93 inverse time, PMAC PVT or SPLINE1); its sidecar records the P-V of the
-    program as written, at the controller's decimals.
+    """Export the chosen case of a cube as its kind's file (below, "Program kinds"), under a
+    header of units, surface, tool, budgets and predicted P-V; `ftsweep verify FILE` checks
+    any. A path program can be written in a controller's dialect (--dialect: ISO STS or
+    LinuxCNC G-code under G93 inverse time, PMAC PVT or SPLINE1); its sidecar records the P-V
+    of the program as written, at the controller's decimals.
 
-    The table is stored as fixed-point integers (unit and type from the machine catalog) in
+    A table is stored as fixed-point integers (unit and type from the machine catalog) in
     the order the controller indexes it, with macros for the layout, pitches, origin, units,
     surface, cutting conditions, predicted P-V, generator and a CRC-32 of the table. A JSON
     sidecar holds the same metadata and the full case spec. Both are written atomically.
@@ -238,7 +238,7 @@ the output's latest line says so, or why it was not checked.
 """
 
 
-@click.command(epilog=VERIFY_EPILOG)
+@click.command(cls=KindsHelp, epilog=VERIFY_EPILOG)
 @click.argument("header", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option(
     "--pv-tolerance-nm",
@@ -297,8 +297,8 @@ def verify(
     as_json: bool,
 ) -> None:
     """Check an exported file as the machine will read it, against the program its sidecar's
-    case plans: a controller header (ring or mesh table, layered or not: FILE.h) or a path
-    program (spiral, layered spiral, D path, Fresnel: FILE.txt).
+    case plans: a controller header (FILE.h) or a path program (FILE.txt), layered or not, of
+    any kind (below, "Program kinds").
 
     The first lines say what the file is for (cube and case, surface, machine, cutting,
     compensation, dialect, points, predicted P-V; who signed it when, until when);
@@ -314,9 +314,9 @@ def verify(
       1 µs, 1e-6° and 1 nm only where the file was planned on another platform (ftsweep,
       numpy, numba, llvmlite, CPU) or records none and --across-platforms asks for it or a
       trusted key signed that platform (the re-planned line says which rule applied);
-    - a D-path or Fresnel program: every line within the machine's axis limits;
-    - a table or spiral/D-path program: the P-V re-simulated from the file as stored within
-      the tolerance of the P-V predicted at export.
+    - a program of several axes: every line within the machine's axis limits;
+    - a program whose kind re-simulates it: the P-V re-simulated from the file as stored
+      within the tolerance of the P-V predicted at export.
     Otherwise exit 1 naming the first difference: do not load that file. Files are data: a
     plug-in surface they name runs only if the local catalog declares it (--trust-plugins).
     """
@@ -463,7 +463,7 @@ def report(
         click.echo(f"{name:14s} {path}")
 
 
-@click.command()
+@click.command(cls=KindsHelp)
 @click.argument(
     "cubes",
     nargs=-1,
@@ -487,7 +487,7 @@ def report(
     "--as-recorded",
     is_flag=True,
     help="Show the cubes' P-V as recorded, each kind on its own spindle-angle sampling, instead of "
-    "simulating the tables' and spirals' rows again on the finest sampling among them.",
+    "simulating the rows of the kinds that sample by their cells again on the finest sampling among them.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print exactly one JSON object (the rows) on stdout.")
 @ALLOW_INCOMPLETE
@@ -501,19 +501,19 @@ def compare(
     allow_incomplete: bool,
     storage_options: tuple[str, ...],
 ) -> None:
-    """Compare program kinds on one part: tables (ring, mesh), spiral, D-path and Fresnel programs.
+    """Compare program kinds on one part (below, "Program kinds").
 
-    Give the cubes of sweeps on the same part under the same conditions, e.g. a ring sweep
-    and a spiral sweep: cubes whose surface, nose radius, feed (a swept feed or D-path
-    spacing by its values), machine or compensation differ are refused, naming the
-    difference (--allow-different lists them, flagged). Each cube's conditions are shown;
-    for each point count of each cube (target N of a table sweep, the rule axis of a path
-    sweep) its best feasible case is listed with its realised N and P-V, one block per
-    program; -o draws P-V against point count, one line per program.
+    Give the cubes of sweeps on the same part under the same conditions: cubes whose
+    surface, nose radius, feed (a swept feed or cut spacing by its values), machine or
+    compensation differ are refused, naming the difference (--allow-different lists them,
+    flagged). Each cube's conditions are shown; for each point count of each cube (target N
+    of a sweep over aspect ratios, the rule axis of a path sweep) its best feasible case is
+    listed with its realised N and P-V, one block per program; -o draws P-V against point
+    count, one line per program.
 
-    A table's cases are simulated on spindle angles set by its cells, a spiral's by its
-    densest revolution: the rows of tables and spirals are simulated again on the finest
-    sampling among them (their cube's P-V shown as "recorded"; --as-recorded skips this).
+    The kinds that sample the spindle's angles by their own cells (a table's cells, a path's
+    densest revolution) are simulated again on the finest sampling among them (their cube's
+    P-V shown as "recorded"; --as-recorded skips this).
 
     \b
     Example:

@@ -179,7 +179,7 @@ def main() -> None:
     """Control-point layouts for fast-tool-servo (FTS) diamond turning.
 
     An FTS controller moves the tool by bilinear interpolation in a table of control
-    points (rings in polar coordinates or a Cartesian mesh). ftsweep predicts the form
+    points (in polar coordinates or on a Cartesian grid). ftsweep predicts the form
     error a layout leaves on the machined part, including tool-nose compensation and the
     tool-arc envelope (the model is in the README, section "The model").
 

@@ -11,6 +11,7 @@ from ftsweep.cli.common import (
     FINITE,
     POSITIVE,
     KindChoice,
+    KindsHelp,
     echo_json,
     fail,
     first_compile_notice,
@@ -27,11 +28,15 @@ if TYPE_CHECKING:  # annotations only: the commands import what they run when th
     from ftsweep.engine.case import Case
 
 
-class _PredictCommand(click.Command):
+class _PredictCommand(KindsHelp):
     """``predict`` with every registered kind's own options
     (:func:`ftsweep.registry.predict_option_groups`) after ``--layout``, read once per
     invocation when the command parses or shows its help, so a kind registered later, or
-    installed from outside the package, adds its options without touching this module."""
+    installed from outside the package, adds its options without touching this module; its
+    help describes each kind as the kind describes itself (:class:`KindsHelp`)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, kinds_say="predict", **kwargs)
 
     @staticmethod
     def _groups(ctx: click.Context) -> dict[str, list[click.Parameter]]:
@@ -112,10 +117,7 @@ class _PredictCommand(click.Command):
     "--layout",
     type=KindChoice(),
     default=None,
-    help="Program: a ring (polar grid) or mesh (Cartesian grid) table for an independent FTS "
-    "controller, a spiral path program (points along the tool path, linear between them), a "
-    "D-path program ([5]: straight cuts over an off-axis part) or a freeform Fresnel program "
-    "([2]: 4-axis, facets cut along a quasi-spiral). Default: the surface's table method.",
+    help='Program kind (below, "Program kinds"). Default: the surface entry\'s layout.',
 )
 @click.option("--feed-um", type=FINITE, help="Feed per revolution F [µm/rev]. Default: cutting entry.")
 @click.option("--nose-radius-um", type=FINITE, help="Tool nose radius Rc [µm]. Default: cutting entry.")
@@ -128,13 +130,11 @@ class _PredictCommand(click.Command):
 )
 @click.option(
     "--machine",
-    help="Machine of the catalog (`ftsweep catalogs`). Default: the program kind's (tables and spirals "
-    "fts-1m, D paths sts-xzc, Fresnel xyzc-nanoform).",
+    help="Machine of the catalog (`ftsweep catalogs`). Default: the program kind's (below).",
 )
 @click.option(
     "--cutting",
-    help="Cutting entry of the catalog (`ftsweep catalogs`). Default: the program kind's (tables and "
-    "spirals reference, D paths dpath-finish, Fresnel fresnel-finish).",
+    help="Cutting entry of the catalog (`ftsweep catalogs`). Default: the program kind's (below).",
 )
 @click.option(
     "--layers",
@@ -198,42 +198,17 @@ class _PredictCommand(click.Command):
 def predict(**opts: Any) -> None:
     """Predict the form error one program leaves on the machined surface.
 
-    A table by explicit pitches (--drho-um and --dtheta-deg, rings; --dx-um and --dy-um,
-    meshes) or a point count and aspect ratio (--points, --aspect). --program FILE: any lathe
-    program read as its controller reads it, summarised and (with --surface) predicted.
+    A program of one kind (--layout, below "Program kinds"), planned from its own options, or
+    --program FILE: any lathe program read as its controller reads it, summarised and (with
+    --surface) predicted.
 
     Commands spanning more than the machine's travel are cut in layers (--layers auto, [3]):
     stroke zones of the travel less the machine's margin, one Z offset each; the JSON's
     "layers" holds the schedule (offsets, start radii, strokes, lengths, times per layer).
 
-    A spiral program (--layout spiral) places its points along the tool path by one rule:
-    --points-per-rev (constant angle), --arc-um (constant path length) or --chord-um (each
-    chord within the budget of the compensated path, [4]); its feed is --feed-um, the
-    cutting entry's, or the largest the residual budget --residual-um allows.
-
-    A D-path program (--layout dpath, [5]) cuts the off-axis part along straight lines
-    --spacing-um apart, --points-per-cut each, joined by quintic transitions outside it; give
-    a machine with X, Z and C limits and its cutting entry (e.g. --machine sts-xzc --cutting
-    dpath-finish). `ftsweep dpath` studies both transitions and the spiral beside it.
-
-    A Fresnel program (--layout fresnel, [2]) slices the surface into facets --facet-height-um
-    high and cuts them along a quasi-spiral, --points-per-turn per turn, feed Δr per turn the
-    --feed-um; its timesteps are optimised for the machine's X, Y, Z, C limits (e.g. --machine
-    xyzc-nanoform --cutting fresnel-finish). P-V and RMS are the facets' (walls excluded);
-    --compensation selects [2]'s exact (eq. 10), slope (eq. 12) or none.
-
     \b
     Examples:
-      ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5
-      ftsweep predict --surface lens_array --layout mesh --dx-um 4 --dy-um 4 --json
-      ftsweep predict --surface sinewave2d --layout spiral --points-per-rev 500
-      ftsweep predict --surface sinusoidal_mesh --layout spiral --chord-um 0.5 --residual-um 0.5 \\
-          --cutting seed003 --machine sts-nanoform
       ftsweep predict --program shop.nc --machine sts-moore --surface sinusoidal_mesh --nose-radius-um 496
-      ftsweep predict --surface concave_sphere --layout dpath --spacing-um 20 \\
-          --machine sts-xzc --cutting dpath-finish
-      ftsweep predict --surface chebyshev_example --layout fresnel --facet-height-um 10 \\
-          --machine xyzc-nanoform --cutting fresnel-finish
     """
     if opts["program"] is not None:
         return _predict_program(opts)

@@ -91,7 +91,7 @@ def optimize(
 
     \b
     Examples:
-      ftsweep optimize sinewave2d --layout ring --tolerance-nm 20
+      ftsweep optimize sinewave2d --tolerance-nm 20
       ftsweep optimize --sweep lens-array-mesh --tolerance-nm 30
     """
     from ftsweep.tools.optimize import optimize as run_optimize
@@ -313,8 +313,8 @@ def _print_estimate(out: dict[str, Any], name: str, unit: str) -> None:
 @click.option(
     "--reference",
     is_flag=True,
-    help="Only this: the 950k-point ring case as a whole `predict` process on one thread beside "
-    "its kind's brute-force evaluation of the same case (ftsweep.kinds.table.reference, straight "
+    help="Only this: the ~10⁶-point case a kind with a brute-force reference names, as a whole "
+    "`predict` process on one thread, beside that reference's evaluation of the same case (straight "
     "from the model: every node against every arc within Rc), their P-V and how many times the "
     "whole predict the reference takes (about 100 s on 2 cores).",
 )
@@ -334,10 +334,10 @@ def bench(
     """Time whole commands, the case runner per stage, and optionally a sweep.
 
     Prints the seconds of whole commands, each its own process (start-up, imports, kernel
-    loading and exit included: what a user waits for): help, predict (5k and 950k ring
-    points, a 990k-point chord spiral; one thread and all cores), verify of a header, dpath
-    (alone, with its 1M-line program, verify of that program), fresnel. Then the seconds per
-    case of the published reference cases and two 10⁶-point layouts split by stage, after a
+    loading and exit included: what a user waits for): the help, then every kind's own rows
+    (its predicts of about 5k and 10⁶ points on one thread and all cores, its programs
+    exported and verified, its commands). Then the seconds per case of the published
+    reference cases and every kind's 10⁶-point layouts split by stage, after a
     warm-up that pays numba's compile cost, on one thread (the 10⁶-point ones also on
     --threads). --sweep: a whole sweep's throughput on each --workers count and --scheduler;
     --cube-cases: a synthetic cube's objects and open and select times. Only --documented:
@@ -345,6 +345,7 @@ def bench(
     beside a brute-force evaluation of its case. Nothing is asserted about time (about 3
     minutes without --sweep).
 
+    \b
     Examples:
       ftsweep bench
       ftsweep bench --case ring-1M-a8 --repeat 3 --threads 1

@@ -24,7 +24,7 @@ import abc
 from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, Optional, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, NamedTuple, Optional, Protocol
 
 if TYPE_CHECKING:
     import xarray
@@ -127,6 +127,9 @@ class Axis:
         specs written when it was the only program axis stay the same.
     count : its values count things (points): a cube's coordinate holds them as integers
         when they are whole.
+    feed : how its values stand to the feed, for what a sweep says of its feed (``compare``):
+        ``"is"`` they are the feed (a spacing between cuts), ``"sets"`` the feed follows from
+        them (a residual budget), ``""`` neither.
     """
 
     name: str
@@ -135,6 +138,7 @@ class Axis:
     signed: bool = False
     dumped_unset: bool = False
     count: bool = False
+    feed: Literal["", "is", "sets"] = ""
 
 
 @dataclass(frozen=True)
@@ -207,6 +211,10 @@ class ProgramKind(abc.ABC):
         unset, so that the hashes of specs written when the key was declared for every sweep
         stay the same.
     bench_rows : its whole-process benchmark rows (:class:`BenchRow`).
+    description : what its program is, one clause for the commands' ``--help`` (xarray's
+        ``BackendEntrypoint.description``); ``exports_as``: what ``export`` writes for it.
+    predict_help : a paragraph on its ``predict`` options for ``predict --help``;
+        ``examples``: its ``predict`` command lines there.
 
     Capability flags (xarray's ``open_dataset_parameters`` and the like), each saying that the
     kind implements the optional methods named:
@@ -231,6 +239,10 @@ class ProgramKind(abc.ABC):
     options_key: ClassVar[Optional[str]] = None
     options_dumped_unset: ClassVar[bool] = False
     bench_rows: ClassVar[tuple[BenchRow, ...]] = ()
+    description: ClassVar[str]
+    exports_as: ClassVar[str]
+    predict_help: ClassVar[str] = ""
+    examples: ClassVar[tuple[str, ...]] = ()
 
     samples_spindle_angles: ClassVar[bool] = False
     estimates: ClassVar[bool] = False
@@ -247,6 +259,8 @@ class ProgramKind(abc.ABC):
         "machine",
         "cutting",
         "aspect_units",
+        "description",
+        "exports_as",
     )
 
     def __repr__(self) -> str:

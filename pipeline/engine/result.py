@@ -57,7 +57,7 @@ STAGES = ("sampling", "compensation", "interpolation", "envelope", "metrics", "d
 # what was simulated: every record begins so
 HEAD: tuple[Quantity, ...] = (
     text("surface", "surface catalog entry"),
-    text("layout", "program kind: ring or mesh table, spiral path, D path or Fresnel program"),
+    text("layout", "program kind (a name the registry knows: ftsweep predict --help lists them)"),
     text("compensation", "tool-nose compensation of the table: exact, slope or none"),
     text("machine", "machine catalog entry"),
     given("feed_um", "um", "feed per spindle revolution"),
@@ -69,25 +69,29 @@ HEAD: tuple[Quantity, ...] = (
 )
 # the groups of fields kinds share, which a kind names among its own (ProgramKind.fields)
 TABLE: tuple[Quantity, ...] = (
-    count("table_rows", "table rows (rings M or mesh nx)", "int32"),
-    count("table_cols", "table columns (points per ring Np or mesh ny)", "int32"),
+    count("table_rows", "table rows (its first index: M in ρ, or nx)", "int32"),
+    count("table_cols", "table columns (its second index: Np in θ, or ny)", "int32"),
 )
 PATH: tuple[Quantity, ...] = (
-    number("revolutions", "1", "revolutions of the path (spiral: from the edge to the centre)"),
+    number(
+        "revolutions",
+        "1",
+        "revolutions of the path (from the edge to the centre where it turns about the axis)",
+    ),
     number("dphi_deg", "deg", "mean spindle-angle step between points"),
     number("ds_um", "um", "mean path length between points"),
 )
-# programs on the spiral about the spindle axis: the W spectrum and layered machining ([3])
+# programs on a path about the spindle axis: the W spectrum and layered machining ([3])
 SPINDLE: tuple[Quantity, ...] = (
     number("w_freq_max_hz", "Hz", "highest significant frequency of the W command"),
     count("n_layers", "layers the part is cut in (1: one pass)", "int32"),
-    count("layer_segments", "spiral segments cut over all layers (each begins with a stop and a Z move)"),
+    count("layer_segments", "path segments cut over all layers (each begins with a stop and a Z move)"),
     number(
         "layer_zone_um", "um", "height of a layer's stroke zone (travel less margin; one pass: the travel)"
     ),
     number("layer_stroke_um", "um", "largest W range within one layer"),
     number("z_error_um", "um", "Z positioning error per retraction between layers"),
-    number("single_pass_s", "s", "machining time of one uninterrupted spiral"),
+    number("single_pass_s", "s", "machining time of one uninterrupted pass"),
     Quantity("layer_change_s", "time per layer segment to stop the spindle, move Z and restart", "s"),
     Quantity("layer_change_share", "share of the machining time spent changing segments", "1"),
     Quantity("layers", "layer schedule: offsets, start radii, strokes, lengths and times per layer"),
@@ -96,7 +100,7 @@ SPINDLE: tuple[Quantity, ...] = (
 
 def aspect_actual(units: str) -> Quantity:
     """The aspect ratio of a spindle program's realised pitches, in its kind's units."""
-    long_name = "aspect ratio of the realised pitches (spiral: feed over mean angular step)"
+    long_name = "aspect ratio of the realised pitches (a path: feed over mean angular step)"
     return number("aspect_actual", units, long_name)
 
 
@@ -126,7 +130,7 @@ TAIL: tuple[Quantity, ...] = (
     number(
         "machining_s",
         "s",
-        "machining time: the path at the spindle speed (spiral: plus the stops of the layers)",
+        "machining time: the path at the spindle speed (layered: plus the stops of the layers)",
     ),
     *(
         number(f"seconds_{stage}", "s", f"time of {stage}, summed over the case's threads")

@@ -10,7 +10,6 @@ import numpy as np
 from pydantic import Field, PositiveFloat, PositiveInt, model_validator
 
 from ftsweep.inputs.strict import Strict
-from ftsweep.stages.interpolation.segments import whole_steps
 
 # the interpolation each program dialect commands (docs/controllers.md)
 DIALECT_INTERPOLATION = {
@@ -150,6 +149,8 @@ class Controller(Strict):
         ``max_segment_s``; under SPLINE1 every segment but the last (it ends where the path
         does) takes one time, in whole ``time_quantum_s`` steps (Turbo PMAC's I42 entry: ms at
         1/4 µs). NaN entries, a layered program's approach moves, are passed over."""
+        from ftsweep.stages.interpolation.segments import whole_steps  # loads numba: not for a catalog
+
         seconds = np.asarray(seconds, dtype=float)
         longest = float(np.nanmax(seconds, initial=0.0))
         if longest > self.max_segment_s:

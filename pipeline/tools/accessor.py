@@ -77,11 +77,17 @@ class FtsweepAccessor:
         at = {d: [i] for d, i in query.position(self._ds, query.flat_of(self._ds, chosen["index"])).items()}
         return self._ds.isel(at).compute().assign_attrs(index=int(chosen["index"]), case=chosen["name"])
 
+    def _kind_noun(self) -> str:
+        """The noun of the cube's program kind (the registry's), e.g. for a legend."""
+        from ftsweep import registry
+
+        return registry.kind(str(self._ds.attrs.get("layout_method"))).noun
+
     def _need_aspect(self, what: str) -> None:
         if "aspect" not in self._ds.dims:
             raise ValueError(
-                f"{what} reads a table sweep's aspect axis; this {self._ds.attrs.get('layout_method')} cube "
-                "has none (use plot_pv, best or ftsweep compare)"
+                f"{what} reads a sweep's aspect axis; this {self._kind_noun()} cube has none (use "
+                "plot_pv, best or ftsweep compare)"
             )
 
     def optimum(self) -> xr.DataArray:
@@ -103,7 +109,8 @@ class FtsweepAccessor:
         pv = self.pv()
         n = ds["n_points"]
         if "aspect" not in ds.dims:
-            # a spiral cube: one line along its rule axis per value of the next axis
+            # a cube swept by its kind's own axes, not aspect ratios: one line along the axis
+            # its point count follows per value of the others
             rule = ds["n_points"].dims[0]
             lines = [d for d in pv.dims if d != rule]
             stacked = pv.stack(line=lines) if lines else pv.expand_dims(line=[0])
@@ -122,7 +129,7 @@ class FtsweepAccessor:
                     color=cmap(i),
                     label=label or rule,
                 )
-            legend_title = f"spiral, rule axis {rule}"
+            legend_title = f"{self._kind_noun()}s along {rule}"
         else:
             other = [d for d in n.dims if d not in ("points", "aspect")]
             if other:

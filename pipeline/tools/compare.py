@@ -48,17 +48,21 @@ def _values_text(values: Iterable[float]) -> str:
 
 def conditions(ds: Any) -> dict[str, str]:
     """The cutting conditions of a cube as its recorded spec and entries give them: surface,
-    nose radius [µm] and feed [µm/rev] (one value, or every value of a swept axis: a D path's
-    spacing is its feed), machine, compensation. Text, to compare and to show."""
+    nose radius [µm] and feed [µm/rev] (one value, or every value of a swept axis: a kind's
+    axis whose values are its feed, or set it, :attr:`ftsweep.engine.contract.Axis.feed`),
+    machine, compensation. Text, to compare and to show."""
     from ftsweep.sweeps.spec import SweepSpec, axis_values
 
     spec = SweepSpec.model_validate_json(ds.attrs["sweep_spec"])
     cutting = json.loads(ds.attrs["catalog_entries"])["cutting"][spec.cutting]
     axes = spec.axes
-    if axes.get("residual_um") is not None:
-        feed = "set by the residual budget " + _values_text(axis_values(axes.get("residual_um"))) + " um"
+    own = {a.feed: a for a in registry.kind(str(ds.attrs["layout_method"])).axes if a.feed}
+    sets = own.get("sets")
+    if sets is not None and axes.get(sets.name) is not None:
+        feed = f"set by {sets.name} " + _values_text(axis_values(axes.get(sets.name))) + f" {sets.units}"
     else:
-        swept = axes.feed_um if axes.feed_um is not None else axes.get("spacing_um")
+        spacing = own.get("is")
+        swept = axes.feed_um if axes.feed_um is not None else (spacing and axes.get(spacing.name))
         feed = _values_text(axis_values(swept) if swept is not None else [cutting["feed_um"]])
     radii = (
         axis_values(axes.nose_radius_um) if axes.nose_radius_um is not None else [cutting["nose_radius_um"]]

@@ -47,7 +47,7 @@ class DPathKind(ProgramKind):
     noun: ClassVar[str] = "D-path program"
     sweeps: ClassVar[str] = "D-path sweeps"
     axes: ClassVar[tuple[Axis, ...]] = (
-        Axis("spacing_um", "um", "spacing between the D path's cuts"),
+        Axis("spacing_um", "um", "spacing between the D path's cuts", feed="is"),
         Axis("points_per_cut", "1", "points on every cut of the D path", count=True),
     )
     pitches: ClassVar[tuple[str, str]] = ("dphi_deg", "ds_um")
@@ -57,6 +57,20 @@ class DPathKind(ProgramKind):
     aspect_units: ClassVar[str] = "um/deg"
     options_key: ClassVar[Optional[str]] = "dpath"
     options_dumped_unset: ClassVar[bool] = True
+    description: ClassVar[str] = "a D-path program ([5]): straight cuts over an off-axis part"
+    exports_as: ClassVar[str] = (
+        "lines t [s] C [deg] X [mm] Z [mm] (FILE.txt), or a controller's dialect (--dialect)"
+    )
+    predict_help: ClassVar[str] = (
+        "A D-path program (--layout dpath, [5]) cuts the off-axis part along straight lines "
+        "--spacing-um apart, --points-per-cut each, joined by quintic transitions outside it; give a "
+        "machine with X, Z and C limits and its cutting entry (e.g. --machine sts-xzc --cutting "
+        "dpath-finish). `ftsweep dpath` studies both transitions and the spiral beside it."
+    )
+    examples: ClassVar[tuple[str, ...]] = (
+        "ftsweep predict --surface concave_sphere --layout dpath --spacing-um 20 --machine sts-xzc "
+        "--cutting dpath-finish",
+    )
     bench_rows: ClassVar[tuple[BenchRow, ...]] = (
         BenchRow("ftsweep dpath (seed example)", ("dpath", "--json", "--plots", "{dir}")),
         BenchRow(_DPATH_OUT_LABEL, (*_DPATH_OUT, "--json", "--plots", "{dir}", "--force")),

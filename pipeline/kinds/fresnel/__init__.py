@@ -57,6 +57,21 @@ class FresnelKind(ProgramKind):
     bench_rows: ClassVar[tuple[BenchRow, ...]] = (
         BenchRow("ftsweep fresnel (chebyshev_example)", ("fresnel", "--json", "--plots", "{dir}")),
     )
+    description: ClassVar[str] = (
+        "a freeform Fresnel program ([2]): 4 axes, the surface's facets cut along a quasi-spiral"
+    )
+    exports_as: ClassVar[str] = "nothing: `ftsweep fresnel -o FILE.txt` writes its program"
+    predict_help: ClassVar[str] = (
+        "A Fresnel program (--layout fresnel, [2]) slices the surface into facets --facet-height-um "
+        "high and cuts them along a quasi-spiral, --points-per-turn per turn, feed Δr per turn the "
+        "--feed-um; its timesteps are optimised for the machine's X, Y, Z, C limits (e.g. --machine "
+        "xyzc-nanoform --cutting fresnel-finish). P-V and RMS are the facets' (walls excluded); "
+        "--compensation selects [2]'s exact (eq. 10), slope (eq. 12) or none."
+    )
+    examples: ClassVar[tuple[str, ...]] = (
+        "ftsweep predict --surface chebyshev_example --layout fresnel --facet-height-um 10 "
+        "--machine xyzc-nanoform --cutting fresnel-finish",
+    )
 
     @property
     def request(self) -> type[Request]:

@@ -47,7 +47,7 @@ class SpiralKind(ProgramKind):
         Axis("points_per_rev", "1", "points per revolution of the spiral", count=True),
         Axis("arc_um", "um", "path length between the spiral's points"),
         Axis("chord_um", "um", "chord-error budget of the spiral"),
-        Axis("residual_um", "um", "residual (cusp) budget that sets the feed"),
+        Axis("residual_um", "um", "residual (cusp) budget that sets the feed", feed="sets"),
     )
     pitches: ClassVar[tuple[str, str]] = ("dphi_deg", "ds_um")
     options: ClassVar[tuple[str, ...]] = AXES
@@ -55,6 +55,24 @@ class SpiralKind(ProgramKind):
     cutting: ClassVar[str] = "reference"
     aspect_units: ClassVar[str] = "um/deg"
     samples_spindle_angles: ClassVar[bool] = True
+    description: ClassVar[str] = (
+        "a path program: points along the tool path, linear (or PVT, SPLINE1 cubics) between them"
+    )
+    exports_as: ClassVar[str] = (
+        "plain-text lines C [deg] X [mm] Z [mm] (FILE.txt), layered or not, or a controller's "
+        "dialect (--dialect)"
+    )
+    predict_help: ClassVar[str] = (
+        "A spiral program (--layout spiral) places its points along the tool path by one rule: "
+        "--points-per-rev (constant angle), --arc-um (constant path length) or --chord-um (each chord "
+        "within the budget of the compensated path, [4]); its feed is --feed-um, the cutting entry's, or "
+        "the largest the residual budget --residual-um allows."
+    )
+    examples: ClassVar[tuple[str, ...]] = (
+        "ftsweep predict --surface sinewave2d --layout spiral --points-per-rev 500",
+        "ftsweep predict --surface sinusoidal_mesh --layout spiral --chord-um 0.5 --residual-um 0.5 "
+        "--cutting seed003 --machine sts-nanoform",
+    )
     bench_rows: ClassVar[tuple[BenchRow, ...]] = (
         BenchRow("predict 990k-point chord spiral, 1 thread", (*_CHORD_1M, "--json", "--threads", "1")),
         BenchRow("predict 990k-point chord spiral, all cores", (*_CHORD_1M, "--json")),

@@ -103,6 +103,15 @@ class RingKind(ProgramKind):
     estimates: ClassVar[bool] = True
     has_reference: ClassVar[bool] = True
     bench_rows: ClassVar[tuple[BenchRow, ...]] = _RING_ROWS
+    description: ClassVar[str] = "a table of rings in polar coordinates (Δρ, Δθ) for an FTS's own controller"
+    exports_as: ClassVar[str] = "a C header of the table for the FTS controller (FILE.h), layered or not"
+    predict_help: ClassVar[str] = (
+        "A table (ring or mesh) is given by its pitches (--drho-um and --dtheta-deg for rings, --dx-um "
+        "and --dy-um for meshes) or by a target point count and aspect ratio (--points, --aspect)."
+    )
+    examples: ClassVar[tuple[str, ...]] = (
+        "ftsweep predict --surface sinewave2d --layout ring --drho-um 2 --dtheta-deg 0.5",
+    )
     # the in-process benchmark case: its surface, points and aspect ratio
     _bench: ClassVar[tuple[str, str, float]] = ("ring-1M-a8", "sinewave2d", 8.0)
     _coarse_pitch: ClassVar[tuple[float, float]] = (50.0, 10.0)
@@ -269,6 +278,11 @@ class MeshKind(RingKind):
     _bench: ClassVar[tuple[str, str, float]] = ("mesh-1M-a1", "lens_array", 1.0)
     _coarse_pitch: ClassVar[tuple[float, float]] = (50.0, 50.0)
     bench_rows: ClassVar[tuple[BenchRow, ...]] = ()  # the ring's rows time the tables' commands
+    description: ClassVar[str] = "a table on a Cartesian mesh (Δx, Δy) for an FTS's own controller"
+    predict_help: ClassVar[str] = ""  # the ring's paragraph covers both tables
+    examples: ClassVar[tuple[str, ...]] = (
+        "ftsweep predict --surface lens_array --layout mesh --dx-um 4 --dy-um 4 --json",
+    )
 
     def pitch_text(self, record: Mapping[str, Any]) -> str:
         return f"Δx = {record['dx_um']:.4g} µm, Δy = {record['dy_um']:.4g} µm"

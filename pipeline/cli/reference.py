@@ -36,7 +36,7 @@ def render() -> str:
         "",
         "Every command's `--help`, in the order `ftsweep --help` lists them: the workflow (sweep,",
         "status, select, export, verify) first. Generated from the commands themselves",
-        "(`python -m ftsweep.cli.reference > docs/reference.md`; tests/test_citations.py keeps",
+        "(`python -m ftsweep.cli.reference > docs/reference.md`; tests/house/test_citations.py keeps",
         "this page equal to their help). The user guide is docs/guide.md.",
         "",
         *(f"- [{name}](#{name.replace(' ', '-')})" for name, _ in helps),

@@ -1,5 +1,5 @@
 """The conformance suite of the program-kind contract, zarr's ``StoreTests`` pattern: every
-kind passes the same tests. A kind's package (this one's in ``tests/test_conformance.py``, a
+kind passes the same tests. A kind's package (this one's in ``tests/kinds/test_conformance.py``, a
 plug-in's in its own tests) subclasses :class:`KindTests` once per kind, naming a one-case
 sweep, and pytest runs the whole suite for it: plan → simulate → export → verify round trip,
 programs in controllers' dialects, the record holds exactly the kind's declared fields, a

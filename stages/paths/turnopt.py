@@ -12,7 +12,7 @@ the stopping rules of SciPy's L-BFGS-B without bounds (a relative decrease of at
 ``ftol`` in an iteration, or a largest gradient component ≤ ``gtol``), run wholly inside one
 compiled call instead of returning to Python at every evaluation. Its iterates are not
 SciPy's (another line search), so the optimum it ends on differs within the optimiser's
-accuracy (tests/test_fresnel.py: every checked turn within 5 % of a direct minimax).
+accuracy (tests/kinds/test_fresnel.py: every checked turn within 5 % of a direct minimax).
 
 Times s, accelerations relative to their limits.
 """

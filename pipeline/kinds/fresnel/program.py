@@ -26,7 +26,7 @@ as K·T0·softmax(u) so the mean constraint always holds.
 The first turn starts cold (uniform steps) and is solved by continuation, p = 64 then 512,
 up to 2,000 iterations each; later turns start from the previous one's steps, p = 64, 200
 iterations: every turn comes within 3 % of a direct minimax solution of the same turn
-(SLSQP on the epigraph form, tests/test_fresnel.py), where a single p = 32 stage stopped 3×
+(SLSQP on the epigraph form, tests/kinds/test_fresnel.py), where a single p = 32 stage stopped 3×
 above it on the first turn. A turn the optimiser would leave worse than constant steps
 keeps constant steps (the fallback). Each turn is then scaled so that its largest relative
 acceleration is 1/K_s (eq. 16) and no axis exceeds 1/K_s of its velocity limit; the factor

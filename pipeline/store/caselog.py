@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from ftsweep.store.faultpoints import write_point
 from ftsweep.store.storage import PathLike, Place, place
 from ftsweep.store.values import DONE, FAILED, REFUSED, TEXT, CubeError, Values, done_values, ended_values
 
@@ -231,6 +232,7 @@ class CaseLog:
         self.place.write(self._key(self.version), _encode(self.cases))
         if self.version > 1:
             self.place.remove(self._key(self.version - 1))
+        write_point("logged", self._key(self.version))
 
     def write_done(self, flat: int, record: dict[str, Any], run_id: str) -> None:
         self._add(flat, done_values(record, run_id))
@@ -294,7 +296,6 @@ def merge_logs(
     number of cases merged. ``keep``: the logs of a fenced run that this writer may still read
     (:attr:`ftsweep.store.lock.Lease.inherited`); other logs of fenced runs are deleted unread."""
     from ftsweep.store import cube  # the driver's: workers never open the store (module doc)
-    from ftsweep.store.fenced import write_point
 
     at: Place = place(where)
     keys = at.listing(LOG)

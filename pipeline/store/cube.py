@@ -29,7 +29,8 @@ from typing import TYPE_CHECKING, Any, Literal, Optional
 import numpy as np
 import zarr
 
-from ftsweep.store.fenced import fenced_store, write_point
+from ftsweep.store.faultpoints import write_point
+from ftsweep.store.fenced import fenced_store
 from ftsweep.store.storage import PathLike, Place, place
 from ftsweep.store.values import (
     DONE,

@@ -37,6 +37,7 @@ from typing import Any, Optional, cast
 from zarr.core.buffer import Buffer
 from zarr.storage import FsspecStore
 
+from ftsweep.store import faultpoints
 from ftsweep.store.lock import LockError
 from ftsweep.store.storage import _MEMORY_SWAP, Place, precondition_failed
 
@@ -44,18 +45,6 @@ from ftsweep.store.storage import _MEMORY_SWAP, Place, precondition_failed
 class ObjectChanged(LockError):
     """An object changed after this writer last looked at it: its conditional write failed and
     nothing was written. The writer confirms its lease before it writes again."""
-
-
-# test hook: called with (event, key) at every write point of a cube's writer: before and
-# after each variable's blocks (ftsweep.store.cube.CubeWriter), each object a fenced store
-# puts, and a merge's commit (its logs deleted); fault-injection tests pause or kill it there
-WRITE_POINT: Optional[Callable[[str, str], None]] = None
-
-
-def write_point(event: str, key: str) -> None:
-    """Call :data:`WRITE_POINT`, if a test set one."""
-    if WRITE_POINT is not None:
-        WRITE_POINT(event, key)
 
 
 def object_tags(where: Place, prefix: str = "") -> dict[str, str]:
@@ -92,8 +81,8 @@ class FencedStore(FsspecStore):
         if byte_range:
             raise NotImplementedError
         self.fence()
-        if WRITE_POINT is not None:  # off zarr's event loop, so a test may run another writer there
-            await asyncio.to_thread(WRITE_POINT, "before-put", key)
+        if faultpoints.WRITE_POINT is not None:  # off zarr's event loop, so a test may run another writer there
+            await asyncio.to_thread(faultpoints.WRITE_POINT, "before-put", key)
         data = value.to_bytes()
         tag = self.tags.get(key)
         if self.place.protocol == "memory":
@@ -109,8 +98,8 @@ class FencedStore(FsspecStore):
                 raise
             etag = out.get("ETag") if isinstance(out, dict) else None
             self.tags[key] = str(etag) if etag else (await self.fs._info(path)).get("ETag", "")
-        if WRITE_POINT is not None:
-            await asyncio.to_thread(WRITE_POINT, "after-put", key)
+        if faultpoints.WRITE_POINT is not None:
+            await asyncio.to_thread(faultpoints.WRITE_POINT, "after-put", key)
 
     def _swap_memory(self, key: str, data: bytes, tag: Optional[str]) -> str:
         with _MEMORY_SWAP:  # memory:// lives in this process: a lock makes the swap atomic

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 import xarray as xr
 from click.testing import CliRunner
+from support import hold
 from support.clusters import BIN, done_count, group_gone
 from support.places import REPO
 
@@ -200,25 +201,25 @@ def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refuse
     url = f"{s3}/kill.zarr"
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir), FTSWEEP_LOCK_LEASE_S=str(LEASE_S), **s3_env)
     cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", url, "--workers", "1"]
+    gate = tmp_path / "hold"
     first = subprocess.Popen(
-        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, start_new_session=True
+        cmd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env={**env, **hold.environment(gate, after=2)},
+        start_new_session=True,
     )
     try:
-        deadline = time.time() + 240
-        while not place(f"{url}.lock").exists() and time.time() < deadline and first.poll() is None:
-            time.sleep(0.1)
+        hold.held(gate, 1, first)  # its worker held once two cases are logged (a fault point)
         second = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
-        assert second.returncode == 75, "the first run ended too early to test a second writer"
+        assert second.returncode == 75, second.stderr
         assert "is being written by pid" in second.stderr and "lease until" in second.stderr
-        while done_count(url) < 2 and time.time() < deadline and first.poll() is None:
-            time.sleep(0.1)
-        assert done_count(url) >= 2, "the sweep did not get going"
     finally:
         os.killpg(first.pid, signal.SIGKILL)  # the driver and its worker: no lock released
         first.wait()
-    _wait_gone(first.pid)  # a worker finishing its case after the kill would log it late
+    _wait_gone(first.pid)
     logged = done_count(url)
-    assert 2 <= logged < 48, "the kill came too late to test a resume"
+    assert logged == 2
     refused = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
     assert refused.returncode == 75 and "lease" in refused.stderr  # the killed run's lease still runs
     # status of the killed cube: its logged cases counted, incomplete, the dead run's lease held
@@ -274,18 +275,23 @@ def test_a_writer_paused_past_its_lease_writes_no_block_after_the_takeover(s3, s
     url = f"{s3}/fence.zarr"
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir), FTSWEEP_LOCK_LEASE_S="6", **s3_env)
     cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", url, "--workers", "1"]
-    paused = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    gate = tmp_path / "hold"
+    paused = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**env, **hold.environment(gate, after=2)},
+    )
     try:
-        deadline = time.time() + 240
-        while done_count(url) < 2 and time.time() < deadline and paused.poll() is None:
-            time.sleep(0.05)
-        assert done_count(url) >= 2 and paused.poll() is None, "the first writer did not get going"
+        hold.held(gate, 1, paused)  # two cases logged, its worker held there (a fault point)
         os.kill(paused.pid, signal.SIGSTOP)
         _wait_lease_out(f"{url}.lock")
         taker = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
         assert taker.returncode == 0, taker.stderr
         before = _block_tags(url)
         os.kill(paused.pid, signal.SIGCONT)
+        hold.let_go(gate)
         _, err = paused.communicate(timeout=180)
     finally:
         if paused.poll() is None:

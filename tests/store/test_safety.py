@@ -442,7 +442,7 @@ def _start_sweep(spec: Path, out: Path, catalogs: Path, *extra: str) -> subproce
 # made), until the test says go on with a line on its standard input
 HELD_UNTIL_TOLD = """
 import sys
-from ftsweep.store import fenced
+from ftsweep.store import faultpoints
 from ftsweep.sweeps.run import run_sweep
 
 held = []
@@ -455,7 +455,7 @@ def hold(event, key):
         sys.stdin.readline()
 
 
-fenced.WRITE_POINT = hold
+faultpoints.WRITE_POINT = hold
 run_sweep(sys.argv[1], sys.argv[2], scheduler="synchronous", catalog_folder=sys.argv[3])
 """
 
@@ -708,7 +708,7 @@ def test_every_probe_ends_in_one_line_and_a_nonzero_exit(
 
 HELD_DRIVER = """
 import sys, threading
-from ftsweep.store import fenced
+from ftsweep.store import faultpoints
 from ftsweep.sweeps.run import run_sweep
 
 
@@ -717,7 +717,7 @@ def hold(event, key):  # the driver held at its first write into the cube, its w
     threading.Event().wait()
 
 
-fenced.WRITE_POINT = hold
+faultpoints.WRITE_POINT = hold
 run_sweep(sys.argv[1], sys.argv[2], workers=2, catalog_folder=sys.argv[3])
 """
 

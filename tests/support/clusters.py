@@ -48,11 +48,13 @@ class ExternalCluster:
             start_new_session=True,
         )
         deadline = time.time() + 60
-        while not sched_file.exists() and time.time() < deadline:
-            time.sleep(0.2)
-        time.sleep(0.2)  # the file is written in one go, but let it land
-        self.address = json.loads(sched_file.read_text())["address"]
-        return self.address
+        while time.time() < deadline:
+            try:  # absent, or not yet written whole
+                self.address = json.loads(sched_file.read_text())["address"]
+                return self.address
+            except (OSError, ValueError, KeyError):
+                time.sleep(0.2)
+        raise AssertionError(f"the scheduler wrote no address to {sched_file} within 60 s")
 
     def add_worker(self, cwd: Path, preload: Optional[Path] = None) -> subprocess.Popen:
         cmd = [
@@ -142,11 +144,11 @@ def done_count(where: object) -> int:
         return 0
 
 
-def start_sweep(cmd: list[str], env: dict[str, str], out: object, at_least: int = 2) -> subprocess.Popen:
-    """Start ``ftsweep sweep`` and return once ``at_least`` of its cases are done."""
+def start_sweep(cmd: list[str], env: dict[str, str], gate: Path, workers: int = 1) -> subprocess.Popen:
+    """Start ``ftsweep sweep`` and return once ``workers`` of its workers are held at the fault
+    point ``env`` names (:func:`support.hold.environment`, with ``gate`` its folder)."""
+    from support import hold
+
     run = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    deadline = time.time() + 240
-    while done_count(out) < at_least and time.time() < deadline and run.poll() is None:
-        time.sleep(0.05)
-    assert done_count(out) >= at_least and run.poll() is None, "the sweep did not get going, or ended"
+    hold.held(gate, workers, run)
     return run

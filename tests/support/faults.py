@@ -1,4 +1,4 @@
-"""Fault injection at a cube writer's write points (``ftsweep.store.fenced.WRITE_POINT``):
+"""Fault injection at a cube writer's write points (``ftsweep.store.faultpoints.WRITE_POINT``):
 the writer paused there while another run takes the cube over, or killed there. No sleeps:
 a pause is another run executed at that very point, and a lease's expiry is written into its
 lock record, so the outcome does not depend on the machine's load."""
@@ -12,7 +12,7 @@ from typing import Any
 
 import xarray as xr
 
-from ftsweep.store import caselog, cube, fenced
+from ftsweep.store import caselog, cube, faultpoints, fenced
 from ftsweep.store.lock import LeaseLost, LockError
 from ftsweep.store.storage import place
 from ftsweep.sweeps import cases, run
@@ -51,14 +51,32 @@ def expire_lease(url: str) -> None:
     lock.write("", json.dumps(record).encode())
 
 
+def writers(event: str) -> bool:
+    """Whether ``event`` is a point of the cube's writer (a worker's logged case is not: the
+    held sweeps of tests/support/hold.py stop there)."""
+    return event != "logged"
+
+
+def writers_only(hook: Callable[[str, str], None]) -> Callable[[str, str], None]:
+    """``hook`` called at the writer's points only (:func:`writers`)."""
+
+    def at_writers(event: str, key: str) -> None:
+        if writers(event):
+            hook(event, key)
+
+    return at_writers
+
+
 def points(spec: Path, url: str, catalog: Path, monkeypatch: Any) -> list[tuple[str, str]]:
     """The write points of a clean run of ``spec`` into ``url``, in order."""
     seen: list[tuple[str, str]] = []
     monkeypatch.setattr(run, "MERGE_EVERY_S", 0.0)
     monkeypatch.setattr(run, "MERGE_MAX_S", 0.0)
-    monkeypatch.setattr(fenced, "WRITE_POINT", lambda event, key: seen.append((event, key)))
+    monkeypatch.setattr(
+        faultpoints, "WRITE_POINT", lambda event, key: writers(event) and seen.append((event, key))
+    )
     run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog)
-    monkeypatch.setattr(fenced, "WRITE_POINT", None)
+    monkeypatch.setattr(faultpoints, "WRITE_POINT", None)
     return seen
 
 
@@ -94,15 +112,15 @@ def faulted_run(spec: Path, url: str, catalog: Path, at: int, fault: str, monkey
         if fault == "kill":
             seen["dead"] = True
             raise Killed
-        fenced_hook, fenced.WRITE_POINT = fenced.WRITE_POINT, None  # the second writer runs clean
+        held_hook, faultpoints.WRITE_POINT = faultpoints.WRITE_POINT, None  # the second writer runs clean
         try:
             pause()
         finally:
-            fenced.WRITE_POINT = fenced_hook
+            faultpoints.WRITE_POINT = held_hook
 
     monkeypatch.setattr(run, "MERGE_EVERY_S", 0.0)
     monkeypatch.setattr(run, "MERGE_MAX_S", 0.0)
-    monkeypatch.setattr(fenced, "WRITE_POINT", hook)
+    monkeypatch.setattr(faultpoints, "WRITE_POINT", writers_only(hook))
     try:
         run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog)
         found["outcome"] = "finished"
@@ -112,7 +130,7 @@ def faulted_run(spec: Path, url: str, catalog: Path, at: int, fault: str, monkey
     except Killed:
         found["outcome"] = "killed"
     finally:
-        monkeypatch.setattr(fenced, "WRITE_POINT", None)
+        monkeypatch.setattr(faultpoints, "WRITE_POINT", None)
     return found
 
 

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
+from support import hold
 from support.clusters import BIN, done_count, external_cluster, kill_group, start_sweep
 
 from ftsweep.store import cube
@@ -74,13 +75,14 @@ def test_tasks_are_planned_for_the_clusters_threads(tmp_path, catalog_dir):
 
 
 def test_a_run_whose_workers_all_left_ends_with_a_message(tmp_path, catalog_dir):
-    env = _env(catalog_dir)
+    gate = tmp_path / "hold"
+    env = {**_env(catalog_dir), **hold.environment(gate, after=2)}
     out = tmp_path / "lost.zarr"
     with external_cluster(tmp_path, env) as cluster:
         cluster.add_worker(cwd=tmp_path)
         cluster.wait_for_workers(1)
         cmd = [str(BIN / "ftsweep"), "sweep", str(_spec(tmp_path, SLOW)), "--out", str(out)]
-        run = start_sweep([*cmd, "--scheduler", cluster.address, "--worker-wait", "3"], env, out)
+        run = start_sweep([*cmd, "--scheduler", cluster.address, "--worker-wait", "3"], env, gate)
         cluster.kill_workers()
         killed = time.monotonic()
         _, stderr = run.communicate(timeout=120)
@@ -91,7 +93,7 @@ def test_a_run_whose_workers_all_left_ends_with_a_message(tmp_path, catalog_dir)
     assert took < 60, took  # 3 s of waiting, the rest closing the client
     assert not lock_path(out).exists()
     kept = done_count(out)
-    assert 2 <= kept < 16
+    assert kept == 2  # the worker was held after its second case
     # the finished cases are kept and a run on a local cluster completes the rest
     report = run_sweep(str(tmp_path / "c.yaml"), out, scheduler="synchronous", catalog_folder=catalog_dir)
     assert report.skipped == kept and report.done == 16 - kept
@@ -159,16 +161,20 @@ def test_a_terminated_sweep_releases_its_lock_and_resumes(tmp_path, catalog_dir,
     env = _env(catalog_dir)
     out = tmp_path / "term.zarr"
     cmd = [str(BIN / "ftsweep"), "sweep", str(_spec(tmp_path, SLOW)), "--out", str(out), "--workers", "1"]
+    gate = tmp_path / "hold"
     run = subprocess.Popen(
-        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**env, **hold.environment(gate, after=2)},
+        start_new_session=True,
     )
     try:
-        deadline = time.time() + 240
-        while done_count(out) < 2 and time.time() < deadline and run.poll() is None:
-            time.sleep(0.05)
-        assert done_count(out) >= 2, "the sweep did not get going"
+        hold.held(gate, 1, run)  # two cases logged, its worker held there
         assert lock_path(out).exists()
         run.send_signal(sig)  # the driver only, as a batch system's job stop does
+        hold.let_go(gate)
         _, stderr = run.communicate(timeout=120)
     finally:
         if run.poll() is None:
@@ -186,7 +192,8 @@ def test_a_terminated_sweep_releases_its_lock_and_resumes(tmp_path, catalog_dir,
 def test_a_sweep_survives_losing_one_of_two_external_workers(tmp_path, catalog_dir):
     """Kill one worker of an external 2-worker cluster mid-sweep; the other
     finishes (Dask reruns the lost worker's task there) and the cube equals a local run."""
-    env = _env(catalog_dir)
+    gate = tmp_path / "hold"
+    env = {**_env(catalog_dir), **hold.environment(gate, after=1)}
     out = tmp_path / "survive.zarr"
     spec = _spec(tmp_path, SLOW)
     with external_cluster(tmp_path, env) as cluster:
@@ -194,8 +201,9 @@ def test_a_sweep_survives_losing_one_of_two_external_workers(tmp_path, catalog_d
             cluster.add_worker(cwd=tmp_path)
         cluster.wait_for_workers(2)
         cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", str(out), "--scheduler", cluster.address]
-        run = start_sweep(cmd, env, out)
+        run = start_sweep(cmd, env, gate, workers=2)  # each worker held after its first case
         kill_group(cluster.workers[0], signal.SIGKILL)
+        hold.let_go(gate)
         stdout, stderr = run.communicate(timeout=300)
     assert run.returncode == 0, stderr
     assert "16 done" in stdout

@@ -81,7 +81,8 @@ class FencedStore(FsspecStore):
         if byte_range:
             raise NotImplementedError
         self.fence()
-        if faultpoints.WRITE_POINT is not None:  # off zarr's event loop, so a test may run another writer there
+        # off zarr's event loop, so a test may run another writer there
+        if faultpoints.WRITE_POINT is not None:
             await asyncio.to_thread(faultpoints.WRITE_POINT, "before-put", key)
         data = value.to_bytes()
         tag = self.tags.get(key)

@@ -5,52 +5,19 @@ from __future__ import annotations
 
 import json
 
-import pytest
 import xarray as xr
 from click.testing import CliRunner
 
 from ftsweep import registry
 from ftsweep.cli.main import main
 from ftsweep.engine import result
-from ftsweep.engine.case import Case, program_request
-from ftsweep.simulate import run_case
 from ftsweep.store import cube
 from ftsweep.sweeps.run import run_sweep
 from ftsweep.tools.query import describe
 
-KIND_CASES = {
-    "ring": Case(surface="small_sine", layout=program_request(kind="ring", pitch=(10.0, 4.0))),
-    "mesh": Case(surface="small_lens", layout=program_request(kind="mesh", pitch=(10.0, 10.0))),
-    "spiral": Case(
-        surface="small_sine", layout=program_request(kind="spiral", points_per_rev=40), feed_um=4.0
-    ),
-    "dpath": Case(
-        surface="concave_sphere",
-        layout=program_request(kind="dpath", spacing_um=500.0, points_per_cut=21),
-        machine="sts-xzc",
-        cutting="dpath-finish",
-    ),
-    "fresnel": Case(
-        surface="chebyshev_example",
-        layout=program_request(kind="fresnel", points_per_turn=40),
-        machine="xyzc-nanoform",
-        cutting="fresnel-finish",
-        feed_um=8.0,
-    ),
-}
-
 
 def _names(kind: str) -> list[str]:
     return result.result_names(registry.kind(kind))
-
-
-@pytest.mark.parametrize("kind", list(KIND_CASES))
-def test_run_case_returns_exactly_the_declared_fields(kind, catalog_dir):
-    record = run_case(KIND_CASES[kind], catalog_dir)
-    assert list(record) == [n for n in _names(kind) if n in record]  # declared order
-    assert set(record) == set(_names(kind))
-    other = "mesh" if kind == "ring" else "ring"
-    assert not set(record) & (set(_names(other)) - set(_names(kind)))
 
 
 def test_every_declared_field_has_a_long_name_and_numbers_have_units():

@@ -111,20 +111,6 @@ def copy_of(exports: dict[str, Path], kind: str, folder: Path) -> Path:
     return folder / src.name
 
 
-KINDS = [*SWEEPS, "fresnel"]
-
-
-@pytest.mark.parametrize("kind", KINDS)
-def test_every_kind_verifies_its_fresh_export(kind, exports, catalogs_with_fresnel):
-    res = invoke(["verify", str(exports[kind]), "--json"], catalogs_with_fresnel)
-    assert res.exit_code == 0, res.output
-    record = json.loads(res.stdout)
-    if kind.startswith("layered"):
-        assert record["n_layers"] > 1
-    if kind != "fresnel":
-        assert abs(record["pv_nm"] - record["predicted_pv_nm"]) <= record["pv_tolerance_nm"]
-
-
 # ----------------------------------------------------------------------------- forging
 def forge_header(header: Path, text: str) -> None:
     """Write ``text`` with its CRC macro recomputed from what ftsweep's parser reads, and
@@ -339,18 +325,6 @@ def test_a_sidecar_naming_a_plugin_is_refused_without_importing_it(
     assert res.exit_code == 1 and "--trust-plugins" not in res.output
     assert PROBE_MODULE in sys.modules
     sys.modules.pop(PROBE_MODULE)
-
-
-# ----------------------------------------------------------------------------- resume
-@pytest.mark.parametrize("kind", list(SWEEPS))
-def test_a_finished_sweep_of_every_kind_reruns_with_nothing_computed(
-    kind, cubes, tmp_path, catalogs_with_fresnel
-):
-    spec = tmp_path / f"{kind}.yaml"
-    spec.write_text(SWEEPS[kind])
-    report = run_sweep(str(spec), cubes[kind], scheduler="synchronous", catalog_folder=catalogs_with_fresnel)
-    assert report.queued == 0 and report.rows == [] and not report.damaged, report.damaged
-    assert report.skipped == report.total == 1
 
 
 # ----------------------------------------------------------------------------- microprism spiral

@@ -1,7 +1,12 @@
-"""Shared fixtures: a private copy of the catalogs with extra test surfaces."""
+"""Fixtures of every area: a private copy of the catalogs with extra test surfaces, and the
+reference sweep, swept once for the whole run."""
 
 from __future__ import annotations
 
+import fcntl
+import os
+import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -32,3 +37,32 @@ def catalog_dir(tmp_path: Path) -> Path:
 def module_catalog_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """:func:`catalog_dir` shared by the tests of one module (they must not edit it)."""
     return make_catalog_dir(tmp_path_factory.mktemp("catalogs") / "catalogs")
+
+
+REFERENCE_SWEEP = "sinewave-ring"
+
+
+@pytest.fixture(scope="session")
+def reference_sweep(tmp_path_factory: pytest.TempPathFactory, worker_id: str) -> Path:
+    """The catalog's reference sweep (84 cases), swept once for the whole run as the README's
+    main command sweeps it: ``ftsweep sweep sinewave-ring`` on a local cluster of two workers.
+    Every xdist worker that needs it waits, under a lock in the run's shared temporary folder,
+    for the first to finish it. Tests copy it before they use it: an export writes into
+    the cube (its ledger)."""
+    from support.clusters import BIN
+
+    root = tmp_path_factory.getbasetemp()
+    root = root if worker_id == "master" else root.parent  # shared by the run's workers alone
+    folder = root / "reference-sweep"
+    out = folder / f"{REFERENCE_SWEEP}.zarr"
+    with (root / "reference-sweep.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (folder / "swept.txt").exists():
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir()
+            env = {k: v for k, v in os.environ.items() if not k.startswith("FTSWEEP_")}
+            cmd = [str(BIN / "ftsweep"), "sweep", REFERENCE_SWEEP, "--out", str(out), "--workers", "2"]
+            done = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900)
+            assert done.returncode == 0, done.stderr[-4000:]
+            (folder / "swept.txt").write_text(done.stdout)  # last: the mark of a finished sweep
+    return out

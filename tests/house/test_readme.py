@@ -2,6 +2,10 @@
 in one fresh folder, as a user following them would run them (the environment's installed ftsweep on PATH, a
 `.venv` beside them): a block that fails, or an output a block shows that differs, fails.
 
+The reference sweep is swept once for the whole test run (tests/conftest.py, by the README's
+own command) and its cube copied into the folder where the blocks sweep it locally
+(:data:`REFERENCE_CUBES`): those blocks then resume a finished cube.
+
 Not run, each for its reason (:data:`NOT_RUN`): the test commands (they are this suite) and
 the crontab entry (a line for cron, not a command). The set-up lines' `python3 -m venv .venv
 && .venv/bin/pip install …` are what CI itself ran before this test: the rest of each line
@@ -12,6 +16,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -109,11 +114,20 @@ def _text(text: str, previous: str) -> None:
         )
 
 
+# the cubes of the reference sweep the pages' blocks sweep into a local folder: the run's one
+# reference sweep (tests/conftest.py, swept by the README's own command) is copied in, so those
+# blocks resume a finished cube, computing nothing, and every later block reads its cases
+REFERENCE_CUBES = ("outputs/sinewave-ring.zarr", "outputs/ring-on-a-cluster.zarr")
+
+
 @pytest.fixture(scope="module")
-def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A fresh folder holding only the environment (``.venv``) the README's set-up made."""
+def folder(tmp_path_factory: pytest.TempPathFactory, reference_sweep: Path) -> Path:
+    """A fresh folder holding the environment (``.venv``) the README's set-up made and the
+    reference sweep's cubes (:data:`REFERENCE_CUBES`)."""
     root = tmp_path_factory.mktemp("readme")
     (root / ".venv").symlink_to(Path(sys.prefix), target_is_directory=True)
+    for name in REFERENCE_CUBES:
+        shutil.copytree(reference_sweep, root / name)
     return root
 
 

@@ -16,15 +16,12 @@ import zlib
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pcpp.preprocessor import Preprocessor
-from support.faults import SPEC, check_point, data, points
 from support.forging import mutated_copy
 from support.settings import THOROUGH
 
-from ftsweep.cli.main import main
 from ftsweep.exports import dialects, nc
 from ftsweep.exports.files import crc_of
 from ftsweep.inputs.programs import gcode
@@ -46,7 +43,7 @@ DIALECTS = ("iso-sts", "linuxcnc")  # the G-code dialects of a linear machine
 
 
 @pytest.fixture(scope="module")
-def exported(tmp_path_factory, module_catalog_dir):
+def exported(tmp_path_factory, module_catalog_dir, shop_keys):
     """A header, a signed header with its public key, and a spiral program in each dialect."""
     folder = tmp_path_factory.mktemp("hostile")
     cubes = {}
@@ -59,13 +56,10 @@ def exported(tmp_path_factory, module_catalog_dir):
             scheduler="synchronous",
             catalog_folder=module_catalog_dir,
         )
-    env = {"FTSWEEP_CATALOGS": str(module_catalog_dir)}
-    runner = CliRunner()
-    assert runner.invoke(main, ["keys", "new", "-o", str(folder / "k")], env=env).exit_code == 0
-    out = {"pub": folder / "k.pub"}
+    out = {"pub": shop_keys[1]}
     os.environ["FTSWEEP_CATALOGS"] = str(module_catalog_dir)
     try:
-        export(cubes["ring"], folder / "s.h", index=0, sign_key=str(folder / "k.key"))
+        export(cubes["ring"], folder / "s.h", index=0, sign_key=str(shop_keys[0]))
         out["signed"] = folder / "s.h"
         for dialect in DIALECTS:
             out[dialect] = folder / f"p-{dialect}.nc"
@@ -140,30 +134,6 @@ def test_a_mutated_signature_is_refused(exported, tmp_path_factory, module_catal
                 verify(folder / signed.name, trusted=(str(exported["pub"]),))
     finally:
         del os.environ["FTSWEEP_CATALOGS"]
-
-
-# ------------------------------------------------------------------ pause and kill, anywhere
-_CLEAN: dict[str, tuple] = {}  # type: ignore[type-arg]
-
-
-@pytest.mark.slow  # four faulted runs, about 15 s: with the exhaustive ones of test_fence.py
-@settings(HOSTILE, max_examples=2000 if THOROUGH else 4)
-@given(draw=st.data())
-def test_a_merge_survives_a_pause_or_kill_at_a_random_write_point(
-    draw, tmp_path_factory, module_catalog_dir, monkeypatch
-):
-    folder = tmp_path_factory.mktemp("fault")
-    spec = folder / "fault.yaml"
-    spec.write_text(SPEC)
-    if "memory" not in _CLEAN:  # the clean run and its write points, once for every draw
-        clean = f"memory://ftsweep-hostile/{folder.name}-clean.zarr"
-        every = points(spec, clean, module_catalog_dir, monkeypatch)
-        _CLEAN["memory"] = (data(clean), every)
-    expected, every = _CLEAN["memory"]
-    at = draw.draw(st.integers(1, len(every)), label="write point")
-    fault = draw.draw(st.sampled_from(["pause", "kill"]), label="fault")
-    url = f"memory://ftsweep-hostile/{folder.name}-{fault}-{at}.zarr"
-    check_point(spec, url, module_catalog_dir, (at, fault), monkeypatch, (expected, every))
 
 
 # ------------------------------------------------------------------ bombs, as counted work

@@ -44,31 +44,32 @@ def cubes(tmp_path_factory, module_catalog_dir):
     return out
 
 
-@pytest.fixture(scope="module")
-def keys(tmp_path_factory, module_catalog_dir):
-    folder = tmp_path_factory.mktemp("keys")
-    res = cli(["keys", "new", "-o", str(folder / "shop")], module_catalog_dir)
-    assert res.exit_code == 0, res.output
-    return folder / "shop.key", folder / "shop.pub"
-
-
 @pytest.fixture()
 def catalogs_env(module_catalog_dir, monkeypatch):
     monkeypatch.setenv("FTSWEEP_CATALOGS", str(module_catalog_dir))
     return module_catalog_dir
 
 
-def signed_export(cubes, keys, out: Path, case: int, catalogs: Path, *extra: str) -> None:
-    args = ["export", str(cubes["ring"]), "--case", str(case), "-o", str(out), "--sign-key", str(keys[0])]
+def signed_export(cubes, shop_keys, out: Path, case: int, catalogs: Path, *extra: str) -> None:
+    args = [
+        "export",
+        str(cubes["ring"]),
+        "--case",
+        str(case),
+        "-o",
+        str(out),
+        "--sign-key",
+        str(shop_keys[0]),
+    ]
     res = cli([*args, *extra], catalogs)
     assert res.exit_code == 0, res.output
 
 
 # ------------------------------------------------------------------ what the file is for
-def test_verify_says_first_what_a_signed_file_is_for(cubes, keys, tmp_path, module_catalog_dir):
+def test_verify_says_first_what_a_signed_file_is_for(cubes, shop_keys, tmp_path, module_catalog_dir):
     out = tmp_path / "part.h"
-    signed_export(cubes, keys, out, 1, module_catalog_dir, "--expires", "30d")
-    res = cli(["verify", str(out), "--trusted-key", str(keys[1])], module_catalog_dir)
+    signed_export(cubes, shop_keys, out, 1, module_catalog_dir, "--expires", "30d")
+    res = cli(["verify", str(out), "--trusted-key", str(shop_keys[1])], module_catalog_dir)
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()
     at = next(i for i, line in enumerate(lines) if line.startswith("for "))
@@ -84,13 +85,13 @@ def test_verify_says_first_what_a_signed_file_is_for(cubes, keys, tmp_path, modu
     assert statement["length"] == out.stat().st_size and statement["signed_at"].endswith("Z")
 
 
-def test_a_signed_file_copied_over_another_case_is_refused(cubes, keys, tmp_path, module_catalog_dir):
+def test_a_signed_file_copied_over_another_case_is_refused(cubes, shop_keys, tmp_path, module_catalog_dir):
     a, b = tmp_path / "a.h", tmp_path / "b.h"
-    signed_export(cubes, keys, a, 0, module_catalog_dir)
-    signed_export(cubes, keys, b, 1, module_catalog_dir)
+    signed_export(cubes, shop_keys, a, 0, module_catalog_dir)
+    signed_export(cubes, shop_keys, b, 1, module_catalog_dir)
     for suffix in ("", ".json", ".sig"):  # case 0's file, sidecar and signature over case 1's
         shutil.copy(f"{a}{suffix}", f"{b}{suffix}")
-    res = cli(["verify", str(b), "--trusted-key", str(keys[1])], module_catalog_dir)
+    res = cli(["verify", str(b), "--trusted-key", str(shop_keys[1])], module_catalog_dir)
     assert res.exit_code == 1 and "signed as 'a.h', not 'b.h'" in res.output, res.output
     # without a key the swap is still visible, and refused where the operator expects a case
     res = cli(["verify", str(b)], module_catalog_dir)
@@ -103,29 +104,29 @@ def test_a_signed_file_copied_over_another_case_is_refused(cubes, keys, tmp_path
     assert res.exit_code == 0, res.output
 
 
-def test_a_renamed_signed_file_is_refused(cubes, keys, tmp_path, module_catalog_dir):
+def test_a_renamed_signed_file_is_refused(cubes, shop_keys, tmp_path, module_catalog_dir):
     a = tmp_path / "a.h"
-    signed_export(cubes, keys, a, 0, module_catalog_dir)
+    signed_export(cubes, shop_keys, a, 0, module_catalog_dir)
     moved = tmp_path / "other.h"
     for suffix in ("", ".json", ".sig"):
         os.rename(f"{a}{suffix}", f"{moved}{suffix}")
-    res = cli(["verify", str(moved), "--trusted-key", str(keys[1])], module_catalog_dir)
+    res = cli(["verify", str(moved), "--trusted-key", str(shop_keys[1])], module_catalog_dir)
     assert res.exit_code == 1 and "renamed or copied" in res.output, res.output
 
 
-def test_an_expired_statement_is_refused(cubes, keys, tmp_path, catalogs_env, monkeypatch):
+def test_an_expired_statement_is_refused(cubes, shop_keys, tmp_path, catalogs_env, monkeypatch):
     out = tmp_path / "e.h"
-    signed_export(cubes, keys, out, 0, catalogs_env, "--expires", "1d")
-    assert verify(out, trusted=(str(keys[1]),))["origin"]["expires"]
+    signed_export(cubes, shop_keys, out, 0, catalogs_env, "--expires", "1d")
+    assert verify(out, trusted=(str(shop_keys[1]),))["origin"]["expires"]
     later = origin._now() + timedelta(days=2)
     monkeypatch.setattr(origin, "_now", lambda: later)
     with pytest.raises(ExportError, match="its signature expired at"):
-        verify(out, trusted=(str(keys[1]),))
+        verify(out, trusted=(str(shop_keys[1]),))
 
 
 @pytest.mark.parametrize("when", ["2020-01-01", "yesterday", "0d", "-3d"])
 def test_an_expiry_that_has_passed_or_is_no_time_is_a_usage_error(
-    cubes, keys, tmp_path, module_catalog_dir, when
+    cubes, shop_keys, tmp_path, module_catalog_dir, when
 ):
     args = [
         "export",
@@ -135,32 +136,32 @@ def test_an_expiry_that_has_passed_or_is_no_time_is_a_usage_error(
         "-o",
         str(tmp_path / "x.h"),
         "--sign-key",
-        str(keys[0]),
+        str(shop_keys[0]),
     ]
     res = cli([*args, "--expires", when], module_catalog_dir)
     assert res.exit_code == 2 and "--expires" in res.output, res.output
     assert not (tmp_path / "x.h").exists()
 
 
-def test_a_signature_of_the_older_scheme_is_refused(cubes, keys, tmp_path, catalogs_env):
+def test_a_signature_of_the_older_scheme_is_refused(cubes, shop_keys, tmp_path, catalogs_env):
     out = tmp_path / "old.h"
-    signed_export(cubes, keys, out, 0, catalogs_env)
+    signed_export(cubes, shop_keys, out, 0, catalogs_env)
     sig = out.with_name("old.h.sig")
     document = json.loads(sig.read_text())
     del document["scheme"], document["statement"]  # what the first scheme wrote: hashes only
     sig.write_text(json.dumps(document, indent=2) + "\n")
     with pytest.raises(ExportError, match="older scheme, which names no file, case or expiry"):
-        verify(out, trusted=(str(keys[1]),))
+        verify(out, trusted=(str(shop_keys[1]),))
 
 
 def test_a_key_others_can_read_and_a_config_others_can_change_are_warned_about(
-    cubes, keys, tmp_path, module_catalog_dir
+    cubes, shop_keys, tmp_path, module_catalog_dir
 ):
     key = tmp_path / "open.key"
-    shutil.copy(keys[0], key)
+    shutil.copy(shop_keys[0], key)
     key.chmod(0o644)
     config = tmp_path / "config.toml"
-    config.write_text(f'trusted_keys = ["{keys[1]}"]\n')
+    config.write_text(f'trusted_keys = ["{shop_keys[1]}"]\n')
     config.chmod(0o666)
     out = tmp_path / "w.h"
     res = cli(
@@ -169,7 +170,7 @@ def test_a_key_others_can_read_and_a_config_others_can_change_are_warned_about(
     )
     assert res.exit_code == 0, res.output
     assert f"warning: private key {key} is -rw-r--r--: others can read it; chmod 600" in res.stderr
-    res = cli(["verify", str(out)], module_catalog_dir, FTSWEEP_CONFIG=str(config))  # its trusted keys
+    res = cli(["verify", str(out)], module_catalog_dir, FTSWEEP_CONFIG=str(config))  # its trusted shop_keys
     assert res.exit_code == 0, res.output
     assert f"warning: config file {config} is -rw-rw-rw-: others can change it; chmod go-w" in res.stderr
     config.chmod(0o644)  # readable by all is how configs are: only who may change it matters
@@ -228,12 +229,12 @@ def test_the_file_does_not_choose_its_rule(header, edit):
 def test_a_signed_platform_allows_one_unit_without_the_operator_asking(cubes, tmp_path, catalogs_env):
     """With a trusted key the platform is in the signed statement: a file signed as planned
     elsewhere is judged with one unit; its statement names the platform."""
-    keys = origin.new_keys(tmp_path / "k")
+    shop_keys = origin.new_keys(tmp_path / "k")
     out = tmp_path / "s.h"
-    export(cubes["ring"], out, index=0, sign_key=str(keys[0]))
+    export(cubes["ring"], out, index=0, sign_key=str(shop_keys[0]))
     signed = json.loads(out.with_name("s.h.sig").read_text())["statement"]
     assert signed["platform"] == fingerprint()
-    record = verify(out, trusted=(str(keys[1]),))
+    record = verify(out, trusted=(str(shop_keys[1]),))
     assert record["replanned"] == "planned on this platform: every value exactly as re-planned"
 
 
@@ -299,7 +300,7 @@ def test_a_recorded_resolution_past_the_files_size_is_refused_before_any_work(
 
 # ------------------------------------------------------------------ rollback
 def test_an_older_export_of_the_same_name_is_refused_while_its_cube_is_reachable(
-    cubes, keys, tmp_path, module_catalog_dir
+    cubes, shop_keys, tmp_path, module_catalog_dir
 ):
     """Each export appends its statement's sequence to the cube's ledger: an older signed
     export put back under the same name verifies no more (it is not the latest), however
@@ -309,13 +310,13 @@ def test_an_older_export_of_the_same_name_is_refused_while_its_cube_is_reachable
     cube = tmp_path / "ring.zarr"
     shutil.copytree(cubes["ring"], cube)
     out, keep = tmp_path / "shop.h", tmp_path / "kept"
-    args = ["export", str(cube), "-o", str(out), "--sign-key", str(keys[0]), "--force"]
+    args = ["export", str(cube), "-o", str(out), "--sign-key", str(shop_keys[0]), "--force"]
     assert cli([*args, "--case", "0"], module_catalog_dir).exit_code == 0
     keep.mkdir()
     for f in (out, out.with_name("shop.h.json"), out.with_name("shop.h.sig")):
         shutil.copy(f, keep / f.name)
     assert cli([*args, "--case", "1"], module_catalog_dir).exit_code == 0
-    trusted = ["--trusted-key", str(keys[1])]
+    trusted = ["--trusted-key", str(shop_keys[1])]
     res = cli(["verify", str(out), *trusted], module_catalog_dir)
     assert (
         res.exit_code == 0

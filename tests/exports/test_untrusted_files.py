@@ -320,18 +320,15 @@ def test_a_catalog_entry_name_that_would_become_syntax_is_refused(tmp_path, modu
 
 
 # ------------------------------------------------------------------ origin
-@pytest.fixture()
-def keypair(tmp_path, module_catalog_dir):
-    res = cli(["keys", "new", "-o", str(tmp_path / "shop")], module_catalog_dir)
-    assert res.exit_code == 0, res.output
-    assert oct((tmp_path / "shop.key").stat().st_mode & 0o777) == "0o600"
-    return tmp_path / "shop.key", tmp_path / "shop.pub"
+def test_a_new_private_key_is_its_owners_alone(shop_keys):
+    key, pub = shop_keys
+    assert oct(key.stat().st_mode & 0o777) == "0o600" and pub.stat().st_size > 0
 
 
 def test_signed_export_verifies_with_its_key_and_any_change_is_refused(
-    originals, tmp_path, module_catalog_dir, keypair
+    originals, tmp_path, module_catalog_dir, shop_keys
 ):
-    key, pub = keypair
+    key, pub = shop_keys
     out = tmp_path / "signed.h"
     cube_path = str(originals["fts"].with_suffix(".zarr"))
     res = cli(
@@ -362,9 +359,9 @@ def test_signed_export_verifies_with_its_key_and_any_change_is_refused(
 
 
 def test_trusted_keys_come_from_the_config_file(
-    originals, tmp_path, module_catalog_dir, keypair, monkeypatch
+    originals, tmp_path, module_catalog_dir, shop_keys, monkeypatch
 ):
-    key, pub = keypair
+    key, pub = shop_keys
     config = tmp_path / "config.toml"
     config.write_text(f'signing_key = "{key}"\ntrusted_keys = ["{pub}"]\n')
     monkeypatch.setenv("FTSWEEP_CONFIG", str(config))

@@ -9,9 +9,7 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -48,60 +46,6 @@ axes:
   aspect: [1.0, 2.0, 4.0, 8.0, 16.0, 32.0]
 cases_per_task: 1
 """
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-@pytest.fixture(scope="module")
-def s3_env():
-    """A moto S3 server for this module, and the environment that points fsspec at it (the
-    way a user configures an endpoint: FSSPEC_S3_ENDPOINT_URL and AWS credentials)."""
-    port = _free_port()
-    server = subprocess.Popen(
-        [sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-    )
-    env = {
-        "AWS_ACCESS_KEY_ID": "testing",
-        "AWS_SECRET_ACCESS_KEY": "testing",
-        "AWS_DEFAULT_REGION": "us-east-1",
-        "FSSPEC_S3_ENDPOINT_URL": f"http://127.0.0.1:{port}",
-    }
-    try:
-        deadline = time.time() + 60
-        while True:
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=1).close()
-                break
-            except OSError:
-                assert time.time() < deadline, "moto's server did not start"
-                time.sleep(0.2)
-        yield env
-    finally:
-        os.killpg(server.pid, signal.SIGTERM)
-        server.wait(timeout=30)
-
-
-@pytest.fixture()
-def s3(s3_env, monkeypatch, tmp_path):
-    """This process pointed at the server (fsspec reads its FSSPEC_* configuration when a
-    filesystem is made), with an empty bucket of its own; yields the bucket's URL."""
-    import fsspec
-    import s3fs
-
-    for key, value in s3_env.items():
-        monkeypatch.setenv(key, value)
-    monkeypatch.setitem(fsspec.config.conf, "s3", {"endpoint_url": s3_env["FSSPEC_S3_ENDPOINT_URL"]})
-    s3fs.S3FileSystem.clear_instance_cache()
-    bucket = f"b{tmp_path.name.lower().replace('_', '-')[-40:]}".strip("-")
-    s3fs.S3FileSystem().mkdir(bucket)
-    return f"s3://{bucket}"
 
 
 def _spec(folder: Path, text: str = SPEC) -> Path:
@@ -406,25 +350,3 @@ def test_status_of_a_grown_cube_on_s3(s3, tmp_path, catalog_dir):
     assert res.exit_code == 0 and found["complete"] and found["counts"]["done"] == 9
     assert [g["added"] for g in found["grown"]] == ["points +1, aspect +0"]
     assert found["last_run"]["cases"]["done"] == 3 and found["writer"] is None
-
-
-@pytest.mark.serial
-def test_an_s3_cube_survives_a_paused_writer_at_each_write_point(s3, tmp_path, catalog_dir, monkeypatch):
-    # the writer paused right before each put of a metric's and the status's blocks
-    # (tests/support/faults.py; test_fence.py goes through every key point on memory://, whose
-    # conditional writes have S3's semantics) while a second run takes the expired lease and
-    # finishes the cube: every put after the takeover fails its condition (If-Match /
-    # If-None-Match), the first writer stops with LeaseLost, the cube equals a clean run's;
-    # no sleep, so it holds under load. About 15 s a point on moto.
-    from support.faults import SPEC, check_every_point
-
-    checked = check_every_point(
-        SPEC,
-        lambda at: f"{s3}/p{at}.zarr",
-        tmp_path,
-        catalog_dir,
-        monkeypatch,
-        "pause",
-        puts_of=("pv_nm", "status"),
-    )
-    assert checked == 2 * 2  # two merges, two blocks

@@ -119,17 +119,23 @@ def _create(path: Path, text: str) -> None:
     always reads a whole holder, never an empty file; a file system without hard links gets
     ``O_CREAT | O_EXCL`` and one small write instead."""
     spare = path.with_name(f"{path.name}.new-{os.getpid()}-{uuid.uuid4().hex[:8]}")
-    spare.write_text(text)
+    _write_new(spare, text)
     try:
         os.link(spare, path)
     except FileExistsError:
         raise
     except OSError:
-        fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
+        _write_new(path, text)
     finally:
         spare.unlink(missing_ok=True)
+
+
+def _write_new(path: Path, text: str) -> None:
+    """Create ``path`` (FileExistsError if it is there) holding ``text``, readable by all and
+    written by its owner (0o644, less what the umask takes), the lock's mode either way."""
+    fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
 
 
 def acquire(cube: PathLike, command: str = "") -> Path:

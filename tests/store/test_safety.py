@@ -427,6 +427,26 @@ def test_a_lock_appears_whole_and_leaves_no_spare_behind(tmp_path, monkeypatch):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("links", [True, False])
+def test_a_lock_has_one_mode_however_it_is_made(tmp_path, monkeypatch, links):
+    """0o644 less the umask, linked into place or (a file system without hard links) made with
+    O_EXCL, whatever the umask lets a plain write give."""
+    if not links:
+
+        def no_links(src, dst, **kw):
+            raise OSError("hard links not supported")
+
+        monkeypatch.setattr(os, "link", no_links)
+    old = os.umask(0o002)  # a plain write would give 0o664
+    try:
+        path = acquire(tmp_path / "c.zarr", "mode")
+    finally:
+        os.umask(old)
+    assert oct(path.stat().st_mode & 0o777) == "0o644"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.zarr.lock"]
+    release(path)
+
+
 def _start_sweep(spec: Path, out: Path, catalogs: Path, *extra: str) -> subprocess.Popen:
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalogs))
     return subprocess.Popen(

@@ -145,16 +145,8 @@ def test_a_killed_s3_sweep_resumes_after_its_lease_and_a_second_writer_is_refuse
     url = f"{s3}/kill.zarr"
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir), FTSWEEP_LOCK_LEASE_S=str(LEASE_S), **s3_env)
     cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", url, "--workers", "1"]
-    gate = tmp_path / "hold"
-    first = subprocess.Popen(
-        cmd,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        env={**env, **hold.environment(gate, after=2)},
-        start_new_session=True,
-    )
+    first = hold.sweep(cmd, env, tmp_path / "hold", after=2)  # its worker held after two cases
     try:
-        hold.held(gate, 1, first)  # its worker held once two cases are logged (a fault point)
         second = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
         assert second.returncode == 75, second.stderr
         assert "is being written by pid" in second.stderr and "lease until" in second.stderr
@@ -220,15 +212,8 @@ def test_a_writer_paused_past_its_lease_writes_no_block_after_the_takeover(s3, s
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir), FTSWEEP_LOCK_LEASE_S="6", **s3_env)
     cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", url, "--workers", "1"]
     gate = tmp_path / "hold"
-    paused = subprocess.Popen(
-        cmd,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**env, **hold.environment(gate, after=2)},
-    )
+    paused = hold.sweep(cmd, env, gate, after=2, output=True, session=False)  # two cases logged
     try:
-        hold.held(gate, 1, paused)  # two cases logged, its worker held there (a fault point)
         os.kill(paused.pid, signal.SIGSTOP)
         _wait_lease_out(f"{url}.lock")
         taker = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)

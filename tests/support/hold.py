@@ -65,6 +65,31 @@ def held(folder: Path, count: int, run: subprocess.Popen[str] | None = None) -> 
     raise AssertionError(f"no {count} worker(s) held within {WAIT_S:.0f} s")
 
 
+def sweep(
+    cmd: list[str], env: dict[str, str], gate: Path, after: int, output: bool = False, session: bool = True
+) -> subprocess.Popen[str]:
+    """Start ``cmd`` (an ``ftsweep sweep``) with its workers holding after ``after`` logged
+    cases each, and return once one is held. ``output``: its stdout and stderr piped (text),
+    else discarded; ``session``: in a session of its own, so that a test can end its group. A
+    sweep that is not held is ended before the failure is raised."""
+    sink = subprocess.PIPE if output else subprocess.DEVNULL
+    run = subprocess.Popen(
+        cmd,
+        stdout=sink,
+        stderr=sink,
+        text=True,
+        env={**env, **environment(gate, after)},
+        start_new_session=session,
+    )
+    try:
+        held(gate, 1, run)
+    except BaseException:
+        run.kill()
+        run.wait()
+        raise
+    return run
+
+
 def let_go(folder: Path) -> None:
     """The held workers go on."""
     (folder / "go").write_text("")

@@ -162,16 +162,8 @@ def test_a_terminated_sweep_releases_its_lock_and_resumes(tmp_path, catalog_dir,
     out = tmp_path / "term.zarr"
     cmd = [str(BIN / "ftsweep"), "sweep", str(_spec(tmp_path, SLOW)), "--out", str(out), "--workers", "1"]
     gate = tmp_path / "hold"
-    run = subprocess.Popen(
-        cmd,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env={**env, **hold.environment(gate, after=2)},
-        start_new_session=True,
-    )
+    run = hold.sweep(cmd, env, gate, after=2, output=True)  # two cases logged, its worker held there
     try:
-        hold.held(gate, 1, run)  # two cases logged, its worker held there
         assert lock_path(out).exists()
         run.send_signal(sig)  # the driver only, as a batch system's job stop does
         hold.let_go(gate)

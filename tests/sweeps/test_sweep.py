@@ -180,19 +180,9 @@ def test_killed_sweep_loses_nothing_and_resumes(tmp_path, catalog_dir):
     env = dict(os.environ, FTSWEEP_CATALOGS=str(catalog_dir))
     out = tmp_path / "killed.zarr"
     cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", str(out), "--workers", "1"]
-    gate = tmp_path / "hold"
-    proc = subprocess.Popen(
-        cmd,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        env={**env, **hold.environment(gate, after=3)},
-        start_new_session=True,
-    )
-    try:
-        hold.held(gate, 1, proc)
-    finally:
-        os.killpg(proc.pid, signal.SIGKILL)  # the driver and its worker processes
-        proc.wait()
+    proc = hold.sweep(cmd, env, tmp_path / "hold", after=3)
+    os.killpg(proc.pid, signal.SIGKILL)  # the driver and its worker processes
+    proc.wait()
     # the cases its workers logged since the driver's last merge are merged by the next writer
     # (the re-run below does that first); merge them here to see what the kill left
     caselog.merge_logs(out)

@@ -142,13 +142,3 @@ def done_count(where: object) -> int:
         return int(np.sum(caselog.current_status(where) == cube.DONE))  # type: ignore[arg-type]
     except Exception:  # noqa: BLE001 - the template is not in place yet
         return 0
-
-
-def start_sweep(cmd: list[str], env: dict[str, str], gate: Path, workers: int = 1) -> subprocess.Popen:
-    """Start ``ftsweep sweep`` and return once ``workers`` of its workers are held at the fault
-    point ``env`` names (:func:`support.hold.environment`, with ``gate`` its folder)."""
-    from support import hold
-
-    run = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    hold.held(gate, workers, run)
-    return run

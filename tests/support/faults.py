@@ -73,7 +73,7 @@ def points(spec: Path, url: str, catalog: Path, monkeypatch: Any) -> list[tuple[
     monkeypatch.setattr(run, "MERGE_EVERY_S", 0.0)
     monkeypatch.setattr(run, "MERGE_MAX_S", 0.0)
     monkeypatch.setattr(
-        faultpoints, "WRITE_POINT", lambda event, key: writers(event) and seen.append((event, key))
+        faultpoints, "WRITE_POINT", writers_only(lambda event, key: seen.append((event, key)))
     )
     run_sweep(str(spec), url, scheduler="synchronous", catalog_folder=catalog)
     monkeypatch.setattr(faultpoints, "WRITE_POINT", None)

@@ -66,12 +66,20 @@ def held(folder: Path, count: int, run: subprocess.Popen[str] | None = None) -> 
 
 
 def sweep(
-    cmd: list[str], env: dict[str, str], gate: Path, after: int, output: bool = False, session: bool = True
+    cmd: list[str],
+    env: dict[str, str],
+    gate: Path,
+    after: int,
+    output: bool = False,
+    session: bool = True,
+    workers: int = 1,
 ) -> subprocess.Popen[str]:
     """Start ``cmd`` (an ``ftsweep sweep``) with its workers holding after ``after`` logged
-    cases each, and return once one is held. ``output``: its stdout and stderr piped (text),
-    else discarded; ``session``: in a session of its own, so that a test can end its group. A
-    sweep that is not held is ended before the failure is raised."""
+    cases each, and return once ``workers`` of them are held (the workers of an external
+    cluster take the hold from the cluster's environment: give them :func:`environment` too).
+    ``output``: its stdout and stderr piped (text), else discarded; ``session``: in a session
+    of its own, so that a test can end its group. A sweep that is not held is ended before
+    the failure is raised."""
     sink = subprocess.PIPE if output else subprocess.DEVNULL
     run = subprocess.Popen(
         cmd,
@@ -82,7 +90,7 @@ def sweep(
         start_new_session=session,
     )
     try:
-        held(gate, 1, run)
+        held(gate, workers, run)
     except BaseException:
         run.kill()
         run.wait()

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 from support import hold
-from support.clusters import BIN, done_count, external_cluster, kill_group, start_sweep
+from support.clusters import BIN, done_count, external_cluster, kill_group
 
 from ftsweep.store import cube
 from ftsweep.store.lock import lock_path
@@ -82,7 +82,8 @@ def test_a_run_whose_workers_all_left_ends_with_a_message(tmp_path, catalog_dir)
         cluster.add_worker(cwd=tmp_path)
         cluster.wait_for_workers(1)
         cmd = [str(BIN / "ftsweep"), "sweep", str(_spec(tmp_path, SLOW)), "--out", str(out)]
-        run = start_sweep([*cmd, "--scheduler", cluster.address, "--worker-wait", "3"], env, gate)
+        cmd += ["--scheduler", cluster.address, "--worker-wait", "3"]
+        run = hold.sweep(cmd, env, gate, after=2, output=True, session=False)
         cluster.kill_workers()
         killed = time.monotonic()
         _, stderr = run.communicate(timeout=120)
@@ -193,7 +194,7 @@ def test_a_sweep_survives_losing_one_of_two_external_workers(tmp_path, catalog_d
             cluster.add_worker(cwd=tmp_path)
         cluster.wait_for_workers(2)
         cmd = [str(BIN / "ftsweep"), "sweep", str(spec), "--out", str(out), "--scheduler", cluster.address]
-        run = start_sweep(cmd, env, gate, workers=2)  # each worker held after its first case
+        run = hold.sweep(cmd, env, gate, after=1, output=True, session=False, workers=2)  # one case each
         kill_group(cluster.workers[0], signal.SIGKILL)
         hold.let_go(gate)
         stdout, stderr = run.communicate(timeout=300)

@@ -93,7 +93,8 @@ def _point_cloud(
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise MeasurementError(f"{path}: not UTF-8 text (byte {exc.start})") from None
-    stated, rows = None, []
+    stated: Optional[str] = None
+    rows: list[tuple[float, float, float]] = []
     for number, line in enumerate(text.splitlines(), start=1):
         if m := _UNITS_LINE.match(line.strip()):
             stated = m.group(1)

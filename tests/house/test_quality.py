@@ -350,7 +350,17 @@ def test_the_kind_word_gate_finds_a_kind_in_help_and_literals():
     assert sorted(_kind_words(source, {"ring", "spiral", "mesh"})) == ["1: ring", "4: spiral", "6: meshes"]
 
 
-STAGES = ("sampling", "layouts", "interpolation", "envelope", "metrics", "kinematics", "paths", "numerics")
+STAGES = (
+    "sampling",
+    "layouts",
+    "interpolation",
+    "envelope",
+    "metrics",
+    "kinematics",
+    "paths",
+    "numerics",
+    "measurement",
+)
 
 
 def test_the_stage_faces_export_their_kernels_and_load_them_only_when_used():

@@ -95,6 +95,7 @@ def _point_cloud(
         raise MeasurementError(f"{path}: not UTF-8 text (byte {exc.start})") from None
     stated: Optional[str] = None
     rows: list[tuple[float, float, float]] = []
+    first = True
     for number, line in enumerate(text.splitlines(), start=1):
         if m := _UNITS_LINE.match(line.strip()):
             stated = m.group(1)
@@ -103,8 +104,10 @@ def _point_cloud(
         if not line:
             continue
         fields = [f.strip() for f in re.split(r"[,\s;]+", line)]
-        if not rows and fields[:2] and not _number(fields[0]):
-            continue  # the header of column names
+        if first and not _number(fields[0]):
+            first = False
+            continue  # the header of column names, on the first line of values only
+        first = False
         rows.append(_row(fields, number, path))
     if units and stated and _scale(units, path) != _scale(stated, path):
         raise MeasurementError(f"{path}: the file says units {stated}, the command {units}")

@@ -1,5 +1,6 @@
 """Measurement (corrective machining): a measured part registered to its design, its set-up
-terms with their uncertainties, and its form error broken down into Zernike terms.
+terms with their uncertainties, and its form error broken down into Zernike terms (a circle)
+or Chebyshev products (a rectangle).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ _EXPORTS = {
     "zernike_basis": "zernike",
     "zernike_fit": "zernike",
     "term_name": "zernike",
+    "chebyshev_fit": "chebyshev",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = face(__name__, _EXPORTS)

@@ -12,7 +12,8 @@ rotation γ about the axis, plus piston p, tilt (t_x, t_y) and optionally power 
 
 solved by Gauss–Newton: each step linearises (1) about the current terms, with
 ∂z/∂d_x = −(f_x' cos γ − f_y' sin γ), ∂z/∂d_y = −(f_x' sin γ + f_y' cos γ) and
-∂z/∂γ = f_x'·y' − f_y'·x', and solves the linear least-squares problem for the update.
+∂z/∂γ = f_x'·y' − f_y'·x', and solves the linear least-squares problem for the update, its
+columns scaled to unit RMS.
 The uncertainty of each term is the square root of the diagonal of σ²·(JᵀJ)⁻¹ at the
 solution, σ² = RSS/(n − k) the residual variance (n points, k terms): the standard error of
 a least-squares estimate under independent residuals of equal variance.
@@ -48,8 +49,9 @@ class Registration(NamedTuple):
 
 def _model(
     surface: SurfaceFn, x: np.ndarray, y: np.ndarray, values: dict[str, float], names: tuple[str, ...]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Heights of (1) at ``values`` and the Jacobian (n, k) over ``names``."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Heights of (1) at ``values``, the Jacobian (n, k) over ``names`` and each column's
+    bound (the RMS of the most it could be)."""
     dx, dy = values["decentre_x_um"], values["decentre_y_um"]
     g = values["rotation_rad"]
     cg, sg = np.cos(g), np.sin(g)
@@ -67,7 +69,35 @@ def _model(
         "rotation_rad": fx * yp - fy * xp,
         "power_per_um": r2,
     }
-    return z, np.column_stack([columns[n] for n in names])
+    grad = np.sqrt(fx * fx + fy * fy)
+    # what each column would be at most were the design not symmetric (Cauchy–Schwarz): a
+    # column far below its bound is rounding, a term this design does not show
+    bounds = {
+        "piston_um": 1.0,
+        "tilt_x": np.abs(x),
+        "tilt_y": np.abs(y),
+        "decentre_x_um": grad,
+        "decentre_y_um": grad,
+        "rotation_rad": grad * np.sqrt(r2),
+        "power_per_um": r2,
+    }
+    jac = np.column_stack([columns[n] for n in names])
+    bound = np.array([float(np.sqrt(np.mean(np.square(bounds[n])))) for n in names])
+    return z, jac, bound
+
+
+def _column_scale(jac: np.ndarray, bound: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+    """The RMS of each column, to scale the columns to one size, so that conditioning measures
+    how well the terms are told apart, not their units. A column below 1e-9 of its bound is a
+    term the design does not show: refused by name."""
+    rms = np.sqrt(np.mean(jac * jac, axis=0))
+    none = [n for n, r, b in zip(names, rms, bound, strict=True) if not r > 1e-9 * b]
+    if none:
+        raise ValueError(
+            f"the terms {', '.join(names)} cannot be told apart on these points: "
+            f"{', '.join(none)} moves no height of this design"
+        )
+    return rms
 
 
 def register(
@@ -108,19 +138,22 @@ def register(
     taken = 0
     while taken < steps:
         taken += 1
-        model, jac = _model(surface, xs, ys, values, names)
-        step, *_ = np.linalg.lstsq(jac, zs - model, rcond=None)
+        model, jac, bound = _model(surface, xs, ys, values, names)
+        scale = _column_scale(jac, bound, names)
+        step, *_ = np.linalg.lstsq(jac / scale, zs - model, rcond=None)
+        step = step / scale
         for name, d in zip(names, step, strict=True):
             values[name] += float(d)
         if np.all(np.abs(step) <= tolerance * (np.abs([values[n] for n in names]) + 1e-15)):
             break
-    model, jac = _model(surface, xs, ys, values, names)
+    model, jac, bound = _model(surface, xs, ys, values, names)
     rest = zs - model
-    normal = jac.T @ jac
-    if np.linalg.cond(normal) > 1e14:
+    scale = _column_scale(jac, bound, names)
+    normal = (jac / scale).T @ (jac / scale)
+    if np.linalg.cond(normal) > 1e12:
         raise ValueError(f"the terms {', '.join(names)} cannot be told apart on these points")
     variance = float(rest @ rest) / (xs.size - len(names))
-    cov = variance * np.linalg.inv(normal)
+    cov = variance * np.linalg.inv(normal) / np.outer(scale, scale)
     residual = np.full(z.shape, np.nan)
     residual[use] = rest
     return Registration(

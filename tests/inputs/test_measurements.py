@@ -126,3 +126,10 @@ def test_a_hostile_x3p_is_refused(tmp_path):
     (tmp_path / "n.x3p").write_bytes(b"not a zip")
     with pytest.raises(MeasurementError, match="not one"):
         read_measurement(tmp_path / "n.x3p")
+
+
+def test_only_the_first_line_of_values_may_be_a_header(tmp_path):
+    path = tmp_path / "two.csv"
+    path.write_text("# units: um\nx,y,z\nx,y,z\n1,2,3\n")
+    with pytest.raises(MeasurementError, match="line 3: 'x y z' are not three numbers"):
+        read_measurement(path)

@@ -31,6 +31,7 @@ COMMANDS = {
     "compare": ("ftsweep.cli.cubes", "compare"),
     "estimate": ("ftsweep.cli.tools", "estimate"),
     "optimize": ("ftsweep.cli.tools", "optimize"),
+    "measure": ("ftsweep.cli.measure", "measure"),
     "keys": ("ftsweep.cli.keys", "keys"),
     "bench": ("ftsweep.cli.tools", "bench"),
 }
@@ -47,6 +48,7 @@ WORKFLOW = (
     "compare",
     "estimate",
     "optimize",
+    "measure",
 )
 
 

@@ -50,3 +50,22 @@ def test_the_sphere_is_registered_over_its_square_with_a_chebyshev_breakdown(tmp
     cheb = {t["term"]: t["nm"] for t in s["breakdown"]}
     assert cheb["T1(u)·T1(v)"] == pytest.approx(50.0, abs=2.0)
     assert abs(s["terms"]["piston_um"] + 0.1) <= 4 * s["sigma"]["piston_um"] + 1e-3
+
+
+def test_the_measure_command_says_the_terms_and_the_form_error(tmp_path):
+    import json
+
+    from click.testing import CliRunner
+
+    from ftsweep.cli.main import main
+
+    path = _cloud(tmp_path / "ff.csv", "zernike_example", 1000.0, (2.0, -1.0, 0.2), lambda x, y: 0 * x)
+    res = CliRunner().invoke(main, ["measure", str(path), "--surface", "zernike_example", "--rotation"])
+    assert res.exit_code == 0, res.output
+    assert "decentre_x_um " in res.output and "form error   P-V" in res.output
+    res = CliRunner().invoke(main, ["measure", str(path), "--surface", "zernike_example", "--json"])
+    assert res.exit_code == 0 and json.loads(res.stdout)["rms_nm"] < 2.0  # the 1 nm noise
+    bad = tmp_path / "bad.csv"
+    bad.write_text("1 2 3\n")
+    res = CliRunner().invoke(main, ["measure", str(bad), "--surface", "zernike_example"])
+    assert res.exit_code == 1 and "state the units" in res.output and "Traceback" not in res.output

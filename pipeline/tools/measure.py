@@ -3,10 +3,16 @@
 aperture (:mod:`ftsweep.stages.measurement`), and its residual — the part's form error —
 summarised: P-V and RMS [nm] and its breakdown into Zernike terms (a circular aperture) or
 Chebyshev products (a rectangle), each coefficient in nm.
+
+Given the prediction of the program that cut it (a case's error map, model §6), the form
+error splits in two: what the prediction explains (the layout, interpolation, cusps, servo:
+the predicted error registered as the measurement was) and what it leaves, the machine's
+share (its tool, its spindle, its set-up), which a corrected program can take out.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, NamedTuple, Optional
 
@@ -14,7 +20,14 @@ import numpy as np
 
 from ftsweep.inputs import catalogs
 from ftsweep.inputs.measurements import Measurement, read_measurement
-from ftsweep.stages.measurement import Registration, chebyshev_fit, register, term_name, zernike_fit
+from ftsweep.stages.measurement import (
+    Registration,
+    chebyshev_fit,
+    register,
+    registered_like,
+    term_name,
+    zernike_fit,
+)
 
 
 class MeasuredPart(NamedTuple):
@@ -53,12 +66,6 @@ def measure_part(
         design, measured.x, measured.y, measured.z, inside, decentre=decentre, rotation=rotation, power=power
     )
     rest = fit.residual
-    if aperture.shape == "circle":
-        coef = zernike_fit(measured.x, measured.y, rest, aperture.radius_um, terms)
-        breakdown = [{"term": term_name(j), "nm": 1e3 * c} for j, c in coef.items()]
-    else:
-        cheb = chebyshev_fit(measured.x, measured.y, rest, aperture.width_um, aperture.height_um)
-        breakdown = [{"term": f"T{i}(u)·T{j}(v)", "nm": 1e3 * c} for (i, j), c in cheb.items()]
     found = {
         "measurement": str(path),
         "sha256": measured.sha256,
@@ -67,8 +74,71 @@ def measure_part(
         "points": fit.points,
         "terms": fit.terms,
         "sigma": fit.sigma,
-        "pv_nm": 1e3 * float(np.nanmax(rest) - np.nanmin(rest)),
+        "pv_nm": _pv_nm(rest),
         "rms_nm": 1e3 * float(np.nanstd(rest)),
-        "breakdown": breakdown,
+        "breakdown": breakdown(aperture, measured.x, measured.y, rest, terms),
     }
     return MeasuredPart(measured, fit, found)
+
+
+def _pv_nm(heights_um: np.ndarray) -> float:
+    return 1e3 * float(np.nanmax(heights_um) - np.nanmin(heights_um))
+
+
+def breakdown(aperture: Any, x: np.ndarray, y: np.ndarray, z: np.ndarray, terms: int) -> list[dict[str, Any]]:
+    """The terms of heights ``z`` [µm] over ``aperture``, in nm: Zernike on a circle, Chebyshev
+    products (degree 4) on a rectangle."""
+    if aperture.shape == "circle":
+        coef = zernike_fit(x, y, z, aperture.radius_um, terms)
+        return [{"term": term_name(j), "nm": 1e3 * c} for j, c in coef.items()]
+    cheb = chebyshev_fit(x, y, z, aperture.width_um, aperture.height_um)
+    return [{"term": f"T{i}(u)·T{j}(v)", "nm": 1e3 * c} for (i, j), c in cheb.items()]
+
+
+def predicted_at(record: Mapping[str, Any], x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """A case's predicted form error [µm] at (x, y) [µm]: its mean error map (a record of a
+    case run with ``resolution.error_map_bins``) interpolated bilinearly between bin centres;
+    NaN outside the centres or next to an empty bin."""
+    if "error_map_mean_nm" not in record:
+        raise ValueError("the prediction has no error map: run its case with resolution.error_map_bins")
+    from scipy.interpolate import RegularGridInterpolator
+
+    centres = np.asarray(record["error_map_x_um"], dtype=float)
+    grid = np.asarray(record["error_map_mean_nm"], dtype=float) * 1e-3  # (y, x) bins
+    look = RegularGridInterpolator((centres, centres), grid, bounds_error=False, fill_value=np.nan)
+    return np.asarray(look(np.column_stack([y.ravel(), x.ravel()]))).reshape(x.shape)
+
+
+class Explained(NamedTuple):
+    """The form error split: ``explained`` the registered prediction, ``unexplained`` what it
+    leaves (µm, on the measurement's points, NaN where either is missing), and the summary."""
+
+    explained: np.ndarray
+    unexplained: np.ndarray
+    summary: dict[str, Any]
+
+
+def explain(
+    part: MeasuredPart, record: Mapping[str, Any], catalog_folder: Optional[Path] = None, terms: int = 15
+) -> Explained:
+    """How much of ``part``'s form error the prediction ``record`` (the case that cut it, run
+    with an error map) explains: the predicted error at the measured points, registered as the
+    measurement was (:func:`ftsweep.stages.measurement.registered_like`), and the rest. The
+    share is the part of the form error's variance the prediction takes away."""
+    spec = catalogs.entry("surfaces", part.summary["surface"], catalog_folder)
+    design, aperture = catalogs.surface_callable(spec, catalog_folder), catalogs.aperture_of(spec)
+    m = part.measurement
+    said = registered_like(design, m.x, m.y, part.registration, predicted_at(record, m.x, m.y))
+    left = part.registration.residual - said
+    both = np.isfinite(left)
+    total = float(np.var(part.registration.residual[both]))
+    found = {
+        "explained_rms_nm": 1e3 * float(np.nanstd(said)),
+        "unexplained_rms_nm": 1e3 * float(np.nanstd(left)),
+        "unexplained_pv_nm": _pv_nm(left),
+        "explained_share": 1.0 - float(np.var(left[both])) / total if total > 0 else 0.0,
+        "points": int(both.sum()),
+        "explained_terms": breakdown(aperture, m.x, m.y, said, terms),
+        "unexplained_terms": breakdown(aperture, m.x, m.y, left, terms),
+    }
+    return Explained(said, left, found)

@@ -10,6 +10,7 @@ from ftsweep.stages import face
 _EXPORTS = {
     "Registration": "registration",
     "register": "registration",
+    "registered_like": "registration",
     "TERMS": "registration",
     "zernike_basis": "zernike",
     "zernike_fit": "zernike",

@@ -163,3 +163,21 @@ def register(
         points=int(xs.size),
         iterations=taken,
     )
+
+
+def registered_like(
+    surface: SurfaceFn, x: np.ndarray, y: np.ndarray, fit: Registration, heights: np.ndarray
+) -> np.ndarray:
+    """``heights`` [µm] at (x, y) — a predicted form error — registered as the measurement was:
+    less their least-squares part in the columns of the terms ``fit`` found, at its solution
+    (what the same set-up fit would take of them). NaN where the fit's residual is NaN or
+    ``heights`` is."""
+    use = np.isfinite(fit.residual) & np.isfinite(heights)
+    names = tuple(fit.terms)
+    values = dict.fromkeys(TERMS, 0.0) | fit.terms
+    _, jac, bound = _model(surface, x[use], y[use], values, names)
+    scaled = jac / _column_scale(jac, bound, names)
+    coef, *_ = np.linalg.lstsq(scaled, heights[use], rcond=None)
+    out = np.full(heights.shape, np.nan)
+    out[use] = heights[use] - scaled @ coef
+    return out

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ftsweep.inputs import catalogs
-from ftsweep.stages.measurement import zernike_basis
+from ftsweep.stages.measurement import registered_like, zernike_basis
 from ftsweep.tools.measure import measure_part
 
 
@@ -69,3 +69,48 @@ def test_the_measure_command_says_the_terms_and_the_form_error(tmp_path):
     bad.write_text("1 2 3\n")
     res = CliRunner().invoke(main, ["measure", str(bad), "--surface", "zernike_example"])
     assert res.exit_code == 1 and "state the units" in res.output and "Traceback" not in res.output
+
+
+def test_the_prediction_explains_its_share_and_the_machines_error_is_left():
+    """A part measured as its design moved, plus the error ftsweep predicts for the case that
+    cut it, plus a machine's error the prediction knows nothing of (trefoil, 5 nm) and noise:
+    the registered prediction is what it explains, and what is left is the machine's error."""
+    import tempfile
+    from pathlib import Path
+
+    from ftsweep.engine.case import Case, program_request
+    from ftsweep.simulate import run_case
+    from ftsweep.tools.measure import explain, predicted_at
+
+    case = Case(surface="zernike_example", layout=program_request(kind="ring", pitch=(60.0, 15.0)))
+    case = case.model_copy(update={"resolution": case.resolution.model_copy(update={"error_map_bins": 32})})
+    record = run_case(case)
+
+    def machine(x, y):
+        return 0.005 * zernike_basis(x, y, 1000.0, 9)[:, 8]
+
+    def form(x, y):
+        return predicted_at(record, x, y) + machine(x, y)
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = _cloud(
+            Path(folder) / "cut.csv", "zernike_example", 1000.0, (1.0, 0.5, 0.1), form, noise_um=5e-4
+        )
+        part = measure_part(path, "zernike_example", rotation=True)
+    split = explain(part, record)
+    m = part.measurement
+    use = np.isfinite(split.unexplained)
+    assert use.sum() > 4000
+    # the machine's error as the registration leaves it (less what the set-up terms take)
+    design = catalogs.surface_callable(catalogs.entry("surfaces", "zernike_example"))
+    seen = registered_like(design, m.x, m.y, part.registration, machine(m.x, m.y))
+    left = split.unexplained[use] - seen[use]
+    assert float(np.std(left)) < 1e-3  # the noise (0.5 nm)
+    # the share: the registered prediction's variance over the form error's
+    said = registered_like(design, m.x, m.y, part.registration, predicted_at(record, m.x, m.y))
+    p2, m2 = float(np.nanvar(said)), float(np.nanvar(seen))
+    assert split.summary["explained_share"] == pytest.approx(p2 / (p2 + m2), abs=0.02)
+    assert 0.1 < split.summary["explained_share"] < 0.9  # both have their share
+    z9 = next(t["nm"] for t in split.summary["unexplained_terms"] if t["term"].startswith("Z9 "))
+    assert z9 == pytest.approx(5.0, abs=0.5)
+    print("predicted P-V", record["pv_nm"], "nm; explained share", split.summary["explained_share"])  # -s

@@ -114,3 +114,34 @@ def test_the_prediction_explains_its_share_and_the_machines_error_is_left():
     z9 = next(t["nm"] for t in split.summary["unexplained_terms"] if t["term"].startswith("Z9 "))
     assert z9 == pytest.approx(5.0, abs=0.5)
     print("predicted P-V", record["pv_nm"], "nm; explained share", split.summary["explained_share"])  # -s
+
+
+def test_the_corrected_cut_leaves_at_most_a_tenth_of_the_machines_error(tmp_path):
+    """A part cut on a fine layout (a small predicted error) by a machine that adds 20 nm of
+    astigmatism and 10 nm of coma: the corrected program (gain 1, 15 Zernike terms) is
+    predicted to leave at most a tenth of the uncorrected residual."""
+    from ftsweep.engine.case import Case, program_request
+    from ftsweep.simulate import run_case
+    from ftsweep.tools.correct import correct
+    from ftsweep.tools.measure import explain, predicted_at
+
+    case = Case(surface="zernike_example", layout=program_request(kind="ring", pitch=(10.0, 4.0)))
+    case = case.model_copy(update={"resolution": case.resolution.model_copy(update={"error_map_bins": 32})})
+    record = run_case(case)
+
+    def machine(x, y):
+        basis = zernike_basis(x, y, 1000.0, 8)
+        return 0.02 * basis[:, 5] + 0.01 * basis[:, 7]
+
+    def form(x, y):
+        return predicted_at(record, x, y) + machine(x, y)
+
+    path = _cloud(tmp_path / "cut.csv", "zernike_example", 1000.0, (1.0, 0.5, 0.1), form, noise_um=5e-4)
+    part = measure_part(path, "zernike_example", rotation=True)
+    split = explain(part, record)
+    fixed = correct(part, split, case, record, tmp_path / "corrected")
+    s = fixed.summary
+    print("residual before", s["residual_before_rms_nm"], "nm RMS, after", s["residual_after_rms_nm"])  # -s
+    assert s["residual_before_rms_nm"] > 10.0  # the registration takes some of the coma
+    assert s["residual_after_rms_nm"] <= 0.1 * s["residual_before_rms_nm"]
+    assert fixed.case.surface == "zernike_example-corrected" and len(s["measurement_sha256"]) == 64

@@ -29,7 +29,7 @@ from pydantic import (
 
 from ftsweep.inputs import surfaceplugins
 from ftsweep.inputs.controllers import Controller
-from ftsweep.inputs.strict import Strict, did_you_mean
+from ftsweep.inputs.strict import Strict, allowed_keys, did_you_mean
 from ftsweep.inputs.yamlfiles import CatalogError, read_yaml_file
 from ftsweep.stages.kinematics import axes as kinematics
 from ftsweep.stages.sampling.surfaces import FAMILIES, Aperture, Family, SurfaceFn
@@ -474,7 +474,7 @@ def _format_error(path: Path, name: str, err: ValidationError, model: Any) -> st
         loc = ".".join(str(p) for p in e["loc"])
         where = f"{name}.{loc}" if loc else name
         if e["type"] == "extra_forbidden":
-            allowed, key = _allowed_keys(model, e["loc"][:-1]), str(e["loc"][-1])
+            allowed, key = allowed_keys(model, e["loc"][:-1]), str(e["loc"][-1])
             hint = f"{did_you_mean(key, allowed)} (allowed: {', '.join(allowed)})" if allowed else ""
             lines.append(f"  - {where}: unknown key{hint}")
         elif e["type"] == "missing":
@@ -489,42 +489,6 @@ def _format_error(path: Path, name: str, err: ValidationError, model: Any) -> st
         else:
             lines.append(f"  - {where}: {error_text(e)} (got {short_repr(e.get('input'))})")
     return "\n".join(lines)
-
-
-def _allowed_keys(model: Any, loc: tuple[Any, ...]) -> list[str]:
-    """Field names of the (sub)model at ``loc``, following discriminated-union tags."""
-    candidates = _union_members(model)
-    for part in loc:
-        nxt = []
-        for m in candidates:
-            if isinstance(m, type) and issubclass(m, BaseModel):
-                if part in m.model_fields:
-                    nxt.extend(_union_members(m.model_fields[part].annotation))
-                elif isinstance(part, str):
-                    # a discriminated union puts the tag value in loc: keep the tagged member
-                    tag = [
-                        f
-                        for f in m.model_fields.values()
-                        if getattr(f.annotation, "__args__", None) == (part,)
-                    ]
-                    if tag:
-                        nxt.append(m)
-        candidates = nxt
-    names: list[str] = []
-    for m in candidates:
-        if isinstance(m, type) and issubclass(m, BaseModel):
-            names.extend(k for k in m.model_fields if k not in names)
-    return names
-
-
-def _union_members(annotation: Any) -> list[Any]:
-    args: tuple[Any, ...] = tuple(getattr(annotation, "__args__", None) or ())
-    origin = getattr(annotation, "__origin__", None)
-    if origin is Annotated or (args and getattr(annotation, "__metadata__", None)):
-        return _union_members(args[0])
-    if origin is Union:
-        return [m for a in args for m in _union_members(a)]
-    return [annotation]
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from typing import Any, Optional
+from typing import Annotated, Any, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, model_validator
 
@@ -102,3 +102,40 @@ class Strict(BaseModel):
                 if problem:
                     raise ValueError(problem)
         return self
+
+
+def allowed_keys(model: Any, loc: tuple[Any, ...]) -> list[str]:
+    """Field names of the (sub)model at ``loc``, following discriminated-union tags."""
+    candidates = union_members(model)
+    for part in loc:
+        nxt = []
+        for m in candidates:
+            if isinstance(m, type) and issubclass(m, BaseModel):
+                if part in m.model_fields:
+                    nxt.extend(union_members(m.model_fields[part].annotation))
+                elif isinstance(part, str):
+                    # a discriminated union puts the tag value in loc: keep the tagged member
+                    tag = [
+                        f
+                        for f in m.model_fields.values()
+                        if getattr(f.annotation, "__args__", None) == (part,)
+                    ]
+                    if tag:
+                        nxt.append(m)
+        candidates = nxt
+    names: list[str] = []
+    for m in candidates:
+        if isinstance(m, type) and issubclass(m, BaseModel):
+            names.extend(k for k in m.model_fields if k not in names)
+    return names
+
+
+def union_members(annotation: Any) -> list[Any]:
+    """The models an annotation may hold: a union's members, through ``Annotated``."""
+    args: tuple[Any, ...] = tuple(getattr(annotation, "__args__", None) or ())
+    origin = getattr(annotation, "__origin__", None)
+    if origin is Annotated or (args and getattr(annotation, "__metadata__", None)):
+        return union_members(args[0])
+    if origin is Union:
+        return [m for a in args for m in union_members(a)]
+    return [annotation]

@@ -163,6 +163,12 @@ class Case(Strict):
     feed_um: Optional[PositiveFloat] = Field(None, description="overrides the cutting entry [µm/rev]")
     nose_radius_um: Optional[PositiveFloat] = Field(None, description="overrides the cutting entry [µm]")
     compensation: Literal["exact", "slope", "none"] = "exact"
+    correction_gain: Optional[float] = Field(
+        None, gt=0.0, le=1.5, description="overrides the surface's measured correction's gain [-]"
+    )
+    correction_terms: Optional[PositiveInt] = Field(
+        None, description="overrides the terms its measured correction keeps (the low-pass)"
+    )
     resolution: Resolution = Resolution()
     layers: Literal["auto", "off"] = Field(
         "auto",
@@ -193,7 +199,14 @@ class Case(Strict):
     def _stable_dump(self, handler: Any) -> Any:
         # keys of cases written before layered machining stay the same
         return catalogs.without_defaults(
-            handler(self), {"layers": "auto", "z_error_um": None, "layer_change_s": None}
+            handler(self),
+            {
+                "layers": "auto",
+                "z_error_um": None,
+                "layer_change_s": None,
+                "correction_gain": None,
+                "correction_terms": None,
+            },
         )
 
     def feed_of(self, cutting: Any) -> float:

@@ -17,7 +17,7 @@ from ftsweep.engine.case import Case, CaseError
 from ftsweep.engine.contract import Planning, ProgramKind
 from ftsweep.engine.cost import check_capacity, check_cost, ray_nodes
 from ftsweep.engine.threads import compensate_in_parts
-from ftsweep.inputs import catalogs
+from ftsweep.inputs import catalogs, corrections
 from ftsweep.inputs.case_entries import Entries
 from ftsweep.stages.interpolation import compensation, spiral_program
 from ftsweep.stages.kinematics import dynamics
@@ -85,6 +85,7 @@ def resolve_case(
     is taken as it stands instead. ``progress(done, total)`` follows a long planning (a
     Fresnel program's timing)."""
     surface_spec, machine, cutting = specs or resolve_specs(case, catalog_folder)
+    surface_spec = cased_surface(case, surface_spec)
     rc = case.nose_radius_of(cutting)
     feed = kind.feed(case, cutting, rc, surface_spec, catalog_folder, program)
     bound = _checked_bounds(case, surface_spec, catalog_folder, feed, rc)
@@ -166,12 +167,22 @@ def layer_plan(rcase: ResolvedCase, table: np.ndarray) -> Optional[layers.LayerP
 
 
 def resolve_specs(case: Case, catalog_folder: Any = None) -> Entries:
-    """The (surface, machine, cutting) catalog entries a case names."""
+    """The (surface, machine, cutting) catalog entries a case names, the surface's measured
+    correction with the case's gain and terms (:func:`cased_surface`)."""
     return Entries(
-        catalogs.entry("surfaces", case.surface, catalog_folder),
+        cased_surface(case, catalogs.entry("surfaces", case.surface, catalog_folder)),
         catalogs.entry("machines", case.machine, catalog_folder),
         catalogs.entry("cutting", case.cutting, catalog_folder),
     )
+
+
+def cased_surface(case: Case, surface_spec: Any) -> Any:
+    """``surface_spec`` with the case's ``correction_gain`` and ``correction_terms`` in its
+    measured correction (:func:`ftsweep.inputs.corrections.as_cased`)."""
+    try:
+        return corrections.as_cased(surface_spec, case.correction_gain, case.correction_terms)
+    except ValueError as exc:
+        raise CaseError(f"surface {case.surface}: {exc}") from None
 
 
 Solver = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]

@@ -29,6 +29,7 @@ from pydantic import (
 
 from ftsweep.inputs import surfaceplugins
 from ftsweep.inputs.controllers import Controller
+from ftsweep.inputs.corrections import MeasuredCorrection, corrected_callable
 from ftsweep.inputs.strict import Strict, allowed_keys, did_you_mean
 from ftsweep.inputs.yamlfiles import CatalogError, read_yaml_file
 from ftsweep.stages.kinematics import axes as kinematics
@@ -110,6 +111,9 @@ class _SurfaceBase(Strict):
     description: str = ""
     fresnel: Optional[FresnelSlicing] = Field(
         None, description="evaluate the surface's Fresnel form: {facet_height_um: h} ([2] eq. 3)"
+    )
+    correction: Optional[MeasuredCorrection] = Field(
+        None, description="the design less a measured part's unexplained error (ftsweep correct writes it)"
     )
     aperture: ApertureSpec
     layout: str = Field(pattern=KIND_NAME, description="program kind by default (a table's: ring or mesh)")
@@ -211,8 +215,11 @@ USER_FAMILIES = ("height_map", "plugin")
 
 def surface_callable(spec: Any, folder: Path | None = None) -> SurfaceFn:
     """The surface callable ``fn(x, y) -> (f, fx, fy)`` of a catalog entry (µm in, µm out); its
-    Fresnel form ([2] eq. 3) when the entry sets ``fresnel``."""
+    Fresnel form ([2] eq. 3) when the entry sets ``fresnel``, its measured correction first
+    (:mod:`ftsweep.inputs.corrections`, eq. 1) when it sets ``correction``."""
     fn = base_callable(spec, folder)
+    if spec.correction is not None:
+        fn = corrected_callable(fn, spec.correction, aperture_of(spec))
     if spec.fresnel is None:
         return fn
     from ftsweep.inputs.facets import sliced_callable
@@ -237,8 +244,8 @@ def line_sampler(spec: Any) -> Callable[..., tuple[np.ndarray, np.ndarray]] | No
     None where the family has none (user surfaces): the case runner then samples the node grid
     through :func:`surface_callable`."""
     family = FAMILIES.get(spec.family)
-    sliced = spec.fresnel is not None
-    if spec.family in USER_FAMILIES or family is None or family.lines is None or sliced:
+    changed = spec.fresnel is not None or spec.correction is not None
+    if spec.family in USER_FAMILIES or family is None or family.lines is None or changed:
         return None
     return functools.partial(family.lines, **spec.params.model_dump())
 
@@ -248,7 +255,7 @@ def gradient_bound(spec: Any, folder: Path | None = None) -> float:
     if spec.gradient_bound is not None:
         return float(spec.gradient_bound)
     family = FAMILIES.get(spec.family)
-    if family is not None and family.gradient_bound is not None:
+    if family is not None and family.gradient_bound is not None and spec.correction is None:
         return family.gradient_bound(**spec.params.model_dump())
     return _sampled_bound(spec.model_dump_json(), str(folder or catalog_dir()))
 
@@ -258,7 +265,7 @@ def curvature_bound(spec: Any) -> float:
     if spec.curvature_bound is not None:
         return float(spec.curvature_bound)
     family = FAMILIES.get(spec.family)
-    if family is not None and family.curvature_bound is not None:
+    if family is not None and family.curvature_bound is not None and spec.correction is None:
         return float(family.curvature_bound(**spec.params.model_dump()))
     return math.inf
 

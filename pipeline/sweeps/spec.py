@@ -31,7 +31,7 @@ from pydantic import (
 from ftsweep import registry
 from ftsweep.engine.case import Case, Resolution
 from ftsweep.engine.contract import Axis
-from ftsweep.inputs import catalogs
+from ftsweep.inputs import catalogs, corrections
 from ftsweep.inputs.catalogs import CatalogError, Strict
 from ftsweep.inputs.strict import did_you_mean
 
@@ -77,6 +77,12 @@ class SweepAxes(Strict):
     compensation: Optional[Annotated[list[Literal["exact", "slope", "none"]], Field(min_length=1)]] = Field(
         None, description="tool-nose compensations, a list of exact, slope, none (instead of the sweep's one)"
     )
+    correction_gain: Optional[AxisSpec] = Field(
+        None, description="gains of the surface's measured correction [-], each in (0, 1.5]"
+    )
+    correction_terms: Optional[Annotated[list[PositiveInt], Field(min_length=1)]] = Field(
+        None, description="terms its measured correction keeps (the low-pass), a list of counts"
+    )
 
     @model_validator(mode="before")
     @classmethod
@@ -110,7 +116,8 @@ class SweepAxes(Strict):
     def _stable_dump(self, handler: Any) -> Any:
         # specs written before an axis existed keep their hashes; the first program axes
         # (the tables') were always written, null when unset
-        dumped = catalogs.without_defaults(handler(self), {"compensation": None})
+        optional = {"compensation": None, "correction_gain": None, "correction_terms": None}
+        dumped = catalogs.without_defaults(handler(self), optional)
         unset = {a.name: None for a in _kind_axes().values() if a.dumped_unset}
         return {**unset, **dumped}
 
@@ -238,6 +245,21 @@ class SweepSpec(Strict):
         return self
 
     @model_validator(mode="after")
+    def _a_correction_to_sweep(self, info: ValidationInfo) -> SweepSpec:
+        applies, folder = _catalog_folder(info)
+        gains, terms = self.axes.correction_gain, self.axes.correction_terms
+        if not applies or (gains is None and terms is None):
+            return self
+        surface = catalogs.entry("surfaces", self.surface, folder)
+        try:
+            for gain in axis_values(gains) if gains is not None else [None]:
+                for kept in terms or [None]:
+                    corrections.as_cased(surface, None if gain is None else float(gain), kept)
+        except ValueError as exc:
+            raise ValueError(f"axes.correction_*: surface {self.surface}: {exc}") from None
+        return self
+
+    @model_validator(mode="after")
     def _axes_of_the_program(self) -> SweepSpec:
         if self.layout is not None:
             registry.check_sweep_axes(self)  # only its kind's axes, and its kind's rules
@@ -271,14 +293,17 @@ class SweepSpec(Strict):
 
 
 # the axes every kind may sweep, after its own in a cube
-COMMON_AXES = ("feed_um", "nose_radius_um", "compensation")
+COMMON_AXES = ("feed_um", "nose_radius_um", "compensation", "correction_gain", "correction_terms")
 # axes whose values are names, not numbers (a cube's coordinate of strings, without units)
 NAMED_AXES = ("compensation",)
 COMMON_ATTRS = {
     "compensation": {"long_name": "tool-nose compensation: exact, slope or none"},
     "feed_um": {"units": "um", "long_name": "feed per spindle revolution"},
     "nose_radius_um": {"units": "um", "long_name": "tool nose radius"},
+    "correction_gain": {"units": "1", "long_name": "gain of the measured correction"},
+    "correction_terms": {"units": "1", "long_name": "terms the measured correction keeps (its low-pass)"},
 }
+COMMON_COUNTS = ("correction_terms",)
 
 
 def axis_order(spec: SweepSpec) -> tuple[str, ...]:
@@ -289,7 +314,9 @@ def axis_order(spec: SweepSpec) -> tuple[str, ...]:
 
 def axis_counts(axis: str, kind: str) -> bool:
     """Whether a sweep axis of kind ``kind`` counts things (its values whole numbers)."""
-    return axis not in COMMON_ATTRS and {a.name: a for a in registry.kind(kind).axes}[axis].count
+    if axis in COMMON_ATTRS:
+        return axis in COMMON_COUNTS
+    return {a.name: a for a in registry.kind(kind).axes}[axis].count
 
 
 def axis_attrs(axis: str, kind: str) -> dict[str, str]:
@@ -404,6 +431,8 @@ def case_at(spec: SweepSpec, index: int) -> Case:
         cutting=spec.cutting,
         feed_um=value.get("feed_um"),
         nose_radius_um=value.get("nose_radius_um"),
+        correction_gain=value.get("correction_gain"),
+        correction_terms=int(value["correction_terms"]) if "correction_terms" in value else None,
         compensation=str(coords["compensation"][pos["compensation"]])
         if "compensation" in coords
         else spec.compensation,

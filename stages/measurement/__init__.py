@@ -16,6 +16,7 @@ _EXPORTS = {
     "zernike_fit": "zernike",
     "term_name": "zernike",
     "chebyshev_fit": "chebyshev",
+    "chebyshev_order": "chebyshev",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = face(__name__, _EXPORTS)

@@ -26,3 +26,14 @@ def chebyshev_fit(
     coef, *_ = np.linalg.lstsq(basis, z[use], rcond=None)
     pairs = [(i, j) for i in range(degree + 1) for j in range(degree + 1)]
     return {pair: float(c) for pair, c in zip(pairs, coef, strict=True)}
+
+
+def chebyshev_order(degree: int = 4) -> list[tuple[int, int]]:
+    """The products (i, j), i, j ≤ ``degree``, in the order a low-pass keeps them: by total
+    degree i + j, then from the highest power of u; the first three are piston T0·T0 and the
+    tilts T1·T0, T0·T1, as Noll's order starts with piston and tilts."""
+    pairs = []
+    for total in range(2 * degree + 1):
+        for i in range(min(total, degree), max(total - degree, 0) - 1, -1):
+            pairs.append((i, total - i))
+    return pairs

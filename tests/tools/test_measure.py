@@ -139,7 +139,7 @@ def test_the_corrected_cut_leaves_at_most_a_tenth_of_the_machines_error(tmp_path
     path = _cloud(tmp_path / "cut.csv", "zernike_example", 1000.0, (1.0, 0.5, 0.1), form, noise_um=5e-4)
     part = measure_part(path, "zernike_example", rotation=True)
     split = explain(part, record)
-    fixed = correct(part, split, case, record, tmp_path / "corrected")
+    fixed = correct(part, split, case, tmp_path / "corrected")
     s = fixed.summary
     print("residual before", s["residual_before_rms_nm"], "nm RMS, after", s["residual_after_rms_nm"])  # -s
     assert s["residual_before_rms_nm"] > 10.0  # the registration takes some of the coma
@@ -170,7 +170,7 @@ def test_a_sphere_cut_with_a_machine_error_is_corrected_over_its_square(tmp_path
     path = _cloud(tmp_path / "sphere.csv", "concave_sphere", 10000.0, (0.0, 0.0, -0.2), form, noise_um=5e-4)
     part = measure_part(path, "concave_sphere", decentre=False)
     split = explain(part, record)
-    fixed = correct(part, split, case, record, tmp_path / "corrected")
+    fixed = correct(part, split, case, tmp_path / "corrected")
     s = fixed.summary
     print("sphere: residual before", s["residual_before_rms_nm"], "nm RMS, after", s["residual_after_rms_nm"])
     assert s["residual_before_rms_nm"] > 10.0

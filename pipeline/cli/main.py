@@ -32,6 +32,7 @@ COMMANDS = {
     "estimate": ("ftsweep.cli.tools", "estimate"),
     "optimize": ("ftsweep.cli.tools", "optimize"),
     "measure": ("ftsweep.cli.measure", "measure"),
+    "correct": ("ftsweep.cli.correct", "correct"),
     "keys": ("ftsweep.cli.keys", "keys"),
     "bench": ("ftsweep.cli.tools", "bench"),
 }
@@ -49,6 +50,7 @@ WORKFLOW = (
     "estimate",
     "optimize",
     "measure",
+    "correct",
 )
 
 

@@ -218,8 +218,10 @@ def control_table(
     catalog_folder: Any = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The compensated control table [µm] of ``layout`` and its gouge flags (model §4), in
-    parts on the context's threads (:mod:`ftsweep.engine.threads`)."""
+    parts on the context's threads (:mod:`ftsweep.engine.threads`); on ``surface_spec`` as the
+    case has it (:func:`cased_surface`)."""
     node_rho, node_theta = layouts.layout_nodes(layout)
+    surface_spec = cased_surface(case, surface_spec)
     surface = catalogs.surface_callable(surface_spec, catalog_folder)
     bound = catalogs.gradient_bound(surface_spec, catalog_folder)
     solve = compensator(case, surface_spec, surface, nose_radius_um, bound)

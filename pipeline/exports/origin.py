@@ -28,7 +28,9 @@ from __future__ import annotations
 import base64
 import hashlib
 import json
+import math
 import os
+import re
 import stat
 import sys
 import tomllib
@@ -209,7 +211,36 @@ def purpose(meta: dict[str, Any]) -> dict[str, Any]:
         "dialect": meta.get("dialect") or ("header" if "header" in meta else "text"),
         "points": points if isinstance(points, int) and not isinstance(points, bool) else None,
         "pv_nm": meta.get("pv_nm_as_written", meta.get("pv_nm")),
+        **measured_by(meta, case),
     }
+
+
+def measured_by(meta: dict[str, Any], case: dict[str, Any]) -> dict[str, Any]:
+    """``{"measurement": {...}}`` for a file planned on a measured correction (its surface
+    entry's ``correction``, :mod:`ftsweep.inputs.corrections`): the measurement's SHA-256, the
+    gain and terms the case used and the registration's fit; ``{}`` for any other file (so
+    the statements of other files are as they were). Read from an untrusted sidecar: only a
+    64-digit hex digest and finite numbers are taken."""
+    entries = meta.get("catalog_entries")
+    entry = entries.get("surface") if isinstance(entries, dict) else None
+    block = entry.get("correction") if isinstance(entry, dict) else None
+    if not isinstance(block, dict):
+        return {}
+    digest = block.get("measurement_sha256")
+    if not (isinstance(digest, str) and re.fullmatch(r"[0-9a-f]{64}", digest)):
+        raise ExportError("the sidecar's measured correction names no SHA-256 of its measurement")
+    fit = block.get("fit") if isinstance(block.get("fit"), dict) else {}
+    gain = _number(case.get("correction_gain") or block.get("gain"))
+    terms = _number(case.get("correction_terms") or block.get("terms"))
+    if gain is None or terms is None:
+        raise ExportError("the sidecar's measured correction states no gain or terms")
+    named = {str(k)[:40]: _number(v) for k, v in list(fit.items())[:8]}
+    return {"measurement": {"sha256": digest, "gain": gain, "terms": terms, "fit": named}}
+
+
+def _number(value: Any) -> float | None:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    return float(value) if ok else None
 
 
 def statement(

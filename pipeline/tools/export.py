@@ -517,6 +517,12 @@ def purpose_lines(record: dict[str, Any]) -> list[str]:
         f"compensation {p['compensation']}",
         f"             {p['dialect']}, {points}, {pv}",
     ]
+    measured = p.get("measurement")
+    if isinstance(measured, dict):
+        lines.append(
+            f"corrected    by measurement {measured['sha256'][:16]}… (gain {measured['gain']:g}, "
+            f"{measured['terms']:.0f} terms kept)"
+        )
     signed = record.get("origin", {})
     if signed.get("key_id"):
         until = f", expires {signed['expires']}" if signed.get("expires") else ", no expiry"

@@ -142,3 +142,37 @@ def explain(
         "unexplained_terms": breakdown(aperture, m.x, m.y, left, terms),
     }
     return Explained(said, left, found)
+
+
+def prediction_of(
+    *,
+    cube: Any = None,
+    case: Optional[str] = None,
+    program: Optional[Path] = None,
+    surface: Optional[str] = None,
+    machine: Optional[str] = None,
+    cutting: Optional[str] = None,
+    bins: int = 32,
+) -> tuple[str, dict[str, Any]]:
+    """The surface and the prediction (a record with an error map of ``bins`` a side) of what
+    cut a part: case ``case`` of cube ``cube`` (its coordinates or number, planned again from
+    the cube's recorded entries) or the path program ``program`` in any dialect, read as
+    ``ftsweep predict --program`` reads it on catalog surface ``surface``."""
+    if (cube is None) == (program is None) or (cube is not None) != (case is not None):
+        raise ValueError("the prediction comes from a cube and its case, or from a program")
+    if program is not None:
+        if surface is None:
+            raise ValueError("a program's prediction needs the surface it was cut to (--surface)")
+        from ftsweep.exports import nc
+
+        return surface, nc.predict_program(Path(program), surface, machine, cutting, map_bins=bins)
+    from ftsweep.simulate import run_case
+    from ftsweep.tools.query import find_case
+    from ftsweep.tools.select import open_cube, recorded_case
+
+    ds = open_cube(cube)
+    found, specs = recorded_case(ds, find_case(ds, str(case)))
+    found = found.model_copy(
+        update={"resolution": found.resolution.model_copy(update={"error_map_bins": bins})}
+    )
+    return found.surface, run_case(found, specs=specs)

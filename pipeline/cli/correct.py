@@ -94,6 +94,7 @@ def correct(measurement: Path, **opts: Any) -> None:
         workers=opts["workers"],
     )
     found = trade(open_cube(out), part, split)
+    _trade_written(found, folder)
     best = _best(found)
     summary: dict[str, Any] = {
         "measurement_sha256": part.summary["sha256"],
@@ -115,6 +116,15 @@ def correct(measurement: Path, **opts: Any) -> None:
         return
     for line in correct_lines(summary):
         click.echo(line)
+
+
+def _trade_written(found: Any, folder: Path) -> None:
+    """The trade as ``trade.nc`` (NetCDF, atomically) and ``trade.png`` in ``folder``."""
+    from ftsweep.store.io import write_texts_atomic
+    from ftsweep.tools.measureviews import plot_trade
+
+    write_texts_atomic({folder / "trade.nc": bytes(found.to_netcdf())})
+    plot_trade(found, folder / "trade.png")
 
 
 def _best(found: Any) -> dict[str, Any]:

@@ -65,7 +65,8 @@ def read_measurement(
     """The measurement in ``path``, by its suffix: .csv .txt .xyz (a point cloud; ``units`` or
     a ``# units: um`` line states its unit), .npy (a grid; ``pixel_um`` and ``units`` state
     its pitch and height unit), .nc (a grid whose coordinates x, y and variable carry units),
-    .x3p (ISO 25178-72, metres)."""
+    .x3p (ISO 25178-72, metres), .datx (Zygo's HDF5, :mod:`ftsweep.inputs.datx`; ``pixel_um``
+    where it states no lateral resolution)."""
     data = _bounded(path)
     digest = hashlib.sha256(data).hexdigest()
     suffix = path.suffix.lower()
@@ -77,8 +78,12 @@ def read_measurement(
         x, y, z, said = _netcdf(path)
     elif suffix == ".x3p":
         x, y, z, said = _x3p(data, path)
+    elif suffix == ".datx":
+        x, y, z, said = _datx(data, path, pixel_um)
     else:
-        raise MeasurementError(f"{path}: not a measurement ftsweep reads (.csv .txt .xyz .npy .nc .x3p)")
+        raise MeasurementError(
+            f"{path}: not a measurement ftsweep reads (.csv .txt .xyz .npy .nc .x3p .datx)"
+        )
     if not np.isfinite(z).any():
         raise MeasurementError(f"{path}: no measured height in it")
     return Measurement(x, y, z, digest, said)
@@ -172,6 +177,20 @@ def _npy(
     ny, nx = z.shape
     x, y = _centred(*_grid_axes(nx, ny, (pixel_um, pixel_um), (0.0, 0.0)))
     return x, y, z.astype(float) * _scale(units, path), f"{units} (stated), pixel {pixel_um} µm"
+
+
+def _datx(
+    data: bytes, path: Path, pixel_um: Optional[float]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+    from ftsweep.inputs.datx import read_datx
+
+    try:
+        z, pixel, said = read_datx(data, path, pixel_um)
+    except ValueError as exc:
+        raise MeasurementError(str(exc)) from None
+    ny, nx = z.shape
+    x, y = _centred(*_grid_axes(nx, ny, (pixel, pixel), (0.0, 0.0)))
+    return x, y, z, said
 
 
 def _netcdf(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:

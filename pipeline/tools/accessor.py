@@ -220,6 +220,48 @@ class FtsweepAccessor:
         emap = self._ds[var].isel(query.position(self._ds, flat))
         return plot_map(emap["map_x"].values, emap.values, query.describe(self._ds, flat), kind, ax)
 
+    # ------------------------------------------------------ a registered measurement
+    def _registered(self) -> xr.Dataset:
+        if self._ds.attrs.get("ftsweep_registered") != 1:
+            raise ValueError("not a registered measurement: open one that `ftsweep measure -o` wrote")
+        return self._ds
+
+    def measured(self) -> dict[str, Any]:
+        """A registered measurement's summary: file hash, fitted terms ± σ, P-V, RMS [nm] and,
+        where its prediction was given, the share it explains (:mod:`ftsweep.tools.measure`)."""
+        import json
+
+        ds = self._registered()
+        found = dict(json.loads(str(ds.attrs["measured"])))
+        if "explained" in ds.attrs:
+            found["explained"] = json.loads(str(ds.attrs["explained"]))
+        return found
+
+    def terms(self) -> Any:
+        """A registered measurement's breakdown as a table [nm], one row per term: measured,
+        explained by the prediction and unexplained (where given)."""
+        import pandas as pd
+
+        summary = self.measured()
+        table = pd.DataFrame(summary["breakdown"]).set_index("term").rename(columns={"nm": "measured_nm"})
+        for key in ("explained", "unexplained"):
+            rows = summary.get("explained", {}).get(f"{key}_terms")
+            if rows:
+                table[f"{key}_nm"] = pd.DataFrame(rows).set_index("term")["nm"]
+        return table
+
+    def plot_measured(self, path: Any = None) -> Any:
+        """A registered measurement's maps side by side on one colour scale [nm]."""
+        from ftsweep.tools.measureviews import plot_maps
+
+        return plot_maps(self._registered(), path)
+
+    def plot_terms(self, path: Any = None) -> Any:
+        """A registered measurement's breakdown as a bar chart [nm]."""
+        from ftsweep.tools.measureviews import plot_terms
+
+        return plot_terms(self._registered(), path)
+
 
 def _cmap(n: int) -> Any:
     import matplotlib

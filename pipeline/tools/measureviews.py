@@ -24,6 +24,11 @@ MAPS = {
     "explained_nm": "predicted form error (registered as the measurement)",
     "unexplained_nm": "what the prediction leaves: the machine's share",
 }
+TITLES = {
+    "form_error_nm": "measured",
+    "explained_nm": "predicted",
+    "unexplained_nm": "unexplained (the machine's)",
+}
 
 
 def registered_dataset(part: MeasuredPart, split: Optional[Explained] = None) -> xr.Dataset:
@@ -91,7 +96,9 @@ def plot_maps(ds: xr.Dataset, path: Optional[Path] = None) -> Any:
     shown = [name for name in MAPS if name in ds]
     values = np.concatenate([ds[name].values for name in shown])
     scale = float(np.nanmax(np.abs(values))) if np.isfinite(values).any() else 1.0
-    fig, axes = plt.subplots(1, len(shown), figsize=(4.2 * len(shown), 4.0), squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(shown), figsize=(3.9 * len(shown) + 1.0, 3.9), squeeze=False, layout="constrained"
+    )
     for ax, name in zip(axes[0], shown, strict=True):
         look = ax.scatter(
             ds["x_um"].values / 1e3,
@@ -104,10 +111,10 @@ def plot_maps(ds: xr.Dataset, path: Optional[Path] = None) -> Any:
             linewidths=0,
         )
         ax.set_aspect("equal")
-        ax.set_title(MAPS[name], fontsize=9)
+        ax.set_title(TITLES[name], fontsize=10)
         ax.set_xlabel("x [mm]")
         ax.set_ylabel("y [mm]")
-    fig.colorbar(look, ax=axes[0].tolist(), label="height [nm]", shrink=0.8)
+    fig.colorbar(look, ax=axes[0].tolist(), label="form error [nm], one scale for all", shrink=0.85)
     if path is not None:
         from ftsweep.store.io import save_figure
 
@@ -140,6 +147,33 @@ def plot_terms(ds: xr.Dataset, path: Optional[Path] = None, largest: int = 12) -
     ax.axhline(0.0, color="0.5", lw=0.6)
     ax.legend(fontsize=8)
     fig.tight_layout()
+    if path is not None:
+        from ftsweep.store.io import save_figure
+
+        save_figure(fig, path)
+    return fig
+
+
+def plot_trade(found: xr.Dataset, path: Optional[Path] = None) -> Any:
+    """The correction's trade (:func:`ftsweep.tools.correct.trade`): the predicted residual RMS
+    [nm] over the gain, one line per low-pass, against the uncorrected one; saved when given."""
+    import matplotlib
+
+    if path is not None:
+        matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    rms = found["residual_rms_nm"]
+    fig, ax = plt.subplots(figsize=(6.0, 4.0), layout="constrained")
+    gains = np.atleast_1d(rms["correction_gain"].values)
+    for kept in np.atleast_1d(rms["correction_terms"].values):
+        line = rms.sel(correction_terms=kept) if "correction_terms" in rms.dims else rms
+        ax.plot(gains, np.atleast_1d(line.values), "o-", label=f"{int(kept)} terms kept")
+    ax.axhline(found.attrs["uncorrected_rms_nm"], color="0.4", ls="--", label="uncorrected")
+    ax.set_xlabel("gain g [-]")
+    ax.set_ylabel("predicted residual RMS [nm]")
+    ax.set_yscale("log")
+    ax.legend(fontsize=8)
     if path is not None:
         from ftsweep.store.io import save_figure
 

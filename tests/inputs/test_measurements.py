@@ -133,3 +133,67 @@ def test_only_the_first_line_of_values_may_be_a_header(tmp_path):
     path.write_text("# units: um\nx,y,z\nx,y,z\n1,2,3\n")
     with pytest.raises(MeasurementError, match="line 3: 'x y z' are not three numbers"):
         read_measurement(path)
+
+
+def _datx(
+    path: Path, z: np.ndarray, unit: str, pixel_m: float, no_data: float = 1e38, place: str = "Mx"
+) -> Path:
+    """A .datx as Zygo's software lays it out: the surface under Data/Surface/<name> (Mx) or
+    Measurement/Surface (NX2), its unit, no-data value and X/Y converters (compound records
+    whose third field holds the lateral resolution [m] as its second value)."""
+    h5py = pytest.importorskip("h5py")
+    text = h5py.string_dtype()
+    converter = np.dtype(
+        [("Category", text), ("BaseUnit", text), ("Parameters", h5py.vlen_dtype(np.float64))]
+    )
+    with h5py.File(path, "w") as f:
+        name = "Data/Surface/{00000000-0000}" if place == "Mx" else "Measurement/Surface"
+        surface = f.create_dataset(name, data=z)
+        for axis in ("X", "Y"):
+            record = np.empty(1, dtype=converter)
+            record[0] = ("LateralCat", "Pixels", np.array([0.0, pixel_m, 0.0, 0.0]))
+            surface.attrs[f"{axis} Converter"] = record
+        surface.attrs["Unit"] = np.array([unit], dtype=text)
+        surface.attrs["No Data"] = np.array([no_data])
+        surface.attrs["Wavelength"] = np.array([632.8e-9])
+        surface.attrs["Interferometric Scale Factor"] = np.array([0.5])
+        surface.attrs["Obliquity Factor"] = np.array([1.0])
+    return path
+
+
+@pytest.mark.parametrize("place", ["Mx", "NX2"])
+def test_a_datx_map_reads_in_micrometres_with_its_no_data_pixels_missing(tmp_path, place):
+    z = np.arange(12, dtype=float).reshape(3, 4) * 10.0  # nm; row 0 is the image's top
+    z[0, 0] = 1e38
+    m = read_measurement(_datx(tmp_path / "part.datx", z, "NanoMeters", 5e-6, place=place))
+    assert m.x.shape == (3, 4) and np.allclose(np.diff(m.x[0]), 5.0) and np.allclose(np.diff(m.y[:, 0]), 5.0)
+    assert np.isnan(m.z[-1, 0]) and m.z[0, 0] == pytest.approx(0.08)  # flipped: y up the rows
+    assert np.isfinite(m.z).sum() == 11 and "NanoMeters" in m.units
+
+
+def test_a_datx_in_fringes_is_scaled_by_its_wavelength_and_factors(tmp_path):
+    m = read_measurement(_datx(tmp_path / "f.datx", np.full((2, 2), 0.1), "Fringes", 1e-5))
+    assert np.allclose(m.z, 0.1 * 632.8e-3 * 0.5)  # µm
+
+
+def test_a_datx_without_lateral_calibration_needs_the_pixel(tmp_path):
+    path = _datx(tmp_path / "nocal.datx", np.zeros((2, 2)), "MicroMeters", 0.0)
+    with pytest.raises(MeasurementError, match="no lateral resolution: give --pixel-um"):
+        read_measurement(path)
+    assert np.allclose(np.diff(read_measurement(path, pixel_um=2.0).x[0]), 2.0)
+
+
+def test_a_hostile_datx_is_refused(tmp_path):
+    h5py = pytest.importorskip("h5py")
+    outside = _datx(tmp_path / "elsewhere.datx", np.zeros((2, 2)), "MicroMeters", 1e-6)
+    linked = tmp_path / "linked.datx"
+    with h5py.File(linked, "w") as f:
+        f["Measurement/Surface"] = h5py.ExternalLink(str(outside), "/Data/Surface/{00000000-0000}")
+    with pytest.raises(MeasurementError, match="linked inside the file"):
+        read_measurement(linked)
+    (tmp_path / "text.datx").write_text("not HDF5")
+    with pytest.raises(MeasurementError, match="not an HDF5 .datx file"):
+        read_measurement(tmp_path / "text.datx")
+    odd = _datx(tmp_path / "odd.datx", np.zeros((2, 2)), "Furlongs", 1e-6)
+    with pytest.raises(MeasurementError, match="height unit 'Furlongs'"):
+        read_measurement(odd)

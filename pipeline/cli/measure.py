@@ -164,7 +164,17 @@ def measure_lines(s: dict[str, Any]) -> list[str]:
     lines.append(f"form error   P-V {s['pv_nm']:.1f} nm, RMS {s['rms_nm']:.1f} nm")
     largest = sorted(s["breakdown"], key=lambda t: -abs(t["nm"]))[:5]
     lines += [f"  {t['term']:<16s} {t['nm']: .1f} nm" for t in largest]
+    for name, share in s.get("alike", {}).items():
+        if share > ALIKE_WARNING:
+            lines.append(
+                f"warning      {name} is {100 * share:.0f} % a low-order form error on this design: "
+                "the fit cannot tell them apart (fix it by a fiducial, or leave it out)"
+            )
     return lines
+
+
+# the share of a set-up term's column a low-order form error reproduces, above which it is said
+ALIKE_WARNING = 0.9
 
 
 def explain_lines(s: dict[str, Any]) -> list[str]:

@@ -26,6 +26,7 @@ from ftsweep.stages.measurement import (
     register,
     registered_like,
     term_name,
+    zernike_basis,
     zernike_fit,
 )
 
@@ -77,8 +78,47 @@ def measure_part(
         "pv_nm": _pv_nm(rest),
         "rms_nm": 1e3 * float(np.nanstd(rest)),
         "breakdown": breakdown(aperture, measured.x, measured.y, rest, terms),
+        "alike": alike(design, aperture, measured.x, measured.y, np.isfinite(rest), tuple(fit.terms)),
     }
     return MeasuredPart(measured, fit, found)
+
+
+def alike(
+    design: Any, aperture: Any, x: np.ndarray, y: np.ndarray, use: np.ndarray, names: tuple[str, ...]
+) -> dict[str, float]:
+    """How much each fitted term beyond piston and tilt looks like a low-order form error:
+    the share of its column's variance (∂z/∂term of eq. 1 of
+    :mod:`ftsweep.stages.measurement.registration`, at the design) that the breakdown's first
+    15 Zernike terms, or Chebyshev products of degree ≤ 4, reproduce. Near 1, the fit cannot
+    tell that term from a form error of the same shape: a fitted decentre of a smooth
+    freeform may be the machine's error, and the correction then leaves that part in."""
+    px, py = x[use], y[use]
+    _, fx, fy = design(px, py)
+    columns = {
+        "decentre_x_um": -fx,
+        "decentre_y_um": -fy,
+        "rotation_rad": fx * py - fy * px,
+        "power_per_um": px * px + py * py,
+    }
+    if aperture.shape == "circle":
+        basis = zernike_basis(px, py, aperture.radius_um, 15)
+    else:
+        from numpy.polynomial import chebyshev
+
+        u, v = 2 * px / aperture.width_um, 2 * py / aperture.height_um
+        basis = chebyshev.chebvander2d(u, v, [4, 4])
+    found = {}
+    for name in names:
+        if name not in columns:
+            continue
+        col = columns[name] - np.mean(columns[name])
+        total = float(col @ col)
+        if not total > 1e-24 * col.size:  # a term the design does not show: the fit refuses it
+            continue
+        coef, *_ = np.linalg.lstsq(basis, col, rcond=None)
+        left = col - basis @ coef
+        found[name] = 1.0 - float(left @ left) / total
+    return found
 
 
 def _pv_nm(heights_um: np.ndarray) -> float:

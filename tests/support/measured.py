@@ -59,13 +59,15 @@ def part(
     form: Field,
     *,
     rotation_rad: float = 0.0,
+    tilt: tuple[float, float] = (0.0, 0.0),
     noise_um: float = 0.001,
     dropout: float = 0.05,
     n: int = 81,
     seed: int = 3,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points (x, y, z) [µm] on an n × n grid over ±``half_um`` of ``surface`` mounted moved by
-    ``shift`` (dx, dy [µm], piston [µm]) and turned by ``rotation_rad``, plus ``form(x, y)``,
+    ``shift`` (dx, dy [µm], piston [µm]), turned by ``rotation_rad`` and tilted by ``tilt``
+    (µm/µm in x and y), as :mod:`ftsweep.stages.measurement.registration` models it, plus ``form(x, y)``,
     noise of ``noise_um`` RMS and a share ``dropout`` of missing points (NaN)."""
     design = catalogs.surface_callable(catalogs.entry("surfaces", surface))
     x, y = (a.ravel() for a in np.meshgrid(*(np.linspace(-half_um, half_um, n),) * 2))
@@ -73,7 +75,7 @@ def part(
     c, s = np.cos(rotation_rad), np.sin(rotation_rad)
     u, v = c * (x - dx) + s * (y - dy), -s * (x - dx) + c * (y - dy)
     rng = np.random.default_rng(seed)
-    z = design(u, v)[0] + piston + form(x, y) + rng.normal(0, noise_um, x.size)
+    z = design(u, v)[0] + piston + tilt[0] * x + tilt[1] * y + form(x, y) + rng.normal(0, noise_um, x.size)
     z[rng.random(x.size) < dropout] = np.nan
     return x, y, z
 

@@ -216,3 +216,45 @@ def prediction_of(
         update={"resolution": found.resolution.model_copy(update={"error_map_bins": bins})}
     )
     return found.surface, run_case(found, specs=specs)
+
+
+def gridded(measured: Measurement) -> tuple[np.ndarray, tuple[float, float], tuple[float, float]]:
+    """A measurement's heights on its regular grid: (z [µm] of shape (ny, nx), (dx, dy),
+    (x0, y0) [µm] of element [0, 0]); a map is one already, a point cloud must be one (every
+    x of a set of evenly spaced columns with every y of a set of evenly spaced rows, in any
+    order). A ValueError says where a point cloud is not."""
+    x, y, z = (np.asarray(a, dtype=float).ravel() for a in (measured.x, measured.y, measured.z))
+    xs, ys = np.unique(x), np.unique(y)
+    if xs.size < 4 or ys.size < 4 or xs.size * ys.size != x.size:
+        raise ValueError(
+            f"the {x.size:,} points are no regular grid ({xs.size:,} distinct x by {ys.size:,} distinct y)"
+        )
+    steps = (np.diff(xs), np.diff(ys))
+    for axis, step in zip("xy", steps, strict=True):
+        if np.ptp(step) > 1e-6 * np.mean(step):
+            raise ValueError(
+                f"the points' {axis} values are not evenly spaced ({step.min():g} to {step.max():g} µm)"
+            )
+    grid = np.full((ys.size, xs.size), np.nan)
+    grid[np.searchsorted(ys, y), np.searchsorted(xs, x)] = z
+    return grid, (float(np.mean(steps[0])), float(np.mean(steps[1]))), (float(xs[0]), float(ys[0]))
+
+
+def as_height_map(measured: Measurement, folder: Path, name: str, like: Any) -> dict[str, Any]:
+    """A measured (or measured-and-corrected) surface as a catalog design: its grid
+    (:func:`gridded`) saved as ``folder/name.npy`` and the ``height_map`` entry that reads it
+    (aperture and layout those of catalog entry ``like``), for planning a cut to a measured
+    master as to any design. Missing heights are refused: a design is defined everywhere."""
+    grid, spacing, origin = gridded(measured)
+    if not np.isfinite(grid).all():
+        raise ValueError(
+            f"{int((~np.isfinite(grid)).sum()):,} heights are missing: a design is defined everywhere"
+        )
+    np.save(Path(folder) / f"{name}.npy", grid)
+    return {
+        "description": f"Measured surface {measured.sha256[:12]} as a height map.",
+        "family": "height_map",
+        "layout": like.layout,
+        "aperture": like.aperture.model_dump(mode="json"),
+        "params": {"path": f"{name}.npy", "spacing_um": list(spacing), "origin_um": list(origin)},
+    }

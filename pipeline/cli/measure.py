@@ -180,8 +180,9 @@ ALIKE_WARNING = 0.9
 def explain_lines(s: dict[str, Any]) -> list[str]:
     """What the prediction explains, as lines: the share, both RMS, the largest terms left."""
     lines = [
-        f"explained    {100 * s['explained_share']:.0f} % of the form error's variance "
-        f"(RMS {s['explained_rms_nm']:.1f} nm predicted)",
+        f"explained    {100 * s['explained_share']:.0f} % of the form error's variance by the prediction "
+        f"(RMS {s['explained_rms_nm']:.1f} nm), {100 * s['unexplained_share']:.0f} % left, "
+        f"{100 * (1 - s['explained_share'] - s['unexplained_share']):.0f} % their covariance",
         f"unexplained  P-V {s['unexplained_pv_nm']:.1f} nm, RMS {s['unexplained_rms_nm']:.1f} nm "
         "(the machine's share)",
     ]

@@ -164,7 +164,8 @@ def explain(
     """How much of ``part``'s form error the prediction ``record`` (the case that cut it, run
     with an error map) explains: the predicted error at the measured points, registered as the
     measurement was (:func:`ftsweep.stages.measurement.registered_like`), and the rest. The
-    share is the part of the form error's variance the prediction takes away."""
+    form error's variance is the prediction's, the rest's and twice their covariance: the
+    shares are the first two over it (the third, 1 less both, is what the two share)."""
     spec = catalogs.entry("surfaces", part.summary["surface"], catalog_folder)
     design, aperture = catalogs.surface_callable(spec, catalog_folder), catalogs.aperture_of(spec)
     m = part.measurement
@@ -176,7 +177,8 @@ def explain(
         "explained_rms_nm": 1e3 * float(np.nanstd(said)),
         "unexplained_rms_nm": 1e3 * float(np.nanstd(left)),
         "unexplained_pv_nm": _pv_nm(left),
-        "explained_share": 1.0 - float(np.var(left[both])) / total if total > 0 else 0.0,
+        "explained_share": float(np.var(said[both])) / total if total > 0 else 0.0,
+        "unexplained_share": float(np.var(left[both])) / total if total > 0 else 0.0,
         "points": int(both.sum()),
         "explained_terms": breakdown(aperture, m.x, m.y, said, terms),
         "unexplained_terms": breakdown(aperture, m.x, m.y, left, terms),
@@ -205,7 +207,8 @@ def prediction_of(
             raise ValueError("a program's prediction needs the surface it was cut to (--surface)")
         from ftsweep.exports import nc
 
-        return surface, nc.predict_program(Path(program), surface, machine, cutting, map_bins=bins)
+        info = nc.predict_program(Path(program), surface, machine, cutting, map_bins=bins)
+        return surface, info["record"]
     from ftsweep.simulate import run_case
     from ftsweep.tools.query import find_case
     from ftsweep.tools.select import open_cube, recorded_case

@@ -19,6 +19,12 @@ from ftsweep.cli.measure import registration_options
 @click.argument("measurement", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--cube", type=CUBE, required=True, help="The cube whose case cut the part.")
 @click.option("--case", "case_name", required=True, help="That case: its coordinates or number.")
+@click.option(
+    "--plan-case",
+    default=None,
+    help="Plan the corrected cut as this case of the cube instead (a finer layout, say): the "
+    "machine's error is the same. Default: the case that cut the part.",
+)
 @registration_options
 @click.option(
     "--gain",
@@ -92,6 +98,7 @@ def correct(measurement: Path, **opts: Any) -> None:
         terms,
         bins=opts["bins"],
         workers=opts["workers"],
+        plan_case=opts["plan_case"],
     )
     found = trade(open_cube(out), part, split)
     _trade_written(found, folder)

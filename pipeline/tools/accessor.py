@@ -239,11 +239,14 @@ class FtsweepAccessor:
 
     def terms(self) -> Any:
         """A registered measurement's breakdown as a table [nm], one row per term: measured,
-        explained by the prediction and unexplained (where given)."""
+        explained by the prediction and unexplained (where given, all three over the points
+        the prediction covers, so the first is the sum of the other two)."""
         import pandas as pd
 
         summary = self.measured()
-        table = pd.DataFrame(summary["breakdown"]).set_index("term").rename(columns={"nm": "measured_nm"})
+        # where a prediction was given, every column over the points where it is defined
+        rows = summary.get("explained", {}).get("form_error_terms") or summary["breakdown"]
+        table = pd.DataFrame(rows).set_index("term").rename(columns={"nm": "measured_nm"})
         for key in ("explained", "unexplained"):
             rows = summary.get("explained", {}).get(f"{key}_terms")
             if rows:

@@ -184,19 +184,22 @@ def correction_sweep(
     bins: int = 32,
     workers: Optional[int] = None,
     scheduler: Optional[str] = None,
+    plan_case: Optional[str] = None,
 ) -> Path:
     """Sweep case ``case_name`` of cube ``cube_path`` (the one that cut ``part``) on its
     corrected surface over ``gains`` × ``terms`` into ``folder/corrected.zarr``, with the
     catalog copy it plans on in ``folder/catalogs`` and its spec in ``folder/corrected.yaml``
     (:func:`ftsweep.sweeps.run.run_sweep` on a local cluster of ``workers`` or ``scheduler``).
-    The correction block takes the first gain and terms; each case sets its own."""
+    The correction block takes the first gain and terms; each case sets its own. ``plan_case``
+    (another case of the cube, e.g. a finer layout) plans the corrected cut instead: the
+    machine's error is the machine's, whatever the layout that showed it."""
     from ftsweep.sweeps.run import run_sweep
     from ftsweep.sweeps.spec import LoadedSweep, SweepSpec
     from ftsweep.tools.query import coordinates_of, find_case
     from ftsweep.tools.select import open_cube, recorded_case
 
     ds = open_cube(cube_path)
-    flat = find_case(ds, case_name)
+    flat = find_case(ds, plan_case or case_name)
     case, specs = recorded_case(ds, flat)
     aperture = catalogs.aperture_of(specs.surface)
     correction = measured_correction(part, split, aperture, float(gains[0]), int(terms[0]))

@@ -173,6 +173,9 @@ def explain(
     left = part.registration.residual - said
     both = np.isfinite(left)
     total = float(np.var(part.registration.residual[both]))
+    # the three breakdowns over the same points (the prediction's map ends half a bin inside
+    # the aperture): linear fits, so the form error's terms are the other two's sums
+    shared = np.where(both, part.registration.residual, np.nan)
     found = {
         "explained_rms_nm": 1e3 * float(np.nanstd(said)),
         "unexplained_rms_nm": 1e3 * float(np.nanstd(left)),
@@ -180,6 +183,7 @@ def explain(
         "explained_share": float(np.var(said[both])) / total if total > 0 else 0.0,
         "unexplained_share": float(np.var(left[both])) / total if total > 0 else 0.0,
         "points": int(both.sum()),
+        "form_error_terms": breakdown(aperture, m.x, m.y, shared, terms),
         "explained_terms": breakdown(aperture, m.x, m.y, said, terms),
         "unexplained_terms": breakdown(aperture, m.x, m.y, left, terms),
     }
@@ -247,7 +251,8 @@ def as_height_map(measured: Measurement, folder: Path, name: str, like: Any) -> 
     """A measured (or measured-and-corrected) surface as a catalog design: its grid
     (:func:`gridded`) saved as ``folder/name.npy`` and the ``height_map`` entry that reads it
     (aperture and layout those of catalog entry ``like``), for planning a cut to a measured
-    master as to any design. Missing heights are refused: a design is defined everywhere."""
+    master as to any design: tool paths from point-cloud data ([6]). Missing heights are
+    refused: a design is defined everywhere."""
     grid, spacing, origin = gridded(measured)
     if not np.isfinite(grid).all():
         raise ValueError(

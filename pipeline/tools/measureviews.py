@@ -131,8 +131,9 @@ def plot_terms(ds: xr.Dataset, path: Optional[Path] = None, largest: int = 12) -
         matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    measured = {t["term"]: t["nm"] for t in json.loads(str(ds.attrs["measured"]))["breakdown"]}
     split = json.loads(str(ds.attrs.get("explained", "{}")))
+    rows = split.get("form_error_terms") or json.loads(str(ds.attrs["measured"]))["breakdown"]
+    measured = {t["term"]: t["nm"] for t in rows}
     said = {t["term"]: t["nm"] for t in split.get("explained_terms", [])}
     left = {t["term"]: t["nm"] for t in split.get("unexplained_terms", [])}
     names = sorted(measured, key=lambda k: -abs(measured[k]))[:largest]

@@ -94,3 +94,65 @@ def predicted(record: dict[str, Any]) -> Field:
     from ftsweep.tools.measure import predicted_at
 
     return lambda x, y: np.nan_to_num(predicted_at(record, x, y))
+
+
+# the synthetic part shipped for the guide: what cut it, and the truth it was made with
+SHIPPED = "catalogs/data/zernike-part.csv"
+SHIPPED_CASE = ("zernike-ring", "points=2000 aspect=1")
+SHIPPED_SETUP = {"piston_um": 0.2, "tilt_x": 2e-5, "tilt_y": -1e-5}
+SHIPPED_NOTE = """A synthetic measured part for ftsweep's guide ("Corrective machining"), made by
+tests/support/measured.py (shipped_part): zernike_example cut by case points=2000 aspect=1
+of sweep zernike-ring, as ftsweep predicts it, on a machine that adds 6 nm of astigmatism
+(Z6), a 15 nm thermal ramp over the facing cut, a nose 30 um larger than compensated for and
+0.5 nm of 3-per-revolution axial spindle error motion; set up with 0.2 um of piston and tilts
+of 2e-5 and -1e-5; 0.3 nm RMS noise, 5 % of the points missing; 51 x 51 points over 2 mm."""
+
+
+def shipped_machine() -> Field:
+    """The machine's error the shipped part was cut with [µm]."""
+    from ftsweep.stages.measurement import zernike_basis
+
+    return summed(
+        lambda x, y: 0.006 * zernike_basis(x, y, 1000.0, 6)[:, 5],
+        thermal(0.015, 1000.0),
+        tool_radius("zernike_example", 30.0),
+        spindle(0.0005, 3),
+    )
+
+
+def shipped_part(record: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The shipped part's points [µm], given the record of the case that cut it (with an error
+    map of 32 bins a side)."""
+    setup = SHIPPED_SETUP
+    return part(
+        "zernike_example",
+        1000.0,
+        (0.0, 0.0, setup["piston_um"]),
+        summed(predicted(record), shipped_machine()),
+        tilt=(setup["tilt_x"], setup["tilt_y"]),
+        noise_um=3e-4,
+        n=51,
+    )
+
+
+def shipped_record() -> dict[str, Any]:
+    """The prediction (32-bin error map) of the case that cut the shipped part, planned from
+    the catalog's sweep as its cube plans it."""
+    from ftsweep.simulate import run_case
+    from ftsweep.sweeps.spec import case_at, coordinates, load_sweep
+
+    name, text = SHIPPED_CASE
+    spec = load_sweep(name).spec
+    coords = coordinates(spec)
+    want = {k: float(v) for k, v in (pair.split("=") for pair in text.split())}
+    shape = tuple(v.size for v in coords.values())
+    flat = next(
+        f
+        for f in range(int(np.prod(shape)))
+        if all(
+            float(coords[k][i]) == want[k] for k, i in zip(coords, np.unravel_index(f, shape), strict=True)
+        )
+    )
+    case = case_at(spec, flat)
+    case = case.model_copy(update={"resolution": case.resolution.model_copy(update={"error_map_bins": 32})})
+    return run_case(case)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from support import measured as ms
 
 from ftsweep.engine.case import Case, program_request
 from ftsweep.inputs import catalogs
@@ -28,7 +29,6 @@ from ftsweep.simulate import run_case
 from ftsweep.stages.measurement import register, registered_like
 from ftsweep.tools.correct import correct
 from ftsweep.tools.measure import explain, measure_part
-from support import measured as ms
 
 NOISE_UM = 3e-4  # an interferometer's repeatability, 0.3 nm RMS
 

@@ -13,6 +13,8 @@ import shutil
 import numpy as np
 import pytest
 import yaml
+from support import measured as ms
+from support.places import REPO
 
 from ftsweep.engine.case import Case, program_request
 from ftsweep.engine.planning import control_table
@@ -20,8 +22,6 @@ from ftsweep.inputs import catalogs
 from ftsweep.inputs.measurements import read_measurement
 from ftsweep.simulate import resolve_case
 from ftsweep.tools.measure import as_height_map, gridded
-from support import measured as ms
-from support.places import REPO
 
 TOLERANCE_UM = 1e-3  # the anchor's 1 nm
 

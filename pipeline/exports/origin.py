@@ -229,7 +229,8 @@ def measured_by(meta: dict[str, Any], case: dict[str, Any]) -> dict[str, Any]:
     digest = block.get("measurement_sha256")
     if not (isinstance(digest, str) and re.fullmatch(r"[0-9a-f]{64}", digest)):
         raise ExportError("the sidecar's measured correction names no SHA-256 of its measurement")
-    fit = block.get("fit") if isinstance(block.get("fit"), dict) else {}
+    raw = block.get("fit")
+    fit: dict[Any, Any] = raw if isinstance(raw, dict) else {}
     gain = _number(case.get("correction_gain") or block.get("gain"))
     terms = _number(case.get("correction_terms") or block.get("terms"))
     if gain is None or terms is None:

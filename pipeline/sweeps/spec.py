@@ -251,10 +251,12 @@ class SweepSpec(Strict):
         if not applies or (gains is None and terms is None):
             return self
         surface = catalogs.entry("surfaces", self.surface, folder)
+        given_gains = [float(g) for g in axis_values(gains)] if gains is not None else [None]
+        given_terms: list[Optional[int]] = list(terms) if terms is not None else [None]
         try:
-            for gain in axis_values(gains) if gains is not None else [None]:
-                for kept in terms or [None]:
-                    corrections.as_cased(surface, None if gain is None else float(gain), kept)
+            for gain in given_gains:
+                for kept in given_terms:
+                    corrections.as_cased(surface, gain, kept)
         except ValueError as exc:
             raise ValueError(f"axes.correction_*: surface {self.surface}: {exc}") from None
         return self

@@ -70,9 +70,10 @@ def open_registered(path: Path) -> xr.Dataset:
         raise ValueError(f"{path}: not a registered measurement ({str(exc)[:200]})") from None
     if ds.attrs.get("ftsweep_registered") != 1 or "form_error_nm" not in ds:
         raise ValueError(f"{path}: not a registered measurement ftsweep wrote (ftsweep measure -o)")
-    unknown = sorted(set(ds.data_vars) - set(MAPS))
+    unknown = sorted(str(v) for v in set(ds.data_vars) - set(MAPS))
     if unknown or set(ds.dims) != {"point"}:
-        raise ValueError(f"{path}: unexpected variables or dimensions ({unknown or sorted(ds.dims)})")
+        found = unknown or sorted(str(d) for d in ds.dims)
+        raise ValueError(f"{path}: unexpected variables or dimensions ({found})")
     for key in ("measured", "explained"):
         if key in ds.attrs:
             try:

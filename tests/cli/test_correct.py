@@ -17,6 +17,8 @@ from support import measured as ms
 from ftsweep.cli.main import main
 from ftsweep.stages.measurement import zernike_basis
 
+pytestmark = pytest.mark.integration  # local Dask clusters: sweeps of the cut and of its correction
+
 CASE = "points=2000 aspect=4"
 
 

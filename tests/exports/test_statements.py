@@ -357,3 +357,25 @@ def test_a_new_private_key_is_kept_out_of_git_by_default(tmp_path, monkeypatch, 
     res = cli(["keys", "new"], module_catalog_dir)
     assert res.exit_code == 0, res.output
     assert (tmp_path / "config" / "ftsweep" / "keys" / "ftsweep-signing.key").is_file()
+
+
+def test_a_corrected_files_statement_names_its_measurement_and_a_forged_one_is_refused():
+    """A file planned on a measured correction states the measurement's SHA-256, the gain and
+    terms its case used and the fit; read from an untrusted sidecar, a digest that is not 64
+    hex digits is refused and only numbers are taken."""
+    from ftsweep.errors import ExportError
+    from ftsweep.exports.origin import measured_by
+
+    block = {
+        "measurement_sha256": "ab" * 32,
+        "gain": 0.5,
+        "terms": 10,
+        "fit": {"piston_um": 0.1, "x": "text"},
+    }
+    meta = {"catalog_entries": {"surface": {"family": "zernike", "correction": block}}}
+    found = measured_by(meta, {"correction_gain": 1.0})["measurement"]
+    assert found == {"sha256": "ab" * 32, "gain": 1.0, "terms": 10.0, "fit": {"piston_um": 0.1, "x": None}}
+    assert measured_by({"catalog_entries": {"surface": {"family": "sphere"}}}, {}) == {}
+    forged = {"catalog_entries": {"surface": {"correction": {**block, "measurement_sha256": "../../etc"}}}}
+    with pytest.raises(ExportError, match="names no SHA-256"):
+        measured_by(forged, {})

@@ -175,3 +175,31 @@ def test_a_sphere_cut_with_a_machine_error_is_corrected_over_its_square(tmp_path
     print("sphere: residual before", s["residual_before_rms_nm"], "nm RMS, after", s["residual_after_rms_nm"])
     assert s["residual_before_rms_nm"] > 10.0
     assert s["residual_after_rms_nm"] <= 0.1 * s["residual_before_rms_nm"]
+
+
+def test_a_registered_measurement_reads_back_checked_and_a_forged_one_is_refused(tmp_path):
+    import json
+
+    import xarray as xr
+
+    from ftsweep.tools.measureviews import open_registered, registered_dataset
+
+    path = _cloud(tmp_path / "ff.csv", "zernike_example", 1000.0, (0.0, 0.0, 0.0), lambda x, y: 0 * x, n=21)
+    part = measure_part(path, "zernike_example")
+    good = tmp_path / "good.nc"
+    registered_dataset(part).to_netcdf(good)
+    ds = open_registered(good)
+    assert json.loads(ds.attrs["measured"])["sha256"] == part.summary["sha256"]
+    assert np.allclose(ds["form_error_nm"].values, 1e3 * part.registration.residual, equal_nan=True)
+    forged = registered_dataset(part).assign(script=("point", np.zeros(ds.sizes["point"])))
+    forged.to_netcdf(tmp_path / "extra.nc")
+    with pytest.raises(ValueError, match="unexpected variables"):
+        open_registered(tmp_path / "extra.nc")
+    bad = registered_dataset(part)
+    bad.attrs["measured"] = "__import__('os')"
+    bad.to_netcdf(tmp_path / "attr.nc")
+    with pytest.raises(ValueError, match="attribute measured is not JSON"):
+        open_registered(tmp_path / "attr.nc")
+    xr.Dataset({"z": ("point", np.zeros(3))}).to_netcdf(tmp_path / "other.nc")
+    with pytest.raises(ValueError, match="not a registered measurement ftsweep wrote"):
+        open_registered(tmp_path / "other.nc")

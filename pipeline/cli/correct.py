@@ -82,10 +82,15 @@ def correct(measurement: Path, **opts: Any) -> None:
     from ftsweep.tools.select import open_cube
 
     gains, terms = list(opts["gains"]) or [1.0], list(opts["kept"]) or [15]
+    folder: Path = opts["folder"]
+    taken = [name for name in ("catalogs", "corrected.zarr") if (folder / name).exists()]
+    if taken:
+        raise click.ClickException(
+            f"{folder} already holds a correction ({', '.join(taken)}): give another --folder, or remove it"
+        )
     surface, record = prediction_of(cube=opts["cube"], case=opts["case_name"], bins=opts["bins"])
     part = _measured(measurement, surface, opts)
     split = explain(part, record)
-    folder: Path = opts["folder"]
     folder.mkdir(parents=True, exist_ok=True)
     _written(part, split, folder / "registered.nc", folder)
     out = correction_sweep(
@@ -153,20 +158,18 @@ def _export(
 ) -> str:
     """Export (and sign) the best corrected case of the correction cube, named by its coordinates."""
     from ftsweep.tools.export import export
-    from ftsweep.tools.query import coordinates_of, find_case
+    from ftsweep.tools.query import coordinates_of
     from ftsweep.tools.select import open_cube
 
     ds = open_cube(cube)
-    names = [
-        flat
-        for flat in range(int(ds["status"].size))
-        if coordinates_of(ds, flat)["correction_gain"] == best["correction_gain"]
-        and coordinates_of(ds, flat)["correction_terms"] == best["correction_terms"]
-    ]
-    index = str(int(ds["case_number"].values.ravel()[names[0]]))
-    assert find_case(ds, index) == names[0]
-    export(cube, out, index=index, sign_key=sign_key, expires=expires)
-    return str(out)
+    wanted = (best["correction_gain"], best["correction_terms"])
+    for flat in range(int(ds["status"].size)):
+        at = coordinates_of(ds, flat)
+        if (at["correction_gain"], at["correction_terms"]) == wanted:
+            named = " ".join(f"{axis}={value}" for axis, value in at.items())
+            export(cube, out, index=named, sign_key=sign_key, expires=expires)
+            return str(out)
+    raise click.ClickException(f"the cube {cube} has no case of gain {wanted[0]:g} and {wanted[1]} terms")
 
 
 def correct_lines(s: dict[str, Any]) -> list[str]:

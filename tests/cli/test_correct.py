@@ -122,3 +122,13 @@ def test_correct_sweeps_the_trade_exports_the_best_and_verify_names_the_measurem
     block = sidecar["catalog_entries"]["surface"]["correction"]
     assert block["measurement_sha256"] == sha and "piston_um" in block["fit"]
     assert os.access(header, os.R_OK)
+
+
+def test_correct_refuses_a_folder_that_holds_a_correction_before_any_work(tmp_path, cut):
+    _, cube, part = cut
+    (tmp_path / "fix" / "catalogs").mkdir(parents=True)
+    res = CliRunner().invoke(
+        main, ["correct", str(part), "--cube", str(cube), "--case", CASE, "--folder", str(tmp_path / "fix")]
+    )
+    assert res.exit_code == 1 and "already holds a correction (catalogs)" in res.output
+    assert sorted(p.name for p in (tmp_path / "fix").iterdir()) == ["catalogs"]

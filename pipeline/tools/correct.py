@@ -32,7 +32,7 @@ from ftsweep.inputs import catalogs
 from ftsweep.inputs.case_entries import Entries
 from ftsweep.inputs.corrections import MeasuredCorrection, low_pass_callable
 from ftsweep.stages.measurement import chebyshev_fit, registered_like, zernike_fit
-from ftsweep.tools.measure import Explained, MeasuredPart, predicted_at
+from ftsweep.tools.measure import Explained, MeasuredPart, predicted_at, pv_nm, rms_nm
 
 # the unexplained error's breakdown a correction keeps: every Zernike term to radial order 7
 # (Noll 36), every Chebyshev product to degree 4 a side; the low-pass N chooses among them
@@ -143,10 +143,10 @@ def _summary(part: MeasuredPart, correction: Any, before: np.ndarray, after: np.
         "gain": correction.gain,
         "filter_terms": correction.terms,
         "measurement_sha256": part.summary["sha256"],
-        "residual_before_rms_nm": 1e3 * float(np.nanstd(before)),
-        "residual_after_rms_nm": 1e3 * float(np.nanstd(after)),
-        "residual_before_pv_nm": 1e3 * float(np.nanmax(before) - np.nanmin(before)),
-        "residual_after_pv_nm": 1e3 * float(np.nanmax(after) - np.nanmin(after)),
+        "residual_before_rms_nm": rms_nm(before),
+        "residual_after_rms_nm": rms_nm(after),
+        "residual_before_pv_nm": pv_nm(before),
+        "residual_after_pv_nm": pv_nm(after),
     }
 
 
@@ -231,11 +231,13 @@ def trade(ds: Any, part: MeasuredPart, split: Explained) -> Any:
         raise ValueError("the cube has no error maps: sweep the correction with resolution.error_map_bins")
     shape = ds["status"].shape
     rms, pv = np.full(shape, np.nan), np.full(shape, np.nan)
-    status = ds["status"].values
-    for flat in np.flatnonzero(status.ravel() == cube.DONE):
+    done = np.flatnonzero(ds["status"].values.ravel() == cube.DONE)
+    design: Any = None  # one for every case: the cube records one surface, its cases their gain and terms
+    for flat in done:
         case, specs = recorded_case(ds, int(flat))
         entry = cased_surface(case, specs.surface)
-        design = catalogs.surface_callable(entry.model_copy(update={"correction": None}))
+        if design is None:
+            design = catalogs.surface_callable(entry.model_copy(update={"correction": None}))
         at = position(ds, int(flat))
         after = {
             "error_map_x_um": ds["map_x"].values,
@@ -243,7 +245,7 @@ def trade(ds: Any, part: MeasuredPart, split: Explained) -> Any:
         }
         r = residual(part, split, design, entry.correction, catalogs.aperture_of(entry), after)
         index = np.unravel_index(int(flat), shape)
-        rms[index], pv[index] = 1e3 * float(np.nanstd(r)), 1e3 * float(np.nanmax(r) - np.nanmin(r))
+        rms[index], pv[index] = rms_nm(r), pv_nm(r)
     dims = ds["status"].dims
     found = xr.Dataset(
         {
@@ -255,7 +257,7 @@ def trade(ds: Any, part: MeasuredPart, split: Explained) -> Any:
     before = split.explained + split.unexplained
     found.attrs.update(
         measurement_sha256=part.summary["sha256"],
-        uncorrected_rms_nm=1e3 * float(np.nanstd(before)),
-        uncorrected_pv_nm=1e3 * float(np.nanmax(before) - np.nanmin(before)),
+        uncorrected_rms_nm=rms_nm(before),
+        uncorrected_pv_nm=pv_nm(before),
     )
     return found.squeeze([d for d in dims if found.sizes[d] == 1], drop=False)

@@ -75,8 +75,8 @@ def measure_part(
         "points": fit.points,
         "terms": fit.terms,
         "sigma": fit.sigma,
-        "pv_nm": _pv_nm(rest),
-        "rms_nm": 1e3 * float(np.nanstd(rest)),
+        "pv_nm": pv_nm(rest),
+        "rms_nm": rms_nm(rest),
         "breakdown": breakdown(aperture, measured.x, measured.y, rest, terms),
         "alike": alike(design, aperture, measured.x, measured.y, np.isfinite(rest), tuple(fit.terms)),
     }
@@ -121,8 +121,14 @@ def alike(
     return found
 
 
-def _pv_nm(heights_um: np.ndarray) -> float:
+def pv_nm(heights_um: np.ndarray) -> float:
+    """P-V [nm] of heights [µm], missing ones left out."""
     return 1e3 * float(np.nanmax(heights_um) - np.nanmin(heights_um))
+
+
+def rms_nm(heights_um: np.ndarray) -> float:
+    """RMS about the mean [nm] of heights [µm], missing ones left out."""
+    return 1e3 * float(np.nanstd(heights_um))
 
 
 def breakdown(aperture: Any, x: np.ndarray, y: np.ndarray, z: np.ndarray, terms: int) -> list[dict[str, Any]]:
@@ -177,9 +183,9 @@ def explain(
     # the aperture): linear fits, so the form error's terms are the other two's sums
     shared = np.where(both, part.registration.residual, np.nan)
     found = {
-        "explained_rms_nm": 1e3 * float(np.nanstd(said)),
-        "unexplained_rms_nm": 1e3 * float(np.nanstd(left)),
-        "unexplained_pv_nm": _pv_nm(left),
+        "explained_rms_nm": rms_nm(said),
+        "unexplained_rms_nm": rms_nm(left),
+        "unexplained_pv_nm": pv_nm(left),
         "explained_share": float(np.var(said[both])) / total if total > 0 else 0.0,
         "unexplained_share": float(np.var(left[both])) / total if total > 0 else 0.0,
         "points": int(both.sum()),
